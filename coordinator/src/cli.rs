@@ -1,0 +1,361 @@
+//! The `cosim` command line: run, validate, info, replay, bench.
+
+use crate::{config, replay, run};
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+
+#[derive(Debug, Parser)]
+#[command(
+    name = "cosim",
+    version,
+    about = "Co-simulation coordinator for multiscale explicit dynamics"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub cmd: Cmd,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Cmd {
+    /// Validate a case, launch its nodes, run it to the end and record everything.
+    Run {
+        case: PathBuf,
+        /// Output directory (default: the case's run.output).
+        #[arg(long)]
+        output: Option<PathBuf>,
+        /// Run id (namespaces shared memory and topics; default: name-pid-time).
+        #[arg(long)]
+        run_id: Option<String>,
+        /// Override a node parameter: NODE.KEY=VALUE (repeatable).
+        #[arg(long = "set")]
+        sets: Vec<String>,
+        /// No progress bar.
+        #[arg(long, short)]
+        quiet: bool,
+    },
+    /// Check a case file without starting anything.
+    Validate { case: PathBuf },
+    /// Summarise a recording.
+    Info { recording: PathBuf },
+    /// Re-run one node alone against its recorded inputs and compare with its recorded outputs.
+    Replay {
+        recording: PathBuf,
+        #[arg(long)]
+        node: String,
+        /// Override a parameter of the node (KEY=VALUE, or model=NAME), repeatable.
+        #[arg(long = "set")]
+        sets: Vec<String>,
+        /// Relative drift of the interface motion that triggers a warning.
+        #[arg(long, default_value_t = 1e-6)]
+        tolerance: f64,
+        /// Write the per-window report as CSV here.
+        #[arg(long)]
+        report: Option<PathBuf>,
+    },
+    /// Benchmarks.
+    Bench {
+        #[command(subcommand)]
+        what: BenchCmd,
+    },
+    /// Internal: the echo side of `cosim bench transport` (configured by its environment).
+    #[command(hide = true)]
+    BenchEcho,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum BenchCmd {
+    /// Round trip of one window exchange (Advance → Fields → Done) per transport and size.
+    Transport {
+        /// Rounds per size (medians are taken over them, after a warm-up).
+        #[arg(long, default_value_t = 300)]
+        rounds: usize,
+        /// shm | zenoh | local | all
+        #[arg(long, default_value = "all")]
+        transport: String,
+        /// Payload sizes in bytes, comma-separated.
+        #[arg(long, value_delimiter = ',', default_values_t = protocol::transport::bench::DEFAULT_SIZES.to_vec())]
+        sizes: Vec<usize>,
+    },
+}
+
+/// Load a case and apply `node.key=value` overrides; errors are (key, reason).
+pub fn load_case(
+    path: &std::path::Path,
+    sets: &[String],
+) -> Result<config::Case, config::ConfigError> {
+    if sets.is_empty() {
+        return config::load(path);
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| config::ConfigError {
+        key: path.display().to_string(),
+        reason: format!("cannot read: {e}"),
+    })?;
+    let mut doc: toml::Table = toml::from_str(&text).map_err(|e| config::ConfigError {
+        key: path.display().to_string(),
+        reason: e.message().to_string(),
+    })?;
+    for s in sets {
+        let (node, rest) = s.split_once('.').ok_or_else(|| config::ConfigError {
+            key: format!("--set {s}"),
+            reason: "must be NODE.KEY=VALUE".into(),
+        })?;
+        let params = doc
+            .get_mut("nodes")
+            .and_then(|n| n.get_mut(node))
+            .and_then(|n| n.as_table_mut())
+            .ok_or_else(|| config::ConfigError {
+                key: format!("--set {s}"),
+                reason: format!("unknown node '{node}'"),
+            })?
+            .entry("params")
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        let t = params.as_table_mut().ok_or_else(|| config::ConfigError {
+            key: format!("nodes.{node}.params"),
+            reason: "--set needs inline params".into(),
+        })?;
+        config::apply_sets(t, &[rest.to_string()])?;
+    }
+    let text = toml::to_string(&doc).map_err(|e| config::ConfigError {
+        key: "--set".into(),
+        reason: e.to_string(),
+    })?;
+    config::parse(&text, path)
+}
+
+/// Run the command line; returns the exit code.
+pub fn main_with(cli: Cli) -> i32 {
+    match cli.cmd {
+        Cmd::Validate { case } => match config::load(&case) {
+            Ok(c) => {
+                let order = config::window_order(&c)
+                    .map(|o| o.join(" → "))
+                    .unwrap_or_default();
+                println!(
+                    "{}: ok — {} nodes, {} couplings, {} windows, order {}",
+                    case.display(),
+                    c.nodes.len(),
+                    c.couplings.len(),
+                    ((c.run.end_time / c.run.window) - 1e-9).ceil(),
+                    order
+                );
+                0
+            }
+            Err(e) => {
+                eprintln!("cosim: {}: {e}", case.display());
+                2
+            }
+        },
+        Cmd::Run {
+            case,
+            output,
+            run_id,
+            sets,
+            quiet,
+        } => {
+            let c = match load_case(&case, &sets) {
+                Ok(c) => c,
+                Err(e) => {
+                    eprintln!("cosim: {}: {e}", case.display());
+                    return 2;
+                }
+            };
+            if let Some(id) = &run_id {
+                if id.is_empty()
+                    || id.len() > 32
+                    || !id
+                        .chars()
+                        .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+                {
+                    eprintln!(
+                        "cosim: --run-id: must be 1–32 characters of [A-Za-z0-9_-], got '{id}'"
+                    );
+                    return 2;
+                }
+            }
+            let opts = run::RunOptions {
+                run_id,
+                output,
+                quiet,
+            };
+            match run::run(&c, &opts) {
+                Ok(Ok(o)) => {
+                    let b = &o.summary["balance"];
+                    println!(
+                        "cosim: {} finished: {} windows in {:.2} s; largest momentum imbalance {:.3e} of the applied impulse; output in {}",
+                        c.run.name,
+                        o.summary["windows"],
+                        o.summary["wall_s"].as_f64().unwrap_or(0.0),
+                        b["max_momentum_imbalance_relative"].as_f64().unwrap_or(0.0),
+                        o.output.display()
+                    );
+                    0
+                }
+                Ok(Err(f)) => {
+                    eprintln!("cosim: {f}");
+                    1
+                }
+                Err(e) => {
+                    eprintln!("cosim: {e:#}");
+                    1
+                }
+            }
+        }
+        Cmd::Info { recording } => match replay::info(&recording) {
+            Ok(s) => {
+                print!("{s}");
+                0
+            }
+            Err(e) => {
+                eprintln!("cosim: {e:#}");
+                1
+            }
+        },
+        Cmd::Replay {
+            recording,
+            node,
+            sets,
+            tolerance,
+            report,
+        } => match replay::replay(&recording, &node, &sets, tolerance) {
+            Ok(r) => {
+                print_replay(&r, &node, &sets, report.as_deref());
+                0
+            }
+            Err(e) => {
+                eprintln!("cosim replay: {e:#}");
+                1
+            }
+        },
+        Cmd::Bench {
+            what:
+                BenchCmd::Transport {
+                    rounds,
+                    transport,
+                    sizes,
+                },
+        } => bench_transport(rounds, &transport, &sizes),
+        Cmd::BenchEcho => bench_echo(),
+    }
+}
+
+fn print_replay(
+    r: &replay::ReplayReport,
+    node: &str,
+    sets: &[String],
+    csv: Option<&std::path::Path>,
+) {
+    use std::fmt::Write;
+    println!(
+        "replayed node '{node}' over {} windows ({} field comparisons){}",
+        r.windows,
+        r.fields_compared,
+        if sets.is_empty() {
+            String::new()
+        } else {
+            format!(" with {}", sets.join(", "))
+        }
+    );
+    if r.bit_identical {
+        println!("outputs are bit-identical to the recording");
+    } else {
+        // Per-window difference report: the largest difference over all fields of a window.
+        let mut per: std::collections::BTreeMap<u64, (f64, f64)> = Default::default();
+        for (k, _, _, d) in &r.rows {
+            let e = per.entry(*k).or_default();
+            e.0 = e.0.max(d.max_abs);
+            e.1 = e.1.max(d.max_rel);
+        }
+        let stride = (per.len() / 20).max(1);
+        println!(
+            "{:>8} {:>14} {:>14}",
+            "window", "max |diff|", "max rel diff"
+        );
+        for (i, (k, (a, rel))) in per.iter().enumerate() {
+            if i % stride == 0 || i + 1 == per.len() {
+                println!("{k:>8} {a:>14.4e} {rel:>14.4e}");
+            }
+        }
+    }
+    if let Some((k, f, d)) = &r.drift {
+        eprintln!(
+            "warning: replay is open-loop and the interface motion drifted: {f} differs by {d:.3e} (relative) at window {k}; recorded peer inputs no longer match this node's motion"
+        );
+    }
+    if let Some(p) = csv {
+        let mut s = String::from("window,coupling,field,max_abs,max_rel,identical\n");
+        for (k, c, f, d) in &r.rows {
+            let _ = writeln!(
+                s,
+                "{k},{c},{f},{:e},{:e},{}",
+                d.max_abs, d.max_rel, d.identical
+            );
+        }
+        for (k, n, v, rec) in &r.scalars {
+            let _ = writeln!(
+                s,
+                "{k},scalar,{n},{:e},{:e},{}",
+                (v - rec).abs(),
+                if *rec != 0.0 {
+                    (v - rec).abs() / rec.abs()
+                } else {
+                    (v - rec).abs()
+                },
+                v.to_bits() == rec.to_bits()
+            );
+        }
+        if let Err(e) = std::fs::write(p, s) {
+            eprintln!("cosim replay: cannot write {}: {e}", p.display());
+        }
+    }
+}
+
+fn bench_transport(rounds: usize, which: &str, sizes: &[usize]) -> i32 {
+    use protocol::transport::TransportKind;
+    use protocol::transport::bench::{BenchTable, bench_transport as bench};
+    let kinds = match which {
+        "all" => vec![
+            TransportKind::Local,
+            TransportKind::Shm,
+            TransportKind::Zenoh,
+        ],
+        k => match k.parse::<TransportKind>() {
+            Ok(k) => vec![k],
+            Err(e) => {
+                eprintln!("cosim bench transport: --transport: {e}");
+                return 2;
+            }
+        },
+    };
+    let exe = match std::env::current_exe() {
+        Ok(e) => e,
+        Err(e) => {
+            eprintln!("cosim bench transport: {e}");
+            return 1;
+        }
+    };
+    let mut rows = Vec::new();
+    for kind in kinds {
+        let mut cmd = std::process::Command::new(&exe);
+        cmd.arg("bench-echo");
+        match bench(kind, sizes, rounds.max(1), &mut cmd) {
+            Ok(r) => rows.extend(r),
+            Err(e) => {
+                eprintln!("cosim bench transport: {}: {e}", kind.as_str());
+                return 1;
+            }
+        }
+    }
+    println!("{}", BenchTable(&rows));
+    0
+}
+
+fn bench_echo() -> i32 {
+    use protocol::transport::bench::{echo_main, echo_spec_from_env};
+    match echo_spec_from_env().and_then(|s| echo_main(&s)) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("cosim bench-echo: {e}");
+            1
+        }
+    }
+}

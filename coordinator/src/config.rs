@@ -1,0 +1,701 @@
+//! Case files (ARCHITECTURE §8): parse, then validate everything that can be checked before
+//! any process starts. Every error names the key path and the reason, e.g.
+//! `run.window: must be > 0 and ≤ run.end_time (0.001), got 0`.
+
+use protocol::transport::TransportKind;
+use protocol::{CouplingKind, Solver, SolverError};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// A configuration error: the key path and why.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{key}: {reason}")]
+pub struct ConfigError {
+    pub key: String,
+    pub reason: String,
+}
+
+fn err(key: impl Into<String>, reason: impl Into<String>) -> ConfigError {
+    ConfigError {
+        key: key.into(),
+        reason: reason.into(),
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Schedule {
+    Serial,
+    Parallel,
+}
+
+#[derive(Debug, Clone)]
+pub struct RunConfig {
+    pub name: String,
+    pub end_time: f64,
+    pub window: f64,
+    pub schedule: Schedule,
+    pub transport: TransportKind,
+    /// Output directory (relative paths are taken from the working directory).
+    pub output: PathBuf,
+    /// Write node output (VTK) every this many windows; 0 = only at the end.
+    pub output_every: u64,
+    pub heartbeat_ms: u64,
+    /// A node silent for this long is declared hung (s).
+    pub heartbeat_timeout: f64,
+    /// zenoh endpoint the coordinator listens on (several hosts: a routable address).
+    pub listen: String,
+    /// Record `Fields` messages of every `record_every`-th window only (1 = all).
+    pub record_every: u64,
+}
+
+#[derive(Debug, Clone)]
+pub struct NodeConfig {
+    pub name: String,
+    /// Executable name or path, as written in the case.
+    pub solver: String,
+    /// Resolved executable (None for remote nodes).
+    pub exe: Option<PathBuf>,
+    pub model: String,
+    pub params: toml::Table,
+    pub remote: bool,
+    /// Interfaces the solver offers, when the coordinator could ask it (built-in solvers).
+    pub interfaces: Option<Vec<String>>,
+}
+
+#[derive(Debug, Clone)]
+pub struct CouplingConfig {
+    pub name: String,
+    pub kind: CouplingKind,
+    pub driver: (String, String),
+    pub responder: (String, String),
+    /// Fields the driver sends each window.
+    pub driver_fields: Vec<String>,
+    /// Fields the responder sends each window (and at set-up).
+    pub responder_fields: Vec<String>,
+}
+
+#[derive(Debug, Clone)]
+pub struct Case {
+    pub path: PathBuf,
+    pub text: String,
+    pub run: RunConfig,
+    pub nodes: Vec<NodeConfig>,
+    pub couplings: Vec<CouplingConfig>,
+}
+
+/// Built-in node binaries whose solvers the coordinator can build in-process, to validate
+/// parameters and interfaces before launching, and to replay.
+pub fn builtin_factory(solver: &str) -> Option<protocol::SolverFactory> {
+    let name = Path::new(solver).file_name()?.to_str()?;
+    match name {
+        "solid-node" => Some(solid_node::factory),
+        "fluid-node" => Some(fluid_node::factory),
+        "macro-shell-node" => Some(macro_shell_node::factory),
+        "meso-joint-node" => Some(meso_joint_node::factory),
+        _ => None,
+    }
+}
+
+const RUN_KEYS: &[&str] = &[
+    "name",
+    "end_time",
+    "window",
+    "schedule",
+    "transport",
+    "output",
+    "output_every",
+    "heartbeat_ms",
+    "heartbeat_timeout",
+    "listen",
+    "record_every",
+];
+const NODE_KEYS: &[&str] = &["solver", "model", "params", "remote"];
+const COUPLING_KEYS: &[&str] = &[
+    "name",
+    "kind",
+    "driver",
+    "responder",
+    "driver_fields",
+    "responder_fields",
+];
+
+fn check_keys(t: &toml::Table, prefix: &str, allowed: &[&str]) -> Result<(), ConfigError> {
+    for k in t.keys() {
+        if !allowed.contains(&k.as_str()) {
+            return Err(err(
+                format!("{prefix}{k}"),
+                format!("unknown key (expected one of: {})", allowed.join(", ")),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn get_str(t: &toml::Table, prefix: &str, k: &str) -> Result<Option<String>, ConfigError> {
+    match t.get(k) {
+        None => Ok(None),
+        Some(toml::Value::String(s)) => Ok(Some(s.clone())),
+        Some(v) => Err(err(
+            format!("{prefix}{k}"),
+            format!("must be a string, got {}", v.type_str()),
+        )),
+    }
+}
+
+fn need_str(t: &toml::Table, prefix: &str, k: &str) -> Result<String, ConfigError> {
+    get_str(t, prefix, k)?.ok_or_else(|| err(format!("{prefix}{k}"), "missing"))
+}
+
+fn get_f64(t: &toml::Table, prefix: &str, k: &str) -> Result<Option<f64>, ConfigError> {
+    match t.get(k) {
+        None => Ok(None),
+        Some(toml::Value::Float(f)) => Ok(Some(*f)),
+        Some(toml::Value::Integer(i)) => Ok(Some(*i as f64)),
+        Some(v) => Err(err(
+            format!("{prefix}{k}"),
+            format!("must be a number, got {}", v.type_str()),
+        )),
+    }
+}
+
+fn get_u64(t: &toml::Table, prefix: &str, k: &str) -> Result<Option<u64>, ConfigError> {
+    match t.get(k) {
+        None => Ok(None),
+        Some(toml::Value::Integer(i)) if *i >= 0 => Ok(Some(*i as u64)),
+        Some(v) => Err(err(
+            format!("{prefix}{k}"),
+            format!("must be a non-negative integer, got {v}"),
+        )),
+    }
+}
+
+fn get_strings(t: &toml::Table, prefix: &str, k: &str) -> Result<Option<Vec<String>>, ConfigError> {
+    match t.get(k) {
+        None => Ok(None),
+        Some(toml::Value::Array(a)) => a
+            .iter()
+            .map(|v| {
+                v.as_str()
+                    .map(str::to_string)
+                    .ok_or_else(|| err(format!("{prefix}{k}"), "must be an array of strings"))
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .map(Some),
+        Some(v) => Err(err(
+            format!("{prefix}{k}"),
+            format!("must be an array, got {}", v.type_str()),
+        )),
+    }
+}
+
+/// The key path a TOML error points at (the table header, or `table.key` of the line), so a
+/// syntax-level error such as a duplicate table is still reported by key.
+fn key_at(text: &str, pos: usize) -> Option<String> {
+    let line_start = text[..pos].rfind('\n').map(|i| i + 1).unwrap_or(0);
+    let line = text[line_start..].lines().next()?.trim();
+    let header = |l: &str| {
+        l.trim_start_matches('[')
+            .trim_end_matches(']')
+            .trim()
+            .to_string()
+    };
+    if line.starts_with('[') {
+        return Some(header(line));
+    }
+    let key = line.split('=').next()?.trim();
+    if key.is_empty() {
+        return None;
+    }
+    let table = text[..line_start]
+        .lines()
+        .rev()
+        .map(str::trim)
+        .find(|l| l.starts_with('['))
+        .map(header);
+    Some(match table {
+        Some(t) => format!("{t}.{key}"),
+        None => key.to_string(),
+    })
+}
+
+fn valid_name(s: &str) -> bool {
+    !s.is_empty()
+        && s.len() <= 32
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+}
+
+/// Where a node executable is: a path (relative to the case file), or a name beside `cosim`.
+pub fn resolve_exe(solver: &str, case_dir: &Path) -> Option<PathBuf> {
+    let p = Path::new(solver);
+    if solver.contains('/') {
+        let p = if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            case_dir.join(p)
+        };
+        return p.is_file().then_some(p);
+    }
+    let here = std::env::current_exe().ok()?;
+    let dir = here.parent()?;
+    for cand in [
+        dir.join(solver),
+        dir.parent().map(|d| d.join(solver)).unwrap_or_default(),
+    ] {
+        if cand.is_file() {
+            return Some(cand);
+        }
+    }
+    None
+}
+
+/// Default fields of a coupling kind: (driver sends, responder sends).
+pub fn default_fields(kind: CouplingKind) -> (Vec<String>, Vec<String>) {
+    let v = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+    match kind {
+        CouplingKind::Kinematic => (v(&["position", "velocity"]), v(&["force"])),
+        CouplingKind::Immersed => (v(&["position", "velocity", "volume"]), v(&["force"])),
+        CouplingKind::Lagrange => (v(&["velocity"]), v(&["force"])),
+    }
+}
+
+/// Parse and validate a case file; `overrides` are `node.key=value` settings applied to
+/// node params (from the command line).
+pub fn load(path: &Path) -> Result<Case, ConfigError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| err(path.display().to_string(), format!("cannot read: {e}")))?;
+    parse(&text, path)
+}
+
+pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
+    let doc: toml::Table = toml::from_str(text).map_err(|e| {
+        let start = e.span().map(|s| s.start.min(text.len())).unwrap_or(0);
+        let line = text[..start].lines().count().max(1);
+        match key_at(text, start) {
+            Some(k) => err(k, format!("{} (line {line})", e.message())),
+            None => err(
+                format!("line {line}"),
+                format!("not valid TOML: {}", e.message()),
+            ),
+        }
+    })?;
+    check_keys(&doc, "", &["run", "nodes", "couplings"])?;
+    let case_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let run_t = match doc.get("run") {
+        Some(toml::Value::Table(t)) => t.clone(),
+        Some(_) => return Err(err("run", "must be a table")),
+        None => return Err(err("run", "missing [run] table")),
+    };
+    let p = "run.";
+    check_keys(&run_t, p, RUN_KEYS)?;
+    let name = get_str(&run_t, p, "name")?.unwrap_or_else(|| "run".into());
+    if !valid_name(&name) {
+        return Err(err(
+            "run.name",
+            format!("must be 1–32 characters of [A-Za-z0-9_-], got '{name}'"),
+        ));
+    }
+    let end_time = get_f64(&run_t, p, "end_time")?.ok_or_else(|| err("run.end_time", "missing"))?;
+    if !(end_time.is_finite() && end_time > 0.0) {
+        return Err(err("run.end_time", format!("must be > 0, got {end_time}")));
+    }
+    let window = get_f64(&run_t, p, "window")?.ok_or_else(|| err("run.window", "missing"))?;
+    if !(window.is_finite() && window > 0.0 && window <= end_time) {
+        return Err(err(
+            "run.window",
+            format!("must be > 0 and ≤ run.end_time ({end_time}), got {window}"),
+        ));
+    }
+    if end_time / window > 1e9 {
+        return Err(err(
+            "run.window",
+            format!("gives {:.3e} windows; at most 1e9", end_time / window),
+        ));
+    }
+    let schedule = match get_str(&run_t, p, "schedule")?.as_deref() {
+        None | Some("serial") => Schedule::Serial,
+        Some("parallel") => Schedule::Parallel,
+        Some(o) => {
+            return Err(err(
+                "run.schedule",
+                format!("must be \"serial\" or \"parallel\", got \"{o}\""),
+            ));
+        }
+    };
+    let transport = match get_str(&run_t, p, "transport")?.as_deref() {
+        None => TransportKind::Shm,
+        Some(s) => match s.parse::<TransportKind>() {
+            Ok(TransportKind::Local) => {
+                return Err(err(
+                    "run.transport",
+                    "\"local\" is in-process only (tests); use shm or zenoh",
+                ));
+            }
+            Ok(k) => k,
+            Err(e) => return Err(err("run.transport", e)),
+        },
+    };
+    let output = PathBuf::from(get_str(&run_t, p, "output")?.unwrap_or_else(|| "out".into()));
+    let output_every = get_u64(&run_t, p, "output_every")?.unwrap_or(0);
+    let heartbeat_ms = get_u64(&run_t, p, "heartbeat_ms")?.unwrap_or(200);
+    if !(10..=60_000).contains(&heartbeat_ms) {
+        return Err(err(
+            "run.heartbeat_ms",
+            format!("must be in 10..=60000, got {heartbeat_ms}"),
+        ));
+    }
+    let heartbeat_timeout = get_f64(&run_t, p, "heartbeat_timeout")?.unwrap_or(3.0);
+    if !(heartbeat_timeout.is_finite() && heartbeat_timeout * 1000.0 > 2.0 * heartbeat_ms as f64) {
+        return Err(err(
+            "run.heartbeat_timeout",
+            format!(
+                "must exceed two heartbeats ({} s), got {heartbeat_timeout}",
+                2.0 * heartbeat_ms as f64 / 1000.0
+            ),
+        ));
+    }
+    let listen = get_str(&run_t, p, "listen")?.unwrap_or_else(|| "tcp/127.0.0.1:0".into());
+    let record_every = get_u64(&run_t, p, "record_every")?.unwrap_or(1).max(1);
+
+    // Nodes.
+    let nodes_t = match doc.get("nodes") {
+        Some(toml::Value::Table(t)) => t.clone(),
+        Some(_) => return Err(err("nodes", "must be a table of [nodes.<name>] tables")),
+        None => {
+            return Err(err(
+                "nodes",
+                "missing: a case needs at least one [nodes.<name>]",
+            ));
+        }
+    };
+    if nodes_t.is_empty() {
+        return Err(err("nodes", "a case needs at least one [nodes.<name>]"));
+    }
+    let mut nodes = Vec::new();
+    for (nname, v) in &nodes_t {
+        let p = format!("nodes.{nname}.");
+        if !valid_name(nname) || nname == "coordinator" {
+            return Err(err(
+                format!("nodes.{nname}"),
+                "node names are 1–32 characters of [A-Za-z0-9_-] and not 'coordinator'",
+            ));
+        }
+        let t = v
+            .as_table()
+            .ok_or_else(|| err(format!("nodes.{nname}"), "must be a table"))?;
+        check_keys(t, &p, NODE_KEYS)?;
+        let solver = need_str(t, &p, "solver")?;
+        let model = need_str(t, &p, "model")?;
+        let remote = match t.get("remote") {
+            None => false,
+            Some(toml::Value::Boolean(b)) => *b,
+            Some(_) => return Err(err(format!("{p}remote"), "must be true or false")),
+        };
+        let params = match t.get("params") {
+            None => toml::Table::new(),
+            Some(toml::Value::Table(t)) => t.clone(),
+            Some(toml::Value::String(f)) => {
+                let fp = case_dir.join(f);
+                let s = std::fs::read_to_string(&fp).map_err(|e| {
+                    err(
+                        format!("{p}params"),
+                        format!("cannot read {}: {e}", fp.display()),
+                    )
+                })?;
+                toml::from_str(&s).map_err(|e| {
+                    err(
+                        format!("{p}params"),
+                        format!("{}: {}", fp.display(), e.message()),
+                    )
+                })?
+            }
+            Some(_) => return Err(err(format!("{p}params"), "must be a table or a file name")),
+        };
+        let exe = if remote {
+            None
+        } else {
+            Some(resolve_exe(&solver, &case_dir).ok_or_else(|| {
+                err(
+                    format!("{p}solver"),
+                    format!("no executable '{solver}' beside cosim or at that path (build it: cargo build --release --workspace)"),
+                )
+            })?)
+        };
+        nodes.push(NodeConfig {
+            name: nname.clone(),
+            solver,
+            exe,
+            model,
+            params,
+            remote,
+            interfaces: None,
+        });
+    }
+
+    // Couplings.
+    let mut couplings = Vec::new();
+    let list = match doc.get("couplings") {
+        None => Vec::new(),
+        Some(toml::Value::Array(a)) => a.clone(),
+        Some(_) => return Err(err("couplings", "must be an array of [[couplings]] tables")),
+    };
+    let mut names = std::collections::BTreeSet::new();
+    for (i, v) in list.iter().enumerate() {
+        let p = format!("couplings[{i}].");
+        let t = v
+            .as_table()
+            .ok_or_else(|| err(format!("couplings[{i}]"), "must be a table"))?;
+        check_keys(t, &p, COUPLING_KEYS)?;
+        let kind = match need_str(t, &p, "kind")?.as_str() {
+            "kinematic" => CouplingKind::Kinematic,
+            "immersed" => CouplingKind::Immersed,
+            "lagrange" => {
+                return Err(err(
+                    format!("{p}kind"),
+                    "\"lagrange\" is not available yet (kinematic | immersed)",
+                ));
+            }
+            o => {
+                return Err(err(
+                    format!("{p}kind"),
+                    format!("must be \"kinematic\" or \"immersed\", got \"{o}\""),
+                ));
+            }
+        };
+        let split = |key: &str| -> Result<(String, String), ConfigError> {
+            let s = need_str(t, &p, key)?;
+            let (n, i) = s.split_once('.').ok_or_else(|| {
+                err(
+                    format!("{p}{key}"),
+                    format!("must be \"node.interface\", got \"{s}\""),
+                )
+            })?;
+            if !nodes.iter().any(|x| x.name == n) {
+                return Err(err(format!("{p}{key}"), format!("unknown node '{n}'")));
+            }
+            Ok((n.to_string(), i.to_string()))
+        };
+        let driver = split("driver")?;
+        let responder = split("responder")?;
+        if driver.0 == responder.0 {
+            return Err(err(
+                format!("{p}responder"),
+                "a node cannot couple to itself",
+            ));
+        }
+        let name =
+            get_str(t, &p, "name")?.unwrap_or_else(|| format!("{}-{}", driver.0, responder.0));
+        if !valid_name(&name) {
+            return Err(err(
+                format!("{p}name"),
+                format!("must be 1–32 characters of [A-Za-z0-9_-], got '{name}'"),
+            ));
+        }
+        if !names.insert(name.clone()) {
+            return Err(err(
+                format!("{p}name"),
+                format!("duplicate coupling name '{name}'"),
+            ));
+        }
+        let (df, rf) = default_fields(kind);
+        couplings.push(CouplingConfig {
+            name,
+            kind,
+            driver,
+            responder,
+            driver_fields: get_strings(t, &p, "driver_fields")?.unwrap_or(df),
+            responder_fields: get_strings(t, &p, "responder_fields")?.unwrap_or(rf),
+        });
+    }
+    if schedule == Schedule::Parallel {
+        if let Some((i, _)) = couplings
+            .iter()
+            .enumerate()
+            .find(|(_, c)| c.kind == CouplingKind::Kinematic)
+        {
+            return Err(err(
+                format!("run.schedule"),
+                format!(
+                    "\"parallel\" lags every input by a window, which is unstable for the kinematic coupling couplings[{i}] (ARCHITECTURE §5); use \"serial\""
+                ),
+            ));
+        }
+    }
+    let mut case = Case {
+        path: path.to_path_buf(),
+        text: text.to_string(),
+        run: RunConfig {
+            name,
+            end_time,
+            window,
+            schedule,
+            transport,
+            output,
+            output_every,
+            heartbeat_ms,
+            heartbeat_timeout,
+            listen,
+            record_every,
+        },
+        nodes,
+        couplings,
+    };
+    check_solvers(&mut case)?;
+    Ok(case)
+}
+
+/// Build each built-in solver in-process: its own validation names the bad parameter, and
+/// its interfaces let us check the couplings before anything is launched.
+fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
+    for n in &mut case.nodes {
+        let Some(factory) = builtin_factory(&n.solver) else {
+            continue;
+        };
+        match factory(&n.model, &n.params) {
+            Ok(s) => {
+                let s: Box<dyn Solver> = s;
+                n.interfaces = Some(
+                    s.describe()
+                        .interfaces
+                        .into_iter()
+                        .map(|i| i.name)
+                        .collect(),
+                );
+            }
+            Err(SolverError::Config { key, reason }) if key == "model" => {
+                return Err(err(format!("nodes.{}.model", n.name), reason));
+            }
+            Err(SolverError::Config { key, reason }) => {
+                return Err(err(format!("nodes.{}.params.{key}", n.name), reason));
+            }
+            Err(e) => return Err(err(format!("nodes.{}", n.name), e.to_string())),
+        }
+    }
+    for (i, c) in case.couplings.iter().enumerate() {
+        for (key, (node, iface)) in [("driver", &c.driver), ("responder", &c.responder)] {
+            let n = case.nodes.iter().find(|n| &n.name == node);
+            if let Some(list) = n.and_then(|n| n.interfaces.as_ref()) {
+                if !list.iter().any(|x| x == iface) {
+                    return Err(err(
+                        format!("couplings[{i}].{key}"),
+                        format!(
+                            "node '{node}' has no interface '{iface}' (it offers: {})",
+                            if list.is_empty() {
+                                "none".to_string()
+                            } else {
+                                list.join(", ")
+                            }
+                        ),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Apply `key=value` overrides to a parameter table (`a.b=3` sets nested keys; the value is
+/// parsed as TOML, falling back to a string).
+pub fn apply_sets(params: &mut toml::Table, sets: &[String]) -> Result<(), ConfigError> {
+    for s in sets {
+        let (k, v) = s
+            .split_once('=')
+            .ok_or_else(|| err(format!("--set {s}"), "must be key=value"))?;
+        let value: toml::Value = toml::from_str::<toml::Table>(&format!("v = {v}"))
+            .ok()
+            .and_then(|mut t| t.remove("v"))
+            .unwrap_or_else(|| toml::Value::String(v.to_string()));
+        let parts: Vec<&str> = k.trim().split('.').collect();
+        let mut t = &mut *params;
+        for part in &parts[..parts.len() - 1] {
+            let e = t
+                .entry(part.to_string())
+                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+            t = e
+                .as_table_mut()
+                .ok_or_else(|| err(format!("--set {k}"), format!("'{part}' is not a table")))?;
+        }
+        t.insert(parts[parts.len() - 1].to_string(), value);
+    }
+    Ok(())
+}
+
+/// Bindings of one node: its side of every coupling.
+pub fn bindings_of(case: &Case, node: &str) -> Vec<protocol::Binding> {
+    let mut v = Vec::new();
+    for c in &case.couplings {
+        // Serial: the driver's motion feeds the responder in the same window; the responder's
+        // force reaches the driver at the next sync time (lag 1). Parallel: both lag.
+        let responder_lag = match case.run.schedule {
+            Schedule::Serial => 0,
+            Schedule::Parallel => 1,
+        };
+        if c.driver.0 == node {
+            v.push(protocol::Binding {
+                coupling: c.name.clone(),
+                kind: c.kind,
+                interface: c.driver.1.clone(),
+                role: protocol::Role::Driver,
+                peer: c.responder.0.clone(),
+                peer_interface: c.responder.1.clone(),
+                sends: c.driver_fields.clone(),
+                receives: c.responder_fields.clone(),
+                input_lag: 1,
+            });
+        }
+        if c.responder.0 == node {
+            v.push(protocol::Binding {
+                coupling: c.name.clone(),
+                kind: c.kind,
+                interface: c.responder.1.clone(),
+                role: protocol::Role::Responder,
+                peer: c.driver.0.clone(),
+                peer_interface: c.driver.1.clone(),
+                sends: c.responder_fields.clone(),
+                receives: c.driver_fields.clone(),
+                input_lag: responder_lag,
+            });
+        }
+    }
+    v
+}
+
+/// Node order within a window implied by the same-window dependencies (drivers before their
+/// responders); an error if they form a cycle.
+pub fn window_order(case: &Case) -> Result<Vec<String>, ConfigError> {
+    let names: Vec<String> = case.nodes.iter().map(|n| n.name.clone()).collect();
+    let mut deps: BTreeMap<&str, Vec<&str>> = BTreeMap::new();
+    if case.run.schedule == Schedule::Serial {
+        for c in &case.couplings {
+            deps.entry(c.responder.0.as_str())
+                .or_default()
+                .push(c.driver.0.as_str());
+        }
+    }
+    let mut order: Vec<String> = Vec::new();
+    let mut left: Vec<&str> = names.iter().map(String::as_str).collect();
+    while !left.is_empty() {
+        let ready: Vec<&str> = left
+            .iter()
+            .copied()
+            .filter(|n| {
+                deps.get(n)
+                    .is_none_or(|d| d.iter().all(|x| order.iter().any(|o| o == x)))
+            })
+            .collect();
+        if ready.is_empty() {
+            return Err(err(
+                "couplings",
+                format!(
+                    "the serial schedule has a cycle of same-window dependencies among {}",
+                    left.join(", ")
+                ),
+            ));
+        }
+        for r in &ready {
+            order.push(r.to_string());
+        }
+        left.retain(|n| !ready.contains(n));
+    }
+    Ok(order)
+}

@@ -1,0 +1,9 @@
+//! The cosim coordinator (the master of ARCHITECTURE §1): case config, launcher and window
+//! scheduler, MCAP recorder, replay and the `cosim` command line. It owns the clock, the
+//! schedule, the recording and the failure handling; it never does physics.
+
+pub mod cli;
+pub mod config;
+pub mod record;
+pub mod replay;
+pub mod run;

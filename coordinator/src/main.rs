@@ -1,0 +1,9 @@
+//! `cosim`: the coordinator binary.
+
+use clap::Parser;
+
+fn main() {
+    protocol::participant::init_logging();
+    let cli = coordinator::cli::Cli::parse();
+    std::process::exit(coordinator::cli::main_with(cli));
+}

@@ -1,0 +1,837 @@
+//! `cosim run`: launch the nodes, handshake, drive the windows, record everything, audit
+//! energy and momentum per window, and end cleanly whatever happens (ARCHITECTURE §1, §9).
+//!
+//! Within a window the coordinator sends `Advance` to every node in the coupling graph's
+//! order and waits for every `Done`; the serial data dependencies (a responder needs its
+//! driver's motion of the same window) are enforced by the nodes themselves, which wait for
+//! their inputs, so the same loop serves the serial and the parallel schedules.
+
+use crate::config::{self, Case};
+use crate::record::{self, Recorder};
+use anyhow::Context;
+use protocol::codec::{self, encode_into};
+use protocol::transport::{self, Publisher, TopicId, Transport, TransportKind, TransportSpec};
+use protocol::*;
+use serde_json::json;
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A fault that ends the run: which node, and why.
+#[derive(Debug, thiserror::Error)]
+#[error("node '{node}': {reason}")]
+pub struct Fault {
+    pub node: String,
+    pub reason: String,
+}
+
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// Run id (default: name, pid and time); namespaces shared memory and topics.
+    pub run_id: Option<String>,
+    /// Output directory instead of the case's `run.output`.
+    pub output: Option<PathBuf>,
+    /// Hide the progress bar.
+    pub quiet: bool,
+}
+
+/// What a finished run reports.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    pub output: PathBuf,
+    pub summary: serde_json::Value,
+}
+
+enum Topic {
+    Up(usize),
+    Data(usize),
+}
+
+struct NodeRt {
+    name: String,
+    child: Option<Child>,
+    down: Box<dyn Publisher>,
+    last_seen: Instant,
+    hello: bool,
+    described: u32,
+    stable_dt: f64,
+    done: Option<u64>,
+    report: StepReport,
+    initial_energy: f64,
+    substeps: u64,
+    wall_s: f64,
+    wait_s: f64,
+    exited: Option<String>,
+}
+
+struct Coord<'a> {
+    case: &'a Case,
+    run: String,
+    token: String,
+    t: Box<dyn Transport>,
+    topics: Vec<(String, Topic)>,
+    nodes: Vec<NodeRt>,
+    rec: Recorder,
+    buf: Vec<u8>,
+    seq: u64,
+    sim_t: f64,
+    window: u64,
+    faults: Vec<Fault>,
+}
+
+fn pick_run_id(name: &str) -> String {
+    let t = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_millis() % 1_000_000)
+        .unwrap_or(0);
+    let mut s = format!("{}-{}-{t}", name, std::process::id());
+    if s.len() > 32 {
+        s = s[s.len() - 32..].to_string();
+    }
+    s
+}
+
+fn free_port() -> anyhow::Result<u16> {
+    let l = std::net::TcpListener::bind("127.0.0.1:0")?;
+    Ok(l.local_addr()?.port())
+}
+
+/// Kill the child when the coordinator dies, whatever the cause (Linux).
+fn die_with_parent(cmd: &mut Command) {
+    use std::os::unix::process::CommandExt;
+    // SAFETY: prctl is async-signal-safe; nothing else runs between fork and exec here.
+    unsafe {
+        cmd.pre_exec(|| {
+            libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL);
+            Ok(())
+        });
+    }
+}
+
+fn describe_status(s: std::process::ExitStatus) -> String {
+    use std::os::unix::process::ExitStatusExt;
+    match (s.code(), s.signal()) {
+        (Some(c), _) => format!("exited with status {c}"),
+        (None, Some(sig)) => format!(
+            "was killed by signal {sig}{}",
+            match sig {
+                9 => " (SIGKILL)",
+                11 => " (SIGSEGV)",
+                15 => " (SIGTERM)",
+                6 => " (SIGABRT)",
+                _ => "",
+            }
+        ),
+        _ => "ended".into(),
+    }
+}
+
+impl<'a> Coord<'a> {
+    fn node_idx(&self, name: &str) -> Option<usize> {
+        self.nodes.iter().position(|n| n.name == name)
+    }
+
+    fn send(&mut self, i: usize, m: &Message) -> Result<(), Fault> {
+        self.seq += 1;
+        encode_into(&mut self.buf, &self.run, "coordinator", self.seq, m).map_err(|e| Fault {
+            node: self.nodes[i].name.clone(),
+            reason: format!("cannot encode {}: {e}", m.type_name()),
+        })?;
+        let topic = topic::down(&self.run, &self.nodes[i].name);
+        let _ = self.rec.message(&topic, self.sim_t, &self.buf);
+        self.nodes[i].down.send(&self.buf).map_err(|e| Fault {
+            node: self.nodes[i].name.clone(),
+            reason: format!("send failed: {e}"),
+        })
+    }
+
+    /// Check children and heartbeats; returns the first fault.
+    fn check_health(&mut self, waiting_on: &[usize]) -> Result<(), Fault> {
+        let timeout = Duration::from_secs_f64(self.case.run.heartbeat_timeout);
+        for i in 0..self.nodes.len() {
+            let n = &mut self.nodes[i];
+            if n.exited.is_none() {
+                if let Some(c) = n.child.as_mut() {
+                    if let Ok(Some(st)) = c.try_wait() {
+                        n.exited = Some(describe_status(st));
+                    }
+                }
+            }
+            if let Some(why) = n.exited.clone() {
+                // Give a dying node's last words (a Failed message) a moment to arrive.
+                let name = n.name.clone();
+                let deadline = Instant::now() + Duration::from_millis(100);
+                while Instant::now() < deadline {
+                    match self.pump_one(Duration::from_millis(10)) {
+                        Ok(_) => {}
+                        Err(f) => return Err(f),
+                    }
+                }
+                return Err(Fault {
+                    node: name,
+                    reason: format!("{why} during window {}", self.window),
+                });
+            }
+        }
+        for &i in waiting_on {
+            let n = &self.nodes[i];
+            if n.last_seen.elapsed() > timeout {
+                return Err(Fault {
+                    node: n.name.clone(),
+                    reason: format!(
+                        "no heartbeat for {:.1} s (timeout {} s) during window {}",
+                        n.last_seen.elapsed().as_secs_f64(),
+                        self.case.run.heartbeat_timeout,
+                        self.window
+                    ),
+                });
+            }
+        }
+        for lost in self.t.lost_endpoints() {
+            // Before its accepted Hello a name may be tried by a rejected process: not a fault.
+            if self.node_idx(&lost).is_some_and(|i| self.nodes[i].hello) {
+                return Err(Fault {
+                    node: lost,
+                    reason: "connection lost (liveliness token dropped)".into(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Receive, record and act on one message. Returns whether one arrived.
+    fn pump_one(&mut self, timeout: Duration) -> Result<bool, Fault> {
+        let mut got: Option<(TopicId, Result<Envelope, codec::CodecError>)> = None;
+        let rec = &mut self.rec;
+        let topics = &self.topics;
+        let sim_t = self.sim_t;
+        let every = self.case.run.record_every;
+        let window = self.window;
+        let r = self.t.recv(timeout, &mut |id, bytes| {
+            let dec = codec::decode(bytes);
+            let keep = match &dec {
+                Ok(Envelope {
+                    message: Message::Fields(f),
+                    ..
+                }) => every <= 1 || f.window % every == 0,
+                Ok(Envelope {
+                    message: Message::Heartbeat(_),
+                    ..
+                }) => true,
+                _ => true,
+            };
+            if keep {
+                if let Some((name, _)) = topics.get(id) {
+                    let _ = rec.message(name, sim_t, bytes);
+                }
+            }
+            let _ = window;
+            got = Some((id, dec));
+        });
+        if let Err(e) = r {
+            return Err(Fault {
+                node: "coordinator".into(),
+                reason: format!("transport: {e}"),
+            });
+        }
+        let Some((id, dec)) = got else {
+            return Ok(false);
+        };
+        let (tname, owner) = match &self.topics[id] {
+            (n, Topic::Up(i)) | (n, Topic::Data(i)) => (n.clone(), *i),
+        };
+        let env = dec.map_err(|e| Fault {
+            node: self.nodes[owner].name.clone(),
+            reason: format!("malformed message on {tname}: {e}"),
+        })?;
+        let n = &mut self.nodes[owner];
+        if env.sender != n.name || env.run != self.run {
+            return Err(Fault {
+                node: n.name.clone(),
+                reason: format!(
+                    "message on {tname} claims sender '{}' of run '{}'",
+                    env.sender, env.run
+                ),
+            });
+        }
+        n.last_seen = Instant::now();
+        match env.message {
+            Message::Hello(h) => {
+                if h.protocol_version != codec::PROTOCOL_VERSION {
+                    return Err(Fault {
+                        node: n.name.clone(),
+                        reason: format!(
+                            "speaks protocol {}, cosim {}",
+                            h.protocol_version,
+                            codec::PROTOCOL_VERSION
+                        ),
+                    });
+                }
+                let remote = self.case.nodes[owner].remote;
+                if remote && h.token != self.token {
+                    let i = owner;
+                    let _ = self.send(
+                        i,
+                        &Message::Reject(Reject {
+                            reason: "wrong run token".into(),
+                        }),
+                    );
+                    tracing::warn!(
+                        "rejected a node presenting a wrong token as '{}'",
+                        self.nodes[i].name
+                    );
+                    return Ok(true);
+                }
+                n.hello = true;
+            }
+            Message::Describe(d) => {
+                n.described += 1;
+                n.stable_dt = d.stable_dt;
+            }
+            Message::Done(d) => {
+                n.done = Some(d.window);
+                n.substeps += d.report.substeps;
+                n.wall_s += d.report.wall_s;
+                n.wait_s += d.report.coupling_wait_s;
+                if d.window == 0 {
+                    n.initial_energy = d.report.kinetic_energy + d.report.internal_energy;
+                }
+                n.report = d.report;
+            }
+            Message::Heartbeat(_) => {}
+            Message::Failed(f) => {
+                return Err(Fault {
+                    node: n.name.clone(),
+                    reason: f.reason,
+                });
+            }
+            Message::Mesh(_) | Message::Fields(_) => {}
+            other => {
+                return Err(Fault {
+                    node: n.name.clone(),
+                    reason: format!("unexpected {} on {tname}", other.type_name()),
+                });
+            }
+        }
+        Ok(true)
+    }
+
+    /// Pump until `pred` holds for every node in `who`.
+    fn wait_all(
+        &mut self,
+        who: &[usize],
+        what: &str,
+        limit: Option<Duration>,
+        pred: impl Fn(&NodeRt) -> bool,
+    ) -> Result<(), Fault> {
+        let start = Instant::now();
+        loop {
+            let pending: Vec<usize> = who
+                .iter()
+                .copied()
+                .filter(|&i| !pred(&self.nodes[i]))
+                .collect();
+            if pending.is_empty() {
+                return Ok(());
+            }
+            self.check_health(&pending)?;
+            if let Some(l) = limit {
+                if start.elapsed() > l {
+                    return Err(Fault {
+                        node: self.nodes[pending[0]].name.clone(),
+                        reason: format!("no {what} within {} s", l.as_secs()),
+                    });
+                }
+            }
+            self.pump_one(Duration::from_millis(20))?;
+        }
+    }
+
+    fn abort_all(&mut self, reason: &str) {
+        for i in 0..self.nodes.len() {
+            let _ = self.send(
+                i,
+                &Message::Abort(Abort {
+                    reason: reason.to_string(),
+                }),
+            );
+        }
+        let deadline = Instant::now() + Duration::from_millis(1000);
+        for n in &mut self.nodes {
+            if let Some(c) = n.child.as_mut() {
+                loop {
+                    match c.try_wait() {
+                        Ok(Some(_)) => break,
+                        _ if Instant::now() > deadline => {
+                            let _ = c.kill();
+                            let _ = c.wait();
+                            break;
+                        }
+                        _ => std::thread::sleep(Duration::from_millis(10)),
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Run a case to the end. On a fault the nodes are stopped, the recording is closed and the
+/// fault returned; the caller prints it and exits non-zero.
+pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fault>> {
+    let run_id = opts
+        .run_id
+        .clone()
+        .unwrap_or_else(|| pick_run_id(&case.run.name));
+    let out = opts
+        .output
+        .clone()
+        .unwrap_or_else(|| case.run.output.clone());
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+    let mut rec = Recorder::create(&out.join("run.mcap"))?;
+    rec.json(
+        "/cosim/case",
+        "cosim.Case",
+        &record::object_schema("cosim.Case", &[]),
+        0.0,
+        &json!({ "run": run_id, "case": case.path.display().to_string(), "toml": case.text }),
+    )?;
+    let kind = case.run.transport;
+    transport::cleanup(kind, &run_id);
+    let mut listen = case.run.listen.clone();
+    if kind == TransportKind::Zenoh && listen.ends_with(":0") {
+        listen = format!("{}{}", &listen[..listen.len() - 1], free_port()?);
+    }
+    let spec = TransportSpec {
+        kind,
+        run: run_id.clone(),
+        endpoint: "coordinator".into(),
+        listen: if kind == TransportKind::Zenoh {
+            vec![listen.clone()]
+        } else {
+            vec![]
+        },
+        connect: vec![],
+    };
+    let mut t = transport::open(&spec).context("cannot open the transport")?;
+    let mut topics = Vec::new();
+    let order = config::window_order(case).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let idx = |n: &str| case.nodes.iter().position(|x| x.name == n).unwrap_or(0);
+    for (i, n) in case.nodes.iter().enumerate() {
+        let tp = topic::up(&run_id, &n.name);
+        t.subscribe(&tp)?;
+        topics.push((tp, Topic::Up(i)));
+    }
+    for c in &case.couplings {
+        for side in [&c.driver.0, &c.responder.0] {
+            let tp = topic::data(&run_id, &c.name, side);
+            t.subscribe(&tp)?;
+            topics.push((tp, Topic::Data(idx(side))));
+        }
+    }
+    let token = format!("{:016x}", {
+        let t = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_nanos())
+            .unwrap_or(0);
+        (t as u64) ^ ((std::process::id() as u64) << 32) ^ 0x9e37_79b9_7f4a_7c15
+    });
+    let mut nodes = Vec::new();
+    for n in &case.nodes {
+        let down = t.publisher(
+            &topic::down(&run_id, &n.name),
+            std::slice::from_ref(&n.name),
+        )?;
+        nodes.push(NodeRt {
+            name: n.name.clone(),
+            child: None,
+            down,
+            last_seen: Instant::now(),
+            hello: false,
+            described: 0,
+            stable_dt: 0.0,
+            done: None,
+            report: StepReport::default(),
+            initial_energy: 0.0,
+            substeps: 0,
+            wall_s: 0.0,
+            wait_s: 0.0,
+            exited: None,
+        });
+    }
+    let mut c = Coord {
+        case,
+        run: run_id.clone(),
+        token,
+        t,
+        topics,
+        nodes,
+        rec,
+        buf: Vec::new(),
+        seq: 0,
+        sim_t: 0.0,
+        window: 0,
+        faults: Vec::new(),
+    };
+    let started = Instant::now();
+    let result = drive(&mut c, &out, &order, &listen, opts);
+    let outcome = match result {
+        Ok(summary) => Ok(summary),
+        Err(f) => {
+            c.abort_all(&f.to_string());
+            c.faults.push(Fault {
+                node: f.node.clone(),
+                reason: f.reason.clone(),
+            });
+            Err(f)
+        }
+    };
+    // Close everything whatever happened: children, recording, shared memory.
+    for n in &mut c.nodes {
+        if let Some(ch) = n.child.as_mut() {
+            let _ = ch.kill();
+            let _ = ch.wait();
+        }
+    }
+    let wall = started.elapsed().as_secs_f64();
+    let Coord { rec, t, .. } = c;
+    let (messages, bytes) = (rec.messages, rec.bytes);
+    rec.finish()?;
+    drop(t);
+    transport::cleanup(kind, &run_id);
+    match outcome {
+        Ok(mut summary) => {
+            summary["wall_s"] = json!(wall);
+            summary["recording"] =
+                json!({ "path": out.join("run.mcap"), "messages": messages, "bytes": bytes });
+            std::fs::write(
+                out.join("summary.json"),
+                serde_json::to_string_pretty(&summary)?,
+            )?;
+            Ok(Ok(Outcome {
+                output: out,
+                summary,
+            }))
+        }
+        Err(f) => {
+            let summary = json!({ "run": run_id, "status": "failed", "fault": { "node": f.node, "reason": f.reason }, "wall_s": wall });
+            let _ = std::fs::write(
+                out.join("summary.json"),
+                serde_json::to_string_pretty(&summary)?,
+            );
+            Ok(Err(f))
+        }
+    }
+}
+
+fn drive(
+    c: &mut Coord,
+    out: &Path,
+    order: &[String],
+    listen: &str,
+    opts: &RunOptions,
+) -> Result<serde_json::Value, Fault> {
+    let case = c.case;
+    let fault = |node: &str, reason: String| Fault {
+        node: node.to_string(),
+        reason,
+    };
+    // Launch local nodes; tell the user how to start remote ones.
+    for (i, n) in case.nodes.iter().enumerate() {
+        if n.remote {
+            eprintln!(
+                "cosim: waiting for remote node '{}': {} --join {} --node {} --transport {} --connect {} --token {}",
+                n.name,
+                n.solver,
+                c.run,
+                n.name,
+                case.run.transport.as_str(),
+                listen,
+                c.token
+            );
+            continue;
+        }
+        let Some(exe) = &n.exe else { continue };
+        let log = std::fs::File::create(out.join(format!("{}.log", n.name)))
+            .map_err(|e| fault(&n.name, format!("cannot create its log: {e}")))?;
+        let log2 = log.try_clone().map_err(|e| fault(&n.name, e.to_string()))?;
+        let mut cmd = Command::new(exe);
+        cmd.args([
+            "--run",
+            &c.run,
+            "--node",
+            &n.name,
+            "--transport",
+            case.run.transport.as_str(),
+        ]);
+        if case.run.transport == TransportKind::Zenoh {
+            cmd.args(["--connect", listen]);
+        }
+        cmd.stdin(Stdio::null()).stdout(log).stderr(log2);
+        die_with_parent(&mut cmd);
+        let child = cmd
+            .spawn()
+            .map_err(|e| fault(&n.name, format!("cannot start {}: {e}", exe.display())))?;
+        c.nodes[i].child = Some(child);
+        c.nodes[i].last_seen = Instant::now();
+    }
+    let all: Vec<usize> = (0..c.nodes.len()).collect();
+    let local: Vec<usize> = all
+        .iter()
+        .copied()
+        .filter(|&i| !case.nodes[i].remote)
+        .collect();
+    let remote: Vec<usize> = all
+        .iter()
+        .copied()
+        .filter(|&i| case.nodes[i].remote)
+        .collect();
+    c.wait_all(&local, "Hello", Some(Duration::from_secs(30)), |n| n.hello)?;
+    if !remote.is_empty() {
+        // Remote nodes take as long as their user needs; they are not yet expected to beat.
+        loop {
+            if remote.iter().all(|&i| c.nodes[i].hello) {
+                break;
+            }
+            c.check_health(&[])?;
+            c.pump_one(Duration::from_millis(50))?;
+            for &i in &remote {
+                if !c.nodes[i].hello {
+                    c.nodes[i].last_seen = Instant::now();
+                }
+            }
+        }
+    }
+    for (i, n) in case.nodes.iter().enumerate() {
+        let w = Message::Welcome(Welcome {
+            run: c.run.clone(),
+            model: n.model.clone(),
+            params_toml: toml::to_string(&n.params).map_err(|e| fault(&n.name, e.to_string()))?,
+            bindings: config::bindings_of(case, &n.name),
+            output_dir: out.join(&n.name).display().to_string(),
+            heartbeat_ms: case.run.heartbeat_ms,
+        });
+        c.send(i, &w)?;
+    }
+    c.wait_all(&all, "Describe", Some(Duration::from_secs(60)), |n| {
+        n.described >= 1
+    })?;
+    // Set-up (window 0).
+    for i in 0..c.nodes.len() {
+        c.send(
+            i,
+            &Message::Advance(Advance {
+                window: 0,
+                t0: 0.0,
+                t1: 0.0,
+                write_output: false,
+                checkpoint: false,
+            }),
+        )?;
+    }
+    c.wait_all(&all, "set-up", None, |n| n.done == Some(0))?;
+    let windows = ((case.run.end_time / case.run.window) - 1e-9)
+        .ceil()
+        .max(1.0) as u64;
+    let order_idx: Vec<usize> = order.iter().filter_map(|n| c.node_idx(n)).collect();
+    let bar = if opts.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        let b = indicatif::ProgressBar::new(windows);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{spinner} t = {msg} [{bar:30}] {pos}/{len} windows, {per_sec}, ETA {eta}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b
+    };
+    let scale_key = ["applied_impulse"];
+    let _ = scale_key;
+    let mut balance_rows = Vec::new();
+    let mut worst_p: f64 = 0.0;
+    let mut worst_iface_p: f64 = 0.0;
+    let metric_schema = record::object_schema(
+        "cosim.Balance",
+        &[
+            "window",
+            "time",
+            "momentum",
+            "external_impulse",
+            "momentum_imbalance",
+            "interface_impulse_sum",
+            "energy",
+            "external_work",
+            "interface_work_sum",
+            "energy_residual",
+        ],
+    );
+    let node_schema = record::object_schema(
+        "cosim.NodeReport",
+        &[
+            "kinetic_energy",
+            "internal_energy",
+            "external_work",
+            "interface_work",
+            "substeps",
+            "wall_s",
+            "coupling_wait_s",
+        ],
+    );
+    let e0: f64 = c.nodes.iter().map(|n| n.initial_energy).sum();
+    for k in 1..=windows {
+        let t0 = (k - 1) as f64 * case.run.window;
+        let t1 = if k == windows {
+            case.run.end_time
+        } else {
+            k as f64 * case.run.window
+        };
+        c.window = k;
+        c.sim_t = t1;
+        let write_output =
+            k == windows || (case.run.output_every > 0 && k % case.run.output_every == 0);
+        for &i in &order_idx {
+            c.send(
+                i,
+                &Message::Advance(Advance {
+                    window: k,
+                    t0,
+                    t1,
+                    write_output,
+                    checkpoint: false,
+                }),
+            )?;
+        }
+        c.wait_all(&all, "Done", None, |n| n.done == Some(k))?;
+        // Audit (ARCHITECTURE §5): momentum against external impulse, energy against work.
+        let mut p = [0.0; 3];
+        let mut jx = [0.0; 3];
+        let mut ji = [0.0; 3];
+        let (mut e, mut wext, mut wif, mut applied) = (0.0, 0.0, 0.0, 0.0);
+        for n in &c.nodes {
+            let r = &n.report;
+            for d in 0..3 {
+                p[d] += r.momentum[d];
+                jx[d] += r.external_impulse[d];
+                ji[d] += r.interface_impulse[d];
+            }
+            e += r.kinetic_energy + r.internal_energy;
+            wext += r.external_work;
+            wif += r.interface_work;
+            applied += r.applied_impulse;
+        }
+        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        let imb = norm([p[0] - jx[0], p[1] - jx[1], p[2] - jx[2]]);
+        worst_p = worst_p.max(imb);
+        worst_iface_p = worst_iface_p.max(norm(ji));
+        let row = json!({
+            "window": k, "time": t1,
+            "momentum": norm(p), "external_impulse": norm(jx), "applied_impulse": applied,
+            "momentum_imbalance": imb, "interface_impulse_sum": norm(ji),
+            "energy": e, "external_work": wext, "interface_work_sum": wif,
+            "energy_residual": e - e0 - wext,
+        });
+        let _ = c
+            .rec
+            .json("/cosim/balance", "cosim.Balance", &metric_schema, t1, &row);
+        for n in &c.nodes {
+            let r = &n.report;
+            let mut v = json!({
+                "window": k, "time": t1,
+                "kinetic_energy": r.kinetic_energy, "internal_energy": r.internal_energy,
+                "external_work": r.external_work, "interface_work": r.interface_work,
+                "momentum": r.momentum, "substeps": r.substeps, "wall_s": r.wall_s,
+                "coupling_wait_s": r.coupling_wait_s,
+            });
+            for (name, val) in &r.scalars {
+                v[name] = json!(val);
+            }
+            let _ = c.rec.json(
+                &format!("/cosim/node/{}", n.name),
+                "cosim.NodeReport",
+                &node_schema,
+                t1,
+                &v,
+            );
+        }
+        balance_rows.push(row);
+        bar.set_message(format!("{t1:.4e} s"));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    for i in 0..c.nodes.len() {
+        c.send(
+            i,
+            &Message::Finish(Finish {
+                reason: "end time reached".into(),
+            }),
+        )?;
+    }
+    // Let the nodes exit on their own.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    for n in &mut c.nodes {
+        if let Some(ch) = n.child.as_mut() {
+            while Instant::now() < deadline {
+                if let Ok(Some(_)) = ch.try_wait() {
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(5));
+            }
+        }
+    }
+    let applied_final = balance_rows
+        .last()
+        .and_then(|r| r["applied_impulse"].as_f64())
+        .unwrap_or(0.0);
+    let mut nodes_json = BTreeMap::new();
+    for (i, n) in c.nodes.iter().enumerate() {
+        let cfg = &case.nodes[i];
+        let frac = if n.wall_s > 0.0 {
+            n.wait_s / (n.wall_s + n.wait_s)
+        } else {
+            0.0
+        };
+        nodes_json.insert(
+            n.name.clone(),
+            json!({
+                "solver": cfg.solver, "model": cfg.model, "remote": cfg.remote,
+                "stable_dt": n.stable_dt, "substeps": n.substeps,
+                "compute_s": n.wall_s, "coupling_wait_s": n.wait_s, "coupling_fraction": frac,
+                "final": {
+                    "kinetic_energy": n.report.kinetic_energy, "internal_energy": n.report.internal_energy,
+                    "external_work": n.report.external_work, "interface_work": n.report.interface_work,
+                    "momentum": n.report.momentum,
+                    "scalars": n.report.scalars.iter().cloned().collect::<HashMap<String, f64>>(),
+                },
+            }),
+        );
+    }
+    let couplings: Vec<serde_json::Value> = case
+        .couplings
+        .iter()
+        .map(|cp| {
+            json!({ "name": cp.name, "kind": cp.kind.as_str(),
+                    "driver": format!("{}.{}", cp.driver.0, cp.driver.1),
+                    "responder": format!("{}.{}", cp.responder.0, cp.responder.1) })
+        })
+        .collect();
+    Ok(json!({
+        "run": c.run,
+        "status": "finished",
+        "case": case.path.display().to_string(),
+        "transport": case.run.transport.as_str(),
+        "schedule": match case.run.schedule { config::Schedule::Serial => "serial", config::Schedule::Parallel => "parallel" },
+        "end_time": case.run.end_time,
+        "window": case.run.window,
+        "windows": windows,
+        "nodes": nodes_json,
+        "couplings": couplings,
+        "balance": {
+            "applied_impulse": applied_final,
+            "max_momentum_imbalance": worst_p,
+            "max_momentum_imbalance_relative": if applied_final > 0.0 { worst_p / applied_final } else { 0.0 },
+            "max_interface_impulse_sum": worst_iface_p,
+            "per_window": balance_rows,
+        },
+    }))
+}

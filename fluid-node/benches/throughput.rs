@@ -1,0 +1,89 @@
+//! Solver-only throughput (issue #3, must-show 8): cell-updates per second (one full SSP-RK3
+//! step of one cell = one update) on the 2-D cylindrical blast — p 10 in r < 0.1, 0.1
+//! outside, ρ 1, γ 1.4, unit square, 400×400 — at 1 and 2 threads (rayon pools built here;
+//! `RAYON_NUM_THREADS` is not needed). Also checks the two runs are bit-identical.
+//! Run: `cargo bench -p fluid-node --bench throughput` (optional argument: grid size).
+
+use fluid_node::{EulerSolver, setup};
+use std::time::Instant;
+
+fn case(n: usize) -> String {
+    format!(
+        r#"
+        cfl = 0.5
+        [grid]
+        cells = [{n}, {n}, 1]
+        lower = [0.0, 0.0, 0.0]
+        upper = [1.0, 1.0, 1.0]
+        [materials.air]
+        eos = "ideal"
+        gamma = 1.4
+        [[regions]]
+        shape = "all"
+        material = "air"
+        density = 1.0
+        pressure = 0.1
+        [[regions]]
+        shape = "sphere"
+        center = [0.5, 0.5, 0.0]
+        radius = 0.1
+        material = "air"
+        density = 1.0
+        pressure = 10.0
+        [boundaries]
+        x_lower = "outflow"
+        x_upper = "outflow"
+        y_lower = "outflow"
+        y_upper = "outflow"
+    "#
+    )
+}
+
+fn run(n: usize, threads: usize, steps: usize) -> anyhow::Result<(f64, Vec<f64>)> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()?;
+    pool.install(|| {
+        let mut s = EulerSolver::from_fluid(setup::from_toml_str(&case(n))?);
+        // warm-up step (first touch of the buffers)
+        fluid_node::step::step(&mut s.fluid, f64::INFINITY)?;
+        let t0 = Instant::now();
+        for _ in 0..steps {
+            fluid_node::step::step(&mut s.fluid, f64::INFINITY)?;
+        }
+        let el = t0.elapsed().as_secs_f64();
+        Ok(((n * n * steps) as f64 / el, s.fluid.cons.clone()))
+    })
+}
+
+fn main() -> anyhow::Result<()> {
+    let n: usize = std::env::args()
+        .skip(1)
+        .find_map(|a| a.parse().ok())
+        .unwrap_or(400);
+    let steps = 40;
+    let mut best = [0.0_f64; 2];
+    let mut states: Vec<Vec<f64>> = Vec::new();
+    for rep in 0..3 {
+        for (k, th) in [1usize, 2].iter().enumerate() {
+            let (rate, st) = run(n, *th, steps)?;
+            best[k] = best[k].max(rate);
+            if rep == 0 {
+                states.push(st);
+            }
+        }
+    }
+    let same = states[0] == states[1];
+    println!("cylindrical blast {n}x{n}, {steps} SSP-RK3 steps, best of 3:");
+    println!("  1 thread : {:.3} M cell-updates/s", best[0] / 1e6);
+    println!(
+        "  2 threads: {:.3} M cell-updates/s (speed-up {:.2})",
+        best[1] / 1e6,
+        best[1] / best[0]
+    );
+    println!("  1-thread and 2-thread states bit-identical: {same}");
+    if !same {
+        anyhow::bail!("results differ between thread counts");
+    }
+    Ok(())
+}

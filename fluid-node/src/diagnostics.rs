@@ -1,0 +1,114 @@
+//! Whole-field sums and single-cell states for reports, probes and tests. Sums run per row
+//! then in row order, so they are identical for any thread count.
+
+use crate::immersed::SOLID;
+use crate::mixture::{self, Phase};
+use crate::model::Fluid;
+use protocol::SolverResult;
+
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Totals {
+    pub mass: f64,
+    pub momentum: [f64; 3],
+    pub kinetic: f64,
+    pub internal: f64,
+    pub max_pressure: f64,
+}
+
+/// Primitive state of one cell from its conserved variables: (ρ, velocity, p, α).
+pub fn cell_prim(f: &Fluid, row: usize, i: usize) -> (f64, [f64; 3], f64, Vec<f64>) {
+    match f.nmat() {
+        1 => cell_prim_nm::<1>(f, row, i),
+        2 => cell_prim_nm::<2>(f, row, i),
+        3 => cell_prim_nm::<3>(f, row, i),
+        _ => cell_prim_nm::<4>(f, row, i),
+    }
+}
+
+fn cell_prim_nm<const NM: usize>(
+    f: &Fluid,
+    row: usize,
+    i: usize,
+) -> (f64, [f64; 3], f64, Vec<f64>) {
+    let ph: [Phase; NM] = std::array::from_fn(|k| f.phases[k].clone());
+    let mx = f.grid.mx();
+    let nv = f.nv;
+    let c = |v: usize| f.cons[(row * nv + v) * mx + i];
+    let mut ar = [0.0; NM];
+    let mut al = [0.0; NM];
+    let mut rho = 0.0;
+    for k in 0..NM {
+        ar[k] = c(k).max(0.0);
+        rho += ar[k];
+    }
+    let mut s = 0.0;
+    for k in 0..NM - 1 {
+        al[k] = c(NM + 4 + k);
+        s += al[k];
+    }
+    al[NM - 1] = 1.0 - s;
+    let vel = [c(NM) / rho, c(NM + 1) / rho, c(NM + 2) / rho];
+    let rhoe = c(NM + 3) - 0.5 * rho * (vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]);
+    let p = mixture::pressure(&ph, &ar, &al, rhoe);
+    (rho, vel, p, al.to_vec())
+}
+
+/// [ρ, p, u, v, w] of a cell.
+pub fn cell_state(f: &Fluid, row: usize, i: usize) -> [f64; 5] {
+    let (rho, v, p, _) = cell_prim(f, row, i);
+    [rho, p, v[0], v[1], v[2]]
+}
+
+/// Mass, momentum, energies of the gas (solid cells of the immersed body excluded).
+pub fn totals(f: &mut Fluid) -> SolverResult<Totals> {
+    let g = &f.grid;
+    let vol = g.cell_volume();
+    let nm = f.nmat();
+    let mx = g.mx();
+    let nv = f.nv;
+    let mut t = Totals::default();
+    for r in 0..g.rows() {
+        if !g.interior_row(r) {
+            continue;
+        }
+        let mut row = Totals::default();
+        for i in g.irange() {
+            if let Some(im) = &f.immersed
+                && im.kind[r * mx + i] == SOLID
+            {
+                continue;
+            }
+            let (rho, v, p, _) = cell_prim(f, r, i);
+            let e = f.cons[(r * nv + nm + 3) * mx + i];
+            let ke = 0.5 * rho * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+            row.mass += rho * vol;
+            for d in 0..3 {
+                row.momentum[d] += f.cons[(r * nv + nm + d) * mx + i] * vol;
+            }
+            row.kinetic += ke * vol;
+            row.internal += (e - ke) * vol;
+            row.max_pressure = row.max_pressure.max(p);
+        }
+        t.mass += row.mass;
+        for d in 0..3 {
+            t.momentum[d] += row.momentum[d];
+        }
+        t.kinetic += row.kinetic;
+        t.internal += row.internal;
+        t.max_pressure = t.max_pressure.max(row.max_pressure);
+    }
+    Ok(t)
+}
+
+/// Values of one primitive quantity along the x-line through (j, k) (interior indices):
+/// (x, ρ, u, p) per cell. For tests and examples.
+pub fn x_line(f: &Fluid, j: usize, k: usize) -> Vec<(f64, f64, f64, f64)> {
+    let g = &f.grid;
+    let r = g.row(j + g.g[1], k + g.g[2]);
+    g.irange()
+        .map(|i| {
+            let (rho, v, p, _) = cell_prim(f, r, i);
+            (g.centre(i, j + g.g[1], k + g.g[2])[0], rho, v[0], p)
+        })
+        .collect()
+}

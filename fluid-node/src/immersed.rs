@@ -1,0 +1,420 @@
+//! Responder side of the immersed fluid–particle coupling (seed 002 §3, eq. 31–35;
+//! ARCHITECTURE §5 "immersed"). Each window the solid sends particle positions, velocities
+//! and volumes; cells are classified as fluid, interface (holds particles, has a fluid face
+//! neighbour) or solid (holds particles, no fluid neighbour). Interface cells carry the mean
+//! particle velocity (eq. 31); solid cells next to the gas take neighbour averages (eq. 32)
+//! so the MUSCL stencils see a smooth state; faces between interface and solid cells are
+//! walls moving with the particles. After every RK stage the momentum of an interface cell is
+//! reset to ρ v_ib; what the reset removes, V (RHS(ρv) - v_ib RHS(ρ)) per unit time (eq. 33),
+//! goes to the cell's particles in equal shares (eq. 34), weighted 1/6, 2/3, 1 over the three
+//! stages (eq. 35) — exactly the weights with which the projections enter the step, so the
+//! gas momentum lost equals the particle impulse to round-off. Cells a solid leaves are
+//! refilled from their gas neighbours (eq. 32).
+
+use crate::mixture::Phase;
+use crate::model::Fluid;
+use crate::riemann::{MAXF, hllc};
+use crate::step::face_state;
+
+pub const FLUID: u8 = 0;
+pub const INTERFACE: u8 = 1;
+pub const SOLID: u8 = 2;
+const NONE: usize = usize::MAX;
+
+#[derive(Debug, Clone)]
+pub struct WallFace {
+    pub d: usize,
+    /// Flat index (row·mx + i) of the cell below the face along d (the flux slot).
+    pub left: usize,
+    pub right: usize,
+    /// True when the gas (interface) cell is the left one.
+    pub gas_left: bool,
+}
+
+#[derive(Debug, Clone)]
+pub struct Immersed {
+    pub interface: String,
+    /// Number of particles (0 until known).
+    pub n: usize,
+    pub positions: Vec<[f64; 3]>,
+    pub velocities: Vec<[f64; 3]>,
+    pub volumes: Vec<f64>,
+    /// Per-cell class, flat index row·mx + i.
+    pub kind: Vec<u8>,
+    pub prev_kind: Vec<u8>,
+    /// Occupied cells (sorted flat indices), their class and velocity (eq. 31).
+    pub cells: Vec<usize>,
+    pub cell_kind: Vec<u8>,
+    pub cell_vel: Vec<[f64; 3]>,
+    /// CSR: particles of occupied cell c are parts[off[c]..off[c+1]].
+    pub off: Vec<usize>,
+    pub parts: Vec<usize>,
+    pub cell_of: Vec<usize>,
+    pub walls: Vec<WallFace>,
+    /// Impulse given to each particle in the current window (N s).
+    pub impulse: Vec<[f64; 3]>,
+    /// Total impulse given to the particles since the start (N s).
+    pub total_impulse: [f64; 3],
+    /// Momentum created (+) or removed (-) by cells changing class since the start.
+    pub reclass_momentum: [f64; 3],
+}
+
+impl Immersed {
+    pub fn new(interface: String, n: usize, cells: usize) -> Self {
+        Immersed {
+            interface,
+            n,
+            positions: Vec::new(),
+            velocities: Vec::new(),
+            volumes: Vec::new(),
+            kind: vec![FLUID; cells],
+            prev_kind: vec![FLUID; cells],
+            cells: Vec::new(),
+            cell_kind: Vec::new(),
+            cell_vel: Vec::new(),
+            off: Vec::new(),
+            parts: Vec::new(),
+            cell_of: Vec::new(),
+            walls: Vec::new(),
+            impulse: Vec::new(),
+            total_impulse: [0.0; 3],
+            reclass_momentum: [0.0; 3],
+        }
+    }
+
+    /// Start a window with new particle data: classify cells, refill cells the solid left,
+    /// zero the window impulses.
+    pub fn set_particles(&mut self, f: &mut Fluid, pos: &[f64], vel: &[f64], vol: &[f64]) {
+        let n = vol.len();
+        self.n = n;
+        self.positions.clear();
+        self.velocities.clear();
+        self.volumes.clear();
+        self.volumes.extend_from_slice(vol);
+        for p in 0..n {
+            self.positions
+                .push([pos[3 * p], pos[3 * p + 1], pos[3 * p + 2]]);
+            self.velocities
+                .push([vel[3 * p], vel[3 * p + 1], vel[3 * p + 2]]);
+        }
+        self.impulse.clear();
+        self.impulse.resize(n, [0.0; 3]);
+        self.classify(f);
+    }
+
+    fn classify(&mut self, f: &mut Fluid) {
+        let grid = &f.grid;
+        let mx = grid.mx();
+        std::mem::swap(&mut self.kind, &mut self.prev_kind);
+        self.kind.fill(FLUID);
+        self.cell_of.clear();
+        for p in 0..self.n {
+            let c = match grid.locate(self.positions[p]) {
+                Some([i, j, k]) => grid.row(j, k) * mx + i,
+                None => NONE,
+            };
+            self.cell_of.push(c);
+        }
+        // counting sort of particles by cell (deterministic: particle order within a cell)
+        let mut order: Vec<usize> = (0..self.n).filter(|&p| self.cell_of[p] != NONE).collect();
+        order.sort_by_key(|&p| (self.cell_of[p], p));
+        self.cells.clear();
+        self.off.clear();
+        self.parts.clear();
+        for &p in &order {
+            let c = self.cell_of[p];
+            if self.cells.last() != Some(&c) {
+                self.cells.push(c);
+                self.off.push(self.parts.len());
+            }
+            self.parts.push(p);
+        }
+        self.off.push(self.parts.len());
+        for &c in &self.cells {
+            self.kind[c] = SOLID;
+        }
+        // interface: an occupied cell with a gas face neighbour inside the domain
+        self.cell_kind.clear();
+        self.cell_vel.clear();
+        for (ci, &c) in self.cells.iter().enumerate() {
+            let mut kind = SOLID;
+            for (nb, _, _) in neighbours(f, c) {
+                if self.kind[nb] == FLUID {
+                    kind = INTERFACE;
+                }
+            }
+            self.cell_kind.push(kind);
+            // seed 002 eq. (31): mean velocity of the particles in the cell
+            let ps = &self.parts[self.off[ci]..self.off[ci + 1]];
+            let mut v = [0.0; 3];
+            for &p in ps {
+                for d in 0..3 {
+                    v[d] += self.velocities[p][d];
+                }
+            }
+            for vd in &mut v {
+                *vd /= ps.len() as f64;
+            }
+            self.cell_vel.push(v);
+        }
+        for (ci, &c) in self.cells.iter().enumerate() {
+            self.kind[c] = self.cell_kind[ci];
+        }
+        // wall faces between interface and solid cells
+        self.walls.clear();
+        for (ci, &c) in self.cells.iter().enumerate() {
+            if self.cell_kind[ci] != SOLID {
+                continue;
+            }
+            for (nb, d, upper) in neighbours(f, c) {
+                if self.kind[nb] == INTERFACE {
+                    // the interface (gas) cell nb lies on side `upper` of the solid cell
+                    let (left, right, gas_left) =
+                        if upper { (c, nb, false) } else { (nb, c, true) };
+                    self.walls.push(WallFace {
+                        d,
+                        left,
+                        right,
+                        gas_left,
+                    });
+                }
+            }
+        }
+        self.refill(f);
+        // interface cells take the particle velocity now (eq. 31) keeping ρ and ρe
+        for (ci, &c) in self.cells.iter().enumerate() {
+            if self.cell_kind[ci] == INTERFACE {
+                let r = project_cell(f, c, self.cell_vel[ci]);
+                for d in 0..3 {
+                    self.reclass_momentum[d] -= r[d];
+                }
+            }
+        }
+        f.prim_valid = false;
+    }
+
+    /// Cells that were solid and now hold gas: neighbour average of the conserved state
+    /// (seed 002 eq. 32 with equal weights for the face neighbours); cells that became solid
+    /// leave the gas.
+    fn refill(&mut self, f: &mut Fluid) {
+        let mx = f.grid.mx();
+        let nv = f.nv;
+        let nm = f.nmat();
+        let vol = f.grid.cell_volume();
+        for r in 0..f.grid.rows() {
+            if !f.grid.interior_row(r) {
+                continue;
+            }
+            for i in f.grid.irange() {
+                let c = r * mx + i;
+                let (was, now) = (self.prev_kind[c], self.kind[c]);
+                if was == SOLID && now != SOLID {
+                    let mut acc = [0.0; MAXF];
+                    let mut cnt = 0.0;
+                    for (nb, _, _) in neighbours(f, c) {
+                        if self.prev_kind[nb] != SOLID && self.kind[nb] != SOLID {
+                            let (rn, i_n) = (nb / mx, nb % mx);
+                            for (v, a) in acc.iter_mut().enumerate().take(nv) {
+                                *a += f.cons[(rn * nv + v) * mx + i_n];
+                            }
+                            cnt += 1.0;
+                        }
+                    }
+                    if cnt > 0.0 {
+                        for (v, a) in acc.iter().enumerate().take(nv) {
+                            f.cons[(r * nv + v) * mx + i] = a / cnt;
+                        }
+                    }
+                    for d in 0..3 {
+                        self.reclass_momentum[d] += vol * f.cons[(r * nv + nm + d) * mx + i];
+                    }
+                } else if was != SOLID && now == SOLID {
+                    for d in 0..3 {
+                        self.reclass_momentum[d] -= vol * f.cons[(r * nv + nm + d) * mx + i];
+                    }
+                }
+            }
+        }
+    }
+
+    /// Window-averaged force on each particle (impulse / window length), flat xyz.
+    pub fn forces(&self, window_length: f64, out: &mut [f64]) {
+        for (p, imp) in self.impulse.iter().enumerate() {
+            for d in 0..3 {
+                out[3 * p + d] = imp[d] / window_length;
+            }
+        }
+    }
+}
+
+/// Face neighbours of a flat cell index inside the interior: (flat, direction, is_upper).
+fn neighbours(f: &Fluid, c: usize) -> impl Iterator<Item = (usize, usize, bool)> + '_ {
+    let grid = &f.grid;
+    let mx = grid.mx();
+    let r = c / mx;
+    let i = c % mx;
+    let (j, k) = grid.jk(r);
+    let idx = [i, j, k];
+    (0..grid.nd).flat_map(move |d| {
+        let step = match d {
+            0 => 1,
+            1 => mx,
+            _ => mx * grid.m[1],
+        };
+        let lo = (idx[d] > grid.g[d]).then(|| (c - step, d, false));
+        let hi = (idx[d] + 1 < grid.g[d] + grid.n[d]).then(|| (c + step, d, true));
+        lo.into_iter().chain(hi)
+    })
+}
+
+/// Reset the momentum of gas cell c to ρ v keeping ρe; returns the momentum removed
+/// (V (m_before - m_after)).
+fn project_cell(f: &mut Fluid, c: usize, v: [f64; 3]) -> [f64; 3] {
+    let mx = f.grid.mx();
+    let nv = f.nv;
+    let nm = f.nmat();
+    let vol = f.grid.cell_volume();
+    let (r, i) = (c / mx, c % mx);
+    let at = |var: usize| (r * nv + var) * mx + i;
+    let mut rho = 0.0;
+    for k in 0..nm {
+        rho += f.cons[at(k)];
+    }
+    let m = [f.cons[at(nm)], f.cons[at(nm + 1)], f.cons[at(nm + 2)]];
+    let ke_old = 0.5 * (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) / rho;
+    let ke_new = 0.5 * rho * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    let mut removed = [0.0; 3];
+    for d in 0..3 {
+        let mn = rho * v[d];
+        removed[d] = vol * (m[d] - mn);
+        f.cons[at(nm + d)] = mn;
+    }
+    f.cons[at(nm + 3)] += ke_new - ke_old;
+    removed
+}
+
+/// Primitive state of solid cells bordering the gas: neighbour averages of the gas cells
+/// (seed 002 eq. 32), with the particle velocity.
+pub fn fill_solid_prims(f: &mut Fluid, im: &Immersed) {
+    let mx = f.grid.mx();
+    let nv = f.nv;
+    let nm = f.nmat();
+    for (ci, &c) in im.cells.iter().enumerate() {
+        if im.cell_kind[ci] != SOLID {
+            continue;
+        }
+        let mut acc = [0.0; MAXF];
+        let mut cnt = 0.0;
+        for (nb, _, _) in neighbours(f, c) {
+            if im.kind[nb] != SOLID {
+                let (rn, i_n) = (nb / mx, nb % mx);
+                for (v, a) in acc.iter_mut().enumerate().take(nv) {
+                    *a += f.prim[(rn * nv + v) * mx + i_n];
+                }
+                cnt += 1.0;
+            }
+        }
+        let (r, i) = (c / mx, c % mx);
+        if cnt > 0.0 {
+            for (v, a) in acc.iter().enumerate().take(nv) {
+                f.prim[(r * nv + v) * mx + i] = a / cnt;
+            }
+        }
+        for d in 0..3 {
+            f.prim[(r * nv + nm + d) * mx + i] = im.cell_vel[ci][d];
+        }
+    }
+}
+
+/// Wall fluxes on the faces between interface and solid cells: the gas cell's state against
+/// its mirror image in the wall moving with the interface velocity. The momentum these
+/// faces carry out of the gas, weighted by the stage's flux weight `dt_w` (RK3 weight · dt),
+/// goes to the particles of the solid cell — together with the projections it is the whole
+/// momentum the gas loses to the body.
+pub fn wall_fluxes<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], im: &mut Immersed, dt_w: f64) {
+    let mx = f.grid.mx();
+    let nv = f.nv;
+    for wi in 0..im.walls.len() {
+        let w = im.walls[wi].clone();
+        let gas = if w.gas_left { w.left } else { w.right };
+        let (rg, ig) = (gas / mx, gas % mx);
+        let mut q = [0.0; MAXF];
+        for (v, qv) in q.iter_mut().enumerate().take(nv) {
+            *qv = f.prim[(rg * nv + v) * mx + ig];
+        }
+        // wall velocity: the interface velocity of the gas cell (eq. 31)
+        let wall = match im.cells.binary_search(&gas) {
+            Ok(ci) => im.cell_vel[ci][w.d],
+            Err(_) => 0.0,
+        };
+        let mut m = q;
+        m[NM + w.d] = 2.0 * wall - q[NM + w.d];
+        let fl = match (face_state::<NM>(ph, &q), face_state::<NM>(ph, &m)) {
+            (Some(a), Some(b)) => {
+                if w.gas_left {
+                    hllc::flux::<NM>(&a, &b, w.d)
+                } else {
+                    hllc::flux::<NM>(&b, &a, w.d)
+                }
+            }
+            _ => [f64::NAN; MAXF],
+        };
+        let (rl, il) = (w.left / mx, w.left % mx);
+        let nf = nv + 1;
+        for (v, x) in fl.iter().enumerate().take(nf) {
+            f.flux[w.d][(rl * nf + v) * mx + il] = *x;
+        }
+        // momentum into the solid cell: +F if the gas is on the lower side, -F otherwise
+        let sign = if w.gas_left { 1.0 } else { -1.0 };
+        let solid = if w.gas_left { w.right } else { w.left };
+        if let Ok(ci) = im.cells.binary_search(&solid) {
+            let area = f.grid.face_area(w.d);
+            let j = [
+                sign * fl[NM] * area * dt_w,
+                sign * fl[NM + 1] * area * dt_w,
+                sign * fl[NM + 2] * area * dt_w,
+            ];
+            let (a, b) = (im.off[ci], im.off[ci + 1]);
+            let share = 1.0 / (b - a) as f64;
+            for k in a..b {
+                let p = im.parts[k];
+                for d in 0..3 {
+                    im.impulse[p][d] += share * j[d];
+                }
+            }
+            for d in 0..3 {
+                im.total_impulse[d] += j[d];
+            }
+        }
+    }
+}
+
+/// After an RK stage: solid cells keep their frozen state; interface cells are projected to
+/// the particle velocity and the removed momentum, weighted by `w` (eq. 35), goes to their
+/// particles in equal shares (eq. 34).
+pub fn project(f: &mut Fluid, im: &mut Immersed, w: f64) {
+    let mx = f.grid.mx();
+    let nv = f.nv;
+    for ci in 0..im.cells.len() {
+        let c = im.cells[ci];
+        if im.cell_kind[ci] == SOLID {
+            let (r, i) = (c / mx, c % mx);
+            for v in 0..nv {
+                let a = (r * nv + v) * mx + i;
+                f.cons[a] = f.cons0[a];
+            }
+            continue;
+        }
+        let removed = project_cell(f, c, im.cell_vel[ci]);
+        let ps = &im.parts[im.off[ci]..im.off[ci + 1]];
+        let share = w / ps.len() as f64;
+        for &p in ps {
+            for d in 0..3 {
+                im.impulse[p][d] += share * removed[d];
+            }
+        }
+        for d in 0..3 {
+            im.total_impulse[d] += w * removed[d];
+        }
+    }
+}

@@ -1,0 +1,8 @@
+//! Compressible multi-material finite-volume fluid node: the node binary (wires the solvers of `fluid_node` into the participant runtime).
+
+fn main() {
+    std::process::exit(protocol::participant::node_main(
+        "fluid-node",
+        fluid_node::factory,
+    ));
+}

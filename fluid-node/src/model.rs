@@ -1,0 +1,70 @@
+//! The validated fluid model and its state buffers (structure of arrays in the row-blocked
+//! layout of `grid.rs`). Built by `setup.rs`, advanced by `step.rs`, wrapped by `solver.rs`.
+//!
+//! Variables (NM materials): conserved `[α_kρ_k (NM), ρu, ρv, ρw, E, α_k (NM-1)]`,
+//! primitive `[α_kρ_k (NM), u, v, w, p, α_k (NM-1)]` — the five-equation model of Allaire,
+//! Clerc & Kokh (2002), the equilibrium limit of seed 002's six-equation model (eq. 9–15).
+
+use crate::boundary::Boundary;
+use crate::grid::Grid;
+use crate::immersed::Immersed;
+use crate::limiter::Limiter;
+use crate::mixture::Phase;
+
+/// A probe: a cell whose state is recorded every window.
+#[derive(Debug, Clone)]
+pub struct Probe {
+    pub name: String,
+    pub position: [f64; 3],
+    /// Row and x index of its cell.
+    pub row: usize,
+    pub i: usize,
+}
+
+#[derive(Debug, Clone)]
+pub struct Fluid {
+    pub grid: Grid,
+    pub phases: Vec<Phase>,
+    pub material_names: Vec<String>,
+    pub limiter: Limiter,
+    pub cfl: f64,
+    pub bc: [[Boundary; 2]; 3],
+    /// Number of variables (conserved = primitive): 2·NM + 3.
+    pub nv: usize,
+    pub cons: Vec<f64>,
+    pub cons0: Vec<f64>,
+    pub prim: Vec<f64>,
+    /// Face fluxes per direction (nv + 1 entries: the last is the face velocity), indexed
+    /// by the cell left of the face.
+    pub flux: [Vec<f64>; 3],
+    /// Per-row scratch for deterministic reductions.
+    pub row_max: Vec<f64>,
+    pub row_bad: Vec<Option<(usize, usize, f64)>>,
+    pub time: f64,
+    pub steps: u64,
+    /// Impulse of the domain boundaries on the gas since the start (N s).
+    pub boundary_impulse: [f64; 3],
+    pub probes: Vec<Probe>,
+    pub immersed: Option<Immersed>,
+    pub max_steps_per_window: u64,
+    /// True once `prim` holds the primitives of `cons` (interior cells).
+    pub prim_valid: bool,
+}
+
+impl Fluid {
+    pub fn nmat(&self) -> usize {
+        self.phases.len()
+    }
+    /// Number of flux entries per face.
+    pub fn nf(&self) -> usize {
+        self.nv + 1
+    }
+    /// Index of the x-velocity (primitive) / x-momentum (conserved).
+    pub fn vel0(&self) -> usize {
+        self.nmat()
+    }
+    /// Index of the pressure (primitive) / total energy (conserved).
+    pub fn ip(&self) -> usize {
+        self.nmat() + 3
+    }
+}

@@ -1,0 +1,526 @@
+//! The starter: parameter table → validated `Fluid` model with its initial state (regions
+//! given by ρ or T, p, velocity and material; seed 000 §3 and seed 002 eq. 36 set-ups). Every
+//! refusal names the key inside `params` and the offending value.
+
+use crate::boundary::Boundary;
+use crate::config::{BoundaryEntry, BoundarySpec, MaterialSpec, Params, RegionSpec};
+use crate::eos::{Eos, IdealGas, Jwl, Material, StiffenedGas};
+use crate::grid::Grid;
+use crate::immersed::Immersed;
+use crate::limiter::Limiter;
+use crate::mixture::{self, Phase};
+use crate::model::{Fluid, Probe};
+use crate::riemann::MAXF;
+use protocol::{SolverError, SolverResult};
+
+fn cfg(key: impl Into<String>, reason: impl Into<String>) -> SolverError {
+    SolverError::config(key, reason)
+}
+
+/// Parse a params table (serde errors carry the offending key).
+pub fn parse(params: &toml::Table) -> SolverResult<Params> {
+    params
+        .clone()
+        .try_into::<Params>()
+        .map_err(|e| cfg("params", e.to_string().trim().replace('\n', " ")))
+}
+
+fn positive(key: &str, v: Option<f64>) -> SolverResult<f64> {
+    match v {
+        Some(x) if x > 0.0 && x.is_finite() => Ok(x),
+        Some(x) => Err(cfg(key, format!("must be > 0, got {x}"))),
+        None => Err(cfg(key, "missing")),
+    }
+}
+
+fn material(name: &str, m: &MaterialSpec) -> SolverResult<Material> {
+    let key = |f: &str| format!("materials.{name}.{f}");
+    let gamma = |m: &MaterialSpec| -> SolverResult<f64> {
+        match m.gamma {
+            Some(g) if g > 1.0 && g.is_finite() => Ok(g),
+            Some(g) => Err(cfg(key("gamma"), format!("must be > 1, got {g}"))),
+            None => Err(cfg(key("gamma"), "missing")),
+        }
+    };
+    let r = match m.gas_constant {
+        Some(r) if r > 0.0 => r,
+        Some(r) => return Err(cfg(key("gas_constant"), format!("must be > 0, got {r}"))),
+        None => 0.0,
+    };
+    match m.eos.as_str() {
+        "ideal" => Ok(Material::Ideal(IdealGas {
+            gamma: gamma(m)?,
+            gas_constant: r,
+        })),
+        "stiffened" => {
+            let p_inf = match m.p_inf {
+                Some(p) if p >= 0.0 => p,
+                Some(p) => return Err(cfg(key("p_inf"), format!("must be ≥ 0, got {p}"))),
+                None => return Err(cfg(key("p_inf"), "missing")),
+            };
+            Ok(Material::Stiffened(StiffenedGas {
+                gamma: gamma(m)?,
+                p_inf,
+                gas_constant: r,
+            }))
+        }
+        "jwl" => Ok(Material::Jwl(Jwl {
+            rho0: positive(&key("rho0"), m.rho0)?,
+            a: positive(&key("a"), m.a)?,
+            b: positive(&key("b"), m.b)?,
+            r1: positive(&key("r1"), m.r1)?,
+            r2: positive(&key("r2"), m.r2)?,
+            omega: positive(&key("omega"), m.omega)?,
+            e0: positive(&key("e0"), m.e0)?,
+        })),
+        other => Err(cfg(
+            key("eos"),
+            format!("unknown equation of state '{other}' (ideal, stiffened, jwl)"),
+        )),
+    }
+}
+
+/// A region's single-material primitive state: (material index, ρ, velocity, p).
+struct RegionState {
+    mat: usize,
+    rho: f64,
+    vel: [f64; 3],
+    p: f64,
+}
+
+fn state_of(
+    key: &str,
+    names: &[String],
+    mats: &[Material],
+    material: &str,
+    density: Option<f64>,
+    temperature: Option<f64>,
+    pressure: f64,
+    velocity: [f64; 3],
+) -> SolverResult<RegionState> {
+    let mat = names.iter().position(|n| n == material).ok_or_else(|| {
+        cfg(
+            format!("{key}.material"),
+            format!(
+                "unknown material '{material}' (defined: {})",
+                names.join(", ")
+            ),
+        )
+    })?;
+    let eos = &mats[mat];
+    if !pressure.is_finite()
+        || pressure <= eos.min_pressure()
+        || (pressure <= 0.0 && matches!(eos, Material::Ideal(_)))
+    {
+        return Err(cfg(
+            format!("{key}.pressure"),
+            format!("must be > {}, got {pressure}", eos.min_pressure()),
+        ));
+    }
+    let rho = match (density, temperature) {
+        (Some(_), Some(_)) => {
+            return Err(cfg(
+                format!("{key}.density"),
+                "give density or temperature, not both",
+            ));
+        }
+        (Some(r), None) => {
+            if !(r > 0.0) || !r.is_finite() {
+                return Err(cfg(
+                    format!("{key}.density"),
+                    format!("must be > 0, got {r}"),
+                ));
+            }
+            r
+        }
+        (None, Some(t)) => {
+            if !(t > 0.0) {
+                return Err(cfg(
+                    format!("{key}.temperature"),
+                    format!("must be > 0, got {t}"),
+                ));
+            }
+            eos.density_from_temperature(t, pressure).ok_or_else(|| {
+                cfg(
+                    format!("{key}.temperature"),
+                    format!("material '{material}' has no gas_constant to turn a temperature into a density"),
+                )
+            })?
+        }
+        (None, None) => return Err(cfg(format!("{key}.density"), "give density or temperature")),
+    };
+    if velocity.iter().any(|v| !v.is_finite()) {
+        return Err(cfg(format!("{key}.velocity"), "must be finite"));
+    }
+    if !(eos.rho_c2(rho, pressure) > 0.0) {
+        return Err(cfg(
+            format!("{key}.pressure"),
+            format!("state (ρ {rho}, p {pressure}) has no real sound speed"),
+        ));
+    }
+    Ok(RegionState {
+        mat,
+        rho,
+        vel: velocity,
+        p: pressure,
+    })
+}
+
+enum Shape {
+    All,
+    Box([f64; 3], [f64; 3]),
+    Sphere([f64; 3], f64),
+    Half([f64; 3], [f64; 3]),
+}
+
+impl Shape {
+    fn contains(&self, x: [f64; 3], nd: usize) -> bool {
+        match self {
+            Shape::All => true,
+            Shape::Box(lo, hi) => (0..nd).all(|d| x[d] >= lo[d] && x[d] <= hi[d]),
+            Shape::Sphere(c, r) => (0..nd).map(|d| (x[d] - c[d]).powi(2)).sum::<f64>() <= r * r,
+            Shape::Half(p, n) => (0..3).map(|d| (x[d] - p[d]) * n[d]).sum::<f64>() >= 0.0,
+        }
+    }
+}
+
+fn shape(key: &str, r: &RegionSpec) -> SolverResult<Shape> {
+    let need = |v: Option<[f64; 3]>, f: &str| {
+        v.ok_or_else(|| {
+            cfg(
+                format!("{key}.{f}"),
+                format!("required for shape '{}'", r.shape),
+            )
+        })
+    };
+    match r.shape.as_str() {
+        "all" => Ok(Shape::All),
+        "box" => {
+            let lo = need(r.lower, "lower")?;
+            let hi = need(r.upper, "upper")?;
+            if (0..3).any(|d| hi[d] < lo[d]) {
+                return Err(cfg(
+                    format!("{key}.upper"),
+                    "must be ≥ lower in every direction",
+                ));
+            }
+            Ok(Shape::Box(lo, hi))
+        }
+        "sphere" | "circle" => {
+            let c = need(r.center, "center")?;
+            let rad = positive(&format!("{key}.radius"), r.radius)?;
+            Ok(Shape::Sphere(c, rad))
+        }
+        "half_space" => {
+            let p = need(r.point, "point")?;
+            let n = need(r.normal, "normal")?;
+            if n.iter().all(|x| *x == 0.0) {
+                return Err(cfg(format!("{key}.normal"), "must not be zero"));
+            }
+            Ok(Shape::Half(p, n))
+        }
+        other => Err(cfg(
+            format!("{key}.shape"),
+            format!("unknown shape '{other}' (all, box, sphere, half_space)"),
+        )),
+    }
+}
+
+/// Primitive vector of a single-material state.
+fn prim_vector(nm: usize, s: &RegionState) -> Vec<f64> {
+    let mut q = vec![0.0; 2 * nm + 3];
+    q[s.mat] = s.rho;
+    q[nm..nm + 3].copy_from_slice(&s.vel);
+    q[nm + 3] = s.p;
+    if s.mat < nm - 1 {
+        q[nm + 4 + s.mat] = 1.0;
+    }
+    q
+}
+
+fn boundary(
+    key: &str,
+    e: &Option<BoundaryEntry>,
+    names: &[String],
+    mats: &[Material],
+) -> SolverResult<Boundary> {
+    let spec = match e {
+        None => return Ok(Boundary::Outflow),
+        Some(BoundaryEntry::Kind(k)) => BoundarySpec {
+            kind: k.clone(),
+            material: None,
+            density: None,
+            temperature: None,
+            pressure: None,
+            velocity: None,
+        },
+        Some(BoundaryEntry::Full(s)) => s.clone(),
+    };
+    match spec.kind.as_str() {
+        "wall" | "reflective" => Ok(Boundary::Wall),
+        "symmetry" => Ok(Boundary::Symmetry),
+        "outflow" => Ok(Boundary::Outflow),
+        "periodic" => Ok(Boundary::Periodic),
+        "inflow" => {
+            let m = spec
+                .material
+                .as_deref()
+                .ok_or_else(|| cfg(format!("{key}.material"), "required for inflow"))?;
+            let p = spec
+                .pressure
+                .ok_or_else(|| cfg(format!("{key}.pressure"), "required for inflow"))?;
+            let s = state_of(
+                key,
+                names,
+                mats,
+                m,
+                spec.density,
+                spec.temperature,
+                p,
+                spec.velocity.unwrap_or([0.0; 3]),
+            )?;
+            Ok(Boundary::Inflow(prim_vector(names.len(), &s)))
+        }
+        other => Err(cfg(
+            format!("{key}.kind"),
+            format!("unknown boundary '{other}' (wall, symmetry, outflow, periodic, inflow)"),
+        )),
+    }
+}
+
+/// Build the validated model.
+pub fn build(p: &Params) -> SolverResult<Fluid> {
+    // grid
+    let c = p.grid.cells;
+    if c.iter().any(|&n| n < 1) {
+        return Err(cfg(
+            "grid.cells",
+            format!("must be ≥ 1 in every direction, got {c:?} (a grid with zero cells)"),
+        ));
+    }
+    if c[1] == 1 && c[2] > 1 {
+        return Err(cfg(
+            "grid.cells",
+            "a 2-D grid is x-y: use cells = [nx, ny, 1]",
+        ));
+    }
+    if c.iter().map(|&n| n as u128).product::<u128>() > 2_000_000_000 {
+        return Err(cfg("grid.cells", format!("{c:?} is too many cells")));
+    }
+    for d in 0..3 {
+        if !(p.grid.upper[d] > p.grid.lower[d]) {
+            return Err(cfg(
+                "grid.upper",
+                format!(
+                    "must exceed grid.lower in every direction, got {:?} vs {:?}",
+                    p.grid.upper, p.grid.lower
+                ),
+            ));
+        }
+    }
+    let grid = Grid::new(
+        [c[0] as usize, c[1] as usize, c[2] as usize],
+        p.grid.lower,
+        p.grid.upper,
+    );
+    if !(p.cfl > 0.0 && p.cfl <= 1.0) {
+        return Err(cfg("cfl", format!("must be in (0, 1], got {}", p.cfl)));
+    }
+    let limiter = Limiter::parse(&p.limiter).ok_or_else(|| {
+        cfg(
+            "limiter",
+            format!("unknown limiter '{}' (minmod, van_leer, mc)", p.limiter),
+        )
+    })?;
+    // materials
+    if p.materials.is_empty() {
+        return Err(cfg("materials", "at least one material is needed"));
+    }
+    if p.materials.len() > 4 {
+        return Err(cfg(
+            "materials",
+            format!("at most 4 materials, got {}", p.materials.len()),
+        ));
+    }
+    let names: Vec<String> = p.materials.keys().cloned().collect();
+    let mut mats = Vec::new();
+    for (n, m) in &p.materials {
+        mats.push(material(n, m)?);
+    }
+    let nm = mats.len();
+    let nv = 2 * nm + 3;
+    // regions
+    if p.regions.is_empty() {
+        return Err(cfg("regions", "at least one region is needed"));
+    }
+    let mut regions = Vec::new();
+    for (ri, r) in p.regions.iter().enumerate() {
+        let key = format!("regions[{ri}]");
+        let s = state_of(
+            &key,
+            &names,
+            &mats,
+            &r.material,
+            r.density,
+            r.temperature,
+            r.pressure,
+            r.velocity,
+        )?;
+        regions.push((shape(&key, r)?, s));
+    }
+    // boundaries
+    let b = &p.boundaries;
+    let bc = [
+        [
+            boundary("boundaries.x_lower", &b.x_lower, &names, &mats)?,
+            boundary("boundaries.x_upper", &b.x_upper, &names, &mats)?,
+        ],
+        [
+            boundary("boundaries.y_lower", &b.y_lower, &names, &mats)?,
+            boundary("boundaries.y_upper", &b.y_upper, &names, &mats)?,
+        ],
+        [
+            boundary("boundaries.z_lower", &b.z_lower, &names, &mats)?,
+            boundary("boundaries.z_upper", &b.z_upper, &names, &mats)?,
+        ],
+    ];
+    for (d, ax) in ["x", "y", "z"].iter().enumerate() {
+        let per = [
+            bc[d][0] == Boundary::Periodic,
+            bc[d][1] == Boundary::Periodic,
+        ];
+        if per[0] != per[1] {
+            return Err(cfg(
+                format!("boundaries.{ax}_upper"),
+                "periodic must be set on both sides",
+            ));
+        }
+    }
+    let phases: Vec<Phase> = mats.iter().cloned().map(Phase::new).collect();
+    let total = grid.rows() * nv * grid.mx();
+    let mut f = Fluid {
+        grid: grid.clone(),
+        phases,
+        material_names: names.clone(),
+        limiter,
+        cfl: p.cfl,
+        bc,
+        nv,
+        cons: vec![0.0; total],
+        cons0: vec![0.0; total],
+        prim: vec![0.0; total],
+        flux: std::array::from_fn(|d| {
+            if d < grid.nd {
+                vec![0.0; grid.rows() * (nv + 1) * grid.mx()]
+            } else {
+                Vec::new()
+            }
+        }),
+        row_max: vec![0.0; grid.rows()],
+        row_bad: vec![None; grid.rows()],
+        time: 0.0,
+        steps: 0,
+        boundary_impulse: [0.0; 3],
+        probes: Vec::new(),
+        immersed: None,
+        max_steps_per_window: p.max_steps_per_window.unwrap_or(10_000_000),
+        prim_valid: false,
+    };
+    initialise(&mut f, &regions, &mats);
+    for (pi, pr) in p.probes.iter().enumerate() {
+        let [i, j, k] = grid.locate(pr.position).ok_or_else(|| {
+            cfg(
+                format!("probes[{pi}].position"),
+                format!("{:?} is outside the grid", pr.position),
+            )
+        })?;
+        f.probes.push(Probe {
+            name: pr.name.clone(),
+            position: pr.position,
+            row: grid.row(j, k),
+            i,
+        });
+    }
+    if let Some(im) = &p.immersed {
+        if im.interface.is_empty() {
+            return Err(cfg("immersed.interface", "must not be empty"));
+        }
+        f.immersed = Some(Immersed::new(
+            im.interface.clone(),
+            im.particles.unwrap_or(0),
+            grid.rows() * grid.mx(),
+        ));
+    }
+    Ok(f)
+}
+
+/// Conserved state of every interior cell: the average over sub-cell samples of the state
+/// of the last region containing each sample (smooth volume fractions at curved interfaces).
+fn initialise(f: &mut Fluid, regions: &[(Shape, RegionState)], mats: &[Material]) {
+    let grid = f.grid.clone();
+    let nm = mats.len();
+    let nv = f.nv;
+    let mx = grid.mx();
+    let ns = match grid.nd {
+        1 => 8,
+        2 => 4,
+        _ => 3,
+    };
+    let phases: Vec<Phase> = mats.iter().cloned().map(Phase::new).collect();
+    for r in 0..grid.rows() {
+        if !grid.interior_row(r) {
+            continue;
+        }
+        let (j, k) = grid.jk(r);
+        for i in grid.irange() {
+            let x0 = grid.centre(i, j, k);
+            let mut acc = [0.0; MAXF];
+            let mut count = 0.0;
+            let sub = |d: usize| if d < grid.nd { ns } else { 1 };
+            for a in 0..sub(0) {
+                for b in 0..sub(1) {
+                    for cc in 0..sub(2) {
+                        let idx = [a, b, cc];
+                        let mut x = x0;
+                        for d in 0..grid.nd {
+                            x[d] += ((idx[d] as f64 + 0.5) / ns as f64 - 0.5) * grid.dx[d];
+                        }
+                        let s = match regions.iter().rev().find(|(sh, _)| sh.contains(x, grid.nd)) {
+                            Some((_, s)) => s,
+                            None => &regions[0].1,
+                        };
+                        // conserved state of the pure material
+                        acc[s.mat] += s.rho;
+                        for d in 0..3 {
+                            acc[nm + d] += s.rho * s.vel[d];
+                        }
+                        let rhoe = rhoe_single(&phases[s.mat], s.rho, s.p);
+                        acc[nm + 3] += rhoe
+                            + 0.5
+                                * s.rho
+                                * (s.vel[0].powi(2) + s.vel[1].powi(2) + s.vel[2].powi(2));
+                        if s.mat < nm - 1 {
+                            acc[nm + 4 + s.mat] += 1.0;
+                        }
+                        count += 1.0;
+                    }
+                }
+            }
+            for (v, a) in acc.iter().enumerate().take(nv) {
+                f.cons[(r * nv + v) * mx + i] = a / count;
+            }
+        }
+    }
+}
+
+fn rhoe_single(ph: &Phase, rho: f64, p: f64) -> f64 {
+    mixture::rhoe::<1>(std::array::from_ref(ph), &[rho], &[1.0], p)
+}
+
+/// Convenience: params TOML text → model.
+pub fn from_toml_str(text: &str) -> SolverResult<Fluid> {
+    let t: toml::Table = text
+        .parse()
+        .map_err(|e: toml::de::Error| cfg("params", e.to_string()))?;
+    build(&parse(&t)?)
+}

@@ -1,0 +1,126 @@
+//! Bad input is refused with the key path (must-show 9), and a state that goes negative
+//! during a run stops the node with the cell, the time and the variable.
+
+use fluid_node::factory;
+use protocol::{Inbox, Outbox, Solver, SolverError, Window};
+
+const BASE: &str = r#"
+cfl = 0.5
+[grid]
+cells = [20, 1, 1]
+lower = [0.0, 0.0, 0.0]
+upper = [1.0, 1.0, 1.0]
+[materials.air]
+eos = "ideal"
+gamma = 1.4
+[[regions]]
+shape = "all"
+material = "air"
+density = 1.0
+pressure = 1.0
+"#;
+
+fn build(text: &str) -> Result<Box<dyn Solver>, SolverError> {
+    let t: toml::Table = text.parse().expect("test TOML parses");
+    factory("euler", &t)
+}
+
+fn refused(text: &str) -> (String, String) {
+    match build(text) {
+        Err(SolverError::Config { key, reason }) => (key, reason),
+        Err(e) => panic!("wrong error kind: {e}"),
+        Ok(_) => panic!("accepted bad input:\n{text}"),
+    }
+}
+
+#[test]
+fn good_input_is_accepted() {
+    assert!(build(BASE).is_ok());
+}
+
+#[test]
+fn negative_density_is_refused() {
+    let (k, r) = refused(&BASE.replace("density = 1.0", "density = -1.0"));
+    assert_eq!(k, "regions[0].density");
+    assert!(r.contains("-1"), "{r}");
+}
+
+#[test]
+fn negative_pressure_is_refused() {
+    let (k, r) = refused(&BASE.replace("pressure = 1.0", "pressure = -2.0"));
+    assert_eq!(k, "regions[0].pressure");
+    assert!(r.contains("-2"), "{r}");
+}
+
+#[test]
+fn unknown_material_is_refused() {
+    let (k, r) = refused(&BASE.replace("material = \"air\"", "material = \"argon\""));
+    assert_eq!(k, "regions[0].material");
+    assert!(r.contains("argon"), "{r}");
+}
+
+#[test]
+fn cfl_above_one_is_refused() {
+    let (k, r) = refused(&BASE.replace("cfl = 0.5", "cfl = 1.5"));
+    assert_eq!(k, "cfl");
+    assert!(r.contains("1.5"), "{r}");
+}
+
+#[test]
+fn zero_cells_are_refused() {
+    let (k, _) = refused(&BASE.replace("cells = [20, 1, 1]", "cells = [0, 1, 1]"));
+    assert_eq!(k, "grid.cells");
+}
+
+#[test]
+fn unknown_key_is_refused() {
+    let (_, r) = refused(&BASE.replace("cfl = 0.5", "cfl = 0.5\nvicosity = 1.0"));
+    assert!(r.contains("vicosity"), "{r}");
+}
+
+#[test]
+fn unknown_model_is_refused() {
+    let t: toml::Table = BASE.parse().expect("parses");
+    match factory("navier", &t) {
+        Err(SolverError::Config { key, .. }) => assert_eq!(key, "model"),
+        _ => panic!("unknown model accepted"),
+    }
+}
+
+/// A cell whose energy is corrupted below its kinetic energy (negative pressure) during a
+/// run: the next window fails with Diverged naming cell, time and variable, not NaNs.
+#[test]
+fn negative_state_during_run_stops_with_cell_time_variable() {
+    let mut s = fluid_node::setup::from_toml_str(BASE)
+        .map(fluid_node::EulerSolver::from_fluid)
+        .expect("builds");
+    let (inbox, mut out) = (Inbox::new(), Outbox::new());
+    let w1 = Window {
+        index: 1,
+        t0: 0.0,
+        t1: 0.01,
+        write_output: false,
+    };
+    s.advance(&w1, &inbox, &mut out).expect("first window");
+    let f = &mut s.fluid;
+    let (mx, nv) = (f.grid.mx(), f.nv);
+    let r = f.grid.row(0, 0);
+    let i = f.grid.g[0] + 7;
+    f.cons[(r * nv + 4) * mx + i] = -1.0; // E < 0 ⇒ p < 0
+    f.prim_valid = false;
+    let w2 = Window {
+        index: 2,
+        t0: 0.01,
+        t1: 0.02,
+        write_output: false,
+    };
+    match s.advance(&w2, &inbox, &mut out) {
+        Err(SolverError::Diverged { time, reason }) => {
+            println!("{reason}");
+            assert!((time - 0.01).abs() < 1e-12);
+            assert!(reason.contains("cell (7, 0, 0)"), "{reason}");
+            assert!(reason.contains("pressure"), "{reason}");
+        }
+        other => panic!("expected Diverged, got {other:?}"),
+    }
+}

@@ -1,0 +1,10 @@
+//! What several solvers share (ARCHITECTURE §2): constitutive updates (J2 plasticity with
+//! isotropic and kinematic hardening, in 3-D and plane stress), damage laws, meshfree
+//! kernels, neighbour search in compressed rows, and explicit time-step helpers.
+//! One concern per file.
+
+pub mod damage;
+pub mod j2;
+pub mod j2_plane_stress;
+pub mod kernel;
+pub mod neighbour;

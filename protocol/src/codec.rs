@@ -1,0 +1,263 @@
+//! Versioned envelope and codec (ARCHITECTURE §4): a fixed 20-byte header (magic, protocol
+//! version, message kind, body length, sequence number) followed by the bincode 2 body
+//! (`config::standard()`) of sender, run and message. Decoding checks every header field and
+//! the exact body length before bincode sees a byte, and caps allocations, so no input panics.
+
+use crate::message::Message;
+use bincode::config;
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+pub const MAGIC: [u8; 4] = *b"CSIM";
+pub const PROTOCOL_VERSION: u16 = 1;
+pub const HEADER_LEN: usize = 20;
+/// Largest body accepted (1 GiB), also the cap on any allocation the decoder makes.
+pub const MAX_BODY: usize = 1 << 30;
+
+#[derive(Debug, Error, PartialEq, Eq)]
+pub enum CodecError {
+    #[error("message too short: {0} bytes, the header alone is {HEADER_LEN}")]
+    Truncated(usize),
+    #[error("bad magic {0:02x?}: not a cosim message")]
+    BadMagic([u8; 4]),
+    #[error("protocol version {got}, this build speaks {PROTOCOL_VERSION}")]
+    WrongVersion { got: u16 },
+    #[error("message body of {0} bytes exceeds the limit of {MAX_BODY}")]
+    Oversized(u64),
+    #[error("header announces a {announced}-byte body, {actual} bytes follow")]
+    LengthMismatch { announced: u64, actual: usize },
+    #[error("header says kind {header}, body holds kind {body}")]
+    KindMismatch { header: u8, body: u8 },
+    #[error("body does not decode: {0}")]
+    Body(String),
+    #[error("{0} trailing bytes after the body")]
+    Trailing(usize),
+    #[error("encoding failed: {0}")]
+    Encode(String),
+}
+
+/// A message with its routing information.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Envelope {
+    pub run: String,
+    pub sender: String,
+    pub seq: u64,
+    pub message: Message,
+}
+
+#[derive(Serialize)]
+struct BodyRef<'a> {
+    run: &'a str,
+    sender: &'a str,
+    message: &'a Message,
+}
+
+#[derive(Deserialize)]
+struct Body {
+    run: String,
+    sender: String,
+    message: Message,
+}
+
+/// Header fields readable without decoding the body (used by the recorder).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Header {
+    pub version: u16,
+    pub kind: u8,
+    pub body_len: u32,
+    pub seq: u64,
+}
+
+/// Encode into `buf` (cleared first, capacity reused).
+pub fn encode_into(
+    buf: &mut Vec<u8>,
+    run: &str,
+    sender: &str,
+    seq: u64,
+    message: &Message,
+) -> Result<(), CodecError> {
+    buf.clear();
+    buf.extend_from_slice(&MAGIC);
+    buf.extend_from_slice(&PROTOCOL_VERSION.to_le_bytes());
+    buf.push(message.kind());
+    buf.push(0);
+    buf.extend_from_slice(&[0u8; 4]);
+    buf.extend_from_slice(&seq.to_le_bytes());
+    let body = BodyRef {
+        run,
+        sender,
+        message,
+    };
+    bincode::serde::encode_into_std_write(&body, buf, config::standard())
+        .map_err(|e| CodecError::Encode(e.to_string()))?;
+    let len = buf.len() - HEADER_LEN;
+    if len > MAX_BODY {
+        return Err(CodecError::Oversized(len as u64));
+    }
+    buf[8..12].copy_from_slice(&(len as u32).to_le_bytes());
+    Ok(())
+}
+
+pub fn encode(run: &str, sender: &str, seq: u64, message: &Message) -> Result<Vec<u8>, CodecError> {
+    let mut buf = Vec::new();
+    encode_into(&mut buf, run, sender, seq, message)?;
+    Ok(buf)
+}
+
+/// Read and check the header only.
+pub fn header(bytes: &[u8]) -> Result<Header, CodecError> {
+    if bytes.len() < HEADER_LEN {
+        return Err(CodecError::Truncated(bytes.len()));
+    }
+    let magic = [bytes[0], bytes[1], bytes[2], bytes[3]];
+    if magic != MAGIC {
+        return Err(CodecError::BadMagic(magic));
+    }
+    let version = u16::from_le_bytes([bytes[4], bytes[5]]);
+    if version != PROTOCOL_VERSION {
+        return Err(CodecError::WrongVersion { got: version });
+    }
+    let kind = bytes[6];
+    let body_len = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
+    if body_len as usize > MAX_BODY {
+        return Err(CodecError::Oversized(body_len as u64));
+    }
+    let actual = bytes.len() - HEADER_LEN;
+    if body_len as usize != actual {
+        return Err(CodecError::LengthMismatch {
+            announced: body_len as u64,
+            actual,
+        });
+    }
+    let mut s = [0u8; 8];
+    s.copy_from_slice(&bytes[12..20]);
+    Ok(Header {
+        version,
+        kind,
+        body_len,
+        seq: u64::from_le_bytes(s),
+    })
+}
+
+/// Decode a whole envelope. Never panics; every malformed input is an error.
+pub fn decode(bytes: &[u8]) -> Result<Envelope, CodecError> {
+    let h = header(bytes)?;
+    let body = &bytes[HEADER_LEN..];
+    // The limit bounds every length prefix inside the body, so a forged vector length
+    // cannot make bincode allocate more than the bytes that are actually there allow.
+    let cfg = config::standard().with_limit::<MAX_BODY>();
+    let (b, used): (Body, usize) = bincode::serde::borrow_decode_from_slice(body, cfg)
+        .map_err(|e| CodecError::Body(e.to_string()))?;
+    if used != body.len() {
+        return Err(CodecError::Trailing(body.len() - used));
+    }
+    if b.message.kind() != h.kind {
+        return Err(CodecError::KindMismatch {
+            header: h.kind,
+            body: b.message.kind(),
+        });
+    }
+    Ok(Envelope {
+        run: b.run,
+        sender: b.sender,
+        seq: h.seq,
+        message: b.message,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::message::*;
+    use proptest::prelude::*;
+
+    fn sample() -> Message {
+        Message::Fields(Fields {
+            coupling: "c".into(),
+            window: 7,
+            time: 1.5e-6,
+            fields: vec![Field {
+                name: "velocity".into(),
+                components: 1,
+                values: vec![1.0, -2.0, 3.5],
+            }],
+        })
+    }
+
+    #[test]
+    fn round_trip_keeps_every_field() {
+        let bytes = encode("run", "left", 42, &sample()).unwrap();
+        let env = decode(&bytes).unwrap();
+        assert_eq!(env.run, "run");
+        assert_eq!(env.sender, "left");
+        assert_eq!(env.seq, 42);
+        assert_eq!(env.message, sample());
+    }
+
+    #[test]
+    fn truncated_wrong_version_and_oversized_are_errors() {
+        let bytes = encode("run", "left", 1, &sample()).unwrap();
+        for n in 0..bytes.len() {
+            assert!(decode(&bytes[..n]).is_err(), "prefix of {n} bytes accepted");
+        }
+        let mut v = bytes.clone();
+        v[4] = 9;
+        assert_eq!(decode(&v), Err(CodecError::WrongVersion { got: 9 }));
+        let mut v = bytes.clone();
+        v[8..12].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert!(matches!(decode(&v), Err(CodecError::Oversized(_))));
+        let mut v = bytes.clone();
+        v[0] = b'X';
+        assert!(matches!(decode(&v), Err(CodecError::BadMagic(_))));
+        let mut v = bytes.clone();
+        v[6] = 3;
+        assert!(matches!(decode(&v), Err(CodecError::KindMismatch { .. })));
+        let mut v = bytes;
+        v.push(0);
+        assert!(matches!(decode(&v), Err(CodecError::LengthMismatch { .. })));
+    }
+
+    #[test]
+    fn forged_vector_length_is_an_error_not_an_allocation() {
+        // A Fields body whose values vector claims 2^60 elements.
+        let mut bytes = encode("r", "s", 0, &sample()).unwrap();
+        let n = bytes.len();
+        // The last 3*8 bytes are the f64s; the byte before them is the varint length 24.
+        assert_eq!(bytes[n - 25], 24);
+        bytes.truncate(n - 25);
+        bytes.push(255); // varint marker: u64 follows
+        bytes.extend_from_slice(&(1u64 << 60).to_le_bytes());
+        let len = (bytes.len() - HEADER_LEN) as u32;
+        bytes[8..12].copy_from_slice(&len.to_le_bytes());
+        assert!(decode(&bytes).is_err());
+    }
+
+    proptest! {
+        #[test]
+        fn random_bytes_never_panic(data in proptest::collection::vec(any::<u8>(), 0..512)) {
+            let _ = decode(&data);
+        }
+
+        #[test]
+        fn random_bodies_behind_a_valid_header_never_panic(
+            kind in 0u8..16, body in proptest::collection::vec(any::<u8>(), 0..512)) {
+            let mut v = Vec::new();
+            v.extend_from_slice(&MAGIC);
+            v.extend_from_slice(&PROTOCOL_VERSION.to_le_bytes());
+            v.push(kind);
+            v.push(0);
+            v.extend_from_slice(&(body.len() as u32).to_le_bytes());
+            v.extend_from_slice(&0u64.to_le_bytes());
+            v.extend_from_slice(&body);
+            let _ = decode(&v);
+        }
+
+        #[test]
+        fn flipped_bytes_of_a_valid_message_never_panic(pos in 0usize..200, val in any::<u8>()) {
+            let mut bytes = encode("run", "left", 1, &sample()).unwrap();
+            let p = pos % bytes.len();
+            bytes[p] = val;
+            let _ = decode(&bytes);
+        }
+    }
+}

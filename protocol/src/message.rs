@@ -1,0 +1,385 @@
+//! The messages of ARCHITECTURE §4. Every one travels inside an [`crate::Envelope`]; the
+//! recorder stores the exact bytes, so these types are also the recording's schema.
+
+use serde::{Deserialize, Serialize};
+
+/// Role a node plays in one coupling.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Role {
+    /// Owns the interface motion (kinematic) and receives constraint forces.
+    Driver,
+    /// Follows the driver's motion and returns constraint forces.
+    Responder,
+}
+
+/// The coupling kinds of ARCHITECTURE §5.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CouplingKind {
+    Kinematic,
+    Immersed,
+    Lagrange,
+}
+
+impl CouplingKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            CouplingKind::Kinematic => "kinematic",
+            CouplingKind::Immersed => "immersed",
+            CouplingKind::Lagrange => "lagrange",
+        }
+    }
+}
+
+/// One coupling as a node sees it: which of its interfaces, which peer, which role, which
+/// fields go each way, and whether an input is used in the window it was produced in
+/// (`lag = 0`) or in the next (`lag = 1`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Binding {
+    /// Coupling name, unique in the run (the data topic is `cosim/<run>/<coupling>/<from>`).
+    pub coupling: String,
+    pub kind: CouplingKind,
+    /// This node's interface.
+    pub interface: String,
+    pub role: Role,
+    pub peer: String,
+    pub peer_interface: String,
+    /// Fields this node sends every window.
+    pub sends: Vec<String>,
+    /// Fields this node receives every window.
+    pub receives: Vec<String>,
+    /// 0: the input of window k is the peer's output of window k (serial dependency);
+    /// 1: it is the peer's output of window k-1 (or of set-up for k = 1).
+    pub input_lag: u64,
+}
+
+/// Node → coordinator, first message.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Hello {
+    pub protocol_version: u16,
+    pub node: String,
+    pub model: String,
+    pub pid: u32,
+    pub capabilities: Vec<String>,
+    /// Token a remote node presents (ARCHITECTURE §11); empty for launched nodes.
+    pub token: String,
+}
+
+/// Coordinator → node: accepted, with everything the node needs to build its solver.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Welcome {
+    pub run: String,
+    pub model: String,
+    /// The node's parameter table, as TOML text (validated by the node's own config types).
+    pub params_toml: String,
+    pub bindings: Vec<Binding>,
+    /// Directory for the node's VTK and logs.
+    pub output_dir: String,
+    pub heartbeat_ms: u64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Reject {
+    pub reason: String,
+}
+
+/// One interface a node offers.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct InterfaceDescription {
+    pub name: String,
+    /// Number of interface points.
+    pub points: u64,
+    /// Fields this interface can send.
+    pub provides: Vec<String>,
+    /// Fields this interface can take.
+    pub accepts: Vec<String>,
+}
+
+/// Node → coordinator after `Welcome`: what the solver is and what it offers.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Describe {
+    pub model: String,
+    pub interfaces: Vec<InterfaceDescription>,
+    /// The solver's own stable time step, after set-up (s).
+    pub stable_dt: f64,
+    pub units: String,
+}
+
+/// Interface cell shapes for mapping (ARCHITECTURE §5, "Mapping").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum CellKind {
+    Line,
+    Triangle,
+    Quad,
+}
+
+impl CellKind {
+    pub fn nodes(self) -> usize {
+        match self {
+            CellKind::Line => 2,
+            CellKind::Triangle => 3,
+            CellKind::Quad => 4,
+        }
+    }
+}
+
+/// An interface point set with optional cells, normals and weights.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct InterfaceMesh {
+    pub ids: Vec<u64>,
+    pub positions: Vec<[f64; 3]>,
+    /// Cells over the points, all of one kind; `None` for a bare point cloud.
+    pub cells: Option<Cells>,
+    pub normals: Vec<[f64; 3]>,
+    pub weights: Vec<f64>,
+}
+
+impl InterfaceMesh {
+    pub fn points(positions: Vec<[f64; 3]>) -> Self {
+        let ids = (0..positions.len() as u64).collect();
+        InterfaceMesh {
+            ids,
+            positions,
+            ..Default::default()
+        }
+    }
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Cells {
+    pub kind: CellKind,
+    /// `kind.nodes()` point indices per cell.
+    pub connectivity: Vec<u32>,
+}
+
+/// Provider → peers: an interface mesh.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Mesh {
+    pub coupling: String,
+    pub interface: String,
+    pub mesh: InterfaceMesh,
+}
+
+/// Coordinator → node: advance over `[t0, t1]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Advance {
+    /// Windows count from 1; window 0 is set-up.
+    pub window: u64,
+    pub t0: f64,
+    pub t1: f64,
+    pub write_output: bool,
+    pub checkpoint: bool,
+}
+
+/// A named per-point array, `components` values per point, stored flat.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Field {
+    pub name: String,
+    pub components: u32,
+    /// Encoded as one block of little-endian bytes, so a large field costs about a memcpy
+    /// each way instead of a per-value encode.
+    #[serde(with = "f64_bytes")]
+    pub values: Vec<f64>,
+}
+
+/// Serde adapter: a `Vec<f64>` as one byte string of little-endian values.
+pub mod f64_bytes {
+    use serde::de::{Error, Visitor};
+    use serde::{Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &[f64], s: S) -> Result<S::Ok, S::Error> {
+        #[cfg(target_endian = "little")]
+        {
+            // SAFETY: f64 has no padding and every byte of it is initialised; the slice
+            // covers exactly the vector's storage and lives as long as `v`.
+            let bytes = unsafe { std::slice::from_raw_parts(v.as_ptr().cast::<u8>(), std::mem::size_of_val(v)) };
+            s.serialize_bytes(bytes)
+        }
+        #[cfg(not(target_endian = "little"))]
+        {
+            let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+            s.serialize_bytes(&bytes)
+        }
+    }
+
+    struct V;
+
+    impl<'de> Visitor<'de> for V {
+        type Value = Vec<f64>;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("a byte string of little-endian f64 values")
+        }
+        fn visit_bytes<E: Error>(self, b: &[u8]) -> Result<Vec<f64>, E> {
+            if b.len() % 8 != 0 {
+                return Err(E::custom(format!("{} bytes is not a whole number of f64 values", b.len())));
+            }
+            Ok(b.chunks_exact(8)
+                .map(|c| f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]))
+                .collect())
+        }
+        fn visit_borrowed_bytes<E: Error>(self, b: &'de [u8]) -> Result<Vec<f64>, E> {
+            self.visit_bytes(b)
+        }
+        fn visit_byte_buf<E: Error>(self, b: Vec<u8>) -> Result<Vec<f64>, E> {
+            self.visit_bytes(&b)
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
+        d.deserialize_bytes(V)
+    }
+}
+
+/// Node → peer: the fields of one coupling produced at the end of `window`
+/// (window 0: at set-up).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Fields {
+    pub coupling: String,
+    pub window: u64,
+    pub time: f64,
+    pub fields: Vec<Field>,
+}
+
+impl Fields {
+    pub fn get(&self, name: &str) -> Option<&Field> {
+        self.fields.iter().find(|f| f.name == name)
+    }
+}
+
+/// What a node reports after each window (ARCHITECTURE §3).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct StepReport {
+    pub kinetic_energy: f64,
+    pub internal_energy: f64,
+    /// Work of the node's own external loads (J).
+    pub external_work: f64,
+    /// Work done on the node through its coupling interfaces (J).
+    pub interface_work: f64,
+    /// Total linear momentum of the node (kg m/s).
+    pub momentum: [f64; 3],
+    /// Impulse of the node's own external loads and supports over the run so far (N s).
+    pub external_impulse: [f64; 3],
+    /// Magnitude of the impulse of the node's prescribed loads so far, supports excluded
+    /// (N s): the scale against which momentum balances are judged.
+    pub applied_impulse: f64,
+    /// Impulse received through coupling interfaces over the run so far (N s).
+    pub interface_impulse: [f64; 3],
+    pub substeps: u64,
+    pub wall_s: f64,
+    /// Time the node spent waiting for and exchanging coupling data in this window (s).
+    pub coupling_wait_s: f64,
+    /// Named extra scalars (probes, tip displacement, ...), for plots and replay reports.
+    pub scalars: Vec<(String, f64)>,
+}
+
+/// Node → coordinator: the window is finished.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Done {
+    pub window: u64,
+    pub report: StepReport,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Heartbeat {
+    pub window: u64,
+    pub substeps: u64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Finish {
+    pub reason: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Abort {
+    pub reason: String,
+}
+
+/// Node → coordinator: the node failed and says why (it then exits non-zero).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Failed {
+    pub reason: String,
+}
+
+/// Every message of the protocol.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Message {
+    Hello(Hello),
+    Welcome(Welcome),
+    Reject(Reject),
+    Describe(Describe),
+    Mesh(Mesh),
+    Advance(Advance),
+    Fields(Fields),
+    Done(Done),
+    Heartbeat(Heartbeat),
+    Finish(Finish),
+    Abort(Abort),
+    Failed(Failed),
+}
+
+impl Message {
+    /// Stable numeric kind carried in the envelope header.
+    pub fn kind(&self) -> u8 {
+        match self {
+            Message::Hello(_) => 1,
+            Message::Welcome(_) => 2,
+            Message::Reject(_) => 3,
+            Message::Describe(_) => 4,
+            Message::Mesh(_) => 5,
+            Message::Advance(_) => 6,
+            Message::Fields(_) => 7,
+            Message::Done(_) => 8,
+            Message::Heartbeat(_) => 9,
+            Message::Finish(_) => 10,
+            Message::Abort(_) => 11,
+            Message::Failed(_) => 12,
+        }
+    }
+
+    /// Rust type name, used as the MCAP schema name.
+    pub fn type_name(&self) -> &'static str {
+        kind_name(self.kind())
+    }
+}
+
+/// Schema name of a message kind.
+pub fn kind_name(kind: u8) -> &'static str {
+    match kind {
+        1 => "cosim.Hello",
+        2 => "cosim.Welcome",
+        3 => "cosim.Reject",
+        4 => "cosim.Describe",
+        5 => "cosim.Mesh",
+        6 => "cosim.Advance",
+        7 => "cosim.Fields",
+        8 => "cosim.Done",
+        9 => "cosim.Heartbeat",
+        10 => "cosim.Finish",
+        11 => "cosim.Abort",
+        12 => "cosim.Failed",
+        _ => "cosim.Unknown",
+    }
+}
+
+/// Topic names of ARCHITECTURE §4.
+pub mod topic {
+    /// Control topic of a node, node → coordinator.
+    pub fn up(run: &str, node: &str) -> String {
+        format!("cosim/{run}/{node}/ctrl")
+    }
+    /// Control topic of a node, coordinator → node.
+    pub fn down(run: &str, node: &str) -> String {
+        format!("cosim/{run}/{node}/cmd")
+    }
+    /// Data topic of one coupling, written by `from`.
+    pub fn data(run: &str, coupling: &str, from: &str) -> String {
+        format!("cosim/{run}/{coupling}/{from}")
+    }
+}

@@ -1,0 +1,677 @@
+//! Participant runtime: runs any `Solver` as a node. Split in two so that the same logic serves
+//! a node process and an in-process replay:
+//!
+//! * [`NodeEngine`]: couplings, the per-coupling input buffers (which window's data feeds which
+//!   window, ARCHITECTURE §5), interface mapping (`v_r = W v_d`, `f_d = Wᵀ f_r`) and the calls
+//!   into the solver. No I/O.
+//! * [`node_main`]: the process around it: command line, transport, handshake, heartbeat
+//!   thread, the window loop, and clean failure (a `Failed` message, then a non-zero exit).
+
+use crate::codec::{self, encode_into};
+use crate::mapping::Mapping;
+use crate::message::*;
+use crate::solver::{FieldSet, Solver, SolverError, SolverFactory, Window};
+use crate::transport::{self, Publisher, Transport, TransportKind, TransportSpec};
+use std::collections::VecDeque;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+/// Fields mapped with `W` (interpolated motion) — every other field is a load mapped with `Wᵀ`.
+pub const MOTION_FIELDS: &[&str] = &[
+    "position",
+    "velocity",
+    "displacement",
+    "acceleration",
+    "rotation",
+    "normal",
+    "angular_velocity",
+];
+
+pub fn is_motion(name: &str) -> bool {
+    MOTION_FIELDS.contains(&name)
+}
+
+/// One coupling of this node, with its input buffer and mapping.
+struct Link {
+    b: Binding,
+    /// Peer fields not consumed yet, oldest first.
+    pending: VecDeque<Fields>,
+    /// Set for a responder whose interface differs from the driver's layout.
+    map: Option<Mapping>,
+    /// Number of points on the wire (the driver's layout).
+    wire_points: usize,
+}
+
+/// Couplings, buffers and mapping around a solver; transport-free.
+pub struct NodeEngine {
+    pub solver: Box<dyn Solver>,
+    links: Vec<Link>,
+    inbox: FieldSet,
+    outbox: FieldSet,
+    scratch: Vec<f64>,
+}
+
+/// Why the engine stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum EngineError {
+    #[error("{0}")]
+    Solver(#[from] SolverError),
+    #[error("coupling {coupling}: {reason}")]
+    Coupling { coupling: String, reason: String },
+}
+
+impl NodeEngine {
+    pub fn new(solver: Box<dyn Solver>, bindings: &[Binding]) -> Self {
+        let links = bindings
+            .iter()
+            .map(|b| Link {
+                b: b.clone(),
+                pending: VecDeque::new(),
+                map: None,
+                wire_points: 0,
+            })
+            .collect();
+        NodeEngine {
+            solver,
+            links,
+            inbox: FieldSet::new(),
+            outbox: FieldSet::new(),
+            scratch: Vec::new(),
+        }
+    }
+
+    pub fn bindings(&self) -> impl Iterator<Item = &Binding> {
+        self.links.iter().map(|l| &l.b)
+    }
+
+    /// The mesh this node puts on the wire for each coupling (its own interface).
+    pub fn own_meshes(&self) -> Result<Vec<Mesh>, EngineError> {
+        let mut v = Vec::new();
+        for l in &self.links {
+            v.push(Mesh {
+                coupling: l.b.coupling.clone(),
+                interface: l.b.interface.clone(),
+                mesh: self.solver.interface(&l.b.interface)?,
+            });
+        }
+        Ok(v)
+    }
+
+    /// Take the peer's interface mesh: a responder builds its mapping `W` from it.
+    pub fn peer_mesh(&mut self, m: &Mesh) -> Result<(), EngineError> {
+        let Some(i) = self.links.iter().position(|l| l.b.coupling == m.coupling) else {
+            return Err(EngineError::Coupling {
+                coupling: m.coupling.clone(),
+                reason: "mesh for a coupling this node is not part of".into(),
+            });
+        };
+        let own = self.solver.interface(&self.links[i].b.interface)?;
+        let l = &mut self.links[i];
+        match l.b.role {
+            Role::Driver => l.wire_points = own.len(),
+            Role::Responder => {
+                l.wire_points = m.mesh.len();
+                let same = own.positions.len() == m.mesh.positions.len()
+                    && own
+                        .positions
+                        .iter()
+                        .zip(&m.mesh.positions)
+                        .all(|(a, b)| a == b);
+                l.map = if same || l.b.kind == CouplingKind::Immersed {
+                    None
+                } else {
+                    Some(Mapping::consistent(&m.mesh, &own.positions).map_err(|e| {
+                        EngineError::Coupling {
+                            coupling: m.coupling.clone(),
+                            reason: format!("cannot map onto the driver's mesh: {e}"),
+                        }
+                    })?)
+                };
+            }
+        }
+        Ok(())
+    }
+
+    /// Whether every coupling has its peer mesh.
+    pub fn meshes_complete(&self) -> bool {
+        self.links
+            .iter()
+            .all(|l| l.wire_points > 0 || l.b.kind == CouplingKind::Immersed)
+    }
+
+    /// Buffer fields that arrived from a peer.
+    pub fn receive(&mut self, f: Fields) -> Result<(), EngineError> {
+        let Some(l) = self.links.iter_mut().find(|l| l.b.coupling == f.coupling) else {
+            return Err(EngineError::Coupling {
+                coupling: f.coupling,
+                reason: "fields for a coupling this node is not part of".into(),
+            });
+        };
+        l.pending.push_back(f);
+        Ok(())
+    }
+
+    /// Label of the peer output window `window` consumes on link `l` (None: nothing needed).
+    fn needed(l: &Link, window: u64) -> Option<u64> {
+        if window == 0 {
+            // Set-up: only the lagged side waits, for its peer's set-up fields.
+            return (l.b.input_lag == 1).then_some(0);
+        }
+        Some(window - l.b.input_lag)
+    }
+
+    /// True when the inputs of `window` (0 = set-up) are all buffered.
+    pub fn ready(&self, window: u64) -> bool {
+        self.links.iter().all(|l| match Self::needed(l, window) {
+            None => true,
+            Some(k) => l.pending.iter().any(|f| f.window == k),
+        })
+    }
+
+    /// Couplings still missing an input for `window` (for error messages).
+    pub fn missing(&self, window: u64) -> Vec<String> {
+        self.links
+            .iter()
+            .filter(|l| match Self::needed(l, window) {
+                None => false,
+                Some(k) => !l.pending.iter().any(|f| f.window == k),
+            })
+            .map(|l| {
+                format!(
+                    "{} (window {})",
+                    l.b.coupling,
+                    Self::needed(l, window).unwrap_or(0)
+                )
+            })
+            .collect()
+    }
+
+    /// Move the buffered inputs of `window` into the inbox, mapped into this solver's layout.
+    fn fill_inbox(&mut self, window: u64) -> Result<(), EngineError> {
+        for l in &mut self.links {
+            let Some(k) = Self::needed(l, window) else {
+                continue;
+            };
+            while l.pending.front().is_some_and(|f| f.window < k) {
+                l.pending.pop_front();
+            }
+            let Some(f) = l.pending.iter().find(|f| f.window == k) else {
+                return Err(EngineError::Coupling {
+                    coupling: l.b.coupling.clone(),
+                    reason: format!("input of window {k} missing"),
+                });
+            };
+            for field in &f.fields {
+                let c = field.components.max(1) as usize;
+                match (&l.map, l.b.role) {
+                    (Some(m), Role::Responder) => {
+                        let n_r = m.n_responder();
+                        let dst = self.inbox.put(&l.b.interface, &field.name, c as u32, n_r);
+                        if is_motion(&field.name) {
+                            m.map_motion(&field.values, c, dst).map_err(|e| {
+                                EngineError::Coupling {
+                                    coupling: l.b.coupling.clone(),
+                                    reason: format!("field {}: {e}", field.name),
+                                }
+                            })?;
+                        } else {
+                            return Err(EngineError::Coupling {
+                                coupling: l.b.coupling.clone(),
+                                reason: format!(
+                                    "a responder receives motion only, got '{}'",
+                                    field.name
+                                ),
+                            });
+                        }
+                    }
+                    _ => self.inbox.insert(&l.b.interface, field.clone()),
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Turn the outbox into one `Fields` message per coupling (in the driver's layout).
+    fn drain_outbox(&mut self, window: u64, time: f64) -> Result<Vec<Fields>, EngineError> {
+        let mut msgs = Vec::with_capacity(self.links.len());
+        for l in &self.links {
+            let mut fields = Vec::new();
+            for f in self.outbox.fields_of(&l.b.interface) {
+                match (&l.map, l.b.role) {
+                    (Some(m), Role::Responder) => {
+                        if is_motion(&f.name) {
+                            return Err(EngineError::Coupling {
+                                coupling: l.b.coupling.clone(),
+                                reason: format!("a responder sends loads only, not '{}'", f.name),
+                            });
+                        }
+                        let c = f.components.max(1) as usize;
+                        self.scratch.clear();
+                        self.scratch.resize(m.n_driver() * c, 0.0);
+                        m.map_load(&f.values, c, &mut self.scratch).map_err(|e| {
+                            EngineError::Coupling {
+                                coupling: l.b.coupling.clone(),
+                                reason: format!("field {}: {e}", f.name),
+                            }
+                        })?;
+                        fields.push(Field {
+                            name: f.name.clone(),
+                            components: f.components,
+                            values: self.scratch.clone(),
+                        });
+                    }
+                    _ => fields.push(f.clone()),
+                }
+            }
+            msgs.push(Fields {
+                coupling: l.b.coupling.clone(),
+                window,
+                time,
+                fields,
+            });
+        }
+        Ok(msgs)
+    }
+
+    /// Set-up (window 0): returns the set-up fields to send.
+    pub fn setup(&mut self) -> Result<Vec<Fields>, EngineError> {
+        self.fill_inbox(0)?;
+        let bindings: Vec<Binding> = self.links.iter().map(|l| l.b.clone()).collect();
+        self.solver
+            .setup(&bindings, &self.inbox, &mut self.outbox)?;
+        self.drain_outbox(0, 0.0)
+    }
+
+    /// Advance one window; returns the report and the fields to send.
+    pub fn advance(&mut self, w: &Window) -> Result<(StepReport, Vec<Fields>), EngineError> {
+        self.fill_inbox(w.index)?;
+        let report = self.solver.advance(w, &self.inbox, &mut self.outbox)?;
+        let msgs = self.drain_outbox(w.index, w.t1)?;
+        Ok((report, msgs))
+    }
+}
+
+/// Command line of every node binary.
+#[derive(Debug, clap::Parser)]
+#[command(about = "A cosim node: launched by `cosim run`, or joining a run from another host")]
+pub struct NodeArgs {
+    /// Run id to join (printed by `cosim run` for remote nodes).
+    #[arg(long, alias = "join")]
+    pub run: String,
+    /// This node's name in the case file.
+    #[arg(long)]
+    pub node: String,
+    /// shm | zenoh
+    #[arg(long, default_value = "shm")]
+    pub transport: String,
+    /// zenoh endpoint of the coordinator, e.g. tcp/10.0.0.1:7447.
+    #[arg(long)]
+    pub connect: Option<String>,
+    /// Token printed by `cosim run` for remote nodes.
+    #[arg(long, default_value = "")]
+    pub token: String,
+}
+
+struct Wire {
+    t: Box<dyn Transport>,
+    up: Box<dyn Publisher>,
+    data: Vec<(String, Box<dyn Publisher>)>,
+    run: String,
+    me: String,
+    buf: Vec<u8>,
+    seq: Arc<AtomicU64>,
+    cmd_topic: usize,
+}
+
+impl Wire {
+    fn send_up(&mut self, m: &Message) -> anyhow::Result<()> {
+        let seq = self.seq.fetch_add(1, Ordering::Relaxed);
+        encode_into(&mut self.buf, &self.run, &self.me, seq, m)?;
+        self.up.send(&self.buf)?;
+        Ok(())
+    }
+
+    fn send_data(&mut self, coupling: &str, m: &Message) -> anyhow::Result<()> {
+        let seq = self.seq.fetch_add(1, Ordering::Relaxed);
+        encode_into(&mut self.buf, &self.run, &self.me, seq, m)?;
+        let p = self
+            .data
+            .iter_mut()
+            .find(|(c, _)| c == coupling)
+            .ok_or_else(|| anyhow::anyhow!("no publisher for coupling {coupling}"))?;
+        p.1.send(&self.buf)?;
+        Ok(())
+    }
+}
+
+/// What arrived: a command from the coordinator or data from a peer.
+enum Incoming {
+    Cmd(Message),
+    Data(Message),
+    Bad(String),
+}
+
+fn recv_one(w: &mut Wire, timeout: Duration) -> anyhow::Result<Option<Incoming>> {
+    let mut got = None;
+    let cmd = w.cmd_topic;
+    w.t.recv(timeout, &mut |topic, bytes| {
+        got = Some(match codec::decode(bytes) {
+            Ok(env) if topic == cmd => Incoming::Cmd(env.message),
+            Ok(env) => Incoming::Data(env.message),
+            Err(e) => Incoming::Bad(e.to_string()),
+        });
+    })?;
+    Ok(got)
+}
+
+/// Entry point of every node binary; returns the process exit code
+/// (0 finished, 1 failed, 2 bad invocation, 3 aborted by the coordinator).
+pub fn node_main(binary: &str, factory: SolverFactory) -> i32 {
+    use clap::Parser;
+    let args = match NodeArgs::try_parse() {
+        Ok(a) => a,
+        Err(e) => {
+            let code = if e.use_stderr() { 2 } else { 0 };
+            let _ = e.print();
+            return code;
+        }
+    };
+    init_logging();
+    match run_node(binary, factory, &args) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("{binary} {}: {e:#}", args.node);
+            1
+        }
+    }
+}
+
+/// Logs to stderr (the coordinator keeps each node's stderr in `<out>/<node>.log`).
+pub fn init_logging() {
+    let filter = tracing_subscriber::EnvFilter::try_from_env("COSIM_LOG")
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,zenoh=warn,iceoryx2=warn"));
+    use std::io::IsTerminal;
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_ansi(std::io::stderr().is_terminal())
+        .with_writer(std::io::stderr)
+        .try_init();
+}
+
+fn run_node(binary: &str, factory: SolverFactory, args: &NodeArgs) -> anyhow::Result<i32> {
+    let kind: TransportKind = args
+        .transport
+        .parse()
+        .map_err(|e: String| anyhow::anyhow!(e))?;
+    let spec = TransportSpec {
+        kind,
+        run: args.run.clone(),
+        endpoint: args.node.clone(),
+        listen: vec![],
+        connect: args.connect.iter().cloned().collect(),
+    };
+    let mut t = transport::open(&spec)?;
+    t.declare_alive()?;
+    let cmd_topic = t.subscribe(&topic::down(&args.run, &args.node))?;
+    let up_topic = topic::up(&args.run, &args.node);
+    let coordinator = vec!["coordinator".to_string()];
+    let up = t.publisher(&up_topic, &coordinator)?;
+    // The coordinator subscribes before it launches us; wait for it where the transport
+    // can tell (shared memory drops messages sent before a reader connects).
+    let start = Instant::now();
+    while t.readers(&up_topic) == Some(0) {
+        if start.elapsed() > Duration::from_secs(30) {
+            anyhow::bail!("no coordinator is listening on {up_topic}");
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let mut w = Wire {
+        t,
+        up,
+        data: Vec::new(),
+        run: args.run.clone(),
+        me: args.node.clone(),
+        buf: Vec::new(),
+        seq: Arc::new(AtomicU64::new(0)),
+        cmd_topic,
+    };
+    w.send_up(&Message::Hello(Hello {
+        protocol_version: codec::PROTOCOL_VERSION,
+        node: args.node.clone(),
+        model: String::new(),
+        pid: std::process::id(),
+        capabilities: vec![binary.to_string()],
+        token: args.token.clone(),
+    }))?;
+    // Welcome.
+    let welcome = loop {
+        match recv_one(&mut w, Duration::from_secs(60))? {
+            Some(Incoming::Cmd(Message::Welcome(wl))) => break wl,
+            Some(Incoming::Cmd(Message::Reject(r))) => {
+                eprintln!("{binary} {}: rejected: {}", args.node, r.reason);
+                return Ok(2);
+            }
+            Some(Incoming::Cmd(Message::Abort(a))) => {
+                tracing::info!("aborted before start: {}", a.reason);
+                return Ok(3);
+            }
+            Some(_) => continue,
+            None => anyhow::bail!("no Welcome from the coordinator within 60 s"),
+        }
+    };
+    let fail = |w: &mut Wire, reason: String| -> anyhow::Result<i32> {
+        tracing::error!("{reason}");
+        w.send_up(&Message::Failed(Failed { reason }))?;
+        Ok(1)
+    };
+    let params: toml::Table = match toml::from_str(&welcome.params_toml) {
+        Ok(p) => p,
+        Err(e) => return fail(&mut w, format!("params: {}", e.message())),
+    };
+    let solver = match factory(&welcome.model, &params) {
+        Ok(s) => s,
+        Err(SolverError::Config { key, reason }) => {
+            return fail(
+                &mut w,
+                format!("nodes.{}.params.{key}: {reason}", args.node),
+            );
+        }
+        Err(e) => return fail(&mut w, e.to_string()),
+    };
+    let mut engine = NodeEngine::new(solver, &welcome.bindings);
+    for b in &welcome.bindings {
+        w.t.subscribe(&topic::data(&welcome.run, &b.coupling, &b.peer))?;
+        let readers = vec![b.peer.clone(), "coordinator".to_string()];
+        let p = w.t.publisher(
+            &topic::data(&welcome.run, &b.coupling, &args.node),
+            &readers,
+        )?;
+        w.data.push((b.coupling.clone(), p));
+    }
+    // Heartbeats from a thread, so a long window does not look like a hang.
+    let alive = Arc::new(AtomicBool::new(true));
+    let hb = {
+        let mut p = w.t.publisher(&up_topic, &coordinator)?;
+        let alive = alive.clone();
+        let (run, me, seq) = (w.run.clone(), w.me.clone(), w.seq.clone());
+        let period = Duration::from_millis(welcome.heartbeat_ms.max(10));
+        std::thread::spawn(move || {
+            let mut buf = Vec::new();
+            let mut last = Instant::now();
+            while alive.load(Ordering::Relaxed) {
+                std::thread::sleep(Duration::from_millis(5));
+                if last.elapsed() < period {
+                    continue;
+                }
+                last = Instant::now();
+                let s = seq.fetch_add(1, Ordering::Relaxed);
+                let m = Message::Heartbeat(Heartbeat {
+                    window: 0,
+                    substeps: 0,
+                });
+                if encode_into(&mut buf, &run, &me, s, &m).is_ok() {
+                    let _ = p.send(&buf);
+                }
+            }
+        })
+    };
+    let result = node_loop(&mut w, &mut engine, &welcome, &args.node);
+    alive.store(false, Ordering::Relaxed);
+    let _ = hb.join();
+    match result {
+        Ok(code) => Ok(code),
+        Err(e) => fail(&mut w, format!("{e:#}")),
+    }
+}
+
+fn node_loop(
+    w: &mut Wire,
+    engine: &mut NodeEngine,
+    welcome: &Welcome,
+    me: &str,
+) -> anyhow::Result<i32> {
+    let desc = engine.solver.describe();
+    let describe = Message::Describe(Describe {
+        model: desc.model.clone(),
+        interfaces: desc
+            .interfaces
+            .iter()
+            .map(|i| InterfaceDescription {
+                name: i.name.clone(),
+                points: i.points as u64,
+                provides: i.provides.clone(),
+                accepts: i.accepts.clone(),
+            })
+            .collect(),
+        stable_dt: engine.solver.stable_dt(),
+        units: desc.units,
+    });
+    w.send_up(&describe)?;
+    // Set-up starts when the coordinator says so (window 0): by then every node has
+    // subscribed to its inputs, so nothing we publish is lost.
+    let mut pending_cmd: VecDeque<Message> = VecDeque::new();
+    loop {
+        match recv_one(w, Duration::from_secs(60))? {
+            Some(Incoming::Cmd(Message::Advance(a))) if a.window == 0 => break,
+            Some(Incoming::Cmd(Message::Abort(a))) => {
+                tracing::info!("aborted: {}", a.reason);
+                return Ok(3);
+            }
+            Some(Incoming::Cmd(Message::Finish(_))) => return Ok(0),
+            Some(Incoming::Cmd(m)) => pending_cmd.push_back(m),
+            Some(Incoming::Data(Message::Mesh(m))) => engine.peer_mesh(&m)?,
+            Some(Incoming::Data(Message::Fields(f))) => engine.receive(f)?,
+            Some(Incoming::Data(_)) => {}
+            Some(Incoming::Bad(e)) => anyhow::bail!("malformed message received: {e}"),
+            None => anyhow::bail!("no set-up command from the coordinator within 60 s"),
+        }
+    }
+    // Shared memory can tell when every reader is connected: wait for it.
+    let start = Instant::now();
+    for b in &welcome.bindings {
+        let tp = topic::data(&welcome.run, &b.coupling, me);
+        while w.t.readers(&tp).is_some_and(|n| n < 2) {
+            if start.elapsed() > Duration::from_secs(60) {
+                anyhow::bail!("peer '{}' never subscribed to {tp}", b.peer);
+            }
+            if let Some(Incoming::Cmd(Message::Abort(a))) = recv_one(w, Duration::from_millis(2))? {
+                tracing::info!("aborted: {}", a.reason);
+                return Ok(3);
+            }
+        }
+    }
+    for m in engine.own_meshes()? {
+        let c = m.coupling.clone();
+        w.send_data(&c, &Message::Mesh(m))?;
+    }
+    let mut window: u64 = 0;
+    let mut set_up = false;
+    let mut wait_s = 0.0;
+    loop {
+        // Act on what can be done now.
+        if !set_up && engine.meshes_complete() && engine.ready(0) {
+            let t0 = Instant::now();
+            let msgs = engine.setup()?;
+            for f in msgs {
+                let c = f.coupling.clone();
+                w.send_data(&c, &Message::Fields(f))?;
+            }
+            set_up = true;
+            let report = StepReport {
+                wall_s: t0.elapsed().as_secs_f64(),
+                ..Default::default()
+            };
+            let describe_after = Message::Describe(Describe {
+                model: engine.solver.describe().model,
+                interfaces: vec![],
+                stable_dt: engine.solver.stable_dt(),
+                units: String::new(),
+            });
+            w.send_up(&describe_after)?;
+            w.send_up(&Message::Done(Done { window: 0, report }))?;
+        }
+        if set_up {
+            if let Some(Message::Advance(a)) = pending_cmd.front() {
+                let a = *a;
+                if engine.ready(a.window) {
+                    pending_cmd.pop_front();
+                    let started = Instant::now();
+                    let win = Window {
+                        index: a.window,
+                        t0: a.t0,
+                        t1: a.t1,
+                        write_output: a.write_output,
+                    };
+                    let (mut report, msgs) = engine.advance(&win)?;
+                    for f in msgs {
+                        let c = f.coupling.clone();
+                        w.send_data(&c, &Message::Fields(f))?;
+                    }
+                    if a.write_output {
+                        let dir = PathBuf::from(&welcome.output_dir);
+                        engine.solver.write_output(a.t1, a.window, &dir)?;
+                    }
+                    report.wall_s = started.elapsed().as_secs_f64();
+                    report.coupling_wait_s = wait_s;
+                    wait_s = 0.0;
+                    window = a.window;
+                    w.send_up(&Message::Done(Done { window, report }))?;
+                    continue;
+                }
+            }
+        }
+        // Otherwise wait for something to arrive.
+        let waited = Instant::now();
+        let got = recv_one(w, Duration::from_millis(500))?;
+        if set_up {
+            wait_s += waited.elapsed().as_secs_f64();
+        }
+        match got {
+            None => {}
+            Some(Incoming::Bad(e)) => anyhow::bail!("malformed message received: {e}"),
+            Some(Incoming::Cmd(Message::Advance(a))) => pending_cmd.push_back(Message::Advance(a)),
+            Some(Incoming::Cmd(Message::Finish(_))) => {
+                tracing::info!("finished after window {window}");
+                return Ok(0);
+            }
+            Some(Incoming::Cmd(Message::Abort(a))) => {
+                tracing::info!("aborted by the coordinator: {}", a.reason);
+                return Ok(3);
+            }
+            Some(Incoming::Cmd(other)) => {
+                tracing::warn!("ignored command {}", other.type_name());
+            }
+            Some(Incoming::Data(Message::Mesh(m))) => {
+                if engine.bindings().any(|b| b.coupling == m.coupling) {
+                    engine.peer_mesh(&m)?;
+                }
+            }
+            Some(Incoming::Data(Message::Fields(f))) => engine.receive(f)?,
+            Some(Incoming::Data(other)) => {
+                anyhow::bail!("unexpected {} on a data topic", other.type_name());
+            }
+        }
+    }
+}

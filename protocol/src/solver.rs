@@ -1,0 +1,217 @@
+//! The `Solver` trait (ARCHITECTURE §3): what every node implements. It is independent of any
+//! transport, so the participant runtime, the replay tool and unit tests all drive a solver
+//! the same way, in-process.
+//!
+//! Data cross the trait per interface as named flat arrays (`Field`), in the solver's own
+//! point layout: the participant runtime maps between the peer's layout and this one.
+
+use crate::message::{Binding, Field, InterfaceMesh, StepReport};
+use std::path::Path;
+use thiserror::Error;
+
+#[derive(Debug, Error)]
+pub enum SolverError {
+    /// Bad parameter: the key path and why (`nodes.left.params.elements: must be > 0, got 0`).
+    #[error("{key}: {reason}")]
+    Config { key: String, reason: String },
+    /// A coupling input is missing or has the wrong size.
+    #[error("interface {interface}: {reason}")]
+    Interface { interface: String, reason: String },
+    /// The state became unphysical (negative density, NaN, ...): where and when.
+    #[error("diverged at t = {time:e}: {reason}")]
+    Diverged { time: f64, reason: String },
+    #[error("{0}")]
+    Io(#[from] std::io::Error),
+    #[error("{0}")]
+    Other(String),
+}
+
+impl SolverError {
+    pub fn config(key: impl Into<String>, reason: impl Into<String>) -> Self {
+        SolverError::Config {
+            key: key.into(),
+            reason: reason.into(),
+        }
+    }
+    pub fn interface(interface: impl Into<String>, reason: impl Into<String>) -> Self {
+        SolverError::Interface {
+            interface: interface.into(),
+            reason: reason.into(),
+        }
+    }
+}
+
+pub type SolverResult<T> = Result<T, SolverError>;
+
+/// One coupling window `[t0, t1]`; windows count from 1.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Window {
+    pub index: u64,
+    pub t0: f64,
+    pub t1: f64,
+    pub write_output: bool,
+}
+
+/// What a solver is and what it offers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NodeDescription {
+    pub model: String,
+    pub interfaces: Vec<InterfaceInfo>,
+    pub units: String,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct InterfaceInfo {
+    pub name: String,
+    pub points: usize,
+    pub provides: Vec<String>,
+    pub accepts: Vec<String>,
+}
+
+/// Named per-interface fields, in the solver's own layout. Used both ways: the runtime fills
+/// an `Inbox` before `advance`, the solver fills an `Outbox` during it. Buffers are kept
+/// between windows so a steady run allocates nothing.
+#[derive(Debug, Default, Clone)]
+pub struct FieldSet {
+    entries: Vec<(String, Field)>,
+}
+
+pub type Inbox = FieldSet;
+pub type Outbox = FieldSet;
+
+impl FieldSet {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The field `name` of `interface`, if present.
+    pub fn get(&self, interface: &str, name: &str) -> Option<&Field> {
+        self.entries
+            .iter()
+            .find(|(i, f)| i == interface && f.name == name)
+            .map(|(_, f)| f)
+    }
+
+    /// The values of a field that must be there with `len` values.
+    pub fn require(&self, interface: &str, name: &str, len: usize) -> SolverResult<&[f64]> {
+        let f = self.get(interface, name).ok_or_else(|| {
+            SolverError::interface(interface, format!("no '{name}' field received"))
+        })?;
+        if f.values.len() != len {
+            return Err(SolverError::interface(
+                interface,
+                format!("'{name}' has {} values, expected {len}", f.values.len()),
+            ));
+        }
+        Ok(&f.values)
+    }
+
+    /// A writable buffer of `points * components` values for `name` on `interface`, reused
+    /// from the previous window when present (contents then hold the old values).
+    pub fn put(
+        &mut self,
+        interface: &str,
+        name: &str,
+        components: u32,
+        points: usize,
+    ) -> &mut [f64] {
+        let n = points * components as usize;
+        let idx = match self
+            .entries
+            .iter()
+            .position(|(i, f)| i == interface && f.name == name)
+        {
+            Some(i) => i,
+            None => {
+                self.entries.push((
+                    interface.to_string(),
+                    Field {
+                        name: name.to_string(),
+                        components,
+                        values: Vec::with_capacity(n),
+                    },
+                ));
+                self.entries.len() - 1
+            }
+        };
+        let f = &mut self.entries[idx].1;
+        f.components = components;
+        f.values.resize(n, 0.0);
+        &mut f.values
+    }
+
+    /// Insert a whole field.
+    pub fn insert(&mut self, interface: &str, field: Field) {
+        match self
+            .entries
+            .iter_mut()
+            .find(|(i, f)| i == interface && f.name == field.name)
+        {
+            Some(e) => e.1 = field,
+            None => self.entries.push((interface.to_string(), field)),
+        }
+    }
+
+    /// Every field of one interface.
+    pub fn fields_of<'a>(&'a self, interface: &'a str) -> impl Iterator<Item = &'a Field> + 'a {
+        self.entries
+            .iter()
+            .filter(move |(i, _)| i == interface)
+            .map(|(_, f)| f)
+    }
+
+    pub fn iter(&self) -> impl Iterator<Item = (&str, &Field)> {
+        self.entries.iter().map(|(i, f)| (i.as_str(), f))
+    }
+
+    /// Forget every field (keeps nothing; use between runs, not between windows).
+    pub fn clear(&mut self) {
+        self.entries.clear();
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+}
+
+/// The contract every node implements (ARCHITECTURE §3).
+pub trait Solver: Send {
+    fn describe(&self) -> NodeDescription;
+
+    /// The point set of one interface (with cells/normals/weights when the solver has them).
+    fn interface(&self, name: &str) -> SolverResult<InterfaceMesh>;
+
+    /// Called once before the first window, after the couplings are known. `inbox` holds
+    /// what peers sent at set-up (e.g. a responder's interface mass and stiffness bound, in
+    /// this solver's layout); the solver writes its own set-up fields into `out` (e.g. the
+    /// responder's mass, stiffness bound and constraint force at t0). Set-up runs in the
+    /// coupling graph's order, so a driver sees its responders' set-up fields.
+    fn setup(&mut self, bindings: &[Binding], inbox: &Inbox, out: &mut Outbox) -> SolverResult<()> {
+        let _ = (bindings, inbox, out);
+        Ok(())
+    }
+
+    /// The solver's stable time step now (after set-up).
+    fn stable_dt(&self) -> f64;
+
+    /// Advance from `w.t0` to exactly `w.t1`, sub-cycling at the solver's own stable step.
+    fn advance(&mut self, w: &Window, inbox: &Inbox, out: &mut Outbox) -> SolverResult<StepReport>;
+
+    /// Write output for ParaView under `dir` (VTK), for the state at time `t` after `window`.
+    fn write_output(&self, t: f64, window: u64, dir: &Path) -> SolverResult<()> {
+        let _ = (t, window, dir);
+        Ok(())
+    }
+
+    fn save_state(&self) -> SolverResult<Vec<u8>> {
+        Err(SolverError::Other("this solver cannot checkpoint".into()))
+    }
+
+    fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
+        let _ = bytes;
+        Err(SolverError::Other("this solver cannot restart".into()))
+    }
+}
+
+/// Builds a solver from its model name and TOML parameter table; each node binary has one.
+pub type SolverFactory = fn(model: &str, params: &toml::Table) -> SolverResult<Box<dyn Solver>>;

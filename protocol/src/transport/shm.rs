@@ -1,0 +1,489 @@
+//! iceoryx2 shared-memory transport (ARCHITECTURE §6, §9): one iceoryx2 node per endpoint,
+//! one publish-subscribe service of `[u8]` per topic (dynamically sized, power-of-two
+//! segments, no silent overflow), and one event "bell" per endpoint that every publisher rings
+//! after a send, so `recv` sleeps in the kernel instead of spinning.
+//!
+//! Every file a run creates carries the prefix `cx_<run>_` (see [`prefix`]), which is what
+//! [`cleanup_run`] sweeps after a crash.
+
+use super::{Publisher, TopicId, Transport, TransportError, TransportSpec};
+use iceoryx2::node::NodeView;
+use iceoryx2::port::listener::{Listener, ListenerWaitError};
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher as IoxPublisher;
+use iceoryx2::port::subscriber::Subscriber as IoxSubscriber;
+use iceoryx2::port::{BackpressureAction, BackpressureInfo, LoanError};
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
+use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
+use std::collections::HashMap;
+use std::time::{Duration, Instant};
+
+/// The service variant: the thread-safe one, because a `Publisher` must be `Send` (a node's
+/// heartbeat thread owns one); `ipc::Service` ports are not. Its ports guard their state with
+/// an uncontended mutex, which costs tens of nanoseconds per send (see the transport bench).
+type Svc = ipc_threadsafe::Service;
+type Factory = PubSubFactory<Svc, [u8], ()>;
+
+/// Messages a subscriber can queue before its publishers block (no silent overflow).
+pub const SUBSCRIBER_BUFFER: usize = 4;
+/// Samples a subscriber holds at once (`recv` releases each before taking the next).
+const SUBSCRIBER_BORROWED: usize = 2;
+/// Publishers per topic: the owner, a heartbeat thread and a test injector fit.
+pub const MAX_PUBLISHERS: usize = 4;
+/// Subscribers per topic: the reading node, the recording coordinator and one spare.
+pub const MAX_SUBSCRIBERS: usize = 3;
+/// Processes that may open one service (publishers + subscribers + the coordinator).
+const MAX_NODES: usize = 16;
+/// Notifiers per bell: every publisher of every peer that writes to the endpoint.
+const MAX_NOTIFIERS: usize = 128;
+/// First data segment of a publisher; it grows by powers of two as messages grow.
+const INITIAL_SLICE: usize = 4096;
+/// A send that cannot deliver for this long (a reader that stopped reading) fails instead
+/// of hanging the sender forever.
+pub const SEND_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// The file-name prefix of every shared-memory resource of `run`: `cx_<run>_`. Run ids are
+/// `[A-Za-z0-9_-]`, at most 32 characters; anything else is replaced by `_`.
+pub fn prefix(run: &str) -> String {
+    let clean: String = run
+        .chars()
+        .take(32)
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    format!("cx_{clean}_")
+}
+
+/// The iceoryx2 configuration shared by every process of `run` (they must all agree).
+fn run_config(run: &str) -> Result<Config, TransportError> {
+    let mut c = Config::default();
+    c.global.prefix = FileName::new(prefix(run).as_bytes()).map_err(|e| {
+        TransportError::Setup(format!("run id '{run}' gives no valid file prefix: {e:?}"))
+    })?;
+    c.global.node.cleanup_dead_nodes_on_creation = true;
+    c.global.node.cleanup_dead_nodes_on_destruction = true;
+    Ok(c)
+}
+
+/// Name of the event service that wakes `endpoint`.
+pub fn bell_name(run: &str, endpoint: &str) -> String {
+    format!("cosim/{run}/{endpoint}/bell")
+}
+
+fn service_name(name: &str) -> Result<ServiceName, TransportError> {
+    ServiceName::new(name)
+        .map_err(|e| TransportError::Setup(format!("service name '{name}': {e:?}")))
+}
+
+fn quiet_logs() {
+    set_log_level(LogLevel::Error);
+}
+
+fn open_bell(
+    node: &Node<Svc>,
+    run: &str,
+    endpoint: &str,
+) -> Result<EventFactory<Svc>, TransportError> {
+    let name = bell_name(run, endpoint);
+    node.service_builder(&service_name(&name)?)
+        .event()
+        .max_listeners(2)
+        .max_notifiers(MAX_NOTIFIERS)
+        .max_nodes(MAX_NOTIFIERS)
+        .open_or_create()
+        .map_err(|e| TransportError::Setup(format!("bell '{name}': {e:?}")))
+}
+
+fn open_topic(node: &Node<Svc>, topic: &str) -> Result<Factory, TransportError> {
+    node.service_builder(&service_name(topic)?)
+        .publish_subscribe::<[u8]>()
+        .max_publishers(MAX_PUBLISHERS)
+        .max_subscribers(MAX_SUBSCRIBERS)
+        .max_nodes(MAX_NODES)
+        .subscriber_max_buffer_size(SUBSCRIBER_BUFFER)
+        .subscriber_max_borrowed_samples(SUBSCRIBER_BORROWED)
+        .history_size(0)
+        .enable_safe_overflow(false)
+        .open_or_create()
+        .map_err(|e| TransportError::Setup(format!("topic '{topic}': {e:?}")))
+}
+
+/// Every sample starts with the publisher's tag and the message's sequence number (u64 LE
+/// each), so a message resent after a partial delivery is delivered once.
+const FRAME_HEADER: usize = 16;
+
+struct ShmSubscriber {
+    sub: IoxSubscriber<Svc, [u8], ()>,
+    /// Last sequence number seen per publisher tag (a handful of publishers per topic).
+    last: Vec<(u64, u64)>,
+}
+
+impl ShmSubscriber {
+    /// The message body, or `None` for a duplicate (or a frame too short to be ours).
+    fn accept<'a>(&mut self, frame: &'a [u8]) -> Option<&'a [u8]> {
+        let tag = u64::from_le_bytes(frame.get(..8)?.try_into().ok()?);
+        let seq = u64::from_le_bytes(frame.get(8..FRAME_HEADER)?.try_into().ok()?);
+        match self.last.iter_mut().find(|(t, _)| *t == tag) {
+            Some((_, last)) if seq <= *last => return None,
+            Some((_, last)) => *last = seq,
+            None => self.last.push((tag, seq)),
+        }
+        Some(&frame[FRAME_HEADER..])
+    }
+}
+
+/// One endpoint of a run on shared memory.
+pub struct ShmTransport {
+    run: String,
+    endpoint: String,
+    // Field order is drop order: ports before services before the node.
+    subs: Vec<ShmSubscriber>,
+    bell: Listener<Svc>,
+    _bell_service: EventFactory<Svc>,
+    topics: HashMap<String, Factory>,
+    /// Where the next round-robin scan of `subs` starts.
+    next: usize,
+    node: Node<Svc>,
+}
+
+impl ShmTransport {
+    pub fn open(spec: &TransportSpec) -> Result<Self, TransportError> {
+        quiet_logs();
+        let config = run_config(&spec.run)?;
+        let name = NodeName::new(&spec.endpoint).map_err(|e| {
+            TransportError::Setup(format!("endpoint name '{}': {e:?}", spec.endpoint))
+        })?;
+        let node = NodeBuilder::new()
+            .name(&name)
+            .config(&config)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<Svc>()
+            .map_err(|e| {
+                TransportError::Setup(format!("iceoryx2 node '{}': {e:?}", spec.endpoint))
+            })?;
+        let bell_service = open_bell(&node, &spec.run, &spec.endpoint)?;
+        let bell = bell_service.listener_builder().create().map_err(|e| {
+            TransportError::Setup(format!(
+                "listener on the bell of '{}': {e:?}",
+                spec.endpoint
+            ))
+        })?;
+        Ok(ShmTransport {
+            run: spec.run.clone(),
+            endpoint: spec.endpoint.clone(),
+            subs: Vec::new(),
+            bell,
+            _bell_service: bell_service,
+            topics: HashMap::new(),
+            next: 0,
+            node,
+        })
+    }
+
+    /// This endpoint's name.
+    pub fn endpoint(&self) -> &str {
+        &self.endpoint
+    }
+
+    /// Remove the resources of dead nodes of this run now (a crashed peer's segments).
+    pub fn cleanup_dead_nodes(&self) -> u64 {
+        self.node.try_cleanup_dead_nodes().cleanups
+    }
+
+    fn topic(&mut self, topic: &str) -> Result<&Factory, TransportError> {
+        if !self.topics.contains_key(topic) {
+            let f = open_topic(&self.node, topic)?;
+            self.topics.insert(topic.to_string(), f);
+        }
+        self.topics
+            .get(topic)
+            .ok_or_else(|| TransportError::Setup(format!("topic '{topic}' vanished")))
+    }
+}
+
+struct ShmPublisher {
+    topic: String,
+    /// Identifies this publisher in the frame header, for the readers' duplicate filter.
+    tag: u64,
+    seq: u64,
+    publisher: IoxPublisher<Svc, [u8], ()>,
+    service: Factory,
+    bells: Vec<Notifier<Svc>>,
+    _bell_services: Vec<EventFactory<Svc>>,
+}
+
+impl ShmPublisher {
+    fn err(&self, reason: String) -> TransportError {
+        TransportError::Send {
+            topic: self.topic.clone(),
+            reason,
+        }
+    }
+
+    /// Loan a sample, write the frame header and `bytes` into it (the one copy), send it;
+    /// returns how many subscribers took it.
+    fn send_once(&self, bytes: &[u8], start: Instant) -> Result<usize, TransportError> {
+        // All preallocated samples are in flight only while a reader lags behind: wait for
+        // it (backpressure), never drop.
+        let mut pause = Duration::from_micros(20);
+        let mut sample = loop {
+            match self.publisher.loan_slice_uninit(FRAME_HEADER + bytes.len()) {
+                Ok(s) => break s,
+                Err(LoanError::OutOfMemory) | Err(LoanError::ExceedsMaxLoans) => {
+                    if start.elapsed() > SEND_TIMEOUT {
+                        return Err(self.err(format!(
+                            "no free sample for {SEND_TIMEOUT:?}: a reader stopped reading"
+                        )));
+                    }
+                    std::thread::sleep(pause);
+                    pause = (pause * 2).min(Duration::from_millis(5));
+                }
+                Err(e) => return Err(self.err(format!("loan of {} bytes: {e:?}", bytes.len()))),
+            }
+        };
+        let dst = sample.payload_mut();
+        let mut header = [0u8; FRAME_HEADER];
+        header[..8].copy_from_slice(&self.tag.to_le_bytes());
+        header[8..].copy_from_slice(&self.seq.to_le_bytes());
+        // SAFETY: `dst` has exactly FRAME_HEADER + bytes.len() elements (the loan size);
+        // MaybeUninit<u8> has the layout of u8; the source and the shared-memory sample do
+        // not overlap. Every element is written before `assume_init`.
+        let sample = unsafe {
+            let p = dst.as_mut_ptr() as *mut u8;
+            std::ptr::copy_nonoverlapping(header.as_ptr(), p, FRAME_HEADER);
+            std::ptr::copy_nonoverlapping(bytes.as_ptr(), p.add(FRAME_HEADER), bytes.len());
+            sample.assume_init()
+        };
+        let delivered = sample.send().map_err(|e| self.err(format!("{e:?}")))?;
+        for bell in &self.bells {
+            bell.notify()
+                .map_err(|e| self.err(format!("ringing a reader: {e:?}")))?;
+        }
+        Ok(delivered)
+    }
+}
+
+impl Publisher for ShmPublisher {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+        let start = Instant::now();
+        let mut pause = Duration::from_micros(50);
+        self.seq += 1;
+        loop {
+            let delivered = self.send_once(bytes, start)?;
+            // iceoryx2 drops a sample for a subscriber that has not yet connected to this
+            // publisher (it connects on its next receive) once that subscriber's buffer is
+            // full. Detect it and send again after the bell has woken the reader; readers
+            // that already took this sequence number drop the copy.
+            if delivered >= self.service.dynamic_config().number_of_subscribers() {
+                return Ok(());
+            }
+            if start.elapsed() > SEND_TIMEOUT {
+                return Err(self.err(format!(
+                    "a subscriber did not connect within {SEND_TIMEOUT:?}"
+                )));
+            }
+            std::thread::sleep(pause);
+            pause = (pause * 2).min(Duration::from_millis(5));
+        }
+    }
+}
+
+impl Transport for ShmTransport {
+    fn publisher(
+        &mut self,
+        topic: &str,
+        readers: &[String],
+    ) -> Result<Box<dyn Publisher>, TransportError> {
+        let publisher = self
+            .topic(topic)?
+            .publisher_builder()
+            .initial_max_slice_len(INITIAL_SLICE)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .max_loaned_samples(1)
+            // Samples are shared by all subscribers, so the distinct samples in flight are
+            // bounded by one reader's buffer + borrowed + the one being written; preallocating
+            // the worst case of iceoryx2 (subscribers × (buffer + borrowed)) would multiply
+            // /dev/shm use by the number of subscribers.
+            .override_sample_preallocation(|_| SUBSCRIBER_BUFFER + SUBSCRIBER_BORROWED + 1)
+            .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
+            .set_backpressure_handler(|info: &BackpressureInfo| {
+                if info.elapsed_time > SEND_TIMEOUT {
+                    BackpressureAction::DiscardDataAndFail
+                } else {
+                    BackpressureAction::Retry
+                }
+            })
+            .create()
+            .map_err(|e| TransportError::Setup(format!("publisher on '{topic}': {e:?}")))?;
+        let mut bells = Vec::with_capacity(readers.len());
+        let mut bell_services = Vec::with_capacity(readers.len());
+        for reader in readers {
+            let svc = open_bell(&self.node, &self.run, reader)?;
+            let n = svc
+                .notifier_builder()
+                .create()
+                .map_err(|e| TransportError::Setup(format!("notifier for '{reader}': {e:?}")))?;
+            bells.push(n);
+            bell_services.push(svc);
+        }
+        let tag = publisher.id().value() as u64 ^ (publisher.id().value() >> 64) as u64;
+        Ok(Box::new(ShmPublisher {
+            topic: topic.to_string(),
+            tag,
+            seq: 0,
+            publisher,
+            service: open_topic(&self.node, topic)?,
+            bells,
+            _bell_services: bell_services,
+        }))
+    }
+
+    fn subscribe(&mut self, topic: &str) -> Result<TopicId, TransportError> {
+        let sub = self
+            .topic(topic)?
+            .subscriber_builder()
+            .buffer_size(SUBSCRIBER_BUFFER)
+            .create()
+            .map_err(|e| TransportError::Setup(format!("subscriber on '{topic}': {e:?}")))?;
+        self.subs.push(ShmSubscriber {
+            sub,
+            last: Vec::new(),
+        });
+        Ok(self.subs.len() - 1)
+    }
+
+    fn recv(
+        &mut self,
+        timeout: Duration,
+        f: &mut dyn FnMut(TopicId, &[u8]),
+    ) -> Result<bool, TransportError> {
+        let deadline = Instant::now() + timeout;
+        let n = self.subs.len();
+        loop {
+            // Round robin: start after the topic served last, so a busy topic cannot starve
+            // the others; each subscriber delivers its own topic in order.
+            for k in 0..n {
+                let i = (self.next + k) % n;
+                let s = &mut self.subs[i];
+                while let Some(sample) = s
+                    .sub
+                    .receive()
+                    .map_err(|e| TransportError::Recv(format!("{e:?}")))?
+                {
+                    let Some(body) = s.accept(sample.payload()) else {
+                        continue; // a resent duplicate
+                    };
+                    self.next = (i + 1) % n;
+                    f(i, body);
+                    return Ok(true);
+                }
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return Ok(false);
+            }
+            // A bell rung after the scan above is still pending here, so nothing is missed.
+            match self.bell.timed_wait(|_| {}, deadline - now) {
+                Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
+                Err(e) => return Err(TransportError::Recv(format!("waiting on the bell: {e:?}"))),
+            }
+        }
+    }
+
+    fn readers(&self, topic: &str) -> Option<usize> {
+        if let Some(f) = self.topics.get(topic) {
+            return Some(f.dynamic_config().number_of_subscribers());
+        }
+        let f = open_topic(&self.node, topic).ok()?;
+        Some(f.dynamic_config().number_of_subscribers())
+    }
+}
+
+/// Remove what dead processes of `run` left in shared memory: first the stale resources of
+/// every dead iceoryx2 node of the run (iceoryx2's own cleanup), then, if no node of the run
+/// is alive any more, every remaining `/dev/shm/cx_<run>_*` file (iceoryx2 keeps a small
+/// management file, and a process killed mid-creation can leave half-made segments).
+///
+/// Call it when no process of the run is running (the coordinator does so before launching
+/// nodes and after they have all exited); while a node of the run is alive the file sweep is
+/// skipped, so a live run is never damaged. Returns the number of dead nodes cleaned up.
+pub fn cleanup_run(run: &str) -> usize {
+    quiet_logs();
+    let Ok(config) = run_config(run) else {
+        return 0;
+    };
+    let mut cleaned = 0;
+    let mut alive = 0;
+    let listed = Node::<Svc>::list(&config, |state| {
+        match state {
+            NodeState::Dead(d) => {
+                let id = *d.id();
+                match d.try_remove_stale_resources() {
+                    Ok(()) => cleaned += 1,
+                    Err(e) => tracing::warn!("iceoryx2 cleanup of dead node {id:?} failed: {e:?}"),
+                }
+            }
+            NodeState::Alive(_) => alive += 1,
+            NodeState::Inaccessible(_) | NodeState::Undefined(_) => {}
+        }
+        CallbackProgression::Continue
+    });
+    if let Err(e) = listed {
+        tracing::warn!("listing the iceoryx2 nodes of run '{run}' failed: {e:?}");
+    }
+    if alive == 0 {
+        sweep_files(run);
+    }
+    cleaned
+}
+
+/// Files in /dev/shm that belong to `run` (by prefix).
+pub fn shm_files(run: &str) -> Vec<std::path::PathBuf> {
+    let p = prefix(run);
+    let Ok(dir) = std::fs::read_dir("/dev/shm") else {
+        return Vec::new();
+    };
+    dir.filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with(&p))
+        .map(|e| e.path())
+        .collect()
+}
+
+fn sweep_files(run: &str) {
+    for path in shm_files(run) {
+        if let Err(e) = std::fs::remove_file(&path) {
+            tracing::warn!("removing {}: {e}", path.display());
+        }
+    }
+    // iceoryx2's node and service descriptions live under its root path (the temp dir).
+    let Ok(config) = run_config(run) else { return };
+    let p = prefix(run);
+    for dir in [config.global.node_dir(), config.global.service_dir()] {
+        let dir = std::path::PathBuf::from(dir.to_string());
+        sweep_dir(&dir, &p);
+    }
+}
+
+fn sweep_dir(dir: &std::path::Path, prefix: &str) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.filter_map(|e| e.ok()) {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let path = e.path();
+        if path.is_dir() {
+            sweep_dir(&path, prefix);
+            if name.starts_with(prefix) {
+                let _ = std::fs::remove_dir(&path);
+            }
+        } else if name.starts_with(prefix) {
+            let _ = std::fs::remove_file(&path);
+        }
+    }
+}

@@ -1,0 +1,21 @@
+//! Peridynamic solid node (and the 1-D elastic bar of the spine).
+//! Models are chosen by name in the case config; each lives in its own module.
+
+pub mod bar;
+pub mod pd;
+
+use protocol::{Solver, SolverError, SolverResult};
+
+/// Builds the solver named `model` from its parameter table.
+pub fn factory(model: &str, params: &toml::Table) -> SolverResult<Box<dyn Solver>> {
+    if model == "bar-1d" {
+        return Ok(Box::new(bar::Bar::from_params(params)?));
+    }
+    if let Some(s) = pd::factory(model, params) {
+        return s;
+    }
+    Err(SolverError::config(
+        "model",
+        format!("unknown model '{model}'"),
+    ))
+}

@@ -1,0 +1,211 @@
+//! Helpers shared by the end-to-end tests: find the built binaries, write case files into a
+//! scratch directory, run `cosim`, and read back what a run recorded.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::atomic::{AtomicU32, Ordering};
+
+/// `target/<profile>`: the directory of the running test binary's parent.
+pub fn bin_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("test binary path");
+    let deps = exe.parent().expect("deps dir");
+    deps.parent().expect("profile dir").to_path_buf()
+}
+
+/// Path of a workspace binary; the tests need `cargo build --workspace` (which
+/// `cargo test --workspace` does first).
+pub fn bin(name: &str) -> PathBuf {
+    let p = bin_dir().join(name);
+    assert!(
+        p.is_file(),
+        "{} not built: run the tests with `cargo test --release --workspace`",
+        p.display()
+    );
+    p
+}
+
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("workspace")
+        .to_path_buf()
+}
+
+static COUNTER: AtomicU32 = AtomicU32::new(0);
+
+/// A fresh scratch directory and a unique run id for one test.
+pub fn scratch(tag: &str) -> (PathBuf, String) {
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let id = format!("t{}-{}-{}", std::process::id() % 100_000, n, tag);
+    let id: String = id.chars().take(32).collect();
+    let dir = std::env::temp_dir().join(format!("cosim-tests/{id}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    (dir, id)
+}
+
+/// Run `cosim` with arguments.
+pub fn cosim(args: &[&str]) -> Output {
+    Command::new(bin("cosim"))
+        .args(args)
+        .env("COSIM_LOG", "warn")
+        .output()
+        .expect("cosim runs")
+}
+
+/// Run a case file; returns the output.
+pub fn run_case(case: &Path, out: &Path, run_id: &str, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "run",
+        case.to_str().expect("utf-8 path"),
+        "--output",
+        out.to_str().expect("utf-8 path"),
+        "--run-id",
+        run_id,
+        "--quiet",
+    ];
+    args.extend_from_slice(extra);
+    cosim(&args)
+}
+
+/// Per-window values of a node's report scalar (e.g. `tip_displacement`), from the
+/// `/cosim/node/<node>` channel of a recording: (time, value).
+pub fn node_series(mcap: &Path, node: &str, key: &str) -> Vec<(f64, f64)> {
+    let (msgs, _) = coordinator::record::read_all(mcap).expect("readable recording");
+    let topic = format!("/cosim/node/{node}");
+    msgs.iter()
+        .filter(|m| m.topic == topic)
+        .filter_map(|m| {
+            let v: serde_json::Value = serde_json::from_slice(&m.data).ok()?;
+            Some((v["time"].as_f64()?, v[key].as_f64()?))
+        })
+        .collect()
+}
+
+pub fn summary(out: &Path) -> serde_json::Value {
+    let s = std::fs::read_to_string(out.join("summary.json")).expect("summary.json");
+    serde_json::from_str(&s).expect("summary is JSON")
+}
+
+/// The split-bar case with the given left/right element counts and transport.
+pub fn split_bar_case(
+    dir: &Path,
+    n_left: usize,
+    n_right: usize,
+    right_courant: f64,
+    transport: &str,
+    periods: f64,
+) -> PathBuf {
+    let c = (200e9f64 / 7860.0).sqrt();
+    let h = 0.5 / n_left as f64;
+    let window = 0.5 * h / c;
+    let end = periods * 4.0 / c;
+    let text = format!(
+        r#"
+[run]
+name = "split-bar"
+end_time = {end:e}
+window = {window:e}
+transport = "{transport}"
+output = "out"
+
+[nodes.left]
+solver = "solid-node"
+model = "bar-1d"
+[nodes.left.params]
+length = 0.5
+elements = {n_left}
+young = 200e9
+density = 7860.0
+area = 1e-4
+fixed = "left"
+load_end = "none"
+courant = 1.0
+interfaces = {{ tip = "right" }}
+
+[nodes.right]
+solver = "solid-node"
+model = "bar-1d"
+[nodes.right.params]
+length = 0.5
+x0 = 0.5
+elements = {n_right}
+young = 200e9
+density = 7860.0
+area = 1e-4
+fixed = "none"
+tip_force = 1000.0
+load_end = "right"
+courant = {right_courant}
+interfaces = {{ root = "left" }}
+
+[[couplings]]
+name = "mid"
+kind = "kinematic"
+driver = "left.tip"
+responder = "right.root"
+"#
+    );
+    let p = dir.join("split.toml");
+    std::fs::write(&p, text).expect("write case");
+    p
+}
+
+/// Exact tip displacement of the bar under a step end load: a triangle wave between 0 and
+/// 2FL/(EA) with period 4L/c.
+pub fn exact_tip(t: f64) -> f64 {
+    let (e, rho, a, l, f) = (200e9f64, 7860.0f64, 1e-4, 1.0, 1e3);
+    let c = (e / rho).sqrt();
+    let amp = 2.0 * f * l / (e * a);
+    let period = 4.0 * l / c;
+    let ph = (t % period) / period;
+    amp * if ph < 0.5 { 2.0 * ph } else { 2.0 * (1.0 - ph) }
+}
+
+pub fn amplitude() -> f64 {
+    2.0 * 1e3 * 1.0 / (200e9 * 1e-4)
+}
+
+/// Largest |tip − exact| / amplitude over a series.
+pub fn tip_error(series: &[(f64, f64)]) -> f64 {
+    series
+        .iter()
+        .map(|&(t, u)| (u - exact_tip(t)).abs() / amplitude())
+        .fold(0.0, f64::max)
+}
+
+/// Files in /dev/shm whose name contains `needle`.
+pub fn shm_files(needle: &str) -> Vec<String> {
+    std::fs::read_dir("/dev/shm")
+        .map(|d| {
+            d.filter_map(|e| e.ok())
+                .map(|e| e.file_name().to_string_lossy().to_string())
+                .filter(|n| n.contains(needle))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// Processes whose command line contains `needle` (excluding this one).
+pub fn processes_with(needle: &str) -> Vec<u32> {
+    let me = std::process::id();
+    let mut v = Vec::new();
+    if let Ok(d) = std::fs::read_dir("/proc") {
+        for e in d.flatten() {
+            let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
+                continue;
+            };
+            if pid == me {
+                continue;
+            }
+            if let Ok(cmd) = std::fs::read(format!("/proc/{pid}/cmdline")) {
+                let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
+                // A zombie has an empty cmdline and is not a survivor.
+                if cmd.contains(needle) {
+                    v.push(pid);
+                }
+            }
+        }
+    }
+    v
+}

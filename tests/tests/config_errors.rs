@@ -1,0 +1,153 @@
+//! Bad case files are refused before any process starts: exit code 2 and one line naming the
+//! key path and the reason (ARCHITECTURE §9, STYLE "Errors and input").
+
+use cosim_tests::*;
+
+const GOOD: &str = r#"
+[run]
+name = "c"
+end_time = 1e-4
+window = 1e-6
+output = "OUT"
+
+[nodes.left]
+solver = "solid-node"
+model = "bar-1d"
+[nodes.left.params]
+length = 0.5
+elements = 10
+young = 200e9
+density = 7860.0
+area = 1e-4
+interfaces = { tip = "right" }
+
+[nodes.right]
+solver = "solid-node"
+model = "bar-1d"
+[nodes.right.params]
+length = 0.5
+elements = 10
+young = 200e9
+density = 7860.0
+area = 1e-4
+fixed = "none"
+interfaces = { root = "left" }
+
+[[couplings]]
+kind = "kinematic"
+driver = "left.tip"
+responder = "right.root"
+"#;
+
+/// Run `cosim run` on a variant of the good case; check exit 2, one line, the key named,
+/// and that nothing was started or written.
+fn refused(tag: &str, edit: impl Fn(&str) -> String, key: &str) {
+    let (dir, id) = scratch(tag);
+    let out = dir.join("out");
+    let text = edit(GOOD).replace("OUT", out.to_str().unwrap());
+    let case = dir.join("case.toml");
+    std::fs::write(&case, text).unwrap();
+    let o = cosim(&["run", case.to_str().unwrap(), "--run-id", &id, "--quiet"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    println!("{tag}: {err}");
+    assert_eq!(o.status.code(), Some(2), "{tag}: {err}");
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 1, "{tag}: one line expected: {err}");
+    assert!(
+        lines[0].contains(key),
+        "{tag}: '{}' does not name {key}",
+        lines[0]
+    );
+    assert!(!out.exists(), "{tag}: output was written before refusing");
+    assert!(processes_with(&format!("--run {id}")).is_empty());
+    // `validate` says the same.
+    let v = cosim(&["validate", case.to_str().unwrap()]);
+    assert_eq!(v.status.code(), Some(2));
+}
+
+#[test]
+fn the_good_case_validates() {
+    let (dir, _) = scratch("good");
+    let case = dir.join("case.toml");
+    std::fs::write(
+        &case,
+        GOOD.replace("OUT", dir.join("out").to_str().unwrap()),
+    )
+    .unwrap();
+    let v = cosim(&["validate", case.to_str().unwrap()]);
+    assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stderr));
+}
+
+#[test]
+fn unknown_key() {
+    refused(
+        "unknown",
+        |s| s.replace("window = 1e-6", "window = 1e-6\nwindw = 2"),
+        "run.windw",
+    );
+    refused(
+        "unknown-param",
+        |s| s.replace("elements = 10\n", "elements = 10\nelemnts = 3\n"),
+        "nodes.left.params",
+    );
+}
+
+#[test]
+fn missing_node_binary() {
+    refused(
+        "nobin",
+        |s| s.replacen("solver = \"solid-node\"", "solver = \"no-such-node\"", 1),
+        "nodes.left.solver",
+    );
+}
+
+#[test]
+fn window_not_positive_or_beyond_the_end() {
+    refused(
+        "w0",
+        |s| s.replace("window = 1e-6", "window = 0.0"),
+        "run.window",
+    );
+    refused(
+        "wneg",
+        |s| s.replace("window = 1e-6", "window = -1e-6"),
+        "run.window",
+    );
+    refused(
+        "wbig",
+        |s| s.replace("window = 1e-6", "window = 1.0"),
+        "run.window",
+    );
+}
+
+#[test]
+fn coupling_naming_an_unknown_node_or_interface() {
+    refused(
+        "nonode",
+        |s| s.replace("driver = \"left.tip\"", "driver = \"lft.tip\""),
+        "couplings[0].driver",
+    );
+    refused(
+        "noiface",
+        |s| s.replace("responder = \"right.root\"", "responder = \"right.stem\""),
+        "couplings[0].responder",
+    );
+}
+
+#[test]
+fn duplicate_node_names() {
+    refused(
+        "dup",
+        |s| format!("{s}\n[nodes.left]\nsolver = \"solid-node\"\nmodel = \"bar-1d\"\n"),
+        "nodes.left",
+    );
+}
+
+#[test]
+fn bad_solver_parameter_is_named() {
+    refused(
+        "param",
+        |s| s.replacen("elements = 10", "elements = 0", 1),
+        "nodes.left.params.elements",
+    );
+}

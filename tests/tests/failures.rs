@@ -1,0 +1,203 @@
+//! Failure handling (ARCHITECTURE §9): a node killed mid-run, a node that stops answering,
+//! and a malformed message on a data topic each end the run within 5 s with one line naming
+//! the node and the reason, no surviving child, no shared memory left, and a readable
+//! recording holding every window completed before the fault.
+
+use cosim_tests::*;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A split bar long enough to be interrupted (many periods).
+fn long_case(tag: &str, transport: &str) -> (std::path::PathBuf, std::path::PathBuf, String) {
+    let (dir, id) = scratch(tag);
+    let case = split_bar_case(&dir, 100, 300, 0.5, transport, 400.0);
+    // A short heartbeat timeout keeps the hang test quick.
+    let text = std::fs::read_to_string(&case).unwrap().replace(
+        "output = \"out\"",
+        "output = \"out\"\nheartbeat_ms = 100\nheartbeat_timeout = 1.0",
+    );
+    std::fs::write(&case, text).unwrap();
+    (case, dir.join("out"), id)
+}
+
+fn node_pid(id: &str, node: &str) -> Option<u32> {
+    processes_with(&format!("--run {id} --node {node}"))
+        .first()
+        .copied()
+}
+
+/// Start cosim, wait until the run is under way, do `act`, and check the aftermath.
+fn fault_scenario(tag: &str, transport: &str, act: impl FnOnce(&str), expect: &[&str]) {
+    let (case, out, id) = long_case(tag, transport);
+    let mut child = Command::new(bin("cosim"))
+        .args([
+            "run",
+            case.to_str().unwrap(),
+            "--output",
+            out.to_str().unwrap(),
+            "--run-id",
+            &id,
+            "--quiet",
+        ])
+        .env("COSIM_LOG", "warn")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait for both nodes and some windows.
+    let start = Instant::now();
+    while node_pid(&id, "right").is_none() || start.elapsed() < Duration::from_millis(1500) {
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "nodes never started"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let t_fault = Instant::now();
+    act(&id);
+    // cosim must exit non-zero within 5 s.
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if t_fault.elapsed() > Duration::from_secs(5) {
+            let _ = child.kill();
+            panic!("cosim still running 5 s after the fault");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    let elapsed = t_fault.elapsed();
+    let o = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr).to_string();
+    println!("{tag}: exit {status} after {elapsed:?}: {stderr}");
+    assert!(!status.success());
+    let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "expected one line, got: {stderr}");
+    for e in expect {
+        assert!(
+            lines[0].contains(e),
+            "'{}' does not mention '{e}'",
+            lines[0]
+        );
+    }
+    // No child survives.
+    std::thread::sleep(Duration::from_millis(100));
+    let alive: Vec<u32> = processes_with(&format!("--run {id}"))
+        .into_iter()
+        .filter(|pid| {
+            std::fs::read_to_string(format!("/proc/{pid}/stat"))
+                .map(|s| !s.contains(") Z"))
+                .unwrap_or(false)
+        })
+        .collect();
+    assert!(alive.is_empty(), "surviving node processes: {alive:?}");
+    // No shared memory of the run left.
+    assert!(
+        shm_files(&id).is_empty(),
+        "left in /dev/shm: {:?}",
+        shm_files(&id)
+    );
+    // The recording is readable and holds every window completed before the fault.
+    let mcap = out.join("run.mcap");
+    let check = Command::new("python3")
+        .args([
+            workspace_root()
+                .join("tools/check_mcap.py")
+                .to_str()
+                .unwrap(),
+            mcap.to_str().unwrap(),
+            "--recover",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        check.status.success(),
+        "check_mcap --recover: {}",
+        String::from_utf8_lossy(&check.stdout)
+    );
+    let (msgs, _) = coordinator::record::read_all(&mcap).unwrap();
+    let windows: Vec<u64> = msgs
+        .iter()
+        .filter(|m| m.topic == "/cosim/balance")
+        .map(|m| {
+            serde_json::from_slice::<serde_json::Value>(&m.data).unwrap()["window"]
+                .as_u64()
+                .unwrap()
+        })
+        .collect();
+    assert!(!windows.is_empty(), "no window recorded before the fault");
+    assert!(
+        windows.iter().enumerate().all(|(i, &w)| w == i as u64 + 1),
+        "windows not contiguous"
+    );
+    let s = summary(&out);
+    assert_eq!(s["status"], "failed");
+}
+
+#[test]
+fn a_killed_node_ends_the_run_cleanly() {
+    fault_scenario(
+        "kill",
+        "shm",
+        |id| {
+            let pid = node_pid(id, "right").unwrap();
+            unsafe { libc::kill(pid as i32, libc::SIGKILL) };
+        },
+        &["right", "SIGKILL"],
+    );
+}
+
+#[test]
+fn a_hung_node_is_detected_by_its_missing_heartbeat() {
+    fault_scenario(
+        "hang",
+        "shm",
+        |id| {
+            let pid = node_pid(id, "right").unwrap();
+            unsafe { libc::kill(pid as i32, libc::SIGSTOP) };
+        },
+        &["right", "heartbeat"],
+    );
+}
+
+#[test]
+fn a_malformed_message_on_a_data_topic_ends_the_run() {
+    fault_scenario(
+        "garbage",
+        "shm",
+        |id| {
+            let o = Command::new(bin("cosim-inject"))
+                .args([
+                    "--run",
+                    id,
+                    "--transport",
+                    "shm",
+                    "--topic",
+                    &format!("cosim/{id}/mid/left"),
+                    "--readers",
+                    "right,coordinator",
+                ])
+                .output()
+                .unwrap();
+            assert!(
+                o.status.success(),
+                "inject: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+        },
+        &["malformed"],
+    );
+}
+
+#[test]
+fn a_killed_node_ends_a_zenoh_run_cleanly() {
+    fault_scenario(
+        "kill-z",
+        "zenoh",
+        |id| {
+            let pid = node_pid(id, "left").unwrap();
+            unsafe { libc::kill(pid as i32, libc::SIGKILL) };
+        },
+        &["left"],
+    );
+}

@@ -1,0 +1,69 @@
+//! A node that joins a run from outside (`remote = true`): `cosim` prints the command with the
+//! run id, endpoint and token, waits, and the run completes with the same result as when it
+//! launches the node itself. A node presenting a wrong token is rejected.
+
+use cosim_tests::*;
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+
+fn remote_case(tag: &str) -> (std::path::PathBuf, std::path::PathBuf, String) {
+    let (dir, id) = scratch(tag);
+    let case = split_bar_case(&dir, 50, 150, 0.5, "zenoh", 0.5);
+    let text = std::fs::read_to_string(&case)
+        .unwrap()
+        .replace("[nodes.right]\n", "[nodes.right]\nremote = true\n");
+    std::fs::write(&case, text).unwrap();
+    (case, dir.join("out"), id)
+}
+
+#[test]
+fn a_remote_node_joins_with_the_printed_command_and_token() {
+    let (case, out, id) = remote_case("remote");
+    let mut cosim = Command::new(bin("cosim"))
+        .args(["run", case.to_str().unwrap(), "--output", out.to_str().unwrap(), "--run-id", &id, "--quiet"])
+        .env("COSIM_LOG", "warn")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = BufReader::new(cosim.stderr.take().unwrap());
+    let mut line = String::new();
+    err.read_line(&mut line).unwrap();
+    assert!(line.contains("waiting for remote node 'right'"), "{line}");
+    let cmd: Vec<&str> = line.split(": ").last().unwrap().split_whitespace().collect();
+    let arg = |k: &str| cmd[cmd.iter().position(|a| *a == k).unwrap() + 1].to_string();
+    assert_eq!(arg("--join"), id);
+    // A node with a wrong token is turned away ...
+    let bad = Command::new(bin("solid-node"))
+        .args(["--join", &id, "--node", "right", "--transport", "zenoh", "--connect", &arg("--connect"), "--token", "0000"])
+        .env("COSIM_LOG", "error")
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(2), "{}", String::from_utf8_lossy(&bad.stderr));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("rejected"));
+    // ... the one with the printed token is let in and the run completes.
+    let node = Command::new(bin("solid-node"))
+        .args(["--join", &id, "--node", "right", "--transport", "zenoh", "--connect", &arg("--connect"), "--token", &arg("--token")])
+        .env("COSIM_LOG", "error")
+        .output()
+        .unwrap();
+    let status = cosim.wait().unwrap();
+    let mut rest = String::new();
+    let _ = std::io::Read::read_to_string(&mut err, &mut rest);
+    assert!(
+        node.status.success(),
+        "node {:?}: {}; cosim: {rest}",
+        node.status,
+        String::from_utf8_lossy(&node.stderr)
+    );
+    assert!(status.success(), "cosim: {rest}");
+    let remote = node_series(&out.join("run.mcap"), "right", "tip_displacement");
+    // The same case with both nodes launched locally gives the same numbers, bit for bit.
+    let (dir2, id2) = scratch("local");
+    let local_case = split_bar_case(&dir2, 50, 150, 0.5, "zenoh", 0.5);
+    let o = run_case(&local_case, &dir2.join("out"), &id2, &[]);
+    assert!(o.status.success());
+    let local = node_series(&dir2.join("out/run.mcap"), "right", "tip_displacement");
+    assert_eq!(remote.len(), local.len());
+    assert!(remote.iter().zip(&local).all(|(a, b)| a.1.to_bits() == b.1.to_bits()));
+}
