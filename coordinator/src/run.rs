@@ -494,9 +494,12 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         }
     }
     let wall = started.elapsed().as_secs_f64();
-    let Coord { rec, t, .. } = c;
+    let Coord { rec, t, nodes, .. } = c;
     let (messages, bytes) = (rec.messages, rec.bytes);
     rec.finish()?;
+    // Every port of this process goes before the sweep, which only runs once no participant
+    // of the run is alive.
+    drop(nodes);
     drop(t);
     transport::cleanup(kind, &run_id);
     match outcome {

@@ -1,1 +1,431 @@
-//! (being written)
+//! Small-strain 3-D J2 (von Mises) plasticity with linear isotropic and linear kinematic
+//! (Prager) hardening: elastic predictor + radial return (seed 000 App. B; Simo & Hughes,
+//! Computational Inelasticity, Box 3.2), and the Jaumann objective stress rotation (seed 000
+//! eq. B.1) used by the rate-form peridynamic models.
+//!
+//! Hardening convention (both moduli are *uniaxial plastic moduli*):
+//! * isotropic: the yield stress grows as σ_y(ε̄ᵖ) = σ_y0 + H_iso ε̄ᵖ;
+//! * kinematic (Prager): the back stress evolves as dα = (2/3) H_kin dεᵖ, i.e. H_kin = C of
+//!   the Prager/Armstrong–Frederick law dα = (2/3) C dεᵖ (Simo–Hughes write this
+//!   (2/3) H' with H' = H_kin).
+//!
+//! In uniaxial stress the plastic tangent is then dσ/dε̄ᵖ = H_iso + H_kin, so a mixed
+//! hardening with total modulus H and isotropic fraction β is `iso_hardening = β H`,
+//! `kin_hardening = (1 − β) H`.
+// Index loops over the 3 or 6 components of small tensors read closer to the formulas;
+// `!(x > 0.0)` is deliberate: it also rejects NaN.
+#![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord, clippy::too_many_arguments)]
+
+/// Symmetric tensors in Voigt order [xx, yy, zz, yz, xz, xy], tensor (not engineering) shear.
+pub type Sym = [f64; 6];
+
+/// Linear elastic – linear hardening J2 material (SI units: Pa).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct J2Material {
+    /// Young's modulus E.
+    pub young: f64,
+    /// Poisson's ratio ν, in (−1, 0.5).
+    pub poisson: f64,
+    /// Initial uniaxial yield stress σ_y0.
+    pub yield_stress: f64,
+    /// Isotropic hardening modulus H_iso (σ_y = σ_y0 + H_iso ε̄ᵖ).
+    pub iso_hardening: f64,
+    /// Kinematic hardening modulus H_kin (dα = (2/3) H_kin dεᵖ).
+    pub kin_hardening: f64,
+}
+
+/// Stress, back stress and accumulated equivalent plastic strain of one material point.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct J2State {
+    pub stress: Sym,
+    pub back_stress: Sym,
+    pub eq_plastic_strain: f64,
+}
+
+/// Double contraction a : b of two symmetric tensors in tensor-shear Voigt order.
+#[inline]
+pub fn ddot(a: &Sym, b: &Sym) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + 2.0 * (a[3] * b[3] + a[4] * b[4] + a[5] * b[5])
+}
+
+/// Trace of a symmetric tensor.
+#[inline]
+pub fn trace(a: &Sym) -> f64 {
+    a[0] + a[1] + a[2]
+}
+
+/// Deviatoric part.
+#[inline]
+pub fn deviator(a: &Sym) -> Sym {
+    let m = trace(a) / 3.0;
+    [a[0] - m, a[1] - m, a[2] - m, a[3], a[4], a[5]]
+}
+
+/// Von Mises equivalent stress √(3/2 s:s).
+#[inline]
+pub fn von_mises(s: &Sym) -> f64 {
+    let d = deviator(s);
+    (1.5 * ddot(&d, &d)).sqrt()
+}
+
+/// Symmetric tensor → full 3×3 matrix.
+#[inline]
+pub fn to_matrix(a: &Sym) -> [[f64; 3]; 3] {
+    [[a[0], a[5], a[4]], [a[5], a[1], a[3]], [a[4], a[3], a[2]]]
+}
+
+/// Symmetric part of a 3×3 matrix → Voigt (tensor shear).
+#[inline]
+pub fn from_matrix(m: &[[f64; 3]; 3]) -> Sym {
+    [
+        m[0][0],
+        m[1][1],
+        m[2][2],
+        0.5 * (m[1][2] + m[2][1]),
+        0.5 * (m[0][2] + m[2][0]),
+        0.5 * (m[0][1] + m[1][0]),
+    ]
+}
+
+impl J2Material {
+    /// Shear modulus μ = E / (2(1+ν)).
+    pub fn shear_modulus(&self) -> f64 {
+        self.young / (2.0 * (1.0 + self.poisson))
+    }
+
+    /// Bulk modulus K = E / (3(1−2ν)).
+    pub fn bulk_modulus(&self) -> f64 {
+        self.young / (3.0 * (1.0 - 2.0 * self.poisson))
+    }
+
+    /// Checks the parameters; on error returns (key, reason).
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        let bad = |k: &str, r: String| Err((k.to_string(), r));
+        if !(self.young.is_finite() && self.young > 0.0) {
+            return bad("young", format!("must be > 0, got {}", self.young));
+        }
+        if !(self.poisson.is_finite() && self.poisson > -1.0 && self.poisson < 0.5) {
+            return bad(
+                "poisson",
+                format!("must be in (-1, 0.5), got {}", self.poisson),
+            );
+        }
+        if !(self.yield_stress.is_finite() && self.yield_stress > 0.0) {
+            return bad(
+                "yield_stress",
+                format!("must be > 0, got {}", self.yield_stress),
+            );
+        }
+        if !(self.iso_hardening.is_finite() && self.iso_hardening >= 0.0) {
+            return bad(
+                "iso_hardening",
+                format!("must be >= 0, got {}", self.iso_hardening),
+            );
+        }
+        if !(self.kin_hardening.is_finite() && self.kin_hardening >= 0.0) {
+            return bad(
+                "kin_hardening",
+                format!("must be >= 0, got {}", self.kin_hardening),
+            );
+        }
+        Ok(())
+    }
+
+    /// Elastic stress increment for a strain increment (Hooke, isotropic).
+    #[inline]
+    pub fn elastic_increment(&self, dstrain: &Sym) -> Sym {
+        let mu = self.shear_modulus();
+        let lambda = self.bulk_modulus() - 2.0 / 3.0 * mu;
+        let tr = lambda * trace(dstrain);
+        [
+            tr + 2.0 * mu * dstrain[0],
+            tr + 2.0 * mu * dstrain[1],
+            tr + 2.0 * mu * dstrain[2],
+            2.0 * mu * dstrain[3],
+            2.0 * mu * dstrain[4],
+            2.0 * mu * dstrain[5],
+        ]
+    }
+
+    /// Elastic predictor + radial return for a strain increment; returns the plastic
+    /// multiplier increment Δε̄ᵖ (equivalent plastic strain increment, ≥ 0).
+    ///
+    /// Simo–Hughes Box 3.2: ξ* = dev(σ*) − α, f* = ‖ξ*‖ − √(2/3)(σ_y0 + H_iso ε̄ᵖ);
+    /// Δγ = f* / (2μ + (2/3)(H_iso + H_kin)), n = ξ*/‖ξ*‖;
+    /// σ = σ* − 2μ Δγ n, α += (2/3) H_kin Δγ n, ε̄ᵖ += √(2/3) Δγ.
+    pub fn update(&self, state: &mut J2State, dstrain: &Sym) -> f64 {
+        let de = self.elastic_increment(dstrain);
+        let mut trial = state.stress;
+        for k in 0..6 {
+            trial[k] += de[k];
+        }
+        state.stress = trial;
+        self.return_map(state)
+    }
+
+    /// Radial return of a trial state already stored in `state.stress` (used when the trial
+    /// stress comes from a rate form with Jaumann rotation). Returns Δε̄ᵖ.
+    pub fn return_map(&self, state: &mut J2State) -> f64 {
+        let mu = self.shear_modulus();
+        let s = deviator(&state.stress);
+        let mut xi = [0.0; 6];
+        for k in 0..6 {
+            xi[k] = s[k] - state.back_stress[k];
+        }
+        let norm = ddot(&xi, &xi).sqrt();
+        let sqrt23 = (2.0f64 / 3.0).sqrt();
+        let radius = sqrt23 * (self.yield_stress + self.iso_hardening * state.eq_plastic_strain);
+        let f = norm - radius;
+        if f <= 0.0 || norm == 0.0 {
+            return 0.0;
+        }
+        let dgamma = f / (2.0 * mu + 2.0 / 3.0 * (self.iso_hardening + self.kin_hardening));
+        let inv = 1.0 / norm;
+        for k in 0..6 {
+            let n = xi[k] * inv;
+            state.stress[k] -= 2.0 * mu * dgamma * n;
+            state.back_stress[k] += 2.0 / 3.0 * self.kin_hardening * dgamma * n;
+        }
+        let dp = sqrt23 * dgamma;
+        state.eq_plastic_strain += dp;
+        dp
+    }
+}
+
+/// Jaumann (objective) rotation of a stress over dt with spin W (skew 3x3): σ += dt (W σ − σ W).
+/// Seed 000 eq. (B.1); forward Euler in the rotation, first order in dt.
+pub fn jaumann_rotate(s: &mut Sym, spin: &[[f64; 3]; 3], dt: f64) {
+    let m = to_matrix(s);
+    let mut r = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            let mut acc = 0.0;
+            for k in 0..3 {
+                acc += spin[i][k] * m[k][j] - m[i][k] * spin[k][j];
+            }
+            r[i][j] = acc;
+        }
+    }
+    let d = from_matrix(&r);
+    for k in 0..6 {
+        s[k] += dt * d[k];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn steel(h_iso: f64, h_kin: f64) -> J2Material {
+        J2Material {
+            young: 200e9,
+            poisson: 0.3,
+            yield_stress: 300e6,
+            iso_hardening: h_iso,
+            kin_hardening: h_kin,
+        }
+    }
+
+    /// Closed form of σ_xx along uniaxial strain ε (monotonic), linear hardening H = H_iso + H_kin:
+    /// elastic (K + 4μ/3) ε up to ε_y = σ_y/(2μ); then tangent K + (4/3) μ H / (3μ + H).
+    fn uniaxial_strain_sxx(m: &J2Material, eps: f64) -> f64 {
+        let mu = m.shear_modulus();
+        let k = m.bulk_modulus();
+        let h = m.iso_hardening + m.kin_hardening;
+        let ey = m.yield_stress / (2.0 * mu);
+        if eps <= ey {
+            (k + 4.0 / 3.0 * mu) * eps
+        } else {
+            k * eps + 2.0 / 3.0 * m.yield_stress + 4.0 / 3.0 * mu * h / (3.0 * mu + h) * (eps - ey)
+        }
+    }
+
+    #[test]
+    fn uniaxial_strain_path_matches_closed_form() {
+        for (hi, hk) in [(0.0, 0.0), (2e9, 0.0), (0.0, 2e9), (1e9, 3e9)] {
+            let m = steel(hi, hk);
+            let mut st = J2State::default();
+            let n = 400;
+            let eps_max = 0.01;
+            let de = eps_max / n as f64;
+            for step in 1..=n {
+                m.update(&mut st, &[de, 0.0, 0.0, 0.0, 0.0, 0.0]);
+                let eps = de * step as f64;
+                let exact = uniaxial_strain_sxx(&m, eps);
+                let rel = (st.stress[0] - exact).abs() / exact.abs();
+                assert!(
+                    rel < 1e-10,
+                    "H=({hi},{hk}) eps={eps}: {} vs {exact}",
+                    st.stress[0]
+                );
+                // Lateral stresses: σ_yy = σ_xx − q with q the current yield size (+ back stress).
+                assert!((st.stress[1] - st.stress[2]).abs() < 1e-6);
+            }
+            // Equivalent plastic strain: from the consistency condition in closed form.
+            let mu = m.shear_modulus();
+            let h = hi + hk;
+            let ey = m.yield_stress / (2.0 * mu);
+            let p_exact = 2.0 * mu * (eps_max - ey) / (3.0 * mu + h);
+            assert!((st.eq_plastic_strain - p_exact).abs() < 1e-12 * (1.0 + p_exact));
+        }
+    }
+
+    #[test]
+    fn single_step_radial_return_closed_form() {
+        // A general (non-radial) strain increment from a pre-stressed, back-stressed state.
+        let m = steel(1.5e9, 0.7e9);
+        let mut st = J2State {
+            stress: [50e6, -20e6, 10e6, 5e6, -8e6, 12e6],
+            back_stress: [10e6, -4e6, -6e6, 1e6, 0.0, -2e6],
+            eq_plastic_strain: 0.01,
+        };
+        let de = [3e-3, -1e-3, 0.5e-3, 0.8e-3, -0.4e-3, 1.1e-3];
+        let s0 = st;
+        let mu = m.shear_modulus();
+        let k = m.bulk_modulus();
+        let dp = m.update(&mut st, &de);
+        // Closed form, written out independently of the implementation.
+        let tr = de[0] + de[1] + de[2];
+        let mut trial = s0.stress;
+        for c in 0..6 {
+            let dev = if c < 3 { de[c] - tr / 3.0 } else { de[c] };
+            trial[c] += (if c < 3 { k * tr } else { 0.0 }) + 2.0 * mu * dev;
+        }
+        let p = (trial[0] + trial[1] + trial[2]) / 3.0;
+        let mut xi = trial;
+        for c in 0..3 {
+            xi[c] -= p;
+        }
+        for c in 0..6 {
+            xi[c] -= s0.back_stress[c];
+        }
+        let nx = (xi[0].powi(2)
+            + xi[1].powi(2)
+            + xi[2].powi(2)
+            + 2.0 * (xi[3].powi(2) + xi[4].powi(2) + xi[5].powi(2)))
+        .sqrt();
+        let r = (2.0f64 / 3.0).sqrt() * (300e6 + 1.5e9 * 0.01);
+        assert!(nx > r, "the increment must be plastic");
+        let dg = (nx - r) / (2.0 * mu + 2.0 / 3.0 * 2.2e9);
+        for c in 0..6 {
+            let n = xi[c] / nx;
+            let s_exact = trial[c] - 2.0 * mu * dg * n;
+            let a_exact = s0.back_stress[c] + 2.0 / 3.0 * 0.7e9 * dg * n;
+            assert!((st.stress[c] - s_exact).abs() < 1e-10 * 300e6);
+            assert!((st.back_stress[c] - a_exact).abs() < 1e-10 * 300e6);
+        }
+        assert!((dp - (2.0f64 / 3.0).sqrt() * dg).abs() < 1e-16);
+        // On the updated yield surface.
+        let mut xi1 = deviator(&st.stress);
+        for c in 0..6 {
+            xi1[c] -= st.back_stress[c];
+        }
+        let f = ddot(&xi1, &xi1).sqrt()
+            - (2.0f64 / 3.0).sqrt() * (300e6 + 1.5e9 * st.eq_plastic_strain);
+        assert!(f.abs() < 1e-8 * 300e6, "f = {f}");
+    }
+
+    #[test]
+    fn elastic_step_is_hooke() {
+        let m = steel(1e9, 1e9);
+        let mut st = J2State::default();
+        let dp = m.update(&mut st, &[1e-4, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        assert_eq!(dp, 0.0);
+        let mu = m.shear_modulus();
+        let lambda = m.bulk_modulus() - 2.0 / 3.0 * mu;
+        assert!((st.stress[0] - (lambda + 2.0 * mu) * 1e-4).abs() < 1e-6);
+        assert!((st.stress[1] - lambda * 1e-4).abs() < 1e-6);
+    }
+
+    /// Bauschinger effect: after loading in uniaxial strain to ε1 and reversing, reverse
+    /// yield occurs after a strain drop of 2σ_y/(2μ) = σ_y/μ for pure kinematic hardening
+    /// (the elastic range keeps size 2σ_y0) and (σ_y0 + H p1)/μ for pure isotropic hardening.
+    #[test]
+    fn bauschinger_kinematic_vs_isotropic() {
+        let h = 5e9;
+        let e1 = 0.006;
+        for kinematic in [true, false] {
+            let m = if kinematic {
+                steel(0.0, h)
+            } else {
+                steel(h, 0.0)
+            };
+            let mu = m.shear_modulus();
+            let mut st = J2State::default();
+            let n = 100;
+            for _ in 0..n {
+                m.update(&mut st, &[e1 / n as f64, 0.0, 0.0, 0.0, 0.0, 0.0]);
+            }
+            let p1 = st.eq_plastic_strain;
+            let drop = if kinematic {
+                m.yield_stress / mu
+            } else {
+                (m.yield_stress + h * p1) / mu
+            };
+            // Just inside the elastic range: no plastic flow.
+            let mut a = st;
+            let dp = m.update(&mut a, &[-drop * (1.0 - 1e-6), 0.0, 0.0, 0.0, 0.0, 0.0]);
+            assert_eq!(dp, 0.0, "kinematic={kinematic}");
+            // Just past it: plastic flow.
+            let mut b = st;
+            let dp = m.update(&mut b, &[-drop * (1.0 + 1e-3), 0.0, 0.0, 0.0, 0.0, 0.0]);
+            assert!(dp > 0.0, "kinematic={kinematic}");
+            // Further reverse loading follows the hardening slope (4/3)μH/(3μ+H) in s_xx.
+            let mut c = st;
+            let extra = 0.002;
+            m.update(&mut c, &[-(drop + extra), 0.0, 0.0, 0.0, 0.0, 0.0]);
+            let sdev = |s: &Sym| s[0] - (s[0] + s[1] + s[2]) / 3.0;
+            let exact = sdev(&st.stress)
+                - 4.0 / 3.0 * mu * drop
+                - 4.0 / 3.0 * mu * h / (3.0 * mu + h) * extra;
+            assert!(
+                (sdev(&c.stress) - exact).abs() < 1e-10 * m.yield_stress,
+                "kinematic={kinematic}: {} vs {exact}",
+                sdev(&c.stress)
+            );
+        }
+    }
+
+    /// Pure spin about z for time t rotates σ to R σ Rᵀ; the explicit Jaumann update converges
+    /// to it at first order in dt.
+    #[test]
+    fn jaumann_rotation_converges_to_rigid_rotation() {
+        let omega: f64 = 1.0;
+        let t = 0.5;
+        let w = [[0.0, -omega, 0.0], [omega, 0.0, 0.0], [0.0, 0.0, 0.0]];
+        let s0: Sym = [100.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+        let th = omega * t;
+        let (c, s) = (th.cos(), th.sin());
+        let exact: Sym = [100.0 * c * c, 100.0 * s * s, 0.0, 0.0, 0.0, 100.0 * c * s];
+        let err = |n: usize| {
+            let mut st = s0;
+            for _ in 0..n {
+                jaumann_rotate(&mut st, &w, t / n as f64);
+            }
+            (0..6).map(|k| (st[k] - exact[k]).abs()).fold(0.0, f64::max)
+        };
+        let (e1, e2) = (err(1000), err(2000));
+        let order = (e1 / e2).log2();
+        assert!(e2 < 0.05, "error {e2}");
+        assert!((order - 1.0).abs() < 0.05, "order {order}");
+        // Von Mises stress is invariant under the rotation up to O(dt).
+        let mut st = s0;
+        for _ in 0..2000 {
+            jaumann_rotate(&mut st, &w, t / 2000.0);
+        }
+        assert!((von_mises(&st) - 100.0).abs() < 0.1);
+    }
+
+    #[test]
+    fn validate_names_the_key() {
+        let mut m = steel(0.0, 0.0);
+        assert!(m.validate().is_ok());
+        m.poisson = 0.5;
+        assert_eq!(m.validate().unwrap_err().0, "poisson");
+        m = steel(0.0, -1.0);
+        assert_eq!(m.validate().unwrap_err().0, "kin_hardening");
+        m = steel(0.0, 0.0);
+        m.young = 0.0;
+        assert_eq!(m.validate().unwrap_err().0, "young");
+    }
+}

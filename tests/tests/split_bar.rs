@@ -22,6 +22,8 @@ fn run_split(
         String::from_utf8_lossy(&o.stderr)
     );
     let s = summary(&out);
+    // A finished run leaves nothing in shared memory.
+    assert!(shm_files(&id).is_empty(), "left in /dev/shm: {:?}", shm_files(&id));
     (out, s)
 }
 

@@ -51,6 +51,11 @@ fn main() {
             p.send(b"this is not a cosim message")?;
             std::thread::sleep(Duration::from_millis(20));
         }
+        // Leave as a participant should: ports closed, then the run's leftovers swept
+        // (a no-op while the run is still alive).
+        drop(p);
+        drop(t);
+        transport::cleanup(spec.kind, &spec.run);
         Ok(())
     })();
     if let Err(e) = result {

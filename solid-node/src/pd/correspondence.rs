@@ -1,0 +1,439 @@
+//! pd-correspondence: non-ordinary state-based (correspondence) peridynamics, seed 001
+//! §4.1–4.3: shape tensor K (eq. 182), nonlocal deformation gradient F = N K⁻¹ (eq. 181),
+//! force state T = ω P K⁻¹ ξ (eq. 180) with P the first Piola–Kirchhoff stress, and Silling's
+//! zero-energy-mode stabilization (eq. 184–189). The stress is a rate form (seed 000 App. B):
+//! L = Ḟ F⁻¹, Jaumann-rotated Cauchy stress, J2 radial return with isotropic and kinematic
+//! hardening (`mechanics::j2`), bond damage by any `mechanics::damage::DamageModel` (App. C).
+//!
+//! Stabilization, eq. (186): T̂ = ω { P K⁻¹ ξ + (G C/ω₀) z },  z = y − F ξ (eq. 184). As printed,
+//! G C z/ω₀ is not a force state dimensionally (C of eq. 188 is a bond micromodulus, N/m⁶,
+//! and ω₀ = ∫ω dV a volume); we normalise ω₀ by the full-horizon volume V_H and use δ as the
+//! length scale, T_s = ω G C (V_H/ω₀) z/δ, so that in the bulk the non-uniform part of a
+//! bond of length δ is resisted like a bond-based bond of micromodulus G·C (Silling 2017).
+//! Per particle we fold it into Â = P K⁻¹ − κ F/δ, κ = G C V_H/ω₀, so the force of a bond is
+//! ω V_j [(Â_i + Â_j) ξ + (κ_i + κ_j) y/δ] (eq. 183).
+// Index loops over the 3 or 6 components of small tensors read closer to the formulas;
+// `!(x > 0.0)` is deliberate: it also rejects NaN.
+#![allow(
+    clippy::needless_range_loop,
+    clippy::neg_cmp_op_on_partial_ord,
+    clippy::too_many_arguments
+)]
+
+use super::family::{Bonds, par_rows};
+use super::model::{Dim, Kinematics, PdModel};
+use mechanics::damage::{BondInput, DamageModel};
+use mechanics::j2::{J2Material, J2State, Sym, jaumann_rotate, von_mises};
+use rayon::prelude::*;
+use std::f64::consts::PI;
+
+pub type M3 = [[f64; 3]; 3];
+
+#[inline]
+pub fn matmul(a: &M3, b: &M3) -> M3 {
+    std::array::from_fn(|i| {
+        std::array::from_fn(|j| a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j])
+    })
+}
+
+#[inline]
+pub fn det(a: &M3) -> f64 {
+    a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
+}
+
+/// Inverse by the adjugate; `None` when |det| ≤ tiny.
+#[inline]
+pub fn inverse(a: &M3, tiny: f64) -> Option<M3> {
+    let d = det(a);
+    if !(d.abs() > tiny) {
+        return None;
+    }
+    let id = 1.0 / d;
+    Some([
+        [
+            (a[1][1] * a[2][2] - a[1][2] * a[2][1]) * id,
+            (a[0][2] * a[2][1] - a[0][1] * a[2][2]) * id,
+            (a[0][1] * a[1][2] - a[0][2] * a[1][1]) * id,
+        ],
+        [
+            (a[1][2] * a[2][0] - a[1][0] * a[2][2]) * id,
+            (a[0][0] * a[2][2] - a[0][2] * a[2][0]) * id,
+            (a[0][2] * a[1][0] - a[0][0] * a[1][2]) * id,
+        ],
+        [
+            (a[1][0] * a[2][1] - a[1][1] * a[2][0]) * id,
+            (a[0][1] * a[2][0] - a[0][0] * a[2][1]) * id,
+            (a[0][0] * a[1][1] - a[0][1] * a[1][0]) * id,
+        ],
+    ])
+}
+
+#[inline]
+pub fn mv(a: &M3, v: &[f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|i| a[i][0] * v[0] + a[i][1] * v[1] + a[i][2] * v[2])
+}
+
+const IDENTITY: M3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+
+/// Per-particle kinematic results of pass 1 (not gathered by neighbours).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct PointKin {
+    /// A = P K⁻¹ (force state T = ω A ξ, eq. 180).
+    pub a: M3,
+    /// Nonlocal deformation gradient F (eq. 181).
+    pub f: M3,
+    /// K⁻¹ of the current intact family, and the Σ ω_D V_j it was built for.
+    pub kinv: M3,
+    pub wsum: f64,
+    /// False when the family cannot carry a gradient (fully or nearly broken).
+    pub active: bool,
+}
+
+/// What the force pass gathers from each neighbour (kept small: 12 numbers).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct BondSide {
+    /// Â = P K⁻¹ − κ F/δ: the stabilized force state is ω (Â ξ + κ y/δ).
+    pub ahat: M3,
+    /// κ = G C V_H/ω₀ (0 for an inactive particle).
+    pub kappa: f64,
+    /// Von Mises stress and equivalent plastic strain, for bond damage.
+    pub vm: f64,
+    pub eqp: f64,
+}
+
+/// The correspondence model, generic over its damage law (monomorphized bond loop).
+pub struct Correspondence<D: DamageModel> {
+    pub dim: Dim,
+    pub material: J2Material,
+    /// Stabilization constant G of eq. (186) (seed 001 uses 0.5).
+    pub stabilization: f64,
+    /// Bond micromodulus C of eq. (188).
+    pub micromodulus: f64,
+    /// Full-horizon volume V_H (πδ²h in 2-D).
+    pub horizon_volume: f64,
+    pub damage: D,
+    pub horizon: f64,
+    pub state: Vec<J2State>,
+    pub kin: Vec<PointKin>,
+    pub side: Vec<BondSide>,
+    /// det K of the intact family (to detect a family too damaged for a gradient).
+    k0det: Vec<f64>,
+}
+
+impl<D: DamageModel> Correspondence<D> {
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        dim: Dim,
+        material: J2Material,
+        stabilization: f64,
+        horizon: f64,
+        thickness: f64,
+        damage: D,
+        k: &Kinematics,
+        bonds: &Bonds,
+    ) -> Self {
+        let kb = material.bulk_modulus();
+        let (nu, e) = (material.poisson, material.young);
+        // eq. (188)–(189)
+        let (c, vh) = match dim {
+            Dim::Three => (
+                18.0 * kb / (PI * horizon.powi(4)),
+                4.0 / 3.0 * PI * horizon.powi(3),
+            ),
+            Dim::PlaneStress => (
+                12.0 * (e / (2.0 * (1.0 - nu))) / (PI * thickness * horizon.powi(3)),
+                PI * horizon * horizon * thickness,
+            ),
+            Dim::PlaneStrain => (
+                12.0 * (e / (2.0 * (1.0 + nu) * (1.0 - 2.0 * nu)))
+                    / (PI * thickness * horizon.powi(3)),
+                PI * horizon * horizon * thickness,
+            ),
+        };
+        let n = bonds.particles();
+        let mut m = Correspondence {
+            dim,
+            material,
+            stabilization,
+            micromodulus: c,
+            horizon_volume: vh,
+            damage,
+            horizon,
+            state: vec![J2State::default(); n],
+            kin: vec![
+                PointKin {
+                    wsum: f64::NAN,
+                    ..Default::default()
+                };
+                n
+            ],
+            side: vec![BondSide::default(); n],
+            k0det: vec![0.0; n],
+        };
+        for i in 0..n {
+            m.k0det[i] = det(&shape_tensor(dim, i, k, bonds));
+        }
+        m
+    }
+
+    /// Pass 1 at every particle: F (eq. 181), Ḟ, L = Ḟ F⁻¹, the rate-form stress update
+    /// (Jaumann + radial return, seed 000 App. B), A = P K⁻¹ and Â.
+    fn pass1(&mut self, k: &Kinematics, bonds: &Bonds, dt: f64) {
+        let mat = self.material;
+        let kappa0 = self.stabilization * self.micromodulus * self.horizon_volume;
+        let inv_h = 1.0 / self.horizon;
+        let (dim, k0det) = (self.dim, &self.k0det);
+        let (offsets, nbr, xi, intact) = (&bonds.offsets, &bonds.nbr, &bonds.xi, &bonds.intact);
+        self.state
+            .par_iter_mut()
+            .zip(self.kin.par_iter_mut())
+            .zip(self.side.par_iter_mut())
+            .with_min_len(256)
+            .enumerate()
+            .for_each(|(i, ((st, pk), sd))| {
+                let r = offsets[i]..offsets[i + 1];
+                let (pi, vi) = (k.pos[i], k.vel[i]);
+                let mut nn = [[0.0; 3]; 3];
+                let mut nd = [[0.0; 3]; 3];
+                let mut w0 = 0.0;
+                for ((&j, x), &om) in nbr[r.clone()].iter().zip(&xi[r.clone()]).zip(&intact[r]) {
+                    if om == 0.0 {
+                        continue;
+                    }
+                    let j = j as usize;
+                    let w = om * k.vol[j];
+                    w0 += w;
+                    let (pj, vj) = (k.pos[j], k.vel[j]);
+                    let wy = [
+                        w * (pj[0] - pi[0]),
+                        w * (pj[1] - pi[1]),
+                        w * (pj[2] - pi[2]),
+                    ];
+                    let wv = [
+                        w * (vj[0] - vi[0]),
+                        w * (vj[1] - vi[1]),
+                        w * (vj[2] - vi[2]),
+                    ];
+                    for a in 0..3 {
+                        for c in 0..3 {
+                            nn[a][c] += wy[a] * x[c];
+                            nd[a][c] += wv[a] * x[c];
+                        }
+                    }
+                }
+                if w0 != pk.wsum {
+                    // The family changed (or first call): rebuild K⁻¹ (eq. 182).
+                    pk.wsum = w0;
+                    let kk = shape_tensor(dim, i, k, bonds);
+                    match inverse(&kk, 1e-3 * k0det[i].abs()) {
+                        Some(kinv) => {
+                            pk.kinv = kinv;
+                            pk.active = true;
+                        }
+                        None => pk.active = false,
+                    }
+                }
+                if !pk.active {
+                    // Fully (or nearly) broken: a free particle, no stress carried.
+                    pk.a = [[0.0; 3]; 3];
+                    pk.f = IDENTITY;
+                    *sd = BondSide {
+                        ahat: [[0.0; 3]; 3],
+                        kappa: 0.0,
+                        vm: von_mises(&st.stress),
+                        eqp: st.eq_plastic_strain,
+                    };
+                    return;
+                }
+                if !dim.three_d() {
+                    nn[2][2] = 1.0;
+                }
+                let f = matmul(&nn, &pk.kinv);
+                let finv = inverse(&f, 1e-300);
+                if dt > 0.0
+                    && let Some(finv) = finv
+                {
+                    let fdot = matmul(&nd, &pk.kinv);
+                    let l = matmul(&fdot, &finv);
+                    let spin: M3 =
+                        std::array::from_fn(|a| std::array::from_fn(|c| 0.5 * (l[a][c] - l[c][a])));
+                    let de: Sym = [
+                        l[0][0] * dt,
+                        l[1][1] * dt,
+                        l[2][2] * dt,
+                        0.5 * (l[1][2] + l[2][1]) * dt,
+                        0.5 * (l[0][2] + l[2][0]) * dt,
+                        0.5 * (l[0][1] + l[1][0]) * dt,
+                    ];
+                    // seed 000 eq. (B.2)–(B.4): Jaumann rate, then radial return.
+                    jaumann_rotate(&mut st.stress, &spin, dt);
+                    jaumann_rotate(&mut st.back_stress, &spin, dt);
+                    mat.update(st, &de);
+                }
+                let s = mechanics::j2::to_matrix(&st.stress);
+                // P = J σ F⁻ᵀ, A = P K⁻¹
+                let a = match finv {
+                    Some(finv) => {
+                        let jac = det(&f);
+                        let finv_t: M3 =
+                            std::array::from_fn(|r| std::array::from_fn(|c| jac * finv[c][r]));
+                        matmul(&matmul(&s, &finv_t), &pk.kinv)
+                    }
+                    None => [[0.0; 3]; 3],
+                };
+                let kappa = if w0 > 0.0 { kappa0 / w0 } else { 0.0 };
+                let kd = kappa * inv_h;
+                pk.a = a;
+                pk.f = f;
+                *sd = BondSide {
+                    ahat: std::array::from_fn(|r| std::array::from_fn(|c| a[r][c] - kd * f[r][c])),
+                    kappa,
+                    vm: von_mises(&st.stress),
+                    eqp: st.eq_plastic_strain,
+                };
+            });
+    }
+
+    /// Runs only the stress update (pass 1), e.g. for prescribed-motion tests.
+    pub fn update_stress(&mut self, k: &Kinematics, bonds: &Bonds, dt: f64) {
+        self.pass1(k, bonds, dt);
+    }
+
+    /// Virial stress ½ Σ_j (T_i⟨ξ⟩ − T_j⟨−ξ⟩) ⊗ ξ V_j at particle i (without stabilization,
+    /// which vanishes for a homogeneous deformation); equals P in the bulk.
+    pub fn virial_stress(&self, i: usize, k: &Kinematics, bonds: &Bonds) -> M3 {
+        let mut s = [[0.0; 3]; 3];
+        let ai = self.kin[i].a;
+        for b in bonds.offsets[i]..bonds.offsets[i + 1] {
+            let j = bonds.nbr[b] as usize;
+            let w = bonds.intact[b] * k.vol[j];
+            let aj = self.kin[j].a;
+            let x = bonds.xi[b];
+            let t: [f64; 3] = std::array::from_fn(|r| {
+                (ai[r][0] + aj[r][0]) * x[0]
+                    + (ai[r][1] + aj[r][1]) * x[1]
+                    + (ai[r][2] + aj[r][2]) * x[2]
+            });
+            for r in 0..3 {
+                for c in 0..3 {
+                    s[r][c] += 0.5 * w * t[r] * x[c];
+                }
+            }
+        }
+        s
+    }
+}
+
+/// Shape tensor K = Σ ω V_j ξ⊗ξ over intact bonds (eq. 182); K_zz = 1 in 2-D.
+fn shape_tensor(dim: Dim, i: usize, k: &Kinematics, bonds: &Bonds) -> M3 {
+    let mut kk = [[0.0; 3]; 3];
+    for b in bonds.offsets[i]..bonds.offsets[i + 1] {
+        let w = bonds.intact[b] * k.vol[bonds.nbr[b] as usize];
+        let x = bonds.xi[b];
+        for a in 0..3 {
+            for c in 0..3 {
+                kk[a][c] += w * x[a] * x[c];
+            }
+        }
+    }
+    if !dim.three_d() {
+        kk[2][2] = 1.0;
+    }
+    kk
+}
+
+impl<D: DamageModel> PdModel for Correspondence<D> {
+    fn name(&self) -> &'static str {
+        "pd-correspondence"
+    }
+
+    fn force_density(&mut self, k: &Kinematics, bonds: &mut Bonds, dt: f64, f: &mut [[f64; 3]]) {
+        self.pass1(k, bonds, dt);
+        let point = &self.side;
+        let damage = &self.damage;
+        let inv_h = 1.0 / self.horizon;
+        let (offsets, nbr, xi, inv_len) = (&bonds.offsets, &bonds.nbr, &bonds.xi, &bonds.inv_len);
+        par_rows(offsets, f, &mut bonds.intact, &|i, fi, row| {
+            let pi = &point[i];
+            let xp = k.pos[i];
+            let mut acc = [0.0; 3];
+            let r = offsets[i]..offsets[i + 1];
+            for (((om, &j), x), &il) in row
+                .iter_mut()
+                .zip(&nbr[r.clone()])
+                .zip(&xi[r.clone()])
+                .zip(&inv_len[r])
+            {
+                if *om == 0.0 {
+                    continue;
+                }
+                let j = j as usize;
+                let pj = &point[j];
+                let q = k.pos[j];
+                let y = [q[0] - xp[0], q[1] - xp[1], q[2] - xp[2]];
+                let ly = (y[0] * y[0] + y[1] * y[1] + y[2] * y[2]).sqrt();
+                // seed 000 App. C: bond-associated quantities, symmetric in i and j so both
+                // copies of the bond evolve identically.
+                let input = BondInput {
+                    stretch: ly * il - 1.0,
+                    von_mises: 0.5 * (pi.vm + pj.vm),
+                    eq_plastic_strain: 0.5 * (pi.eqp + pj.eqp),
+                };
+                let w = damage.update(*om, &input);
+                *om = w;
+                if w == 0.0 {
+                    continue;
+                }
+                let w = w * k.vol[j];
+                let ks = (pi.kappa + pj.kappa) * inv_h;
+                for c in 0..3 {
+                    // eq. (183) with (186): T_i⟨ξ⟩ − T_j⟨−ξ⟩
+                    let t = (pi.ahat[c][0] + pj.ahat[c][0]) * x[0]
+                        + (pi.ahat[c][1] + pj.ahat[c][1]) * x[1]
+                        + (pi.ahat[c][2] + pj.ahat[c][2]) * x[2];
+                    acc[c] += w * (t + ks * y[c]);
+                }
+            }
+            *fi = acc;
+        });
+    }
+
+    fn stable_dt(&self, k: &Kinematics, bonds: &Bonds, density: f64) -> f64 {
+        // seed 001 §4.2: Δt ≤ l/c, l the spacing, c the dilatational wave speed.
+        let m = &self.material;
+        let modulus = m.bulk_modulus() + 4.0 / 3.0 * m.shear_modulus();
+        let c = (modulus / density).sqrt();
+        let mut lmin = f64::INFINITY;
+        for i in 0..bonds.particles() {
+            for b in bonds.offsets[i]..bonds.offsets[i + 1] {
+                lmin = lmin.min(1.0 / bonds.inv_len[b]);
+            }
+        }
+        let _ = k;
+        lmin / c
+    }
+
+    fn stress(&self) -> Option<Vec<Sym>> {
+        Some(self.state.iter().map(|s| s.stress).collect())
+    }
+
+    fn plastic_strain(&self) -> Option<Vec<f64>> {
+        Some(self.state.iter().map(|s| s.eq_plastic_strain).collect())
+    }
+
+    fn stiffness_bound(&self, k: &Kinematics, bonds: &Bonds, i: usize) -> f64 {
+        // (K + 4G/3) Δx-scaled: modulus × V_i / l_min²
+        let m = &self.material;
+        let modulus = m.bulk_modulus() + 4.0 / 3.0 * m.shear_modulus();
+        let l = (bonds.offsets[i]..bonds.offsets[i + 1])
+            .map(|b| 1.0 / bonds.inv_len[b])
+            .fold(f64::INFINITY, f64::min);
+        if l.is_finite() {
+            4.0 * modulus * k.vol[i] / (l * l)
+        } else {
+            0.0
+        }
+    }
+}

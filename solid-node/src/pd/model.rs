@@ -1,0 +1,72 @@
+//! The peridynamic model family (STYLE: one trait per family, one file per member): a model
+//! turns the current positions and velocities into a force density per particle (N/m³),
+//! updating its bond damage and internal variables (seed 001 eq. 183, seed 000 eq. A.13).
+// Index loops over the 3 or 6 components of small tensors read closer to the formulas;
+// `!(x > 0.0)` is deliberate: it also rejects NaN.
+#![allow(
+    clippy::needless_range_loop,
+    clippy::neg_cmp_op_on_partial_ord,
+    clippy::too_many_arguments
+)]
+
+use super::family::Bonds;
+use mechanics::j2::Sym;
+
+/// The particle kinematics a model reads.
+#[derive(Debug, Clone, Copy)]
+pub struct Kinematics<'a> {
+    /// Reference positions X.
+    pub x0: &'a [[f64; 3]],
+    /// Current positions x.
+    pub pos: &'a [[f64; 3]],
+    /// Velocities (at the half step in velocity Verlet, as the rate forms need).
+    pub vel: &'a [[f64; 3]],
+    /// Particle volumes V (m³; Δx²·h in 2-D).
+    pub vol: &'a [f64],
+}
+
+/// Dimension of the particle model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dim {
+    Three,
+    PlaneStress,
+    PlaneStrain,
+}
+
+impl Dim {
+    pub fn three_d(self) -> bool {
+        self == Dim::Three
+    }
+}
+
+/// A peridynamic material model.
+pub trait PdModel: Send + Sync {
+    /// Config name.
+    fn name(&self) -> &'static str;
+
+    /// Force density on every particle for the current state; `dt` is the step just taken
+    /// (rate forms integrate their stress over it). Updates bond damage in `bonds.intact`
+    /// (or in the model's own bond arrays, see [`PdModel::sync_bonds`]).
+    fn force_density(&mut self, k: &Kinematics, bonds: &mut Bonds, dt: f64, f: &mut [[f64; 3]]);
+
+    /// Largest stable time step (s), before any safety factor.
+    fn stable_dt(&self, k: &Kinematics, bonds: &Bonds, density: f64) -> f64;
+
+    /// Copies model-held bond state into `bonds.intact` (for output); default: nothing to do.
+    fn sync_bonds(&self, bonds: &mut Bonds) {
+        let _ = bonds;
+    }
+
+    /// Cauchy stress per particle, when the model has one.
+    fn stress(&self) -> Option<Vec<Sym>> {
+        None
+    }
+
+    /// Equivalent plastic strain per particle, when the model has one.
+    fn plastic_strain(&self) -> Option<Vec<f64>> {
+        None
+    }
+
+    /// A bound on the stiffness (N/m) a particle of volume `v` presents to a driver.
+    fn stiffness_bound(&self, k: &Kinematics, bonds: &Bonds, i: usize) -> f64;
+}

@@ -1,0 +1,816 @@
+//! The `Solver` implementation of the peridynamic node: set-up (config → validated body and
+//! model), the window loop with sub-cycling at the stable step, boundary conditions, and
+//! the coupling sides (ARCHITECTURE §5): immersed provider (send position, velocity, volume;
+//! apply the received window-averaged force over the next window) and kinematic driver and
+//! responder (seed 004 eq. 29–33, seed 001 §5.1: boundary-layer particles moved by a driver).
+// Index loops over the 3 or 6 components of small tensors read closer to the formulas;
+// `!(x > 0.0)` is deliberate: it also rejects NaN.
+#![allow(
+    clippy::needless_range_loop,
+    clippy::neg_cmp_op_on_partial_ord,
+    clippy::too_many_arguments
+)]
+
+use super::bond::{BondModel, implied_poisson};
+use super::correspondence::Correspondence;
+use super::family::{Bonds, surface_particles};
+use super::geometry::{Shape, lattice};
+use super::integrate::Body;
+use super::model::{Dim, PdModel};
+use super::output::{PointData, write_vtu};
+use mechanics::damage::{
+    BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain, NoDamage,
+};
+use mechanics::j2::J2Material;
+use protocol::{
+    Binding, CouplingKind, InterfaceInfo, InterfaceMesh, NodeDescription, Role, Solver,
+    SolverError, SolverResult, StepReport, Window,
+};
+use protocol::{Inbox, Outbox};
+use serde::Deserialize;
+use std::path::Path;
+
+fn default_thickness() -> f64 {
+    1.0
+}
+fn default_stabilization() -> f64 {
+    0.5
+}
+fn default_cfl() -> f64 {
+    0.5
+}
+
+/// The parameter table of a peridynamic node (`[nodes.X.params]`).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PdParams {
+    /// "3d", "plane_stress" or "plane_strain".
+    pub dimension: String,
+    /// Out-of-plane thickness h in 2-D (m).
+    #[serde(default = "default_thickness")]
+    pub thickness: f64,
+    /// Lattice spacing Δx (m).
+    pub spacing: f64,
+    /// Horizon δ (m).
+    pub horizon: f64,
+    /// Mass density ρ (kg/m³).
+    pub density: f64,
+    pub young: f64,
+    pub poisson: f64,
+    /// Initial yield stress; absent = elastic.
+    #[serde(default)]
+    pub yield_stress: Option<f64>,
+    #[serde(default)]
+    pub iso_hardening: f64,
+    #[serde(default)]
+    pub kin_hardening: f64,
+    /// G of seed 001 eq. (186).
+    #[serde(default = "default_stabilization")]
+    pub stabilization: f64,
+    /// Safety factor on the stable step.
+    #[serde(default = "default_cfl")]
+    pub cfl: f64,
+    #[serde(default)]
+    pub damage: Option<DamageParams>,
+    pub bodies: Vec<Shape>,
+    #[serde(default)]
+    pub holes: Vec<Shape>,
+    #[serde(default)]
+    pub initial_velocity: Vec<RegionVelocity>,
+    #[serde(default)]
+    pub prescribed_velocity: Vec<RegionVelocity>,
+    #[serde(default)]
+    pub pressure: Option<PressurePulse>,
+    #[serde(default)]
+    pub interfaces: Vec<InterfaceParams>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum DamageParams {
+    None,
+    CriticalStretch {
+        critical_stretch: f64,
+    },
+    VonMises {
+        critical_stress: f64,
+    },
+    PlasticStrain {
+        eps_threshold: f64,
+        eps_critical: f64,
+    },
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegionVelocity {
+    pub region: Shape,
+    pub velocity: [f64; 3],
+}
+
+/// Internal pressure on the inner face of a hole about the z axis through `center`:
+/// p(t) = p0 (1 − t/duration) for t < duration, then 0.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PressurePulse {
+    pub center: [f64; 3],
+    pub inner_radius: f64,
+    pub pressure: f64,
+    pub duration: f64,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InterfaceParams {
+    pub name: String,
+    /// "all" or "surface"; restricted to `region` when given.
+    #[serde(default = "default_select")]
+    pub select: String,
+    #[serde(default)]
+    pub region: Option<Shape>,
+}
+
+fn default_select() -> String {
+    "surface".into()
+}
+
+/// One coupling as this node plays it.
+#[derive(Debug, Clone)]
+struct Coupled {
+    interface: String,
+    kind: CouplingKind,
+    role: Role,
+}
+
+/// The peridynamic solver node.
+pub struct PdSolver {
+    pub model_name: String,
+    pub params: PdParams,
+    pub body: Body,
+    interfaces: Vec<(String, Vec<usize>)>,
+    coupled: Vec<Coupled>,
+    /// External force per particle from couplings, held over a window (N).
+    fcouple: Vec<[f64; 3]>,
+    /// Pressure particles and their outward area vectors (m²).
+    pressure_area: Vec<(usize, [f64; 3])>,
+    /// Particles with prescribed velocity from the config.
+    bc_particles: Vec<usize>,
+    external_impulse: [f64; 3],
+    applied_impulse: f64,
+    interface_impulse: [f64; 3],
+    interface_work: f64,
+    external_work: f64,
+}
+
+fn cfg<T>(key: &str, reason: impl Into<String>) -> SolverResult<T> {
+    Err(SolverError::config(key, reason))
+}
+
+impl PdSolver {
+    /// Builds the solver for `model` ("pd-bond" or "pd-correspondence") from its table.
+    pub fn from_table(model: &str, table: &toml::Table) -> SolverResult<Self> {
+        let params: PdParams = table
+            .clone()
+            .try_into()
+            .map_err(|e: toml::de::Error| SolverError::config("params", e.to_string()))?;
+        Self::new(model, params)
+    }
+
+    pub fn new(model: &str, p: PdParams) -> SolverResult<Self> {
+        let model_name = model.to_string();
+        let dim = match p.dimension.as_str() {
+            "3d" => Dim::Three,
+            "plane_stress" => Dim::PlaneStress,
+            "plane_strain" => Dim::PlaneStrain,
+            other => {
+                return cfg(
+                    "dimension",
+                    format!(
+                        "must be \"3d\", \"plane_stress\" or \"plane_strain\", got \"{other}\""
+                    ),
+                );
+            }
+        };
+        let three_d = dim.three_d();
+        if !(p.spacing.is_finite() && p.spacing > 0.0) {
+            return cfg("spacing", format!("must be > 0, got {}", p.spacing));
+        }
+        if !(p.horizon.is_finite() && p.horizon > p.spacing) {
+            return cfg(
+                "horizon",
+                format!("must exceed the spacing {} (got {})", p.spacing, p.horizon),
+            );
+        }
+        if !(p.density.is_finite() && p.density > 0.0) {
+            return cfg("density", format!("must be > 0, got {}", p.density));
+        }
+        let thickness_ok = p.thickness.is_finite() && p.thickness > 0.0;
+        if !three_d && !thickness_ok {
+            return cfg("thickness", format!("must be > 0, got {}", p.thickness));
+        }
+        if !(p.cfl > 0.0 && p.cfl <= 1.0) {
+            return cfg("cfl", format!("must be in (0, 1], got {}", p.cfl));
+        }
+        if !(p.stabilization.is_finite() && p.stabilization >= 0.0) {
+            return cfg(
+                "stabilization",
+                format!("must be >= 0, got {}", p.stabilization),
+            );
+        }
+        let material = J2Material {
+            young: p.young,
+            poisson: p.poisson,
+            yield_stress: p.yield_stress.unwrap_or(f64::MAX),
+            iso_hardening: p.iso_hardening,
+            kin_hardening: p.kin_hardening,
+        };
+        if let Err((k, r)) = material.validate() {
+            return cfg(&k, r);
+        }
+        if p.bodies.is_empty() {
+            return cfg("bodies", "no body given: the particle set would be empty");
+        }
+        for (n, s) in p.bodies.iter().enumerate() {
+            if let Err(r) = s.check(three_d) {
+                return cfg(&format!("bodies[{n}]"), r);
+            }
+        }
+        let damage: Box<dyn DamageModel> = match &p.damage {
+            None | Some(DamageParams::None) => Box::new(NoDamage),
+            Some(DamageParams::CriticalStretch { critical_stretch }) => Box::new(CriticalStretch {
+                critical_stretch: *critical_stretch,
+            }),
+            Some(DamageParams::VonMises { critical_stress }) => Box::new(BrittleVonMises {
+                critical_stress: *critical_stress,
+            }),
+            Some(DamageParams::PlasticStrain {
+                eps_threshold,
+                eps_critical,
+            }) => Box::new(DuctilePlasticStrain {
+                threshold: *eps_threshold,
+                critical: *eps_critical,
+            }),
+        };
+        if let Err((k, r)) = damage.validate() {
+            return cfg(&format!("damage.{k}"), r);
+        }
+        let x0 = lattice(&p.bodies, &p.holes, p.spacing, three_d);
+        if x0.is_empty() {
+            return cfg("bodies", "the bodies hold no lattice point at this spacing");
+        }
+        let v = if three_d {
+            p.spacing.powi(3)
+        } else {
+            p.spacing * p.spacing * p.thickness
+        };
+        let vol = vec![v; x0.len()];
+        let bonds = Bonds::build(&x0, p.horizon);
+        let k = super::model::Kinematics {
+            x0: &x0,
+            pos: &x0,
+            vel: &x0,
+            vol: &vol,
+        };
+        let model: Box<dyn PdModel> = match model {
+            "pd-bond" => {
+                let nu = implied_poisson(dim);
+                if (p.poisson - nu).abs() > 1e-9 {
+                    return cfg(
+                        "poisson",
+                        format!(
+                            "pd-bond in {} fixes ν = {nu:.6}, got {}",
+                            p.dimension, p.poisson
+                        ),
+                    );
+                }
+                if p.yield_stress.is_some() {
+                    return cfg(
+                        "yield_stress",
+                        "pd-bond is elastic-brittle; use pd-correspondence for plasticity",
+                    );
+                }
+                let s0 = match &p.damage {
+                    None | Some(DamageParams::None) => None,
+                    Some(DamageParams::CriticalStretch { critical_stretch }) => {
+                        Some(*critical_stretch)
+                    }
+                    Some(_) => {
+                        return cfg(
+                            "damage.kind",
+                            "pd-bond supports \"critical_stretch\" or \"none\"",
+                        );
+                    }
+                };
+                Box::new(BondModel::new(
+                    dim,
+                    p.young,
+                    p.horizon,
+                    p.thickness,
+                    s0,
+                    &k,
+                    &bonds,
+                ))
+            }
+            "pd-correspondence" => {
+                if dim == Dim::PlaneStress {
+                    return cfg(
+                        "dimension",
+                        "pd-correspondence supports \"3d\" and \"plane_strain\"",
+                    );
+                }
+                let mk = |d| -> Box<dyn PdModel> {
+                    match d {
+                        DamageParams::None => Box::new(Correspondence::new(
+                            dim,
+                            material,
+                            p.stabilization,
+                            p.horizon,
+                            p.thickness,
+                            NoDamage,
+                            &k,
+                            &bonds,
+                        )),
+                        DamageParams::CriticalStretch { critical_stretch } => {
+                            Box::new(Correspondence::new(
+                                dim,
+                                material,
+                                p.stabilization,
+                                p.horizon,
+                                p.thickness,
+                                CriticalStretch { critical_stretch },
+                                &k,
+                                &bonds,
+                            ))
+                        }
+                        DamageParams::VonMises { critical_stress } => {
+                            Box::new(Correspondence::new(
+                                dim,
+                                material,
+                                p.stabilization,
+                                p.horizon,
+                                p.thickness,
+                                BrittleVonMises { critical_stress },
+                                &k,
+                                &bonds,
+                            ))
+                        }
+                        DamageParams::PlasticStrain {
+                            eps_threshold,
+                            eps_critical,
+                        } => Box::new(Correspondence::new(
+                            dim,
+                            material,
+                            p.stabilization,
+                            p.horizon,
+                            p.thickness,
+                            DuctilePlasticStrain {
+                                threshold: eps_threshold,
+                                critical: eps_critical,
+                            },
+                            &k,
+                            &bonds,
+                        )),
+                    }
+                };
+                mk(p.damage.clone().unwrap_or(DamageParams::None))
+            }
+            other => return cfg("model", format!("unknown peridynamic model '{other}'")),
+        };
+        let mut body = Body::new(dim, p.spacing, p.horizon, p.density, x0, vol, bonds, model);
+        for (n, r) in p.initial_velocity.iter().enumerate() {
+            if let Err(e) = r.region.check(three_d) {
+                return cfg(&format!("initial_velocity[{n}].region"), e);
+            }
+            for i in 0..body.len() {
+                if r.region.contains(&body.x0[i], three_d) {
+                    body.vel[i] = r.velocity;
+                }
+            }
+        }
+        let mut bc_particles = Vec::new();
+        for (n, r) in p.prescribed_velocity.iter().enumerate() {
+            if let Err(e) = r.region.check(three_d) {
+                return cfg(&format!("prescribed_velocity[{n}].region"), e);
+            }
+            for i in 0..body.len() {
+                if r.region.contains(&body.x0[i], three_d) {
+                    body.prescribed[i] = 1;
+                    body.vpres[i] = r.velocity;
+                    body.vel[i] = r.velocity;
+                    bc_particles.push(i);
+                }
+            }
+        }
+        bc_particles.sort_unstable();
+        bc_particles.dedup();
+        let mut pressure_area = Vec::new();
+        if let Some(pp) = &p.pressure {
+            if !(pp.duration > 0.0 && pp.inner_radius > 0.0 && pp.pressure.is_finite()) {
+                return cfg(
+                    "pressure",
+                    "needs duration > 0, inner_radius > 0 and a finite pressure",
+                );
+            }
+            // Particles of the first layer outside the inner face; each carries Δx·h (2-D)
+            // or Δx² (3-D) of the face.
+            let a = if three_d {
+                p.spacing * p.spacing
+            } else {
+                p.spacing * p.thickness
+            };
+            for i in 0..body.len() {
+                let dx = body.x0[i][0] - pp.center[0];
+                let dy = body.x0[i][1] - pp.center[1];
+                let r = (dx * dx + dy * dy).sqrt();
+                if r >= pp.inner_radius && r < pp.inner_radius + p.spacing {
+                    pressure_area.push((i, [a * dx / r, a * dy / r, 0.0]));
+                }
+            }
+            if pressure_area.is_empty() {
+                return cfg("pressure.inner_radius", "no particle lies on this face");
+            }
+        }
+        let surf = surface_particles(&body.x0, &body.bonds, p.spacing, three_d);
+        let mut interfaces = Vec::new();
+        for (n, ip) in p.interfaces.iter().enumerate() {
+            let base: Vec<usize> = match ip.select.as_str() {
+                "all" => (0..body.len()).collect(),
+                "surface" => surf.clone(),
+                other => {
+                    return cfg(
+                        &format!("interfaces[{n}].select"),
+                        format!("must be \"all\" or \"surface\", got \"{other}\""),
+                    );
+                }
+            };
+            let pts: Vec<usize> = match &ip.region {
+                Some(r) => base
+                    .into_iter()
+                    .filter(|&i| r.contains(&body.x0[i], three_d))
+                    .collect(),
+                None => base,
+            };
+            if pts.is_empty() {
+                return cfg(&format!("interfaces[{n}]"), "selects no particle");
+            }
+            interfaces.push((ip.name.clone(), pts));
+        }
+        let n = body.len();
+        Ok(PdSolver {
+            model_name,
+            params: p,
+            body,
+            interfaces,
+            coupled: Vec::new(),
+            fcouple: vec![[0.0; 3]; n],
+            pressure_area,
+            bc_particles,
+            external_impulse: [0.0; 3],
+            applied_impulse: 0.0,
+            interface_impulse: [0.0; 3],
+            interface_work: 0.0,
+            external_work: 0.0,
+        })
+    }
+
+    fn points_of(&self, name: &str) -> SolverResult<&[usize]> {
+        self.interfaces
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, p)| p.as_slice())
+            .ok_or_else(|| {
+                SolverError::interface(name, "no such interface (see params.interfaces)")
+            })
+    }
+
+    fn send_motion(&self, iface: &str, pts: &[usize], out: &mut Outbox, with_volume: bool) {
+        let x = out.put(iface, "position", 3, pts.len());
+        for (k, &i) in pts.iter().enumerate() {
+            x[3 * k..3 * k + 3].copy_from_slice(&self.body.pos[i]);
+        }
+        let v = out.put(iface, "velocity", 3, pts.len());
+        for (k, &i) in pts.iter().enumerate() {
+            v[3 * k..3 * k + 3].copy_from_slice(&self.body.vel[i]);
+        }
+        if with_volume {
+            let w = out.put(iface, "volume", 1, pts.len());
+            for (k, &i) in pts.iter().enumerate() {
+                w[k] = self.body.vol[i];
+            }
+        }
+    }
+
+    /// Internal force (N) on particle i: force density × volume.
+    fn internal_force(&self, i: usize) -> [f64; 3] {
+        let f = self.body.force[i];
+        let v = self.body.vol[i];
+        [f[0] * v, f[1] * v, f[2] * v]
+    }
+
+    fn send_force(&self, iface: &str, pts: &[usize], out: &mut Outbox) {
+        let f = out.put(iface, "force", 3, pts.len());
+        for (k, &i) in pts.iter().enumerate() {
+            f[3 * k..3 * k + 3].copy_from_slice(&self.internal_force(i));
+        }
+    }
+
+    fn pressure_at(&self, t: f64) -> f64 {
+        match &self.params.pressure {
+            Some(pp) if t < pp.duration => pp.pressure * (1.0 - t / pp.duration),
+            _ => 0.0,
+        }
+    }
+
+    /// Stable step with the safety factor.
+    pub fn dt(&self) -> f64 {
+        self.params.cfl * self.body.stable_dt()
+    }
+}
+
+impl Solver for PdSolver {
+    fn describe(&self) -> NodeDescription {
+        NodeDescription {
+            model: self.model_name.clone(),
+            interfaces: self
+                .interfaces
+                .iter()
+                .map(|(n, p)| InterfaceInfo {
+                    name: n.clone(),
+                    points: p.len(),
+                    provides: [
+                        "position",
+                        "velocity",
+                        "volume",
+                        "force",
+                        "mass",
+                        "stiffness",
+                    ]
+                    .iter()
+                    .map(|s| s.to_string())
+                    .collect(),
+                    accepts: ["force", "position", "velocity", "mass", "stiffness"]
+                        .iter()
+                        .map(|s| s.to_string())
+                        .collect(),
+                })
+                .collect(),
+            units: "SI".into(),
+        }
+    }
+
+    fn interface(&self, name: &str) -> SolverResult<InterfaceMesh> {
+        let pts = self.points_of(name)?;
+        let mut m = InterfaceMesh::points(pts.iter().map(|&i| self.body.pos[i]).collect());
+        m.weights = pts.iter().map(|&i| self.body.vol[i]).collect();
+        Ok(m)
+    }
+
+    fn setup(&mut self, bindings: &[Binding], inbox: &Inbox, out: &mut Outbox) -> SolverResult<()> {
+        self.coupled.clear();
+        for b in bindings {
+            let pts = self.points_of(&b.interface)?.to_vec();
+            match (b.kind, b.role) {
+                (CouplingKind::Immersed, _) => self.send_motion(&b.interface, &pts, out, true),
+                (CouplingKind::Kinematic, Role::Responder) => {
+                    let m = out.put(&b.interface, "mass", 1, pts.len());
+                    for (k, &i) in pts.iter().enumerate() {
+                        m[k] = self.body.density * self.body.vol[i];
+                    }
+                    let kin = self.body.kinematics();
+                    let st: Vec<f64> = pts
+                        .iter()
+                        .map(|&i| self.body.model.stiffness_bound(&kin, &self.body.bonds, i))
+                        .collect();
+                    out.put(&b.interface, "stiffness", 1, pts.len())
+                        .copy_from_slice(&st);
+                    self.send_force(&b.interface, &pts, out);
+                    for &i in &pts {
+                        self.body.prescribed[i] = 1;
+                    }
+                }
+                (CouplingKind::Kinematic, Role::Driver) => {
+                    // The responder's set-up mass and stiffness bound: checked; its mass is
+                    // small against the body's for a boundary layer, so we keep our own
+                    // step (the runtime's stable-step report carries the bound).
+                    if let Some(m) = inbox.get(&b.interface, "mass")
+                        && m.values.iter().any(|v| !(v.is_finite() && *v >= 0.0))
+                    {
+                        return Err(SolverError::interface(&b.interface, "bad set-up mass"));
+                    }
+                    self.send_motion(&b.interface, &pts, out, false);
+                }
+                (CouplingKind::Lagrange, _) => {
+                    return Err(SolverError::interface(
+                        &b.interface,
+                        "lagrange coupling is not offered by the peridynamic node",
+                    ));
+                }
+            }
+            self.coupled.push(Coupled {
+                interface: b.interface.clone(),
+                kind: b.kind,
+                role: b.role,
+            });
+        }
+        Ok(())
+    }
+
+    fn stable_dt(&self) -> f64 {
+        self.dt()
+    }
+
+    fn advance(&mut self, w: &Window, inbox: &Inbox, out: &mut Outbox) -> SolverResult<StepReport> {
+        let wall = std::time::Instant::now();
+        let span = w.t1 - w.t0;
+        if !(span > 0.0) {
+            return Err(SolverError::Other(format!(
+                "empty window [{}, {}]",
+                w.t0, w.t1
+            )));
+        }
+        let nsub = (span / self.dt() - 1e-9).ceil().max(1.0) as u64;
+        let dt = span / nsub as f64;
+        // Inputs of this window.
+        for f in self.fcouple.iter_mut() {
+            *f = [0.0; 3];
+        }
+        let mut targets: Vec<(usize, [f64; 3])> = Vec::new();
+        let coupled = self.coupled.clone();
+        for c in &coupled {
+            let pts = self.points_of(&c.interface)?.to_vec();
+            let n = pts.len();
+            match (c.kind, c.role) {
+                (CouplingKind::Kinematic, Role::Responder) => {
+                    let x = inbox.require(&c.interface, "position", 3 * n)?;
+                    let v = inbox.require(&c.interface, "velocity", 3 * n)?;
+                    if x.iter().chain(v).any(|a| !a.is_finite()) {
+                        return Err(SolverError::interface(
+                            &c.interface,
+                            "non-finite motion received",
+                        ));
+                    }
+                    for (k, &i) in pts.iter().enumerate() {
+                        let vi = [v[3 * k], v[3 * k + 1], v[3 * k + 2]];
+                        self.body.prescribed[i] = 1;
+                        self.body.vpres[i] = vi;
+                        targets.push((i, [x[3 * k], x[3 * k + 1], x[3 * k + 2]]));
+                    }
+                }
+                // Immersed: window-averaged force from the fluid, held over this window
+                // (absent before the first exchange). Kinematic driver: constraint force.
+                (CouplingKind::Immersed, _) | (CouplingKind::Kinematic, Role::Driver) => {
+                    let f = match c.kind {
+                        CouplingKind::Immersed => match inbox.get(&c.interface, "force") {
+                            None => continue,
+                            Some(_) => inbox.require(&c.interface, "force", 3 * n)?,
+                        },
+                        _ => inbox.require(&c.interface, "force", 3 * n)?,
+                    };
+                    if f.iter().any(|a| !a.is_finite()) {
+                        return Err(SolverError::interface(
+                            &c.interface,
+                            "non-finite force received",
+                        ));
+                    }
+                    for (k, &i) in pts.iter().enumerate() {
+                        for d in 0..3 {
+                            self.fcouple[i][d] += f[3 * k + d];
+                        }
+                    }
+                }
+                (CouplingKind::Lagrange, _) => {}
+            }
+        }
+        let start: Vec<[f64; 3]> = targets.iter().map(|&(i, _)| self.body.pos[i]).collect();
+        let coupled_pts: Vec<usize> = (0..self.body.len())
+            .filter(|&i| self.fcouple[i] != [0.0; 3])
+            .collect();
+        for step in 0..nsub {
+            let t = w.t0 + step as f64 * dt;
+            let pr = self.pressure_at(t + 0.5 * dt);
+            self.body.fext.copy_from_slice(&self.fcouple);
+            for &(i, a) in &self.pressure_area {
+                for d in 0..3 {
+                    self.body.fext[i][d] += pr * a[d];
+                }
+                for d in 0..3 {
+                    self.external_impulse[d] += pr * a[d] * dt;
+                }
+                self.applied_impulse += pr * (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt() * dt;
+            }
+            self.body.step(dt);
+            for &i in &coupled_pts {
+                for d in 0..3 {
+                    self.interface_impulse[d] += self.fcouple[i][d] * dt;
+                    self.interface_work += self.fcouple[i][d] * dt * self.body.vel[i][d];
+                }
+            }
+            // Supports: the impulse that holds prescribed particles on their path.
+            for &i in &self.bc_particles {
+                let f = self.internal_force(i);
+                for d in 0..3 {
+                    self.external_impulse[d] -= f[d] * dt;
+                }
+            }
+            for (k, &(i, _)) in targets.iter().enumerate() {
+                // seed 004 eq. (31): along the driver's motion, integrated from the window
+                // start so no drift builds up.
+                let s = (step + 1) as f64 * dt;
+                for d in 0..3 {
+                    self.body.pos[i][d] = start[k][d] + s * self.body.vpres[i][d];
+                }
+                let f = self.internal_force(i);
+                for d in 0..3 {
+                    self.interface_impulse[d] -= f[d] * dt;
+                }
+            }
+        }
+        // Land exactly on the driver's positions at t1.
+        if !targets.is_empty() {
+            for &(i, x) in &targets {
+                self.body.pos[i] = x;
+            }
+            self.body.eval_forces(0.0);
+        }
+        self.body.time = w.t1;
+        if self
+            .body
+            .vel
+            .iter()
+            .any(|v| !(v[0].is_finite() && v[1].is_finite() && v[2].is_finite()))
+        {
+            return Err(SolverError::Diverged {
+                time: w.t1,
+                reason: "non-finite particle velocity".into(),
+            });
+        }
+        // Outputs at t1.
+        for c in &coupled {
+            let pts = self.points_of(&c.interface)?.to_vec();
+            match (c.kind, c.role) {
+                (CouplingKind::Immersed, _) => self.send_motion(&c.interface, &pts, out, true),
+                (CouplingKind::Kinematic, Role::Responder) => {
+                    self.send_force(&c.interface, &pts, out)
+                }
+                (CouplingKind::Kinematic, Role::Driver) => {
+                    self.send_motion(&c.interface, &pts, out, false)
+                }
+                (CouplingKind::Lagrange, _) => {}
+            }
+        }
+        let damage = self.body.damage();
+        let broken = damage.iter().filter(|&&d| d >= 1.0 - 1e-12).count();
+        let maxd = damage.iter().cloned().fold(0.0, f64::max);
+        Ok(StepReport {
+            kinetic_energy: self.body.kinetic_energy(),
+            internal_energy: 0.0,
+            external_work: self.external_work,
+            interface_work: self.interface_work,
+            momentum: self.body.momentum(),
+            external_impulse: self.external_impulse,
+            applied_impulse: self.applied_impulse,
+            interface_impulse: self.interface_impulse,
+            substeps: nsub,
+            wall_s: wall.elapsed().as_secs_f64(),
+            coupling_wait_s: 0.0,
+            scalars: vec![
+                ("max_damage".into(), maxd),
+                ("free_particles".into(), broken as f64),
+            ],
+        })
+    }
+
+    fn write_output(&self, t: f64, window: u64, dir: &Path) -> SolverResult<()> {
+        let b = &self.body;
+        let n = b.len();
+        let flat = |a: &[[f64; 3]]| {
+            a.iter()
+                .flat_map(|v| v.iter().copied())
+                .collect::<Vec<f64>>()
+        };
+        let disp: Vec<[f64; 3]> = (0..n)
+            .map(|i| std::array::from_fn(|d| b.pos[i][d] - b.x0[i][d]))
+            .collect();
+        let mut data: PointData = vec![
+            ("displacement", 3, flat(&disp)),
+            ("velocity", 3, flat(&b.vel)),
+        ];
+        if let Some(s) = b.model.stress() {
+            let full: Vec<f64> = s
+                .iter()
+                .flat_map(|s| [s[0], s[5], s[4], s[5], s[1], s[3], s[4], s[3], s[2]])
+                .collect();
+            data.push(("stress", 9, full));
+        }
+        if let Some(p) = b.model.plastic_strain() {
+            data.push(("plastic_strain", 1, p));
+        }
+        let mut bonds = b.bonds.clone();
+        b.model.sync_bonds(&mut bonds);
+        let mut d = vec![0.0; n];
+        bonds.damage(&b.vol, &mut d);
+        data.push(("damage", 1, d));
+        write_vtu(dir, "pd", window, t, &b.pos, &data)?;
+        Ok(())
+    }
+}
