@@ -1,9 +1,35 @@
-//! Momentum-consistent SPG meso-scale joint node (being written).
+//! Momentum-consistent SPG meso-scale joint node (seed 004 §2–3): Lagrangian particles with
+//! first-order RK shape functions, direct nodal integration, the momentum-consistent velocity
+//! smoothing (eq. 2–11), J2 kinematic hardening, bond failure (eq. 15–17), rigid bodies and
+//! the responder side of the shell kinematic coupling (eq. 29–33).
+//!
+//! Layout: `config` (parameters and validation), `geometry` (particle sets), `shape`
+//! (supports and shape functions), `model` (state and the time step), `coupling` (shell
+//! responder), `output` (VTK, CSV), `solver` (the `Solver` implementation).
+
+// Index loops mirror the tensor formulas; `!(x > 0.0)` is used on purpose to reject NaN.
+#![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
+
+pub mod config;
+pub mod coupling;
+pub mod geometry;
+pub mod model;
+pub mod output;
+pub mod shape;
+pub mod solver;
 
 use protocol::{Solver, SolverError, SolverResult};
 
-/// Builds the solver named `model` from its parameter table.
+/// Builds the solver named `model` from its parameter table (the node's registry: one line
+/// per model).
 pub fn factory(model: &str, params: &toml::Table) -> SolverResult<Box<dyn Solver>> {
-    let _ = params;
-    Err(SolverError::config("model", format!("unknown model '{model}' (this node has none yet)")))
+    match model {
+        "mc-spg" => Ok(Box::new(solver::SpgSolver::new(
+            config::Params::from_table(params)?,
+        )?)),
+        _ => Err(SolverError::config(
+            "model",
+            format!("unknown model '{model}' (known: mc-spg)"),
+        )),
+    }
 }

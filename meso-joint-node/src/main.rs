@@ -1,5 +1,8 @@
-//! Momentum-consistent SPG meso-scale joint node: the node binary.
+//! Momentum-consistent SPG meso-scale joint node: the node binary (wires the solvers of `meso_joint_node` into the participant runtime).
 
 fn main() {
-    std::process::exit(protocol::participant::node_main("meso-joint-node", meso_joint_node::factory));
+    std::process::exit(protocol::participant::node_main(
+        "meso-joint-node",
+        meso_joint_node::factory,
+    ));
 }

@@ -1,0 +1,766 @@
+//! The MC-SPG particle model and its explicit time step (seed 004 §2): state in structs of
+//! arrays, kernels as free functions over slices, the `Model` only orchestrating.
+//!
+//! One step (central difference, forces `f^n` known at `x^n`):
+//! 1. smoothed acceleration `a_J = f_J / m_J` and the scatter update of the unsmoothed
+//!    velocity `v̂_I += Δt Σ_J φ_J(X_I) a_J` (eq. 10–11);
+//! 2. gather smoothing `v_I = Σ_J m̂_J φ_I(X_J) v̂_J / m_I`, `m_I = Σ_J m̂_J φ_I(X_J)`
+//!    (eq. 2–6); rigid bodies and prescribed particles then set their velocities;
+//! 3. `x += Δt v` (eq. 7); incremental deformation gradient `F̂ = I + Σ_J (u_J − u_I) ⊗
+//!    ∇φ_J(X_I)` from the anchor (eq. 12–14), velocity gradient, continuity density (eq. 8–9),
+//!    Jaumann-rotated J2 update (shared `mechanics::j2`);
+//! 4. bond failure (eq. 15–17) and, every `reanchor_every` steps, re-anchoring of the
+//!    adaptive anisotropic Lagrangian kernel;
+//! 5. direct-nodal-integration internal force `f_K = −Σ_I V_I σ_I F̂_I⁻ᵀ ∇φ_K(X_I)` (eq. 28),
+//!    gathered through the mirror entries.
+//!
+//! Linear momentum `Σ_I m_I v_I = Σ_J m̂_J v̂_J` is conserved exactly by the pair (1)+(2)
+//! because `m_K = Σ_J m̂_J φ_K(X_J)` (eq. 5) and `Σ_K f_K = 0` (`Σ_K ∇φ_K = 0`).
+
+use crate::config::Smoothing;
+use crate::shape::{IDENTITY, M3, Rows, cross, det, inv, mat_mul, mul_vec, sub};
+use mechanics::j2::{J2Material, J2State, jaumann_rotate};
+use rayon::prelude::*;
+
+/// What drives a particle's velocity.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Kind {
+    Free = 0,
+    /// Velocity boundary condition (group index in `Model::bcs`).
+    Prescribed = 1,
+    /// Member of a rigid body.
+    Rigid = 2,
+    /// Moved by the driver of a kinematic coupling.
+    Coupled = 3,
+}
+
+/// A rigid body (bolt, screw) made of particles (seed 004 §4.2).
+#[derive(Debug, Clone, Default)]
+pub struct RigidBody {
+    pub particles: Vec<u32>,
+    pub mass: f64,
+    pub com: [f64; 3],
+    pub vel: [f64; 3],
+    pub omega: [f64; 3],
+}
+
+/// One velocity boundary condition group.
+#[derive(Debug, Clone)]
+pub struct BcGroup {
+    pub name: String,
+    pub particles: Vec<u32>,
+    pub velocity: [f64; 3],
+    pub ramp: f64,
+}
+
+/// Static model parameters.
+#[derive(Debug, Clone)]
+pub struct ModelParams {
+    pub material: J2Material,
+    pub density: f64,
+    pub spacing: f64,
+    pub support: f64,
+    pub eps_crit: f64,
+    pub e_crit: f64,
+    pub reanchor_every: u64,
+    pub smoothing: Smoothing,
+    pub cfl: f64,
+}
+
+/// The particle state (structure of arrays).
+#[derive(Debug, Clone)]
+pub struct Model {
+    pub p: ModelParams,
+    /// Initial, anchor and current positions.
+    pub x0: Vec<[f64; 3]>,
+    pub xa: Vec<[f64; 3]>,
+    pub x: Vec<[f64; 3]>,
+    /// Unsmoothed (v̂) and smoothed (v) velocities.
+    pub vh: Vec<[f64; 3]>,
+    pub v: Vec<[f64; 3]>,
+    /// Internal force at the current positions.
+    pub f: Vec<[f64; 3]>,
+    pub acc: Vec<[f64; 3]>,
+    /// Physical mass, inertial (possibly mass-scaled) lumped mass m̂, smoothed mass m (eq. 5).
+    pub mass: Vec<f64>,
+    pub mh: Vec<f64>,
+    pub ms: Vec<f64>,
+    pub rho: Vec<f64>,
+    pub vol: Vec<f64>,
+    pub vol0: Vec<f64>,
+    pub vol_a: Vec<f64>,
+    /// Incremental deformation gradient since the anchor, total F at the anchor and its inverse.
+    pub fhat: Vec<M3>,
+    pub ftot_a: Vec<M3>,
+    pub finv_a: Vec<M3>,
+    pub mat: Vec<J2State>,
+    /// `V σ F̂⁻ᵀ` per particle (the DNI stress factor).
+    pub bmat: Vec<M3>,
+    /// Internal (stress) work per particle.
+    pub eint: Vec<f64>,
+    pub part: Vec<u32>,
+    pub kind: Vec<Kind>,
+    /// Velocity imposed on non-free particles for the current step.
+    pub presc: Vec<[f64; 3]>,
+    pub rows: Rows,
+    pub dirty: Vec<bool>,
+    pub rigid: Vec<RigidBody>,
+    pub bcs: Vec<BcGroup>,
+    pub steps: u64,
+    pub time: f64,
+    pub broken_bonds: usize,
+    /// Work of the prescribed-velocity supports and of the coupling (reaction power).
+    pub bc_work: f64,
+    pub bc_impulse: [f64; 3],
+    pub coupling_work: f64,
+    pub coupling_impulse: [f64; 3],
+    pub max_eps: f64,
+}
+
+/// Why a step failed.
+pub type StepResult = Result<(), String>;
+
+impl Model {
+    /// A model of free particles at `x` with lattice volumes `vol`, parts `part` (bonds only
+    /// within one part, or with a rigid body), kernel supports from `find_neighbours`.
+    pub fn new(
+        p: ModelParams,
+        x: Vec<[f64; 3]>,
+        vol: Vec<f64>,
+        part: Vec<u32>,
+        rigid_parts: &[u32],
+    ) -> Result<Self, String> {
+        let n = x.len();
+        let fam = mechanics::neighbour::find_neighbours(&x, p.support);
+        let is_rigid = |k: usize| rigid_parts.contains(&part[k]);
+        let rows = Rows::build(&fam, &x, |i, j| {
+            part[i] == part[j] || is_rigid(i) || is_rigid(j)
+        });
+        let mass: Vec<f64> = vol.iter().map(|v| v * p.density).collect();
+        let mut m = Model {
+            x0: x.clone(),
+            xa: x.clone(),
+            vh: vec![[0.0; 3]; n],
+            v: vec![[0.0; 3]; n],
+            f: vec![[0.0; 3]; n],
+            acc: vec![[0.0; 3]; n],
+            mh: mass.clone(),
+            ms: mass.clone(),
+            mass,
+            rho: vec![p.density; n],
+            vol0: vol.clone(),
+            vol_a: vol.clone(),
+            vol,
+            fhat: vec![IDENTITY; n],
+            ftot_a: vec![IDENTITY; n],
+            finv_a: vec![IDENTITY; n],
+            mat: vec![J2State::default(); n],
+            bmat: vec![[[0.0; 3]; 3]; n],
+            eint: vec![0.0; n],
+            kind: vec![Kind::Free; n],
+            presc: vec![[0.0; 3]; n],
+            dirty: vec![false; n],
+            rows,
+            part,
+            rigid: Vec::new(),
+            bcs: Vec::new(),
+            steps: 0,
+            time: 0.0,
+            broken_bonds: 0,
+            bc_work: 0.0,
+            bc_impulse: [0.0; 3],
+            coupling_work: 0.0,
+            coupling_impulse: [0.0; 3],
+            max_eps: 0.0,
+            x,
+            p,
+        };
+        for (k, rp) in rigid_parts.iter().enumerate() {
+            let particles: Vec<u32> = (0..n)
+                .filter(|&i| m.part[i] == *rp)
+                .map(|i| i as u32)
+                .collect();
+            for &i in &particles {
+                m.kind[i as usize] = Kind::Rigid;
+            }
+            let _ = k;
+            m.rigid.push(RigidBody {
+                particles,
+                ..Default::default()
+            });
+        }
+        m.rebuild_shapes(None)?;
+        m.update_rigid_mass();
+        Ok(m)
+    }
+
+    pub fn len(&self) -> usize {
+        self.x.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.x.is_empty()
+    }
+
+    /// Recompute shape functions (all rows or the flagged ones) and the smoothed masses.
+    pub fn rebuild_shapes(&mut self, which: Option<&[bool]>) -> Result<(), String> {
+        self.rows
+            .compute(&self.xa, &self.finv_a, &self.vol_a, self.p.support, which)
+            .map_err(|i| format!("particle {i}: singular moment matrix (kernel support holds too few intact neighbours)"))?;
+        self.update_smoothed_mass();
+        if self.p.smoothing == Smoothing::Consistent {
+            // Re-gather v with the new rows so that Σ m_I v_I = Σ m̂_J v̂_J holds between steps
+            // too (acc is scratch here: it is recomputed at the start of the next step).
+            gather_smooth(&self.rows, &self.mh, &self.ms, &self.vh, &mut self.acc);
+            for i in 0..self.x.len() {
+                if self.kind[i] == Kind::Free {
+                    self.v[i] = self.acc[i];
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Smoothed mass `m_I = Σ_J m̂_J φ_I(X_J)` (eq. 5).
+    pub fn update_smoothed_mass(&mut self) {
+        let rows = &self.rows;
+        let mh = &self.mh;
+        match self.p.smoothing {
+            Smoothing::Consistent => self.ms.par_iter_mut().enumerate().for_each(|(i, m)| {
+                let mut s = 0.0;
+                for p in rows.range(i) {
+                    s += mh[rows.cols[p] as usize] * rows.phi[rows.mirror[p] as usize];
+                }
+                *m = s;
+            }),
+            _ => self.ms.copy_from_slice(mh),
+        }
+    }
+
+    fn update_rigid_mass(&mut self) {
+        for b in &mut self.rigid {
+            b.mass = b.particles.iter().map(|&i| self.mh[i as usize]).sum();
+            let mut c = [0.0; 3];
+            for &i in &b.particles {
+                for d in 0..3 {
+                    c[d] += self.mh[i as usize] * self.x[i as usize][d];
+                }
+            }
+            b.com = c.map(|v| v / b.mass.max(f64::MIN_POSITIVE));
+        }
+    }
+
+    /// Register a velocity boundary condition on the particles for which `sel` is true.
+    pub fn add_velocity_bc(
+        &mut self,
+        name: &str,
+        velocity: [f64; 3],
+        ramp: f64,
+        sel: impl Fn(&[f64; 3]) -> bool,
+    ) -> usize {
+        let particles: Vec<u32> = (0..self.len())
+            .filter(|&i| self.kind[i] == Kind::Free && sel(&self.x0[i]))
+            .map(|i| i as u32)
+            .collect();
+        for &i in &particles {
+            self.kind[i as usize] = Kind::Prescribed;
+        }
+        let n = particles.len();
+        self.bcs.push(BcGroup {
+            name: name.to_string(),
+            particles,
+            velocity,
+            ramp,
+        });
+        n
+    }
+
+    /// Dilatational wave speed bound and stable step `cfl · h / c` (h from the current volume).
+    pub fn stable_dt(&self) -> f64 {
+        let e = &self.p.material;
+        let modulus = e.bulk_modulus() + 4.0 / 3.0 * e.shear_modulus();
+        let mut dt = f64::INFINITY;
+        for i in 0..self.len() {
+            let h = self.p.spacing * (self.vol[i] / self.vol0[i]).cbrt();
+            let rho_eff = self.mh[i] / self.vol[i];
+            dt = dt.min(self.p.cfl * h * (rho_eff / modulus).sqrt());
+        }
+        dt
+    }
+
+    /// Mass scaling (seed 004 §4 implies it): raise m̂ so every particle's stable step is at
+    /// least `target`. Returns the added mass.
+    pub fn mass_scale(&mut self, target: f64) -> f64 {
+        let e = &self.p.material;
+        let modulus = e.bulk_modulus() + 4.0 / 3.0 * e.shear_modulus();
+        let mut added = 0.0;
+        for i in 0..self.len() {
+            let h = self.p.spacing * (self.vol[i] / self.vol0[i]).cbrt();
+            let dt_i = self.p.cfl * h * (self.mh[i] / self.vol[i] / modulus).sqrt();
+            if dt_i < target {
+                let m_new = self.mh[i] * (target / dt_i).powi(2);
+                added += m_new - self.mh[i];
+                self.mh[i] = m_new;
+            }
+        }
+        self.update_smoothed_mass();
+        self.update_rigid_mass();
+        added
+    }
+
+    /// Phase 1–2: velocity update and smoothing (eq. 2–6, 10–11), then rigid bodies and
+    /// velocity boundary conditions. Coupled particles keep `presc` (set by the caller).
+    pub fn velocity_phase(&mut self, dt: f64) {
+        let rows = &self.rows;
+        match self.p.smoothing {
+            Smoothing::Consistent => {
+                // Kinematic particles (supports, rigid bodies, coupling) do not scatter their
+                // reaction forces into their neighbours' velocities: their acceleration is
+                // imposed, and taken as zero over the step.
+                let (f, ms, kind) = (&self.f, &self.ms, &self.kind);
+                self.acc.par_iter_mut().enumerate().for_each(|(k, a)| {
+                    let im = if kind[k] == Kind::Free {
+                        1.0 / ms[k]
+                    } else {
+                        0.0
+                    };
+                    *a = [f[k][0] * im, f[k][1] * im, f[k][2] * im];
+                });
+                scatter_update(rows, &self.acc, dt, &mut self.vh);
+                gather_smooth(rows, &self.mh, &self.ms, &self.vh, &mut self.v);
+            }
+            Smoothing::Average => {
+                let (f, mh) = (&self.f, &self.mh);
+                self.vh.par_iter_mut().enumerate().for_each(|(k, vh)| {
+                    for d in 0..3 {
+                        vh[d] += dt * f[k][d] / mh[k];
+                    }
+                });
+                average_smooth(rows, &self.vh, &mut self.v);
+            }
+            Smoothing::None => {
+                let (f, mh) = (&self.f, &self.mh);
+                self.vh.par_iter_mut().enumerate().for_each(|(k, vh)| {
+                    for d in 0..3 {
+                        vh[d] += dt * f[k][d] / mh[k];
+                    }
+                });
+                self.v.copy_from_slice(&self.vh);
+            }
+        }
+        // Rigid bodies: Newton–Euler on the sum of the particle forces.
+        for b in &mut self.rigid {
+            let mut force = [0.0; 3];
+            let mut torque = [0.0; 3];
+            let mut inertia = [[0.0; 3]; 3];
+            for &i in &b.particles {
+                let i = i as usize;
+                let r = sub(&self.x[i], &b.com);
+                let t = cross(&r, &self.f[i]);
+                let r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+                for a in 0..3 {
+                    force[a] += self.f[i][a];
+                    torque[a] += t[a];
+                    for c in 0..3 {
+                        inertia[a][c] += self.mh[i] * (if a == c { r2 } else { 0.0 } - r[a] * r[c]);
+                    }
+                }
+            }
+            let iw = mul_vec(&inertia, &b.omega);
+            let gyro = cross(&b.omega, &iw);
+            let rhs = [
+                torque[0] - gyro[0],
+                torque[1] - gyro[1],
+                torque[2] - gyro[2],
+            ];
+            let dw = inv(&inertia)
+                .map(|ii| mul_vec(&ii, &rhs))
+                .unwrap_or([0.0; 3]);
+            for a in 0..3 {
+                b.vel[a] += dt * force[a] / b.mass;
+                b.omega[a] += dt * dw[a];
+            }
+            for &i in &b.particles {
+                let i = i as usize;
+                let r = sub(&self.x[i], &b.com);
+                let w = cross(&b.omega, &r);
+                let vi = [b.vel[0] + w[0], b.vel[1] + w[1], b.vel[2] + w[2]];
+                self.v[i] = vi;
+                self.vh[i] = vi;
+            }
+        }
+        // Velocity boundary conditions (ramped), with their reaction power and impulse.
+        let t_mid = self.time + 0.5 * dt;
+        for g in &self.bcs {
+            let s = if g.ramp > 0.0 {
+                (t_mid / g.ramp).min(1.0)
+            } else {
+                1.0
+            };
+            let vel = g.velocity.map(|c| c * s);
+            for &i in &g.particles {
+                let i = i as usize;
+                self.v[i] = vel;
+                self.vh[i] = vel;
+                // Support reaction ≈ −f (quasi-static), its power on the body.
+                for d in 0..3 {
+                    self.bc_work -= dt * self.f[i][d] * vel[d];
+                    self.bc_impulse[d] -= dt * self.f[i][d];
+                }
+            }
+        }
+        for i in 0..self.len() {
+            if self.kind[i] == Kind::Coupled {
+                self.v[i] = self.presc[i];
+                self.vh[i] = self.presc[i];
+                for d in 0..3 {
+                    self.coupling_work -= dt * self.f[i][d] * self.presc[i][d];
+                    self.coupling_impulse[d] -= dt * self.f[i][d];
+                }
+            }
+        }
+    }
+
+    /// Phases 3–5: positions, kinematics and stress, bond failure, re-anchoring, forces.
+    pub fn position_phase(&mut self, dt: f64) -> StepResult {
+        self.x
+            .par_iter_mut()
+            .zip(self.v.par_iter())
+            .for_each(|(x, v)| {
+                for d in 0..3 {
+                    x[d] += dt * v[d];
+                }
+            });
+        for b in &mut self.rigid {
+            for d in 0..3 {
+                b.com[d] += dt * b.vel[d];
+            }
+        }
+        self.time += dt;
+        self.steps += 1;
+        kinematics_and_stress(self, dt)?;
+        self.bond_failure()?;
+        if self.steps.is_multiple_of(self.p.reanchor_every) {
+            self.reanchor()?;
+        }
+        internal_force(&self.rows, &self.bmat, &mut self.f);
+        Ok(())
+    }
+
+    /// A whole step with only boundary conditions and rigid bodies (no coupling input).
+    pub fn step(&mut self, dt: f64) -> StepResult {
+        self.velocity_phase(dt);
+        self.position_phase(dt)
+    }
+
+    /// Compute stresses and forces at the current state (after set-up or a restart).
+    pub fn initial_forces(&mut self) {
+        let n = self.len();
+        for i in 0..n {
+            let fi = inv(&self.fhat[i]).unwrap_or(IDENTITY);
+            self.bmat[i] = stress_factor(&self.mat[i].stress, self.vol[i], &fi);
+        }
+        internal_force(&self.rows, &self.bmat, &mut self.f);
+    }
+
+    /// Bond failure (eq. 15–17): a bond breaks, for good, when the pair-averaged effective
+    /// plastic strain reaches ε_crit *and* the stretch ratio exceeds e_crit (so never under
+    /// compression). Broken bonds drop out of the kernel (χ = 0) and the rows are rebuilt.
+    fn bond_failure(&mut self) -> StepResult {
+        self.max_eps = self.mat.iter().fold(0.0, |m, s| m.max(s.eq_plastic_strain));
+        if self.max_eps < self.p.eps_crit {
+            return Ok(());
+        }
+        let rows = &self.rows;
+        let (mat, x) = (&self.mat, &self.x);
+        let (ec, sc) = (self.p.eps_crit, self.p.e_crit);
+        let newly: Vec<bool> = (0..rows.cols.len())
+            .into_par_iter()
+            .map(|p| {
+                let i = rows.row_of[p] as usize;
+                let j = rows.cols[p] as usize;
+                if i == j || !rows.alive[p] {
+                    return false;
+                }
+                let eps = 0.5 * (mat[i].eq_plastic_strain + mat[j].eq_plastic_strain);
+                let stretch = crate::shape::dist(&x[i], &x[j]) / rows.len0[p];
+                eps >= ec && stretch > sc
+            })
+            .collect();
+        let mut any = false;
+        self.dirty.iter_mut().for_each(|d| *d = false);
+        for (p, &b) in newly.iter().enumerate() {
+            if b {
+                self.rows.alive[p] = false;
+                self.dirty[self.rows.row_of[p] as usize] = true;
+                self.broken_bonds += 1;
+                any = true;
+            }
+        }
+        if any {
+            let dirty = std::mem::take(&mut self.dirty);
+            let r = self.rebuild_shapes(Some(&dirty));
+            self.dirty = dirty;
+            r?;
+            // Keep F̂ consistent with the new gradients so the next increment has no jump.
+            let rows = &self.rows;
+            let (x, xa, dirty, mat, vol) = (&self.x, &self.xa, &self.dirty, &self.mat, &self.vol);
+            self.fhat
+                .par_iter_mut()
+                .zip(self.bmat.par_iter_mut())
+                .enumerate()
+                .for_each(|(i, (fh, bm))| {
+                    if dirty[i] {
+                        *fh = incremental_f(rows, x, xa, i);
+                        if let Some(fi) = inv(fh) {
+                            *bm = stress_factor(&mat[i].stress, vol[i], &fi);
+                        }
+                    }
+                });
+        }
+        Ok(())
+    }
+
+    /// Re-anchor the adaptive anisotropic Lagrangian kernel at the current configuration
+    /// (eq. 12–14): `F_tot ← F̂ F_tot`, `X̂ ← x`, `F̂ ← I`, shapes rebuilt with the kernel of
+    /// each particle stretched by its `F_tot`.
+    pub fn reanchor(&mut self) -> StepResult {
+        for i in 0..self.len() {
+            self.ftot_a[i] = mat_mul(&self.fhat[i], &self.ftot_a[i]);
+            self.finv_a[i] = inv(&self.ftot_a[i])
+                .ok_or_else(|| format!("particle {i}: singular deformation gradient"))?;
+            self.fhat[i] = IDENTITY;
+        }
+        self.xa.copy_from_slice(&self.x);
+        self.vol_a.copy_from_slice(&self.vol);
+        for i in 0..self.len() {
+            self.bmat[i] = stress_factor(&self.mat[i].stress, self.vol[i], &IDENTITY);
+        }
+        self.rebuild_shapes(None)
+    }
+
+    /// Kinetic energy with the masses the particles move with.
+    pub fn kinetic_energy(&self) -> f64 {
+        let mut e = 0.0;
+        for i in 0..self.len() {
+            let v = &self.v[i];
+            e += 0.5 * self.ms[i] * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+        }
+        e
+    }
+    pub fn internal_energy(&self) -> f64 {
+        self.eint.iter().sum()
+    }
+    /// Linear momentum `Σ m_I v_I` (smoothed masses with the consistent pair).
+    pub fn momentum(&self) -> [f64; 3] {
+        let mut p = [0.0; 3];
+        for i in 0..self.len() {
+            for d in 0..3 {
+                p[d] += self.ms[i] * self.v[i][d];
+            }
+        }
+        p
+    }
+    /// Angular momentum about the origin `Σ x_I × m_I v_I`.
+    pub fn angular_momentum(&self) -> [f64; 3] {
+        let mut l = [0.0; 3];
+        for i in 0..self.len() {
+            let mv = self.v[i].map(|c| c * self.ms[i]);
+            let c = cross(&self.x[i], &mv);
+            for d in 0..3 {
+                l[d] += c[d];
+            }
+        }
+        l
+    }
+    /// Fraction of the initial bonds of each particle that are broken.
+    pub fn broken_fraction(&self) -> Vec<f64> {
+        (0..self.len())
+            .map(|i| {
+                let r = self.rows.range(i);
+                let total = r.len().saturating_sub(1);
+                if total == 0 {
+                    return 0.0;
+                }
+                let broken = r.filter(|&p| !self.rows.alive[p]).count();
+                broken as f64 / total as f64
+            })
+            .collect()
+    }
+}
+
+/// Scatter-type update of the unsmoothed velocity (eq. 10–11):
+/// `v̂_I += Δt Σ_J φ_J(X_I) a_J` (row I, entries as stored).
+pub fn scatter_update(rows: &Rows, acc: &[[f64; 3]], dt: f64, vh: &mut [[f64; 3]]) {
+    vh.par_iter_mut().enumerate().for_each(|(i, v)| {
+        let mut s = [0.0; 3];
+        for p in rows.range(i) {
+            let a = &acc[rows.cols[p] as usize];
+            let w = rows.phi[p];
+            s[0] += w * a[0];
+            s[1] += w * a[1];
+            s[2] += w * a[2];
+        }
+        for d in 0..3 {
+            v[d] += dt * s[d];
+        }
+    });
+}
+
+/// Gather-type smoothing (eq. 2–6): `v_I = Σ_J m̂_J φ_I(X_J) v̂_J / m_I` with `φ_I(X_J)`
+/// read from the mirror entry.
+pub fn gather_smooth(rows: &Rows, mh: &[f64], ms: &[f64], vh: &[[f64; 3]], v: &mut [[f64; 3]]) {
+    v.par_iter_mut().enumerate().for_each(|(i, vi)| {
+        let mut s = [0.0; 3];
+        for p in rows.range(i) {
+            let j = rows.cols[p] as usize;
+            let w = mh[j] * rows.phi[rows.mirror[p] as usize];
+            s[0] += w * vh[j][0];
+            s[1] += w * vh[j][1];
+            s[2] += w * vh[j][2];
+        }
+        let im = 1.0 / ms[i];
+        *vi = [s[0] * im, s[1] * im, s[2] * im];
+    });
+}
+
+/// Plain kernel averaging `v_I = Σ_J φ_J(X_I) v̂_J` (not momentum consistent).
+pub fn average_smooth(rows: &Rows, vh: &[[f64; 3]], v: &mut [[f64; 3]]) {
+    v.par_iter_mut().enumerate().for_each(|(i, vi)| {
+        let mut s = [0.0; 3];
+        for p in rows.range(i) {
+            let j = rows.cols[p] as usize;
+            let w = rows.phi[p];
+            s[0] += w * vh[j][0];
+            s[1] += w * vh[j][1];
+            s[2] += w * vh[j][2];
+        }
+        *vi = s;
+    });
+}
+
+/// `F̂_I = I + Σ_J (u_J − u_I) ⊗ ∇φ_J(X_I)`, u = x − X̂ (eq. 14).
+#[inline]
+pub fn incremental_f(rows: &Rows, x: &[[f64; 3]], xa: &[[f64; 3]], i: usize) -> M3 {
+    let ui = sub(&x[i], &xa[i]);
+    let mut f = IDENTITY;
+    for p in rows.range(i) {
+        let j = rows.cols[p] as usize;
+        let uj = sub(&x[j], &xa[j]);
+        let du = sub(&uj, &ui);
+        let g = &rows.grad[p];
+        for a in 0..3 {
+            for b in 0..3 {
+                f[a][b] += du[a] * g[b];
+            }
+        }
+    }
+    f
+}
+
+/// `V σ F̂⁻ᵀ` (Voigt σ, tensor shear).
+#[inline]
+fn stress_factor(s: &[f64; 6], vol: f64, finv: &M3) -> M3 {
+    let sm = [[s[0], s[5], s[4]], [s[5], s[1], s[3]], [s[4], s[3], s[2]]];
+    // σ F⁻ᵀ: (σ F⁻ᵀ)_{ab} = Σ_c σ_ac Finv_bc
+    std::array::from_fn(|a| {
+        std::array::from_fn(|b| {
+            vol * (sm[a][0] * finv[b][0] + sm[a][1] * finv[b][1] + sm[a][2] * finv[b][2])
+        })
+    })
+}
+
+/// Kinematics (eq. 12–14), continuity density (eq. 8–9) and the J2 update.
+fn kinematics_and_stress(m: &mut Model, dt: f64) -> StepResult {
+    let rows = &m.rows;
+    let (x, xa) = (&m.x, &m.xa);
+    let material = &m.p.material;
+    let mass = &m.mass;
+    let failed = std::sync::atomic::AtomicUsize::new(usize::MAX);
+    m.fhat
+        .par_iter_mut()
+        .zip(m.mat.par_iter_mut())
+        .zip(m.rho.par_iter_mut())
+        .zip(m.vol.par_iter_mut())
+        .zip(m.bmat.par_iter_mut())
+        .zip(m.eint.par_iter_mut())
+        .enumerate()
+        .for_each(|(i, (((((fh, st), rho), vol), bm), ei))| {
+            let f_new = incremental_f(rows, x, xa, i);
+            let f_mid: M3 =
+                std::array::from_fn(|a| std::array::from_fn(|b| 0.5 * (f_new[a][b] + fh[a][b])));
+            let Some(fmi) = inv(&f_mid) else {
+                failed.fetch_min(i, std::sync::atomic::Ordering::Relaxed);
+                return;
+            };
+            // L Δt = (F̂ⁿ⁺¹ − F̂ⁿ) F̂_mid⁻¹
+            let df: M3 = std::array::from_fn(|a| std::array::from_fn(|b| f_new[a][b] - fh[a][b]));
+            let ldt = mat_mul(&df, &fmi);
+            let de = [
+                ldt[0][0],
+                ldt[1][1],
+                ldt[2][2],
+                0.5 * (ldt[1][2] + ldt[2][1]),
+                0.5 * (ldt[0][2] + ldt[2][0]),
+                0.5 * (ldt[0][1] + ldt[1][0]),
+            ];
+            let spin: M3 = std::array::from_fn(|a| {
+                std::array::from_fn(|b| 0.5 * (ldt[a][b] - ldt[b][a]) / dt)
+            });
+            let s_old = st.stress;
+            let v_old = *vol;
+            jaumann_rotate(&mut st.stress, &spin, dt);
+            jaumann_rotate(&mut st.back_stress, &spin, dt);
+            material.update(st, &de);
+            // Continuity (eq. 8) and volume (eq. 9).
+            let tr = de[0] + de[1] + de[2];
+            *rho *= 1.0 - tr;
+            *vol = mass[i] / *rho;
+            let s = &st.stress;
+            let work = 0.5
+                * ((s[0] + s_old[0]) * de[0]
+                    + (s[1] + s_old[1]) * de[1]
+                    + (s[2] + s_old[2]) * de[2]
+                    + 2.0
+                        * ((s[3] + s_old[3]) * de[3]
+                            + (s[4] + s_old[4]) * de[4]
+                            + (s[5] + s_old[5]) * de[5]));
+            *ei += 0.5 * (v_old + *vol) * work;
+            *fh = f_new;
+            let Some(fi) = inv(&f_new) else {
+                failed.fetch_min(i, std::sync::atomic::Ordering::Relaxed);
+                return;
+            };
+            *bm = stress_factor(&st.stress, *vol, &fi);
+        });
+    let bad = failed.into_inner();
+    if bad != usize::MAX || m.rho.iter().any(|r| !(*r > 0.0)) {
+        return Err(format!(
+            "particle {}: singular deformation gradient or non-positive density",
+            if bad == usize::MAX {
+                m.rho.iter().position(|r| !(*r > 0.0)).unwrap_or(0)
+            } else {
+                bad
+            }
+        ));
+    }
+    let _ = det;
+    Ok(())
+}
+
+/// Direct nodal integration internal force, gathered (eq. 28):
+/// `f_K = −Σ_I B_I ∇φ_K(X_I)`, `B_I = V_I σ_I F̂_I⁻ᵀ`, with `∇φ_K(X_I)` the mirror entry.
+pub fn internal_force(rows: &Rows, bmat: &[M3], f: &mut [[f64; 3]]) {
+    f.par_iter_mut().enumerate().for_each(|(k, fk)| {
+        let mut s = [0.0; 3];
+        for p in rows.range(k) {
+            let i = rows.cols[p] as usize;
+            let g = &rows.grad[rows.mirror[p] as usize];
+            let b = &bmat[i];
+            for a in 0..3 {
+                s[a] -= b[a][0] * g[0] + b[a][1] * g[1] + b[a][2] * g[2];
+            }
+        }
+        *fk = s;
+    });
+}

@@ -1,0 +1,244 @@
+//! Particle supports in compressed rows and their first-order RK shape functions in the
+//! anchor (reference) configuration, with the adaptive anisotropic Lagrangian kernel
+//! (seed 004 eq. 12–14) and the bond characteristic function χ (eq. 16–17).
+//!
+//! Row `I` holds the evaluation point `X_I`: its own entry first, then its neighbours in
+//! ascending order. Entry `p` of row `I` with column `J` stores `φ_J(X_I)` and `∇_X φ_J(X_I)`;
+//! `mirror[p]` is the entry of row `J` with column `I`, so the transposed quantities of the
+//! gather sums (eq. 2–5, and the internal force) are read without any scatter.
+
+use mechanics::kernel::{cubic_spline, rk_row};
+use mechanics::neighbour::Families;
+use rayon::prelude::*;
+
+pub type M3 = [[f64; 3]; 3];
+
+/// Supports in compressed rows, with per-entry shape data.
+#[derive(Debug, Clone, Default)]
+pub struct Rows {
+    pub offsets: Vec<usize>,
+    pub cols: Vec<u32>,
+    /// Row of each entry (for entry-parallel loops).
+    pub row_of: Vec<u32>,
+    pub mirror: Vec<u32>,
+    /// Bond intact (χ = 1, eq. 17); irreversible once false.
+    pub alive: Vec<bool>,
+    /// Initial bond length ‖X_J − X_I‖ (eq. 15).
+    pub len0: Vec<f64>,
+    pub phi: Vec<f64>,
+    pub grad: Vec<[f64; 3]>,
+    /// Scratch of the shape computation (offsets, kernel values, volumes), reused.
+    d: Vec<[f64; 3]>,
+    w: Vec<f64>,
+    vw: Vec<f64>,
+}
+
+impl Rows {
+    pub fn len(&self) -> usize {
+        self.offsets.len().saturating_sub(1)
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    #[inline]
+    pub fn range(&self, i: usize) -> std::ops::Range<usize> {
+        self.offsets[i]..self.offsets[i + 1]
+    }
+
+    /// Build rows (self first) from neighbour families, keeping only the pairs `allowed`
+    /// accepts (e.g. no bonds between two separate plates).
+    pub fn build(fam: &Families, x: &[[f64; 3]], allowed: impl Fn(usize, usize) -> bool) -> Self {
+        let n = fam.len();
+        let mut offsets = Vec::with_capacity(n + 1);
+        let mut cols = Vec::with_capacity(fam.bonds() + n);
+        offsets.push(0);
+        for i in 0..n {
+            cols.push(i as u32);
+            for &j in fam.of(i) {
+                if allowed(i, j as usize) {
+                    cols.push(j);
+                }
+            }
+            offsets.push(cols.len());
+        }
+        let nnz = cols.len();
+        let mut row_of = vec![0u32; nnz];
+        for i in 0..n {
+            for p in offsets[i]..offsets[i + 1] {
+                row_of[p] = i as u32;
+            }
+        }
+        // Mirror entries by binary search in the sorted tail of row J.
+        let mirror: Vec<u32> = (0..nnz)
+            .into_par_iter()
+            .map(|p| {
+                let i = row_of[p];
+                let j = cols[p] as usize;
+                if j as u32 == i {
+                    return p as u32;
+                }
+                let tail = &cols[offsets[j] + 1..offsets[j + 1]];
+                match tail.binary_search(&i) {
+                    Ok(k) => (offsets[j] + 1 + k) as u32,
+                    // `allowed` and the search are symmetric, so this cannot happen; keep the
+                    // entry self-consistent rather than panic.
+                    Err(_) => p as u32,
+                }
+            })
+            .collect();
+        let len0 = (0..nnz)
+            .map(|p| {
+                let i = row_of[p] as usize;
+                let j = cols[p] as usize;
+                dist(&x[i], &x[j])
+            })
+            .collect();
+        Rows {
+            offsets,
+            cols,
+            row_of,
+            mirror,
+            alive: vec![true; nnz],
+            len0,
+            phi: vec![0.0; nnz],
+            grad: vec![[0.0; 3]; nnz],
+            d: vec![[0.0; 3]; nnz],
+            w: vec![0.0; nnz],
+            vw: vec![0.0; nnz],
+        }
+    }
+
+    /// (Re)compute the shape functions of the rows flagged in `which` (all rows when `None`)
+    /// in the anchor configuration `xa`, with the anisotropic kernel of column `J` stretched
+    /// by its total deformation gradient at the anchor (`finv[J] = F_J⁻¹`, eq. 12–14):
+    /// `w = χ_IJ ω(‖F_J⁻¹ (X_I − X_J)‖ / a)`. Returns the first singular row.
+    pub fn compute(
+        &mut self,
+        xa: &[[f64; 3]],
+        finv: &[M3],
+        vol: &[f64],
+        support: f64,
+        which: Option<&[bool]>,
+    ) -> Result<(), usize> {
+        let offsets = &self.offsets;
+        let cols = &self.cols;
+        let alive = &self.alive;
+        let phi = split_rows(&mut self.phi, offsets);
+        let grad = split_rows(&mut self.grad, offsets);
+        let d = split_rows(&mut self.d, offsets);
+        let w = split_rows(&mut self.w, offsets);
+        let vw = split_rows(&mut self.vw, offsets);
+        let bad: Option<usize> = phi
+            .into_par_iter()
+            .zip(grad)
+            .zip(d)
+            .zip(w)
+            .zip(vw)
+            .enumerate()
+            .filter_map(|(i, ((((phi, grad), d), w), vw))| {
+                if let Some(flags) = which
+                    && !flags[i]
+                {
+                    return None;
+                }
+                let base = offsets[i];
+                for k in 0..phi.len() {
+                    let p = base + k;
+                    let j = cols[p] as usize;
+                    let dj = sub(&xa[j], &xa[i]);
+                    d[k] = dj;
+                    // Kernel of J evaluated at X_I, anisotropic by F_J (eq. 14).
+                    let r = mul_vec(&finv[j], &dj);
+                    let q = norm(&r) / support;
+                    w[k] = if alive[p] { cubic_spline(q) } else { 0.0 };
+                    vw[k] = vol[j];
+                }
+                rk_row(d, w, vw, support, phi, grad).err().map(|_| i)
+            })
+            .min();
+        match bad {
+            Some(i) => Err(i),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Split a per-entry buffer into one mutable slice per row.
+pub fn split_rows<'a, T>(mut buf: &'a mut [T], offsets: &[usize]) -> Vec<&'a mut [T]> {
+    let n = offsets.len().saturating_sub(1);
+    let mut out = Vec::with_capacity(n);
+    for i in 0..n {
+        let (a, b) = std::mem::take(&mut buf).split_at_mut(offsets[i + 1] - offsets[i]);
+        out.push(a);
+        buf = b;
+    }
+    out
+}
+
+#[inline]
+pub fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+#[inline]
+pub fn norm(a: &[f64; 3]) -> f64 {
+    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+#[inline]
+pub fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    norm(&sub(a, b))
+}
+#[inline]
+pub fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+#[inline]
+pub fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+#[inline]
+pub fn mul_vec(m: &M3, v: &[f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|r| m[r][0] * v[0] + m[r][1] * v[1] + m[r][2] * v[2])
+}
+#[inline]
+pub fn mat_mul(a: &M3, b: &M3) -> M3 {
+    std::array::from_fn(|r| {
+        std::array::from_fn(|c| a[r][0] * b[0][c] + a[r][1] * b[1][c] + a[r][2] * b[2][c])
+    })
+}
+pub const IDENTITY: M3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+#[inline]
+pub fn det(m: &M3) -> f64 {
+    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+}
+/// Inverse of a 3×3 matrix; `None` when singular.
+#[inline]
+pub fn inv(m: &M3) -> Option<M3> {
+    let d = det(m);
+    if !(d.abs() > 1e-300) || !d.is_finite() {
+        return None;
+    }
+    let id = 1.0 / d;
+    Some([
+        [
+            (m[1][1] * m[2][2] - m[1][2] * m[2][1]) * id,
+            (m[0][2] * m[2][1] - m[0][1] * m[2][2]) * id,
+            (m[0][1] * m[1][2] - m[0][2] * m[1][1]) * id,
+        ],
+        [
+            (m[1][2] * m[2][0] - m[1][0] * m[2][2]) * id,
+            (m[0][0] * m[2][2] - m[0][2] * m[2][0]) * id,
+            (m[0][2] * m[1][0] - m[0][0] * m[1][2]) * id,
+        ],
+        [
+            (m[1][0] * m[2][1] - m[1][1] * m[2][0]) * id,
+            (m[0][1] * m[2][0] - m[0][0] * m[2][1]) * id,
+            (m[0][0] * m[1][1] - m[0][1] * m[1][0]) * id,
+        ],
+    ])
+}
