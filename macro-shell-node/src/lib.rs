@@ -1,9 +1,36 @@
-//! Explicit shell finite-element node (being written).
+//! Explicit shell finite-element node: the macro-scale structure of seed 004 (§3, eq. 18–33,
+//! Fig. 4). Belytschko–Lin–Tsay shells with J2 plane-stress plasticity, central-difference
+//! time integration with mass scaling, and the driver side of the kinematic shell–joint
+//! coupling.
+//!
+//! Layout: `setup` (params → validated model), `mesh` (geometry → quads and named sets),
+//! `element` (the BLT kernel), `model` (state arrays), `step` (the time loop), `coupling`
+//! (driver side), `output` (VTK, CSV), `solver` (the `Solver` impl).
+
+// Kernels index several small fixed-size arrays with one index; range loops read clearer.
+#![allow(clippy::needless_range_loop)]
+
+pub mod coupling;
+pub mod element;
+pub mod mesh;
+pub mod model;
+pub mod output;
+pub mod setup;
+pub mod solver;
+pub mod step;
+
+pub use solver::ShellSolver;
 
 use protocol::{Solver, SolverError, SolverResult};
 
-/// Builds the solver named `model` from its parameter table.
+/// Builds the solver named `model` from its parameter table (the node's registry: one line
+/// per model).
 pub fn factory(model: &str, params: &toml::Table) -> SolverResult<Box<dyn Solver>> {
-    let _ = params;
-    Err(SolverError::config("model", format!("unknown model '{model}' (this node has none yet)")))
+    match model {
+        solver::MODEL => Ok(Box::new(ShellSolver::from_params(params)?)),
+        other => Err(SolverError::config(
+            "model",
+            format!("unknown model '{other}' (this node has: {})", solver::MODEL),
+        )),
+    }
 }

@@ -1,0 +1,203 @@
+//! Output for ParaView and plots (ARCHITECTURE §10): one `.vtu` per written window with
+//! displacement, velocity and rotation per node, and per element the mid-surface stress, the
+//! von Mises stress at the top/bottom points, membrane forces, equivalent plastic strain and
+//! thickness (written with vtkio), plus a `.pvd` series; and the reaction-force histories of
+//! the named node sets as CSV.
+
+use crate::element::{self, R_H};
+use crate::model::Model;
+use crate::step::quat_log;
+use protocol::{SolverError, SolverResult};
+use std::fmt::Write as _;
+use std::path::Path;
+use vtkio::model::{
+    Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version,
+    VertexNumbers, Vtk,
+};
+
+/// von Mises of a plane-stress state.
+fn mises(s: [f64; 3]) -> f64 {
+    (s[0] * s[0] - s[0] * s[1] + s[1] * s[1] + 3.0 * s[2] * s[2]).sqrt()
+}
+
+/// Element stress in the global frame (3×3, symmetric) from the local in-plane stress.
+pub fn global_stress(m: &Model, e: usize, s: [f64; 3]) -> [[f64; 3]; 3] {
+    let c = m.conn[e].map(|n| m.x[n as usize]);
+    let mut out = [[0.0; 3]; 3];
+    if let Some(g) = element::geometry(&c) {
+        let sl = [[s[0], s[2]], [s[2], s[1]]];
+        for i in 0..3 {
+            for j in 0..3 {
+                let mut v = 0.0;
+                for a in 0..2 {
+                    for b in 0..2 {
+                        v += g.e[a][i] * sl[a][b] * g.e[b][j];
+                    }
+                }
+                out[i][j] = v;
+            }
+        }
+    }
+    out
+}
+
+/// Mid-surface stress of element `e` (local frame): the membrane force over the thickness.
+pub fn membrane_stress(m: &Model, e: usize) -> [f64; 3] {
+    let nip = m.section.nip;
+    let mut s = [0.0; 3];
+    for k in 0..nip {
+        let sk = m.stress_at(e, k);
+        for c in 0..3 {
+            s[c] += 0.5 * m.section.weight[k] * sk[c];
+        }
+    }
+    s
+}
+
+/// Write `<dir>/<name>_<window>.vtu` and update `<dir>/<name>.pvd`.
+pub fn write_vtu(m: &Model, dir: &Path, name: &str, window: u64, t: f64) -> SolverResult<()> {
+    std::fs::create_dir_all(dir)?;
+    let nn = m.num_nodes();
+    let ne = m.num_elements();
+    let points: Vec<f64> = m.x.iter().flat_map(|p| p.iter().copied()).collect();
+    let disp: Vec<f64> = (0..nn)
+        .flat_map(|i| (0..3).map(move |d| (i, d)))
+        .map(|(i, d)| m.x[i][d] - m.x0[i][d])
+        .collect();
+    let vel: Vec<f64> = m.v.iter().flat_map(|p| p.iter().copied()).collect();
+    let rot: Vec<f64> = m.q.iter().flat_map(|q| quat_log(*q)).collect();
+    let nip = m.section.nip;
+    let mut stress = Vec::with_capacity(ne * 9);
+    let mut vm_top = Vec::with_capacity(ne);
+    let mut vm_bot = Vec::with_capacity(ne);
+    let mut eqps = Vec::with_capacity(ne);
+    let mut thick = Vec::with_capacity(ne);
+    for e in 0..ne {
+        let s = global_stress(m, e, membrane_stress(m, e));
+        stress.extend(s.iter().flat_map(|r| r.iter().copied()));
+        vm_bot.push(mises(m.stress_at(e, 0)));
+        vm_top.push(mises(m.stress_at(e, nip - 1)));
+        eqps.push(match m.material {
+            element::Material::J2(_) => m.eqps(e),
+            _ => 0.0,
+        });
+        thick.push(m.res[e][R_H]);
+    }
+    let piece = UnstructuredGridPiece {
+        points: points.into(),
+        cells: Cells {
+            cell_verts: VertexNumbers::XML {
+                connectivity: m
+                    .conn
+                    .iter()
+                    .flat_map(|c| c.iter().map(|&n| n as u64))
+                    .collect(),
+                offsets: (1..=ne as u64).map(|k| 4 * k).collect(),
+            },
+            types: vec![CellType::Quad; ne],
+        },
+        data: Attributes {
+            point: vec![
+                Attribute::generic("displacement", 3).with_data(disp),
+                Attribute::generic("velocity", 3).with_data(vel),
+                Attribute::generic("rotation", 3).with_data(rot),
+            ],
+            cell: vec![
+                Attribute::generic("stress_mid", 9).with_data(stress),
+                Attribute::generic("mises_top", 1).with_data(vm_top),
+                Attribute::generic("mises_bottom", 1).with_data(vm_bot),
+                Attribute::generic("plastic_strain", 1).with_data(eqps),
+                Attribute::generic("thickness", 1).with_data(thick),
+            ],
+        },
+    };
+    let vtk = Vtk {
+        version: Version::new((1, 0)),
+        title: format!("{name} t={t:e}"),
+        byte_order: ByteOrder::LittleEndian,
+        file_path: None,
+        data: DataSet::inline(piece),
+    };
+    let file = format!("{name}_{window:06}.vtu");
+    vtk.export(dir.join(&file))
+        .map_err(|e| SolverError::Other(format!("writing {file}: {e}")))?;
+    // Append to the .pvd series (rewritten whole; small).
+    let pvd = dir.join(format!("{name}.pvd"));
+    let mut entries = String::new();
+    if let Ok(old) = std::fs::read_to_string(&pvd) {
+        for line in old.lines().filter(|l| l.contains("<DataSet")) {
+            if !line.contains(&format!("file=\"{file}\"")) {
+                entries.push_str(line);
+                entries.push('\n');
+            }
+        }
+    }
+    let _ = writeln!(
+        entries,
+        "    <DataSet timestep=\"{t:e}\" group=\"\" part=\"0\" file=\"{file}\"/>"
+    );
+    let text = format!(
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n{entries}  </Collection>\n</VTKFile>\n"
+    );
+    std::fs::write(pvd, text)?;
+    Ok(())
+}
+
+/// Sum of the support reactions (force, moment) over a node set.
+pub fn reaction_sum(m: &Model, nodes: &[u32]) -> [f64; 6] {
+    let mut r = [0.0; 6];
+    for &n in nodes {
+        for d in 0..6 {
+            r[d] += m.reaction[n as usize][d];
+        }
+    }
+    r
+}
+
+/// Reaction history rows: time then, per reaction set, Fx Fy Fz Mx My Mz.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct History {
+    pub header: Vec<String>,
+    pub rows: Vec<Vec<f64>>,
+}
+
+impl History {
+    pub fn new(m: &Model) -> Self {
+        let mut header = vec!["time".to_string()];
+        for s in &m.reaction_sets {
+            for c in ["fx", "fy", "fz", "mx", "my", "mz"] {
+                header.push(format!("{}_{c}", s.name));
+            }
+        }
+        History {
+            header,
+            rows: Vec::new(),
+        }
+    }
+
+    pub fn record(&mut self, m: &Model) {
+        if m.reaction_sets.is_empty() {
+            return;
+        }
+        let mut row = vec![m.time];
+        for s in &m.reaction_sets {
+            row.extend_from_slice(&reaction_sum(m, &s.nodes));
+        }
+        self.rows.push(row);
+    }
+
+    pub fn write_csv(&self, path: &Path) -> SolverResult<()> {
+        if let Some(d) = path.parent() {
+            std::fs::create_dir_all(d)?;
+        }
+        let mut s = self.header.join(",");
+        s.push('\n');
+        for r in &self.rows {
+            let line: Vec<String> = r.iter().map(|v| format!("{v:.10e}")).collect();
+            s.push_str(&line.join(","));
+            s.push('\n');
+        }
+        std::fs::write(path, s)?;
+        Ok(())
+    }
+}

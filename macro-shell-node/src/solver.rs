@@ -1,0 +1,230 @@
+//! The `Solver` implementation of the macro-shell node (model "blt-shell"): it only
+//! orchestrates — set-up of the kinematic couplings it drives, sub-cycling each window to land
+//! exactly on t1, the window report, and output (seed 004 Fig. 4, driver side).
+
+use crate::coupling::{self, ACCEPTS, Interface, SENDS};
+use crate::element;
+use crate::model::Model;
+use crate::output::{self, History};
+use crate::setup::{self, ShellConfig};
+use crate::step;
+use protocol::{
+    Binding, CouplingKind, Inbox, InterfaceInfo, InterfaceMesh, NodeDescription, Outbox, Role,
+    Solver, SolverError, SolverResult, StepReport, Window,
+};
+use std::path::Path;
+use std::time::Instant;
+
+/// The model name this solver registers under.
+pub const MODEL: &str = "blt-shell";
+
+pub struct ShellSolver {
+    pub model: Model,
+    pub interfaces: Vec<Interface>,
+    pub history: History,
+    scaled: bool,
+    last_span: f64,
+    last_substeps: u64,
+}
+
+impl ShellSolver {
+    pub fn from_config(cfg: &ShellConfig) -> SolverResult<Self> {
+        let mut model = setup::build(cfg)?;
+        step::initialise(&mut model)?;
+        let interfaces = coupling::interfaces_of(&cfg.interfaces, &model);
+        let history = History::new(&model);
+        Ok(ShellSolver {
+            model,
+            interfaces,
+            history,
+            scaled: false,
+            last_span: 0.0,
+            last_substeps: 0,
+        })
+    }
+
+    pub fn from_params(params: &toml::Table) -> SolverResult<Self> {
+        Self::from_config(&setup::parse(params)?)
+    }
+
+    pub fn from_toml_str(text: &str) -> SolverResult<Self> {
+        Self::from_config(&setup::parse_str(text)?)
+    }
+
+    /// Mass scaling (once, after the coupling mass and stiffness are in).
+    fn finish_setup(&mut self) {
+        if self.scaled {
+            return;
+        }
+        self.scaled = true;
+        let mut coupled: Vec<u32> = self
+            .interfaces
+            .iter()
+            .filter(|i| i.active)
+            .flat_map(|i| i.nodes.iter().copied())
+            .collect();
+        coupled.sort_unstable();
+        coupled.dedup();
+        self.model.coupled_nodes = coupled;
+        if let Some(t) = self.model.mass_scaling_dt {
+            step::apply_mass_scaling(&mut self.model, t);
+        }
+    }
+
+    /// Coupling loads on the nodes: the held loads of this window (interfaces add up).
+    fn set_coupling_loads(&mut self) {
+        let m = &mut self.model;
+        for &i in &m.coupled_nodes {
+            m.f_c[i as usize] = [0.0; 3];
+            m.m_c[i as usize] = [0.0; 3];
+        }
+        for itf in self.interfaces.iter().filter(|i| i.active) {
+            itf.apply(m);
+        }
+    }
+
+    fn find(&self, name: &str) -> SolverResult<usize> {
+        self.interfaces
+            .iter()
+            .position(|i| i.name == name)
+            .ok_or_else(|| SolverError::interface(name, "no such interface on this shell"))
+    }
+
+    fn report(&self, substeps: u64, wall: f64) -> StepReport {
+        let m = &self.model;
+        StepReport {
+            kinetic_energy: m.kinetic_energy(),
+            internal_energy: m.internal_energy(),
+            external_work: m.external_work + m.support_work + m.pressure_work(),
+            interface_work: m.interface_work,
+            momentum: m.momentum(),
+            external_impulse: m.external_impulse,
+            interface_impulse: m.interface_impulse,
+            applied_impulse: element::norm(m.load_impulse),
+            substeps,
+            wall_s: wall,
+            coupling_wait_s: 0.0,
+            scalars: vec![
+                ("dt".into(), m.dt_prev),
+                ("added_mass".into(), m.added_mass),
+                (
+                    "added_mass_fraction".into(),
+                    m.added_mass / (m.total_mass() - m.added_mass),
+                ),
+                (
+                    "max_plastic_strain".into(),
+                    match m.material {
+                        crate::element::Material::J2(_) => {
+                            (0..m.num_elements()).map(|e| m.eqps(e)).fold(0.0, f64::max)
+                        }
+                        _ => 0.0,
+                    },
+                ),
+            ],
+        }
+    }
+}
+
+impl Solver for ShellSolver {
+    fn describe(&self) -> NodeDescription {
+        NodeDescription {
+            model: MODEL.into(),
+            interfaces: self
+                .interfaces
+                .iter()
+                .map(|i| InterfaceInfo {
+                    name: i.name.clone(),
+                    points: i.len(),
+                    provides: SENDS.iter().map(|s| s.to_string()).collect(),
+                    accepts: ACCEPTS.iter().map(|s| s.to_string()).collect(),
+                })
+                .collect(),
+            units: "SI (m, kg, s, N, Pa)".into(),
+        }
+    }
+
+    fn interface(&self, name: &str) -> SolverResult<InterfaceMesh> {
+        let k = self.find(name)?;
+        Ok(self.interfaces[k].mesh(&self.model))
+    }
+
+    fn setup(&mut self, bindings: &[Binding], inbox: &Inbox, out: &mut Outbox) -> SolverResult<()> {
+        for b in bindings {
+            let k = self.find(&b.interface)?;
+            if b.kind != CouplingKind::Kinematic || b.role != Role::Driver {
+                return Err(SolverError::interface(
+                    &b.interface,
+                    format!(
+                        "the shell drives kinematic couplings only (got {} as {:?})",
+                        b.kind.as_str(),
+                        b.role
+                    ),
+                ));
+            }
+            let itf = &mut self.interfaces[k];
+            itf.take_setup(&mut self.model, inbox)?;
+        }
+        self.finish_setup();
+        for itf in self.interfaces.iter().filter(|i| i.active) {
+            itf.send(&self.model, 0.0, out);
+        }
+        Ok(())
+    }
+
+    fn stable_dt(&self) -> f64 {
+        step::stable_dt(&self.model)
+    }
+
+    fn advance(&mut self, w: &Window, inbox: &Inbox, out: &mut Outbox) -> SolverResult<StepReport> {
+        let t_start = Instant::now();
+        self.finish_setup();
+        if !w.t0.is_finite() || !w.t1.is_finite() || w.t1 <= w.t0 {
+            return Err(SolverError::Other(format!(
+                "window {}: bad interval [{}, {}]",
+                w.index, w.t0, w.t1
+            )));
+        }
+        let m = &mut self.model;
+        if m.steps == 0 {
+            m.time = w.t0;
+        } else if (m.time - w.t0).abs() > 1e-9 * (w.t1 - w.t0).max(w.t0.abs() * 1e-6) {
+            return Err(SolverError::Other(format!(
+                "window {} starts at {} but the shell is at {}",
+                w.index, w.t0, m.time
+            )));
+        }
+        m.time = w.t0;
+        // Sub-steps: as few as the stable step allows, but not fewer than in the previous
+        // window of the same length, so the step size (and with it the central-difference
+        // weight of each window's constraint force) stays constant through a run.
+        let span = w.t1 - w.t0;
+        let (mut n, _) = step::plan(m, span)?;
+        if (span - self.last_span).abs() <= 1e-12 * span {
+            n = n.max(self.last_substeps);
+        }
+        self.last_span = span;
+        self.last_substeps = n;
+        let dt = span / n as f64;
+        for itf in self.interfaces.iter_mut().filter(|i| i.active) {
+            // Window 1 may run on the set-up force at t0 when nothing newer arrived.
+            itf.take_loads(inbox, w.index <= 1)?;
+            itf.mark_start(&self.model);
+        }
+        self.set_coupling_loads();
+        step::run_steps(&mut self.model, w.t0, n, dt)?;
+        self.model.time = w.t1;
+        for itf in self.interfaces.iter().filter(|i| i.active) {
+            itf.send(&self.model, w.t1 - w.t0, out);
+        }
+        self.history.record(&self.model);
+        Ok(self.report(n, t_start.elapsed().as_secs_f64()))
+    }
+
+    fn write_output(&self, t: f64, window: u64, dir: &Path) -> SolverResult<()> {
+        output::write_vtu(&self.model, dir, "shell", window, t)?;
+        if !self.history.rows.is_empty() {
+            self.history.write_csv(&dir.join("reactions.csv"))?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,359 @@
+//! The engine: central-difference time integration of seed 004 eq. 21 (M Ü = F_ext + F_c −
+//! F_int) with 6 DOF per node, the stable step, and mass scaling.
+//!
+//! One step, t_n → t_{n+1} (the time loop on one page):
+//! 1. node pass (parallel over nodes): gather the element forces at t_n (no scatter),
+//!    a_n = (F_ext + F_c − F_int)/m, v_{n+½} = v_{n−½} + ½(Δt_{n−½} + Δt_{n+½}) a_n (likewise ω
+//!    with the moments and the rotational inertia), impose constraints (recording the
+//!    support reaction that did it), x_{n+1} = x_n + Δt v_{n+½}, rotate the nodal quaternion;
+//! 2. element pass (parallel over elements): stresses from the rates at x_{n+½}, forces at
+//!    x_{n+1} (`element::element_step`);
+//! 3. small sequential sums over loaded, constrained and coupled nodes: work and impulse.
+//!
+//! Results are bit-identical for any number of threads: every node and element writes only
+//! its own entries, and all sums run in a fixed order.
+
+use crate::element::{self, ElemInput, R_H};
+use crate::model::Model;
+use protocol::{SolverError, SolverResult};
+use rayon::prelude::*;
+
+/// Elements (and nodes) per rayon task.
+const CHUNK: usize = 256;
+
+/// Rotate a unit quaternion by the rotation vector `phi` (applied on the left, global frame).
+#[inline]
+fn rotate_quat(q: [f64; 4], phi: [f64; 3]) -> [f64; 4] {
+    let a = element::norm(phi);
+    if a == 0.0 {
+        return q;
+    }
+    let (s, c) = (0.5 * a).sin_cos();
+    let k = s / a;
+    let r = [c, phi[0] * k, phi[1] * k, phi[2] * k];
+    let out = [
+        r[0] * q[0] - r[1] * q[1] - r[2] * q[2] - r[3] * q[3],
+        r[0] * q[1] + r[1] * q[0] + r[2] * q[3] - r[3] * q[2],
+        r[0] * q[2] - r[1] * q[3] + r[2] * q[0] + r[3] * q[1],
+        r[0] * q[3] + r[1] * q[2] - r[2] * q[1] + r[3] * q[0],
+    ];
+    let n = (out[0] * out[0] + out[1] * out[1] + out[2] * out[2] + out[3] * out[3]).sqrt();
+    [out[0] / n, out[1] / n, out[2] / n, out[3] / n]
+}
+
+/// Rotate a vector by a unit quaternion.
+pub fn quat_apply(q: [f64; 4], v: [f64; 3]) -> [f64; 3] {
+    let u = [q[1], q[2], q[3]];
+    let t = element::cross(u, v);
+    let t = [2.0 * t[0], 2.0 * t[1], 2.0 * t[2]];
+    let ut = element::cross(u, t);
+    [
+        v[0] + q[0] * t[0] + ut[0],
+        v[1] + q[0] * t[1] + ut[1],
+        v[2] + q[0] * t[2] + ut[2],
+    ]
+}
+
+/// Rotation vector (axis × angle) of a unit quaternion.
+pub fn quat_log(q: [f64; 4]) -> [f64; 3] {
+    let s = (q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+    if s < 1e-300 {
+        return [0.0; 3];
+    }
+    let sign = if q[0] < 0.0 { -1.0 } else { 1.0 };
+    let ang = 2.0 * s.atan2(q[0] * sign);
+    let k = sign * ang / s;
+    [q[1] * k, q[2] * k, q[3] * k]
+}
+
+/// Node pass: forces → velocities → positions. `dt_avg` = ½(Δt_{n−½} + Δt_{n+½}).
+pub fn node_pass(m: &mut Model, dt: f64, dt_avg: f64, ramp: f64) {
+    let fe = &m.fe;
+    let offs = &m.adj_offsets;
+    let adj = &m.adj;
+    let mass = &m.mass;
+    let inertia = &m.inertia;
+    let f_ext = &m.f_ext;
+    let f_c = &m.f_c;
+    let m_c = &m.m_c;
+    let fix = &m.fix;
+    let v_pres = &m.v_pres;
+    m.x.par_chunks_mut(CHUNK)
+        .zip(m.v.par_chunks_mut(CHUNK))
+        .zip(m.w.par_chunks_mut(CHUNK))
+        .zip(m.q.par_chunks_mut(CHUNK))
+        .zip(m.reaction.par_chunks_mut(CHUNK))
+        .enumerate()
+        .for_each(|(c, ((((xs, vs), ws), qs), rs))| {
+            for j in 0..xs.len() {
+                let i = c * CHUNK + j;
+                let mut f = [0.0; 6];
+                for &k in &adj[offs[i] as usize..offs[i + 1] as usize] {
+                    let fk = &fe[(k >> 2) as usize][(k & 3) as usize];
+                    for d in 0..6 {
+                        f[d] += fk[d];
+                    }
+                }
+                let (mi, ii) = (mass[i], inertia[i]);
+                let mut vn = [0.0; 3];
+                let mut wn = [0.0; 3];
+                for d in 0..3 {
+                    vn[d] = vs[j][d] + dt_avg * (f_ext[i][d] + f_c[i][d] - f[d]) / mi;
+                    wn[d] = ws[j][d] + dt_avg * (m_c[i][d] - f[3 + d]) / ii;
+                }
+                let bits = fix[i];
+                let mut r = [0.0; 6];
+                if bits != 0 {
+                    for d in 0..3 {
+                        if bits & (1 << d) != 0 {
+                            let target = v_pres[i][d] * ramp;
+                            r[d] = mi * (target - vn[d]) / dt_avg;
+                            vn[d] = target;
+                        }
+                        if bits & (8 << d) != 0 {
+                            r[3 + d] = ii * (0.0 - wn[d]) / dt_avg;
+                            wn[d] = 0.0;
+                        }
+                    }
+                }
+                rs[j] = r;
+                vs[j] = vn;
+                ws[j] = wn;
+                for d in 0..3 {
+                    xs[j][d] += dt * vn[d];
+                }
+                qs[j] = rotate_quat(qs[j], [wn[0] * dt, wn[1] * dt, wn[2] * dt]);
+            }
+        });
+}
+
+/// Element pass: stresses and element forces at t_{n+1}. Returns the first degenerate
+/// element, if any.
+pub fn element_pass(m: &mut Model, dt: f64) -> Option<usize> {
+    let nip = m.section.nip;
+    let sec = m.section;
+    let mat = m.material;
+    let x = &m.x;
+    let v = &m.v;
+    let w = &m.w;
+    let conn = &m.conn;
+    let pres = &m.pressure;
+    m.fe.par_chunks_mut(CHUNK)
+        .zip(m.stress.par_chunks_mut(CHUNK * nip * 3))
+        .zip(m.plastic.par_chunks_mut(CHUNK * nip * element::PL))
+        .zip(m.res.par_chunks_mut(CHUNK))
+        .enumerate()
+        .map(|(c, (((fes, st), pl), rs))| {
+            let mut bad: Option<usize> = None;
+            for j in 0..fes.len() {
+                let e = c * CHUNK + j;
+                let cn = conn[e];
+                let inp = ElemInput {
+                    x: cn.map(|n| x[n as usize]),
+                    v: cn.map(|n| v[n as usize]),
+                    w: cn.map(|n| w[n as usize]),
+                };
+                let ok = element::element_step(
+                    &inp,
+                    dt,
+                    &sec,
+                    &mat,
+                    pres[e],
+                    &mut st[j * nip * 3..(j + 1) * nip * 3],
+                    &mut pl[j * nip * element::PL..(j + 1) * nip * element::PL],
+                    &mut rs[j],
+                    &mut fes[j],
+                );
+                if !ok && bad.is_none() {
+                    bad = Some(e);
+                }
+            }
+            bad
+        })
+        .reduce(
+            || None,
+            |a, b| match (a, b) {
+                (Some(x), Some(y)) => Some(x.min(y)),
+                (a, b) => a.or(b),
+            },
+        )
+}
+
+/// Compute the element forces of the initial state (t = 0, no motion).
+pub fn initialise(m: &mut Model) -> SolverResult<()> {
+    if let Some(e) = element_pass(m, 0.0) {
+        return Err(SolverError::Diverged {
+            time: m.time,
+            reason: format!("element {e} is degenerate"),
+        });
+    }
+    Ok(())
+}
+
+/// One central-difference step of size `dt` (see the module notes).
+pub fn step(m: &mut Model, dt: f64) -> SolverResult<()> {
+    let dt_avg = if m.dt_prev > 0.0 {
+        0.5 * (m.dt_prev + dt)
+    } else {
+        0.5 * dt
+    };
+    let t_mid = m.time + 0.5 * dt;
+    let ramp = if m.velocity_ramp > 0.0 {
+        (t_mid / m.velocity_ramp).min(1.0)
+    } else {
+        1.0
+    };
+    node_pass(m, dt, dt_avg, ramp);
+    // Bookkeeping over the few special nodes, in a fixed order.
+    for &i in &m.loaded_nodes {
+        let i = i as usize;
+        for d in 0..3 {
+            m.external_work += dt * m.f_ext[i][d] * m.v[i][d];
+            m.external_impulse[d] += dt_avg * m.f_ext[i][d];
+            m.load_impulse[d] += dt_avg * m.f_ext[i][d];
+        }
+    }
+    for &i in &m.constrained_nodes {
+        let i = i as usize;
+        for d in 0..3 {
+            m.support_work += dt * m.reaction[i][d] * m.v[i][d];
+            m.external_impulse[d] += dt_avg * m.reaction[i][d];
+            m.support_work += dt * m.reaction[i][3 + d] * m.w[i][d];
+        }
+    }
+    for &i in &m.coupled_nodes {
+        let i = i as usize;
+        // Position x_n at which the force acted (x_{n+1} − Δt v_{n+½}).
+        let xn = [
+            m.x[i][0] - dt * m.v[i][0],
+            m.x[i][1] - dt * m.v[i][1],
+            m.x[i][2] - dt * m.v[i][2],
+        ];
+        let tq = element::cross(xn, m.f_c[i]);
+        for d in 0..3 {
+            m.interface_angular_impulse[d] += dt_avg * (tq[d] + m.m_c[i][d]);
+            m.interface_work += dt * (m.f_c[i][d] * m.v[i][d] + m.m_c[i][d] * m.w[i][d]);
+            m.interface_impulse[d] += dt_avg * m.f_c[i][d];
+        }
+    }
+    if let Some(e) = element_pass(m, dt) {
+        return Err(SolverError::Diverged {
+            time: m.time + dt,
+            reason: format!("element {e} became degenerate (inverted or zero area)"),
+        });
+    }
+    m.time += dt;
+    m.dt_prev = dt;
+    m.steps += 1;
+    Ok(())
+}
+
+/// Element estimates [membrane, transverse, rotational] at the current geometry.
+fn element_estimates(m: &Model) -> Vec<[f64; 3]> {
+    let sec = m.section;
+    let mat = m.material;
+    (0..m.num_elements())
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .map(|e| {
+            let x = m.conn[e].map(|n| m.x[n as usize]);
+            match element::geometry(&x) {
+                Some(g) => element::stiffness_estimates(&sec, &mat, m.res[e][R_H], &g),
+                None => [f64::INFINITY; 3],
+            }
+        })
+        .collect()
+}
+
+/// Squared frequency bound of node `i` (see `element::stiffness_estimates`), with the
+/// coupling stiffness on the translations: max((Σs_m + k)/m, (Σs_w + k)/m + Σs_θ/I).
+fn node_omega2(m: &Model, est: &[[f64; 3]], i: usize) -> f64 {
+    let mut s = [0.0; 3];
+    for &k in &m.adj[m.adj_offsets[i] as usize..m.adj_offsets[i + 1] as usize] {
+        let r = &est[(k >> 2) as usize];
+        for c in 0..3 {
+            s[c] += r[c];
+        }
+    }
+    let kc = m.k_c[i];
+    ((s[0] + kc) / m.mass[i]).max((s[1] + kc) / m.mass[i] + s[2] / m.inertia[i])
+}
+
+/// The stable step now: dt_scale · 2/ω_max over all nodes (coupling stiffness included).
+pub fn stable_dt(m: &Model) -> f64 {
+    let est = element_estimates(m);
+    let w2 = (0..m.num_nodes())
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .map(|i| node_omega2(m, &est, i))
+        .reduce(|| 0.0, f64::max);
+    if w2 > 0.0 {
+        m.dt_scale * 2.0 / w2.sqrt()
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// Mass scaling to the target step: where a node's frequency bound needs a smaller step,
+/// multiply its mass and rotational inertia by ω_i²/ω_target². Returns the added
+/// translational mass (kg); also accumulated in `added_mass` / `added_inertia`.
+pub fn apply_mass_scaling(m: &mut Model, target_dt: f64) -> f64 {
+    let est = element_estimates(m);
+    let w_t = m.dt_scale * 2.0 / target_dt;
+    let w2t = w_t * w_t;
+    let mut added = 0.0;
+    let mut added_i = 0.0;
+    for i in 0..m.num_nodes() {
+        let w2 = node_omega2(m, &est, i);
+        if w2 > w2t {
+            let f = w2 / w2t - 1.0;
+            let (dm, di) = (m.mass[i] * f, m.inertia[i] * f);
+            m.mass[i] += dm;
+            m.inertia[i] += di;
+            added += dm;
+            added_i += di;
+        }
+    }
+    m.added_mass += added;
+    m.added_inertia += added_i;
+    added
+}
+
+/// Sub-steps for a span: the fewest uniform steps no larger than the stable step (a step
+/// longer by less than 0.1 % is accepted — the safety factor `dt_scale` covers it — so a
+/// window sized to the stable step stays one step while the mesh moves). Returns
+/// (count, step).
+pub fn plan(m: &Model, span: f64) -> SolverResult<(u64, f64)> {
+    let dt_s = stable_dt(m);
+    if !(dt_s.is_finite() && dt_s > 0.0) {
+        return Err(SolverError::Diverged {
+            time: m.time,
+            reason: format!("stable step is {dt_s}"),
+        });
+    }
+    let n = (span / dt_s * (1.0 - 1e-3)).ceil().max(1.0) as u64;
+    Ok((n, span / n as f64))
+}
+
+/// Take `n` steps of `dt` from `t0`, landing the clock exactly on t0 + n·dt.
+pub fn run_steps(m: &mut Model, t0: f64, n: u64, dt: f64) -> SolverResult<()> {
+    for k in 0..n {
+        step(m, dt)?;
+        m.time = t0 + dt * (k + 1) as f64;
+    }
+    Ok(())
+}
+
+/// Advance exactly to `t_end` with uniform sub-steps no larger than the stable step.
+/// Returns the number of steps taken.
+pub fn advance_to(m: &mut Model, t_end: f64) -> SolverResult<u64> {
+    let span = t_end - m.time;
+    if span <= 0.0 {
+        return Ok(0);
+    }
+    let (n, dt) = plan(m, span)?;
+    let t0 = m.time;
+    run_steps(m, t0, n, dt)?;
+    m.time = t_end;
+    Ok(n)
+}
