@@ -159,19 +159,18 @@ pub fn main_with(cli: Cli) -> i32 {
                     return 2;
                 }
             };
-            if let Some(id) = &run_id {
-                if id.is_empty()
+            if let Some(id) = &run_id
+                && (id.is_empty()
                     || id.len() > 32
                     || !id
                         .chars()
-                        .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+                        .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_'))
                 {
                     eprintln!(
                         "cosim: --run-id: must be 1–32 characters of [A-Za-z0-9_-], got '{id}'"
                     );
                     return 2;
                 }
-            }
             let opts = run::RunOptions {
                 run_id,
                 output,

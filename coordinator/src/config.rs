@@ -507,20 +507,19 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             responder_fields: get_strings(t, &p, "responder_fields")?.unwrap_or(rf),
         });
     }
-    if schedule == Schedule::Parallel {
-        if let Some((i, _)) = couplings
+    if schedule == Schedule::Parallel
+        && let Some((i, _)) = couplings
             .iter()
             .enumerate()
             .find(|(_, c)| c.kind == CouplingKind::Kinematic)
         {
             return Err(err(
-                format!("run.schedule"),
+                "run.schedule".to_string(),
                 format!(
                     "\"parallel\" lags every input by a window, which is unstable for the kinematic coupling couplings[{i}] (ARCHITECTURE §5); use \"serial\""
                 ),
             ));
         }
-    }
     let mut case = Case {
         path: path.to_path_buf(),
         text: text.to_string(),
@@ -574,8 +573,8 @@ fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
     for (i, c) in case.couplings.iter().enumerate() {
         for (key, (node, iface)) in [("driver", &c.driver), ("responder", &c.responder)] {
             let n = case.nodes.iter().find(|n| &n.name == node);
-            if let Some(list) = n.and_then(|n| n.interfaces.as_ref()) {
-                if !list.iter().any(|x| x == iface) {
+            if let Some(list) = n.and_then(|n| n.interfaces.as_ref())
+                && !list.iter().any(|x| x == iface) {
                     return Err(err(
                         format!("couplings[{i}].{key}"),
                         format!(
@@ -588,7 +587,6 @@ fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
                         ),
                     ));
                 }
-            }
         }
     }
     Ok(())

@@ -265,8 +265,8 @@ pub fn info(path: &Path) -> anyhow::Result<String> {
         }
     )?;
     let dec = decode_all(&msgs);
-    if let Ok(case) = case_of(&msgs) {
-        if let Some(run) = case.get("run").and_then(|r| r.as_table()) {
+    if let Ok(case) = case_of(&msgs)
+        && let Some(run) = case.get("run").and_then(|r| r.as_table()) {
             writeln!(
                 s,
                 "case       end_time {} s, window {} s, schedule {}, transport {}",
@@ -282,7 +282,6 @@ pub fn info(path: &Path) -> anyhow::Result<String> {
                     .unwrap_or("shm"),
             )?;
         }
-    }
     let run = dec.first().map(|d| d.env.run.clone()).unwrap_or_default();
     writeln!(s, "run        {run}")?;
     writeln!(s, "nodes")?;

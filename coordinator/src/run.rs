@@ -151,13 +151,11 @@ impl<'a> Coord<'a> {
         let timeout = Duration::from_secs_f64(self.case.run.heartbeat_timeout);
         for i in 0..self.nodes.len() {
             let n = &mut self.nodes[i];
-            if n.exited.is_none() {
-                if let Some(c) = n.child.as_mut() {
-                    if let Ok(Some(st)) = c.try_wait() {
+            if n.exited.is_none()
+                && let Some(c) = n.child.as_mut()
+                    && let Ok(Some(st)) = c.try_wait() {
                         n.exited = Some(describe_status(st));
                     }
-                }
-            }
             if let Some(why) = n.exited.clone() {
                 // Give a dying node's last words (a Failed message) a moment to arrive.
                 let name = n.name.clone();
@@ -221,11 +219,10 @@ impl<'a> Coord<'a> {
                 }) => true,
                 _ => true,
             };
-            if keep {
-                if let Some((name, _)) = topics.get(id) {
+            if keep
+                && let Some((name, _)) = topics.get(id) {
                     let _ = rec.message(name, sim_t, bytes);
                 }
-            }
             let _ = window;
             got = Some((id, dec));
         });
@@ -336,14 +333,13 @@ impl<'a> Coord<'a> {
                 return Ok(());
             }
             self.check_health(&pending)?;
-            if let Some(l) = limit {
-                if start.elapsed() > l {
+            if let Some(l) = limit
+                && start.elapsed() > l {
                     return Err(Fault {
                         node: self.nodes[pending[0]].name.clone(),
                         reason: format!("no {what} within {} s", l.as_secs()),
                     });
                 }
-            }
             self.pump_one(Duration::from_millis(20))?;
         }
     }
