@@ -165,12 +165,10 @@ pub fn main_with(cli: Cli) -> i32 {
                     || !id
                         .chars()
                         .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_'))
-                {
-                    eprintln!(
-                        "cosim: --run-id: must be 1–32 characters of [A-Za-z0-9_-], got '{id}'"
-                    );
-                    return 2;
-                }
+            {
+                eprintln!("cosim: --run-id: must be 1–32 characters of [A-Za-z0-9_-], got '{id}'");
+                return 2;
+            }
             let opts = run::RunOptions {
                 run_id,
                 output,

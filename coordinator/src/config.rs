@@ -237,16 +237,8 @@ pub fn resolve_exe(solver: &str, case_dir: &Path) -> Option<PathBuf> {
         return p.is_file().then_some(p);
     }
     let here = std::env::current_exe().ok()?;
-    let dir = here.parent()?;
-    for cand in [
-        dir.join(solver),
-        dir.parent().map(|d| d.join(solver)).unwrap_or_default(),
-    ] {
-        if cand.is_file() {
-            return Some(cand);
-        }
-    }
-    None
+    let cand = here.parent()?.join(solver);
+    cand.is_file().then_some(cand)
 }
 
 /// Default fields of a coupling kind: (driver sends, responder sends).
@@ -512,14 +504,14 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             .iter()
             .enumerate()
             .find(|(_, c)| c.kind == CouplingKind::Kinematic)
-        {
-            return Err(err(
-                "run.schedule".to_string(),
-                format!(
-                    "\"parallel\" lags every input by a window, which is unstable for the kinematic coupling couplings[{i}] (ARCHITECTURE §5); use \"serial\""
-                ),
-            ));
-        }
+    {
+        return Err(err(
+            "run.schedule".to_string(),
+            format!(
+                "\"parallel\" lags every input by a window, which is unstable for the kinematic coupling couplings[{i}] (ARCHITECTURE §5); use \"serial\""
+            ),
+        ));
+    }
     let mut case = Case {
         path: path.to_path_buf(),
         text: text.to_string(),
@@ -574,19 +566,20 @@ fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
         for (key, (node, iface)) in [("driver", &c.driver), ("responder", &c.responder)] {
             let n = case.nodes.iter().find(|n| &n.name == node);
             if let Some(list) = n.and_then(|n| n.interfaces.as_ref())
-                && !list.iter().any(|x| x == iface) {
-                    return Err(err(
-                        format!("couplings[{i}].{key}"),
-                        format!(
-                            "node '{node}' has no interface '{iface}' (it offers: {})",
-                            if list.is_empty() {
-                                "none".to_string()
-                            } else {
-                                list.join(", ")
-                            }
-                        ),
-                    ));
-                }
+                && !list.iter().any(|x| x == iface)
+            {
+                return Err(err(
+                    format!("couplings[{i}].{key}"),
+                    format!(
+                        "node '{node}' has no interface '{iface}' (it offers: {})",
+                        if list.is_empty() {
+                            "none".to_string()
+                        } else {
+                            list.join(", ")
+                        }
+                    ),
+                ));
+            }
         }
     }
     Ok(())

@@ -266,22 +266,23 @@ pub fn info(path: &Path) -> anyhow::Result<String> {
     )?;
     let dec = decode_all(&msgs);
     if let Ok(case) = case_of(&msgs)
-        && let Some(run) = case.get("run").and_then(|r| r.as_table()) {
-            writeln!(
-                s,
-                "case       end_time {} s, window {} s, schedule {}, transport {}",
-                run.get("end_time")
-                    .map(|v| v.to_string())
-                    .unwrap_or_default(),
-                run.get("window").map(|v| v.to_string()).unwrap_or_default(),
-                run.get("schedule")
-                    .and_then(|v| v.as_str())
-                    .unwrap_or("serial"),
-                run.get("transport")
-                    .and_then(|v| v.as_str())
-                    .unwrap_or("shm"),
-            )?;
-        }
+        && let Some(run) = case.get("run").and_then(|r| r.as_table())
+    {
+        writeln!(
+            s,
+            "case       end_time {} s, window {} s, schedule {}, transport {}",
+            run.get("end_time")
+                .map(|v| v.to_string())
+                .unwrap_or_default(),
+            run.get("window").map(|v| v.to_string()).unwrap_or_default(),
+            run.get("schedule")
+                .and_then(|v| v.as_str())
+                .unwrap_or("serial"),
+            run.get("transport")
+                .and_then(|v| v.as_str())
+                .unwrap_or("shm"),
+        )?;
+    }
     let run = dec.first().map(|d| d.env.run.clone()).unwrap_or_default();
     writeln!(s, "run        {run}")?;
     writeln!(s, "nodes")?;

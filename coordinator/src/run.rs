@@ -153,9 +153,10 @@ impl<'a> Coord<'a> {
             let n = &mut self.nodes[i];
             if n.exited.is_none()
                 && let Some(c) = n.child.as_mut()
-                    && let Ok(Some(st)) = c.try_wait() {
-                        n.exited = Some(describe_status(st));
-                    }
+                && let Ok(Some(st)) = c.try_wait()
+            {
+                n.exited = Some(describe_status(st));
+            }
             if let Some(why) = n.exited.clone() {
                 // Give a dying node's last words (a Failed message) a moment to arrive.
                 let name = n.name.clone();
@@ -219,10 +220,9 @@ impl<'a> Coord<'a> {
                 }) => true,
                 _ => true,
             };
-            if keep
-                && let Some((name, _)) = topics.get(id) {
-                    let _ = rec.message(name, sim_t, bytes);
-                }
+            if keep && let Some((name, _)) = topics.get(id) {
+                let _ = rec.message(name, sim_t, bytes);
+            }
             let _ = window;
             got = Some((id, dec));
         });
@@ -334,12 +334,13 @@ impl<'a> Coord<'a> {
             }
             self.check_health(&pending)?;
             if let Some(l) = limit
-                && start.elapsed() > l {
-                    return Err(Fault {
-                        node: self.nodes[pending[0]].name.clone(),
-                        reason: format!("no {what} within {} s", l.as_secs()),
-                    });
-                }
+                && start.elapsed() > l
+            {
+                return Err(Fault {
+                    node: self.nodes[pending[0]].name.clone(),
+                    reason: format!("no {what} within {} s", l.as_secs()),
+                });
+            }
             self.pump_one(Duration::from_millis(20))?;
         }
     }

@@ -5,7 +5,11 @@
 //! Irreversibility (ω_D non-increasing, App. C) is enforced by [`DamageModel::update`].
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
 // `!(x > 0.0)` is deliberate: it also rejects NaN.
-#![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord, clippy::too_many_arguments)]
+#![allow(
+    clippy::needless_range_loop,
+    clippy::neg_cmp_op_on_partial_ord,
+    clippy::too_many_arguments
+)]
 
 /// What a damage law may look at for one bond (quantities associated with the bond, e.g. the
 /// average of the two end points' values for a point-wise material model).

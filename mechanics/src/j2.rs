@@ -14,7 +14,11 @@
 //! `kin_hardening = (1 − β) H`.
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
 // `!(x > 0.0)` is deliberate: it also rejects NaN.
-#![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord, clippy::too_many_arguments)]
+#![allow(
+    clippy::needless_range_loop,
+    clippy::neg_cmp_op_on_partial_ord,
+    clippy::too_many_arguments
+)]
 
 /// Symmetric tensors in Voigt order [xx, yy, zz, yz, xz, xy], tensor (not engineering) shear.
 pub type Sym = [f64; 6];

@@ -33,7 +33,7 @@ impl Families {
 /// Works for 2-D data too (leave z = 0).
 pub fn find_neighbours(x: &[[f64; 3]], radius: f64) -> Families {
     let n = x.len();
-    if n == 0 || !(radius > 0.0) {
+    if n == 0 || radius.is_nan() || radius <= 0.0 {
         return Families {
             offsets: vec![0; n + 1],
             indices: Vec::new(),

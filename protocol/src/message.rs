@@ -198,7 +198,9 @@ pub mod f64_bytes {
         {
             // SAFETY: f64 has no padding and every byte of it is initialised; the slice
             // covers exactly the vector's storage and lives as long as `v`.
-            let bytes = unsafe { std::slice::from_raw_parts(v.as_ptr().cast::<u8>(), std::mem::size_of_val(v)) };
+            let bytes = unsafe {
+                std::slice::from_raw_parts(v.as_ptr().cast::<u8>(), std::mem::size_of_val(v))
+            };
             s.serialize_bytes(bytes)
         }
         #[cfg(not(target_endian = "little"))]
@@ -216,8 +218,11 @@ pub mod f64_bytes {
             f.write_str("a byte string of little-endian f64 values")
         }
         fn visit_bytes<E: Error>(self, b: &[u8]) -> Result<Vec<f64>, E> {
-            if b.len() % 8 != 0 {
-                return Err(E::custom(format!("{} bytes is not a whole number of f64 values", b.len())));
+            if !b.len().is_multiple_of(8) {
+                return Err(E::custom(format!(
+                    "{} bytes is not a whole number of f64 values",
+                    b.len()
+                )));
             }
             Ok(b.chunks_exact(8)
                 .map(|c| f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]))

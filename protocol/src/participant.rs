@@ -612,34 +612,32 @@ fn node_loop(
             w.send_up(&describe_after)?;
             w.send_up(&Message::Done(Done { window: 0, report }))?;
         }
-        if set_up {
-            if let Some(Message::Advance(a)) = pending_cmd.front() {
-                let a = *a;
-                if engine.ready(a.window) {
-                    pending_cmd.pop_front();
-                    let started = Instant::now();
-                    let win = Window {
-                        index: a.window,
-                        t0: a.t0,
-                        t1: a.t1,
-                        write_output: a.write_output,
-                    };
-                    let (mut report, msgs) = engine.advance(&win)?;
-                    for f in msgs {
-                        let c = f.coupling.clone();
-                        w.send_data(&c, &Message::Fields(f))?;
-                    }
-                    if a.write_output {
-                        let dir = PathBuf::from(&welcome.output_dir);
-                        engine.solver.write_output(a.t1, a.window, &dir)?;
-                    }
-                    report.wall_s = started.elapsed().as_secs_f64();
-                    report.coupling_wait_s = wait_s;
-                    wait_s = 0.0;
-                    window = a.window;
-                    w.send_up(&Message::Done(Done { window, report }))?;
-                    continue;
+        if set_up && let Some(Message::Advance(a)) = pending_cmd.front() {
+            let a = *a;
+            if engine.ready(a.window) {
+                pending_cmd.pop_front();
+                let started = Instant::now();
+                let win = Window {
+                    index: a.window,
+                    t0: a.t0,
+                    t1: a.t1,
+                    write_output: a.write_output,
+                };
+                let (mut report, msgs) = engine.advance(&win)?;
+                for f in msgs {
+                    let c = f.coupling.clone();
+                    w.send_data(&c, &Message::Fields(f))?;
                 }
+                if a.write_output {
+                    let dir = PathBuf::from(&welcome.output_dir);
+                    engine.solver.write_output(a.t1, a.window, &dir)?;
+                }
+                report.wall_s = started.elapsed().as_secs_f64();
+                report.coupling_wait_s = wait_s;
+                wait_s = 0.0;
+                window = a.window;
+                w.send_up(&Message::Done(Done { window, report }))?;
+                continue;
             }
         }
         // Otherwise wait for something to arrive.
@@ -663,10 +661,10 @@ fn node_loop(
             Some(Incoming::Cmd(other)) => {
                 tracing::warn!("ignored command {}", other.type_name());
             }
-            Some(Incoming::Data(Message::Mesh(m))) => {
-                if engine.bindings().any(|b| b.coupling == m.coupling) {
-                    engine.peer_mesh(&m)?;
-                }
+            Some(Incoming::Data(Message::Mesh(m)))
+                if engine.bindings().any(|b| b.coupling == m.coupling) =>
+            {
+                engine.peer_mesh(&m)?;
             }
             Some(Incoming::Data(Message::Fields(f))) => engine.receive(f)?,
             Some(Incoming::Data(other)) => {

@@ -368,7 +368,7 @@ impl Solver for Bar {
 
     fn advance(&mut self, w: &Window, inbox: &Inbox, out: &mut Outbox) -> SolverResult<StepReport> {
         let span = w.t1 - w.t0;
-        if !(span > 0.0) {
+        if span.is_nan() || span <= 0.0 {
             return Err(SolverError::Other(format!(
                 "empty window [{}, {}]",
                 w.t0, w.t1
@@ -511,15 +511,17 @@ impl Solver for Bar {
     }
 
     fn write_output(&self, t: f64, window: u64, dir: &std::path::Path) -> SolverResult<()> {
-        // A plain CSV profile per output window: x, u, v (ParaView reads CSV too).
-        std::fs::create_dir_all(dir)?;
-        let mut s = String::from("x,displacement,velocity\n");
-        for i in 0..self.s.u.len() {
-            let x = self.p.x0 + i as f64 * self.h;
-            s.push_str(&format!("{x},{},{}\n", self.s.u[i], self.s.v[i]));
-        }
-        let _ = t;
-        std::fs::write(dir.join(format!("bar_{window:06}.csv")), s)?;
+        // The nodes as VTK points (ParaView: `bar.pvd`), with displacement and velocity.
+        let n = self.s.u.len();
+        let points: Vec<[f64; 3]> = (0..n)
+            .map(|i| [self.p.x0 + i as f64 * self.h, 0.0, 0.0])
+            .collect();
+        let vec3 = |a: &[f64]| a.iter().flat_map(|&x| [x, 0.0, 0.0]).collect::<Vec<f64>>();
+        let data = vec![
+            ("displacement", 3, vec3(&self.s.u)),
+            ("velocity", 3, vec3(&self.s.v)),
+        ];
+        crate::pd::output::write_vtu(dir, "bar", window, t, &points, &data)?;
         Ok(())
     }
 

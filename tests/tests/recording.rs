@@ -106,3 +106,22 @@ fn replay_with_a_changed_parameter_reports_differences_and_drift() {
     assert!(o.status.success());
     assert!(e.contains("drifted"), "no drift warning: {e}");
 }
+
+#[test]
+fn nodes_write_paraview_output_at_the_end() {
+    let out = recorded().parent().unwrap();
+    for (node, points) in [("left", 101), ("right", 301)] {
+        let pvd = std::fs::read_to_string(out.join(node).join("bar.pvd")).expect("a .pvd series");
+        let file = pvd
+            .split("file=\"")
+            .nth(1)
+            .and_then(|s| s.split('"').next())
+            .expect("the series names a file");
+        let vtu = std::fs::read_to_string(out.join(node).join(file)).expect("the .vtu it names");
+        assert!(
+            vtu.contains(&format!("NumberOfPoints=\"{points}\"")),
+            "{node}: {file}"
+        );
+        assert!(vtu.contains("Name=\"displacement\""));
+    }
+}

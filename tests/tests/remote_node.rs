@@ -20,7 +20,15 @@ fn remote_case(tag: &str) -> (std::path::PathBuf, std::path::PathBuf, String) {
 fn a_remote_node_joins_with_the_printed_command_and_token() {
     let (case, out, id) = remote_case("remote");
     let mut cosim = Command::new(bin("cosim"))
-        .args(["run", case.to_str().unwrap(), "--output", out.to_str().unwrap(), "--run-id", &id, "--quiet"])
+        .args([
+            "run",
+            case.to_str().unwrap(),
+            "--output",
+            out.to_str().unwrap(),
+            "--run-id",
+            &id,
+            "--quiet",
+        ])
         .env("COSIM_LOG", "warn")
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -30,20 +38,52 @@ fn a_remote_node_joins_with_the_printed_command_and_token() {
     let mut line = String::new();
     err.read_line(&mut line).unwrap();
     assert!(line.contains("waiting for remote node 'right'"), "{line}");
-    let cmd: Vec<&str> = line.split(": ").last().unwrap().split_whitespace().collect();
+    let cmd: Vec<&str> = line
+        .split(": ")
+        .last()
+        .unwrap()
+        .split_whitespace()
+        .collect();
     let arg = |k: &str| cmd[cmd.iter().position(|a| *a == k).unwrap() + 1].to_string();
     assert_eq!(arg("--join"), id);
     // A node with a wrong token is turned away ...
     let bad = Command::new(bin("solid-node"))
-        .args(["--join", &id, "--node", "right", "--transport", "zenoh", "--connect", &arg("--connect"), "--token", "0000"])
+        .args([
+            "--join",
+            &id,
+            "--node",
+            "right",
+            "--transport",
+            "zenoh",
+            "--connect",
+            &arg("--connect"),
+            "--token",
+            "0000",
+        ])
         .env("COSIM_LOG", "error")
         .output()
         .unwrap();
-    assert_eq!(bad.status.code(), Some(2), "{}", String::from_utf8_lossy(&bad.stderr));
+    assert_eq!(
+        bad.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&bad.stderr)
+    );
     assert!(String::from_utf8_lossy(&bad.stderr).contains("rejected"));
     // ... the one with the printed token is let in and the run completes.
     let node = Command::new(bin("solid-node"))
-        .args(["--join", &id, "--node", "right", "--transport", "zenoh", "--connect", &arg("--connect"), "--token", &arg("--token")])
+        .args([
+            "--join",
+            &id,
+            "--node",
+            "right",
+            "--transport",
+            "zenoh",
+            "--connect",
+            &arg("--connect"),
+            "--token",
+            &arg("--token"),
+        ])
         .env("COSIM_LOG", "error")
         .output()
         .unwrap();
@@ -65,5 +105,10 @@ fn a_remote_node_joins_with_the_printed_command_and_token() {
     assert!(o.status.success());
     let local = node_series(&dir2.join("out/run.mcap"), "right", "tip_displacement");
     assert_eq!(remote.len(), local.len());
-    assert!(remote.iter().zip(&local).all(|(a, b)| a.1.to_bits() == b.1.to_bits()));
+    assert!(
+        remote
+            .iter()
+            .zip(&local)
+            .all(|(a, b)| a.1.to_bits() == b.1.to_bits())
+    );
 }

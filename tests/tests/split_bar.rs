@@ -23,7 +23,11 @@ fn run_split(
     );
     let s = summary(&out);
     // A finished run leaves nothing in shared memory.
-    assert!(shm_files(&id).is_empty(), "left in /dev/shm: {:?}", shm_files(&id));
+    assert!(
+        shm_files(&id).is_empty(),
+        "left in /dev/shm: {:?}",
+        shm_files(&id)
+    );
     (out, s)
 }
 

@@ -500,9 +500,14 @@ pub fn iceoryx_variant_rtt_us<S: iceoryx2::service::Service>(
     let run = bench_run_id();
     let setup = |e: &dyn std::fmt::Debug| TransportError::Setup(format!("{e:?}"));
     let mut config = Config::default();
-    config.global.prefix = FileName::new(super::shm::prefix(&run).as_bytes()).map_err(|e| setup(&e))?;
+    config.global.prefix =
+        FileName::new(super::shm::prefix(&run).as_bytes()).map_err(|e| setup(&e))?;
     let total = rounds + (rounds / 10).max(20);
-    let side = move |config: Config, me: &'static str, other: &'static str, lead: bool| -> Result<Vec<f64>, TransportError> {
+    let side = move |config: Config,
+                     me: &'static str,
+                     other: &'static str,
+                     lead: bool|
+          -> Result<Vec<f64>, TransportError> {
         let setup = |e: &dyn std::fmt::Debug| TransportError::Setup(format!("{e:?}"));
         let node = NodeBuilder::new()
             .config(&config)
@@ -530,11 +535,17 @@ pub fn iceoryx_variant_rtt_us<S: iceoryx2::service::Service>(
             .allocation_strategy(AllocationStrategy::PowerOfTwo)
             .create()
             .map_err(|e| setup(&e))?;
-        let sub = in_svc.subscriber_builder().create().map_err(|e| setup(&e))?;
+        let sub = in_svc
+            .subscriber_builder()
+            .create()
+            .map_err(|e| setup(&e))?;
         let my_bell = bell(&format!("{me}/bell"))?;
         let their_bell = bell(&format!("{other}/bell"))?;
         let listener = my_bell.listener_builder().create().map_err(|e| setup(&e))?;
-        let notifier = their_bell.notifier_builder().create().map_err(|e| setup(&e))?;
+        let notifier = their_bell
+            .notifier_builder()
+            .create()
+            .map_err(|e| setup(&e))?;
         while out_svc.dynamic_config().number_of_subscribers() == 0
             || their_bell.dynamic_config().number_of_listeners() == 0
         {

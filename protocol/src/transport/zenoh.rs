@@ -117,7 +117,10 @@ impl ZenohTransport {
                     let Ok(mut l) = live.lock() else { return };
                     match sample.kind() {
                         SampleKind::Put => {
-                            l.alive.entry(name.to_string()).or_default().insert(instance.to_string());
+                            l.alive
+                                .entry(name.to_string())
+                                .or_default()
+                                .insert(instance.to_string());
                         }
                         SampleKind::Delete => {
                             let empty = l.alive.get_mut(name).is_some_and(|set| {
@@ -258,7 +261,11 @@ impl Transport for ZenohTransport {
 
     fn declare_alive(&mut self) -> Result<(), TransportError> {
         if self.token.is_none() {
-            let key = format!("{}/{}", alive_key(&self.run, &self.endpoint), std::process::id());
+            let key = format!(
+                "{}/{}",
+                alive_key(&self.run, &self.endpoint),
+                std::process::id()
+            );
             let token = self
                 .session
                 .liveliness()
