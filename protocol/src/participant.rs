@@ -379,12 +379,25 @@ pub fn node_main(binary: &str, factory: SolverFactory) -> i32 {
         }
     };
     init_logging();
+    tune_allocator();
     match run_node(binary, factory, &args) {
         Ok(code) => code,
         Err(e) => {
             eprintln!("{binary} {}: {e:#}", args.node);
             1
         }
+    }
+}
+
+/// Keep freed message buffers in the heap: coupling messages of the same size come every
+/// window, and glibc would otherwise return each large buffer to the kernel and take page
+/// faults on fresh pages at the next one (measured: a third of an 8 MiB round trip).
+pub fn tune_allocator() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt only changes allocator thresholds; called before any thread starts.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, 256 << 20);
     }
 }
 
