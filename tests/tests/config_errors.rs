@@ -151,3 +151,13 @@ fn bad_solver_parameter_is_named() {
         "nodes.left.params.elements",
     );
 }
+
+#[test]
+fn parallel_schedule_is_refused_for_a_kinematic_coupling() {
+    // ARCHITECTURE §5: lagging the constraint force by a window is unstable.
+    refused(
+        "parallel",
+        |s| s.replace("window = 1e-6", "window = 1e-6\nschedule = \"parallel\""),
+        "run.schedule",
+    );
+}
