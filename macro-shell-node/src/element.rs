@@ -159,7 +159,7 @@ pub struct Geom {
 
 /// Frame and B-matrix at the positions `x`; `None` if the element is degenerate (zero or
 /// negative projected area).
-#[inline]
+#[inline(always)]
 pub fn geometry(x: &[[f64; 3]; 4]) -> Option<Geom> {
     let s31 = sub(x[2], x[0]);
     let s42 = sub(x[3], x[1]);
@@ -168,7 +168,8 @@ pub fn geometry(x: &[[f64; 3]; 4]) -> Option<Geom> {
     if nn.is_nan() || nn <= 0.0 {
         return None;
     }
-    let e3 = [n[0] / nn, n[1] / nn, n[2] / nn];
+    let r3 = 1.0 / nn;
+    let e3 = [n[0] * r3, n[1] * r3, n[2] * r3];
     let s21 = sub(x[1], x[0]);
     let p = dot(s21, e3);
     let t = [s21[0] - p * e3[0], s21[1] - p * e3[1], s21[2] - p * e3[2]];
@@ -176,7 +177,8 @@ pub fn geometry(x: &[[f64; 3]; 4]) -> Option<Geom> {
     if tn.is_nan() || tn <= 0.0 {
         return None;
     }
-    let e1 = [t[0] / tn, t[1] / tn, t[2] / tn];
+    let r1 = 1.0 / tn;
+    let e1 = [t[0] * r1, t[1] * r1, t[2] * r1];
     let e2 = cross(e3, e1);
     let c = [
         0.25 * (x[0][0] + x[1][0] + x[2][0] + x[3][0]),
@@ -315,16 +317,59 @@ pub struct ElemInput {
     pub w: [[f64; 3]; 4],
 }
 
+/// Constants shared by every element of a pass (material moduli and the thickness-free
+/// factors of the hourglass stiffnesses), computed once per pass instead of per element.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ElemConst {
+    /// Plane-stress modulus E/(1 − ν²).
+    pub c: f64,
+    pub nu: f64,
+    /// Shear modulus G = E/(2(1 + ν)).
+    pub g: f64,
+    /// −ν/E (thickness strain per in-plane stress increment, elastic).
+    pub nu_e: f64,
+    /// κ G (transverse shear stiffness per unit thickness).
+    pub ks: f64,
+    /// Hourglass factors: membrane c_m E, bending c_b E/12, transverse c_t κ G/12; multiplied
+    /// by h, h³, h³ (and A·Σb², A·Σb², Σb²) they give `hourglass_stiffness`.
+    pub hg: [f64; 3],
+    /// True for the elastic material (no return mapping).
+    pub elastic: bool,
+}
+
+impl ElemConst {
+    pub fn new(sec: &Section, mat: &Material) -> Self {
+        let e = mat.youngs();
+        let nu = mat.poisson();
+        let g = e / (2.0 * (1.0 + nu));
+        ElemConst {
+            c: e / (1.0 - nu * nu),
+            nu,
+            g,
+            nu_e: -nu / e,
+            ks: sec.shear_factor * g,
+            hg: [
+                sec.hg_membrane * e,
+                sec.hg_bending * e / 12.0,
+                sec.hg_transverse * sec.shear_factor * g / 12.0,
+            ],
+            elastic: matches!(mat, Material::Elastic { .. }),
+        }
+    }
+}
+
 /// One element, one step: update the stresses from the rate of deformation over `dt`, then
 /// write the nodal internal forces minus the pressure load (global frame, [f; m] per node)
-/// into `fe`. Returns `false` if the element became degenerate.
+/// into `fe`. Returns `false` if the element became degenerate. `kc` = `ElemConst::new(sec,
+/// mat)`, hoisted out of the element loop.
 #[allow(clippy::too_many_arguments)]
-#[inline]
+#[inline(always)]
 pub fn element_step(
     inp: &ElemInput,
     dt: f64,
     sec: &Section,
     mat: &Material,
+    kc: &ElemConst,
     pressure: f64,
     stress: &mut [f64],
     plastic: &mut [f64],
@@ -332,18 +377,19 @@ pub fn element_step(
     fe: &mut [[f64; 6]; 4],
 ) -> bool {
     let mut xm = inp.x;
+    let hdt = 0.5 * dt;
     for i in 0..4 {
         for k in 0..3 {
-            xm[i][k] -= 0.5 * dt * inp.v[i][k];
+            xm[i][k] -= hdt * inp.v[i][k];
         }
     }
-    let (gm, g1) = match (geometry(&xm), geometry(&inp.x)) {
-        (Some(a), Some(b)) => (a, b),
-        _ => return false,
+    // Both frames are built here, once each: mid-step for the rates, end-of-step for forces.
+    let Some(gm) = geometry(&xm) else {
+        return false;
     };
-    let e = mat.youngs();
-    let nu = mat.poisson();
-    let gmod = e / (2.0 * (1.0 + nu));
+    let Some(g1) = geometry(&inp.x) else {
+        return false;
+    };
     let h = res[R_H];
     // Local velocities and angular velocities on the mid-step frame.
     let mut vl = [[0.0; 3]; 4];
@@ -351,6 +397,8 @@ pub fn element_step(
     for i in 0..4 {
         for a in 0..3 {
             vl[i][a] = dot(gm.e[a], inp.v[i]);
+        }
+        for a in 0..2 {
             wl[i][a] = dot(gm.e[a], inp.w[i]);
         }
     }
@@ -386,56 +434,83 @@ pub fn element_step(
     let mut mres = [0.0; 3];
     let mut de_int = 0.0;
     let mut dzz = 0.0;
-    for k in 0..sec.nip {
-        let z = 0.5 * h * sec.zeta[k];
-        let wk = 0.5 * h * sec.weight[k];
-        let de = [
-            (dm[0] + z * kap[0]) * dt,
-            (dm[1] + z * kap[1]) * dt,
-            (dm[2] + z * kap[2]) * dt,
-        ];
-        let s = &mut stress[3 * k..3 * k + 3];
-        let old = [s[0], s[1], s[2]];
-        match mat {
-            Material::Elastic { youngs, poisson } => {
-                let c = youngs / (1.0 - poisson * poisson);
-                s[0] += c * (de[0] + poisson * de[1]);
-                s[1] += c * (poisson * de[0] + de[1]);
-                s[2] += gmod * de[2];
-                dzz += wk * (-poisson / youngs) * (s[0] - old[0] + s[1] - old[1]);
-            }
-            Material::J2(m) => {
-                let p = &mut plastic[PL * k..PL * k + PL];
-                let mut pt = PlaneStressPoint {
-                    stress: old,
-                    back: [p[0], p[1], p[2]],
-                    eqps: p[3],
-                };
-                let info = m.update(&mut pt, de);
-                s.copy_from_slice(&pt.stress);
-                p[..3].copy_from_slice(&pt.back);
-                p[3] = pt.eqps;
-                dzz += wk * info.d_eps_zz;
+    let nip = sec.nip;
+    let stress = &mut stress[..3 * nip];
+    if kc.elastic {
+        let (c, nu, gmod, nu_e) = (kc.c, kc.nu, kc.g, kc.nu_e);
+        for k in 0..nip {
+            let z = 0.5 * h * sec.zeta[k];
+            let wk = 0.5 * h * sec.weight[k];
+            let de = [
+                (dm[0] + z * kap[0]) * dt,
+                (dm[1] + z * kap[1]) * dt,
+                (dm[2] + z * kap[2]) * dt,
+            ];
+            let s = &mut stress[3 * k..3 * k + 3];
+            let old = [s[0], s[1], s[2]];
+            let ds = [
+                c * (de[0] + nu * de[1]),
+                c * (nu * de[0] + de[1]),
+                gmod * de[2],
+            ];
+            let sn = [old[0] + ds[0], old[1] + ds[1], old[2] + ds[2]];
+            s[0] = sn[0];
+            s[1] = sn[1];
+            s[2] = sn[2];
+            dzz += wk * nu_e * (sn[0] - old[0] + sn[1] - old[1]);
+            de_int += wk
+                * 0.5
+                * ((old[0] + sn[0]) * de[0] + (old[1] + sn[1]) * de[1] + (old[2] + sn[2]) * de[2]);
+            for c in 0..3 {
+                nres[c] += wk * sn[c];
+                mres[c] += wk * z * sn[c];
             }
         }
-        de_int += wk
-            * 0.5
-            * ((old[0] + s[0]) * de[0] + (old[1] + s[1]) * de[1] + (old[2] + s[2]) * de[2]);
-        for c in 0..3 {
-            nres[c] += wk * s[c];
-            mres[c] += wk * z * s[c];
+    } else if let Material::J2(m) = mat {
+        for k in 0..nip {
+            let z = 0.5 * h * sec.zeta[k];
+            let wk = 0.5 * h * sec.weight[k];
+            let de = [
+                (dm[0] + z * kap[0]) * dt,
+                (dm[1] + z * kap[1]) * dt,
+                (dm[2] + z * kap[2]) * dt,
+            ];
+            let s = &mut stress[3 * k..3 * k + 3];
+            let old = [s[0], s[1], s[2]];
+            let p = &mut plastic[PL * k..PL * k + PL];
+            let mut pt = PlaneStressPoint {
+                stress: old,
+                back: [p[0], p[1], p[2]],
+                eqps: p[3],
+            };
+            let info = m.update(&mut pt, de);
+            s.copy_from_slice(&pt.stress);
+            p[..3].copy_from_slice(&pt.back);
+            p[3] = pt.eqps;
+            dzz += wk * info.d_eps_zz;
+            de_int += wk
+                * 0.5
+                * ((old[0] + s[0]) * de[0] + (old[1] + s[1]) * de[1] + (old[2] + s[2]) * de[2]);
+            for c in 0..3 {
+                nres[c] += wk * s[c];
+                mres[c] += wk * z * s[c];
+            }
         }
     }
     // Transverse shear resultants Q = κ G h γ (elastic), incremental.
-    let ks = sec.shear_factor * gmod * h;
+    let ks = kc.ks * h;
     for c in 0..2 {
         let old = res[R_Q + c];
         res[R_Q + c] += ks * gs[c] * dt;
         de_int += 0.5 * (old + res[R_Q + c]) * gs[c] * dt;
     }
     de_int *= area_m;
-    // Hourglass resultants (stiffness form, so hourglass energy is stored, not dissipated).
-    let khg = hourglass_stiffness(sec, e, gmod, h, &gm);
+    // Hourglass resultants (stiffness form, so hourglass energy is stored, not dissipated);
+    // the stiffnesses of `hourglass_stiffness` from the hoisted factors.
+    let bb: f64 = (0..4).map(|i| b1[i] * b1[i] + b2[i] * b2[i]).sum();
+    let h3 = h * h * h;
+    let abb = area_m * bb;
+    let khg = [kc.hg[0] * h * abb, kc.hg[1] * h3 * abb, kc.hg[2] * h3 * bb];
     let kk = [khg[0], khg[0], khg[1], khg[1], khg[2]];
     for c in 0..5 {
         let old = res[R_HG + c];
@@ -457,27 +532,32 @@ pub fn element_step(
         res[R_HG + 4],
     ];
     let pa = 0.25 * pressure * a;
-    let mut wp = 0.0;
+    let an = [a * nres[0], a * nres[1], a * nres[2]];
+    let am = [a * mres[0], a * mres[1], a * mres[2]];
+    let aq = [a * q[0], a * q[1]];
     for i in 0..4 {
         let (c1, c2, gi) = (g1.b1[i], g1.b2[i], g1.gam[i]);
         let fl = [
-            a * (c1 * nres[0] + c2 * nres[2]) + gi * hg[0],
-            a * (c2 * nres[1] + c1 * nres[2]) + gi * hg[1],
-            a * (c1 * q[0] + c2 * q[1]) + gi * hg[4] - pa,
+            (c1 * an[0] + c2 * an[2]) + gi * hg[0],
+            (c2 * an[1] + c1 * an[2]) + gi * hg[1],
+            (c1 * aq[0] + c2 * aq[1]) + gi * hg[4] - pa,
         ];
         let ml = [
-            -a * (c2 * mres[1] + c1 * mres[2] + 0.25 * q[1]) + gi * hg[2],
-            a * (c1 * mres[0] + c2 * mres[2] + 0.25 * q[0]) + gi * hg[3],
+            -(c2 * am[1] + c1 * am[2] + 0.25 * aq[1]) + gi * hg[2],
+            (c1 * am[0] + c2 * am[2] + 0.25 * aq[0]) + gi * hg[3],
         ];
         for k in 0..3 {
             fe[i][k] = g1.e[0][k] * fl[0] + g1.e[1][k] * fl[1] + g1.e[2][k] * fl[2];
             fe[i][3 + k] = g1.e[0][k] * ml[0] + g1.e[1][k] * ml[1];
         }
-        if pressure != 0.0 {
+    }
+    if pressure != 0.0 {
+        let mut wp = 0.0;
+        for i in 0..4 {
             wp += pa * dot(g1.e[2], inp.v[i]) * dt;
         }
+        res[R_WPRES] += wp;
     }
-    res[R_WPRES] += wp;
     true
 }
 
