@@ -5,6 +5,7 @@
 //! rayon parallelises over rows; every reduction is per row then in row order.
 
 use crate::boundary::fill_ghosts;
+use crate::eos::Material;
 use crate::immersed;
 use crate::limiter::Limiter;
 use crate::mixture::{self, Phase};
@@ -158,6 +159,58 @@ fn prim_row<const NM: usize>(
     None
 }
 
+/// [`prim_row`] with a branch-free, vectorisable loop for a single ideal gas (the same
+/// arithmetic, so identical values); any inadmissible cell reruns the general row to name it.
+fn prim_row_fast<const NM: usize>(
+    ph: &[Phase; NM],
+    cons: &[f64],
+    prim: &mut [f64],
+    mx: usize,
+    irange: std::ops::Range<usize>,
+) -> Option<(usize, usize, f64)> {
+    let (gamma, inv_g, off) = match (&ph[0].eos, NM) {
+        (Material::Ideal(g), 1) => (g.gamma, ph[0].inv_g, ph[0].off),
+        _ => return prim_row::<NM>(ph, cons, prim, mx, irange),
+    };
+    let (lo, hi) = (irange.start, irange.end);
+    let n = hi - lo;
+    let c: [&[f64]; 5] = std::array::from_fn(|v| &cons[v * mx + lo..v * mx + hi]);
+    let (pr, rest) = prim.split_at_mut(mx);
+    let (pu, rest) = rest.split_at_mut(mx);
+    let (pv, rest) = rest.split_at_mut(mx);
+    let (pw, pp) = rest.split_at_mut(mx);
+    let (pr, pu, pv, pw) = (
+        &mut pr[lo..hi],
+        &mut pu[lo..hi],
+        &mut pv[lo..hi],
+        &mut pw[lo..hi],
+    );
+    let pp = &mut pp[lo..hi];
+    let (c0, c1, c2s, c3, c4) = (&c[0][..n], &c[1][..n], &c[2][..n], &c[3][..n], &c[4][..n]);
+    let mut bad = false;
+    for t in 0..n {
+        let a = c0[t];
+        let rho = 0.0 + a;
+        let inv = 1.0 / rho;
+        let u = c1[t] * inv;
+        let v = c2s[t] * inv;
+        let w = c3[t] * inv;
+        let rhoe = c4[t] - 0.5 * rho * (u * u + v * v + w * w);
+        let p = (rhoe - 1.0 * off) / inv_g;
+        let cc = gamma * p / rho;
+        bad |= !(a >= 0.0) | !(rho > 0.0) | !(cc > 0.0) | !cc.is_finite() | !p.is_finite();
+        pr[t] = a;
+        pu[t] = u;
+        pv[t] = v;
+        pw[t] = w;
+        pp[t] = p;
+    }
+    if bad {
+        return prim_row::<NM>(ph, cons, prim, mx, irange);
+    }
+    None
+}
+
 /// Primitive variables of every interior cell; a diverged cell becomes an error naming the
 /// cell, the time and the variable.
 fn prim_all<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], stage: usize) -> SolverResult<()> {
@@ -172,7 +225,7 @@ fn prim_all<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], stage: usize) -> S
         .enumerate()
         .for_each(|(r, ((c, p), bad))| {
             *bad = if grid.interior_row(r) {
-                prim_row::<NM>(ph, c, p, mx, ir.clone())
+                prim_row_fast::<NM>(ph, c, p, mx, ir.clone())
             } else {
                 None
             };
@@ -213,7 +266,31 @@ fn max_rate<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM]) -> f64 {
         .enumerate()
         .for_each(|(r, (p, out))| {
             let mut m = 0.0_f64;
-            if grid.interior_row(r) {
+            let ideal = match (&ph[0].eos, NM) {
+                (Material::Ideal(g), 1) => Some(g.gamma),
+                _ => None,
+            };
+            if let (true, Some(gamma)) = (grid.interior_row(r), ideal) {
+                // single ideal gas: the same arithmetic as `face_state` on contiguous slices
+                let (lo, hi) = (ir.start, ir.end);
+                let rho = &p[lo..hi];
+                let n = rho.len();
+                let vel: [&[f64]; 3] = std::array::from_fn(|d| &p[(1 + d) * mx + lo..][..n]);
+                let pr = &p[4 * mx + lo..][..n];
+                for t in 0..n {
+                    let c2 = gamma * pr[t] / rho[t];
+                    let c = if rho[t] > 0.0 && c2 > 0.0 && c2.is_finite() {
+                        c2.sqrt()
+                    } else {
+                        f64::INFINITY
+                    };
+                    let mut s = 0.0;
+                    for d in 0..nd {
+                        s += (vel[d][t].abs() + c) * idx[d];
+                    }
+                    m = m.max(s);
+                }
+            } else if grid.interior_row(r) {
                 for i in ir.clone() {
                     let mut q = [0.0; MAXF];
                     for (v, qv) in q.iter_mut().enumerate().take(nv) {
@@ -235,13 +312,37 @@ fn max_rate<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM]) -> f64 {
     f.row_max.iter().fold(0.0, |a, &b| a.max(b))
 }
 
+thread_local! {
+    /// Per-thread scratch for one line of reconstructed face values (left block, right
+    /// block, each nv·mx); grows once, then reused every step (no allocation per step).
+    static LINE_SCRATCH: std::cell::RefCell<Vec<f64>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Limited MUSCL face values of one variable along a line: `lo[i] = q1[i] + ½σ(q1-q0,
+/// q2-q1)`, `hi[i] = q2[i] - ½σ(q2-q1, q3-q2)` for i in `range`, where `qs[s][i]` is stencil
+/// cell s of face i. Written as a plain slice loop so that it vectorises.
+#[inline(always)]
+fn recon_var<S: Fn(f64, f64) -> f64>(slope: S, qs: [&[f64]; 4], lo: &mut [f64], hi: &mut [f64]) {
+    let n = lo.len();
+    let (q0, q1, q2, q3) = (&qs[0][..n], &qs[1][..n], &qs[2][..n], &qs[3][..n]);
+    let hi = &mut hi[..n];
+    for i in 0..n {
+        let dm = q1[i] - q0[i];
+        let dc = q2[i] - q1[i];
+        let dp = q3[i] - q2[i];
+        lo[i] = q1[i] + 0.5 * slope(dm, dc);
+        hi[i] = q2[i] - 0.5 * slope(dc, dp);
+    }
+}
+
 /// MUSCL-reconstructed HLLC fluxes along one line of faces. `rows[s]` holds stencil cell s
 /// (s = 0..3 around the face between cells 1 and 2) at x index `i + sh[s] - 1`.
+/// Two passes: the limited face values of the whole line (vectorisable, one limiter call per
+/// face side), then the Riemann solve of every face.
 #[allow(clippy::too_many_arguments)]
-fn flux_line<const NM: usize>(
+fn flux_line<const NM: usize, const D: usize>(
     ph: &[Phase; NM],
     lim: Limiter,
-    d: usize,
     rows: [&[f64]; 4],
     sh: [usize; 4],
     out: &mut [f64],
@@ -249,41 +350,115 @@ fn flux_line<const NM: usize>(
     irange: std::ops::Range<usize>,
 ) {
     let nv = 2 * NM + 3;
-    for i in irange {
-        let mut q = [[0.0; MAXF]; 4];
-        for s in 0..4 {
-            let o = i + sh[s] - 1;
-            for v in 0..nv {
-                q[s][v] = rows[s][v * mx + o];
+    let (i0, i1) = (irange.start, irange.end);
+    let len = i1 - i0;
+    LINE_SCRATCH.with(|cell| {
+        let mut buf = cell.borrow_mut();
+        if buf.len() < (2 * nv + 4) * len {
+            buf.resize((2 * nv + 4) * len, 0.0);
+        }
+        let (lb, rest) = buf.split_at_mut(nv * len);
+        let (rb, extra) = rest.split_at_mut(nv * len);
+        for v in 0..nv {
+            let qs: [&[f64]; 4] =
+                std::array::from_fn(|s| &rows[s][v * mx + i0 + sh[s] - 1..v * mx + i1 + sh[s] - 1]);
+            let lo = &mut lb[v * len..(v + 1) * len];
+            let hi = &mut rb[v * len..(v + 1) * len];
+            match lim {
+                Limiter::Minmod => recon_var(crate::limiter::minmod, qs, lo, hi),
+                Limiter::VanLeer => recon_var(crate::limiter::van_leer, qs, lo, hi),
+                Limiter::Mc => recon_var(crate::limiter::mc, qs, lo, hi),
             }
         }
-        let mut l = [0.0; MAXF];
-        let mut r = [0.0; MAXF];
-        for v in 0..nv {
-            let dm = q[1][v] - q[0][v];
-            let dc = q[2][v] - q[1][v];
-            let dp = q[3][v] - q[2][v];
-            l[v] = q[1][v] + 0.5 * lim.slope(dm, dc);
-            r[v] = q[2][v] - 0.5 * lim.slope(dc, dp);
-        }
-        let (sl, sr) = match (face_state::<NM>(ph, &l), face_state::<NM>(ph, &r)) {
-            (Some(a), Some(b)) => (a, b),
-            // first order where the reconstruction leaves the admissible set
-            _ => match (face_state::<NM>(ph, &q[1]), face_state::<NM>(ph, &q[2])) {
-                (Some(a), Some(b)) => (a, b),
-                _ => {
-                    for v in 0..=nv {
-                        out[v * mx + i] = f64::NAN;
-                    }
-                    continue;
-                }
-            },
+        // single ideal gas: sound speed and total energy of every face side in one
+        // vectorisable pass (the same arithmetic as `face_state`, so identical values);
+        // c = NaN marks a side `face_state` would reject, which then takes the general path
+        let ideal = match (&ph[0].eos, NM) {
+            (Material::Ideal(g), 1) => Some((g.gamma, ph[0].inv_g, ph[0].off)),
+            _ => None,
         };
-        let fl = hllc::flux::<NM>(&sl, &sr, d);
-        for v in 0..=nv {
-            out[v * mx + i] = fl[v];
+        let (ce, _) = extra.split_at_mut(4 * len);
+        if let Some((gamma, inv_g, off)) = ideal {
+            let (cl, rest) = ce.split_at_mut(len);
+            let (el, rest) = rest.split_at_mut(len);
+            let (cr, er) = rest.split_at_mut(len);
+            for (qb, c, e) in [(&*lb, cl, el), (&*rb, cr, er)] {
+                let (rho, rest) = qb.split_at(len);
+                let (vx, rest) = rest.split_at(len);
+                let (vy, rest) = rest.split_at(len);
+                let (vz, pr) = rest.split_at(len);
+                let e = &mut e[..len];
+                let pr = &pr[..len];
+                for t in 0..len {
+                    let (r, p) = (rho[t], pr[t]);
+                    let c2 = gamma * p / r;
+                    let ok = r > 0.0 && c2 > 0.0 && c2.is_finite();
+                    c[t] = if ok { c2.sqrt() } else { f64::NAN };
+                    e[t] = (p * inv_g + 1.0 * off)
+                        + 0.5 * r * (vx[t] * vx[t] + vy[t] * vy[t] + vz[t] * vz[t]);
+                }
+            }
         }
-    }
+        let (cl, rest) = ce.split_at(len);
+        let (el, rest) = rest.split_at(len);
+        let (cr, er) = rest.split_at(len);
+        for (t, i) in (i0..i1).enumerate() {
+            if ideal.is_some() && !cl[t].is_nan() && !cr[t].is_nan() {
+                let side = |qb: &[f64], c: f64, e: f64| {
+                    let rho = qb[t];
+                    let mut ar = [0.0; NM];
+                    let mut al = [0.0; NM];
+                    ar[0] = rho;
+                    al[0] = 1.0;
+                    FaceState::<NM> {
+                        ar,
+                        al,
+                        vel: [qb[len + t], qb[2 * len + t], qb[3 * len + t]],
+                        p: qb[4 * len + t],
+                        rho,
+                        e,
+                        c,
+                    }
+                };
+                let fl = hllc::flux_dir::<NM, D>(&side(lb, cl[t], el[t]), &side(rb, cr[t], er[t]));
+                for v in 0..=nv {
+                    out[v * mx + i] = fl[v];
+                }
+                continue;
+            }
+            let mut l = [0.0; MAXF];
+            let mut r = [0.0; MAXF];
+            for v in 0..nv {
+                l[v] = lb[v * len + t];
+                r[v] = rb[v * len + t];
+            }
+            let (sl, sr) = match (face_state::<NM>(ph, &l), face_state::<NM>(ph, &r)) {
+                (Some(a), Some(b)) => (a, b),
+                // first order where the reconstruction leaves the admissible set
+                _ => {
+                    let mut q1 = [0.0; MAXF];
+                    let mut q2 = [0.0; MAXF];
+                    for v in 0..nv {
+                        q1[v] = rows[1][v * mx + i + sh[1] - 1];
+                        q2[v] = rows[2][v * mx + i + sh[2] - 1];
+                    }
+                    match (face_state::<NM>(ph, &q1), face_state::<NM>(ph, &q2)) {
+                        (Some(a), Some(b)) => (a, b),
+                        _ => {
+                            for v in 0..=nv {
+                                out[v * mx + i] = f64::NAN;
+                            }
+                            continue;
+                        }
+                    }
+                }
+            };
+            let fl = hllc::flux_dir::<NM, D>(&sl, &sr);
+            for v in 0..=nv {
+                out[v * mx + i] = fl[v];
+            }
+        }
+    });
 }
 
 /// Fluxes through every interior face in direction d.
@@ -309,10 +484,9 @@ fn fluxes<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], d: usize) {
                         return;
                     }
                     let row = &prim[r * rowblk..(r + 1) * rowblk];
-                    flux_line::<NM>(
+                    flux_line::<NM, 0>(
                         ph,
                         lim,
-                        0,
                         [row; 4],
                         [0, 1, 2, 3],
                         out,
@@ -334,16 +508,12 @@ fn fluxes<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], d: usize) {
                         let q = (r as isize + o * stride as isize) as usize;
                         &prim[q * rowblk..(q + 1) * rowblk]
                     };
-                    flux_line::<NM>(
-                        ph,
-                        lim,
-                        d,
-                        [rr(-1), rr(0), rr(1), rr(2)],
-                        [1, 1, 1, 1],
-                        out,
-                        mx,
-                        grid.irange(),
-                    );
+                    let rows = [rr(-1), rr(0), rr(1), rr(2)];
+                    if d == 1 {
+                        flux_line::<NM, 1>(ph, lim, rows, [1; 4], out, mx, grid.irange());
+                    } else {
+                        flux_line::<NM, 2>(ph, lim, rows, [1; 4], out, mx, grid.irange());
+                    }
                 }
             }
         });
@@ -384,34 +554,46 @@ fn update<const NM: usize>(f: &mut Fluid, a: f64, b: f64, dt: f64) {
                 (fx, fx)
             };
             let uf = nv * mx;
+            let (lo, hi) = (ir.start, ir.end);
+            let n = hi - lo;
+            // face velocities (Johnsen–Colonius) for the α rows
+            let ufx = &fx[uf + lo - 1..uf + hi];
+            let (ufy, ufym) = (&fy[uf + lo..uf + hi], &fym[uf + lo..uf + hi]);
+            let (ufz, ufzm) = (&fz[uf + lo..uf + hi], &fzm[uf + lo..uf + hi]);
             for v in 0..nv {
                 let o = v * mx;
                 let is_alpha = v >= NM + 4;
-                for i in ir.clone() {
-                    let mut dfx = fx[o + i] - fx[o + i - 1];
+                // slices of exactly n (n + 1 for x faces) so the loop has no bounds checks
+                let uv = &mut u[o + lo..o + hi];
+                let u0v = &u0[o + lo..o + hi];
+                let fxv = &fx[o + lo - 1..o + hi];
+                let (fyv, fymv) = (&fy[o + lo..o + hi], &fym[o + lo..o + hi]);
+                let (fzv, fzmv) = (&fz[o + lo..o + hi], &fzm[o + lo..o + hi]);
+                for t in 0..n {
+                    let mut dfx = fxv[t + 1] - fxv[t];
                     if is_alpha {
-                        dfx -= u[o + i] * (fx[uf + i] - fx[uf + i - 1]);
+                        dfx -= uv[t] * (ufx[t + 1] - ufx[t]);
                     }
                     let mut res = -dfx * idx[0];
                     if nd > 1 {
-                        let mut dfy = fy[o + i] - fym[o + i];
+                        let mut dfy = fyv[t] - fymv[t];
                         if is_alpha {
-                            dfy -= u[o + i] * (fy[uf + i] - fym[uf + i]);
+                            dfy -= uv[t] * (ufy[t] - ufym[t]);
                         }
                         res -= dfy * idx[1];
                     }
                     if nd > 2 {
-                        let mut dfz = fz[o + i] - fzm[o + i];
+                        let mut dfz = fzv[t] - fzmv[t];
                         if is_alpha {
-                            dfz -= u[o + i] * (fz[uf + i] - fzm[uf + i]);
+                            dfz -= uv[t] * (ufz[t] - ufzm[t]);
                         }
                         res -= dfz * idx[2];
                     }
-                    let mut nu = a * u0[o + i] + b * (u[o + i] + dt * res);
+                    let mut nu = a * u0v[t] + b * (uv[t] + dt * res);
                     if is_alpha {
                         nu = nu.clamp(0.0, 1.0);
                     }
-                    u[o + i] = nu;
+                    uv[t] = nu;
                 }
             }
         });

@@ -12,13 +12,13 @@ pub fn bin_dir() -> PathBuf {
     deps.parent().expect("profile dir").to_path_buf()
 }
 
-/// Path of a workspace binary; the tests need `cargo build --workspace` (which
-/// `cargo test --workspace` does first).
+/// Path of a workspace binary; the end-to-end tests need `cargo build --release --workspace`
+/// first (`cargo test` does not build the binaries of other packages).
 pub fn bin(name: &str) -> PathBuf {
     let p = bin_dir().join(name);
     assert!(
         p.is_file(),
-        "{} not built: run the tests with `cargo test --release --workspace`",
+        "{} not built: run `cargo build --release --workspace && cargo test --release --workspace`",
         p.display()
     );
     p

@@ -12,6 +12,21 @@ use super::{FaceState, MAXF};
 /// Entries of the α block hold (u α)_face; the last entry holds u_face (Johnsen–Colonius).
 #[inline(always)]
 pub fn flux<const NM: usize>(l: &FaceState<NM>, r: &FaceState<NM>, d: usize) -> [f64; MAXF] {
+    match d {
+        0 => flux_dir::<NM, 0>(l, r),
+        1 => flux_dir::<NM, 1>(l, r),
+        _ => flux_dir::<NM, 2>(l, r),
+    }
+}
+
+/// [`flux`] with the normal direction `D` fixed at compile time (the hot-loop form: every
+/// component index is then a constant and the flux vector stays in registers).
+#[inline(always)]
+pub fn flux_dir<const NM: usize, const D: usize>(
+    l: &FaceState<NM>,
+    r: &FaceState<NM>,
+) -> [f64; MAXF] {
+    let d = D;
     let ul = l.vel[d];
     let ur = r.vel[d];
     // Davis wave-speed estimates
@@ -25,9 +40,9 @@ pub fn flux<const NM: usize>(l: &FaceState<NM>, r: &FaceState<NM>, d: usize) -> 
     let ss = num / den;
     let mut f = [0.0; MAXF];
     if ss >= 0.0 {
-        side(l, d, sl, ss, &mut f);
+        side::<NM, D>(l, sl, ss, &mut f);
     } else {
-        side(r, d, sr, ss, &mut f);
+        side::<NM, D>(r, sr, ss, &mut f);
     }
     f
 }
@@ -35,7 +50,8 @@ pub fn flux<const NM: usize>(l: &FaceState<NM>, r: &FaceState<NM>, d: usize) -> 
 /// Flux of one side: F_K if the fan is entirely on the other side of the face, F*_K
 /// otherwise (F*_K = F_K + s_K (U*_K - U_K)).
 #[inline(always)]
-fn side<const NM: usize>(q: &FaceState<NM>, d: usize, sk: f64, ss: f64, f: &mut [f64; MAXF]) {
+fn side<const NM: usize, const D: usize>(q: &FaceState<NM>, sk: f64, ss: f64, f: &mut [f64; MAXF]) {
+    let d = D;
     let un = q.vel[d];
     let nf = 2 * NM + 3;
     // physical flux
