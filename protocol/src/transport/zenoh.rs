@@ -280,7 +280,14 @@ impl Transport for ZenohTransport {
     fn lost_endpoints(&mut self) -> Vec<String> {
         self.liveliness
             .lock()
-            .map(|mut l| std::mem::take(&mut l.lost))
+            .map(|mut l| {
+                // An endpoint that is alive again by now (another process of that name, e.g.
+                // after one was turned away for a wrong token) is not lost.
+                let lost = std::mem::take(&mut l.lost);
+                lost.into_iter()
+                    .filter(|n| !l.alive.contains_key(n))
+                    .collect()
+            })
             .unwrap_or_default()
     }
 }
