@@ -277,8 +277,12 @@ pub struct StepReport {
     pub interface_impulse: [f64; 3],
     pub substeps: u64,
     pub wall_s: f64,
-    /// Time the node spent waiting for and exchanging coupling data in this window (s).
+    /// Time the node spent blocked on its peers' coupling data in this window, with the
+    /// window's command in hand (s): load imbalance plus transport latency.
     pub coupling_wait_s: f64,
+    /// Time the node waited for the coordinator's next command before this window (s): the
+    /// slowest node of the previous window finishing, plus the round trip.
+    pub idle_s: f64,
     /// Named extra scalars (probes, tip displacement, ...), for plots and replay reports.
     pub scalars: Vec<(String, f64)>,
 }
@@ -292,8 +296,12 @@ pub struct Done {
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Heartbeat {
+    /// Last window the node finished.
     pub window: u64,
     pub substeps: u64,
+    /// The node has a window to run but is blocked on a peer's input (a deadlock shows as
+    /// every node waiting).
+    pub waiting: bool,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -156,8 +156,10 @@ impl NodeEngine {
     /// Label of the peer output window `window` consumes on link `l` (None: nothing needed).
     fn needed(l: &Link, window: u64) -> Option<u64> {
         if window == 0 {
-            // Set-up: only the lagged side waits, for its peer's set-up fields.
-            return (l.b.input_lag == 1).then_some(0);
+            // Set-up: the driver waits for its responder's set-up fields (the kinematic
+            // coupling's mass and stiffness); the responder sets up at once, whatever the
+            // schedule (in `parallel` both sides lag, and both waiting would deadlock).
+            return (l.b.role == Role::Driver).then_some(0);
         }
         Some(window - l.b.input_lag)
     }
@@ -505,9 +507,11 @@ fn run_node(binary: &str, factory: SolverFactory, args: &NodeArgs) -> anyhow::Re
     }
     // Heartbeats from a thread, so a long window does not look like a hang.
     let alive = Arc::new(AtomicBool::new(true));
+    let progress = Arc::new(Progress::default());
     let hb = {
         let mut p = w.t.publisher(&up_topic, &coordinator)?;
         let alive = alive.clone();
+        let progress = progress.clone();
         let (run, me, seq) = (w.run.clone(), w.me.clone(), w.seq.clone());
         let period = Duration::from_millis(welcome.heartbeat_ms.max(10));
         std::thread::spawn(move || {
@@ -521,8 +525,9 @@ fn run_node(binary: &str, factory: SolverFactory, args: &NodeArgs) -> anyhow::Re
                 last = Instant::now();
                 let s = seq.fetch_add(1, Ordering::Relaxed);
                 let m = Message::Heartbeat(Heartbeat {
-                    window: 0,
-                    substeps: 0,
+                    window: progress.window.load(Ordering::Relaxed),
+                    substeps: progress.substeps.load(Ordering::Relaxed),
+                    waiting: progress.waiting.load(Ordering::Relaxed),
                 });
                 if encode_into(&mut buf, &run, &me, s, &m).is_ok() {
                     let _ = p.send(&buf);
@@ -530,7 +535,7 @@ fn run_node(binary: &str, factory: SolverFactory, args: &NodeArgs) -> anyhow::Re
             }
         })
     };
-    let result = node_loop(&mut w, &mut engine, &welcome, &args.node);
+    let result = node_loop(&mut w, &mut engine, &welcome, &args.node, &progress);
     alive.store(false, Ordering::Relaxed);
     let _ = hb.join();
     match result {
@@ -539,11 +544,20 @@ fn run_node(binary: &str, factory: SolverFactory, args: &NodeArgs) -> anyhow::Re
     }
 }
 
+/// What the heartbeat thread reports of the main loop.
+#[derive(Default)]
+struct Progress {
+    window: AtomicU64,
+    substeps: AtomicU64,
+    waiting: AtomicBool,
+}
+
 fn node_loop(
     w: &mut Wire,
     engine: &mut NodeEngine,
     welcome: &Welcome,
     me: &str,
+    progress: &Progress,
 ) -> anyhow::Result<i32> {
     let desc = engine.solver.describe();
     let describe = Message::Describe(Describe {
@@ -602,6 +616,8 @@ fn node_loop(
     let mut window: u64 = 0;
     let mut set_up = false;
     let mut wait_s = 0.0;
+    let mut idle_s = 0.0;
+    let mut substeps = 0u64;
     loop {
         // Act on what can be done now.
         if !set_up && engine.meshes_complete() && engine.ready(0) {
@@ -647,17 +663,31 @@ fn node_loop(
                 }
                 report.wall_s = started.elapsed().as_secs_f64();
                 report.coupling_wait_s = wait_s;
+                report.idle_s = idle_s;
                 wait_s = 0.0;
+                idle_s = 0.0;
                 window = a.window;
+                substeps += report.substeps;
+                progress.window.store(window, Ordering::Relaxed);
+                progress.substeps.store(substeps, Ordering::Relaxed);
                 w.send_up(&Message::Done(Done { window, report }))?;
                 continue;
             }
         }
-        // Otherwise wait for something to arrive.
+        // Otherwise wait for something to arrive: a peer's input when a window is in hand (or
+        // set-up is pending), else the next command.
+        let on_input = !set_up || matches!(pending_cmd.front(), Some(Message::Advance(_)));
+        progress.waiting.store(on_input, Ordering::Relaxed);
         let waited = Instant::now();
         let got = recv_one(w, Duration::from_millis(500))?;
+        progress.waiting.store(false, Ordering::Relaxed);
         if set_up {
-            wait_s += waited.elapsed().as_secs_f64();
+            let dt = waited.elapsed().as_secs_f64();
+            if on_input {
+                wait_s += dt;
+            } else {
+                idle_s += dt;
+            }
         }
         match got {
             None => {}

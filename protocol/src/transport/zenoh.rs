@@ -6,15 +6,19 @@
 
 use super::{Publisher, TopicId, Transport, TransportError, TransportSpec};
 use std::collections::BTreeSet;
-use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, channel};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, TryRecvError, channel};
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 use zenoh::bytes::ZBytes;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::SampleKind;
 use zenoh::{Config, Session, Wait};
+
+/// Environment variable with extra zenoh settings, `key=json5value;...` (zenoh config paths
+/// such as `transport/link/tls/root_ca_certificate="ca.pem"`), applied by every endpoint.
+pub const ZENOH_CONFIG_ENV: &str = "COSIM_ZENOH_CONFIG";
 
 /// Key expression of the liveliness token of `endpoint`.
 pub fn alive_key(run: &str, endpoint: &str) -> String {
@@ -63,6 +67,18 @@ fn config(spec: &TransportSpec) -> Result<Config, TransportError> {
     set(&mut c, "scouting/gossip/enabled", "false")?;
     set(&mut c, "listen/endpoints", &json_list(&spec.listen))?;
     set(&mut c, "connect/endpoints", &json_list(&spec.connect))?;
+    // Site-specific settings (TLS, interfaces, timeouts, ...): `key=json5;key=json5` in
+    // COSIM_ZENOH_CONFIG, applied on top of the above.
+    if let Ok(extra) = std::env::var(ZENOH_CONFIG_ENV) {
+        for item in extra.split(';').map(str::trim).filter(|s| !s.is_empty()) {
+            let Some((k, v)) = item.split_once('=') else {
+                return Err(TransportError::Setup(format!(
+                    "{ZENOH_CONFIG_ENV}: '{item}' is not key=value"
+                )));
+            };
+            set(&mut c, k.trim(), v.trim())?;
+        }
+    }
     Ok(c)
 }
 
@@ -87,6 +103,8 @@ pub struct ZenohTransport {
     _alive_sub: Option<Subscriber<()>>,
     /// Reused when a payload arrives in several fragments and must be made contiguous.
     scratch: Vec<u8>,
+    /// How long `recv` polls before it blocks.
+    spin: Duration,
     session: Session,
 }
 
@@ -148,6 +166,7 @@ impl ZenohTransport {
             liveliness,
             _alive_sub: alive_sub,
             scratch: Vec::new(),
+            spin: spin_time(),
             session,
         })
     }
@@ -164,6 +183,37 @@ impl ZenohTransport {
     pub fn endpoint(&self) -> &str {
         &self.endpoint
     }
+
+    /// Next message within `timeout`: polled (yielding the CPU between polls) for up to
+    /// `spin` first, then a blocking wait. On a virtual machine an idle CPU sleeps deeply and
+    /// waking it costs ~50 µs per message; polling for a short while keeps an answer that
+    /// comes quickly (a window exchange) off that path, at the price of that much CPU per wait.
+    fn poll(&mut self, timeout: Duration) -> Result<Inbox, RecvTimeoutError> {
+        let start = Instant::now();
+        let spin = self.spin.min(timeout);
+        loop {
+            match self.rx.try_recv() {
+                Ok(m) => return Ok(m),
+                Err(TryRecvError::Disconnected) => return Err(RecvTimeoutError::Disconnected),
+                Err(TryRecvError::Empty) => {}
+            }
+            let waited = start.elapsed();
+            if waited >= spin {
+                return self.rx.recv_timeout(timeout.saturating_sub(waited));
+            }
+            std::thread::yield_now();
+        }
+    }
+}
+
+/// Polling time of [`ZenohTransport`]'s receive before it blocks, µs (environment
+/// `COSIM_ZENOH_SPIN_US`, default 200; 0 blocks at once).
+fn spin_time() -> Duration {
+    let us = std::env::var("COSIM_ZENOH_SPIN_US")
+        .ok()
+        .and_then(|v| v.trim().parse::<u64>().ok())
+        .unwrap_or(200);
+    Duration::from_micros(us)
 }
 
 impl Drop for ZenohTransport {
@@ -235,7 +285,7 @@ impl Transport for ZenohTransport {
         timeout: Duration,
         f: &mut dyn FnMut(TopicId, &[u8]),
     ) -> Result<bool, TransportError> {
-        let (id, payload) = match self.rx.recv_timeout(timeout) {
+        let (id, payload) = match self.poll(timeout) {
             Ok(m) => m,
             Err(RecvTimeoutError::Timeout) => return Ok(false),
             Err(RecvTimeoutError::Disconnected) => {
