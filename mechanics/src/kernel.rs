@@ -108,6 +108,52 @@ pub fn rk_row(
     Ok(())
 }
 
+/// First-order RK values only (no gradients) of one row: `phi[J] = e₀ᵀ M⁻¹ H(d_J) w_J c_J`
+/// with `M = Σ_J H(d_J) H(d_J)ᵀ w_J c_J`, for quadrature weights `c` (e.g. particle masses).
+/// `Σ_J phi_J = 1` and `Σ_J phi_J d_J = 0` to round-off. Only the first row of `M⁻¹` is
+/// needed, so this is cheaper than [`rk_row`]. Used for the *gather* smoothing weights of
+/// MC-SPG (seed 004 eq. 2–3, see `meso-joint-node` `shape.rs`).
+#[allow(clippy::needless_range_loop)]
+pub fn rk_values(
+    d: &[[f64; 3]],
+    w: &[f64],
+    c: &[f64],
+    scale: f64,
+    phi: &mut [f64],
+) -> Result<(), KernelError> {
+    let n = d.len();
+    if w.len() != n || c.len() != n || phi.len() != n {
+        return Err(KernelError::Length);
+    }
+    let inv_s = 1.0 / scale;
+    let mut m = [[0.0f64; 4]; 4];
+    let mut wsum = 0.0;
+    for j in 0..n {
+        let h = [1.0, d[j][0] * inv_s, d[j][1] * inv_s, d[j][2] * inv_s];
+        let cw = w[j] * c[j];
+        wsum += cw;
+        for a in 0..4 {
+            for b in a..4 {
+                m[a][b] += h[a] * h[b] * cw;
+            }
+        }
+    }
+    for a in 0..4 {
+        for b in 0..a {
+            m[a][b] = m[b][a];
+        }
+    }
+    let minv = invert_spd4(&m, wsum)?;
+    let r0 = minv[0];
+    for j in 0..n {
+        let h1 = d[j][0] * inv_s;
+        let h2 = d[j][1] * inv_s;
+        let h3 = d[j][2] * inv_s;
+        phi[j] = (r0[0] + r0[1] * h1 + r0[2] * h2 + r0[3] * h3) * w[j] * c[j];
+    }
+    Ok(())
+}
+
 /// Inverse of a symmetric positive (semi)definite 4×4 matrix by Cholesky; refuses a pivot
 /// below `1e-10 · ref` (relative singularity test).
 #[allow(clippy::needless_range_loop)]
@@ -245,6 +291,44 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    #[test]
+    #[allow(clippy::needless_range_loop)]
+    fn value_rows_match_full_rows_and_reproduce_linear_fields() {
+        let h = 1e-3;
+        let x = cloud(5, h, 0.3);
+        let a = 1.8 * h;
+        let i = 2 * 25 + 2 * 5 + 2;
+        let xi = x[i];
+        let mut d = Vec::new();
+        let mut w = Vec::new();
+        let mut c = Vec::new();
+        for (k, p) in x.iter().enumerate() {
+            let dj = [p[0] - xi[0], p[1] - xi[1], p[2] - xi[2]];
+            let r = (dj[0] * dj[0] + dj[1] * dj[1] + dj[2] * dj[2]).sqrt();
+            if r < a {
+                d.push(dj);
+                w.push(cubic_spline(r / a));
+                // Non-uniform weights (like scaled masses).
+                c.push(1.0 + 0.5 * ((k * 7919) % 13) as f64);
+            }
+        }
+        let n = d.len();
+        let mut phi = vec![0.0; n];
+        let mut phi_full = vec![0.0; n];
+        let mut grad = vec![[0.0; 3]; n];
+        rk_values(&d, &w, &c, a, &mut phi).unwrap();
+        rk_row(&d, &w, &c, a, &mut phi_full, &mut grad).unwrap();
+        let sum: f64 = phi.iter().sum();
+        assert!((sum - 1.0).abs() < 1e-14, "partition of unity {sum}");
+        for r in 0..3 {
+            let m1: f64 = (0..n).map(|j| phi[j] * d[j][r]).sum();
+            assert!(m1.abs() < 1e-14 * h, "first moment {m1:e}");
+        }
+        for j in 0..n {
+            assert!((phi[j] - phi_full[j]).abs() < 1e-13, "entry {j}");
         }
     }
 

@@ -4,6 +4,7 @@
 //! One concern per file.
 
 pub mod damage;
+pub mod gpu;
 pub mod j2;
 pub mod j2_plane_stress;
 pub mod kernel;

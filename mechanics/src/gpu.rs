@@ -1,0 +1,508 @@
+//! Shared GPU plumbing for the solver nodes' compute paths (issue 8; seed 002 §4 runs its FVM
+//! and SPH kernels on one GPU): device acquisition through wgpu, the arithmetic precision
+//! (f64 where the adapter has `SHADER_F64`, otherwise f32 with a warning), error scopes that
+//! turn wgpu validation / out-of-memory / internal errors into `Err` instead of a panic, and
+//! helpers for storage buffers, uploads and readbacks.
+//!
+//! The instance is configured from the environment (`WGPU_BACKEND=vulkan` pins Vulkan;
+//! Mesa's lavapipe has `SHADER_F64`). Without any adapter, [`GpuContext::new`] returns
+//! [`GpuUnavailable`], whose text is the skip message GPU tests print.
+
+use std::fmt;
+use std::sync::{Arc, Mutex};
+/// Re-exported so solver crates use the same wgpu without their own dependency line.
+pub use wgpu;
+use wgpu::util::DeviceExt;
+
+/// Arithmetic precision of the device kernels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Precision {
+    F64,
+    F32,
+}
+
+impl Precision {
+    /// WGSL scalar type name.
+    pub fn wgsl(self) -> &'static str {
+        match self {
+            Precision::F64 => "f64",
+            Precision::F32 => "f32",
+        }
+    }
+    /// Bytes per real.
+    pub fn bytes(self) -> usize {
+        match self {
+            Precision::F64 => 8,
+            Precision::F32 => 4,
+        }
+    }
+}
+
+/// No usable adapter (or device) on this machine; the text says why and how to get one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GpuUnavailable {
+    pub reason: String,
+}
+
+impl fmt::Display for GpuUnavailable {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "no GPU adapter: {} (install mesa-vulkan-drivers and set WGPU_BACKEND=vulkan to run on lavapipe)",
+            self.reason
+        )
+    }
+}
+
+impl std::error::Error for GpuUnavailable {}
+
+/// A failure of GPU work after the device exists (validation, out of memory, device lost,
+/// mapping), with wgpu's message.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GpuError(pub String);
+
+impl fmt::Display for GpuError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "GPU error: {}", self.0)
+    }
+}
+
+impl std::error::Error for GpuError {}
+
+/// Which precision to ask for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PrecisionRequest {
+    /// f64 when the adapter has `SHADER_F64`, else f32 with a warning.
+    #[default]
+    Best,
+    /// f32 even when f64 exists (tests of the fallback path).
+    ForceF32,
+}
+
+/// Device, queue and what was negotiated.
+pub struct GpuContext {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+    pub precision: Precision,
+    /// Set when the kernels run in f32: a sentence for the log and `summary.json`.
+    pub warning: Option<String>,
+    pub limits: wgpu::Limits,
+    /// Errors no scope caught (recorded instead of wgpu's default panic).
+    uncaptured: Arc<Mutex<Vec<String>>>,
+}
+
+impl fmt::Debug for GpuContext {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("GpuContext")
+            .field("adapter", &self.describe())
+            .field("precision", &self.precision)
+            .finish()
+    }
+}
+
+impl GpuContext {
+    /// The best adapter the environment allows, f64 when it can.
+    pub fn new() -> Result<GpuContext, GpuUnavailable> {
+        Self::with_precision(PrecisionRequest::Best)
+    }
+
+    /// Acquire a device; prefers an adapter with `SHADER_F64`, then a discrete/integrated GPU.
+    pub fn with_precision(req: PrecisionRequest) -> Result<GpuContext, GpuUnavailable> {
+        pollster::block_on(Self::acquire(req))
+    }
+
+    async fn acquire(req: PrecisionRequest) -> Result<GpuContext, GpuUnavailable> {
+        let desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        let backends = desc.backends;
+        let instance = wgpu::Instance::new(desc);
+        let rank = |a: &wgpu::Adapter| {
+            let f64_ok = a.features().contains(wgpu::Features::SHADER_F64);
+            let ty = match a.get_info().device_type {
+                wgpu::DeviceType::DiscreteGpu => 3,
+                wgpu::DeviceType::IntegratedGpu => 2,
+                wgpu::DeviceType::VirtualGpu => 1,
+                _ => 0,
+            };
+            (f64_ok as u32) * 10 + ty
+        };
+        let mut adapters = instance.enumerate_adapters(backends).await;
+        adapters.sort_by_key(|a| std::cmp::Reverse(rank(a)));
+        let adapter = match adapters.into_iter().next() {
+            Some(a) => a,
+            None => instance
+                .request_adapter(&wgpu::RequestAdapterOptions::default())
+                .await
+                .map_err(|e| GpuUnavailable {
+                    reason: e.to_string(),
+                })?,
+        };
+        let info = adapter.get_info();
+        let has_f64 = adapter.features().contains(wgpu::Features::SHADER_F64);
+        let (precision, warning) = match (has_f64, req) {
+            (true, PrecisionRequest::Best) => (Precision::F64, None),
+            (true, PrecisionRequest::ForceF32) => (
+                Precision::F32,
+                Some(format!(
+                    "GPU kernels run in f32 on request (adapter '{}' has SHADER_F64)",
+                    info.name
+                )),
+            ),
+            (false, _) => (
+                Precision::F32,
+                Some(format!(
+                    "adapter '{}' ({:?}) has no SHADER_F64: GPU kernels run in f32 (about 1e-6 relative accuracy instead of 1e-15)",
+                    info.name, info.backend
+                )),
+            ),
+        };
+        let alimits = adapter.limits();
+        // ask for what the adapter has for the limits the kernels care about
+        let limits = wgpu::Limits {
+            max_storage_buffers_per_shader_stage: alimits.max_storage_buffers_per_shader_stage,
+            max_storage_buffer_binding_size: alimits.max_storage_buffer_binding_size,
+            max_buffer_size: alimits.max_buffer_size,
+            max_compute_workgroups_per_dimension: alimits.max_compute_workgroups_per_dimension,
+            ..wgpu::Limits::downlevel_defaults()
+        };
+        let required_features = if precision == Precision::F64 {
+            wgpu::Features::SHADER_F64
+        } else {
+            wgpu::Features::empty()
+        };
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("cosim compute"),
+                required_features,
+                required_limits: limits.clone(),
+                ..Default::default()
+            })
+            .await
+            .map_err(|e| GpuUnavailable {
+                reason: format!("adapter '{}' refused a device: {e}", info.name),
+            })?;
+        let uncaptured = Arc::new(Mutex::new(Vec::new()));
+        let sink = uncaptured.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            if let Ok(mut v) = sink.lock() {
+                v.push(e.to_string());
+            }
+        }));
+        Ok(GpuContext {
+            device,
+            queue,
+            info,
+            precision,
+            warning,
+            limits,
+            uncaptured,
+        })
+    }
+
+    /// "llvmpipe (LLVM 15.0.6, 256 bits) on Vulkan (Cpu), f64".
+    pub fn describe(&self) -> String {
+        format!(
+            "{} on {:?} ({:?}), {}",
+            self.info.name,
+            self.info.backend,
+            self.info.device_type,
+            self.precision.wgsl()
+        )
+    }
+
+    /// Run `f` inside validation, out-of-memory and internal error scopes; any error caught
+    /// (or recorded by the uncaptured handler meanwhile) becomes `Err`.
+    pub fn checked<R>(&self, what: &str, f: impl FnOnce() -> R) -> Result<R, GpuError> {
+        let s1 = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let s2 = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let s3 = self.device.push_error_scope(wgpu::ErrorFilter::Internal);
+        let r = f();
+        let e3 = pollster::block_on(s3.pop());
+        let e2 = pollster::block_on(s2.pop());
+        let e1 = pollster::block_on(s1.pop());
+        if let Some(e) = e1.or(e2).or(e3) {
+            return Err(GpuError(format!("{what}: {e}")));
+        }
+        self.take_uncaptured(what)?;
+        Ok(r)
+    }
+
+    /// Err with the first error no scope caught since the last call.
+    pub fn take_uncaptured(&self, what: &str) -> Result<(), GpuError> {
+        let mut v = self
+            .uncaptured
+            .lock()
+            .map_err(|_| GpuError("error log poisoned".into()))?;
+        if v.is_empty() {
+            return Ok(());
+        }
+        let msg = v.join("; ");
+        v.clear();
+        Err(GpuError(format!("{what}: {msg}")))
+    }
+
+    /// Compile a WGSL module (errors become `Err`).
+    pub fn shader(&self, label: &str, src: &str) -> Result<wgpu::ShaderModule, GpuError> {
+        self.checked(&format!("compiling shader '{label}'"), || {
+            self.device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some(label),
+                    source: wgpu::ShaderSource::Wgsl(src.into()),
+                })
+        })
+    }
+
+    /// Zeroed storage buffer of `bytes` (rounded up to 4), copyable both ways.
+    pub fn storage(&self, label: &str, bytes: usize) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: (bytes.max(4).div_ceil(4) * 4) as u64,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    }
+
+    /// Storage buffer initialised with `bytes`.
+    pub fn storage_init(&self, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+        let mut data = bytes.to_vec();
+        data.resize(bytes.len().max(4).div_ceil(4) * 4, 0);
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: &data,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+            })
+    }
+
+    /// Uniform buffer initialised with `bytes`.
+    pub fn uniform_init(&self, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            })
+    }
+
+    /// Write `bytes` at `offset` of `buf` (ordered before the next submission).
+    pub fn upload(&self, buf: &wgpu::Buffer, offset: u64, bytes: &[u8]) {
+        self.queue.write_buffer(buf, offset, bytes);
+    }
+
+    /// Copy `len` bytes at `offset` of `buf` to the host (blocks until the device is done).
+    pub fn read(&self, buf: &wgpu::Buffer, offset: u64, len: u64) -> Result<Vec<u8>, GpuError> {
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: len.max(4).div_ceil(4) * 4,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("read"),
+            });
+        enc.copy_buffer_to_buffer(buf, offset, &staging, 0, len.div_ceil(4) * 4);
+        self.submit_and_map(enc, &staging)?;
+        let out = {
+            let view = staging
+                .get_mapped_range(..)
+                .map_err(|e| GpuError(format!("mapping readback: {e}")))?;
+            view[..len as usize].to_vec()
+        };
+        staging.unmap();
+        Ok(out)
+    }
+
+    /// Submit `enc` (which ends with a copy into the MAP_READ buffer `staging`), wait, and map
+    /// `staging` for reading; the caller reads `staging.get_mapped_range(..)` then unmaps.
+    pub fn submit_and_map(
+        &self,
+        enc: wgpu::CommandEncoder,
+        staging: &wgpu::Buffer,
+    ) -> Result<(), GpuError> {
+        let (tx, rx) = std::sync::mpsc::channel();
+        self.checked("submitting GPU work", || {
+            self.queue.submit(Some(enc.finish()));
+            staging.map_async(wgpu::MapMode::Read, .., move |r| {
+                let _ = tx.send(r);
+            });
+        })?;
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError(format!("waiting for the device: {e}")))?;
+        match rx.recv() {
+            Ok(Ok(())) => Ok(()),
+            Ok(Err(e)) => Err(GpuError(format!("mapping readback: {e}"))),
+            Err(_) => Err(GpuError("readback callback never ran".into())),
+        }?;
+        self.take_uncaptured("GPU work")
+    }
+}
+
+/// f64 values → device bytes in `p`.
+pub fn reals_to_bytes(p: Precision, x: &[f64]) -> Vec<u8> {
+    match p {
+        Precision::F64 => bytemuck::cast_slice(x).to_vec(),
+        Precision::F32 => {
+            let v: Vec<f32> = x.iter().map(|&a| a as f32).collect();
+            bytemuck::cast_slice(&v).to_vec()
+        }
+    }
+}
+
+/// Device bytes in `p` → f64 values (written into `out`, whose length sets the count).
+pub fn bytes_to_reals(p: Precision, b: &[u8], out: &mut [f64]) -> Result<(), GpuError> {
+    let need = out.len() * p.bytes();
+    if b.len() < need {
+        return Err(GpuError(format!(
+            "readback of {} bytes, expected {need}",
+            b.len()
+        )));
+    }
+    match p {
+        Precision::F64 => {
+            for (o, c) in out.iter_mut().zip(b.chunks_exact(8)) {
+                let mut w = [0u8; 8];
+                w.copy_from_slice(c);
+                *o = f64::from_le_bytes(w);
+            }
+        }
+        Precision::F32 => {
+            for (o, c) in out.iter_mut().zip(b.chunks_exact(4)) {
+                let mut w = [0u8; 4];
+                w.copy_from_slice(c);
+                *o = f32::from_le_bytes(w) as f64;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// u32 values as device bytes (little-endian, no copy).
+pub fn u32_bytes(x: &[u32]) -> &[u8] {
+    bytemuck::cast_slice(x)
+}
+
+/// Workgroup counts (x, y) covering `groups` workgroups within the per-dimension limit; the
+/// kernels linearise as `gid.x + gid.y * num_workgroups.x * WG`.
+pub fn dispatch_dims(groups: u32, max_per_dim: u32) -> (u32, u32) {
+    let groups = groups.max(1);
+    if groups <= max_per_dim {
+        (groups, 1)
+    } else {
+        let y = groups.div_ceil(max_per_dim);
+        (groups.div_ceil(y), y)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dispatch_dims_cover_and_respect_limit() {
+        for g in [1u32, 7, 65_535, 65_536, 200_001, 1 << 24] {
+            let (x, y) = dispatch_dims(g, 65_535);
+            assert!(x <= 65_535 && y <= 65_535);
+            assert!(x as u64 * y as u64 >= g as u64);
+            // not more than one extra row of workgroups
+            assert!((x as u64 * y as u64) < g as u64 + x as u64);
+        }
+    }
+
+    #[test]
+    fn real_conversion_round_trips() {
+        let x = [1.0, -2.5, 1e-300, 3.0e10];
+        let mut y = [0.0; 4];
+        bytes_to_reals(Precision::F64, &reals_to_bytes(Precision::F64, &x), &mut y).unwrap();
+        assert_eq!(x, y);
+        bytes_to_reals(
+            Precision::F32,
+            &reals_to_bytes(Precision::F32, &x[..2]),
+            &mut y[..2],
+        )
+        .unwrap();
+        assert_eq!(&x[..2], &y[..2]);
+        assert!(bytes_to_reals(Precision::F64, &[0u8; 8], &mut y).is_err());
+    }
+
+    /// A device (or a clear reason why not); on a device, y = 2x + y in the negotiated
+    /// precision is exact, and a shader error becomes `Err`, not a panic.
+    #[test]
+    fn device_axpy_and_caught_errors() {
+        let ctx = match GpuContext::new() {
+            Ok(c) => c,
+            Err(e) => {
+                println!("skipped: {e}");
+                return;
+            }
+        };
+        println!("GPU: {}", ctx.describe());
+        let t = ctx.precision.wgsl();
+        let src = format!(
+            "@group(0) @binding(0) var<storage, read> x: array<{t}>;
+             @group(0) @binding(1) var<storage, read_write> y: array<{t}>;
+             @compute @workgroup_size(64) fn main(@builtin(global_invocation_id) g: vec3<u32>) {{
+                 if g.x < arrayLength(&y) {{ y[g.x] = {t}(2.0) * x[g.x] + y[g.x]; }}
+             }}"
+        );
+        let m = ctx.shader("axpy", &src).unwrap();
+        let n = 1000usize;
+        let xs: Vec<f64> = (0..n).map(|i| i as f64 * 0.25).collect();
+        let ys: Vec<f64> = (0..n).map(|i| 1.0 - i as f64).collect();
+        let bx = ctx.storage_init("x", &reals_to_bytes(ctx.precision, &xs));
+        let by = ctx.storage_init("y", &reals_to_bytes(ctx.precision, &ys));
+        let pipe = ctx
+            .checked("pipeline", || {
+                ctx.device
+                    .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some("axpy"),
+                        layout: None,
+                        module: &m,
+                        entry_point: Some("main"),
+                        compilation_options: Default::default(),
+                        cache: None,
+                    })
+            })
+            .unwrap();
+        let bg = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &pipe.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: bx.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: by.as_entire_binding(),
+                },
+            ],
+        });
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut p = enc.begin_compute_pass(&Default::default());
+            p.set_pipeline(&pipe);
+            p.set_bind_group(0, &bg, &[]);
+            p.dispatch_workgroups((n as u32).div_ceil(64), 1, 1);
+        }
+        ctx.queue.submit(Some(enc.finish()));
+        let b = ctx
+            .read(&by, 0, (n * ctx.precision.bytes()) as u64)
+            .unwrap();
+        let mut out = vec![0.0; n];
+        bytes_to_reals(ctx.precision, &b, &mut out).unwrap();
+        for i in 0..n {
+            assert_eq!(out[i], 2.0 * xs[i] + ys[i], "element {i}");
+        }
+        // an invalid shader is an Err with naga's message
+        let bad = ctx.shader("bad", "fn main( { }");
+        assert!(bad.is_err(), "a syntax error must be reported");
+        println!("caught: {}", bad.unwrap_err());
+    }
+}
