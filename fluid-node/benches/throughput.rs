@@ -8,35 +8,7 @@ use fluid_node::{EulerSolver, setup};
 use std::time::Instant;
 
 fn case(n: usize) -> String {
-    format!(
-        r#"
-        cfl = 0.5
-        [grid]
-        cells = [{n}, {n}, 1]
-        lower = [0.0, 0.0, 0.0]
-        upper = [1.0, 1.0, 1.0]
-        [materials.air]
-        eos = "ideal"
-        gamma = 1.4
-        [[regions]]
-        shape = "all"
-        material = "air"
-        density = 1.0
-        pressure = 0.1
-        [[regions]]
-        shape = "sphere"
-        center = [0.5, 0.5, 0.0]
-        radius = 0.1
-        material = "air"
-        density = 1.0
-        pressure = 10.0
-        [boundaries]
-        x_lower = "outflow"
-        x_upper = "outflow"
-        y_lower = "outflow"
-        y_upper = "outflow"
-    "#
-    )
+    setup::benchmark_blast_case(n)
 }
 
 fn run(n: usize, threads: usize, steps: usize) -> anyhow::Result<(f64, Vec<f64>)> {

@@ -28,6 +28,10 @@ pub struct Params {
     /// Largest number of time steps per window before the node gives up (default 1e7).
     #[serde(default)]
     pub max_steps_per_window: Option<u64>,
+    /// Where the step runs: "cpu" (default) or "gpu" (wgpu compute; single ideal gas, no
+    /// immersed particles yet).
+    #[serde(default)]
+    pub device: Option<String>,
 }
 
 fn default_cfl() -> f64 {

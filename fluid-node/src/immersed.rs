@@ -57,6 +57,11 @@ pub struct Immersed {
     pub total_impulse: [f64; 3],
     /// Momentum created (+) or removed (-) by cells changing class since the start.
     pub reclass_momentum: [f64; 3],
+    /// Gas mass created (+) by refilled cells and removed (-) by cells turning solid since
+    /// the start (kg).
+    pub reclass_mass: f64,
+    /// Gas mass that entered the gas (+) through the moving wall faces since the start (kg).
+    pub wall_mass: f64,
 }
 
 impl Immersed {
@@ -79,6 +84,8 @@ impl Immersed {
             impulse: Vec::new(),
             total_impulse: [0.0; 3],
             reclass_momentum: [0.0; 3],
+            reclass_mass: 0.0,
+            wall_mass: 0.0,
         }
     }
 
@@ -228,9 +235,15 @@ impl Immersed {
                     for d in 0..3 {
                         self.reclass_momentum[d] += vol * f.cons[(r * nv + nm + d) * mx + i];
                     }
+                    for k in 0..nm {
+                        self.reclass_mass += vol * f.cons[(r * nv + k) * mx + i];
+                    }
                 } else if was != SOLID && now == SOLID {
                     for d in 0..3 {
                         self.reclass_momentum[d] -= vol * f.cons[(r * nv + nm + d) * mx + i];
+                    }
+                    for k in 0..nm {
+                        self.reclass_mass -= vol * f.cons[(r * nv + k) * mx + i];
                     }
                 }
             }
@@ -386,6 +399,10 @@ pub fn wall_fluxes<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], im: &mut Im
                 im.total_impulse[d] += j[d];
             }
         }
+        // mass through the moving face into the gas cell (zero for a wall at rest)
+        let area = f.grid.face_area(w.d);
+        let mflux: f64 = fl[..NM].iter().sum();
+        im.wall_mass -= sign * mflux * area * dt_w;
     }
 }
 

@@ -1,5 +1,11 @@
-//! Output for ParaView and plots: VTK image data (cell fields ρ, p, u, T, volume fractions)
-//! per window with a `.pvd` time series, and probe time histories as CSV.
+//! Output for ParaView and plots: one VTK XML rectilinear grid (`.vtr`, written with `vtkio`)
+//! per output window with cell fields density, pressure, velocity (3 components), temperature
+//! (when every material has a gas constant) and the volume fraction of each material, a
+//! `.pvd` collection indexing them by time, and probe time histories as CSV.
+//!
+//! A rectilinear grid (not image data) because vtkio stores an image's origin and spacing as
+//! f32; the rectilinear node coordinates are written in f64, so SI geometry keeps full
+//! precision. A 2-D grid is written as one layer of cells of the grid's z thickness.
 
 use crate::diagnostics::cell_prim;
 use crate::eos::Eos;
@@ -7,10 +13,29 @@ use crate::model::Fluid;
 use protocol::{SolverError, SolverResult};
 use std::fmt::Write as _;
 use std::path::Path;
+use vtkio::model::{
+    Attribute, Attributes, ByteOrder, Coordinates, DataArray, DataSet, ElementType, Extent,
+    RectilinearGridPiece, Version, Vtk,
+};
 
-/// Write `fluid_<window>.vti` under `dir` and refresh `fluid.pvd`.
-pub fn write_vtk(f: &Fluid, t: f64, window: u64, dir: &Path) -> SolverResult<()> {
-    std::fs::create_dir_all(dir)?;
+/// File name of the VTK file of output window `window`.
+pub fn vtk_file_name(window: u64) -> String {
+    format!("fluid_{window:06}.vtr")
+}
+
+/// Thermal constants of a phase for the mixture temperature: (R_k, p_∞,k) from the EOS's
+/// temperature relation T = (p + p_∞)/(ρ R) (ideal gas: p_∞ = 0); `None` without one.
+fn thermal(eos: &impl Eos) -> Option<(f64, f64)> {
+    let t1 = eos.temperature(1.0, 1.0)?;
+    let t0 = eos.temperature(1.0, 0.0)?;
+    let r = 1.0 / (t1 - t0);
+    (r.is_finite() && r > 0.0).then_some((r, t0 * r))
+}
+
+/// The cell fields written to VTK, in x-fastest order over the interior cells:
+/// (name, components, values). Temperature in thermal equilibrium of the phases,
+/// T = (p + Σ α_k p_∞,k) / Σ α_kρ_k R_k (exact for a single-material cell).
+pub fn cell_fields(f: &Fluid) -> Vec<(String, usize, Vec<f64>)> {
     let g = &f.grid;
     let n = g.cells();
     let nm = f.nmat();
@@ -19,10 +44,7 @@ pub fn write_vtk(f: &Fluid, t: f64, window: u64, dir: &Path) -> SolverResult<()>
     let mut vel = Vec::with_capacity(3 * n);
     let mut temp = Vec::with_capacity(n);
     let mut alpha: Vec<Vec<f64>> = vec![Vec::with_capacity(n); nm];
-    let all_thermal = f
-        .phases
-        .iter()
-        .all(|ph| ph.eos.temperature(1.0, 1.0).is_some());
+    let consts: Option<Vec<(f64, f64)>> = f.phases.iter().map(|ph| thermal(&ph.eos)).collect();
     for k in g.g[2]..g.g[2] + g.n[2] {
         for j in g.g[1]..g.g[1] + g.n[1] {
             let r = g.row(j, k);
@@ -34,59 +56,82 @@ pub fn write_vtk(f: &Fluid, t: f64, window: u64, dir: &Path) -> SolverResult<()>
                 for (m, a) in al.iter().enumerate() {
                     alpha[m].push(*a);
                 }
-                if all_thermal {
-                    // mixture temperature: p / Σ α_kρ_k R_k with R_k = p/(ρ_k T_k) per phase
-                    let mut rr = 0.0;
-                    for (m, ph) in f.phases.iter().enumerate() {
+                if let Some(c) = &consts {
+                    let (mut num, mut den) = (pr, 0.0);
+                    for (m, (rk, pinf)) in c.iter().enumerate() {
                         let ark = f.cons[(r * f.nv + m) * g.mx() + i].max(0.0);
-                        if let Some(tk) = ph.eos.temperature(1.0, 1.0) {
-                            // T(ρ=1, p=1) = 1/R for ideal gases
-                            rr += ark / tk;
-                        }
+                        den += ark * rk;
+                        num += al[m] * pinf;
                     }
-                    temp.push(if rr > 0.0 { pr / rr } else { 0.0 });
+                    temp.push(if den > 0.0 { num / den } else { 0.0 });
                 }
             }
         }
     }
-    let name = format!("fluid_{window:06}.vti");
-    let mut s = String::new();
-    let ext = format!("0 {} 0 {} 0 {}", g.n[0], g.n[1], g.n[2]);
-    let _ = writeln!(s, "<?xml version=\"1.0\"?>");
-    let _ = writeln!(
-        s,
-        "<VTKFile type=\"ImageData\" version=\"0.1\" byte_order=\"LittleEndian\">"
-    );
-    let _ = writeln!(
-        s,
-        "<ImageData WholeExtent=\"{ext}\" Origin=\"{} {} {}\" Spacing=\"{} {} {}\">",
-        g.lower[0], g.lower[1], g.lower[2], g.dx[0], g.dx[1], g.dx[2]
-    );
-    let _ = writeln!(
-        s,
-        "<Piece Extent=\"{ext}\">\n<CellData Scalars=\"density\" Vectors=\"velocity\">"
-    );
-    let arr = |s: &mut String, name: &str, comps: usize, v: &[f64]| {
-        let _ = write!(
-            s,
-            "<DataArray type=\"Float64\" Name=\"{name}\" NumberOfComponents=\"{comps}\" format=\"ascii\">"
-        );
-        for x in v {
-            let _ = write!(s, "{x:e} ");
-        }
-        let _ = writeln!(s, "</DataArray>");
+    let mut out = vec![
+        ("density".to_string(), 1, rho),
+        ("pressure".to_string(), 1, p),
+        ("velocity".to_string(), 3, vel),
+    ];
+    if consts.is_some() {
+        out.push(("temperature".to_string(), 1, temp));
+    }
+    for (m, a) in alpha.into_iter().enumerate() {
+        out.push((format!("alpha_{}", f.material_names[m]), 1, a));
+    }
+    out
+}
+
+/// Write `fluid_<window>.vtr` under `dir` and refresh `fluid.pvd`.
+pub fn write_vtk(f: &Fluid, t: f64, window: u64, dir: &Path) -> SolverResult<()> {
+    std::fs::create_dir_all(dir)?;
+    let g = &f.grid;
+    let coords = |d: usize| -> Vec<f64> {
+        (0..=g.n[d])
+            .map(|i| g.lower[d] + i as f64 * g.dx[d])
+            .collect()
     };
-    arr(&mut s, "density", 1, &rho);
-    arr(&mut s, "pressure", 1, &p);
-    arr(&mut s, "velocity", 3, &vel);
-    if all_thermal {
-        arr(&mut s, "temperature", 1, &temp);
-    }
-    for (m, a) in alpha.iter().enumerate() {
-        arr(&mut s, &format!("alpha_{}", f.material_names[m]), 1, a);
-    }
-    let _ = writeln!(s, "</CellData>\n</Piece>\n</ImageData>\n</VTKFile>");
-    std::fs::write(dir.join(&name), s)?;
+    let cell = cell_fields(f)
+        .into_iter()
+        .map(|(name, comps, values)| {
+            let elem = if comps == 3 {
+                ElementType::Vectors
+            } else {
+                ElementType::Scalars {
+                    num_comp: comps as u32,
+                    lookup_table: None,
+                }
+            };
+            Attribute::DataArray(DataArray {
+                name,
+                elem,
+                data: values.into(),
+            })
+        })
+        .collect();
+    let [nx, ny, nz] = [g.n[0] as i32, g.n[1] as i32, g.n[2] as i32];
+    let extent = Extent::Ranges([0..=nx, 0..=ny, 0..=nz]);
+    let vtk = Vtk {
+        version: Version::new((1, 0)),
+        title: format!("fluid t = {t:e} s"),
+        byte_order: ByteOrder::LittleEndian,
+        file_path: None,
+        data: DataSet::inline(RectilinearGridPiece {
+            extent,
+            coords: Coordinates {
+                x: coords(0).into(),
+                y: coords(1).into(),
+                z: coords(2).into(),
+            },
+            data: Attributes {
+                point: Vec::new(),
+                cell,
+            },
+        }),
+    };
+    let name = vtk_file_name(window);
+    vtk.export(dir.join(&name))
+        .map_err(|e| SolverError::Other(format!("writing {name}: {e}")))?;
     // time series: append to the list of written files
     let pvd = dir.join("fluid.pvd");
     let mut entries = match std::fs::read_to_string(&pvd) {

@@ -524,3 +524,38 @@ pub fn from_toml_str(text: &str) -> SolverResult<Fluid> {
         .map_err(|e: toml::de::Error| cfg("params", e.to_string()))?;
     build(&parse(&t)?)
 }
+
+/// The parameter table (TOML text) of the benchmark case of issue #3: the 2-D cylindrical
+/// blast, p 10 in r < 0.1 and 0.1 outside, ρ 1, γ 1.4, on the unit square with `n`×`n` cells
+/// and outflow boundaries. Shared by the CPU and GPU benchmarks and the checksum example.
+pub fn benchmark_blast_case(n: usize) -> String {
+    format!(
+        r#"
+        cfl = 0.5
+        [grid]
+        cells = [{n}, {n}, 1]
+        lower = [0.0, 0.0, 0.0]
+        upper = [1.0, 1.0, 1.0]
+        [materials.air]
+        eos = "ideal"
+        gamma = 1.4
+        [[regions]]
+        shape = "all"
+        material = "air"
+        density = 1.0
+        pressure = 0.1
+        [[regions]]
+        shape = "sphere"
+        center = [0.5, 0.5, 0.0]
+        radius = 0.1
+        material = "air"
+        density = 1.0
+        pressure = 10.0
+        [boundaries]
+        x_lower = "outflow"
+        x_upper = "outflow"
+        y_lower = "outflow"
+        y_upper = "outflow"
+    "#
+    )
+}

@@ -3,6 +3,7 @@
 //! (inputs `position`, `velocity`, `volume`; output window-averaged `force`), reports
 //! energies, momentum and impulses, writes VTK and probe histories.
 
+use crate::gpu::GpuEuler;
 use crate::immersed::Immersed;
 use crate::model::Fluid;
 use crate::{diagnostics, output, setup, step};
@@ -17,14 +18,40 @@ pub struct EulerSolver {
     pub fluid: Fluid,
     /// Probe history: (time, per probe [ρ, p, u, v, w]).
     pub probe_history: Vec<(f64, Vec<[f64; 5]>)>,
+    /// Work received through the immersed interface so far (J): minus the work of the
+    /// impulse given to the particles at the particle velocities of that window.
+    pub interface_work: f64,
+    /// The device copy of the state when `device = "gpu"`: it owns the state during the
+    /// run; `fluid` is brought up to date only for output and checkpoints.
+    pub gpu: Option<GpuEuler>,
 }
 
 impl EulerSolver {
     pub fn new(params: &toml::Table) -> SolverResult<Self> {
         let p = setup::parse(params)?;
+        let fluid = setup::build(&p)?;
+        let gpu = match p.device.as_deref() {
+            None | Some("cpu") => None,
+            Some("gpu") => {
+                let g = GpuEuler::new(&fluid)?;
+                tracing::info!("fluid step on the GPU: {}", g.context().describe());
+                if let Some(w) = g.warning() {
+                    tracing::warn!("{w}");
+                }
+                Some(g)
+            }
+            Some(other) => {
+                return Err(SolverError::config(
+                    "device",
+                    format!("must be \"cpu\" or \"gpu\", got \"{other}\""),
+                ));
+            }
+        };
         Ok(EulerSolver {
-            fluid: setup::build(&p)?,
+            fluid,
             probe_history: Vec::new(),
+            interface_work: 0.0,
+            gpu,
         })
     }
 
@@ -32,6 +59,20 @@ impl EulerSolver {
         EulerSolver {
             fluid,
             probe_history: Vec::new(),
+            interface_work: 0.0,
+            gpu: None,
+        }
+    }
+
+    /// The state as the host sees it: the device's copy when on the GPU.
+    fn host_state(&self) -> SolverResult<std::borrow::Cow<'_, Fluid>> {
+        match &self.gpu {
+            None => Ok(std::borrow::Cow::Borrowed(&self.fluid)),
+            Some(g) => {
+                let mut f = self.fluid.clone();
+                g.download(&mut f)?;
+                Ok(std::borrow::Cow::Owned(f))
+            }
         }
     }
 
@@ -133,8 +174,10 @@ impl Solver for EulerSolver {
     }
 
     fn stable_dt(&self) -> f64 {
-        let mut f = self.fluid.clone();
-        step::stable_dt(&mut f).unwrap_or(0.0)
+        match &self.gpu {
+            Some(g) => g.stable_dt().unwrap_or(0.0),
+            None => step::stable_dt_of(&self.fluid).unwrap_or(0.0),
+        }
     }
 
     fn advance(&mut self, w: &Window, inbox: &Inbox, out: &mut Outbox) -> SolverResult<StepReport> {
@@ -149,11 +192,20 @@ impl Solver for EulerSolver {
         if self.fluid.immersed.is_some() {
             self.read_particles(inbox)?;
         }
+        if let Some(g) = self.gpu.as_mut() {
+            return Self::advance_gpu(g, &mut self.fluid, &mut self.probe_history, w, start);
+        }
         let substeps = self.advance_to(w.t1)?;
         if let Some(im) = &self.fluid.immersed {
             let n = im.n;
             let buf = out.put(&im.interface.clone(), "force", 3, n);
             im.forces(w.t1 - w.t0, buf);
+            self.interface_work -= im
+                .impulse
+                .iter()
+                .zip(&im.velocities)
+                .map(|(j, v)| j[0] * v[0] + j[1] * v[1] + j[2] * v[2])
+                .sum::<f64>();
         }
         self.record_probes();
         let d = diagnostics::totals(&mut self.fluid)?;
@@ -162,6 +214,7 @@ impl Solver for EulerSolver {
             internal_energy: d.internal,
             momentum: d.momentum,
             external_impulse: self.fluid.boundary_impulse,
+            interface_work: self.interface_work,
             substeps,
             wall_s: start.elapsed().as_secs_f64(),
             ..Default::default()
@@ -169,10 +222,17 @@ impl Solver for EulerSolver {
         if let Some(im) = &self.fluid.immersed {
             for c in 0..3 {
                 report.interface_impulse[c] = -im.total_impulse[c];
+                // Cells that change class (gas ↔ solid) create or remove gas momentum that
+                // does not cross to the particles: a source of the gas like its walls, so the
+                // coordinator's audit counts it with the external impulse.
+                report.external_impulse[c] += im.reclass_momentum[c];
             }
-            report
-                .scalars
-                .push(("reclassification_momentum_x".into(), im.reclass_momentum[0]));
+            for (c, axis) in ["x", "y", "z"].iter().enumerate().take(self.fluid.grid.nd) {
+                report.scalars.push((
+                    format!("reclassification_momentum_{axis}"),
+                    im.reclass_momentum[c],
+                ));
+            }
         }
         report.scalars.push(("mass".into(), d.mass));
         report.scalars.push(("max_pressure".into(), d.max_pressure));
@@ -186,15 +246,17 @@ impl Solver for EulerSolver {
     }
 
     fn write_output(&self, t: f64, window: u64, dir: &Path) -> SolverResult<()> {
-        output::write_vtk(&self.fluid, t, window, dir)?;
-        output::write_probes(&self.fluid, &self.probe_history, dir)
+        let f = self.host_state()?;
+        output::write_vtk(&f, t, window, dir)?;
+        output::write_probes(&f, &self.probe_history, dir)
     }
 
     fn save_state(&self) -> SolverResult<Vec<u8>> {
-        let mut b = Vec::with_capacity(8 * (self.fluid.cons.len() + 2));
-        b.extend_from_slice(&self.fluid.time.to_le_bytes());
-        b.extend_from_slice(&(self.fluid.cons.len() as u64).to_le_bytes());
-        for x in &self.fluid.cons {
+        let f = self.host_state()?;
+        let mut b = Vec::with_capacity(8 * (f.cons.len() + 2));
+        b.extend_from_slice(&f.time.to_le_bytes());
+        b.extend_from_slice(&(f.cons.len() as u64).to_le_bytes());
+        for x in &f.cons {
             b.extend_from_slice(&x.to_le_bytes());
         }
         Ok(b)
@@ -222,11 +284,52 @@ impl Solver for EulerSolver {
             *x = f64::from_le_bytes(word(i + 2));
         }
         self.fluid.prim_valid = false;
+        if let Some(g) = self.gpu.as_mut() {
+            g.upload(&self.fluid)?;
+        }
         Ok(())
     }
 }
 
 impl EulerSolver {
+    /// One window on the device: only totals and probe cells come back to the host.
+    fn advance_gpu(
+        g: &mut GpuEuler,
+        fluid: &mut Fluid,
+        probe_history: &mut Vec<(f64, Vec<[f64; 5]>)>,
+        w: &Window,
+        start: Instant,
+    ) -> SolverResult<StepReport> {
+        let substeps = g.advance_to(w.t1)?;
+        fluid.time = g.time();
+        fluid.steps = g.steps();
+        let d = g.totals()?;
+        let mut report = StepReport {
+            kinetic_energy: d.kinetic,
+            internal_energy: d.internal,
+            momentum: d.momentum,
+            external_impulse: g.boundary_impulse(),
+            substeps,
+            ..Default::default()
+        };
+        report.scalars.push(("mass".into(), d.mass));
+        report.scalars.push(("max_pressure".into(), d.max_pressure));
+        // Precision of the device arithmetic (64, or 32 with a warning in the log).
+        let bits = if g.warning().is_some() { 32.0 } else { 64.0 };
+        report.scalars.push(("gpu_precision_bits".into(), bits));
+        if !fluid.probes.is_empty() {
+            let cells: Vec<(usize, usize)> = fluid.probes.iter().map(|p| (p.row, p.i)).collect();
+            let vals = g.cell_states(&cells)?;
+            for (p, s) in fluid.probes.iter().zip(&vals) {
+                report.scalars.push((format!("{}.pressure", p.name), s[1]));
+                report.scalars.push((format!("{}.density", p.name), s[0]));
+            }
+            probe_history.push((fluid.time, vals));
+        }
+        report.wall_s = start.elapsed().as_secs_f64();
+        Ok(report)
+    }
+
     fn record_probes(&mut self) {
         if self.fluid.probes.is_empty() {
             return;

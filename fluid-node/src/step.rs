@@ -6,6 +6,7 @@
 
 use crate::boundary::fill_ghosts;
 use crate::eos::Material;
+use crate::grid::Grid;
 use crate::immersed;
 use crate::limiter::Limiter;
 use crate::mixture::{self, Phase};
@@ -252,64 +253,135 @@ fn prim_all<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], stage: usize) -> S
     Ok(())
 }
 
+/// Largest Σ_d (|u_d| + c)/Δx_d over the interior cells of one row block of primitives `p`
+/// (row `r`); 0 for a ghost row.
+fn row_rate<const NM: usize>(grid: &Grid, ph: &[Phase; NM], p: &[f64], r: usize) -> f64 {
+    let nv = 2 * NM + 3;
+    let mx = grid.mx();
+    let nd = grid.nd;
+    let idx = [1.0 / grid.dx[0], 1.0 / grid.dx[1], 1.0 / grid.dx[2]];
+    let ir = grid.irange();
+    let mut m = 0.0_f64;
+    let ideal = match (&ph[0].eos, NM) {
+        (Material::Ideal(g), 1) => Some(g.gamma),
+        _ => None,
+    };
+    if let (true, Some(gamma)) = (grid.interior_row(r), ideal) {
+        // single ideal gas: the same arithmetic as `face_state` on contiguous slices
+        let (lo, hi) = (ir.start, ir.end);
+        let rho = &p[lo..hi];
+        let n = rho.len();
+        let vel: [&[f64]; 3] = std::array::from_fn(|d| &p[(1 + d) * mx + lo..][..n]);
+        let pr = &p[4 * mx + lo..][..n];
+        for t in 0..n {
+            let c2 = gamma * pr[t] / rho[t];
+            let c = if rho[t] > 0.0 && c2 > 0.0 && c2.is_finite() {
+                c2.sqrt()
+            } else {
+                f64::INFINITY
+            };
+            let mut s = 0.0;
+            for d in 0..nd {
+                s += (vel[d][t].abs() + c) * idx[d];
+            }
+            m = m.max(s);
+        }
+    } else if grid.interior_row(r) {
+        for i in ir.clone() {
+            let mut q = [0.0; MAXF];
+            for (v, qv) in q.iter_mut().enumerate().take(nv) {
+                *qv = p[v * mx + i];
+            }
+            let c = match face_state::<NM>(ph, &q) {
+                Some(s) => s.c,
+                None => f64::INFINITY,
+            };
+            let mut s = 0.0;
+            for d in 0..nd {
+                s += (q[NM + d].abs() + c) * idx[d];
+            }
+            m = m.max(s);
+        }
+    }
+    m
+}
+
 /// Largest Σ_d (|u_d| + c)/Δx_d over the interior (for the CFL step).
 fn max_rate<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM]) -> f64 {
     let grid = &f.grid;
     let nv = f.nv;
     let mx = grid.mx();
-    let nd = grid.nd;
-    let idx = [1.0 / grid.dx[0], 1.0 / grid.dx[1], 1.0 / grid.dx[2]];
-    let ir = grid.irange();
     f.prim
         .par_chunks(nv * mx)
         .zip(f.row_max.par_iter_mut())
         .enumerate()
         .for_each(|(r, (p, out))| {
-            let mut m = 0.0_f64;
-            let ideal = match (&ph[0].eos, NM) {
-                (Material::Ideal(g), 1) => Some(g.gamma),
-                _ => None,
-            };
-            if let (true, Some(gamma)) = (grid.interior_row(r), ideal) {
-                // single ideal gas: the same arithmetic as `face_state` on contiguous slices
-                let (lo, hi) = (ir.start, ir.end);
-                let rho = &p[lo..hi];
-                let n = rho.len();
-                let vel: [&[f64]; 3] = std::array::from_fn(|d| &p[(1 + d) * mx + lo..][..n]);
-                let pr = &p[4 * mx + lo..][..n];
-                for t in 0..n {
-                    let c2 = gamma * pr[t] / rho[t];
-                    let c = if rho[t] > 0.0 && c2 > 0.0 && c2.is_finite() {
-                        c2.sqrt()
-                    } else {
-                        f64::INFINITY
-                    };
-                    let mut s = 0.0;
-                    for d in 0..nd {
-                        s += (vel[d][t].abs() + c) * idx[d];
-                    }
-                    m = m.max(s);
-                }
-            } else if grid.interior_row(r) {
-                for i in ir.clone() {
-                    let mut q = [0.0; MAXF];
-                    for (v, qv) in q.iter_mut().enumerate().take(nv) {
-                        *qv = p[v * mx + i];
-                    }
-                    let c = match face_state::<NM>(ph, &q) {
-                        Some(s) => s.c,
-                        None => f64::INFINITY,
-                    };
-                    let mut s = 0.0;
-                    for d in 0..nd {
-                        s += (q[NM + d].abs() + c) * idx[d];
-                    }
-                    m = m.max(s);
-                }
-            }
-            *out = m;
+            *out = row_rate::<NM>(grid, ph, p, r);
         });
     f.row_max.iter().fold(0.0, |a, &b| a.max(b))
+}
+
+thread_local! {
+    /// Per-thread scratch for the primitives of one row in [`stable_dt_of`].
+    static ROW_SCRATCH: std::cell::RefCell<Vec<f64>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// The CFL-limited step of the current state without touching the model (the `Solver`
+/// query between windows): primitives row by row into per-thread scratch, the same
+/// arithmetic as [`stable_dt`], so the same value. The maximum is exact in any order, so the
+/// rayon reduction is deterministic.
+pub fn stable_dt_of(f: &Fluid) -> SolverResult<f64> {
+    match f.nmat() {
+        1 => stable_dt_of_nm::<1>(f),
+        2 => stable_dt_of_nm::<2>(f),
+        3 => stable_dt_of_nm::<3>(f),
+        4 => stable_dt_of_nm::<4>(f),
+        n => Err(SolverError::Other(format!(
+            "{n} materials: at most 4 are supported"
+        ))),
+    }
+}
+
+fn stable_dt_of_nm<const NM: usize>(f: &Fluid) -> SolverResult<f64> {
+    let ph: [Phase; NM] = std::array::from_fn(|k| f.phases[k].clone());
+    let grid = &f.grid;
+    let nv = f.nv;
+    let mx = grid.mx();
+    let ir = grid.irange();
+    let rate = if f.prim_valid {
+        f.prim
+            .par_chunks(nv * mx)
+            .enumerate()
+            .map(|(r, p)| row_rate::<NM>(grid, &ph, p, r))
+            .reduce(|| 0.0, f64::max)
+    } else {
+        f.cons
+            .par_chunks(nv * mx)
+            .enumerate()
+            .map(|(r, c)| {
+                if !grid.interior_row(r) {
+                    return 0.0;
+                }
+                ROW_SCRATCH.with(|cell| {
+                    let mut p = cell.borrow_mut();
+                    if p.len() < nv * mx {
+                        p.resize(nv * mx, 0.0);
+                    }
+                    match prim_row_fast::<NM>(&ph, c, &mut p, mx, ir.clone()) {
+                        Some(_) => f64::INFINITY,
+                        None => row_rate::<NM>(grid, &ph, &p, r),
+                    }
+                })
+            })
+            .reduce(|| 0.0, f64::max)
+    };
+    if !(rate > 0.0) || !rate.is_finite() {
+        return Err(SolverError::Diverged {
+            time: f.time,
+            reason: format!("no finite stable time step (largest wave rate {rate:e} 1/s)"),
+        });
+    }
+    Ok(f.cfl / rate)
 }
 
 thread_local! {
@@ -402,28 +474,34 @@ fn flux_line<const NM: usize, const D: usize>(
         let (cl, rest) = ce.split_at(len);
         let (el, rest) = rest.split_at(len);
         let (cr, er) = rest.split_at(len);
+        if ideal.is_some() {
+            // every face at once (vectorised); faces with a rejected side are redone below
+            let (o0, rest) = out.split_at_mut(mx);
+            let (o1, rest) = rest.split_at_mut(mx);
+            let (o2, rest) = rest.split_at_mut(mx);
+            let (o3, rest) = rest.split_at_mut(mx);
+            let (o4, o5) = rest.split_at_mut(mx);
+            let lsides: [&[f64]; 5] = std::array::from_fn(|v| &lb[v * len..(v + 1) * len]);
+            let rsides: [&[f64]; 5] = std::array::from_fn(|v| &rb[v * len..(v + 1) * len]);
+            hllc::flux_line_ideal::<D>(
+                lsides,
+                rsides,
+                cl,
+                el,
+                cr,
+                er,
+                [
+                    &mut o0[i0..i1],
+                    &mut o1[i0..i1],
+                    &mut o2[i0..i1],
+                    &mut o3[i0..i1],
+                    &mut o4[i0..i1],
+                    &mut o5[i0..i1],
+                ],
+            );
+        }
         for (t, i) in (i0..i1).enumerate() {
             if ideal.is_some() && !cl[t].is_nan() && !cr[t].is_nan() {
-                let side = |qb: &[f64], c: f64, e: f64| {
-                    let rho = qb[t];
-                    let mut ar = [0.0; NM];
-                    let mut al = [0.0; NM];
-                    ar[0] = rho;
-                    al[0] = 1.0;
-                    FaceState::<NM> {
-                        ar,
-                        al,
-                        vel: [qb[len + t], qb[2 * len + t], qb[3 * len + t]],
-                        p: qb[4 * len + t],
-                        rho,
-                        e,
-                        c,
-                    }
-                };
-                let fl = hllc::flux_dir::<NM, D>(&side(lb, cl[t], el[t]), &side(rb, cr[t], er[t]));
-                for v in 0..=nv {
-                    out[v * mx + i] = fl[v];
-                }
                 continue;
             }
             let mut l = [0.0; MAXF];
@@ -555,7 +633,6 @@ fn update<const NM: usize>(f: &mut Fluid, a: f64, b: f64, dt: f64) {
             };
             let uf = nv * mx;
             let (lo, hi) = (ir.start, ir.end);
-            let n = hi - lo;
             // face velocities (Johnsen–Colonius) for the α rows
             let ufx = &fx[uf + lo - 1..uf + hi];
             let (ufy, ufym) = (&fy[uf + lo..uf + hi], &fym[uf + lo..uf + hi]);
@@ -569,34 +646,68 @@ fn update<const NM: usize>(f: &mut Fluid, a: f64, b: f64, dt: f64) {
                 let fxv = &fx[o + lo - 1..o + hi];
                 let (fyv, fymv) = (&fy[o + lo..o + hi], &fym[o + lo..o + hi]);
                 let (fzv, fzmv) = (&fz[o + lo..o + hi], &fzm[o + lo..o + hi]);
-                for t in 0..n {
-                    let mut dfx = fxv[t + 1] - fxv[t];
-                    if is_alpha {
-                        dfx -= uv[t] * (ufx[t + 1] - ufx[t]);
-                    }
-                    let mut res = -dfx * idx[0];
-                    if nd > 1 {
-                        let mut dfy = fyv[t] - fymv[t];
-                        if is_alpha {
-                            dfy -= uv[t] * (ufy[t] - ufym[t]);
-                        }
-                        res -= dfy * idx[1];
-                    }
-                    if nd > 2 {
-                        let mut dfz = fzv[t] - fzmv[t];
-                        if is_alpha {
-                            dfz -= uv[t] * (ufz[t] - ufzm[t]);
-                        }
-                        res -= dfz * idx[2];
-                    }
-                    let mut nu = a * u0v[t] + b * (uv[t] + dt * res);
-                    if is_alpha {
-                        nu = nu.clamp(0.0, 1.0);
-                    }
-                    uv[t] = nu;
+                let fs = [fxv, fyv, fymv, fzv, fzmv];
+                let uf = [ufx, ufy, ufym, ufz, ufzm];
+                // the stage update with the dimension and the α terms fixed at compile time
+                // (so the loop vectorises); the same operations as the general form
+                match (nd, is_alpha) {
+                    (1, false) => update_var::<1, false>(uv, u0v, fs, uf, idx, a, b, dt),
+                    (2, false) => update_var::<2, false>(uv, u0v, fs, uf, idx, a, b, dt),
+                    (_, false) => update_var::<3, false>(uv, u0v, fs, uf, idx, a, b, dt),
+                    (1, true) => update_var::<1, true>(uv, u0v, fs, uf, idx, a, b, dt),
+                    (2, true) => update_var::<2, true>(uv, u0v, fs, uf, idx, a, b, dt),
+                    (_, true) => update_var::<3, true>(uv, u0v, fs, uf, idx, a, b, dt),
                 }
             }
         });
+}
+
+/// One variable of one row: U = a U0 + b (U + dt L(U)) with L the flux divergence
+/// (`fs` = x faces (n + 1), y upper/lower, z upper/lower faces) and, for a volume fraction
+/// (ALPHA), the Johnsen–Colonius term α ∇·u_face from the face velocities `uf`.
+#[inline(always)]
+fn update_var<const ND: usize, const ALPHA: bool>(
+    uv: &mut [f64],
+    u0v: &[f64],
+    fs: [&[f64]; 5],
+    uf: [&[f64]; 5],
+    idx: [f64; 3],
+    a: f64,
+    b: f64,
+    dt: f64,
+) {
+    let n = uv.len();
+    let u0v = &u0v[..n];
+    let fxv = &fs[0][..n + 1];
+    let (fyv, fymv, fzv, fzmv) = (&fs[1][..n], &fs[2][..n], &fs[3][..n], &fs[4][..n]);
+    let ufx = &uf[0][..n + 1];
+    let (ufy, ufym, ufz, ufzm) = (&uf[1][..n], &uf[2][..n], &uf[3][..n], &uf[4][..n]);
+    for t in 0..n {
+        let mut dfx = fxv[t + 1] - fxv[t];
+        if ALPHA {
+            dfx -= uv[t] * (ufx[t + 1] - ufx[t]);
+        }
+        let mut res = -dfx * idx[0];
+        if ND > 1 {
+            let mut dfy = fyv[t] - fymv[t];
+            if ALPHA {
+                dfy -= uv[t] * (ufy[t] - ufym[t]);
+            }
+            res -= dfy * idx[1];
+        }
+        if ND > 2 {
+            let mut dfz = fzv[t] - fzmv[t];
+            if ALPHA {
+                dfz -= uv[t] * (ufz[t] - ufzm[t]);
+            }
+            res -= dfz * idx[2];
+        }
+        let mut nu = a * u0v[t] + b * (uv[t] + dt * res);
+        if ALPHA {
+            nu = nu.clamp(0.0, 1.0);
+        }
+        uv[t] = nu;
+    }
 }
 
 /// Impulse on the gas of the fluxes through the domain boundary faces over `dt_w`.

@@ -58,3 +58,53 @@ fn bit_identical_on_one_and_two_threads() {
     let b = run(2);
     assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()));
 }
+
+/// The `Solver::stable_dt` query (which must not touch the model, so it recomputes the
+/// primitives into scratch) returns exactly the step the time loop takes next, for one and
+/// two materials.
+#[test]
+fn stable_dt_query_matches_the_step() {
+    use protocol::Solver;
+    for two in [false, true] {
+        let mut s = solver(&format!(
+            r#"
+            [grid]
+            cells = [30, 20, 1]
+            lower = [0.0, 0.0, 0.0]
+            upper = [1.0, 0.75, 1.0]
+            [materials.air]
+            eos = "ideal"
+            gamma = 1.4
+            {}
+            [[regions]]
+            shape = "all"
+            material = "air"
+            density = 1.0
+            pressure = 1.0
+            velocity = [0.3, 0.1, 0.0]
+            [[regions]]
+            shape = "sphere"
+            center = [0.5, 0.4, 0.0]
+            radius = 0.2
+            material = "{}"
+            density = 0.3
+            pressure = 4.0
+        "#,
+            if two {
+                "[materials.helium]\n eos = \"ideal\"\n gamma = 1.67"
+            } else {
+                ""
+            },
+            if two { "helium" } else { "air" }
+        ));
+        assert_eq!(s.fluid.nmat(), if two { 2 } else { 1 });
+        for _ in 0..5 {
+            let q = s.stable_dt();
+            let mut copy = s.fluid.clone();
+            let dt = fluid_node::step::stable_dt(&mut copy).expect("dt");
+            assert_eq!(q, dt, "query vs step (two materials: {two})");
+            let taken = fluid_node::step::step(&mut s.fluid, f64::INFINITY).expect("step");
+            assert_eq!(taken, dt);
+        }
+    }
+}

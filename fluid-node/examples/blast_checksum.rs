@@ -1,0 +1,36 @@
+//! Bit-level fingerprint of the benchmark case (2-D cylindrical blast, issue #3 must-show 8)
+//! after a number of SSP-RK3 steps: prints an FNV-1a hash of every conserved value's bits, so
+//! two builds of the kernels can be compared for bit-identical results, plus the run time.
+//! Run: `cargo run --release -p fluid-node --example blast_checksum -- [n] [steps]`.
+
+use fluid_node::setup;
+use std::time::Instant;
+
+fn main() -> anyhow::Result<()> {
+    let args: Vec<usize> = std::env::args()
+        .skip(1)
+        .filter_map(|a| a.parse().ok())
+        .collect();
+    let n = args.first().copied().unwrap_or(100);
+    let steps = args.get(1).copied().unwrap_or(20);
+    let text = setup::benchmark_blast_case(n);
+    let mut f = setup::from_toml_str(&text)?;
+    let t0 = Instant::now();
+    for _ in 0..steps {
+        fluid_node::step::step(&mut f, f64::INFINITY)?;
+    }
+    let el = t0.elapsed().as_secs_f64();
+    let mut h: u64 = 0xcbf29ce484222325;
+    for x in &f.cons {
+        for b in x.to_bits().to_le_bytes() {
+            h ^= b as u64;
+            h = h.wrapping_mul(0x100000001b3);
+        }
+    }
+    println!(
+        "n {n}, steps {steps}, t {:.9e}: checksum {h:016x}; {:.3} M cell-updates/s",
+        f.time,
+        (n * n * steps) as f64 / el / 1e6
+    );
+    Ok(())
+}

@@ -1,0 +1,828 @@
+//! GPU path of the fluid node (issue 8; seed 002 §2.3–§2.4 and §4: the whole FVM step on the
+//! device). [`GpuEuler`] takes a CPU-built [`Fluid`] (same grid, initial state, boundaries,
+//! limiter, CFL number), uploads its conserved state once, and runs the complete time loop on
+//! the device — primitive recovery, ghost fill, MUSCL + HLLC fluxes, the three SSP-RK3 stages,
+//! the boundary impulse and the CFL reduction — in `euler.wgsl`, which mirrors the CPU kernels
+//! operation by operation. Only a few control words cross to the host per batch of steps;
+//! the field crosses only when [`GpuEuler::download`] asks for it.
+//!
+//! Scope: one ideal-gas material, 1-D, 2-D or 3-D, every boundary kind (wall, symmetry,
+//! outflow, periodic, inflow). Multi-material, stiffened/JWL and immersed particles are
+//! refused with an error that names the reason.
+
+use crate::boundary::Boundary;
+use crate::diagnostics::Totals;
+use crate::eos::Material;
+use crate::grid::Grid;
+use crate::limiter::Limiter;
+use crate::model::Fluid;
+use crate::step::{RK3, RK3_FLUX_WEIGHT};
+use mechanics::gpu::{
+    GpuContext, GpuError, GpuUnavailable, Precision, PrecisionRequest, bytes_to_reals,
+    dispatch_dims, reals_to_bytes,
+};
+use protocol::SolverError;
+use std::fmt;
+use std::sync::Arc;
+
+const SHADER: &str = include_str!("euler.wgsl");
+/// Workgroup sizes of the shader (WG for cell/face kernels, RWG for reductions).
+const WG: u32 = 64;
+const RWG: u32 = 256;
+/// Control reals before the partial maxima in the `red` buffer.
+const NCTRL: usize = 16;
+/// Status words.
+const NST: usize = 16;
+/// Largest number of steps encoded in one submission.
+const MAX_BATCH: u64 = 256;
+
+/// Why the GPU path cannot run this case.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GpuSetupError {
+    /// No adapter or device on this machine.
+    Unavailable(GpuUnavailable),
+    /// The model uses something the device kernels do not implement.
+    Unsupported(String),
+    /// wgpu refused a shader, pipeline or buffer.
+    Gpu(GpuError),
+}
+
+impl fmt::Display for GpuSetupError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            GpuSetupError::Unavailable(e) => write!(f, "{e}"),
+            GpuSetupError::Unsupported(s) => write!(f, "device = \"gpu\" does not support {s}"),
+            GpuSetupError::Gpu(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for GpuSetupError {}
+
+impl From<GpuError> for GpuSetupError {
+    fn from(e: GpuError) -> Self {
+        GpuSetupError::Gpu(e)
+    }
+}
+
+impl From<GpuSetupError> for SolverError {
+    fn from(e: GpuSetupError) -> Self {
+        match e {
+            GpuSetupError::Unsupported(_) => SolverError::config("device", e.to_string()),
+            _ => SolverError::Other(e.to_string()),
+        }
+    }
+}
+
+fn gpu_err(e: GpuError) -> SolverError {
+    SolverError::Other(e.to_string())
+}
+
+/// Check that the device kernels implement this model; `Err` names what is missing.
+pub fn supports(f: &Fluid) -> Result<(), String> {
+    if f.nmat() != 1 {
+        return Err(format!(
+            "{} materials (the device kernels are single-material)",
+            f.nmat()
+        ));
+    }
+    if !matches!(f.phases[0].eos, Material::Ideal(_)) {
+        return Err(format!(
+            "material '{}' with a non-ideal equation of state (the device kernels are ideal-gas only)",
+            f.material_names[0]
+        ));
+    }
+    if f.immersed.is_some() {
+        return Err("immersed particles (the [immersed] coupling runs on the CPU only)".into());
+    }
+    if f.nv != 5 {
+        return Err(format!("{} variables per cell (expected 5)", f.nv));
+    }
+    Ok(())
+}
+
+fn whole(b: &wgpu::Buffer, binding: u32) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: b.as_entire_binding(),
+    }
+}
+
+fn bc_code(b: &Boundary) -> u32 {
+    match b {
+        Boundary::Wall | Boundary::Symmetry => 0,
+        Boundary::Outflow => 1,
+        Boundary::Periodic => 2,
+        Boundary::Inflow(_) => 3,
+    }
+}
+
+/// The dispatch helper handed to [`GpuEuler::encode_and_read`]'s body.
+type Dispatch<'a> =
+    dyn Fn(&mut wgpu::ComputePass<'_>, &wgpu::ComputePipeline, usize, (u32, u32)) + 'a;
+
+struct Pipes {
+    prim_rate: wgpu::ComputePipeline,
+    prim_only: wgpu::ComputePipeline,
+    reduce_dt: wgpu::ComputePipeline,
+    ghost: [wgpu::ComputePipeline; 3],
+    flux: [wgpu::ComputePipeline; 3],
+    update: wgpu::ComputePipeline,
+    impulse: wgpu::ComputePipeline,
+    finish: wgpu::ComputePipeline,
+    row_totals: wgpu::ComputePipeline,
+}
+
+/// The device-resident Euler solver of one fluid model.
+pub struct GpuEuler {
+    ctx: Arc<GpuContext>,
+    pipes: Pipes,
+    bind: wgpu::BindGroup,
+    /// Byte offset of each RK stage's uniform block.
+    stage_off: [u32; 3],
+    cons: wgpu::Buffer,
+    flux: wgpu::Buffer,
+    red: wgpu::Buffer,
+    st: wgpu::Buffer,
+    staging: wgpu::Buffer,
+    /// Values per state array (rows · 5 · mx, the CPU layout).
+    len: usize,
+    /// Row length (cells per x-line with ghosts).
+    mx: usize,
+    grid: Grid,
+    /// 1/Γ and the EOS offset of the gas (for error messages).
+    inv_g: f64,
+    off: f64,
+    nd: usize,
+    /// Thread counts of each kernel.
+    cells: u32,
+    ghost_n: [u32; 3],
+    face_n: [u32; 3],
+    max_wg: u32,
+    // host mirror of the device clock
+    time: f64,
+    steps: u64,
+    impulse: [f64; 3],
+    last_dt: f64,
+    /// Steps allowed per `advance_to` before giving up (the CPU's max_steps_per_window).
+    max_steps: u64,
+}
+
+impl GpuEuler {
+    /// Build on the best adapter of this machine (f64 where possible).
+    pub fn new(f: &Fluid) -> Result<GpuEuler, GpuSetupError> {
+        supports(f).map_err(GpuSetupError::Unsupported)?;
+        let ctx = GpuContext::with_precision(PrecisionRequest::Best)
+            .map_err(GpuSetupError::Unavailable)?;
+        Self::with_context(Arc::new(ctx), f)
+    }
+
+    /// Build on an existing device (shared by several solvers of one process).
+    pub fn with_context(ctx: Arc<GpuContext>, f: &Fluid) -> Result<GpuEuler, GpuSetupError> {
+        supports(f).map_err(GpuSetupError::Unsupported)?;
+        let grid = &f.grid;
+        let p = ctx.precision;
+        let mx = grid.mx();
+        let len = grid.rows() * 5 * mx;
+        let rb = p.bytes();
+        let max_bind = ctx.limits.max_storage_buffer_binding_size;
+        if (3 * len * rb) as u64 > max_bind {
+            return Err(GpuSetupError::Unsupported(format!(
+                "{:?} cells: the flux array needs {} bytes, more than the adapter's {} per binding",
+                grid.n,
+                3 * len * rb,
+                max_bind
+            )));
+        }
+        if len >= u32::MAX as usize / 4 {
+            return Err(GpuSetupError::Unsupported(format!(
+                "{:?} cells (32-bit indices)",
+                grid.n
+            )));
+        }
+        let Material::Ideal(gas) = &f.phases[0].eos else {
+            return Err(GpuSetupError::Unsupported("a non-ideal gas".into()));
+        };
+        let cells = grid.cells() as u32;
+        let nparts = cells.div_ceil(RWG);
+        let max_wg = ctx.limits.max_compute_workgroups_per_dimension;
+        let fsize = (grid.rows() * 5 * mx) as u32;
+        // u32 parameters, 8 rows of 4
+        let mut pu = [0u32; 32];
+        for d in 0..3 {
+            pu[d] = grid.n[d] as u32;
+            pu[4 + d] = grid.g[d] as u32;
+            pu[8 + d] = grid.m[d] as u32;
+            for s in 0..2 {
+                pu[16 + 4 * d + s] = bc_code(&f.bc[d][s]);
+            }
+        }
+        pu[3] = grid.nd as u32;
+        pu[7] = match f.limiter {
+            Limiter::Minmod => 0,
+            Limiter::VanLeer => 1,
+            Limiter::Mc => 2,
+        };
+        pu[11] = fsize;
+        pu[12] = nparts;
+        // real parameters
+        let (inf, maxr, snap, minpos) = match p {
+            Precision::F64 => (f64::INFINITY, f64::MAX, 1e-12, f64::MIN_POSITIVE),
+            Precision::F32 => (
+                f64::INFINITY,
+                f32::MAX as f64,
+                1e-6,
+                f32::MIN_POSITIVE as f64,
+            ),
+        };
+        let ph = &f.phases[0];
+        let mut prs = vec![
+            gas.gamma,
+            ph.inv_g,
+            ph.off,
+            f.cfl,
+            inf,
+            maxr,
+            snap,
+            minpos,
+            1.0 / grid.dx[0],
+            1.0 / grid.dx[1],
+            1.0 / grid.dx[2],
+            grid.face_area(0),
+            grid.face_area(1),
+            grid.face_area(2),
+        ];
+        let inflow_at = prs.len();
+        for d in 0..3 {
+            for s in 0..2 {
+                match &f.bc[d][s] {
+                    Boundary::Inflow(q) if q.len() >= 5 => prs.extend_from_slice(&q[..5]),
+                    _ => prs.extend_from_slice(&[0.0; 5]),
+                }
+            }
+        }
+        debug_assert_eq!(inflow_at, 14);
+        prs.push(grid.cell_volume());
+        // stage uniforms at aligned offsets
+        let align = ctx.limits.min_uniform_buffer_offset_alignment.max(32) as usize;
+        let mut stage_bytes = vec![0u8; 3 * align];
+        let mut stage_off = [0u32; 3];
+        for s in 0..3 {
+            let o = s * align;
+            stage_off[s] = o as u32;
+            let (a, b) = RK3[s];
+            let vals = reals_to_bytes(p, &[a, b, RK3_FLUX_WEIGHT[s]]);
+            stage_bytes[o..o + vals.len()].copy_from_slice(&vals);
+            let so = o + 3 * rb;
+            stage_bytes[so..so + 4].copy_from_slice(&(s as u32).to_le_bytes());
+        }
+        let stage_size = (3 * rb + 4).div_ceil(rb) * rb;
+
+        let src = format!("alias real = {};\n{SHADER}", p.wgsl());
+        let module = ctx.shader("euler", &src)?;
+        let uni = |binding: u32, dynamic: bool| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: dynamic,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let sto = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let (bgl, layout, pipes) = ctx.checked("building the fluid pipelines", || {
+            let bgl = ctx
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("euler"),
+                    entries: &[
+                        uni(0, false),
+                        sto(1, true),
+                        sto(2, false),
+                        sto(3, false),
+                        sto(4, false),
+                        sto(5, false),
+                        sto(6, false),
+                        sto(7, false),
+                        uni(8, true),
+                    ],
+                });
+            let layout = ctx
+                .device
+                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some("euler"),
+                    bind_group_layouts: &[Some(&bgl)],
+                    immediate_size: 0,
+                });
+            let mk = |entry: &str| {
+                ctx.device
+                    .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some(entry),
+                        layout: Some(&layout),
+                        module: &module,
+                        entry_point: Some(entry),
+                        compilation_options: Default::default(),
+                        cache: None,
+                    })
+            };
+            let pipes = Pipes {
+                prim_rate: mk("prim_rate"),
+                prim_only: mk("prim_only"),
+                reduce_dt: mk("reduce_dt"),
+                ghost: [mk("ghost_x"), mk("ghost_y"), mk("ghost_z")],
+                flux: [mk("flux_x"), mk("flux_y"), mk("flux_z")],
+                update: mk("update"),
+                impulse: mk("impulse"),
+                finish: mk("finish"),
+                row_totals: mk("row_totals"),
+            };
+            (bgl, layout, pipes)
+        })?;
+        drop(layout);
+        let bytes_u32: Vec<u8> = pu.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let (bind, cons, flux, red, st, staging) =
+            ctx.checked("allocating the fluid buffers", || {
+                let b_pu = ctx.uniform_init("params u32", &bytes_u32);
+                let b_pr = ctx.storage_init("params real", &reals_to_bytes(p, &prs));
+                let cons = ctx.storage_init("cons", &reals_to_bytes(p, &f.cons));
+                let cons0 = ctx.storage("cons0", len * rb);
+                let prim = ctx.storage("prim", len * rb);
+                let flux = ctx.storage("flux", 3 * len * rb);
+                let red = ctx.storage("red", (NCTRL + nparts as usize) * rb);
+                let st = ctx.storage("status", NST * 4);
+                let stage = ctx.uniform_init("stages", &stage_bytes);
+                let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("control readback"),
+                    size: (NCTRL * rb + NST * 4) as u64,
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("euler"),
+                    layout: &bgl,
+                    entries: &[
+                        whole(&b_pu, 0),
+                        whole(&b_pr, 1),
+                        whole(&cons, 2),
+                        whole(&cons0, 3),
+                        whole(&prim, 4),
+                        whole(&flux, 5),
+                        whole(&red, 6),
+                        whole(&st, 7),
+                        wgpu::BindGroupEntry {
+                            binding: 8,
+                            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                                buffer: &stage,
+                                offset: 0,
+                                size: std::num::NonZeroU64::new(stage_size as u64),
+                            }),
+                        },
+                    ],
+                });
+                (bind, cons, flux, red, st, staging)
+            })?;
+        let n = grid.n;
+        let g = grid.g;
+        let ghost_n = [
+            (n[1] * n[2] * 2 * g[0] * 5) as u32,
+            (n[2] * 2 * g[1] * 5 * mx) as u32,
+            (grid.m[1] * 2 * g[2] * 5 * mx) as u32,
+        ];
+        let face_n: [u32; 3] = std::array::from_fn(|d| {
+            let mut c = n;
+            c[d] += 1;
+            (c[0] * c[1] * c[2]) as u32
+        });
+        Ok(GpuEuler {
+            ctx,
+            pipes,
+            bind,
+            stage_off,
+            cons,
+            flux,
+            red,
+            st,
+            staging,
+            len,
+            mx,
+            grid: grid.clone(),
+            inv_g: f.phases[0].inv_g,
+            off: f.phases[0].off,
+            nd: grid.nd,
+            cells,
+            ghost_n,
+            face_n,
+            max_wg,
+            time: f.time,
+            steps: f.steps,
+            impulse: f.boundary_impulse,
+            last_dt: 0.0,
+            max_steps: f.max_steps_per_window,
+        })
+    }
+
+    /// The device this solver runs on.
+    pub fn context(&self) -> &Arc<GpuContext> {
+        &self.ctx
+    }
+    /// f64 or f32 kernels.
+    pub fn precision(&self) -> Precision {
+        self.ctx.precision
+    }
+    /// Set when the kernels run in f32 (for the log and `summary.json`).
+    pub fn warning(&self) -> Option<&str> {
+        self.ctx.warning.as_deref()
+    }
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+    /// Impulse of the domain boundaries on the gas since the start (N s), as the CPU's
+    /// `Fluid::boundary_impulse`.
+    pub fn boundary_impulse(&self) -> [f64; 3] {
+        self.impulse
+    }
+
+    /// Replace the device state by `f`'s conserved state, time, step count and impulse
+    /// (e.g. after `load_state` on the CPU side). The grid must be the one built with.
+    pub fn upload(&mut self, f: &Fluid) -> Result<(), SolverError> {
+        if f.cons.len() != self.len {
+            return Err(SolverError::Other(format!(
+                "GPU upload: {} values, the device grid has {}",
+                f.cons.len(),
+                self.len
+            )));
+        }
+        self.ctx
+            .upload(&self.cons, 0, &reals_to_bytes(self.ctx.precision, &f.cons));
+        self.time = f.time;
+        self.steps = f.steps;
+        self.impulse = f.boundary_impulse;
+        Ok(())
+    }
+
+    /// Copy the device state into `f` (conserved variables, time, step count, boundary
+    /// impulse); `f` must be the model this solver was built from.
+    pub fn download(&self, f: &mut Fluid) -> Result<(), SolverError> {
+        if f.cons.len() != self.len {
+            return Err(SolverError::Other(format!(
+                "GPU download: the model has {} values, the device grid {}",
+                f.cons.len(),
+                self.len
+            )));
+        }
+        let p = self.ctx.precision;
+        let b = self
+            .ctx
+            .read(&self.cons, 0, (self.len * p.bytes()) as u64)
+            .map_err(gpu_err)?;
+        bytes_to_reals(p, &b, &mut f.cons).map_err(gpu_err)?;
+        f.time = self.time;
+        f.steps = self.steps;
+        f.boundary_impulse = self.impulse;
+        f.prim_valid = false;
+        Ok(())
+    }
+
+    /// Advance to `t1` by CFL steps, the last one shortened to land on t1 exactly (as
+    /// `EulerSolver::advance_to`); returns the number of steps.
+    pub fn advance_to(&mut self, t1: f64) -> Result<u64, SolverError> {
+        if !(self.time < t1) {
+            return Ok(0);
+        }
+        self.run(0, t1, u64::MAX)
+    }
+
+    /// Exactly `n` steps of at most `dt_max` each (benchmarks; no landing on a time).
+    pub fn steps_n(&mut self, n: u64, dt_max: f64) -> Result<u64, SolverError> {
+        if n == 0 {
+            return Ok(0);
+        }
+        self.run(1, dt_max, n)
+    }
+
+    /// The CFL-limited step of the current device state (as `step::stable_dt`): the wave-rate
+    /// reduction on the device, one real back. Errors when a cell is inadmissible.
+    pub fn stable_dt(&self) -> Result<f64, SolverError> {
+        let p = self.ctx.precision;
+        let mut ctrl = [0.0; NCTRL];
+        ctrl[0] = self.time;
+        ctrl[1] = f64::INFINITY;
+        ctrl[4..7].copy_from_slice(&self.impulse);
+        let mut st = [0u32; NST];
+        st[0] = 1;
+        st[4] = u32::MAX;
+        st[6] = 1;
+        st[7] = 1;
+        self.ctx.upload(&self.red, 0, &reals_to_bytes(p, &ctrl));
+        self.ctx.upload(
+            &self.st,
+            0,
+            &st.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>(),
+        );
+        let (ctrl, st) = self.encode_and_read(|pass, go| {
+            go(pass, &self.pipes.prim_rate, 0, self.dims(self.cells, RWG));
+            go(pass, &self.pipes.reduce_dt, 0, (1, 1));
+        })?;
+        match st[3] {
+            0 => Ok(ctrl[2]),
+            1 => Err(self.bad_cell(st[4], 0)),
+            _ => Err(SolverError::Diverged {
+                time: self.time,
+                reason: format!(
+                    "no finite stable time step (largest wave rate {:e} 1/s, on the GPU)",
+                    ctrl[3]
+                ),
+            }),
+        }
+    }
+
+    fn dims(&self, threads: u32, wg: u32) -> (u32, u32) {
+        dispatch_dims(threads.div_ceil(wg), self.max_wg)
+    }
+
+    /// Mass, momentum, kinetic and internal energy and the largest pressure of the device
+    /// state, as `diagnostics::totals` computes them (per-row sums on the device, rows
+    /// summed in order on the host: 7 reals per row cross, not the field).
+    pub fn totals(&self) -> Result<Totals, SolverError> {
+        let p = self.ctx.precision;
+        let nrows = self.grid.n[1] * self.grid.n[2];
+        let mut enc = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("totals"),
+            });
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.pipes.row_totals);
+            pass.set_bind_group(0, &self.bind, &[self.stage_off[0]]);
+            let (x, y) = dispatch_dims((nrows as u32).div_ceil(WG), self.max_wg);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        self.ctx
+            .checked("GPU totals", || self.ctx.queue.submit(Some(enc.finish())))
+            .map_err(gpu_err)?;
+        let b = self
+            .ctx
+            .read(&self.flux, 0, (7 * nrows * p.bytes()) as u64)
+            .map_err(gpu_err)?;
+        let mut rows = vec![0.0; 7 * nrows];
+        bytes_to_reals(p, &b, &mut rows).map_err(gpu_err)?;
+        let mut t = Totals::default();
+        for row in rows.chunks_exact(7) {
+            t.mass += row[0];
+            for d in 0..3 {
+                t.momentum[d] += row[1 + d];
+            }
+            t.kinetic += row[4];
+            t.internal += row[5];
+            t.max_pressure = t.max_pressure.max(row[6]);
+        }
+        Ok(t)
+    }
+
+    /// [ρ, p, u, v, w] of the cells (row, x index; ghost-inclusive, as `Probe`), read from the
+    /// device one cell at a time (as `diagnostics::cell_state`).
+    pub fn cell_states(&self, cells: &[(usize, usize)]) -> Result<Vec<[f64; 5]>, SolverError> {
+        let p = self.ctx.precision;
+        let mx = self.mx;
+        let mut out = Vec::with_capacity(cells.len());
+        for &(r, i) in cells {
+            if r >= self.grid.rows() || i >= mx {
+                return Err(SolverError::Other(format!(
+                    "cell (row {r}, x index {i}) is outside the device grid"
+                )));
+            }
+            // the 5 values of a cell are mx apart: read the span and pick them
+            let first = (r * 5 * mx + i) * p.bytes();
+            let span = (4 * mx + 1) * p.bytes();
+            let b = self
+                .ctx
+                .read(&self.cons, first as u64, span as u64)
+                .map_err(gpu_err)?;
+            let mut vals = vec![0.0; 4 * mx + 1];
+            bytes_to_reals(p, &b, &mut vals).map_err(gpu_err)?;
+            let c: [f64; 5] = std::array::from_fn(|v| vals[v * mx]);
+            let rho = 0.0 + c[0].max(0.0);
+            let vel = [c[1] / rho, c[2] / rho, c[3] / rho];
+            let rhoe = c[4] - 0.5 * rho * (vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]);
+            let pr = (rhoe - 1.0 * self.off) / self.inv_g;
+            out.push([rho, pr, vel[0], vel[1], vel[2]]);
+        }
+        Ok(out)
+    }
+
+    fn run(&mut self, mode: u32, t_or_cap: f64, target: u64) -> Result<u64, SolverError> {
+        let p = self.ctx.precision;
+        let mut ctrl = [0.0; NCTRL];
+        ctrl[0] = self.time;
+        ctrl[1] = t_or_cap;
+        ctrl[4..7].copy_from_slice(&self.impulse);
+        let mut st = [0u32; NST];
+        st[0] = 1;
+        st[1] = 0;
+        st[4] = u32::MAX;
+        st[6] = mode;
+        st[7] = target.min(u32::MAX as u64) as u32;
+        self.ctx.upload(&self.red, 0, &reals_to_bytes(p, &ctrl));
+        self.ctx.upload(
+            &self.st,
+            0,
+            &st.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>(),
+        );
+        let steps0 = self.steps;
+        let mut done = 0u64;
+        loop {
+            let want = if mode == 1 {
+                target - done
+            } else if self.last_dt > 0.0 {
+                ((t_or_cap - self.time) / self.last_dt).ceil() as u64 + 1
+            } else {
+                1
+            };
+            let batch = want.clamp(1, MAX_BATCH);
+            let (ctrl, st) = self.batch(batch)?;
+            let sub = st[2] as u64;
+            let dt_prev = self.time;
+            self.time = ctrl[0];
+            self.impulse = [ctrl[4], ctrl[5], ctrl[6]];
+            self.steps = steps0 + sub;
+            if sub > done {
+                self.last_dt = (self.time - dt_prev) / (sub - done) as f64;
+            }
+            done = sub;
+            match st[3] {
+                0 => {}
+                1 => {
+                    return Err(self.bad_cell(st[4], st[5]));
+                }
+                _ => {
+                    return Err(SolverError::Diverged {
+                        time: self.time,
+                        reason: format!(
+                            "no finite stable time step (largest wave rate {:e} 1/s, on the GPU)",
+                            ctrl[3]
+                        ),
+                    });
+                }
+            }
+            if st[0] == 0 {
+                return Ok(done);
+            }
+            if done > self.max_steps {
+                return Err(SolverError::Diverged {
+                    time: self.time,
+                    reason: format!(
+                        "more than {} steps in one window (max_steps_per_window)",
+                        self.max_steps
+                    ),
+                });
+            }
+        }
+    }
+
+    /// Encode `k` steps in one submission; return the control reals and status words.
+    fn batch(&self, k: u64) -> Result<([f64; NCTRL], [u32; NST]), SolverError> {
+        self.encode_and_read(|pass, go| {
+            for _ in 0..k {
+                go(pass, &self.pipes.prim_rate, 0, self.dims(self.cells, RWG));
+                go(pass, &self.pipes.reduce_dt, 0, (1, 1));
+                for s in 0..3 {
+                    if s > 0 {
+                        go(pass, &self.pipes.prim_only, s, self.dims(self.cells, RWG));
+                    }
+                    for d in 0..self.nd {
+                        go(
+                            pass,
+                            &self.pipes.ghost[d],
+                            s,
+                            self.dims(self.ghost_n[d], WG),
+                        );
+                    }
+                    for d in 0..self.nd {
+                        go(pass, &self.pipes.flux[d], s, self.dims(self.face_n[d], WG));
+                    }
+                    go(pass, &self.pipes.impulse, s, (1, 1));
+                    go(pass, &self.pipes.update, s, self.dims(self.cells, WG));
+                }
+                go(pass, &self.pipes.finish, 0, (1, 1));
+            }
+        })
+    }
+
+    /// One compute pass of dispatches (`go(pass, pipeline, RK stage, workgroups)`), then the
+    /// control words back to the host.
+    fn encode_and_read(
+        &self,
+        body: impl FnOnce(&mut wgpu::ComputePass<'_>, &Dispatch<'_>),
+    ) -> Result<([f64; NCTRL], [u32; NST]), SolverError> {
+        let ctx = &self.ctx;
+        let p = ctx.precision;
+        let rb = p.bytes();
+        let mut enc = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("euler steps"),
+            });
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("euler"),
+                timestamp_writes: None,
+            });
+            let go = |pass: &mut wgpu::ComputePass<'_>,
+                      pipe: &wgpu::ComputePipeline,
+                      s: usize,
+                      (x, y): (u32, u32)| {
+                pass.set_pipeline(pipe);
+                pass.set_bind_group(0, &self.bind, &[self.stage_off[s]]);
+                pass.dispatch_workgroups(x, y, 1);
+            };
+            body(&mut pass, &go);
+        }
+        enc.copy_buffer_to_buffer(&self.red, 0, &self.staging, 0, (NCTRL * rb) as u64);
+        enc.copy_buffer_to_buffer(
+            &self.st,
+            0,
+            &self.staging,
+            (NCTRL * rb) as u64,
+            (NST * 4) as u64,
+        );
+        ctx.submit_and_map(enc, &self.staging).map_err(gpu_err)?;
+        let mut ctrl = [0.0; NCTRL];
+        let mut st = [0u32; NST];
+        {
+            let view = self
+                .staging
+                .get_mapped_range(..)
+                .map_err(|e| SolverError::Other(format!("GPU control readback: {e}")))?;
+            bytes_to_reals(p, &view[..NCTRL * rb], &mut ctrl).map_err(gpu_err)?;
+            for (w, c) in st.iter_mut().zip(view[NCTRL * rb..].chunks_exact(4)) {
+                *w = u32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+            }
+        }
+        self.staging.unmap();
+        Ok((ctrl, st))
+    }
+
+    /// The error for an inadmissible cell found on the device (flat index of its first
+    /// variable), with its conserved state read back.
+    fn bad_cell(&self, flat: u32, stage: u32) -> SolverError {
+        let flat = flat as usize;
+        let p = self.ctx.precision;
+        let mx = self.mx;
+        let grid = &self.grid;
+        let (r, i) = (flat / (5 * mx), flat % (5 * mx));
+        let mut c = [f64::NAN; 5];
+        if let Ok(b) = self.ctx.read(
+            &self.cons,
+            (r * 5 * mx * p.bytes()) as u64,
+            (5 * mx * p.bytes()) as u64,
+        ) {
+            let mut row = vec![0.0; 5 * mx];
+            if bytes_to_reals(p, &b, &mut row).is_ok() {
+                for (v, x) in c.iter_mut().enumerate() {
+                    *x = row[v * mx + i];
+                }
+            }
+        }
+        // step.rs prim_row's diagnosis of the same conserved state
+        let (a, rho) = (c[0], 0.0 + c[0]);
+        let (var, val) = if !(a >= 0.0) || !(rho > 0.0) {
+            (0, rho)
+        } else {
+            let inv = 1.0 / rho;
+            let (u, v, w) = (c[1] * inv, c[2] * inv, c[3] * inv);
+            let rhoe = c[4] - 0.5 * rho * (u * u + v * v + w * w);
+            (4, (rhoe - 1.0 * self.off) / self.inv_g)
+        };
+        let (j, k) = grid.jk(r);
+        let x = grid.centre(i, j, k);
+        SolverError::Diverged {
+            time: self.time,
+            reason: format!(
+                "cell ({}, {}, {}) at x = ({:.6e}, {:.6e}, {:.6e}) m: {} = {val:e} (RK stage {}, on the GPU)",
+                i - grid.g[0],
+                j - grid.g[1],
+                k - grid.g[2],
+                x[0],
+                x[1],
+                x[2],
+                crate::step::prim_name(1, var),
+                stage + 1
+            ),
+        }
+    }
+}
