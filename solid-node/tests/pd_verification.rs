@@ -588,3 +588,75 @@ fn results_are_independent_of_thread_count() {
         );
     }
 }
+
+/// Plane-stress correspondence: the in-plane stiffness of the bulk (virial stress at the
+/// centre for unit strains) is the plane-stress one, C11 = E/(1−ν²), C12 = νC11, so E and ν
+/// come back as input, and σ_zz = 0 at every particle.
+#[test]
+fn plane_stress_correspondence_recovers_e_and_nu() {
+    let dx = 1e-3;
+    let delta = 3.015 * dx;
+    let n = 13;
+    let x0 = block([n, n, 1], dx, false);
+    let h_t = 2e-3;
+    let vol = vec![dx * dx * h_t; x0.len()];
+    let bonds = Bonds::build(&x0, delta);
+    let c = 6.5 * dx;
+    let centre = (0..x0.len())
+        .min_by(|&a, &b| {
+            let d = |i: usize| (x0[i][0] - c).powi(2) + (x0[i][1] - c).powi(2);
+            d(a).total_cmp(&d(b))
+        })
+        .unwrap_or(0);
+    let eps = 1e-7;
+    let mut cmat = [[0.0; 2]; 2];
+    for d in 0..2 {
+        let mut h = [[0.0; 3]; 3];
+        h[d][d] = eps;
+        let pos = apply(&h, &x0);
+        let vel = vec![[0.0; 3]; x0.len()];
+        let k0 = Kinematics {
+            x0: &x0,
+            pos: &x0,
+            vel: &vel,
+            vol: &vol,
+        };
+        let mut m = Correspondence::new(
+            Dim::PlaneStress,
+            steel(0.3),
+            0.5,
+            delta,
+            h_t,
+            NoDamage,
+            &k0,
+            &bonds,
+        );
+        let velu: Vec<[f64; 3]> = pos
+            .iter()
+            .zip(&x0)
+            .map(|(p, q)| std::array::from_fn(|a| p[a] - q[a]))
+            .collect();
+        let k = Kinematics {
+            x0: &x0,
+            pos: &pos,
+            vel: &velu,
+            vol: &vol,
+        };
+        m.update_stress(&k, &bonds, 1.0);
+        let s = m.virial_stress(centre, &k, &bonds);
+        for a in 0..2 {
+            cmat[a][d] = s[a][a] / eps;
+        }
+        let szz = m
+            .state
+            .iter()
+            .map(|st| st.stress[2].abs())
+            .fold(0.0, f64::max);
+        assert!(szz < 1e-9 * eps * 200e9, "σ_zz = {szz}");
+    }
+    let (c11, c12) = (cmat[0][0], cmat[1][0]);
+    let (e, nu) = ((c11 * c11 - c12 * c12) / c11, c12 / c11);
+    println!("plane-stress correspondence: E = {e:.5e}, ν = {nu:.5}");
+    assert!((e - 200e9).abs() / 200e9 < 0.02, "E = {e:e}");
+    assert!((nu - 0.3).abs() < 0.02, "ν = {nu}");
+}

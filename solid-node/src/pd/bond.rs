@@ -243,6 +243,15 @@ impl PdModel for BondModel {
         }
     }
 
+    fn save_state(&self, w: &mut super::checkpoint::Writer) {
+        w.f64s(self.coef.iter().copied());
+    }
+
+    fn load_state(&mut self, r: &mut super::checkpoint::Reader) -> Result<(), String> {
+        self.coef = r.f64s(self.coef.len(), "bond coefficients")?;
+        Ok(())
+    }
+
     fn stiffness_bound(&self, k: &Kinematics, bonds: &Bonds, i: usize) -> f64 {
         // Σ_j c V_j / |ξ| is the force density per unit displacement; times V_i.
         let s: f64 = (bonds.offsets[i]..bonds.offsets[i + 1])

@@ -4,6 +4,8 @@
 //! zero-energy-mode stabilization (eq. 184–189). The stress is a rate form (seed 000 App. B):
 //! L = Ḟ F⁻¹, Jaumann-rotated Cauchy stress, J2 radial return with isotropic and kinematic
 //! hardening (`mechanics::j2`), bond damage by any `mechanics::damage::DamageModel` (App. C).
+//! 2-D: plane strain (Δε_zz = 0) or plane stress (Δε_zz solved for σ_zz = 0 by
+//! `J2Material::update_plane_stress`), with F_zz = 1 in the kinematics.
 //!
 //! Stabilization, eq. (186): T̂ = ω { P K⁻¹ ξ + (G C/ω₀) z },  z = y − F ξ (eq. 184). As printed,
 //! G C z/ω₀ is not a force state dimensionally (C of eq. 188 is a bond micromodulus, N/m⁶,
@@ -195,22 +197,38 @@ impl<D: DamageModel> Correspondence<D> {
             .for_each(|(i, ((st, pk), sd))| {
                 let r = offsets[i]..offsets[i + 1];
                 let (pi, vi) = (k.pos[i], k.vel[i]);
+                // Two sweeps over the row (it stays in L1): nine accumulators each fit the
+                // registers, where eighteen spill. Same summation order as one sweep.
                 let mut nn = [[0.0; 3]; 3];
                 let mut nd = [[0.0; 3]; 3];
                 let mut w0 = 0.0;
-                for ((&j, x), &om) in nbr[r.clone()].iter().zip(&xi[r.clone()]).zip(&intact[r]) {
+                let (rn, rx, rw) = (&nbr[r.clone()], &xi[r.clone()], &intact[r]);
+                for ((&j, x), &om) in rn.iter().zip(rx).zip(rw) {
                     if om == 0.0 {
                         continue;
                     }
                     let j = j as usize;
                     let w = om * k.vol[j];
                     w0 += w;
-                    let (pj, vj) = (k.pos[j], k.vel[j]);
+                    let pj = k.pos[j];
                     let wy = [
                         w * (pj[0] - pi[0]),
                         w * (pj[1] - pi[1]),
                         w * (pj[2] - pi[2]),
                     ];
+                    for a in 0..3 {
+                        for c in 0..3 {
+                            nn[a][c] += wy[a] * x[c];
+                        }
+                    }
+                }
+                for ((&j, x), &om) in rn.iter().zip(rx).zip(rw) {
+                    if om == 0.0 {
+                        continue;
+                    }
+                    let j = j as usize;
+                    let w = om * k.vol[j];
+                    let vj = k.vel[j];
                     let wv = [
                         w * (vj[0] - vi[0]),
                         w * (vj[1] - vi[1]),
@@ -218,7 +236,6 @@ impl<D: DamageModel> Correspondence<D> {
                     ];
                     for a in 0..3 {
                         for c in 0..3 {
-                            nn[a][c] += wy[a] * x[c];
                             nd[a][c] += wv[a] * x[c];
                         }
                     }
@@ -270,7 +287,11 @@ impl<D: DamageModel> Correspondence<D> {
                     // seed 000 eq. (B.2)–(B.4): Jaumann rate, then radial return.
                     jaumann_rotate(&mut st.stress, &spin, dt);
                     jaumann_rotate(&mut st.back_stress, &spin, dt);
-                    mat.update(st, &de);
+                    if dim == Dim::PlaneStress {
+                        mat.update_plane_stress(st, &de);
+                    } else {
+                        mat.update(st, &de);
+                    }
                 }
                 let s = mechanics::j2::to_matrix(&st.stress);
                 // P = J σ F⁻ᵀ, A = P K⁻¹
@@ -421,6 +442,19 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
 
     fn plastic_strain(&self) -> Option<Vec<f64>> {
         Some(self.state.iter().map(|s| s.eq_plastic_strain).collect())
+    }
+
+    fn save_state(&self, w: &mut super::checkpoint::Writer) {
+        super::checkpoint::put_j2(w, &self.state);
+    }
+
+    fn load_state(&mut self, r: &mut super::checkpoint::Reader) -> Result<(), String> {
+        super::checkpoint::get_j2(r, &mut self.state, "particle J2 states")?;
+        // K⁻¹ is rebuilt from the restored bond damage on the next step.
+        for k in self.kin.iter_mut() {
+            k.wsum = f64::NAN;
+        }
+        Ok(())
     }
 
     fn stiffness_bound(&self, k: &Kinematics, bonds: &Bonds, i: usize) -> f64 {

@@ -10,12 +10,17 @@
 )]
 
 pub mod bond;
+pub mod cases;
+pub mod checkpoint;
 pub mod correspondence;
 pub mod family;
+pub mod fracture;
 pub mod geometry;
+pub mod gpu;
 pub mod integrate;
 pub mod model;
 pub mod output;
+pub mod rk_ba;
 pub mod solver;
 
 use protocol::{Solver, SolverResult};
@@ -23,7 +28,7 @@ use protocol::{Solver, SolverResult};
 /// The peridynamic models of this node by config name; `None` when `model` is not one.
 pub fn factory(model: &str, params: &toml::Table) -> Option<SolverResult<Box<dyn Solver>>> {
     match model {
-        "pd-bond" | "pd-correspondence" => Some(
+        "pd-bond" | "pd-correspondence" | "pd-rk-ba" => Some(
             solver::PdSolver::from_table(model, params).map(|s| Box::new(s) as Box<dyn Solver>),
         ),
         _ => None,

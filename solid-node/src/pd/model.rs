@@ -67,6 +67,13 @@ pub trait PdModel: Send + Sync {
         None
     }
 
+    /// Appends the model's history (what the next step needs and cannot recompute) to a
+    /// checkpoint.
+    fn save_state(&self, w: &mut super::checkpoint::Writer);
+
+    /// Restores what [`PdModel::save_state`] wrote; caches are rebuilt on the next step.
+    fn load_state(&mut self, r: &mut super::checkpoint::Reader) -> Result<(), String>;
+
     /// A bound on the stiffness (N/m) a particle of volume `v` presents to a driver.
     fn stiffness_bound(&self, k: &Kinematics, bonds: &Bonds, i: usize) -> f64;
 }

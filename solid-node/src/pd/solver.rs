@@ -18,6 +18,7 @@ use super::geometry::{Shape, lattice};
 use super::integrate::Body;
 use super::model::{Dim, PdModel};
 use super::output::{PointData, write_vtu};
+use super::rk_ba::RkBa;
 use mechanics::damage::{
     BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain, NoDamage,
 };
@@ -38,6 +39,9 @@ fn default_stabilization() -> f64 {
 }
 fn default_cfl() -> f64 {
     0.5
+}
+fn default_rk_order() -> usize {
+    2
 }
 
 /// The parameter table of a peridynamic node (`[nodes.X.params]`).
@@ -67,6 +71,9 @@ pub struct PdParams {
     /// G of seed 001 eq. (186).
     #[serde(default = "default_stabilization")]
     pub stabilization: f64,
+    /// Order n of the RK gradient of pd-rk-ba (1 or 2; seed 000 App. A).
+    #[serde(default = "default_rk_order")]
+    pub rk_order: usize,
     /// Safety factor on the stable step.
     #[serde(default = "default_cfl")]
     pub cfl: f64,
@@ -80,7 +87,7 @@ pub struct PdParams {
     #[serde(default)]
     pub prescribed_velocity: Vec<RegionVelocity>,
     #[serde(default)]
-    pub pressure: Option<PressurePulse>,
+    pub pressure_pulse: Option<PressurePulse>,
     #[serde(default)]
     pub interfaces: Vec<InterfaceParams>,
 }
@@ -108,15 +115,43 @@ pub struct RegionVelocity {
     pub velocity: [f64; 3],
 }
 
-/// Internal pressure on the inner face of a hole about the z axis through `center`:
-/// p(t) = p0 (1 − t/duration) for t < duration, then 0.
+/// Prescribed internal pressure pulse on the inner face of a round hole about the z axis
+/// through `center` (stand-in for the gas of seed 000 §3.2): p(t) rises linearly from 0 to
+/// `peak` over `rise`, then falls linearly to 0 at `duration` (`rise` = 0: a step down-ramp).
+/// Applied as forces p·A·n on the particles of the first lattice layer outside the face,
+/// A = Δx·h (2-D) or Δx² (3-D) of face per particle, n the outward radial direction.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PressurePulse {
+    /// Only "inner" (the face of the hole of radius `inner_radius`).
+    #[serde(default = "default_surface")]
+    pub surface: String,
     pub center: [f64; 3],
     pub inner_radius: f64,
-    pub pressure: f64,
+    /// Peak pressure (Pa).
+    pub peak: f64,
+    /// Rise time (s), ≥ 0 and < duration.
+    #[serde(default)]
+    pub rise: f64,
+    /// Total duration (s).
     pub duration: f64,
+}
+
+fn default_surface() -> String {
+    "inner".into()
+}
+
+impl PressurePulse {
+    /// p(t).
+    pub fn at(&self, t: f64) -> f64 {
+        if t < 0.0 || t >= self.duration {
+            0.0
+        } else if t < self.rise {
+            self.peak * t / self.rise
+        } else {
+            self.peak * (self.duration - t) / (self.duration - self.rise)
+        }
+    }
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -161,6 +196,9 @@ pub struct PdSolver {
     interface_work: f64,
     external_work: f64,
 }
+
+/// First bytes of a checkpoint of this node.
+const CHECKPOINT_MAGIC: &[u8] = b"cosim-pd-state-v1";
 
 fn cfg<T>(key: &str, reason: impl Into<String>) -> SolverResult<T> {
     Err(SolverError::config(key, reason))
@@ -312,12 +350,6 @@ impl PdSolver {
                 ))
             }
             "pd-correspondence" => {
-                if dim == Dim::PlaneStress {
-                    return cfg(
-                        "dimension",
-                        "pd-correspondence supports \"3d\" and \"plane_strain\"",
-                    );
-                }
                 let mk = |d| -> Box<dyn PdModel> {
                     match d {
                         DamageParams::None => Box::new(Correspondence::new(
@@ -374,6 +406,61 @@ impl PdSolver {
                 };
                 mk(p.damage.clone().unwrap_or(DamageParams::None))
             }
+            "pd-rk-ba" => {
+                if dim == Dim::PlaneStress {
+                    return cfg("dimension", "pd-rk-ba supports \"3d\" and \"plane_strain\"");
+                }
+                if !(p.rk_order == 1 || p.rk_order == 2) {
+                    return cfg("rk_order", format!("must be 1 or 2, got {}", p.rk_order));
+                }
+                let (order, h) = (p.rk_order, p.horizon);
+                let m: Box<dyn PdModel> = match p.damage.clone().unwrap_or(DamageParams::None) {
+                    DamageParams::None => {
+                        Box::new(RkBa::new(dim, order, h, material, NoDamage, &bonds))
+                    }
+                    DamageParams::CriticalStretch { critical_stretch } => Box::new(RkBa::new(
+                        dim,
+                        order,
+                        h,
+                        material,
+                        CriticalStretch { critical_stretch },
+                        &bonds,
+                    )),
+                    DamageParams::VonMises { critical_stress } => Box::new(RkBa::new(
+                        dim,
+                        order,
+                        h,
+                        material,
+                        BrittleVonMises { critical_stress },
+                        &bonds,
+                    )),
+                    DamageParams::PlasticStrain {
+                        eps_threshold,
+                        eps_critical,
+                    } => Box::new(RkBa::new(
+                        dim,
+                        order,
+                        h,
+                        material,
+                        DuctilePlasticStrain {
+                            threshold: eps_threshold,
+                            critical: eps_critical,
+                        },
+                        &bonds,
+                    )),
+                };
+                let probe = RkBa::new(dim, order, h, material, NoDamage, &bonds);
+                if let Some(i) = probe.singular_particle(&k, &bonds) {
+                    return cfg(
+                        "horizon",
+                        format!(
+                            "too small for rk_order = {order}: the moment matrix is singular at particle {i} (use δ ≥ {}·Δx)",
+                            order + 1
+                        ),
+                    );
+                }
+                m
+            }
             other => return cfg("model", format!("unknown peridynamic model '{other}'")),
         };
         let mut body = Body::new(dim, p.spacing, p.horizon, p.density, x0, vol, bonds, model);
@@ -404,11 +491,32 @@ impl PdSolver {
         bc_particles.sort_unstable();
         bc_particles.dedup();
         let mut pressure_area = Vec::new();
-        if let Some(pp) = &p.pressure {
-            if !(pp.duration > 0.0 && pp.inner_radius > 0.0 && pp.pressure.is_finite()) {
+        if let Some(pp) = &p.pressure_pulse {
+            if pp.surface != "inner" {
                 return cfg(
-                    "pressure",
-                    "needs duration > 0, inner_radius > 0 and a finite pressure",
+                    "pressure_pulse.surface",
+                    format!("only \"inner\" is offered, got \"{}\"", pp.surface),
+                );
+            }
+            if !(pp.inner_radius > 0.0 && pp.inner_radius.is_finite()) {
+                return cfg(
+                    "pressure_pulse.inner_radius",
+                    format!("must be > 0, got {}", pp.inner_radius),
+                );
+            }
+            if !(pp.peak.is_finite()) {
+                return cfg("pressure_pulse.peak", "must be finite");
+            }
+            if !(pp.duration > 0.0 && pp.duration.is_finite()) {
+                return cfg(
+                    "pressure_pulse.duration",
+                    format!("must be > 0, got {}", pp.duration),
+                );
+            }
+            if !(pp.rise >= 0.0 && pp.rise < pp.duration) {
+                return cfg(
+                    "pressure_pulse.rise",
+                    format!("must be in [0, duration), got {}", pp.rise),
                 );
             }
             // Particles of the first layer outside the inner face; each carries Δx·h (2-D)
@@ -427,7 +535,10 @@ impl PdSolver {
                 }
             }
             if pressure_area.is_empty() {
-                return cfg("pressure.inner_radius", "no particle lies on this face");
+                return cfg(
+                    "pressure_pulse.inner_radius",
+                    "no particle lies on this face",
+                );
             }
         }
         let surf = surface_particles(&body.x0, &body.bonds, p.spacing, three_d);
@@ -514,11 +625,22 @@ impl PdSolver {
         }
     }
 
+    /// Fragments: sizes of the connected components (over unbroken bonds) with at least
+    /// `min_size` particles, largest first, and the number of particles in smaller ones.
+    pub fn fragments(&mut self, min_size: usize) -> (Vec<usize>, usize) {
+        self.body.model.sync_bonds(&mut self.body.bonds);
+        let (_, sizes) = super::fracture::components(&self.body.bonds, &self.body.bonds.intact);
+        let mut big: Vec<usize> = sizes.iter().copied().filter(|&s| s >= min_size).collect();
+        big.sort_unstable_by(|a, b| b.cmp(a));
+        let debris = sizes.iter().filter(|&&s| s < min_size).sum();
+        (big, debris)
+    }
+
     fn pressure_at(&self, t: f64) -> f64 {
-        match &self.params.pressure {
-            Some(pp) if t < pp.duration => pp.pressure * (1.0 - t / pp.duration),
-            _ => 0.0,
-        }
+        self.params
+            .pressure_pulse
+            .as_ref()
+            .map_or(0.0, |pp| pp.at(t))
     }
 
     /// Stable step with the safety factor.
@@ -773,11 +895,108 @@ impl Solver for PdSolver {
             substeps: nsub,
             wall_s: wall.elapsed().as_secs_f64(),
             coupling_wait_s: 0.0,
-            scalars: vec![
-                ("max_damage".into(), maxd),
-                ("free_particles".into(), broken as f64),
-            ],
+            idle_s: 0.0,
+            scalars: {
+                let mut v = vec![
+                    ("max_damage".into(), maxd),
+                    ("free_particles".into(), broken as f64),
+                ];
+                // Displacement of the centre of mass (seed 000 Fig. 4a plots its x part).
+                let b = &self.body;
+                let m: f64 = b.vol.iter().sum();
+                for (d, axis) in ["x", "y", "z"].iter().enumerate() {
+                    let u: f64 = (0..b.len())
+                        .map(|i| b.vol[i] * (b.pos[i][d] - b.x0[i][d]))
+                        .sum();
+                    v.push((
+                        format!("com_displacement_{axis}"),
+                        u / m.max(f64::MIN_POSITIVE),
+                    ));
+                }
+                v
+            },
         })
+    }
+
+    fn save_state(&self) -> SolverResult<Vec<u8>> {
+        use super::checkpoint::{Writer, flat3};
+        let b = &self.body;
+        let mut w = Writer::default();
+        w.bytes(CHECKPOINT_MAGIC);
+        w.u64(b.len() as u64);
+        w.u64(b.bonds.len() as u64);
+        w.f64(b.time);
+        w.u64(b.steps);
+        w.f64s(flat3(&b.pos));
+        w.f64s(flat3(&b.vel));
+        w.f64s(flat3(&b.force));
+        w.f64s(flat3(&b.vpres));
+        w.bytes(&b.prescribed);
+        w.f64s(b.bonds.intact.iter().copied());
+        let acc = [
+            self.external_impulse[0],
+            self.external_impulse[1],
+            self.external_impulse[2],
+            self.interface_impulse[0],
+            self.interface_impulse[1],
+            self.interface_impulse[2],
+            self.applied_impulse,
+            self.interface_work,
+            self.external_work,
+        ];
+        w.f64s(acc.into_iter());
+        b.model.save_state(&mut w);
+        Ok(w.buf)
+    }
+
+    fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
+        use super::checkpoint::{Reader, unflat3};
+        let bad = |e: String| SolverError::Other(format!("load_state: {e}"));
+        let mut r = Reader::new(bytes);
+        r.bytes(CHECKPOINT_MAGIC.len(), "magic")
+            .and_then(|m| {
+                if m == CHECKPOINT_MAGIC {
+                    Ok(())
+                } else {
+                    Err("not a peridynamic node checkpoint".into())
+                }
+            })
+            .map_err(bad)?;
+        let b = &mut self.body;
+        let (n, nb) = (b.len(), b.bonds.len());
+        let (n2, nb2) = (r.u64().map_err(bad)?, r.u64().map_err(bad)?);
+        if n2 as usize != n || nb2 as usize != nb {
+            return Err(bad(format!(
+                "checkpoint of {n2} particles / {nb2} bonds, this body has {n} / {nb}"
+            )));
+        }
+        let time = r.f64().map_err(bad)?;
+        let steps = r.u64().map_err(bad)?;
+        let pos = r.f64s(3 * n, "positions").map_err(bad)?;
+        let vel = r.f64s(3 * n, "velocities").map_err(bad)?;
+        let force = r.f64s(3 * n, "forces").map_err(bad)?;
+        let vpres = r.f64s(3 * n, "prescribed velocities").map_err(bad)?;
+        let pres = r.bytes(n, "prescribed flags").map_err(bad)?.to_vec();
+        let intact = r.f64s(nb, "bond damage").map_err(bad)?;
+        let acc = r.f64s(9, "accumulators").map_err(bad)?;
+        b.model.load_state(&mut r).map_err(bad)?;
+        if !r.rest.is_empty() {
+            return Err(bad(format!("{} trailing bytes", r.rest.len())));
+        }
+        b.time = time;
+        b.steps = steps;
+        unflat3(&pos, &mut b.pos);
+        unflat3(&vel, &mut b.vel);
+        unflat3(&force, &mut b.force);
+        unflat3(&vpres, &mut b.vpres);
+        b.prescribed = pres;
+        b.bonds.intact = intact;
+        self.external_impulse = [acc[0], acc[1], acc[2]];
+        self.interface_impulse = [acc[3], acc[4], acc[5]];
+        self.applied_impulse = acc[6];
+        self.interface_work = acc[7];
+        self.external_work = acc[8];
+        Ok(())
     }
 
     fn write_output(&self, t: f64, window: u64, dir: &Path) -> SolverResult<()> {

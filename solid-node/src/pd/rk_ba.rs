@@ -1,0 +1,679 @@
+//! pd-rk-ba: seed 000 App. A — the semi-Lagrangian correspondence PD rate form with
+//! reproducing-kernel (RK) gradient operators of order n = 1 or 2 and bond-associative (BA)
+//! stabilization.
+//!
+//! * Influence (A.3–A.4): cubic B-spline ω_r(|x|/δ) of the *current* bond x = x_j − x_i
+//!   over the family found in the reference configuration (a member that moves beyond δ
+//!   gets ω = 0; new neighbours are not searched for — adequate up to moderate distortion)
+//!   (semi-Lagrangian: no mapping to the reference configuration), times the bond damage
+//!   ω_D (C.1); ω̄ = Σ_j ω V_j (A.6).
+//! * RK gradient kernel (A.2, A.7, A.8): Φ_j = ω Ξ̃ M⁻¹ Ξ(x_j), M = Σ_j ω Ξ Ξᵀ V_j, Ξ the
+//!   monomials of degree 1..n (A.9); the monomials are taken of x/δ for conditioning and Φ
+//!   scaled back by 1/δ. Point velocity gradient L = Σ_j (v_j − v_i) Φ_jᵀ V_j (A.1); it is exact
+//!   for polynomial fields of degree ≤ n, at every particle with a non-singular M.
+//! * BA velocity gradient per bond (A.11): L_b = L̄ + (v − L̄ x) xᵀ/|x|², L̄ = (L_i + L_j)/2.
+//! * Bond-level rate-form J2 with Jaumann rate (App. B, `mechanics::j2`) updates the bond
+//!   Cauchy stress σ_b (A.12); bond damage from σ_b, ε̄ᵖ_b and the stretch (App. C).
+//! * Force state (A.13–A.14): T_ij = ω σ_b x/(ω̄_i |x|²) + z_i Φ_ij,
+//!   z_i = Σ_j (½/ω̄_i + ½/ω̄_j) ω σ_b (I − x xᵀ/|x|²) V_j; force density
+//!   f_i = Σ_j (T_ij − T_ji) V_j (seed 001 eq. 183), antisymmetric per pair, so linear
+//!   momentum is conserved. (With ω̄_i = ω̄_j the PD stress Σ_j T_ij ⊗ x V_j equals σ: the
+//!   z term supplies the transverse part that the first term lacks.)
+//!
+//! Both copies of a bond (rows i and j) evolve bit-identically: L̄ is symmetric and the BA
+//! term is even in (v, x) → (−v, −x). The force pass reads Φ_ji through the reverse-bond map.
+// Index loops over the 3 or 6 components of small tensors read closer to the formulas;
+// `!(x > 0.0)` is deliberate: it also rejects NaN.
+#![allow(
+    clippy::needless_range_loop,
+    clippy::neg_cmp_op_on_partial_ord,
+    clippy::too_many_arguments
+)]
+
+use super::correspondence::M3;
+use super::family::{Bonds, par_rows};
+use super::model::{Dim, Kinematics, PdModel};
+use mechanics::damage::{BondInput, DamageModel};
+use mechanics::j2::{J2Material, J2State, Sym, jaumann_rotate_skew, von_mises};
+
+/// Largest monomial basis: 3-D, order 2 (x, y, z, x², xy, xz, y², yz, z²).
+pub const MAX_BASIS: usize = 9;
+
+/// Cubic B-spline influence of seed 000 eq. (A.3), η = |x|/δ.
+#[inline]
+pub fn bspline(eta: f64) -> f64 {
+    if eta <= 0.0 || eta > 1.0 {
+        0.0
+    } else if eta <= 0.5 {
+        2.0 / 3.0 - 4.0 * eta * eta + 4.0 * eta * eta * eta
+    } else {
+        let a = 1.0 - eta;
+        4.0 / 3.0 * a * a * a
+    }
+}
+
+/// Monomials Ξ⁽ⁿ⁾ (A.9) of `p` in `dims` dimensions up to degree `order` (1 or 2); the
+/// first `dims` entries are the linear ones (Ξ̃ of A.8 selects them). Returns the length.
+#[inline]
+pub fn monomials(p: &[f64; 3], dims: usize, order: usize, out: &mut [f64; MAX_BASIS]) -> usize {
+    let mut m = 0;
+    for d in 0..dims {
+        out[m] = p[d];
+        m += 1;
+    }
+    if order >= 2 {
+        for a in 0..dims {
+            for b in a..dims {
+                out[m] = p[a] * p[b];
+                m += 1;
+            }
+        }
+    }
+    m
+}
+
+/// Basis size for (dims, order).
+pub fn basis_len(dims: usize, order: usize) -> usize {
+    if order >= 2 {
+        dims + dims * (dims + 1) / 2
+    } else {
+        dims
+    }
+}
+
+/// In-place Cholesky factorisation of the leading m×m block (row-major, stride MAX_BASIS);
+/// false when not positive definite (relative pivot below 1e-12 of the largest diagonal).
+fn cholesky(a: &mut [[f64; MAX_BASIS]; MAX_BASIS], m: usize) -> bool {
+    let dmax = (0..m).map(|i| a[i][i]).fold(0.0, f64::max);
+    if !(dmax > 0.0) {
+        return false;
+    }
+    for j in 0..m {
+        let mut s = a[j][j];
+        for k in 0..j {
+            s -= a[j][k] * a[j][k];
+        }
+        if !(s > 1e-12 * dmax) {
+            return false;
+        }
+        let d = s.sqrt();
+        a[j][j] = d;
+        for i in j + 1..m {
+            let mut s = a[i][j];
+            for k in 0..j {
+                s -= a[i][k] * a[j][k];
+            }
+            a[i][j] = s / d;
+        }
+    }
+    true
+}
+
+/// Solves L Lᵀ y = b with the factor of [`cholesky`].
+fn cholesky_solve(l: &[[f64; MAX_BASIS]; MAX_BASIS], m: usize, b: &mut [f64; MAX_BASIS]) {
+    for i in 0..m {
+        let mut s = b[i];
+        for k in 0..i {
+            s -= l[i][k] * b[k];
+        }
+        b[i] = s / l[i][i];
+    }
+    for i in (0..m).rev() {
+        let mut s = b[i];
+        for k in i + 1..m {
+            s -= l[k][i] * b[k];
+        }
+        b[i] = s / l[i][i];
+    }
+}
+
+/// ω of every bond of row i on the configuration `pos`: ω_r(|x|/δ) ω_D (A.3, C.1); `w` holds
+/// ω_D on entry.
+#[inline]
+fn omega_row(i: usize, horizon: f64, pos: &[[f64; 3]], nbr: &[u32], w: &mut [f64]) {
+    let inv_h = 1.0 / horizon;
+    let p = pos[i];
+    for (&j, wb) in nbr.iter().zip(w.iter_mut()) {
+        if !(*wb > 0.0) {
+            *wb = 0.0;
+            continue;
+        }
+        let q = pos[j as usize];
+        let x = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+        let r = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt() * inv_h;
+        *wb *= bspline(r);
+    }
+}
+
+/// G = the first `dims` rows of M⁻¹ (A.7, A.8; monomials of x/δ) for bond weights ω of
+/// row i; returns (ω̄ of A.6, whether M is invertible).
+fn moment_rows(
+    i: usize,
+    dims: usize,
+    order: usize,
+    horizon: f64,
+    pos: &[[f64; 3]],
+    vol: &[f64],
+    nbr: &[u32],
+    w: &[f64],
+    g: &mut [[f64; MAX_BASIS]; 3],
+) -> (f64, bool) {
+    let m = basis_len(dims, order);
+    let inv_h = 1.0 / horizon;
+    let mut mm = [[0.0; MAX_BASIS]; MAX_BASIS];
+    let mut wbar = 0.0;
+    let p = pos[i];
+    *g = [[0.0; MAX_BASIS]; 3];
+    // Constant basis sizes let the compiler unroll the rank-1 updates.
+    match m {
+        2 => accumulate::<2>(p, inv_h, pos, vol, nbr, w, dims, order, &mut mm, &mut wbar),
+        3 => accumulate::<3>(p, inv_h, pos, vol, nbr, w, dims, order, &mut mm, &mut wbar),
+        5 => accumulate::<5>(p, inv_h, pos, vol, nbr, w, dims, order, &mut mm, &mut wbar),
+        _ => accumulate::<9>(p, inv_h, pos, vol, nbr, w, dims, order, &mut mm, &mut wbar),
+    }
+    for a in 0..m {
+        for b in a + 1..m {
+            mm[a][b] = mm[b][a];
+        }
+    }
+    if !cholesky(&mut mm, m) {
+        return (wbar, false);
+    }
+    for d in 0..dims {
+        let mut e = [0.0; MAX_BASIS];
+        e[d] = 1.0;
+        cholesky_solve(&mm, m, &mut e);
+        g[d] = e;
+    }
+    (wbar, true)
+}
+
+/// M += ω V_j Ξ Ξᵀ (lower triangle) and ω̄ += ω V_j over a row, basis size `M`.
+#[inline(always)]
+fn accumulate<const M: usize>(
+    p: [f64; 3],
+    inv_h: f64,
+    pos: &[[f64; 3]],
+    vol: &[f64],
+    nbr: &[u32],
+    w: &[f64],
+    dims: usize,
+    order: usize,
+    mm: &mut [[f64; MAX_BASIS]; MAX_BASIS],
+    wbar: &mut f64,
+) {
+    let mut xi = [0.0; MAX_BASIS];
+    for (&j, &om) in nbr.iter().zip(w) {
+        if om == 0.0 {
+            continue;
+        }
+        let j = j as usize;
+        let q = pos[j];
+        let x = [
+            (q[0] - p[0]) * inv_h,
+            (q[1] - p[1]) * inv_h,
+            (q[2] - p[2]) * inv_h,
+        ];
+        let wv = om * vol[j];
+        *wbar += wv;
+        monomials(&x, dims, order, &mut xi);
+        for a in 0..M {
+            let s = wv * xi[a];
+            for b in 0..=a {
+                mm[a][b] += s * xi[b];
+            }
+        }
+    }
+}
+
+/// Φ of one bond from the rows G: Φ_d = ω (G_d · Ξ(x/δ)) / δ (A.2).
+#[inline]
+fn phi_of(
+    g: &[[f64; MAX_BASIS]; 3],
+    om: f64,
+    x: &[f64; 3],
+    dims: usize,
+    order: usize,
+    horizon: f64,
+) -> [f64; 3] {
+    if om == 0.0 {
+        return [0.0; 3];
+    }
+    let inv_h = 1.0 / horizon;
+    let xs = [x[0] * inv_h, x[1] * inv_h, x[2] * inv_h];
+    let mut xi = [0.0; MAX_BASIS];
+    let m = monomials(&xs, dims, order, &mut xi);
+    let mut out = [0.0; 3];
+    for d in 0..dims {
+        let mut s = 0.0;
+        for a in 0..m {
+            s += g[d][a] * xi[a];
+        }
+        out[d] = om * s * inv_h;
+    }
+    out
+}
+
+#[inline]
+fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// Per-particle results of the gradient pass.
+#[derive(Debug, Clone, Copy)]
+pub struct RkPoint {
+    /// First `dims` rows of M⁻¹.
+    pub g: [[f64; MAX_BASIS]; 3],
+    /// Point velocity gradient L (A.1).
+    pub l: M3,
+    /// ω̄ (A.6).
+    pub wbar: f64,
+    /// Whether the moment matrix was invertible (false: the particle carries no gradient).
+    pub active: bool,
+}
+
+impl Default for RkPoint {
+    fn default() -> Self {
+        RkPoint {
+            g: [[0.0; MAX_BASIS]; 3],
+            l: [[0.0; 3]; 3],
+            wbar: 0.0,
+            active: false,
+        }
+    }
+}
+
+/// Shared gradient pass: ω per bond (from ω_D in `omega` on entry), G and ω̄ per particle,
+/// then Φ per bond and the gradient of `field` per particle.
+fn gradient_pass(
+    dims: usize,
+    order: usize,
+    horizon: f64,
+    pos: &[[f64; 3]],
+    vol: &[f64],
+    field: &[[f64; 3]],
+    bonds: &Bonds,
+    point: &mut [RkPoint],
+    omega: &mut [f64],
+    phi: &mut [[f64; 3]],
+) {
+    let (offsets, nbr) = (&bonds.offsets, &bonds.nbr);
+    par_rows(offsets, point, omega, &|i, pt, wrow| {
+        let r = offsets[i]..offsets[i + 1];
+        omega_row(i, horizon, pos, &nbr[r.clone()], wrow);
+        let (wbar, ok) = moment_rows(i, dims, order, horizon, pos, vol, &nbr[r], wrow, &mut pt.g);
+        pt.wbar = wbar;
+        pt.active = ok;
+    });
+    let omega = &*omega;
+    par_rows(offsets, point, phi, &|i, pt, prow| {
+        let r = offsets[i]..offsets[i + 1];
+        let p = pos[i];
+        let u = field[i];
+        let mut l = [[0.0; 3]; 3];
+        for ((ph, &j), &om) in prow.iter_mut().zip(&nbr[r.clone()]).zip(&omega[r]) {
+            if !pt.active || om == 0.0 {
+                *ph = [0.0; 3];
+                continue;
+            }
+            let j = j as usize;
+            *ph = phi_of(&pt.g, om, &sub(&pos[j], &p), dims, order, horizon);
+            let du = sub(&field[j], &u);
+            let vj = vol[j];
+            for a in 0..3 {
+                for c in 0..3 {
+                    l[a][c] += du[a] * ph[c] * vj;
+                }
+            }
+        }
+        pt.l = l;
+    });
+}
+
+/// RK gradient (A.1) of a vector field at every particle, the kernel evaluated on the
+/// configuration `pos` with undamaged bonds: ∇u_i = Σ_j (u_j − u_i) Φ_jᵀ V_j. Exact for
+/// polynomial fields of degree ≤ `order` wherever the moment matrix is invertible;
+/// particles where it is singular get zeros. (The model applies it to velocities.)
+pub fn rk_gradient(
+    dim: Dim,
+    order: usize,
+    horizon: f64,
+    pos: &[[f64; 3]],
+    vol: &[f64],
+    bonds: &Bonds,
+    field: &[[f64; 3]],
+) -> Vec<M3> {
+    let dims = if dim.three_d() { 3 } else { 2 };
+    let mut point = vec![RkPoint::default(); bonds.particles()];
+    let mut omega = vec![1.0; bonds.len()];
+    let mut phi = vec![[0.0; 3]; bonds.len()];
+    gradient_pass(
+        dims, order, horizon, pos, vol, field, bonds, &mut point, &mut omega, &mut phi,
+    );
+    point.iter().map(|p| p.l).collect()
+}
+
+/// Per-bond history: the bond-level J2 state, the damage part ω_D of the influence, and ω
+/// after this step's damage update (used by z and the force).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct BondHistory {
+    pub state: J2State,
+    pub wd: f64,
+    pub om: f64,
+}
+
+/// The pd-rk-ba model, generic over its damage law.
+pub struct RkBa<D: DamageModel> {
+    pub dim: Dim,
+    pub order: usize,
+    pub horizon: f64,
+    pub material: J2Material,
+    pub damage: D,
+    pub point: Vec<RkPoint>,
+    /// z_i of (A.14).
+    pub z: Vec<M3>,
+    /// ω and Φ per bond, from the gradient pass.
+    pub omega: Vec<f64>,
+    pub phi: Vec<[f64; 3]>,
+    pub hist: Vec<BondHistory>,
+    /// Index of bond (j, i) for bond (i, j).
+    pub rev: Vec<u32>,
+    /// Row starts (a copy of the family offsets).
+    offsets: Vec<usize>,
+}
+
+impl<D: DamageModel> RkBa<D> {
+    pub fn new(
+        dim: Dim,
+        order: usize,
+        horizon: f64,
+        material: J2Material,
+        damage: D,
+        bonds: &Bonds,
+    ) -> Self {
+        let n = bonds.particles();
+        let nb = bonds.len();
+        let mut rev = vec![0u32; nb];
+        for i in 0..n {
+            for b in bonds.offsets[i]..bonds.offsets[i + 1] {
+                let j = bonds.nbr[b] as usize;
+                let r = bonds.offsets[j]..bonds.offsets[j + 1];
+                // Families are symmetric (same horizon both ways), so (j, i) exists.
+                if let Some(k) = bonds.nbr[r.clone()].iter().position(|&q| q as usize == i) {
+                    rev[b] = (r.start + k) as u32;
+                }
+            }
+        }
+        RkBa {
+            dim,
+            order,
+            horizon,
+            material,
+            damage,
+            point: vec![RkPoint::default(); n],
+            z: vec![[[0.0; 3]; 3]; n],
+            omega: vec![0.0; nb],
+            phi: vec![[0.0; 3]; nb],
+            hist: bonds
+                .intact
+                .iter()
+                .map(|&w| BondHistory {
+                    state: J2State::default(),
+                    wd: w,
+                    om: 0.0,
+                })
+                .collect(),
+            rev,
+            offsets: bonds.offsets.clone(),
+        }
+    }
+
+    /// The first particle whose moment matrix M (A.7) is singular in the reference
+    /// configuration (too few family members for the order), if any.
+    pub fn singular_particle(&self, k: &Kinematics, bonds: &Bonds) -> Option<usize> {
+        let dims = if self.dim.three_d() { 3 } else { 2 };
+        let mut point = vec![RkPoint::default(); bonds.particles()];
+        let mut omega = vec![1.0; bonds.len()];
+        let mut phi = vec![[0.0; 3]; bonds.len()];
+        gradient_pass(
+            dims,
+            self.order,
+            self.horizon,
+            k.x0,
+            k.vol,
+            k.x0,
+            bonds,
+            &mut point,
+            &mut omega,
+            &mut phi,
+        );
+        point.iter().position(|p| !p.active)
+    }
+
+    /// The bond histories (for checkpoints and tests).
+    pub fn bond_state(&self, b: usize) -> &J2State {
+        &self.hist[b].state
+    }
+}
+
+impl<D: DamageModel> PdModel for RkBa<D> {
+    fn name(&self) -> &'static str {
+        "pd-rk-ba"
+    }
+
+    fn force_density(&mut self, k: &Kinematics, bonds: &mut Bonds, dt: f64, f: &mut [[f64; 3]]) {
+        let dims = if self.dim.three_d() { 3 } else { 2 };
+        let (order, horizon) = (self.order, self.horizon);
+        // 1. ω, Φ, ω̄ and the point velocity gradient L (A.1–A.8).
+        for (w, h) in self.omega.iter_mut().zip(&self.hist) {
+            *w = h.wd;
+        }
+        gradient_pass(
+            dims,
+            order,
+            horizon,
+            k.pos,
+            k.vol,
+            k.vel,
+            bonds,
+            &mut self.point,
+            &mut self.omega,
+            &mut self.phi,
+        );
+        // 2. Bond level: BA velocity gradient (A.11), Jaumann + J2 (App. B), damage (App. C),
+        //    and z_i (A.14).
+        let (offsets, nbr, inv_len) = (&bonds.offsets, &bonds.nbr, &bonds.inv_len);
+        let (point, omega, mat, damage) = (&self.point, &self.omega, self.material, &self.damage);
+        par_rows(offsets, &mut self.z, &mut self.hist, &|i, zi, hrow| {
+            let r = offsets[i]..offsets[i + 1];
+            let pi = &point[i];
+            let (p, v) = (k.pos[i], k.vel[i]);
+            let mut z = [[0.0; 3]; 3];
+            for ((h, &j), (&om0, &il)) in hrow
+                .iter_mut()
+                .zip(&nbr[r.clone()])
+                .zip(omega[r.clone()].iter().zip(&inv_len[r]))
+            {
+                if om0 == 0.0 || !pi.active {
+                    h.om = 0.0;
+                    continue;
+                }
+                let j = j as usize;
+                let pj = &point[j];
+                if !pj.active {
+                    h.om = 0.0;
+                    continue;
+                }
+                let x = sub(&k.pos[j], &p);
+                let vv = sub(&k.vel[j], &v);
+                let x2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
+                if dt > 0.0 {
+                    // (A.11): L_b = L̄ + (v − L̄ x) xᵀ/|x|²
+                    let lb: M3 = std::array::from_fn(|a| {
+                        std::array::from_fn(|c| 0.5 * (pi.l[a][c] + pj.l[a][c]))
+                    });
+                    let res: [f64; 3] = std::array::from_fn(|a| {
+                        vv[a] - (lb[a][0] * x[0] + lb[a][1] * x[1] + lb[a][2] * x[2])
+                    });
+                    let l: M3 = std::array::from_fn(|a| {
+                        std::array::from_fn(|c| lb[a][c] + res[a] * x[c] / x2)
+                    });
+                    let spin: M3 =
+                        std::array::from_fn(|a| std::array::from_fn(|c| 0.5 * (l[a][c] - l[c][a])));
+                    let de: Sym = [
+                        l[0][0] * dt,
+                        l[1][1] * dt,
+                        l[2][2] * dt,
+                        0.5 * (l[1][2] + l[2][1]) * dt,
+                        0.5 * (l[0][2] + l[2][0]) * dt,
+                        0.5 * (l[0][1] + l[1][0]) * dt,
+                    ];
+                    // seed 000 eq. (B.2)–(B.4) at the bond level.
+                    jaumann_rotate_skew(&mut h.state.stress, &spin, dt);
+                    if mat.kin_hardening != 0.0 {
+                        jaumann_rotate_skew(&mut h.state.back_stress, &spin, dt);
+                    }
+                    mat.update(&mut h.state, &de);
+                }
+                let input = BondInput {
+                    stretch: x2.sqrt() * il - 1.0,
+                    von_mises: von_mises(&h.state.stress),
+                    eq_plastic_strain: h.state.eq_plastic_strain,
+                };
+                let wd = damage.update(h.wd, &input);
+                let om = if wd < h.wd { om0 * (wd / h.wd) } else { om0 };
+                h.wd = wd;
+                h.om = om;
+                if om == 0.0 {
+                    continue;
+                }
+                // (A.14): (½/ω̄_i + ½/ω̄_j) ω σ (I − x xᵀ/|x|²) V_j
+                let c = (0.5 / pi.wbar + 0.5 / pj.wbar) * om * k.vol[j];
+                let s = mechanics::j2::to_matrix(&h.state.stress);
+                let sx: [f64; 3] =
+                    std::array::from_fn(|a| s[a][0] * x[0] + s[a][1] * x[1] + s[a][2] * x[2]);
+                for a in 0..3 {
+                    for b in 0..3 {
+                        z[a][b] += c * (s[a][b] - sx[a] * x[b] / x2);
+                    }
+                }
+            }
+            *zi = z;
+        });
+        // 3. Force density f_i = Σ_j (T_ij − T_ji) V_j with T of (A.13).
+        let (point, z, phi, hist, rev) = (&self.point, &self.z, &self.phi, &self.hist, &self.rev);
+        super::family::par_points(f, &|i, fi: &mut [f64; 3]| {
+            let r = offsets[i]..offsets[i + 1];
+            let (p, zi, wi) = (k.pos[i], &z[i], point[i].wbar);
+            let mut acc = [0.0; 3];
+            for b in r {
+                let h = &hist[b];
+                if h.om == 0.0 {
+                    continue;
+                }
+                let j = nbr[b] as usize;
+                let x = sub(&k.pos[j], &p);
+                let x2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
+                let s = mechanics::j2::to_matrix(&h.state.stress);
+                let c = h.om * (1.0 / wi + 1.0 / point[j].wbar) / x2;
+                let (pij, pji) = (phi[b], phi[rev[b] as usize]);
+                let zj = &z[j];
+                let vj = k.vol[j];
+                for a in 0..3 {
+                    let t1 = c * (s[a][0] * x[0] + s[a][1] * x[1] + s[a][2] * x[2]);
+                    let t2 = zi[a][0] * pij[0] + zi[a][1] * pij[1] + zi[a][2] * pij[2];
+                    let t3 = zj[a][0] * pji[0] + zj[a][1] * pji[1] + zj[a][2] * pji[2];
+                    // t1 + (t2 − t3) is negated exactly by row j's copy of the pair.
+                    acc[a] += (t1 + (t2 - t3)) * vj;
+                }
+            }
+            *fi = acc;
+        });
+    }
+
+    fn stable_dt(&self, k: &Kinematics, bonds: &Bonds, density: f64) -> f64 {
+        // seed 001 §4.2: Δt ≤ l/c, l the smallest bond, c the dilatational wave speed.
+        let _ = k;
+        let m = &self.material;
+        let c = ((m.bulk_modulus() + 4.0 / 3.0 * m.shear_modulus()) / density).sqrt();
+        let lmin = bonds
+            .inv_len
+            .iter()
+            .map(|il| 1.0 / il)
+            .fold(f64::INFINITY, f64::min);
+        lmin / c
+    }
+
+    fn sync_bonds(&self, bonds: &mut Bonds) {
+        for (w, h) in bonds.intact.iter_mut().zip(&self.hist) {
+            *w = h.wd;
+        }
+    }
+
+    fn stress(&self) -> Option<Vec<Sym>> {
+        Some(self.point_average(|h| h.state.stress))
+    }
+
+    fn plastic_strain(&self) -> Option<Vec<f64>> {
+        Some(
+            self.point_average(|h| [h.state.eq_plastic_strain, 0.0, 0.0, 0.0, 0.0, 0.0])
+                .iter()
+                .map(|s| s[0])
+                .collect(),
+        )
+    }
+
+    fn save_state(&self, w: &mut super::checkpoint::Writer) {
+        let st: Vec<J2State> = self.hist.iter().map(|h| h.state).collect();
+        super::checkpoint::put_j2(w, &st);
+        w.f64s(self.hist.iter().map(|h| h.wd));
+    }
+
+    fn load_state(&mut self, r: &mut super::checkpoint::Reader) -> Result<(), String> {
+        let mut st = vec![J2State::default(); self.hist.len()];
+        super::checkpoint::get_j2(r, &mut st, "bond J2 states")?;
+        let wd = r.f64s(self.hist.len(), "bond damage")?;
+        for ((h, s), d) in self.hist.iter_mut().zip(st).zip(wd) {
+            h.state = s;
+            h.wd = d;
+        }
+        Ok(())
+    }
+
+    fn stiffness_bound(&self, k: &Kinematics, bonds: &Bonds, i: usize) -> f64 {
+        let m = &self.material;
+        let modulus = m.bulk_modulus() + 4.0 / 3.0 * m.shear_modulus();
+        let l = (bonds.offsets[i]..bonds.offsets[i + 1])
+            .map(|b| 1.0 / bonds.inv_len[b])
+            .fold(f64::INFINITY, f64::min);
+        if l.is_finite() {
+            4.0 * modulus * k.vol[i] / (l * l)
+        } else {
+            0.0
+        }
+    }
+}
+
+impl<D: DamageModel> RkBa<D> {
+    /// Point value as the ω-weighted mean of its bonds' values (output only).
+    fn point_average(&self, f: impl Fn(&BondHistory) -> Sym) -> Vec<Sym> {
+        let n = self.point.len();
+        let mut out = vec![[0.0; 6]; n];
+        for i in 0..n {
+            let (start, end) = (self.offsets[i], self.offsets[i + 1]);
+            let (mut acc, mut w) = ([0.0; 6], 0.0);
+            for b in start..end {
+                let h = &self.hist[b];
+                let v = f(h);
+                for c in 0..6 {
+                    acc[c] += h.om * v[c];
+                }
+                w += h.om;
+            }
+            if w > 0.0 {
+                out[i] = acc.map(|a| a / w);
+            }
+        }
+        out
+    }
+}

@@ -1,0 +1,357 @@
+//! Verification of pd-rk-ba (seed 000 App. A; issue #4): RK gradient patch tests of order 1
+//! and 2 (A.1–A.8) on regular and jittered particle sets, interior and boundary; long-wave
+//! speed of a free bar against √(E/ρ); linear momentum of a free, fracturing body; thread-
+//! count independence; selection by name through the node factory.
+// Index loops over the 3 or 6 components of small tensors read closer to the formulas;
+// `!(x > 0.0)` is deliberate: it also rejects NaN.
+#![allow(
+    clippy::needless_range_loop,
+    clippy::neg_cmp_op_on_partial_ord,
+    clippy::too_many_arguments
+)]
+
+use mechanics::damage::{CriticalStretch, NoDamage};
+use mechanics::j2::J2Material;
+use solid_node::pd::family::Bonds;
+use solid_node::pd::geometry::{Shape, lattice};
+use solid_node::pd::integrate::Body;
+use solid_node::pd::model::{Dim, PdModel};
+use solid_node::pd::rk_ba::{RkBa, rk_gradient};
+
+fn block(n: [usize; 3], dx: f64, three_d: bool) -> Vec<[f64; 3]> {
+    lattice(
+        &[Shape::Box {
+            min: [0.0; 3],
+            max: [n[0] as f64 * dx, n[1] as f64 * dx, n[2] as f64 * dx],
+        }],
+        &[],
+        dx,
+        three_d,
+    )
+}
+
+fn steel() -> J2Material {
+    J2Material {
+        young: 200e9,
+        poisson: 0.3,
+        yield_stress: f64::MAX,
+        iso_hardening: 0.0,
+        kin_hardening: 0.0,
+    }
+}
+
+/// Deterministic pseudo-random numbers in [−½, ½).
+fn lcg(state: &mut u64) -> f64 {
+    *state = state
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    (*state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+}
+
+/// Must-show 1 for pd-rk-ba: the RK gradient of a linear field is exact (order 1 and 2), and
+/// of a quadratic field exact for order 2, at every particle — interior and boundary — on a
+/// lattice and on a jittered particle set, to 1e-12 relative to the gradient's size.
+#[test]
+fn rk_gradient_patch_tests() {
+    let dx = 1e-3;
+    let h: [[f64; 3]; 3] = [[0.3, -0.2, 0.15], [0.1, 0.25, -0.4], [-0.05, 0.35, 0.2]];
+    // Quadratic field u_a = Σ_b H_ab x_b + Σ_bc Q_abc x_b x_c (x in mm for O(1) terms).
+    let q = |a: usize, b: usize, c: usize| 0.1 * ((a + 2 * b + 3 * c) as f64 - 4.0);
+    for three_d in [false, true] {
+        let dim = if three_d {
+            Dim::Three
+        } else {
+            Dim::PlaneStrain
+        };
+        let dims = if three_d { 3 } else { 2 };
+        let n = if three_d { [7, 6, 6] } else { [14, 12, 1] };
+        for jitter in [0.0, 0.2] {
+            let mut st = 7u64;
+            let x0: Vec<[f64; 3]> = block(n, dx, three_d)
+                .into_iter()
+                .map(|p| {
+                    std::array::from_fn(|d| {
+                        if d < dims {
+                            p[d] + jitter * dx * lcg(&mut st)
+                        } else {
+                            p[d]
+                        }
+                    })
+                })
+                .collect();
+            let vol = vec![dx.powi(dims as i32); x0.len()];
+            for order in [1usize, 2] {
+                let delta = (order as f64 + 1.015) * dx;
+                let bonds = Bonds::build(&x0, delta);
+                let s = 1.0 / dx;
+                let lin: Vec<[f64; 3]> = x0
+                    .iter()
+                    .map(|p| std::array::from_fn(|a| (0..dims).map(|b| h[a][b] * p[b]).sum()))
+                    .collect();
+                let quad: Vec<[f64; 3]> = x0
+                    .iter()
+                    .map(|p| {
+                        std::array::from_fn(|a| {
+                            let mut v = 0.0;
+                            for b in 0..dims {
+                                v += h[a][b] * p[b];
+                                for c in 0..dims {
+                                    v += q(a, b, c) * p[b] * p[c] * s;
+                                }
+                            }
+                            v
+                        })
+                    })
+                    .collect();
+                let gl = rk_gradient(dim, order, delta, &x0, &vol, &bonds, &lin);
+                let mut worst_l: f64 = 0.0;
+                for g in &gl {
+                    for a in 0..3 {
+                        for b in 0..dims {
+                            worst_l = worst_l.max((g[a][b] - h[a][b]).abs());
+                        }
+                    }
+                }
+                let gq = rk_gradient(dim, order, delta, &x0, &vol, &bonds, &quad);
+                let mut worst_q: f64 = 0.0;
+                for (i, g) in gq.iter().enumerate() {
+                    let p = x0[i];
+                    for a in 0..3 {
+                        for b in 0..dims {
+                            let mut exact = h[a][b];
+                            for c in 0..dims {
+                                exact += (q(a, b, c) + q(a, c, b)) * p[c] * s;
+                            }
+                            worst_q = worst_q.max((g[a][b] - exact).abs());
+                        }
+                    }
+                }
+                println!(
+                    "{}-D jitter {jitter} order {order}: linear error {worst_l:.2e}, quadratic error {worst_q:.2e}",
+                    dims
+                );
+                assert!(worst_l < 1e-12, "linear field, order {order}: {worst_l:e}");
+                if order == 2 {
+                    assert!(worst_q < 1e-12, "quadratic field, order 2: {worst_q:e}");
+                } else {
+                    // Order 1 is not exact for a quadratic field (shows the test can fail).
+                    assert!(worst_q > 1e-6, "order 1 should miss the quadratic term");
+                }
+            }
+        }
+    }
+}
+
+fn rk_body(n: [usize; 3], order: usize, s0: Option<f64>) -> Body {
+    let dx = 1e-3;
+    let x0 = block(n, dx, true);
+    let vol = vec![dx * dx * dx; x0.len()];
+    let delta = (order as f64 + 1.015) * dx;
+    let bonds = Bonds::build(&x0, delta);
+    let m: Box<dyn PdModel> = match s0 {
+        Some(s) => Box::new(RkBa::new(
+            Dim::Three,
+            order,
+            delta,
+            steel(),
+            CriticalStretch {
+                critical_stretch: s,
+            },
+            &bonds,
+        )),
+        None => Box::new(RkBa::new(
+            Dim::Three,
+            order,
+            delta,
+            steel(),
+            NoDamage,
+            &bonds,
+        )),
+    };
+    Body::new(Dim::Three, dx, delta, 7850.0, x0, vol, bonds, m)
+}
+
+/// Must-show 2 for pd-rk-ba: the fundamental mode of a free 3-D bar (120 × 4 × 4 particles)
+/// gives the long-wave speed √(E/ρ) within 1 % (half period = L/c).
+#[test]
+fn rk_ba_long_wave_speed() {
+    let (e, rho): (f64, f64) = (200e9, 7850.0);
+    let c_exact = (e / rho).sqrt();
+    let len = 120.0 * 1e-3;
+    let mut b = rk_body([120, 4, 4], 2, None);
+    let dt = 0.5 * b.stable_dt();
+    let amp = 0.01;
+    let x0 = b.x0.clone();
+    let shape = |x: f64| (std::f64::consts::PI * x / len).cos();
+    for (v, q) in b.vel.iter_mut().zip(&x0) {
+        v[0] = amp * shape(q[0]);
+    }
+    let modal = |b: &Body| -> f64 {
+        (0..b.len())
+            .map(|i| (b.pos[i][0] - b.x0[i][0]) * shape(b.x0[i][0]))
+            .sum()
+    };
+    let (mut prev, mut t_prev) = (0.0, 0.0);
+    let c = loop {
+        b.step(dt);
+        let m = modal(&b);
+        if prev > 0.0 && m <= 0.0 {
+            let tz = t_prev + dt * prev / (prev - m);
+            break len / tz;
+        }
+        assert!(m.is_finite() && b.steps < 5000, "no zero crossing: {m}");
+        prev = m;
+        t_prev = b.time;
+    };
+    println!(
+        "pd-rk-ba 3-D order 2: c = {c:.2}, √(E/ρ) = {c_exact:.2}, error {:.3} %",
+        100.0 * (c - c_exact) / c_exact
+    );
+    assert!((c - c_exact).abs() / c_exact < 0.01, "c = {c}");
+}
+
+fn randomize(b: &mut Body, amp: f64) {
+    let mut st: u64 = 12345;
+    for v in b.vel.iter_mut() {
+        for c in v.iter_mut() {
+            *c = amp * lcg(&mut st);
+        }
+    }
+}
+
+/// Must-show 4 for pd-rk-ba: linear momentum of a free body with random velocities is
+/// conserved to round-off while bonds break (order 1 and 2).
+#[test]
+fn rk_ba_momentum_conserved_in_free_body() {
+    for order in [1usize, 2] {
+        let mut b = rk_body([8, 7, 6], order, Some(0.002));
+        randomize(&mut b, 60.0);
+        let p0 = b.momentum();
+        let scale: f64 = (0..b.len())
+            .map(|i| {
+                b.density * b.vol[i] * (b.vel[i][0].abs() + b.vel[i][1].abs() + b.vel[i][2].abs())
+            })
+            .sum();
+        let dt = 0.5 * b.stable_dt();
+        for _ in 0..150 {
+            b.step(dt);
+        }
+        let p1 = b.momentum();
+        let err = (0..3).map(|d| (p1[d] - p0[d]).abs()).fold(0.0, f64::max) / scale;
+        let broken = b.damage().iter().filter(|&&d| d > 0.0).count();
+        println!("order {order}: relative momentum drift {err:e}, {broken} damaged particles");
+        assert!(broken > 0, "the test must break bonds");
+        assert!(err < 1e-13, "order {order}: {err:e}");
+        assert!(b.vel.iter().all(|v| v.iter().all(|c| c.is_finite())));
+    }
+}
+
+/// A homogeneous deformation rate in the bulk produces the classical stress: stretching a
+/// block at a uniform rate gives, at interior bonds, σ = C : D t (elastic, small strain), and
+/// no force on interior particles.
+#[test]
+fn rk_ba_uniform_rate_gives_classical_stress_and_no_interior_force() {
+    let dx = 1e-3;
+    let mut b = rk_body([9, 9, 9], 2, None);
+    let rate = 10.0; // 1/s
+    let x0 = b.x0.clone();
+    for (v, p) in b.vel.iter_mut().zip(&x0) {
+        *v = [rate * p[0], 0.0, 0.0];
+    }
+    b.prescribed.iter_mut().for_each(|p| *p = 1);
+    b.vpres = b.vel.clone();
+    let dt = 1e-8;
+    for _ in 0..5 {
+        b.step(dt);
+    }
+    let m = steel();
+    let (lam, mu) = {
+        let (e, nu) = (m.young, m.poisson);
+        (
+            e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
+            e / (2.0 * (1.0 + nu)),
+        )
+    };
+    let eps = rate * 5.0 * dt;
+    let s_xx = (lam + 2.0 * mu) * eps;
+    let s_yy = lam * eps;
+    let stress = b.model.stress().unwrap_or_default();
+    let interior: Vec<usize> = (0..b.len())
+        .filter(|&i| x0[i].iter().all(|&c| c > 3.5 * dx && c < 5.5 * dx))
+        .collect();
+    assert!(!interior.is_empty());
+    let mut worst: f64 = 0.0;
+    let mut fmax: f64 = 0.0;
+    for &i in &interior {
+        worst = worst.max((stress[i][0] - s_xx).abs() / s_xx);
+        worst = worst.max((stress[i][1] - s_yy).abs() / s_xx);
+        fmax = fmax.max(b.force[i].iter().map(|f| f.abs()).fold(0.0, f64::max));
+    }
+    // Force scale: σ/Δx (a stress difference across one spacing).
+    let fscale = s_xx / dx;
+    println!(
+        "uniform rate: stress error {worst:.2e} (relative, small-strain C:ε), interior force {:.2e} of σ/Δx",
+        fmax / fscale
+    );
+    assert!(worst < 1e-6, "{worst:e}");
+    assert!(fmax < 1e-9 * fscale, "{fmax:e}");
+}
+
+/// Determinism: bit-identical state for 1 and 2 threads.
+#[test]
+fn rk_ba_is_thread_count_independent() {
+    let run = |threads: usize| {
+        let go = || {
+            let mut b = rk_body([8, 7, 6], 2, Some(0.002));
+            randomize(&mut b, 60.0);
+            let dt = 0.5 * b.stable_dt();
+            for _ in 0..30 {
+                b.step(dt);
+            }
+            (b.pos.clone(), b.vel.clone())
+        };
+        match rayon::ThreadPoolBuilder::new().num_threads(threads).build() {
+            Ok(p) => p.install(go),
+            Err(_) => go(),
+        }
+    };
+    assert!(run(1) == run(2), "results differ between 1 and 2 threads");
+}
+
+/// The model is chosen by name in the node config; a horizon too small for the order and
+/// plane stress are refused with the key named.
+#[test]
+fn rk_ba_by_name_and_bad_input() {
+    let t = |extra: &str| -> toml::Table {
+        toml::from_str(&format!(
+            r#"
+dimension = "3d"
+spacing = 1e-3
+horizon = 3.015e-3
+density = 7850.0
+young = 200e9
+poisson = 0.3
+bodies = [{{ shape = "box", min = [0.0, 0.0, 0.0], max = [0.006, 0.005, 0.005] }}]
+{extra}
+"#
+        ))
+        .unwrap_or_default()
+    };
+    let key = |tab: &toml::Table| match solid_node::pd::factory("pd-rk-ba", tab) {
+        Some(Ok(s)) => format!("accepted {}", s.describe().model),
+        Some(Err(protocol::SolverError::Config { key, .. })) => key,
+        Some(Err(e)) => format!("other: {e}"),
+        None => "unknown".into(),
+    };
+    assert_eq!(key(&t("")), "accepted pd-rk-ba");
+    assert_eq!(key(&t("rk_order = 3")), "rk_order");
+    let mut small = t("rk_order = 2");
+    small.insert("horizon".into(), toml::Value::Float(1.2e-3));
+    assert_eq!(key(&small), "horizon");
+    let mut ps = t("");
+    ps.insert(
+        "dimension".into(),
+        toml::Value::String("plane_stress".into()),
+    );
+    assert_eq!(key(&ps), "dimension");
+}
