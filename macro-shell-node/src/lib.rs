@@ -4,7 +4,8 @@
 //! coupling.
 //!
 //! Layout: `setup` (params → validated model), `mesh` (geometry → quads and named sets),
-//! `element` (the BLT kernel), `model` (state arrays), `step` (the time loop), `coupling`
+//! `element` (the BLT kernel), `lanes` (its elastic
+//! form on four elements at once), `model` (state arrays), `step` (the time loop), `coupling`
 //! (driver side), `output` (VTK, CSV), `solver` (the `Solver` impl).
 
 // Kernels index several small fixed-size arrays with one index; range loops read clearer.
@@ -12,6 +13,7 @@
 
 pub mod coupling;
 pub mod element;
+pub mod lanes;
 pub mod mesh;
 pub mod model;
 pub mod output;

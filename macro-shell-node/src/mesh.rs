@@ -314,5 +314,44 @@ mod tests {
         assert_eq!(m.element_sets["seam_outer"].len(), 2 * 20);
         assert_eq!(m.node_sets["bottom"].len(), 20 + 3);
         assert_eq!(m.node_sets["top"].len(), 20 + 3);
+        // Counts: the wall ring has 4·5 nodes per level (closed, no duplicate at the start),
+        // the seam strip (2 + 1) per level, over 21 levels.
+        assert_eq!(m.nodes.len(), (20 + 3) * 21);
+        assert_eq!(m.elements.len(), 4 * 5 * 20 + 2 * 20);
+        // The wall is closed around: every wall edge is shared by two wall elements except
+        // the 20 bottom and 20 top edges (no free edge along the length).
+        let mut edges = std::collections::BTreeMap::new();
+        for &e in wall {
+            let c = m.elements[e as usize];
+            for a in 0..4 {
+                let (p, q) = (c[a], c[(a + 1) % 4]);
+                *edges.entry((p.min(q), p.max(q))).or_insert(0) += 1;
+            }
+        }
+        let free = edges.values().filter(|&&k| k == 1).count();
+        assert!(edges.values().all(|&k| k <= 2));
+        assert_eq!(free, 2 * 20);
+        // The seam: the outer layer shares no node with the wall (the joints connect the
+        // layers), and each outer element lies at the gap straight outside an inner one.
+        let wall_nodes = m.nodes_of_elements(wall);
+        let outer_nodes = m.nodes_of_elements(&m.element_sets["seam_outer"]);
+        assert!(
+            outer_nodes
+                .iter()
+                .all(|n| wall_nodes.binary_search(n).is_err())
+        );
+        for &eo in &m.element_sets["seam_outer"] {
+            let co = m.centroid(eo as usize);
+            let hits = m.element_sets["seam_inner"]
+                .iter()
+                .filter(|&&ei| {
+                    let ci = m.centroid(ei as usize);
+                    (ci[0] - co[0]).abs() < 1e-12
+                        && (ci[1] - 0.001 - co[1]).abs() < 1e-12
+                        && (ci[2] - co[2]).abs() < 1e-12
+                })
+                .count();
+            assert_eq!(hits, 1, "outer seam element {eo}");
+        }
     }
 }

@@ -67,7 +67,16 @@ impl ShellSolver {
         coupled.dedup();
         self.model.coupled_nodes = coupled;
         if let Some(t) = self.model.mass_scaling_dt {
-            step::apply_mass_scaling(&mut self.model, t);
+            let physical = self.model.total_mass();
+            let added = step::apply_mass_scaling(&mut self.model, t);
+            // Also in every window's report (scalars `added_mass`, `added_mass_fraction`).
+            tracing::info!(
+                target_dt = t,
+                added_mass_kg = added,
+                fraction = added / physical,
+                added_inertia = self.model.added_inertia,
+                "mass scaling to the target step"
+            );
         }
     }
 
@@ -104,6 +113,7 @@ impl ShellSolver {
             substeps,
             wall_s: wall,
             coupling_wait_s: 0.0,
+            idle_s: 0.0,
             scalars: vec![
                 ("dt".into(), m.dt_prev),
                 ("added_mass".into(), m.added_mass),

@@ -7,13 +7,15 @@
 //!    with the moments and the rotational inertia), impose constraints (recording the
 //!    support reaction that did it), x_{n+1} = x_n + Δt v_{n+½}, rotate the nodal quaternion;
 //! 2. element pass (parallel over elements): stresses from the rates at x_{n+½}, forces at
-//!    x_{n+1} (`element::element_step`);
+//!    x_{n+1} (`element::element_step`; elastic elements four at a time through
+//!    `lanes::element_step_x4`, bit-identical);
 //! 3. small sequential sums over loaded, constrained and coupled nodes: work and impulse.
 //!
 //! Results are bit-identical for any number of threads: every node and element writes only
 //! its own entries, and all sums run in a fixed order.
 
 use crate::element::{self, ElemInput, R_H};
+use crate::lanes;
 use crate::model::Model;
 use protocol::{SolverError, SolverResult};
 use rayon::prelude::*;
@@ -24,12 +26,23 @@ const CHUNK: usize = 256;
 /// Rotate a unit quaternion by the rotation vector `phi` (applied on the left, global frame).
 #[inline]
 fn rotate_quat(q: [f64; 4], phi: [f64; 3]) -> [f64; 4] {
-    let a = element::norm(phi);
-    if a == 0.0 {
+    let a2 = element::dot(phi, phi);
+    if a2 == 0.0 {
         return q;
     }
-    let (s, c) = (0.5 * a).sin_cos();
-    let k = s / a;
+    // cos(a/2) and sin(a/2)/a; a step turns a node by far less than 0.05 rad, where the
+    // series below (truncated after a⁶) is exact to round-off (next term < 1e-18) and costs a
+    // fraction of a libm sin_cos call.
+    let (c, k) = if a2 < 2.5e-3 {
+        (
+            1.0 - a2 * (1.0 / 8.0 - a2 * (1.0 / 384.0 - a2 * (1.0 / 46080.0))),
+            0.5 - a2 * (1.0 / 48.0 - a2 * (1.0 / 3840.0 - a2 * (1.0 / 645120.0))),
+        )
+    } else {
+        let a = a2.sqrt();
+        let (s, c) = (0.5 * a).sin_cos();
+        (c, s / a)
+    };
     let r = [c, phi[0] * k, phi[1] * k, phi[2] * k];
     let out = [
         r[0] * q[0] - r[1] * q[1] - r[2] * q[2] - r[3] * q[3],
@@ -37,8 +50,8 @@ fn rotate_quat(q: [f64; 4], phi: [f64; 3]) -> [f64; 4] {
         r[0] * q[2] - r[1] * q[3] + r[2] * q[0] + r[3] * q[1],
         r[0] * q[3] + r[1] * q[2] - r[2] * q[1] + r[3] * q[0],
     ];
-    let n = (out[0] * out[0] + out[1] * out[1] + out[2] * out[2] + out[3] * out[3]).sqrt();
-    [out[0] / n, out[1] / n, out[2] / n, out[3] / n]
+    let n = 1.0 / (out[0] * out[0] + out[1] * out[1] + out[2] * out[2] + out[3] * out[3]).sqrt();
+    [out[0] * n, out[1] * n, out[2] * n, out[3] * n]
 }
 
 /// Rotate a vector by a unit quaternion.
@@ -66,18 +79,112 @@ pub fn quat_log(q: [f64; 4]) -> [f64; 3] {
     [q[1] * k, q[2] * k, q[3] * k]
 }
 
+/// Read-only data of the node pass.
+struct NodePassData<'a> {
+    dt: f64,
+    dt_avg: f64,
+    ramp: f64,
+    fe: &'a [[[f64; 6]; 4]],
+    offs: &'a [u32],
+    adj: &'a [u32],
+    mass: &'a [f64],
+    inertia: &'a [f64],
+    f_ext: &'a [[f64; 3]],
+    f_c: &'a [[f64; 3]],
+    m_c: &'a [[f64; 3]],
+    fix: &'a [u8],
+    v_pres: &'a [[f64; 3]],
+}
+
+/// The nodes of one chunk, starting at node `i0`.
+#[inline(always)]
+fn node_chunk(
+    d: &NodePassData,
+    i0: usize,
+    xs: &mut [[f64; 3]],
+    vs: &mut [[f64; 3]],
+    ws: &mut [[f64; 3]],
+    qs: &mut [[f64; 4]],
+    rs: &mut [[f64; 6]],
+) {
+    let (dt, dt_avg, ramp) = (d.dt, d.dt_avg, d.ramp);
+    for j in 0..xs.len() {
+        let i = i0 + j;
+        let mut f = [0.0; 6];
+        for &k in &d.adj[d.offs[i] as usize..d.offs[i + 1] as usize] {
+            let fk = &d.fe[(k >> 2) as usize][(k & 3) as usize];
+            for c in 0..6 {
+                f[c] += fk[c];
+            }
+        }
+        let (mi, ii) = (d.mass[i], d.inertia[i]);
+        let mut vn = [0.0; 3];
+        let mut wn = [0.0; 3];
+        for c in 0..3 {
+            vn[c] = vs[j][c] + dt_avg * (d.f_ext[i][c] + d.f_c[i][c] - f[c]) / mi;
+            wn[c] = ws[j][c] + dt_avg * (d.m_c[i][c] - f[3 + c]) / ii;
+        }
+        let bits = d.fix[i];
+        // Reactions are written only where something is constrained (the entries of free
+        // nodes stay zero from set-up: constraints are fixed at set-up).
+        if bits != 0 {
+            let mut r = [0.0; 6];
+            for c in 0..3 {
+                if bits & (1 << c) != 0 {
+                    let target = d.v_pres[i][c] * ramp;
+                    r[c] = mi * (target - vn[c]) / dt_avg;
+                    vn[c] = target;
+                }
+                if bits & (8 << c) != 0 {
+                    r[3 + c] = ii * (0.0 - wn[c]) / dt_avg;
+                    wn[c] = 0.0;
+                }
+            }
+            rs[j] = r;
+        }
+        vs[j] = vn;
+        ws[j] = wn;
+        for c in 0..3 {
+            xs[j][c] += dt * vn[c];
+        }
+        qs[j] = rotate_quat(qs[j], [wn[0] * dt, wn[1] * dt, wn[2] * dt]);
+    }
+}
+
+/// `node_chunk` compiled for AVX2 (see `element_chunk_avx2`; bit-identical results).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn node_chunk_avx2(
+    d: &NodePassData,
+    i0: usize,
+    xs: &mut [[f64; 3]],
+    vs: &mut [[f64; 3]],
+    ws: &mut [[f64; 3]],
+    qs: &mut [[f64; 4]],
+    rs: &mut [[f64; 6]],
+) {
+    node_chunk(d, i0, xs, vs, ws, qs, rs)
+}
+
 /// Node pass: forces → velocities → positions. `dt_avg` = ½(Δt_{n−½} + Δt_{n+½}).
 pub fn node_pass(m: &mut Model, dt: f64, dt_avg: f64, ramp: f64) {
-    let fe = &m.fe;
-    let offs = &m.adj_offsets;
-    let adj = &m.adj;
-    let mass = &m.mass;
-    let inertia = &m.inertia;
-    let f_ext = &m.f_ext;
-    let f_c = &m.f_c;
-    let m_c = &m.m_c;
-    let fix = &m.fix;
-    let v_pres = &m.v_pres;
+    let d = NodePassData {
+        dt,
+        dt_avg,
+        ramp,
+        fe: &m.fe,
+        offs: &m.adj_offsets,
+        adj: &m.adj,
+        mass: &m.mass,
+        inertia: &m.inertia,
+        f_ext: &m.f_ext,
+        f_c: &m.f_c,
+        m_c: &m.m_c,
+        fix: &m.fix,
+        v_pres: &m.v_pres,
+    };
+    #[cfg(target_arch = "x86_64")]
+    let avx2 = std::arch::is_x86_feature_detected!("avx2");
     m.x.par_chunks_mut(CHUNK)
         .zip(m.v.par_chunks_mut(CHUNK))
         .zip(m.w.par_chunks_mut(CHUNK))
@@ -85,45 +192,16 @@ pub fn node_pass(m: &mut Model, dt: f64, dt_avg: f64, ramp: f64) {
         .zip(m.reaction.par_chunks_mut(CHUNK))
         .enumerate()
         .for_each(|(c, ((((xs, vs), ws), qs), rs))| {
-            for j in 0..xs.len() {
-                let i = c * CHUNK + j;
-                let mut f = [0.0; 6];
-                for &k in &adj[offs[i] as usize..offs[i + 1] as usize] {
-                    let fk = &fe[(k >> 2) as usize][(k & 3) as usize];
-                    for d in 0..6 {
-                        f[d] += fk[d];
-                    }
+            #[cfg(target_arch = "x86_64")]
+            {
+                if avx2 {
+                    // SAFETY: the CPU supports AVX2 (checked at run time above), the only
+                    // requirement of calling a `#[target_feature(enable = "avx2")]` function.
+                    unsafe { node_chunk_avx2(&d, c * CHUNK, xs, vs, ws, qs, rs) };
+                    return;
                 }
-                let (mi, ii) = (mass[i], inertia[i]);
-                let mut vn = [0.0; 3];
-                let mut wn = [0.0; 3];
-                for d in 0..3 {
-                    vn[d] = vs[j][d] + dt_avg * (f_ext[i][d] + f_c[i][d] - f[d]) / mi;
-                    wn[d] = ws[j][d] + dt_avg * (m_c[i][d] - f[3 + d]) / ii;
-                }
-                let bits = fix[i];
-                let mut r = [0.0; 6];
-                if bits != 0 {
-                    for d in 0..3 {
-                        if bits & (1 << d) != 0 {
-                            let target = v_pres[i][d] * ramp;
-                            r[d] = mi * (target - vn[d]) / dt_avg;
-                            vn[d] = target;
-                        }
-                        if bits & (8 << d) != 0 {
-                            r[3 + d] = ii * (0.0 - wn[d]) / dt_avg;
-                            wn[d] = 0.0;
-                        }
-                    }
-                }
-                rs[j] = r;
-                vs[j] = vn;
-                ws[j] = wn;
-                for d in 0..3 {
-                    xs[j][d] += dt * vn[d];
-                }
-                qs[j] = rotate_quat(qs[j], [wn[0] * dt, wn[1] * dt, wn[2] * dt]);
             }
+            node_chunk(&d, c * CHUNK, xs, vs, ws, qs, rs);
         });
 }
 
@@ -153,7 +231,46 @@ fn element_chunk(
 ) -> Option<usize> {
     let nip = d.nip;
     let mut bad: Option<usize> = None;
-    for j in 0..fes.len() {
+    // Elastic: blocks of four elements through the four-lane kernel (bit-identical to the
+    // scalar one); the scalar kernel takes the rest, a block holding a degenerate element
+    // (to report it), and the J2 material.
+    let mut j0 = 0;
+    if d.kc.elastic {
+        let nodes = lanes::NodeState {
+            x: d.x,
+            v: d.v,
+            w: d.w,
+        };
+        let n3 = 3 * nip;
+        while j0 + 4 <= fes.len() {
+            let e = e0 + j0;
+            let (s01, s23) = st[j0 * n3..(j0 + 4) * n3].split_at_mut(2 * n3);
+            let (s0, s1) = s01.split_at_mut(n3);
+            let (s2, s3) = s23.split_at_mut(n3);
+            let [r0, r1, r2, r3] = &mut rs[j0..j0 + 4] else {
+                unreachable!("a slice of 4")
+            };
+            let [f0, f1, f2, f3] = &mut fes[j0..j0 + 4] else {
+                unreachable!("a slice of 4")
+            };
+            let ok = lanes::element_step_x4(
+                [d.conn[e], d.conn[e + 1], d.conn[e + 2], d.conn[e + 3]],
+                &nodes,
+                d.dt,
+                &d.sec,
+                &d.kc,
+                [d.pres[e], d.pres[e + 1], d.pres[e + 2], d.pres[e + 3]],
+                [s0, s1, s2, s3],
+                [r0, r1, r2, r3],
+                [f0, f1, f2, f3],
+            );
+            if !ok {
+                break;
+            }
+            j0 += 4;
+        }
+    }
+    for j in j0..fes.len() {
         let e = e0 + j;
         let cn = d.conn[e];
         let inp = ElemInput {
