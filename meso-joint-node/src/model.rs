@@ -16,6 +16,24 @@
 //!
 //! Linear momentum `Σ_I m_I v_I = Σ_J m̂_J v̂_J` is conserved exactly by the pair (1)+(2)
 //! because `m_K = Σ_J m̂_J φ_K(X_J)` (eq. 5) and `Σ_K f_K = 0` (`Σ_K ∇φ_K = 0`).
+//!
+//! **Why the smoothing kernel must reproduce linear fields (angular momentum).** Write the
+//! pair as one matrix `A_JK = m̂_J φ_K(X_J) / m_K = ψ_K(X_J)`: the gather is `v = Aᵀ v̂`
+//! (eq. 2, 6) and the scatter `m̂ Δv̂ = Δt A f` (eq. 10–11). This is exactly the central
+//! difference of the Lagrangian `½ Σ m̂_J |v̂_J|² − W(x)`, `x = X̂ + Aᵀ û` with `û̇ = v̂`: the
+//! momentum conjugate to the unsmoothed positions `y = X̂ + û` is `m̂ v̂`. It is conserved by
+//! translation because `Σ_J A_JK = 1`. Rotation `û → Qû + (Q − I) X̂` maps `x → Q x` (so
+//! `W` is invariant) only if `Σ_J A_JK X̂_J = X̂_K`, i.e. the gather weights `ψ_K(X_J)` also
+//! reproduce linear fields. Then `L = Σ_J y_J × m̂_J v̂_J` obeys, in the discrete step,
+//! `Lⁿ⁺½ − Lⁿ⁻½ = Δt Σ_K (Aᵀyⁿ)_K × f_K = Δt Σ_K x_K × f_K = 0` (the DNI force is torque
+//! free, `σ` symmetric): angular momentum to round-off. Eq. 3 with the RK `φ_I(X_J)` of
+//! row J reproduces constants only (`Smoothing::Shepard`, which drifts); the default
+//! `Smoothing::Consistent` uses for `φ_I^a` the kernel of particle I with the mass-weighted
+//! first-order correction (`shape::Rows::compute_psi`), normalised so that `m_I = m̂_I`.
+//! Re-anchoring changes `A` and resets `y ← x`; the resulting change of `L` (the part of the
+//! unsmoothed displacement filtered out by the old smoothing) is restored by the
+//! mass-weighted least-change rigid rotation of `v̂` of the free particles. Bond breakage
+//! (eq. 16) also changes `A`; it is not corrected (an open, dissipative event).
 
 use crate::config::Smoothing;
 use crate::shape::{IDENTITY, M3, Rows, cross, det, inv, mat_mul, mul_vec, sub};
@@ -76,6 +94,10 @@ pub struct Model {
     pub x0: Vec<[f64; 3]>,
     pub xa: Vec<[f64; 3]>,
     pub x: Vec<[f64; 3]>,
+    /// Unsmoothed positions `y = X̂ + û` (moved by v̂; `Smoothing::Consistent`).
+    pub xh: Vec<[f64; 3]>,
+    /// Displacement since the anchor `u = x − X̂` (scratch of the kinematics, eq. 14).
+    pub u: Vec<[f64; 3]>,
     /// Unsmoothed (v̂) and smoothed (v) velocities.
     pub vh: Vec<[f64; 3]>,
     pub v: Vec<[f64; 3]>,
@@ -134,13 +156,21 @@ impl Model {
         let n = x.len();
         let fam = mechanics::neighbour::find_neighbours(&x, p.support);
         let is_rigid = |k: usize| rigid_parts.contains(&part[k]);
+        // Pairs at the support distance or beyond have zero kernel weight for good (the
+        // window is evaluated at the material distance, shape.rs): leave them out of the rows.
+        // The 1e-9 margin drops lattice pairs at exactly the support that round-off puts a hair
+        // inside (weight ~1e-27 of the centre value, far below round-off).
+        let reach = p.support * (1.0 - 1e-9);
         let rows = Rows::build(&fam, &x, |i, j| {
-            part[i] == part[j] || is_rigid(i) || is_rigid(j)
+            (part[i] == part[j] || is_rigid(i) || is_rigid(j))
+                && crate::shape::dist(&x[i], &x[j]) < reach
         });
         let mass: Vec<f64> = vol.iter().map(|v| v * p.density).collect();
         let mut m = Model {
             x0: x.clone(),
             xa: x.clone(),
+            xh: x.clone(),
+            u: vec![[0.0; 3]; n],
             vh: vec![[0.0; 3]; n],
             v: vec![[0.0; 3]; n],
             f: vec![[0.0; 3]; n],
@@ -204,29 +234,45 @@ impl Model {
 
     /// Recompute shape functions (all rows or the flagged ones) and the smoothed masses.
     pub fn rebuild_shapes(&mut self, which: Option<&[bool]>) -> Result<(), String> {
+        let singular = |i: usize| {
+            format!(
+                "particle {i}: singular moment matrix (kernel support holds too few intact neighbours)"
+            )
+        };
         self.rows
-            .compute(&self.xa, &self.finv_a, &self.vol_a, self.p.support, which)
-            .map_err(|i| format!("particle {i}: singular moment matrix (kernel support holds too few intact neighbours)"))?;
-        self.update_smoothed_mass();
+            .compute(&self.xa, &self.vol_a, self.p.support, which)
+            .map_err(singular)?;
         if self.p.smoothing == Smoothing::Consistent {
-            // Re-gather v with the new rows so that Σ m_I v_I = Σ m̂_J v̂_J holds between steps
-            // too (acc is scratch here: it is recomputed at the start of the next step).
-            gather_smooth(&self.rows, &self.mh, &self.ms, &self.vh, &mut self.acc);
-            for i in 0..self.x.len() {
-                if self.kind[i] == Kind::Free {
-                    self.v[i] = self.acc[i];
-                }
+            self.rows
+                .compute_psi(&self.mh, self.p.support, which)
+                .map_err(singular)?;
+        }
+        self.rows.refresh_transposed();
+        self.update_smoothed_mass();
+        // Re-gather v with the new rows (acc is scratch here: it is recomputed at the start of
+        // the next step).
+        match self.p.smoothing {
+            Smoothing::Consistent => gather_consistent(&self.rows, &self.vh, &mut self.acc),
+            Smoothing::Shepard => {
+                gather_smooth(&self.rows, &self.mh, &self.ms, &self.vh, &mut self.acc)
+            }
+            _ => return Ok(()),
+        }
+        for i in 0..self.x.len() {
+            if self.kind[i] == Kind::Free {
+                self.v[i] = self.acc[i];
             }
         }
         Ok(())
     }
 
-    /// Smoothed mass `m_I = Σ_J m̂_J φ_I(X_J)` (eq. 5).
+    /// Smoothed mass `m_I = Σ_J m̂_J φ_I(X_J)` (eq. 5); `m̂_I` with the consistent kernel,
+    /// whose normalisation is chosen so (module doc).
     pub fn update_smoothed_mass(&mut self) {
         let rows = &self.rows;
         let mh = &self.mh;
         match self.p.smoothing {
-            Smoothing::Consistent => self.ms.par_iter_mut().enumerate().for_each(|(i, m)| {
+            Smoothing::Shepard => self.ms.par_iter_mut().enumerate().for_each(|(i, m)| {
                 let mut s = 0.0;
                 for p in rows.range(i) {
                     s += mh[rows.cols[p] as usize] * rows.phi[rows.mirror[p] as usize];
@@ -303,6 +349,13 @@ impl Model {
                 self.mh[i] = m_new;
             }
         }
+        if self.p.smoothing == Smoothing::Consistent {
+            // ψ depends on m̂ (eq. 3): recompute with the scaled masses.
+            if let Err(i) = self.rows.compute_psi(&self.mh, self.p.support, None) {
+                tracing::warn!("mass scaling: particle {i} has a singular smoothing row");
+            }
+            self.rows.refresh_transposed();
+        }
         self.update_smoothed_mass();
         self.update_rigid_mass();
         added
@@ -314,6 +367,20 @@ impl Model {
         let rows = &self.rows;
         match self.p.smoothing {
             Smoothing::Consistent => {
+                // Kinematic particles (supports, rigid bodies, coupling) do not scatter their
+                // reaction forces: their motion is imposed.
+                let (f, kind) = (&self.f, &self.kind);
+                self.acc.par_iter_mut().enumerate().for_each(|(k, a)| {
+                    *a = if kind[k] == Kind::Free {
+                        f[k]
+                    } else {
+                        [0.0; 3]
+                    };
+                });
+                scatter_consistent(rows, &self.acc, &self.mh, dt, &mut self.vh);
+                gather_consistent(rows, &self.vh, &mut self.v);
+            }
+            Smoothing::Shepard => {
                 // Kinematic particles (supports, rigid bodies, coupling) do not scatter their
                 // reaction forces into their neighbours' velocities: their acceleration is
                 // imposed, and taken as zero over the step.
@@ -426,10 +493,16 @@ impl Model {
         self.x
             .par_iter_mut()
             .zip(self.v.par_iter())
-            .for_each(|(x, v)| {
+            .zip(self.xh.par_iter_mut())
+            .zip(self.vh.par_iter())
+            .zip(self.u.par_iter_mut())
+            .zip(self.xa.par_iter())
+            .for_each(|(((((x, v), xh), vh), u), xa)| {
                 for d in 0..3 {
                     x[d] += dt * v[d];
+                    xh[d] += dt * vh[d];
                 }
+                *u = sub(x, xa);
             });
         for b in &mut self.rigid {
             for d in 0..3 {
@@ -525,6 +598,10 @@ impl Model {
     /// (eq. 12–14): `F_tot ← F̂ F_tot`, `X̂ ← x`, `F̂ ← I`, shapes rebuilt with the kernel of
     /// each particle stretched by its `F_tot`.
     pub fn reanchor(&mut self) -> StepResult {
+        if self.p.smoothing == Smoothing::Consistent {
+            self.restore_angular_momentum();
+        }
+        self.xh.copy_from_slice(&self.x);
         for i in 0..self.len() {
             self.ftot_a[i] = mat_mul(&self.fhat[i], &self.ftot_a[i]);
             self.finv_a[i] = inv(&self.ftot_a[i])
@@ -539,33 +616,110 @@ impl Model {
         self.rebuild_shapes(None)
     }
 
-    /// Kinetic energy with the masses the particles move with.
+    /// Before re-anchoring (`y ← x`): add to `v̂` of the free particles the rigid rotation
+    /// `ω × (x − c)` (mass-weighted least change; `c` their centre of mass, so linear
+    /// momentum is untouched) that keeps `L = Σ y × m̂ v̂` across the reset (module doc).
+    fn restore_angular_momentum(&mut self) {
+        let (mut msum, mut c) = (0.0, [0.0; 3]);
+        for i in 0..self.len() {
+            if self.kind[i] == Kind::Free {
+                msum += self.mh[i];
+                for d in 0..3 {
+                    c[d] += self.mh[i] * self.x[i][d];
+                }
+            }
+        }
+        if !(msum > 0.0) {
+            return;
+        }
+        let c = c.map(|v| v / msum);
+        let mut dl = [0.0; 3];
+        let mut inertia = [[0.0; 3]; 3];
+        for i in 0..self.len() {
+            if self.kind[i] != Kind::Free {
+                continue;
+            }
+            let m = self.mh[i];
+            let dy = sub(&self.xh[i], &self.x[i]);
+            let t = cross(&dy, &self.vh[i]);
+            let r = sub(&self.x[i], &c);
+            let r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+            for a in 0..3 {
+                dl[a] += m * t[a];
+                for b in 0..3 {
+                    inertia[a][b] += m * (if a == b { r2 } else { 0.0 } - r[a] * r[b]);
+                }
+            }
+        }
+        let Some(ii) = inv(&inertia) else {
+            return;
+        };
+        let w = mul_vec(&ii, &dl);
+        for i in 0..self.len() {
+            if self.kind[i] == Kind::Free {
+                let dv = cross(&w, &sub(&self.x[i], &c));
+                for d in 0..3 {
+                    self.vh[i][d] += dv[d];
+                }
+            }
+        }
+    }
+
+    /// Kinetic energy: `½ Σ m̂ |v̂|²` with the consistent pair (the kinetic energy of the
+    /// discrete Lagrangian, module doc), else with the masses the particles move with.
     pub fn kinetic_energy(&self) -> f64 {
+        let (m, vel) = match self.p.smoothing {
+            Smoothing::Consistent => (&self.mh, &self.vh),
+            _ => (&self.ms, &self.v),
+        };
         let mut e = 0.0;
         for i in 0..self.len() {
-            let v = &self.v[i];
-            e += 0.5 * self.ms[i] * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+            let v = &vel[i];
+            e += 0.5 * m[i] * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
         }
         e
     }
     pub fn internal_energy(&self) -> f64 {
         self.eint.iter().sum()
     }
-    /// Linear momentum `Σ m_I v_I` (smoothed masses with the consistent pair).
+    /// Linear momentum: `Σ m̂_J v̂_J` with the consistent pair (the conjugate momentum,
+    /// module doc), `Σ m_I v_I` otherwise (the two agree for `Shepard`).
     pub fn momentum(&self) -> [f64; 3] {
+        let (m, vel) = match self.p.smoothing {
+            Smoothing::Consistent => (&self.mh, &self.vh),
+            _ => (&self.ms, &self.v),
+        };
         let mut p = [0.0; 3];
         for i in 0..self.len() {
             for d in 0..3 {
-                p[d] += self.ms[i] * self.v[i][d];
+                p[d] += m[i] * vel[i][d];
             }
         }
         p
     }
-    /// Angular momentum about the origin `Σ x_I × m_I v_I`.
+    /// Angular momentum about the origin: `Σ y_J × m̂_J v̂_J` with the consistent pair
+    /// (module doc), `Σ x_I × m_I v_I` otherwise.
     pub fn angular_momentum(&self) -> [f64; 3] {
+        let (x, m, vel) = match self.p.smoothing {
+            Smoothing::Consistent => (&self.xh, &self.mh, &self.vh),
+            _ => (&self.x, &self.ms, &self.v),
+        };
         let mut l = [0.0; 3];
         for i in 0..self.len() {
-            let mv = self.v[i].map(|c| c * self.ms[i]);
+            let mv = vel[i].map(|c| c * m[i]);
+            let c = cross(&x[i], &mv);
+            for d in 0..3 {
+                l[d] += c[d];
+            }
+        }
+        l
+    }
+    /// `Σ x_I × m̂_I v_I` with the smoothed positions and velocities (for comparison: not
+    /// the conserved quantity of the consistent pair, it differs by the filtered part).
+    pub fn smoothed_angular_momentum(&self) -> [f64; 3] {
+        let mut l = [0.0; 3];
+        for i in 0..self.len() {
+            let mv = self.v[i].map(|c| c * self.mh[i]);
             let c = cross(&self.x[i], &mv);
             for d in 0..3 {
                 l[d] += c[d];
@@ -587,6 +741,43 @@ impl Model {
             })
             .collect()
     }
+}
+
+/// Scatter-type update of the unsmoothed velocity (eq. 10–11) with the consistent kernel:
+/// `v̂_J += Δt/m̂_J Σ_K ψ_K(X_J) f_K` (`= Δt Σ_K φ_K(X_J) a_K` with `m_K = m̂_K`), the exact
+/// transpose of [`gather_consistent`]; `ψ_K(X_J)` is the row-ordered `psi_t`.
+pub fn scatter_consistent(rows: &Rows, f: &[[f64; 3]], mh: &[f64], dt: f64, vh: &mut [[f64; 3]]) {
+    let (offsets, cols, psi_t) = (&rows.offsets, &rows.cols, &rows.psi_t);
+    vh.par_iter_mut().enumerate().for_each(|(j, v)| {
+        let mut s = [0.0; 3];
+        let r = offsets[j]..offsets[j + 1];
+        for (&c, &w) in cols[r.clone()].iter().zip(&psi_t[r]) {
+            let a = &f[c as usize];
+            s[0] += w * a[0];
+            s[1] += w * a[1];
+            s[2] += w * a[2];
+        }
+        let c = dt / mh[j];
+        for d in 0..3 {
+            v[d] += c * s[d];
+        }
+    });
+}
+
+/// Gather smoothing with the consistent kernel (eq. 2, 6): `v_I = Σ_J ψ_I(X_J) v̂_J`.
+pub fn gather_consistent(rows: &Rows, vh: &[[f64; 3]], v: &mut [[f64; 3]]) {
+    let (offsets, cols, psi) = (&rows.offsets, &rows.cols, &rows.psi);
+    v.par_iter_mut().enumerate().for_each(|(i, vi)| {
+        let mut s = [0.0; 3];
+        let r = offsets[i]..offsets[i + 1];
+        for (&c, &w) in cols[r.clone()].iter().zip(&psi[r]) {
+            let u = &vh[c as usize];
+            s[0] += w * u[0];
+            s[1] += w * u[1];
+            s[2] += w * u[2];
+        }
+        *vi = s;
+    });
 }
 
 /// Scatter-type update of the unsmoothed velocity (eq. 10–11):
@@ -658,6 +849,23 @@ pub fn incremental_f(rows: &Rows, x: &[[f64; 3]], xa: &[[f64; 3]], i: usize) -> 
     f
 }
 
+/// [`incremental_f`] from the stored displacements `u = x − X̂` (same arithmetic).
+#[inline]
+fn incremental_f_u(rows: &Rows, u: &[[f64; 3]], i: usize) -> M3 {
+    let ui = u[i];
+    let mut f = IDENTITY;
+    let r = rows.offsets[i]..rows.offsets[i + 1];
+    for (&j, g) in rows.cols[r.clone()].iter().zip(&rows.grad[r]) {
+        let du = sub(&u[j as usize], &ui);
+        for a in 0..3 {
+            for b in 0..3 {
+                f[a][b] += du[a] * g[b];
+            }
+        }
+    }
+    f
+}
+
 /// `V σ F̂⁻ᵀ` (Voigt σ, tensor shear).
 #[inline]
 fn stress_factor(s: &[f64; 6], vol: f64, finv: &M3) -> M3 {
@@ -673,7 +881,7 @@ fn stress_factor(s: &[f64; 6], vol: f64, finv: &M3) -> M3 {
 /// Kinematics (eq. 12–14), continuity density (eq. 8–9) and the J2 update.
 fn kinematics_and_stress(m: &mut Model, dt: f64) -> StepResult {
     let rows = &m.rows;
-    let (x, xa) = (&m.x, &m.xa);
+    let u = &m.u;
     let material = &m.p.material;
     let mass = &m.mass;
     let failed = std::sync::atomic::AtomicUsize::new(usize::MAX);
@@ -686,7 +894,7 @@ fn kinematics_and_stress(m: &mut Model, dt: f64) -> StepResult {
         .zip(m.eint.par_iter_mut())
         .enumerate()
         .for_each(|(i, (((((fh, st), rho), vol), bm), ei))| {
-            let f_new = incremental_f(rows, x, xa, i);
+            let f_new = incremental_f_u(rows, u, i);
             let f_mid: M3 =
                 std::array::from_fn(|a| std::array::from_fn(|b| 0.5 * (f_new[a][b] + fh[a][b])));
             let Some(fmi) = inv(&f_mid) else {
@@ -749,14 +957,15 @@ fn kinematics_and_stress(m: &mut Model, dt: f64) -> StepResult {
 }
 
 /// Direct nodal integration internal force, gathered (eq. 28):
-/// `f_K = −Σ_I B_I ∇φ_K(X_I)`, `B_I = V_I σ_I F̂_I⁻ᵀ`, with `∇φ_K(X_I)` the mirror entry.
+/// `f_K = −Σ_I B_I ∇φ_K(X_I)`, `B_I = V_I σ_I F̂_I⁻ᵀ`, with `∇φ_K(X_I)` the mirror entry
+/// (stored in row order as `grad_t`).
 pub fn internal_force(rows: &Rows, bmat: &[M3], f: &mut [[f64; 3]]) {
+    let (offsets, cols, grad_t) = (&rows.offsets, &rows.cols, &rows.grad_t);
     f.par_iter_mut().enumerate().for_each(|(k, fk)| {
         let mut s = [0.0; 3];
-        for p in rows.range(k) {
-            let i = rows.cols[p] as usize;
-            let g = &rows.grad[rows.mirror[p] as usize];
-            let b = &bmat[i];
+        let r = offsets[k]..offsets[k + 1];
+        for (&i, g) in cols[r.clone()].iter().zip(&grad_t[r]) {
+            let b = &bmat[i as usize];
             for a in 0..3 {
                 s[a] -= b[a][0] * g[0] + b[a][1] * g[1] + b[a][2] * g[2];
             }

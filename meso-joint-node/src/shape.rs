@@ -5,9 +5,16 @@
 //! Row `I` holds the evaluation point `X_I`: its own entry first, then its neighbours in
 //! ascending order. Entry `p` of row `I` with column `J` stores `φ_J(X_I)` and `∇_X φ_J(X_I)`;
 //! `mirror[p]` is the entry of row `J` with column `I`, so the transposed quantities of the
-//! gather sums (eq. 2–5, and the internal force) are read without any scatter.
+//! gather sums (eq. 2–5, and the internal force) are read without any scatter. The
+//! transposed quantities are also stored in row order (`psi_t`, `grad_t`), refreshed whenever
+//! the shapes change, so the per-step loops stream through memory without indirection.
+//!
+//! `psi[p]` (row I, column J) is the gather smoothing weight `ψ_I(X_J)` of eq. 2–3: the kernel
+//! of particle I, first-order corrected with the lumped masses `m̂_J` as quadrature weights,
+//! so that `Σ_J ψ_I(X_J) = 1` and `Σ_J ψ_I(X_J) (X_J − X_I) = 0` (see `model.rs` for why
+//! the linear part is what conserves angular momentum).
 
-use mechanics::kernel::{cubic_spline, rk_row};
+use mechanics::kernel::{cubic_spline, rk_row, rk_values};
 use mechanics::neighbour::Families;
 use rayon::prelude::*;
 
@@ -27,6 +34,12 @@ pub struct Rows {
     pub len0: Vec<f64>,
     pub phi: Vec<f64>,
     pub grad: Vec<[f64; 3]>,
+    /// Gather smoothing weights `ψ_I(X_J)` (eq. 2–3, mass-weighted first-order correction).
+    pub psi: Vec<f64>,
+    /// Transposed entries in row order: `psi_t[p] = psi[mirror[p]] = ψ_J(X_I)`,
+    /// `grad_t[p] = grad[mirror[p]] = ∇φ_I(X_J)`.
+    pub psi_t: Vec<f64>,
+    pub grad_t: Vec<[f64; 3]>,
     /// Scratch of the shape computation (offsets, kernel values, volumes), reused.
     d: Vec<[f64; 3]>,
     w: Vec<f64>,
@@ -102,6 +115,9 @@ impl Rows {
             len0,
             phi: vec![0.0; nnz],
             grad: vec![[0.0; 3]; nnz],
+            psi: vec![0.0; nnz],
+            psi_t: vec![0.0; nnz],
+            grad_t: vec![[0.0; 3]; nnz],
             d: vec![[0.0; 3]; nnz],
             w: vec![0.0; nnz],
             vw: vec![0.0; nnz],
@@ -109,13 +125,19 @@ impl Rows {
     }
 
     /// (Re)compute the shape functions of the rows flagged in `which` (all rows when `None`)
-    /// in the anchor configuration `xa`, with the anisotropic kernel of column `J` stretched
-    /// by its total deformation gradient at the anchor (`finv[J] = F_J⁻¹`, eq. 12–14):
-    /// `w = χ_IJ ω(‖F_J⁻¹ (X_I − X_J)‖ / a)`. Returns the first singular row.
+    /// in the anchor configuration `xa` with the adaptive anisotropic Lagrangian kernel
+    /// (eq. 12–14): the kernel domain "deforms and rotates according to the Lagrangian
+    /// motion" (§2.2), i.e. the window of a pair is evaluated at its material distance,
+    /// `w = χ_IJ ω(‖X⁰_I − X⁰_J‖ / a)` (`len0`). `‖F_J⁻¹ (X̂_I − X̂_J)‖` is the affine
+    /// approximation of the same argument; it differs where F varies over the support (grips,
+    /// surfaces), and that difference made every re-anchoring change the discrete operator
+    /// non-affinely: the balanced stress field of the old anchor then drove a stress wave
+    /// (4.4 % error in uniaxial tension after one re-anchor, tests/tension.rs). The
+    /// moment matrix and gradients use the anchor offsets `X̂_J − X̂_I`. Returns the first
+    /// singular row.
     pub fn compute(
         &mut self,
         xa: &[[f64; 3]],
-        finv: &[M3],
         vol: &[f64],
         support: f64,
         which: Option<&[bool]>,
@@ -123,6 +145,7 @@ impl Rows {
         let offsets = &self.offsets;
         let cols = &self.cols;
         let alive = &self.alive;
+        let len0 = &self.len0;
         let phi = split_rows(&mut self.phi, offsets);
         let grad = split_rows(&mut self.grad, offsets);
         let d = split_rows(&mut self.d, offsets);
@@ -147,9 +170,8 @@ impl Rows {
                     let j = cols[p] as usize;
                     let dj = sub(&xa[j], &xa[i]);
                     d[k] = dj;
-                    // Kernel of J evaluated at X_I, anisotropic by F_J (eq. 14).
-                    let r = mul_vec(&finv[j], &dj);
-                    let q = norm(&r) / support;
+                    // Kernel of the pair at its material distance (eq. 12–14, see above).
+                    let q = len0[p] / support;
                     w[k] = if alive[p] { cubic_spline(q) } else { 0.0 };
                     vw[k] = vol[j];
                 }
@@ -160,6 +182,62 @@ impl Rows {
             Some(i) => Err(i),
             None => Ok(()),
         }
+    }
+}
+
+impl Rows {
+    /// (Re)compute the gather smoothing weights `ψ_I(X_J)` of the flagged rows (all when
+    /// `None`) from the kernel values and offsets stored by the last [`Rows::compute`] of the
+    /// row, with the lumped masses `mh` as quadrature weights (eq. 2–3). Returns the first
+    /// singular row.
+    pub fn compute_psi(
+        &mut self,
+        mh: &[f64],
+        support: f64,
+        which: Option<&[bool]>,
+    ) -> Result<(), usize> {
+        let offsets = &self.offsets;
+        let cols = &self.cols;
+        let psi = split_rows(&mut self.psi, offsets);
+        let vw = split_rows(&mut self.vw, offsets);
+        let (d, w) = (&self.d, &self.w);
+        let bad: Option<usize> = psi
+            .into_par_iter()
+            .zip(vw)
+            .enumerate()
+            .filter_map(|(i, (psi, vw))| {
+                if let Some(flags) = which
+                    && !flags[i]
+                {
+                    return None;
+                }
+                let r = offsets[i]..offsets[i + 1];
+                for (k, p) in r.clone().enumerate() {
+                    vw[k] = mh[cols[p] as usize];
+                }
+                rk_values(&d[r.clone()], &w[r], vw, support, psi)
+                    .err()
+                    .map(|_| i)
+            })
+            .min();
+        match bad {
+            Some(i) => Err(i),
+            None => Ok(()),
+        }
+    }
+
+    /// Refresh the row-ordered transposed copies `psi_t`, `grad_t` from the mirror entries.
+    pub fn refresh_transposed(&mut self) {
+        let (mirror, psi, grad) = (&self.mirror, &self.psi, &self.grad);
+        self.psi_t
+            .par_iter_mut()
+            .zip(self.grad_t.par_iter_mut())
+            .enumerate()
+            .for_each(|(p, (pt, gt))| {
+                let q = mirror[p] as usize;
+                *pt = psi[q];
+                *gt = grad[q];
+            });
     }
 }
 

@@ -457,6 +457,7 @@ impl Solver for SpgSolver {
             substeps: nsub,
             wall_s: start.elapsed().as_secs_f64(),
             coupling_wait_s: 0.0,
+            idle_s: 0.0,
             scalars,
             // No prescribed loads (only supports and the coupling): other fields default.
             ..Default::default()

@@ -1,7 +1,10 @@
-//! Must-show 1 (seed 004 §2.1): a free, spinning and deforming body keeps its linear
-//! momentum to round-off with the momentum-consistent gather/scatter pair (eq. 2–11); with
-//! plain kernel averaging the same test shows the drift (so the test can fail). Angular
-//! momentum is measured and reported alongside.
+//! Must-show 1 (seed 004 §2.1): a free, spinning and deforming body keeps its linear and
+//! angular momentum to round-off with the momentum-consistent gather/scatter pair (eq. 2–11),
+//! re-anchoring every 7 steps. The same test fails for the two non-consistent variants:
+//! plain kernel averaging drifts in linear momentum, and eq. 3 with the RK shape functions
+//! of the scatter rows (`Shepard`: gather weights reproduce constants only) drifts in angular
+//! momentum. The conserved quantities are those of `model.rs`'s module doc: `Σ m̂ v̂` and
+//! `Σ y × m̂ v̂` (y the unsmoothed positions).
 
 #![allow(clippy::needless_range_loop)]
 
@@ -80,77 +83,122 @@ fn norm(a: [f64; 3]) -> f64 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
-#[test]
-fn consistent_pair_conserves_momentum_and_plain_average_drifts() {
-    let steps = 300;
-    // Consistent MC-SPG: momentum Σ m_I v_I of the moving particles.
-    let mut m = spinning_body(Smoothing::Consistent);
-    let dt = m.stable_dt();
-    let p_hat0: [f64; 3] = {
-        let mut p = [0.0; 3];
-        for i in 0..m.len() {
-            for d in 0..3 {
-                p[d] += m.mh[i] * m.vh[i][d];
-            }
-        }
-        p
-    };
+fn diff(a: [f64; 3], b: [f64; 3]) -> f64 {
+    norm([a[0] - b[0], a[1] - b[1], a[2] - b[2]])
+}
+
+const STEPS: usize = 2000;
+
+/// Run `STEPS` steps and return the largest relative drifts of `Model::momentum` and
+/// `Model::angular_momentum` (scaled by M·v_max and M·v_max·size), and of the smoothed
+/// `Σ x × m̂ v`, with the rotation angle reached.
+fn drifts(smoothing: Smoothing, dt: f64) -> (f64, f64, f64, f64) {
+    let mut m = spinning_body(smoothing);
     m.step(dt).unwrap();
     let p0 = m.momentum();
     let l0 = m.angular_momentum();
+    let s0 = m.smoothed_angular_momentum();
     let scale = m.mh.iter().sum::<f64>() * m.v.iter().map(|v| norm(*v)).fold(0.0, f64::max);
-    let mut max_dp: f64 = 0.0;
-    let mut max_dl: f64 = 0.0;
     let lscale = scale * 6e-3;
-    for _ in 0..steps {
+    let (mut dp, mut dl, mut ds): (f64, f64, f64) = (0.0, 0.0, 0.0);
+    for _ in 0..STEPS {
         m.step(dt).unwrap();
-        let p = m.momentum();
-        let l = m.angular_momentum();
-        max_dp = max_dp.max(norm([p[0] - p0[0], p[1] - p0[1], p[2] - p0[2]]) / scale);
-        max_dl = max_dl.max(norm([l[0] - l0[0], l[1] - l0[1], l[2] - l0[2]]) / lscale);
+        dp = dp.max(diff(m.momentum(), p0) / scale);
+        dl = dl.max(diff(m.angular_momentum(), l0) / lscale);
+        ds = ds.max(diff(m.smoothed_angular_momentum(), s0) / lscale);
     }
-    // The unsmoothed momentum equals the smoothed one (Σ_I P_I = Σ_J m̂_J v̂_J).
-    assert!(norm([p0[0] - p_hat0[0], p0[1] - p_hat0[1], p0[2] - p_hat0[2]]) / scale < 1e-13);
     let strain = m
         .fhat
         .iter()
-        .map(|f| (f[0][0] - 1.0).abs())
+        .zip(&m.ftot_a)
+        .map(|(f, g)| {
+            let t = meso_joint_node::shape::mat_mul(f, g);
+            // symmetric part of F − I with the rotation removed to first order
+            (0..3).map(|a| (t[a][a] - 1.0).abs()).fold(0.0, f64::max)
+        })
         .fold(0.0, f64::max);
     eprintln!(
-        "consistent: max |Δp|/(M v) = {max_dp:e}, max |ΔL|/(M v L) = {max_dl:e}, deformation |F̂xx − 1| ≤ {strain:e}"
+        "{smoothing:?}: max |Δp|/(M v) = {dp:e}, max |ΔL|/(M v ℓ) = {dl:e}, smoothed Σ x × m̂ v: {ds:e}; {} re-anchors, rotation {:.3} rad, max |F_aa − 1| {strain:.2e}",
+        m.steps / m.p.reanchor_every,
+        norm([300.0, -200.0, 500.0]) * m.time
     );
-    assert!(max_dp < 1e-13, "linear momentum drift {max_dp:e}");
+    (dp, dl, ds, strain)
+}
+
+#[test]
+fn consistent_pair_conserves_linear_and_angular_momentum_and_the_others_drift() {
+    let dt = spinning_body(Smoothing::Consistent).stable_dt();
+    // The unsmoothed momentum equals the conjugate momentum at the start.
+    let (dp, dl, _, _) = drifts(Smoothing::Consistent, dt);
+    assert!(dp < 1e-13, "linear momentum drift {dp:e}");
+    assert!(dl < 1e-13, "angular momentum drift {dl:e}");
 
     // Without smoothing (bare DNI, central difference), angular momentum is exact: the
     // torque of the DNI forces vanishes because B F̂ᵀ = V σ is symmetric.
-    let mut b = spinning_body(Smoothing::None);
-    b.step(dt).unwrap();
-    let lb0 = b.angular_momentum();
-    let mut max_dlb: f64 = 0.0;
-    for _ in 0..steps {
-        b.step(dt).unwrap();
-        let l = b.angular_momentum();
-        max_dlb = max_dlb.max(norm([l[0] - lb0[0], l[1] - lb0[1], l[2] - lb0[2]]) / lscale);
-    }
-    eprintln!("no smoothing: max |ΔL|/(M v L) = {max_dlb:e}");
+    let (_, dlb, _, _) = drifts(Smoothing::None, dt);
+    assert!(dlb < 1e-13, "DNI forces must be torque-free: {dlb:e}");
+
+    // Eq. 3 with the scatter rows' RK functions: linear momentum exact, angular drifts.
+    let (dps, dls, _, _) = drifts(Smoothing::Shepard, dt);
+    assert!(dps < 1e-13, "Shepard linear momentum drift {dps:e}");
     assert!(
-        max_dlb < 1e-13,
-        "DNI forces must be torque-free: {max_dlb:e}"
+        dls > 1e3 * dl.max(1e-16) && dls > 1e-8,
+        "the Shepard pair must show the angular drift: {dls:e}"
     );
 
     // Plain averaging: the momentum of the moving particles Σ m̂ v drifts.
     let mut a = spinning_body(Smoothing::Average);
     a.step(dt).unwrap();
     let q0 = lumped_momentum(&a);
+    let scale = a.mh.iter().sum::<f64>() * a.v.iter().map(|v| norm(*v)).fold(0.0, f64::max);
     let mut max_dq: f64 = 0.0;
-    for _ in 0..steps {
+    for _ in 0..STEPS {
         a.step(dt).unwrap();
-        let q = lumped_momentum(&a);
-        max_dq = max_dq.max(norm([q[0] - q0[0], q[1] - q0[1], q[2] - q0[2]]) / scale);
+        max_dq = max_dq.max(diff(lumped_momentum(&a), q0) / scale);
     }
     eprintln!("plain average: max |Δp|/(M v) = {max_dq:e}");
     assert!(
-        max_dq > 1e3 * max_dp.max(1e-16) && max_dq > 1e-8,
+        max_dq > 1e3 * dp.max(1e-16) && max_dq > 1e-8,
         "plain averaging must show the drift: {max_dq:e}"
+    );
+}
+
+/// The consistent gather reproduces a rigid motion exactly (`Σ_J ψ_I(X_J) = 1`,
+/// `Σ_J ψ_I(X_J)(X_J − X_I) = 0`): smoothing `v̂ = c + ω × X` returns it unchanged, also at
+/// boundary particles, while the Shepard weights of eq. 3 do not.
+#[test]
+fn consistent_smoothing_reproduces_rigid_motion() {
+    let omega = [300.0, -200.0, 500.0];
+    let rigid = |x: &[f64; 3]| -> [f64; 3] {
+        [
+            0.7 + omega[1] * x[2] - omega[2] * x[1],
+            -0.3 + omega[2] * x[0] - omega[0] * x[2],
+            0.2 + omega[0] * x[1] - omega[1] * x[0],
+        ]
+    };
+    let mut worst = [0.0f64; 2];
+    for (k, sm) in [Smoothing::Consistent, Smoothing::Shepard]
+        .into_iter()
+        .enumerate()
+    {
+        let mut m = spinning_body(sm);
+        for i in 0..m.len() {
+            m.vh[i] = rigid(&m.x[i]);
+            m.f[i] = [0.0; 3];
+        }
+        m.velocity_phase(0.0);
+        for i in 0..m.len() {
+            worst[k] = worst[k].max(diff(m.v[i], rigid(&m.x[i])));
+        }
+    }
+    eprintln!(
+        "rigid motion reproduced: consistent {:e} m/s, Shepard {:e} m/s",
+        worst[0], worst[1]
+    );
+    assert!(worst[0] < 1e-12, "consistent gather: {:e}", worst[0]);
+    assert!(
+        worst[1] > 1e-6,
+        "Shepard gather should not reproduce it: {:e}",
+        worst[1]
     );
 }

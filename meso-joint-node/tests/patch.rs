@@ -106,15 +106,16 @@ fn affine_motion_gives_the_exact_deformation_gradient() {
 }
 
 #[test]
-fn consistent_smoothing_keeps_a_uniform_velocity_and_reports_linear_error() {
-    // ψ of eq. 3 is a partition of unity: a uniform v̂ is smoothed to itself exactly. It is
-    // zeroth-order only: report how far a linear field moves at boundary particles.
+fn consistent_smoothing_reproduces_uniform_and_linear_velocities() {
+    // ψ of eq. 3 with the mass-weighted first-order correction (shape.rs): a uniform and a
+    // linear v̂ are smoothed to themselves exactly, also at boundary particles of a jittered
+    // cloud.
     let mut m = jittered_model();
     let u = [0.3, -0.7, 0.2];
     for v in &mut m.vh {
         *v = u;
     }
-    meso_joint_node::model::gather_smooth(&m.rows, &m.mh, &m.ms, &m.vh, &mut m.v);
+    meso_joint_node::model::gather_consistent(&m.rows, &m.vh, &mut m.v);
     let e =
         m.v.iter()
             .map(|v| (0..3).map(|d| (v[d] - u[d]).abs()).fold(0.0, f64::max))
@@ -122,14 +123,20 @@ fn consistent_smoothing_keeps_a_uniform_velocity_and_reports_linear_error() {
     assert!(e < 1e-14, "{e:e}");
     let g = 100.0;
     for i in 0..m.len() {
-        m.vh[i] = [g * m.x[i][0], 0.0, 0.0];
+        m.vh[i] = [g * m.x[i][0], -0.5 * g * m.x[i][2], 0.25 * g * m.x[i][1]];
     }
-    meso_joint_node::model::gather_smooth(&m.rows, &m.mh, &m.ms, &m.vh, &mut m.v);
+    meso_joint_node::model::gather_consistent(&m.rows, &m.vh, &mut m.v);
     let e = (0..m.len())
-        .map(|i| (m.v[i][0] - g * m.x[i][0]).abs())
+        .map(|i| {
+            let ex = [g * m.x[i][0], -0.5 * g * m.x[i][2], 0.25 * g * m.x[i][1]];
+            (0..3)
+                .map(|d| (m.v[i][d] - ex[d]).abs())
+                .fold(0.0, f64::max)
+        })
         .fold(0.0, f64::max);
-    eprintln!(
-        "gather smoothing of a linear field: max error {e:e} m/s (= {:.3} spacing × gradient)",
-        e / (g * 1e-3)
-    );
+    let vmax = (0..m.len())
+        .map(|i| g * m.x[i][0].abs())
+        .fold(0.0, f64::max);
+    eprintln!("gather smoothing of a linear field: max error {e:e} m/s of {vmax:e}");
+    assert!(e < 1e-13 * vmax, "{e:e}");
 }

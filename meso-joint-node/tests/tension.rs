@@ -1,8 +1,8 @@
 //! Must-show 3: uniaxial tension of a bar follows the J2 kinematic-hardening law within 2 %
 //! before necking. The material is seed 004 §4.2's (E 210 GPa, σy 0.2 GPa, E_t 20 GPa): with
 //! §4.1's E_t = 1 GPa < σy, Considère's criterion (dσ/dε = σ) puts necking at yield, so
-//! there would be no hardening range to compare. Bond failure bond failure
-//! (eq. 15–17) starts when the plastic strain reaches ε_crit, and never under compression.
+//! there would be no hardening range to compare. Bond failure (eq. 15–17) starts when the
+//! plastic strain reaches ε_crit, and never under compression.
 
 #![allow(clippy::needless_range_loop)]
 
@@ -18,6 +18,10 @@ const ET: f64 = 20e9;
 const L: f64 = 8e-3;
 
 fn bar(eps_crit: f64, v_end: f64) -> Model {
+    bar_r(eps_crit, v_end, 2000)
+}
+
+fn bar_r(eps_crit: f64, v_end: f64, reanchor_every: u64) -> Model {
     let h = 0.5e-3;
     let s = block([0.0; 3], [L, 3e-3, 3e-3], h);
     let p = ModelParams {
@@ -33,7 +37,7 @@ fn bar(eps_crit: f64, v_end: f64) -> Model {
         support: 2.0 * h,
         eps_crit,
         e_crit: 1.0,
-        reanchor_every: 2000,
+        reanchor_every,
         smoothing: Smoothing::Consistent,
         cfl: 0.4,
     };
@@ -75,7 +79,18 @@ fn j2_uniaxial(eps: f64) -> f64 {
 
 #[test]
 fn uniaxial_tension_follows_the_kinematic_hardening_law() {
-    let mut m = bar(10.0, 1.0);
+    tension_run(2000);
+}
+
+/// Re-anchoring the adaptive Lagrangian kernel (eq. 12–14) every 25 steps must not disturb
+/// the curve either (it did, by up to 19 %, with the affine kernel argument `F_J⁻¹ d`).
+#[test]
+fn uniaxial_tension_with_frequent_reanchoring() {
+    tension_run(25);
+}
+
+fn tension_run(reanchor_every: u64) {
+    let mut m = bar_r(10.0, 1.0, reanchor_every);
     let dt = m.stable_dt();
     let mut worst: f64 = 0.0;
     let mut worst_at = 0.0;
@@ -104,17 +119,17 @@ fn uniaxial_tension_follows_the_kinematic_hardening_law() {
         }
     }
     eprintln!(
-        "tension: {samples} samples to ε = {:.4}, worst |σ − σ_J2|/σ_J2 = {:.3} % at ε = {worst_at:.4}, mean ε̄ᵖ = {:.4} (1-D law {:.4}), KE/IE = {:.2e}",
+        "tension (re-anchor every {reanchor_every}): {samples} samples to ε = {:.4}, worst |σ − σ_J2|/σ_J2 = {:.3} % at ε = {worst_at:.4}, mean ε̄ᵖ = {:.4} (1-D law {:.4}), KE/IE = {:.2e}",
         last.0,
         100.0 * worst,
         last.2,
         last.0 - j2_uniaxial(last.0) / E,
         m.kinetic_energy() / m.internal_energy()
     );
-    // Target of the issue: 2 %. Measured 4.4 % at ε = 2 % on this 16×6×6 bar (see the
-    // report); the bound below guards against regressions, it does not meet the target.
+    // The issue's bound: 2 % (measured 0.17 % re-anchoring at step 2000 and 0.03 % every 25
+    // steps; before the material-distance kernel of shape.rs, 4.4 % and 19 %).
     assert!(
-        worst < 0.05,
+        worst < 0.02,
         "stress–strain off the J2 law by {:.2} %",
         100.0 * worst
     );
@@ -159,11 +174,28 @@ fn failure_starts_at_eps_crit_in_tension_and_never_in_compression() {
         "failure not at ε_crit: {before}"
     );
 
-    // Compression to several times ε_crit: no bond may break.
+    // Compression to several times ε_crit: no bond may break while compressed (eq. 17 needs
+    // e_IJ > e_crit). Checked for every bond in the step it breaks.
     let mut c = bar(eps_crit, -1.0);
     let mut peak: f64 = 0.0;
+    let mut alive = c.rows.alive.clone();
+    let mut broke_compressed = 0;
+    let mut broke_axial = 0;
     for _ in 0..3000 {
         c.step(dt).unwrap();
+        for p in 0..alive.len() {
+            if alive[p] && !c.rows.alive[p] {
+                let (i, j) = (c.rows.row_of[p] as usize, c.rows.cols[p] as usize);
+                let e = meso_joint_node::shape::dist(&c.x[i], &c.x[j]) / c.rows.len0[p];
+                if e <= c.p.e_crit {
+                    broke_compressed += 1;
+                }
+                if (c.x0[j][0] - c.x0[i][0]).abs() > 0.9 * c.rows.len0[p] {
+                    broke_axial += 1;
+                }
+                alive[p] = false;
+            }
+        }
         peak = c
             .mat
             .iter()
@@ -173,8 +205,10 @@ fn failure_starts_at_eps_crit_in_tension_and_never_in_compression() {
             break;
         }
     }
-    // Bonds along the load axis are compressed (e < 1): none may break. Lateral bonds are
-    // stretched by the Poisson bulge and may fail by eq. 17; count them separately.
+    // Most bonds along the load axis stay compressed (e < 1) and never break. Lateral bonds
+    // are stretched by the Poisson bulge and fail by eq. 17; once the corner particles have
+    // lost their lateral bonds, the loose corner columns wobble and a few axial bonds there
+    // are locally stretched (e ≈ 1 + 1e-5) and may break too: that is tension, and counted.
     let mut axial_broken = 0;
     let mut axial_total = 0;
     for p in 0..c.rows.cols.len() {
@@ -191,7 +225,7 @@ fn failure_starts_at_eps_crit_in_tension_and_never_in_compression() {
         }
     }
     eprintln!(
-        "compression: max ε̄ᵖ {peak:.4}, axial (compressed) bonds broken {axial_broken}/{axial_total}, all broken {}",
+        "compression: max ε̄ᵖ {peak:.4}, axial bonds broken {axial_broken}/{axial_total} ({broke_axial} counted at breaking, all stretched), broken while compressed {broke_compressed}, all broken {}",
         c.broken_bonds
     );
     assert!(
@@ -199,5 +233,9 @@ fn failure_starts_at_eps_crit_in_tension_and_never_in_compression() {
         "compression did not plastify enough: {peak}"
     );
     assert!(axial_total > 0);
-    assert_eq!(axial_broken, 0);
+    assert_eq!(broke_compressed, 0, "bonds broke under compression");
+    assert!(
+        axial_broken * 50 < axial_total,
+        "axial bonds broke: {axial_broken}/{axial_total}"
+    );
 }
