@@ -26,9 +26,14 @@ pub enum Cmd {
         /// Run id (namespaces shared memory and topics; default: name-pid-time).
         #[arg(long)]
         run_id: Option<String>,
-        /// Override a node parameter: NODE.KEY=VALUE (repeatable).
+        /// Override a node parameter: NODE.KEY=VALUE, or a run setting: run.KEY=VALUE
+        /// (repeatable; applied after the variant's).
         #[arg(long = "set")]
         sets: Vec<String>,
+        /// Run a named variant of the case (its `[variants.NAME]` settings); the output goes
+        /// to `<run.output>/<NAME>` unless the variant sets `run.output`.
+        #[arg(long)]
+        variant: Option<String>,
         /// No progress bar.
         #[arg(long, short)]
         quiet: bool,
@@ -51,6 +56,24 @@ pub enum Cmd {
         /// Write the per-window report as CSV here.
         #[arg(long)]
         report: Option<PathBuf>,
+        /// Write PNG charts of the node's reported quantities, recorded against replayed,
+        /// into this directory.
+        #[arg(long)]
+        plot: Option<PathBuf>,
+    },
+    /// Plot quantities of several runs on one figure each (e.g. one case at three
+    /// resolutions): `cosim plot out/a out/b --series bar.com_x --series gas.point1.pressure`.
+    Plot {
+        /// Runs: output directories (holding run.mcap) or recordings.
+        #[arg(required = true)]
+        runs: Vec<PathBuf>,
+        /// NODE.QUANTITY to plot (a scalar of the node's report, kinetic_energy,
+        /// internal_energy, momentum_x, ...), repeatable.
+        #[arg(long = "series", required = true)]
+        series: Vec<String>,
+        /// Directory for the PNG files.
+        #[arg(long, short, default_value = "plots")]
+        output: PathBuf,
     },
     /// Benchmarks.
     Bench {
@@ -83,7 +106,16 @@ pub fn load_case(
     path: &std::path::Path,
     sets: &[String],
 ) -> Result<config::Case, config::ConfigError> {
-    if sets.is_empty() {
+    load_variant(path, None, sets)
+}
+
+/// Load a case, apply the settings of variant `variant` (if any), then `sets`.
+pub fn load_variant(
+    path: &std::path::Path,
+    variant: Option<&str>,
+    sets: &[String],
+) -> Result<config::Case, config::ConfigError> {
+    if sets.is_empty() && variant.is_none() {
         return config::load(path);
     }
     let text = std::fs::read_to_string(path).map_err(|e| config::ConfigError {
@@ -94,11 +126,41 @@ pub fn load_case(
         key: path.display().to_string(),
         reason: e.message().to_string(),
     })?;
-    for s in sets {
+    let mut all: Vec<String> = Vec::new();
+    if let Some(name) = variant {
+        let v = config::variant_sets(&doc, name)?;
+        // A variant writes beside the others unless it says where.
+        if !v.iter().any(|s| {
+            s.split_once('=')
+                .is_some_and(|(k, _)| k.trim() == "run.output")
+        }) {
+            let base = doc
+                .get("run")
+                .and_then(|r| r.get("output"))
+                .and_then(|o| o.as_str())
+                .unwrap_or("out")
+                .to_string();
+            all.push(format!("run.output={:?}", format!("{base}/{name}")));
+        }
+        all.extend(v);
+    }
+    all.extend(sets.iter().cloned());
+    for s in &all {
         let (node, rest) = s.split_once('.').ok_or_else(|| config::ConfigError {
             key: format!("--set {s}"),
-            reason: "must be NODE.KEY=VALUE".into(),
+            reason: "must be NODE.KEY=VALUE or run.KEY=VALUE".into(),
         })?;
+        if node == "run" && doc.get("nodes").is_none_or(|n| n.get("run").is_none()) {
+            let t = doc
+                .get_mut("run")
+                .and_then(|r| r.as_table_mut())
+                .ok_or_else(|| config::ConfigError {
+                    key: "run".into(),
+                    reason: "missing [run] table".into(),
+                })?;
+            config::apply_sets(t, &[rest.to_string()])?;
+            continue;
+        }
         let params = doc
             .get_mut("nodes")
             .and_then(|n| n.get_mut(node))
@@ -125,6 +187,22 @@ pub fn load_case(
 /// Run the command line; returns the exit code.
 pub fn main_with(cli: Cli) -> i32 {
     match cli.cmd {
+        Cmd::Plot {
+            runs,
+            series,
+            output,
+        } => match crate::plot::compare(&runs, &series, &output) {
+            Ok(files) => {
+                for f in files {
+                    println!("{}", f.display());
+                }
+                0
+            }
+            Err(e) => {
+                eprintln!("cosim plot: {e:#}");
+                1
+            }
+        },
         Cmd::Validate { case } => match config::load(&case) {
             Ok(c) => {
                 let order = config::window_order(&c)
@@ -138,6 +216,20 @@ pub fn main_with(cli: Cli) -> i32 {
                     ((c.run.end_time / c.run.window) - 1e-9).ceil(),
                     order
                 );
+                // Every variant must build too.
+                for v in &c.variants {
+                    match load_variant(&case, Some(v), &[]) {
+                        Ok(cv) => println!(
+                            "  variant {v}: ok — {} windows, output {}",
+                            ((cv.run.end_time / cv.run.window) - 1e-9).ceil(),
+                            cv.run.output.display()
+                        ),
+                        Err(e) => {
+                            eprintln!("cosim: {} (variant {v}): {e}", case.display());
+                            return 2;
+                        }
+                    }
+                }
                 0
             }
             Err(e) => {
@@ -150,9 +242,10 @@ pub fn main_with(cli: Cli) -> i32 {
             output,
             run_id,
             sets,
+            variant,
             quiet,
         } => {
-            let c = match load_case(&case, &sets) {
+            let c = match load_variant(&case, variant.as_deref(), &sets) {
                 Ok(c) => c,
                 Err(e) => {
                     eprintln!("cosim: {}: {e}", case.display());
@@ -177,12 +270,23 @@ pub fn main_with(cli: Cli) -> i32 {
             match run::run(&c, &opts) {
                 Ok(Ok(o)) => {
                     let b = &o.summary["balance"];
+                    let f = |k: &str| b[k].as_f64().unwrap_or(0.0);
+                    let balance = if f("applied_impulse") > 0.0 {
+                        format!(
+                            "largest momentum imbalance {:.3e} of the applied impulse",
+                            f("max_momentum_imbalance_relative")
+                        )
+                    } else {
+                        format!(
+                            "largest momentum residual {:.3e} of the largest impulse",
+                            f("max_momentum_residual_relative")
+                        )
+                    };
                     println!(
-                        "cosim: {} finished: {} windows in {:.2} s; largest momentum imbalance {:.3e} of the applied impulse; output in {}",
+                        "cosim: {} finished: {} windows in {:.2} s; {balance}; output in {}",
                         c.run.name,
                         o.summary["windows"],
                         o.summary["wall_s"].as_f64().unwrap_or(0.0),
-                        b["max_momentum_imbalance_relative"].as_f64().unwrap_or(0.0),
                         o.output.display()
                     );
                     0
@@ -213,9 +317,19 @@ pub fn main_with(cli: Cli) -> i32 {
             sets,
             tolerance,
             report,
+            plot,
         } => match replay::replay(&recording, &node, &sets, tolerance) {
             Ok(r) => {
                 print_replay(&r, &node, &sets, report.as_deref());
+                if let Some(dir) = plot {
+                    match replay::plot(&r, &node, &dir) {
+                        Ok(files) => println!("{} charts in {}", files.len(), dir.display()),
+                        Err(e) => {
+                            eprintln!("cosim replay: plots: {e:#}");
+                            return 1;
+                        }
+                    }
+                }
                 0
             }
             Err(e) => {

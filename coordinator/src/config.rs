@@ -42,6 +42,9 @@ pub struct RunConfig {
     pub heartbeat_ms: u64,
     /// A node silent for this long is declared hung (s).
     pub heartbeat_timeout: f64,
+    /// A window in which every running node has waited this long for a peer's input is
+    /// stopped as a deadlock, s.
+    pub stall_timeout: f64,
     /// zenoh endpoint the coordinator listens on (several hosts: a routable address).
     pub listen: String,
     /// Record `Fields` messages of every `record_every`-th window only (1 = all).
@@ -81,6 +84,8 @@ pub struct Case {
     pub run: RunConfig,
     pub nodes: Vec<NodeConfig>,
     pub couplings: Vec<CouplingConfig>,
+    /// Names of the `[variants.NAME]` of the case (`cosim run --variant NAME`).
+    pub variants: Vec<String>,
 }
 
 /// Built-in node binaries whose solvers the coordinator can build in-process, to validate
@@ -106,6 +111,7 @@ const RUN_KEYS: &[&str] = &[
     "output_every",
     "heartbeat_ms",
     "heartbeat_timeout",
+    "stall_timeout",
     "listen",
     "record_every",
 ];
@@ -271,7 +277,8 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             ),
         }
     })?;
-    check_keys(&doc, "", &["run", "nodes", "couplings"])?;
+    check_keys(&doc, "", &["run", "nodes", "couplings", "variants"])?;
+    let variants = variant_names(&doc)?;
     let case_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let run_t = match doc.get("run") {
         Some(toml::Value::Table(t)) => t.clone(),
@@ -343,6 +350,15 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             format!(
                 "must exceed two heartbeats ({} s), got {heartbeat_timeout}",
                 2.0 * heartbeat_ms as f64 / 1000.0
+            ),
+        ));
+    }
+    let stall_timeout = get_f64(&run_t, p, "stall_timeout")?.unwrap_or(30.0);
+    if !(stall_timeout.is_finite() && stall_timeout > heartbeat_timeout) {
+        return Err(err(
+            "run.stall_timeout",
+            format!(
+                "must exceed run.heartbeat_timeout ({heartbeat_timeout} s), got {stall_timeout}"
             ),
         ));
     }
@@ -525,11 +541,13 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             output_every,
             heartbeat_ms,
             heartbeat_timeout,
+            stall_timeout,
             listen,
             record_every,
         },
         nodes,
         couplings,
+        variants,
     };
     check_solvers(&mut case)?;
     Ok(case)
@@ -609,6 +627,70 @@ pub fn apply_sets(params: &mut toml::Table, sets: &[String]) -> Result<(), Confi
         t.insert(parts[parts.len() - 1].to_string(), value);
     }
     Ok(())
+}
+
+/// Names of the case's variants (`[variants.NAME]` tables with `description` and `set`),
+/// checked for shape.
+pub fn variant_names(doc: &toml::Table) -> Result<Vec<String>, ConfigError> {
+    let Some(v) = doc.get("variants") else {
+        return Ok(Vec::new());
+    };
+    let t = v
+        .as_table()
+        .ok_or_else(|| err("variants", "must be a table of [variants.NAME] tables"))?;
+    let mut names = Vec::new();
+    for (name, body) in t {
+        let key = format!("variants.{name}");
+        let b = body
+            .as_table()
+            .ok_or_else(|| err(&key, "must be a table with `description` and `set`"))?;
+        check_keys(b, &format!("{key}."), &["description", "set"])?;
+        if let Some(d) = b.get("description")
+            && !d.is_str()
+        {
+            return Err(err(format!("{key}.description"), "must be a string"));
+        }
+        variant_sets(doc, name)?;
+        names.push(name.clone());
+    }
+    Ok(names)
+}
+
+/// The `set` list of variant `name`: `NODE.KEY=VALUE` or `run.KEY=VALUE` strings.
+pub fn variant_sets(doc: &toml::Table, name: &str) -> Result<Vec<String>, ConfigError> {
+    let all = doc.get("variants").and_then(|v| v.as_table());
+    let Some(b) = all.and_then(|t| t.get(name)).and_then(|b| b.as_table()) else {
+        let known: Vec<&str> = all
+            .map(|t| t.keys().map(String::as_str).collect())
+            .unwrap_or_default();
+        return Err(err(
+            format!("--variant {name}"),
+            if known.is_empty() {
+                "the case has no [variants]".to_string()
+            } else {
+                format!("no such variant (the case has {})", known.join(", "))
+            },
+        ));
+    };
+    let key = format!("variants.{name}.set");
+    let Some(set) = b.get("set") else {
+        return Ok(Vec::new());
+    };
+    let arr = set
+        .as_array()
+        .ok_or_else(|| err(&key, "must be an array of \"NODE.KEY=VALUE\" strings"))?;
+    arr.iter()
+        .enumerate()
+        .map(|(i, s)| match s.as_str() {
+            Some(s) if s.contains('=') && s.split('=').next().is_some_and(|k| k.contains('.')) => {
+                Ok(s.to_string())
+            }
+            _ => Err(err(
+                format!("{key}[{i}]"),
+                "must be a \"NODE.KEY=VALUE\" or \"run.KEY=VALUE\" string",
+            )),
+        })
+        .collect()
 }
 
 /// Bindings of one node: its side of every coupling.

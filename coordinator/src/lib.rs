@@ -4,6 +4,7 @@
 
 pub mod cli;
 pub mod config;
+pub mod plot;
 pub mod record;
 pub mod replay;
 pub mod run;

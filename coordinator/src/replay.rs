@@ -8,7 +8,7 @@ use anyhow::{Context, bail};
 use protocol::participant::{NodeEngine, is_motion};
 use protocol::*;
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Largest differences of one field in one window.
 #[derive(Debug, Clone, Default)]
@@ -56,6 +56,8 @@ pub struct ReplayReport {
     pub rows: Vec<(u64, String, String, Diff)>,
     /// Report scalars (e.g. tip displacement): (window, name, replayed, recorded).
     pub scalars: Vec<(u64, String, f64, f64)>,
+    /// End time of each replayed window: (window, t1).
+    pub times: Vec<(u64, f64)>,
     /// First window where the node's interface motion drifted past the tolerance.
     pub drift: Option<(u64, String, f64)>,
 }
@@ -239,12 +241,58 @@ pub fn replay(
                 }
             }
         }
+        rep.times.push((a.window, a.t1));
         rep.windows += 1;
     }
     if rep.windows == 0 && advances.is_empty() {
         bail!("the recording holds no window of node '{node}'");
     }
     Ok(rep)
+}
+
+/// One PNG per reported quantity of the replayed node in `dir`: the recorded and the
+/// replayed history on one chart (e.g. a bar's displacement under two solid models).
+pub fn plot(rep: &ReplayReport, node: &str, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    use crate::plot::{Series, line_chart};
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let time: BTreeMap<u64, f64> = rep.times.iter().copied().collect();
+    let mut names: Vec<&str> = rep.scalars.iter().map(|s| s.1.as_str()).collect();
+    names.sort_unstable();
+    names.dedup();
+    let mut files = Vec::new();
+    for name in names {
+        let pick = |replayed: bool| -> Vec<(f64, f64)> {
+            rep.scalars
+                .iter()
+                .filter(|s| s.1 == name)
+                .filter_map(|s| Some((*time.get(&s.0)?, if replayed { s.2 } else { s.3 })))
+                .collect()
+        };
+        let stem: String = name
+            .chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '-' {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect();
+        let p = dir.join(format!("replay_{node}_{stem}.png"));
+        let series = [
+            Series {
+                label: "recorded".into(),
+                points: pick(false),
+            },
+            Series {
+                label: "replayed".into(),
+                points: pick(true),
+            },
+        ];
+        line_chart(&p, &format!("{node}: {name}"), "t [s]", name, &series)?;
+        files.push(p);
+    }
+    Ok(files)
 }
 
 /// `cosim info`: nodes, couplings, windows, message counts and the energy balance.
@@ -369,6 +417,16 @@ pub fn info(path: &Path) -> anyhow::Result<String> {
                 applied
             )?;
         }
+        let resid = msgs
+            .iter()
+            .filter(|m| m.topic == "/cosim/balance")
+            .filter_map(|m| serde_json::from_slice::<serde_json::Value>(&m.data).ok())
+            .filter_map(|v| v["momentum_residual"].as_f64())
+            .fold(0.0f64, f64::max);
+        writeln!(
+            s,
+            "  largest momentum residual (external and in-flight coupling impulse accounted) {resid:.3e} N s"
+        )?;
     }
     Ok(s)
 }

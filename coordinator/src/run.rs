@@ -53,6 +53,9 @@ struct NodeRt {
     child: Option<Child>,
     down: Box<dyn Publisher>,
     last_seen: Instant,
+    /// Since when the node's heartbeats say it is blocked on a peer's input.
+    waiting_since: Option<Instant>,
+    idle_s: f64,
     hello: bool,
     described: u32,
     stable_dt: f64,
@@ -187,6 +190,30 @@ impl<'a> Coord<'a> {
                 });
             }
         }
+        // Alive but stuck: every node we wait for has been blocked on a peer's input for the
+        // stall timeout (two nodes waiting for each other, say), so none can ever deliver.
+        let stall = Duration::from_secs_f64(self.case.run.stall_timeout);
+        if !waiting_on.is_empty()
+            && waiting_on.iter().all(|&i| {
+                self.nodes[i]
+                    .waiting_since
+                    .is_some_and(|t| t.elapsed() > stall)
+            })
+        {
+            let names: Vec<&str> = waiting_on
+                .iter()
+                .map(|&i| self.nodes[i].name.as_str())
+                .collect();
+            return Err(Fault {
+                node: names[0].to_string(),
+                reason: format!(
+                    "deadlock: {} s during window {} with every running node ({}) waiting for a peer's input",
+                    self.case.run.stall_timeout,
+                    self.window,
+                    names.join(", ")
+                ),
+            });
+        }
         for lost in self.t.lost_endpoints() {
             // Before its accepted Hello a name may be tried by a rejected process: not a fault.
             if self.node_idx(&lost).is_some_and(|i| self.nodes[i].hello) {
@@ -288,7 +315,9 @@ impl<'a> Coord<'a> {
             }
             Message::Done(d) => {
                 n.done = Some(d.window);
+                n.waiting_since = None;
                 n.substeps += d.report.substeps;
+                n.idle_s += d.report.idle_s;
                 n.wall_s += d.report.wall_s;
                 n.wait_s += d.report.coupling_wait_s;
                 if d.window == 0 {
@@ -296,7 +325,13 @@ impl<'a> Coord<'a> {
                 }
                 n.report = d.report;
             }
-            Message::Heartbeat(_) => {}
+            Message::Heartbeat(h) => {
+                if !h.waiting {
+                    n.waiting_since = None;
+                } else if n.waiting_since.is_none() {
+                    n.waiting_since = Some(Instant::now());
+                }
+            }
             Message::Failed(f) => {
                 return Err(Fault {
                     node: n.name.clone(),
@@ -444,6 +479,8 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             child: None,
             down,
             last_seen: Instant::now(),
+            waiting_since: None,
+            idle_s: 0.0,
             hello: false,
             described: 0,
             stable_dt: 0.0,
@@ -504,6 +541,11 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             summary["wall_s"] = json!(wall);
             summary["recording"] =
                 json!({ "path": out.join("run.mcap"), "messages": messages, "bytes": bytes });
+            // Plots are a convenience: a failure to draw them is reported, not fatal.
+            match crate::plot::run_plots(&out.join("run.mcap"), &out) {
+                Ok(files) => summary["plots"] = json!(files),
+                Err(e) => tracing::warn!("plots of {}: {e:#}", out.display()),
+            }
             std::fs::write(
                 out.join("summary.json"),
                 serde_json::to_string_pretty(&summary)?,
@@ -646,10 +688,12 @@ fn drive(
         );
         b
     };
-    let scale_key = ["applied_impulse"];
-    let _ = scale_key;
     let mut balance_rows = Vec::new();
     let mut worst_p: f64 = 0.0;
+    let mut worst_resid: f64 = 0.0;
+    // Largest impulse any node saw (applied, supports and walls, coupling): the scale of the
+    // residual when no load is prescribed (a blast).
+    let mut impulse_scale: f64 = 0.0;
     let mut worst_iface_p: f64 = 0.0;
     let metric_schema = record::object_schema(
         "cosim.Balance",
@@ -660,6 +704,7 @@ fn drive(
             "external_impulse",
             "momentum_imbalance",
             "interface_impulse_sum",
+            "momentum_residual",
             "energy",
             "external_work",
             "interface_work_sum",
@@ -679,6 +724,7 @@ fn drive(
         ],
     );
     let e0: f64 = c.nodes.iter().map(|n| n.initial_energy).sum();
+    let loop_start = Instant::now();
     for k in 1..=windows {
         let t0 = (k - 1) as f64 * case.run.window;
         let t1 = if k == windows {
@@ -722,12 +768,28 @@ fn drive(
         }
         let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         let imb = norm([p[0] - jx[0], p[1] - jx[1], p[2] - jx[2]]);
+        // What neither the external loads nor the impulse still in flight between the nodes
+        // (given by one side, not yet applied by the other: the coupling lag) explains.
+        let resid = norm([
+            p[0] - jx[0] - ji[0],
+            p[1] - jx[1] - ji[1],
+            p[2] - jx[2] - ji[2],
+        ]);
         worst_p = worst_p.max(imb);
+        worst_resid = worst_resid.max(resid);
         worst_iface_p = worst_iface_p.max(norm(ji));
+        for n in &c.nodes {
+            let r = &n.report;
+            impulse_scale = impulse_scale
+                .max(r.applied_impulse)
+                .max(norm(r.external_impulse))
+                .max(norm(r.interface_impulse));
+        }
         let row = json!({
             "window": k, "time": t1,
             "momentum": norm(p), "external_impulse": norm(jx), "applied_impulse": applied,
             "momentum_imbalance": imb, "interface_impulse_sum": norm(ji),
+            "momentum_residual": resid,
             "energy": e, "external_work": wext, "interface_work_sum": wif,
             "energy_residual": e - e0 - wext,
         });
@@ -740,7 +802,9 @@ fn drive(
                 "window": k, "time": t1,
                 "kinetic_energy": r.kinetic_energy, "internal_energy": r.internal_energy,
                 "external_work": r.external_work, "interface_work": r.interface_work,
-                "momentum": r.momentum, "substeps": r.substeps, "wall_s": r.wall_s,
+                "momentum": r.momentum, "external_impulse": r.external_impulse,
+                "interface_impulse": r.interface_impulse,
+                "substeps": r.substeps, "wall_s": r.wall_s,
                 "coupling_wait_s": r.coupling_wait_s,
             });
             for (name, val) in &r.scalars {
@@ -759,6 +823,7 @@ fn drive(
         bar.inc(1);
     }
     bar.finish_and_clear();
+    let loop_s = loop_start.elapsed().as_secs_f64();
     for i in 0..c.nodes.len() {
         c.send(
             i,
@@ -786,17 +851,18 @@ fn drive(
     let mut nodes_json = BTreeMap::new();
     for (i, n) in c.nodes.iter().enumerate() {
         let cfg = &case.nodes[i];
-        let frac = if n.wall_s > 0.0 {
-            n.wait_s / (n.wall_s + n.wait_s)
-        } else {
-            0.0
-        };
+        let of_loop = |x: f64| if loop_s > 0.0 { x / loop_s } else { 0.0 };
         nodes_json.insert(
             n.name.clone(),
             json!({
                 "solver": cfg.solver, "model": cfg.model, "remote": cfg.remote,
                 "stable_dt": n.stable_dt, "substeps": n.substeps,
-                "compute_s": n.wall_s, "coupling_wait_s": n.wait_s, "coupling_fraction": frac,
+                "compute_s": n.wall_s, "coupling_wait_s": n.wait_s, "idle_s": n.idle_s,
+                // Shares of the window loop's wall time: computing (and sending), blocked on
+                // a peer's input with a window in hand, waiting for the next window.
+                "compute_fraction": of_loop(n.wall_s),
+                "coupling_fraction": of_loop(n.wait_s),
+                "idle_fraction": of_loop(n.idle_s),
                 "final": {
                     "kinetic_energy": n.report.kinetic_energy, "internal_energy": n.report.internal_energy,
                     "external_work": n.report.external_work, "interface_work": n.report.interface_work,
@@ -826,11 +892,22 @@ fn drive(
         "windows": windows,
         "nodes": nodes_json,
         "couplings": couplings,
+        // What the run costs beyond its slowest node's own work: the coupling overhead on
+        // the critical path (exchange, waiting, coordination).
+        "window_loop_s": loop_s,
+        "coupling_overhead": if loop_s > 0.0 {
+            1.0 - c.nodes.iter().map(|n| n.wall_s).fold(0.0, f64::max) / loop_s
+        } else {
+            0.0
+        },
         "balance": {
             "applied_impulse": applied_final,
             "max_momentum_imbalance": worst_p,
             "max_momentum_imbalance_relative": if applied_final > 0.0 { worst_p / applied_final } else { 0.0 },
             "max_interface_impulse_sum": worst_iface_p,
+            "impulse_scale": impulse_scale,
+            "max_momentum_residual": worst_resid,
+            "max_momentum_residual_relative": if impulse_scale > 0.0 { worst_resid / impulse_scale } else { 0.0 },
             "per_window": balance_rows,
         },
     }))

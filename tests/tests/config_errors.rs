@@ -161,3 +161,44 @@ fn parallel_schedule_is_refused_for_a_kinematic_coupling() {
         "run.schedule",
     );
 }
+
+/// `[variants]`: a malformed entry is named by its key when the case is read; an unknown
+/// variant on the command line is refused with the ones the case has; a good variant runs
+/// with its settings and writes to `<output>/<variant>`.
+#[test]
+fn variants_are_checked_and_applied() {
+    refused(
+        "variant-set",
+        |g| format!("{g}\n[variants.fine]\nset = [\"left.elements\"]\n"),
+        "variants.fine.set[0]",
+    );
+    refused(
+        "variant-key",
+        |g| format!("{g}\n[variants.fine]\nsets = []\n"),
+        "variants.fine.sets",
+    );
+    let (dir, id) = scratch("variant-ok");
+    let out = dir.join("out");
+    let text = format!(
+        "{GOOD}\n[variants.fine]\ndescription = \"more elements\"\nset = [\"left.elements=20\", \"run.end_time=2e-5\"]\n"
+    )
+    .replace("OUT", out.to_str().unwrap());
+    let case = dir.join("case.toml");
+    std::fs::write(&case, text).unwrap();
+    let c = case.to_str().unwrap();
+    let o = cosim(&["run", c, "--variant", "coarse", "--run-id", &id, "--quiet"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--variant coarse") && err.contains("fine"),
+        "{err}"
+    );
+    let o = cosim(&["run", c, "--variant", "fine", "--run-id", &id, "--quiet"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s = summary(&out.join("fine"));
+    assert_eq!(
+        s["windows"].as_u64(),
+        Some(20),
+        "end_time 2e-5 / window 1e-6"
+    );
+}

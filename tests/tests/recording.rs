@@ -84,6 +84,8 @@ fn replay_with_a_changed_parameter_reports_differences_and_drift() {
         "young=210e9",
         "--report",
         csv.to_str().unwrap(),
+        "--plot",
+        dir.join("plots").to_str().unwrap(),
     ]);
     let s = String::from_utf8_lossy(&o.stdout);
     println!("{s}");
@@ -92,6 +94,10 @@ fn replay_with_a_changed_parameter_reports_differences_and_drift() {
     assert!(s.contains("max rel diff"));
     let rows = std::fs::read_to_string(&csv).unwrap();
     assert!(rows.lines().count() > 10);
+    // Recorded against replayed tip displacement, one chart.
+    let png = dir.join("plots/replay_right_tip_displacement.png");
+    let len = std::fs::metadata(&png).map(|m| m.len()).unwrap_or(0);
+    assert!(len > 1000, "{}: {len} bytes", png.display());
     // The driver's motion is what the recorded responder saw: changing the driver drifts it.
     let o = cosim(&[
         "replay",

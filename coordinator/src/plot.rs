@@ -1,0 +1,335 @@
+//! PNG line charts (plotters, ARCHITECTURE §10): the plots `cosim run` writes next to the
+//! recording (every node's energies and named scalars over time), and `cosim plot`, which
+//! draws one series of several runs on one figure (e.g. a quantity at three resolutions).
+//!
+//! Text needs a TrueType font: the first of `COSIM_FONT`, DejaVu Sans or Liberation Sans
+//! found on the machine (Debian: `fonts-dejavu-core`). Without one the charts are drawn
+//! without captions, tick labels or legend, and a warning says so.
+
+use crate::record::{self, Recorded};
+use anyhow::{Context, bail};
+use plotters::prelude::*;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// One line of a chart.
+#[derive(Debug, Clone)]
+pub struct Series {
+    pub label: String,
+    pub points: Vec<(f64, f64)>,
+}
+
+const FONT_PATHS: [&str; 4] = [
+    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/TTF/DejaVuSans.ttf",
+    "/usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf",
+];
+
+/// Registers a font under "sans-serif" once; false when none was found.
+fn font_ready() -> bool {
+    static READY: OnceLock<bool> = OnceLock::new();
+    *READY.get_or_init(|| {
+        let env = std::env::var("COSIM_FONT").ok();
+        let candidates = env.iter().map(String::as_str).chain(FONT_PATHS);
+        for p in candidates {
+            if let Ok(bytes) = std::fs::read(p) {
+                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+                if plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).is_ok()
+                {
+                    return true;
+                }
+            }
+        }
+        tracing::warn!(
+            "no TrueType font found (set COSIM_FONT or install fonts-dejavu-core): plots have no text"
+        );
+        false
+    })
+}
+
+const COLOURS: [RGBColor; 8] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(23, 190, 207),
+];
+
+/// Axis range of all finite values with a margin; a flat series gets a unit-free band.
+fn range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in vals.filter(|v| v.is_finite()) {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    let span = hi - lo;
+    let pad = if span > 0.0 {
+        0.05 * span
+    } else {
+        0.5 * lo.abs().max(1e-12)
+    };
+    (lo - pad, hi + pad)
+}
+
+/// Draw `series` as lines into a PNG at `path` (800×500).
+pub fn line_chart(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+) -> anyhow::Result<()> {
+    if series.iter().all(|s| s.points.is_empty()) {
+        bail!("{title}: nothing to plot");
+    }
+    let text = font_ready();
+    let (x0, x1) = range(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
+    let (y0, y1) = range(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
+    let root = BitMapBackend::new(path, (800, 500)).into_drawing_area();
+    let draw = |e: &dyn std::fmt::Display| anyhow::anyhow!("plot {}: {e}", path.display());
+    root.fill(&WHITE).map_err(|e| draw(&e))?;
+    let mut builder = ChartBuilder::on(&root);
+    builder.margin(15);
+    if text {
+        builder
+            .caption(title, ("sans-serif", 22))
+            .x_label_area_size(45)
+            .y_label_area_size(80);
+    } else {
+        builder.x_label_area_size(10).y_label_area_size(10);
+    }
+    let mut chart = builder
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(|e| draw(&e))?;
+    let mut mesh = chart.configure_mesh();
+    if text {
+        mesh.x_desc(x_label)
+            .y_desc(y_label)
+            .x_label_formatter(&|v| format!("{v:.3e}"))
+            .y_label_formatter(&|v| format!("{v:.3e}"))
+            .label_style(("sans-serif", 13));
+    } else {
+        mesh.x_labels(0).y_labels(0);
+    }
+    mesh.draw().map_err(|e| draw(&e))?;
+    for (i, s) in series.iter().enumerate() {
+        let colour = COLOURS[i % COLOURS.len()];
+        let pts = s
+            .points
+            .iter()
+            .copied()
+            .filter(|p| p.0.is_finite() && p.1.is_finite());
+        let drawn = chart
+            .draw_series(LineSeries::new(pts, colour.stroke_width(2)))
+            .map_err(|e| draw(&e))?;
+        if text {
+            drawn
+                .label(s.label.clone())
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], colour));
+        }
+    }
+    if text && (series.len() > 1 || !series[0].label.is_empty()) {
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 14))
+            .draw()
+            .map_err(|e| draw(&e))?;
+    }
+    root.present().map_err(|e| draw(&e))?;
+    Ok(())
+}
+
+/// Per-window time histories of every node's report in a recording: node → quantity →
+/// (t, value). Quantities are the energies, the momentum components and the node's scalars.
+pub fn node_histories(msgs: &[Recorded]) -> BTreeMap<String, BTreeMap<String, Vec<(f64, f64)>>> {
+    let mut out: BTreeMap<String, BTreeMap<String, Vec<(f64, f64)>>> = BTreeMap::new();
+    for m in msgs {
+        let Some(node) = m.topic.strip_prefix("/cosim/node/") else {
+            continue;
+        };
+        let Ok(v) = serde_json::from_slice::<serde_json::Value>(&m.data) else {
+            continue;
+        };
+        let Some(obj) = v.as_object() else { continue };
+        let Some(t) = obj.get("time").and_then(|t| t.as_f64()) else {
+            continue;
+        };
+        let q = out.entry(node.to_string()).or_default();
+        for (k, val) in obj {
+            match (k.as_str(), val) {
+                ("time" | "window" | "substeps" | "wall_s" | "coupling_wait_s", _) => {}
+                (_, serde_json::Value::Number(n)) => {
+                    if let Some(x) = n.as_f64() {
+                        q.entry(k.clone()).or_default().push((t, x));
+                    }
+                }
+                ("momentum", serde_json::Value::Array(a)) => {
+                    for (d, c) in a.iter().enumerate().take(3) {
+                        if let Some(x) = c.as_f64() {
+                            q.entry(format!("momentum_{}", ["x", "y", "z"][d]))
+                                .or_default()
+                                .push((t, x));
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+    out
+}
+
+/// File-name-safe form of a quantity name.
+fn file_stem(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// The plots of one finished run, written to `<dir>/plots/`: per node an energy chart and
+/// one chart per scalar. Returns the files written.
+pub fn run_plots(recording: &Path, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let (msgs, _) = record::read_json(recording)?;
+    let hist = node_histories(&msgs);
+    let plots = dir.join("plots");
+    std::fs::create_dir_all(&plots)
+        .with_context(|| format!("cannot create {}", plots.display()))?;
+    let mut written = Vec::new();
+    for (node, q) in &hist {
+        let energies: Vec<Series> = ["kinetic_energy", "internal_energy", "interface_work"]
+            .iter()
+            .filter_map(|k| {
+                q.get(*k).map(|p| Series {
+                    label: k.replace('_', " "),
+                    points: p.clone(),
+                })
+            })
+            .collect();
+        if !energies.is_empty() {
+            let p = plots.join(format!("{node}_energy.png"));
+            line_chart(&p, &format!("{node}: energy"), "t [s]", "J", &energies)?;
+            written.push(p);
+        }
+        for (k, pts) in q {
+            if k.ends_with("_energy") || k == "interface_work" || k == "external_work" {
+                continue;
+            }
+            let p = plots.join(format!("{node}_{}.png", file_stem(k)));
+            let s = [Series {
+                label: String::new(),
+                points: pts.clone(),
+            }];
+            line_chart(&p, &format!("{node}: {k}"), "t [s]", k, &s)?;
+            written.push(p);
+        }
+    }
+    Ok(written)
+}
+
+/// `cosim plot`: for each `node.quantity` in `series`, one PNG with a line per run (a run is a
+/// recording or an output directory holding `run.mcap`), labelled by the run's directory name.
+pub fn compare(
+    runs: &[PathBuf],
+    series: &[String],
+    out_dir: &Path,
+) -> anyhow::Result<Vec<PathBuf>> {
+    let mut data = Vec::new();
+    for r in runs {
+        let mcap = if r.is_dir() {
+            r.join("run.mcap")
+        } else {
+            r.clone()
+        };
+        let (msgs, _) = record::read_json(&mcap)?;
+        let label = if r.is_dir() {
+            r.file_name()
+        } else {
+            r.parent().and_then(|p| p.file_name())
+        }
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| r.display().to_string());
+        data.push((label, node_histories(&msgs)));
+    }
+    std::fs::create_dir_all(out_dir)
+        .with_context(|| format!("cannot create {}", out_dir.display()))?;
+    let mut written = Vec::new();
+    for s in series {
+        let (node, q) = s
+            .split_once('.')
+            .with_context(|| format!("--series {s}: must be NODE.QUANTITY"))?;
+        let mut lines = Vec::new();
+        for (label, h) in &data {
+            let Some(pts) = h.get(node).and_then(|m| m.get(q)) else {
+                let known: Vec<&String> =
+                    h.get(node).map(|m| m.keys().collect()).unwrap_or_default();
+                bail!("run '{label}' has no {node}.{q} (it has: {known:?})");
+            };
+            lines.push(Series {
+                label: label.clone(),
+                points: pts.clone(),
+            });
+        }
+        let p = out_dir.join(format!("{}.png", file_stem(s)));
+        line_chart(&p, s, "t [s]", q, &lines)?;
+        written.push(p);
+    }
+    Ok(written)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_chart_is_a_png_of_the_requested_size() {
+        let dir = std::env::temp_dir().join(format!("cosim-plot-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("tmp dir");
+        let p = dir.join("sine.png");
+        let s = [
+            Series {
+                label: "sin".into(),
+                points: (0..200)
+                    .map(|i| (i as f64 * 0.05, (i as f64 * 0.05).sin()))
+                    .collect(),
+            },
+            Series {
+                label: "flat".into(),
+                points: vec![(0.0, 0.25), (10.0, 0.25)],
+            },
+        ];
+        line_chart(&p, "test", "x", "y", &s).expect("chart");
+        let bytes = std::fs::read(&p).expect("png written");
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+        // IHDR: width and height, big-endian, right after the signature and chunk header.
+        let w = u32::from_be_bytes([bytes[16], bytes[17], bytes[18], bytes[19]]);
+        let h = u32::from_be_bytes([bytes[20], bytes[21], bytes[22], bytes[23]]);
+        assert_eq!((w, h), (800, 500));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn an_empty_chart_is_an_error_not_an_empty_file() {
+        let p = std::env::temp_dir().join("cosim-plot-empty.png");
+        let s = [Series {
+            label: "none".into(),
+            points: vec![],
+        }];
+        assert!(line_chart(&p, "t", "x", "y", &s).is_err());
+    }
+}
