@@ -604,17 +604,30 @@ fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
 }
 
 /// Apply `key=value` overrides to a parameter table (`a.b=3` sets nested keys; the value is
-/// parsed as TOML, falling back to a string).
+/// parsed as TOML, falling back to a string; `key=` with nothing after it removes the key).
 pub fn apply_sets(params: &mut toml::Table, sets: &[String]) -> Result<(), ConfigError> {
     for s in sets {
         let (k, v) = s
             .split_once('=')
             .ok_or_else(|| err(format!("--set {s}"), "must be key=value"))?;
+        let parts: Vec<&str> = k.trim().split('.').collect();
+        if v.trim().is_empty() {
+            // `KEY=` removes the key (e.g. a parameter the swapped-in model does not take).
+            let mut t = Some(&mut *params);
+            for part in &parts[..parts.len() - 1] {
+                t = t
+                    .and_then(|t| t.get_mut(*part))
+                    .and_then(|e| e.as_table_mut());
+            }
+            if let Some(t) = t {
+                t.remove(parts[parts.len() - 1]);
+            }
+            continue;
+        }
         let value: toml::Value = toml::from_str::<toml::Table>(&format!("v = {v}"))
             .ok()
             .and_then(|mut t| t.remove("v"))
             .unwrap_or_else(|| toml::Value::String(v.to_string()));
-        let parts: Vec<&str> = k.trim().split('.').collect();
         let mut t = &mut *params;
         for part in &parts[..parts.len() - 1] {
             let e = t
@@ -771,4 +784,24 @@ pub fn window_order(case: &Case) -> Result<Vec<String>, ConfigError> {
         left.retain(|n| !ready.contains(n));
     }
     Ok(order)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::apply_sets;
+
+    #[test]
+    fn sets_add_nested_keys_and_an_empty_value_removes_one() {
+        let mut t: toml::Table = toml::from_str("a = 1\n[b]\nc = 2\nd = \"x\"").unwrap_or_default();
+        let sets = [
+            "b.c=3".to_string(),
+            "b.d=".to_string(),
+            "a=".to_string(),
+            "e.f=[1, 2]".to_string(),
+            "missing.key=".to_string(),
+        ];
+        apply_sets(&mut t, &sets).expect("valid sets");
+        let want: toml::Table = toml::from_str("[b]\nc = 3\n[e]\nf = [1, 2]").unwrap_or_default();
+        assert_eq!(t, want);
+    }
 }
