@@ -149,48 +149,55 @@ pub fn line_chart(
     Ok(())
 }
 
-/// Per-window time histories of every node's report in a recording: node → quantity →
-/// (t, value). Quantities are the energies, the momentum components and the node's scalars.
-pub fn node_histories(msgs: &[Recorded]) -> BTreeMap<String, BTreeMap<String, Vec<(f64, f64)>>> {
-    let mut out: BTreeMap<String, BTreeMap<String, Vec<(f64, f64)>>> = BTreeMap::new();
+/// Time histories per node and quantity: node → quantity → (t, value).
+pub type Histories = BTreeMap<String, BTreeMap<String, Vec<(f64, f64)>>>;
+
+/// Add one window's node report (the JSON of a `/cosim/node/<node>` message) to `h`: the
+/// energies, the momentum components and the node's scalars, at the report's `time`.
+pub fn add_report(h: &mut Histories, node: &str, v: &serde_json::Value) {
+    let Some(obj) = v.as_object() else { return };
+    let Some(t) = obj.get("time").and_then(|t| t.as_f64()) else {
+        return;
+    };
+    let q = h.entry(node.to_string()).or_default();
+    for (k, val) in obj {
+        match (k.as_str(), val) {
+            ("time" | "window" | "substeps" | "wall_s" | "coupling_wait_s" | "idle_s", _) => {}
+            (_, serde_json::Value::Number(n)) => {
+                if let Some(x) = n.as_f64() {
+                    q.entry(k.clone()).or_default().push((t, x));
+                }
+            }
+            ("momentum", serde_json::Value::Array(a)) => {
+                for (d, c) in a.iter().enumerate().take(3) {
+                    if let Some(x) = c.as_f64() {
+                        q.entry(format!("momentum_{}", ["x", "y", "z"][d]))
+                            .or_default()
+                            .push((t, x));
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// The node histories of a recording (its `/cosim/node/<n>` channels).
+pub fn node_histories(msgs: &[Recorded]) -> Histories {
+    let mut out = Histories::new();
     for m in msgs {
         let Some(node) = m.topic.strip_prefix("/cosim/node/") else {
             continue;
         };
-        let Ok(v) = serde_json::from_slice::<serde_json::Value>(&m.data) else {
-            continue;
-        };
-        let Some(obj) = v.as_object() else { continue };
-        let Some(t) = obj.get("time").and_then(|t| t.as_f64()) else {
-            continue;
-        };
-        let q = out.entry(node.to_string()).or_default();
-        for (k, val) in obj {
-            match (k.as_str(), val) {
-                ("time" | "window" | "substeps" | "wall_s" | "coupling_wait_s", _) => {}
-                (_, serde_json::Value::Number(n)) => {
-                    if let Some(x) = n.as_f64() {
-                        q.entry(k.clone()).or_default().push((t, x));
-                    }
-                }
-                ("momentum", serde_json::Value::Array(a)) => {
-                    for (d, c) in a.iter().enumerate().take(3) {
-                        if let Some(x) = c.as_f64() {
-                            q.entry(format!("momentum_{}", ["x", "y", "z"][d]))
-                                .or_default()
-                                .push((t, x));
-                        }
-                    }
-                }
-                _ => {}
-            }
+        if let Ok(v) = serde_json::from_slice::<serde_json::Value>(&m.data) {
+            add_report(&mut out, node, &v);
         }
     }
     out
 }
 
 /// File-name-safe form of a quantity name.
-fn file_stem(s: &str) -> String {
+pub fn file_stem(s: &str) -> String {
     s.chars()
         .map(|c| {
             if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
@@ -202,16 +209,14 @@ fn file_stem(s: &str) -> String {
         .collect()
 }
 
-/// The plots of one finished run, written to `<dir>/plots/`: per node an energy chart and
-/// one chart per scalar. Returns the files written.
-pub fn run_plots(recording: &Path, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    let (msgs, _) = record::read_json(recording)?;
-    let hist = node_histories(&msgs);
+/// The plots of one finished run (its histories, collected while it ran), written to
+/// `<dir>/plots/`: per node an energy chart and one chart per scalar. Returns the files.
+pub fn run_plots(hist: &Histories, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     let plots = dir.join("plots");
     std::fs::create_dir_all(&plots)
         .with_context(|| format!("cannot create {}", plots.display()))?;
     let mut written = Vec::new();
-    for (node, q) in &hist {
+    for (node, q) in hist {
         let energies: Vec<Series> = ["kinetic_energy", "internal_energy", "interface_work"]
             .iter()
             .filter_map(|k| {

@@ -187,43 +187,33 @@ pub struct Recorded {
 /// The JSON messages of a recording (balance, node reports, case), in file order; the binary
 /// coupling traffic is skipped without being copied. `complete` as for [`read_all`].
 pub fn read_json(path: &Path) -> anyhow::Result<(Vec<Recorded>, bool)> {
-    let buf = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let mut out = Vec::new();
-    let mut complete = true;
-    let stream = mcap::MessageStream::new(&buf).context("not an MCAP file")?;
-    for m in stream {
-        match m {
-            Ok(m) if m.channel.message_encoding == "json" => out.push(Recorded {
-                topic: m.channel.topic.clone(),
-                publish_time: m.publish_time,
-                data: m.data.into_owned(),
-                json: true,
-            }),
-            Ok(_) => {}
-            Err(_) => {
-                complete = false;
-                break;
-            }
-        }
-    }
-    Ok((out, complete))
+    read_where(path, true)
 }
 
 /// Read every message of a recording in file order; `complete` is false when the file ended
 /// early (a killed writer): the messages of its completed chunks are still returned.
 pub fn read_all(path: &Path) -> anyhow::Result<(Vec<Recorded>, bool)> {
+    read_where(path, false)
+}
+
+fn read_where(path: &Path, json_only: bool) -> anyhow::Result<(Vec<Recorded>, bool)> {
     let buf = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
     let mut out = Vec::new();
     let mut complete = true;
     let stream = mcap::MessageStream::new(&buf).context("not an MCAP file")?;
     for m in stream {
         match m {
-            Ok(m) => out.push(Recorded {
-                topic: m.channel.topic.clone(),
-                publish_time: m.publish_time,
-                data: m.data.into_owned(),
-                json: m.channel.message_encoding == "json",
-            }),
+            Ok(m) => {
+                let json = m.channel.message_encoding == "json";
+                if json || !json_only {
+                    out.push(Recorded {
+                        topic: m.channel.topic.clone(),
+                        publish_time: m.publish_time,
+                        data: m.data.into_owned(),
+                        json,
+                    });
+                }
+            }
             Err(_) => {
                 complete = false;
                 break;

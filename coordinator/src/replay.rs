@@ -268,17 +268,10 @@ pub fn plot(rep: &ReplayReport, node: &str, dir: &Path) -> anyhow::Result<Vec<Pa
                 .filter_map(|s| Some((*time.get(&s.0)?, if replayed { s.2 } else { s.3 })))
                 .collect()
         };
-        let stem: String = name
-            .chars()
-            .map(|c| {
-                if c.is_ascii_alphanumeric() || c == '-' {
-                    c
-                } else {
-                    '_'
-                }
-            })
-            .collect();
-        let p = dir.join(format!("replay_{node}_{stem}.png"));
+        let p = dir.join(format!(
+            "replay_{node}_{}.png",
+            crate::plot::file_stem(name)
+        ));
         let series = [
             Series {
                 label: "recorded".into(),

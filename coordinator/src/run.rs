@@ -81,6 +81,8 @@ struct Coord<'a> {
     sim_t: f64,
     window: u64,
     faults: Vec<Fault>,
+    /// Every node's reported quantities per window, for the plots written at the end.
+    history: crate::plot::Histories,
 }
 
 fn pick_run_id(name: &str) -> String {
@@ -506,6 +508,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         sim_t: 0.0,
         window: 0,
         faults: Vec::new(),
+        history: Default::default(),
     };
     let started = Instant::now();
     let result = drive(&mut c, &out, &order, &listen, opts);
@@ -528,7 +531,13 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         }
     }
     let wall = started.elapsed().as_secs_f64();
-    let Coord { rec, t, nodes, .. } = c;
+    let Coord {
+        rec,
+        t,
+        nodes,
+        history,
+        ..
+    } = c;
     let (messages, bytes) = (rec.messages, rec.bytes);
     rec.finish()?;
     // Every port of this process goes before the sweep, which only runs once no participant
@@ -542,7 +551,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             summary["recording"] =
                 json!({ "path": out.join("run.mcap"), "messages": messages, "bytes": bytes });
             // Plots are a convenience: a failure to draw them is reported, not fatal.
-            match crate::plot::run_plots(&out.join("run.mcap"), &out) {
+            match crate::plot::run_plots(&history, &out) {
                 Ok(files) => summary["plots"] = json!(files),
                 Err(e) => tracing::warn!("plots of {}: {e:#}", out.display()),
             }
@@ -817,6 +826,7 @@ fn drive(
                 t1,
                 &v,
             );
+            crate::plot::add_report(&mut c.history, &n.name, &v);
         }
         balance_rows.push(row);
         bar.set_message(format!("{t1:.4e} s"));

@@ -68,10 +68,49 @@ pub fn run_case(case: &Path, out: &Path, run_id: &str, extra: &[&str]) -> Output
     cosim(&args)
 }
 
+/// Run the independent MCAP check (`tools/check_mcap.py`, the official Python reader) with
+/// `flag` (`--require-json` or `--recover`); returns (passed, its stdout + stderr).
+pub fn check_mcap(mcap: &Path, flag: &str) -> (bool, String) {
+    let o = Command::new("python3")
+        .arg(workspace_root().join("tools/check_mcap.py"))
+        .arg(mcap)
+        .arg(flag)
+        .output()
+        .expect("python3 runs");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    (o.status.success(), text)
+}
+
+/// Per-window 3-vector `key` of a node's report (e.g. `interface_impulse`), from the
+/// `/cosim/node/<node>` channel: (window, [x, y, z]).
+pub fn node_vectors(mcap: &Path, node: &str, key: &str) -> Vec<(u64, [f64; 3])> {
+    let (msgs, _) = coordinator::record::read_json(mcap).expect("readable recording");
+    let topic = format!("/cosim/node/{node}");
+    msgs.iter()
+        .filter(|m| m.topic == topic)
+        .filter_map(|m| {
+            let v: serde_json::Value = serde_json::from_slice(&m.data).ok()?;
+            let a = v[key].as_array()?;
+            Some((
+                v["window"].as_u64()?,
+                [
+                    a.first()?.as_f64()?,
+                    a.get(1)?.as_f64()?,
+                    a.get(2)?.as_f64()?,
+                ],
+            ))
+        })
+        .collect()
+}
+
 /// Per-window values of a node's report scalar (e.g. `tip_displacement`), from the
 /// `/cosim/node/<node>` channel of a recording: (time, value).
 pub fn node_series(mcap: &Path, node: &str, key: &str) -> Vec<(f64, f64)> {
-    let (msgs, _) = coordinator::record::read_all(mcap).expect("readable recording");
+    let (msgs, _) = coordinator::record::read_json(mcap).expect("readable recording");
     let topic = format!("/cosim/node/{node}");
     msgs.iter()
         .filter(|m| m.topic == topic)

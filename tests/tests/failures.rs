@@ -99,22 +99,8 @@ fn fault_scenario(tag: &str, transport: &str, act: impl FnOnce(&str), expect: &[
     );
     // The recording is readable and holds every window completed before the fault.
     let mcap = out.join("run.mcap");
-    let check = Command::new("python3")
-        .args([
-            workspace_root()
-                .join("tools/check_mcap.py")
-                .to_str()
-                .unwrap(),
-            mcap.to_str().unwrap(),
-            "--recover",
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        check.status.success(),
-        "check_mcap --recover: {}",
-        String::from_utf8_lossy(&check.stdout)
-    );
+    let (ok, text) = check_mcap(&mcap, "--recover");
+    assert!(ok, "check_mcap --recover: {text}");
     let (msgs, _) = coordinator::record::read_all(&mcap).unwrap();
     let windows: Vec<u64> = msgs
         .iter()

@@ -7,7 +7,6 @@
 
 use cosim_tests::*;
 use std::path::PathBuf;
-use std::process::Command;
 use std::sync::OnceLock;
 
 fn chamber() -> &'static PathBuf {
@@ -27,28 +26,11 @@ fn chamber() -> &'static PathBuf {
     })
 }
 
-/// Per-window vector `key` of `node` from the recording: (window, [x, y, z]).
-fn node_vectors(out: &std::path::Path, node: &str, key: &str) -> Vec<(u64, [f64; 3])> {
-    let (msgs, _) = coordinator::record::read_json(&out.join("run.mcap")).expect("recording");
-    let topic = format!("/cosim/node/{node}");
-    msgs.iter()
-        .filter(|m| m.topic == topic)
-        .filter_map(|m| {
-            let v: serde_json::Value = serde_json::from_slice(&m.data).ok()?;
-            let a = v[key].as_array()?;
-            Some((
-                v["window"].as_u64()?,
-                [a[0].as_f64()?, a[1].as_f64()?, a[2].as_f64()?],
-            ))
-        })
-        .collect()
-}
-
 #[test]
 fn the_impulse_the_gas_gives_is_what_the_bar_receives_every_window() {
     let out = chamber();
-    let gas = node_vectors(out, "gas", "interface_impulse");
-    let bar = node_vectors(out, "bar", "interface_impulse");
+    let gas = node_vectors(&out.join("run.mcap"), "gas", "interface_impulse");
+    let bar = node_vectors(&out.join("run.mcap"), "bar", "interface_impulse");
     assert!(
         gas.len() >= 80 && gas.len() == bar.len(),
         "{} {}",
@@ -85,7 +67,7 @@ fn the_impulse_the_gas_gives_is_what_the_bar_receives_every_window() {
 #[test]
 fn the_blast_pushes_the_bar_right() {
     let out = chamber();
-    let bar = node_vectors(out, "bar", "momentum");
+    let bar = node_vectors(&out.join("run.mcap"), "bar", "momentum");
     let (_, p) = bar.last().copied().expect("bar reports");
     assert!(p[0] > 0.0, "bar momentum {p:?}");
     // Symmetric set-up about y = 0.2: the vertical momentum stays near round-off. Not at
@@ -97,23 +79,8 @@ fn the_blast_pushes_the_bar_right() {
 #[test]
 fn the_recording_passes_the_official_reader_and_plots_are_written() {
     let out = chamber();
-    let o = Command::new("python3")
-        .args([
-            workspace_root()
-                .join("tools/check_mcap.py")
-                .to_str()
-                .unwrap(),
-            out.join("run.mcap").to_str().unwrap(),
-            "--require-json",
-        ])
-        .output()
-        .expect("python3");
-    assert!(
-        o.status.success(),
-        "check_mcap: {}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
+    let (ok, text) = check_mcap(&out.join("run.mcap"), "--require-json");
+    assert!(ok, "check_mcap: {text}");
     let plots: Vec<PathBuf> = std::fs::read_dir(out.join("plots"))
         .expect("plots/")
         .filter_map(|e| e.ok().map(|e| e.path()))

@@ -1,7 +1,6 @@
 //! Recording, `cosim info` and `cosim replay` on a real split-bar run (ARCHITECTURE §7).
 
 use cosim_tests::*;
-use std::process::Command;
 use std::sync::OnceLock;
 
 /// One recorded run shared by the tests of this file.
@@ -19,25 +18,9 @@ fn recorded() -> &'static std::path::PathBuf {
 
 #[test]
 fn recording_passes_the_official_reader() {
-    let mcap = recorded();
-    let o = Command::new("python3")
-        .args([
-            workspace_root()
-                .join("tools/check_mcap.py")
-                .to_str()
-                .unwrap(),
-            mcap.to_str().unwrap(),
-            "--require-json",
-        ])
-        .output()
-        .expect("python3");
-    let s = String::from_utf8_lossy(&o.stdout);
+    let (ok, s) = check_mcap(recorded(), "--require-json");
     println!("{s}");
-    assert!(
-        o.status.success(),
-        "check_mcap failed: {s}{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    assert!(ok, "check_mcap failed: {s}");
     assert!(s.contains("/cosim/balance"));
 }
 
