@@ -559,3 +559,37 @@ pub fn benchmark_blast_case(n: usize) -> String {
     "#
     )
 }
+
+/// The parameter table (TOML text) of Sod's shock tube (PHYSICS.md "Fluid node"): γ 1.4,
+/// (ρ, u, p) = (1, 0, 1) left of x 0.5 and (0.125, 0, 0.1) right of it, `n` cells on [0, 1],
+/// outflow ends, the given TVD limiter. Shared by the verification and GPU tests.
+pub fn sod_case(n: usize, limiter: &str) -> String {
+    format!(
+        r#"
+        cfl = 0.5
+        limiter = "{limiter}"
+        [grid]
+        cells = [{n}, 1, 1]
+        lower = [0.0, 0.0, 0.0]
+        upper = [1.0, 1.0, 1.0]
+        [materials.gas]
+        eos = "ideal"
+        gamma = 1.4
+        [[regions]]
+        shape = "all"
+        material = "gas"
+        density = 0.125
+        pressure = 0.1
+        [[regions]]
+        shape = "box"
+        lower = [0.0, 0.0, 0.0]
+        upper = [0.5, 1.0, 1.0]
+        material = "gas"
+        density = 1.0
+        pressure = 1.0
+        [boundaries]
+        x_lower = "outflow"
+        x_upper = "outflow"
+    "#
+    )
+}

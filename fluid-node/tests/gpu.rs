@@ -160,34 +160,7 @@ fn check_f64(name: &str, text: &str, t1: f64) {
 }
 
 fn sod(n: usize, limiter: &str) -> String {
-    format!(
-        r#"
-        cfl = 0.5
-        limiter = "{limiter}"
-        [grid]
-        cells = [{n}, 1, 1]
-        lower = [0.0, 0.0, 0.0]
-        upper = [1.0, 1.0, 1.0]
-        [materials.gas]
-        eos = "ideal"
-        gamma = 1.4
-        [[regions]]
-        shape = "all"
-        material = "gas"
-        density = 0.125
-        pressure = 0.1
-        [[regions]]
-        shape = "box"
-        lower = [0.0, 0.0, 0.0]
-        upper = [0.5, 1.0, 1.0]
-        material = "gas"
-        density = 1.0
-        pressure = 1.0
-        [boundaries]
-        x_lower = "outflow"
-        x_upper = "outflow"
-    "#
-    )
+    setup::sod_case(n, limiter)
 }
 
 /// The 2-D cylindrical blast of the fluid benchmarks (p 10 in r < 0.1, 0.1 outside, ρ 1,

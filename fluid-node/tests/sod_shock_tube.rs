@@ -6,34 +6,7 @@ use common::{ExactRiemann, solver};
 use fluid_node::diagnostics::x_line;
 
 fn sod(n: usize, limiter: &str) -> f64 {
-    let mut s = solver(&format!(
-        r#"
-        cfl = 0.5
-        limiter = "{limiter}"
-        [grid]
-        cells = [{n}, 1, 1]
-        lower = [0.0, 0.0, 0.0]
-        upper = [1.0, 1.0, 1.0]
-        [materials.gas]
-        eos = "ideal"
-        gamma = 1.4
-        [[regions]]
-        shape = "all"
-        material = "gas"
-        density = 0.125
-        pressure = 0.1
-        [[regions]]
-        shape = "box"
-        lower = [0.0, 0.0, 0.0]
-        upper = [0.5, 1.0, 1.0]
-        material = "gas"
-        density = 1.0
-        pressure = 1.0
-        [boundaries]
-        x_lower = "outflow"
-        x_upper = "outflow"
-    "#
-    ));
+    let mut s = solver(&fluid_node::setup::sod_case(n, limiter));
     s.advance_to(0.2).expect("run");
     let ex = ExactRiemann::new(1.4, (1.0, 0.0, 1.0), (0.125, 0.0, 0.1));
     let dx = 1.0 / n as f64;
