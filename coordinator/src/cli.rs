@@ -26,8 +26,8 @@ pub enum Cmd {
         /// Run id (namespaces shared memory and topics; default: name-pid-time).
         #[arg(long)]
         run_id: Option<String>,
-        /// Override a node parameter: NODE.KEY=VALUE, or a run setting: run.KEY=VALUE
-        /// (repeatable; applied after the variant's).
+        /// Override a node parameter: NODE.KEY=VALUE, a run setting: run.KEY=VALUE, or a
+        /// coupling's: couplings.NAME.KEY=VALUE (repeatable; applied after the variant's).
         #[arg(long = "set")]
         sets: Vec<String>,
         /// Run a named variant of the case (its `[variants.NAME]` settings); the output goes
@@ -38,8 +38,16 @@ pub enum Cmd {
         #[arg(long, short)]
         quiet: bool,
     },
-    /// Check a case file without starting anything.
-    Validate { case: PathBuf },
+    /// Check a case file (and every variant) without starting anything.
+    Validate {
+        case: PathBuf,
+        /// Check with these overrides (NODE.KEY=VALUE, run.KEY=VALUE, couplings.NAME.KEY=VALUE).
+        #[arg(long = "set")]
+        sets: Vec<String>,
+        /// Check only this variant.
+        #[arg(long)]
+        variant: Option<String>,
+    },
     /// Summarise a recording.
     Info { recording: PathBuf },
     /// Re-run one node alone against its recorded inputs and compare with its recorded outputs.
@@ -109,6 +117,46 @@ pub fn load_case(
     load_variant(path, None, sets)
 }
 
+/// `couplings.NAME.KEY=VALUE`: set a key of the `[[couplings]]` entry named NAME (its
+/// `name`, or the default `driver-responder` node pair).
+fn set_coupling(doc: &mut toml::Table, s: &str, rest: &str) -> Result<(), config::ConfigError> {
+    let bad = |reason: String| config::ConfigError {
+        key: format!("--set {s}"),
+        reason,
+    };
+    let (name, kv) = rest
+        .split_once('.')
+        .ok_or_else(|| bad("must be couplings.NAME.KEY=VALUE".into()))?;
+    let list = doc
+        .get_mut("couplings")
+        .and_then(|c| c.as_array_mut())
+        .ok_or_else(|| bad("the case has no [[couplings]]".into()))?;
+    let node_of = |t: &toml::Table, k: &str| -> String {
+        t.get(k)
+            .and_then(|v| v.as_str())
+            .and_then(|v| v.split_once('.'))
+            .map(|(n, _)| n.to_string())
+            .unwrap_or_default()
+    };
+    let mut names = Vec::new();
+    for c in list.iter_mut() {
+        let Some(t) = c.as_table_mut() else { continue };
+        let this = t
+            .get("name")
+            .and_then(|v| v.as_str())
+            .map(str::to_string)
+            .unwrap_or_else(|| format!("{}-{}", node_of(t, "driver"), node_of(t, "responder")));
+        if this == name {
+            return config::apply_sets(t, &[kv.to_string()]);
+        }
+        names.push(this);
+    }
+    Err(bad(format!(
+        "no coupling named '{name}' (the case has {})",
+        names.join(", ")
+    )))
+}
+
 /// Load a case, apply the settings of variant `variant` (if any), then `sets`.
 pub fn load_variant(
     path: &std::path::Path,
@@ -161,6 +209,14 @@ pub fn load_variant(
             config::apply_sets(t, &[rest.to_string()])?;
             continue;
         }
+        if node == "couplings"
+            && doc
+                .get("nodes")
+                .is_none_or(|n| n.get("couplings").is_none())
+        {
+            set_coupling(&mut doc, s, rest)?;
+            continue;
+        }
         let params = doc
             .get_mut("nodes")
             .and_then(|n| n.get_mut(node))
@@ -203,7 +259,11 @@ pub fn main_with(cli: Cli) -> i32 {
                 1
             }
         },
-        Cmd::Validate { case } => match config::load(&case) {
+        Cmd::Validate {
+            case,
+            sets,
+            variant,
+        } => match load_variant(&case, variant.as_deref(), &sets) {
             Ok(c) => {
                 let order = config::window_order(&c)
                     .map(|o| o.join(" → "))
@@ -217,7 +277,12 @@ pub fn main_with(cli: Cli) -> i32 {
                     order
                 );
                 // Every variant must build too.
-                for v in &c.variants {
+                let others = if variant.is_none() && sets.is_empty() {
+                    c.variants.clone()
+                } else {
+                    Vec::new()
+                };
+                for v in &others {
                     match load_variant(&case, Some(v), &[]) {
                         Ok(cv) => println!(
                             "  variant {v}: ok — {} windows, output {}",

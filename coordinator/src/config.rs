@@ -75,6 +75,24 @@ pub struct CouplingConfig {
     pub driver_fields: Vec<String>,
     /// Fields the responder sends each window (and at set-up).
     pub responder_fields: Vec<String>,
+    /// When the coupling ends (seed 000 §4): the driver (the solid) goes on alone, the
+    /// responder (the fluid) is finished once none of its couplings is left.
+    pub decouple: Decouple,
+}
+
+/// Decoupling rule of a coupling: at a time, or when a node's reported quantity reaches a
+/// level (`decouple_when = "ring.damaged_particles >= 100"`), whichever comes first.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Decouple {
+    pub at: Option<f64>,
+    /// (node, reported scalar, threshold).
+    pub when: Option<(String, String, f64)>,
+}
+
+impl Decouple {
+    pub fn is_set(&self) -> bool {
+        self.at.is_some() || self.when.is_some()
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -123,6 +141,8 @@ const COUPLING_KEYS: &[&str] = &[
     "responder",
     "driver_fields",
     "responder_fields",
+    "decouple_at",
+    "decouple_when",
 ];
 
 fn check_keys(t: &toml::Table, prefix: &str, allowed: &[&str]) -> Result<(), ConfigError> {
@@ -505,8 +525,36 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
                 format!("duplicate coupling name '{name}'"),
             ));
         }
+        let mut decouple = Decouple {
+            at: get_f64(t, &p, "decouple_at")?,
+            when: None,
+        };
+        if let Some(at) = decouple.at
+            && !(at.is_finite() && at > 0.0)
+        {
+            return Err(err(
+                format!("{p}decouple_at"),
+                format!("must be a time > 0, got {at}"),
+            ));
+        }
+        if let Some(w) = get_str(t, &p, "decouple_when")? {
+            decouple.when =
+                Some(parse_when(&w, &nodes).map_err(|r| err(format!("{p}decouple_when"), r))?);
+        }
+        if decouple.is_set() && kind != CouplingKind::Immersed {
+            let key = if decouple.at.is_some() {
+                "decouple_at"
+            } else {
+                "decouple_when"
+            };
+            return Err(err(
+                format!("{p}{key}"),
+                "only an immersed coupling can be decoupled (the solid goes on alone, seed 000 §4)",
+            ));
+        }
         let (df, rf) = default_fields(kind);
         couplings.push(CouplingConfig {
+            decouple,
             name,
             kind,
             driver,
@@ -642,6 +690,33 @@ pub fn apply_sets(params: &mut toml::Table, sets: &[String]) -> Result<(), Confi
     Ok(())
 }
 
+/// `"node.quantity >= level"` (or `>`): a scalar a node reports every window.
+fn parse_when(s: &str, nodes: &[NodeConfig]) -> Result<(String, String, f64), String> {
+    let form = "must read \"NODE.QUANTITY >= LEVEL\" (a quantity the node reports)";
+    let (lhs, rhs) = s
+        .split_once(">=")
+        .or_else(|| s.split_once('>'))
+        .ok_or_else(|| format!("{form}, got \"{s}\""))?;
+    let (node, q) = lhs
+        .trim()
+        .split_once('.')
+        .ok_or_else(|| format!("{form}, got \"{s}\""))?;
+    if !nodes.iter().any(|n| n.name == node) {
+        return Err(format!("unknown node '{node}'"));
+    }
+    if q.is_empty() {
+        return Err(format!("{form}, got \"{s}\""));
+    }
+    let level: f64 = rhs
+        .trim()
+        .parse()
+        .map_err(|_| format!("level '{}' is not a number", rhs.trim()))?;
+    if !level.is_finite() {
+        return Err(format!("level must be finite, got {level}"));
+    }
+    Ok((node.to_string(), q.to_string(), level))
+}
+
 /// Names of the case's variants (`[variants.NAME]` tables with `description` and `set`),
 /// checked for shape.
 pub fn variant_names(doc: &toml::Table) -> Result<Vec<String>, ConfigError> {
@@ -700,7 +775,7 @@ pub fn variant_sets(doc: &toml::Table, name: &str) -> Result<Vec<String>, Config
             }
             _ => Err(err(
                 format!("{key}[{i}]"),
-                "must be a \"NODE.KEY=VALUE\" or \"run.KEY=VALUE\" string",
+                "must be a \"NODE.KEY=VALUE\", \"run.KEY=VALUE\" or \"couplings.NAME.KEY=VALUE\" string",
             )),
         })
         .collect()

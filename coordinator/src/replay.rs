@@ -154,6 +154,7 @@ pub fn replay(
     let mut recorded_out: BTreeMap<(u64, String), Fields> = BTreeMap::new();
     let mut recorded_done: BTreeMap<u64, StepReport> = BTreeMap::new();
     let mut advances = Vec::new();
+    let mut decouples: Vec<Decouple> = Vec::new();
     let mut peer_fields: Vec<Fields> = Vec::new();
     for d in &dec {
         match &d.env.message {
@@ -163,6 +164,7 @@ pub fn replay(
                 recorded_out.insert((f.window, f.coupling.clone()), f.clone());
             }
             Message::Advance(a) if d.topic == down && a.window > 0 => advances.push(*a),
+            Message::Decouple(x) if d.topic == down => decouples.push(x.clone()),
             Message::Done(dn) if d.topic == up => {
                 recorded_done.insert(dn.window, dn.report.clone());
             }
@@ -213,6 +215,9 @@ pub fn replay(
                 a.window
             );
             break;
+        }
+        for x in decouples.iter().filter(|x| x.window == a.window) {
+            engine.decouple(&x.coupling, x.window)?;
         }
         feed_upto(&mut engine, a.window)?;
         if !engine.ready(a.window) {

@@ -66,6 +66,8 @@ struct NodeRt {
     wall_s: f64,
     wait_s: f64,
     exited: Option<String>,
+    /// Finished before the end (its couplings ended, seed 000 §4): the window after which.
+    finished: Option<u64>,
 }
 
 struct Coord<'a> {
@@ -156,6 +158,9 @@ impl<'a> Coord<'a> {
         let timeout = Duration::from_secs_f64(self.case.run.heartbeat_timeout);
         for i in 0..self.nodes.len() {
             let n = &mut self.nodes[i];
+            if n.finished.is_some() {
+                continue; // told to finish: its exit is expected
+            }
             if n.exited.is_none()
                 && let Some(c) = n.child.as_mut()
                 && let Ok(Some(st)) = c.try_wait()
@@ -218,7 +223,10 @@ impl<'a> Coord<'a> {
         }
         for lost in self.t.lost_endpoints() {
             // Before its accepted Hello a name may be tried by a rejected process: not a fault.
-            if self.node_idx(&lost).is_some_and(|i| self.nodes[i].hello) {
+            if self
+                .node_idx(&lost)
+                .is_some_and(|i| self.nodes[i].hello && self.nodes[i].finished.is_none())
+            {
                 return Err(Fault {
                     node: lost,
                     reason: "connection lost (liveliness token dropped)".into(),
@@ -410,6 +418,108 @@ impl<'a> Coord<'a> {
     }
 }
 
+/// Decouple every coupling whose rule fires before window `k` (starting at `t0`): tell both
+/// sides, then finish each responder none of whose couplings is left (seed 000 §4: the solid
+/// goes on alone). Returns whether a node was finished.
+fn decouple_due(
+    c: &mut Coord,
+    decoupled: &mut [Option<(u64, f64, String)>],
+    k: u64,
+    t0: f64,
+) -> Result<bool, Fault> {
+    let case = c.case;
+    let mut any = false;
+    for (ci, cp) in case.couplings.iter().enumerate() {
+        if decoupled[ci].is_some() || !cp.decouple.is_set() {
+            continue;
+        }
+        let mut why = None;
+        if let Some(at) = cp.decouple.at
+            && t0 >= at * (1.0 - 1e-12)
+        {
+            why = Some(format!("t = {t0:.6e} s reached decouple_at = {at:e} s"));
+        }
+        if why.is_none()
+            && k > 1
+            && let Some((node, q, level)) = &cp.decouple.when
+            && let Some(i) = c.node_idx(node)
+        {
+            let r = &c.nodes[i].report;
+            match r.scalars.iter().find(|(n, _)| n == q) {
+                Some(&(_, v)) if v >= *level => {
+                    why = Some(format!("{node}.{q} = {v} reached {level}"));
+                }
+                Some(_) => {}
+                None => {
+                    let have: Vec<&str> = r.scalars.iter().map(|(n, _)| n.as_str()).collect();
+                    return Err(Fault {
+                        node: node.clone(),
+                        reason: format!(
+                            "couplings[{ci}].decouple_when: the node does not report '{q}' (it reports: {})",
+                            if have.is_empty() {
+                                "nothing".to_string()
+                            } else {
+                                have.join(", ")
+                            }
+                        ),
+                    });
+                }
+            }
+        }
+        let Some(why) = why else { continue };
+        eprintln!(
+            "cosim: coupling '{}' ends before window {k} ({why}); '{}' goes on alone",
+            cp.name, cp.driver.0
+        );
+        for node in [&cp.driver.0, &cp.responder.0] {
+            if let Some(i) = c.node_idx(node)
+                && c.nodes[i].finished.is_none()
+            {
+                c.send(
+                    i,
+                    &Message::Decouple(Decouple {
+                        coupling: cp.name.clone(),
+                        window: k,
+                        reason: why.clone(),
+                    }),
+                )?;
+            }
+        }
+        decoupled[ci] = Some((k, t0, why));
+        any = true;
+    }
+    if !any {
+        return Ok(false);
+    }
+    let mut finished = false;
+    for (i, n) in case.nodes.iter().enumerate() {
+        if c.nodes[i].finished.is_some() {
+            continue;
+        }
+        let mine: Vec<usize> = (0..case.couplings.len())
+            .filter(|&ci| {
+                let cp = &case.couplings[ci];
+                cp.driver.0 == n.name || cp.responder.0 == n.name
+            })
+            .collect();
+        let responder_of_decoupled = mine
+            .iter()
+            .any(|&ci| case.couplings[ci].responder.0 == n.name && decoupled[ci].is_some());
+        if responder_of_decoupled && mine.iter().all(|&ci| decoupled[ci].is_some()) {
+            c.send(
+                i,
+                &Message::Finish(Finish {
+                    reason: "decoupled: the solid goes on alone".into(),
+                }),
+            )?;
+            c.nodes[i].finished = Some(k - 1);
+            eprintln!("cosim: node '{}' finished after window {}", n.name, k - 1);
+            finished = true;
+        }
+    }
+    Ok(finished)
+}
+
 /// Run a case to the end. On a fault the nodes are stopped, the recording is closed and the
 /// fault returned; the caller prints it and exits non-zero.
 pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fault>> {
@@ -493,6 +603,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             wall_s: 0.0,
             wait_s: 0.0,
             exited: None,
+            finished: None,
         });
     }
     let mut c = Coord {
@@ -733,6 +844,9 @@ fn drive(
         ],
     );
     let e0: f64 = c.nodes.iter().map(|n| n.initial_energy).sum();
+    // Decouplings (seed 000 §4): (window, time, reason) per coupling once it happened.
+    let mut decoupled: Vec<Option<(u64, f64, String)>> = vec![None; case.couplings.len()];
+    let mut active: Vec<usize> = all.clone();
     let loop_start = Instant::now();
     for k in 1..=windows {
         let t0 = (k - 1) as f64 * case.run.window;
@@ -742,10 +856,19 @@ fn drive(
             k as f64 * case.run.window
         };
         c.window = k;
+        c.sim_t = t0;
+        if decouple_due(c, &mut decoupled, k, t0)? {
+            active.retain(|&i| c.nodes[i].finished.is_none());
+        }
         c.sim_t = t1;
         let write_output =
             k == windows || (case.run.output_every > 0 && k % case.run.output_every == 0);
-        for &i in &order_idx {
+        let to_run: Vec<usize> = order_idx
+            .iter()
+            .copied()
+            .filter(|&i| c.nodes[i].finished.is_none())
+            .collect();
+        for i in to_run {
             c.send(
                 i,
                 &Message::Advance(Advance {
@@ -757,7 +880,7 @@ fn drive(
                 }),
             )?;
         }
-        c.wait_all(&all, "Done", None, |n| n.done == Some(k))?;
+        c.wait_all(&active, "Done", None, |n| n.done == Some(k))?;
         // Audit (ARCHITECTURE §5): momentum against external impulse, energy against work.
         let mut p = [0.0; 3];
         let mut jx = [0.0; 3];
@@ -805,7 +928,7 @@ fn drive(
         let _ = c
             .rec
             .json("/cosim/balance", "cosim.Balance", &metric_schema, t1, &row);
-        for n in &c.nodes {
+        for n in c.nodes.iter().filter(|n| n.finished.is_none()) {
             let r = &n.report;
             let mut v = json!({
                 "window": k, "time": t1,
@@ -834,7 +957,7 @@ fn drive(
     }
     bar.finish_and_clear();
     let loop_s = loop_start.elapsed().as_secs_f64();
-    for i in 0..c.nodes.len() {
+    for i in active.clone() {
         c.send(
             i,
             &Message::Finish(Finish {
@@ -873,6 +996,7 @@ fn drive(
                 "compute_fraction": of_loop(n.wall_s),
                 "coupling_fraction": of_loop(n.wait_s),
                 "idle_fraction": of_loop(n.idle_s),
+                "finished_after_window": n.finished,
                 "final": {
                     "kinetic_energy": n.report.kinetic_energy, "internal_energy": n.report.internal_energy,
                     "external_work": n.report.external_work, "interface_work": n.report.interface_work,
@@ -885,10 +1009,15 @@ fn drive(
     let couplings: Vec<serde_json::Value> = case
         .couplings
         .iter()
-        .map(|cp| {
-            json!({ "name": cp.name, "kind": cp.kind.as_str(),
+        .zip(&decoupled)
+        .map(|(cp, d)| {
+            let mut v = json!({ "name": cp.name, "kind": cp.kind.as_str(),
                     "driver": format!("{}.{}", cp.driver.0, cp.driver.1),
-                    "responder": format!("{}.{}", cp.responder.0, cp.responder.1) })
+                    "responder": format!("{}.{}", cp.responder.0, cp.responder.1) });
+            if let Some((w, t, why)) = d {
+                v["decoupled"] = json!({ "before_window": w, "time": t, "reason": why });
+            }
+            v
         })
         .collect();
     Ok(json!({

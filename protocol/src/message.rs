@@ -314,6 +314,16 @@ pub struct Abort {
     pub reason: String,
 }
 
+/// Coordinator → node: coupling `coupling` ends before window `window` (seed 000 §4: the
+/// solid goes on alone once enough impulse is delivered). Inputs produced by the peer before
+/// `window` are still consumed; nothing more is sent or expected on that coupling.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Decouple {
+    pub coupling: String,
+    pub window: u64,
+    pub reason: String,
+}
+
 /// Node → coordinator: the node failed and says why (it then exits non-zero).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Failed {
@@ -335,6 +345,7 @@ pub enum Message {
     Finish(Finish),
     Abort(Abort),
     Failed(Failed),
+    Decouple(Decouple),
 }
 
 impl Message {
@@ -353,6 +364,7 @@ impl Message {
             Message::Finish(_) => 10,
             Message::Abort(_) => 11,
             Message::Failed(_) => 12,
+            Message::Decouple(_) => 13,
         }
     }
 
@@ -377,6 +389,7 @@ pub fn kind_name(kind: u8) -> &'static str {
         10 => "cosim.Finish",
         11 => "cosim.Abort",
         12 => "cosim.Failed",
+        13 => "cosim.Decouple",
         _ => "cosim.Unknown",
     }
 }

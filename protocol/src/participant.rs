@@ -42,6 +42,8 @@ struct Link {
     map: Option<Mapping>,
     /// Number of points on the wire (the driver's layout).
     wire_points: usize,
+    /// Decoupled: the first window the peer produces nothing for (seed 000 §4).
+    until: Option<u64>,
 }
 
 /// Couplings, buffers and mapping around a solver; transport-free.
@@ -71,6 +73,7 @@ impl NodeEngine {
                 pending: VecDeque::new(),
                 map: None,
                 wire_points: 0,
+                until: None,
             })
             .collect();
         NodeEngine {
@@ -149,6 +152,9 @@ impl NodeEngine {
                 reason: "fields for a coupling this node is not part of".into(),
             });
         };
+        if l.until.is_some_and(|u| f.window >= u) {
+            return Ok(()); // produced after the decoupling: nobody consumes it
+        }
         l.pending.push_back(f);
         Ok(())
     }
@@ -161,7 +167,43 @@ impl NodeEngine {
             // schedule (in `parallel` both sides lag, and both waiting would deadlock).
             return (l.b.role == Role::Driver).then_some(0);
         }
-        Some(window - l.b.input_lag)
+        let k = window - l.b.input_lag;
+        // After a decoupling only what the peer produced before it is still consumed.
+        match l.until {
+            Some(u) if k >= u => None,
+            _ => Some(k),
+        }
+    }
+
+    /// End coupling `coupling` before window `window` (ARCHITECTURE §5, seed 000 §4): the
+    /// peer's outputs of earlier windows are still consumed (a lagged input in flight), later
+    /// ones are neither expected nor sent, and the solver is told it goes on alone.
+    pub fn decouple(&mut self, coupling: &str, window: u64) -> Result<(), EngineError> {
+        let Some(l) = self.links.iter_mut().find(|l| l.b.coupling == coupling) else {
+            return Err(EngineError::Coupling {
+                coupling: coupling.to_string(),
+                reason: "decoupling a coupling this node is not part of".into(),
+            });
+        };
+        if window == 0 {
+            return Err(EngineError::Coupling {
+                coupling: coupling.to_string(),
+                reason: "cannot decouple before the first window".into(),
+            });
+        }
+        l.until = Some(l.until.map_or(window, |u| u.min(window)));
+        l.pending.retain(|f| f.window < window);
+        let interface = l.b.interface.clone();
+        self.solver.decouple(&interface)?;
+        Ok(())
+    }
+
+    /// Whether coupling `coupling` is still exchanging data in `window`.
+    pub fn coupled(&self, coupling: &str, window: u64) -> bool {
+        self.links
+            .iter()
+            .find(|l| l.b.coupling == coupling)
+            .is_some_and(|l| l.until.is_none_or(|u| window < u))
     }
 
     /// True when the inputs of `window` (0 = set-up) are all buffered.
@@ -192,6 +234,13 @@ impl NodeEngine {
 
     /// Move the buffered inputs of `window` into the inbox, mapped into this solver's layout.
     fn fill_inbox(&mut self, window: u64) -> Result<(), EngineError> {
+        // Decoupled links: their last inputs must not be used again (the inbox keeps its
+        // buffers between windows).
+        for l in &self.links {
+            if l.until.is_some() && Self::needed(l, window).is_none() {
+                self.inbox.remove_interface(&l.b.interface);
+            }
+        }
         for l in &mut self.links {
             let Some(k) = Self::needed(l, window) else {
                 continue;
@@ -239,6 +288,9 @@ impl NodeEngine {
     fn drain_outbox(&mut self, window: u64, time: f64) -> Result<Vec<Fields>, EngineError> {
         let mut msgs = Vec::with_capacity(self.links.len());
         for l in &self.links {
+            if l.until.is_some_and(|u| window >= u) {
+                continue; // decoupled: the peer has gone on without us
+            }
             let mut fields = Vec::new();
             for f in self.outbox.fields_of(&l.b.interface) {
                 match (&l.map, l.b.role) {
@@ -618,6 +670,10 @@ fn node_loop(
     let mut wait_s = 0.0;
     let mut idle_s = 0.0;
     let mut substeps = 0u64;
+    // End time of the last window and whether its output was written (a node finished early,
+    // e.g. the fluid after a decoupling, writes its final state on `Finish`).
+    let mut last_t1 = 0.0;
+    let mut written = true;
     loop {
         // Act on what can be done now.
         if !set_up && engine.meshes_complete() && engine.ready(0) {
@@ -661,6 +717,8 @@ fn node_loop(
                     let dir = PathBuf::from(&welcome.output_dir);
                     engine.solver.write_output(a.t1, a.window, &dir)?;
                 }
+                written = a.write_output;
+                last_t1 = a.t1;
                 report.wall_s = started.elapsed().as_secs_f64();
                 report.coupling_wait_s = wait_s;
                 report.idle_s = idle_s;
@@ -693,9 +751,22 @@ fn node_loop(
             None => {}
             Some(Incoming::Bad(e)) => anyhow::bail!("malformed message received: {e}"),
             Some(Incoming::Cmd(Message::Advance(a))) => pending_cmd.push_back(Message::Advance(a)),
-            Some(Incoming::Cmd(Message::Finish(_))) => {
-                tracing::info!("finished after window {window}");
+            Some(Incoming::Cmd(Message::Finish(f))) => {
+                if !written && window > 0 {
+                    let dir = PathBuf::from(&welcome.output_dir);
+                    engine.solver.write_output(last_t1, window, &dir)?;
+                }
+                tracing::info!("finished after window {window}: {}", f.reason);
                 return Ok(0);
+            }
+            Some(Incoming::Cmd(Message::Decouple(d))) => {
+                tracing::info!(
+                    "coupling {} ends before window {}: {}",
+                    d.coupling,
+                    d.window,
+                    d.reason
+                );
+                engine.decouple(&d.coupling, d.window)?;
             }
             Some(Incoming::Cmd(Message::Abort(a))) => {
                 tracing::info!("aborted by the coordinator: {}", a.reason);

@@ -165,6 +165,11 @@ impl FieldSet {
     }
 
     /// Forget every field (keeps nothing; use between runs, not between windows).
+    /// Drop every field of `interface` (a decoupled coupling: nothing stale may linger).
+    pub fn remove_interface(&mut self, interface: &str) {
+        self.entries.retain(|(i, _)| i != interface);
+    }
+
     pub fn clear(&mut self) {
         self.entries.clear();
     }
@@ -210,6 +215,14 @@ pub trait Solver: Send {
     fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
         let _ = bytes;
         Err(SolverError::Other("this solver cannot restart".into()))
+    }
+    /// The coupling on `interface` has ended (seed 000 §4 decoupling): from the next window
+    /// on this solver gets no inputs there and what it sends there is dropped; it goes on
+    /// alone. A solver that tolerates a missing input (an immersed solid takes no force)
+    /// needs nothing; one that cannot go on must refuse here, and the run ends cleanly.
+    fn decouple(&mut self, interface: &str) -> SolverResult<()> {
+        let _ = interface;
+        Ok(())
     }
 }
 
