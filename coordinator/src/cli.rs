@@ -21,7 +21,7 @@ pub enum Cmd {
     Run {
         case: PathBuf,
         /// Output directory (default: the case's run.output).
-        #[arg(long)]
+        #[arg(long, short)]
         output: Option<PathBuf>,
         /// Run id (namespaces shared memory and topics; default: name-pid-time).
         #[arg(long)]

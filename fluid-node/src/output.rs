@@ -1,5 +1,6 @@
-//! Output for ParaView and plots: one VTK XML rectilinear grid (`.vtr`, written with `vtkio`)
-//! per output window with cell fields density, pressure, velocity (3 components), temperature
+//! Output for ParaView and plots: one VTK rectilinear grid (legacy binary `.vtk`, written with
+//! `vtkio`; ParaView, VisIt and meshio all read it, where meshio cannot read XML `.vtr`) per
+//! output window with cell fields density, pressure, velocity (3 components), temperature
 //! (when every material has a gas constant) and the volume fraction of each material, a
 //! `.pvd` collection indexing them by time, and probe time histories as CSV.
 //!
@@ -20,7 +21,7 @@ use vtkio::model::{
 
 /// File name of the VTK file of output window `window`.
 pub fn vtk_file_name(window: u64) -> String {
-    format!("fluid_{window:06}.vtr")
+    format!("fluid_{window:06}.vtk")
 }
 
 /// Thermal constants of a phase for the mixture temperature: (R_k, p_∞,k) from the EOS's
@@ -82,7 +83,7 @@ pub fn cell_fields(f: &Fluid) -> Vec<(String, usize, Vec<f64>)> {
     out
 }
 
-/// Write `fluid_<window>.vtr` under `dir` and refresh `fluid.pvd`.
+/// Write `fluid_<window>.vtk` under `dir` and refresh `fluid.pvd`.
 pub fn write_vtk(f: &Fluid, t: f64, window: u64, dir: &Path) -> SolverResult<()> {
     std::fs::create_dir_all(dir)?;
     let g = &f.grid;
@@ -112,9 +113,9 @@ pub fn write_vtk(f: &Fluid, t: f64, window: u64, dir: &Path) -> SolverResult<()>
     let [nx, ny, nz] = [g.n[0] as i32, g.n[1] as i32, g.n[2] as i32];
     let extent = Extent::Ranges([0..=nx, 0..=ny, 0..=nz]);
     let vtk = Vtk {
-        version: Version::new((1, 0)),
+        version: Version::new((4, 2)),
         title: format!("fluid t = {t:e} s"),
-        byte_order: ByteOrder::LittleEndian,
+        byte_order: ByteOrder::BigEndian, // legacy binary VTK is big-endian
         file_path: None,
         data: DataSet::inline(RectilinearGridPiece {
             extent,

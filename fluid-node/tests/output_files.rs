@@ -38,7 +38,7 @@ fn out_dir(name: &str) -> PathBuf {
 /// Cell arrays read back: (name, components, values).
 type Arrays = Vec<(String, usize, Vec<f64>)>;
 
-/// (coords x, y, z; cell arrays) of a `.vtr` file.
+/// (coords x, y, z; cell arrays) of a fluid VTK file.
 fn read_vtr(path: &std::path::Path) -> ([Vec<f64>; 3], Arrays) {
     let vtk = vtkio::Vtk::import(path).expect("vtkio reads the file back");
     let DataSet::RectilinearGrid { pieces, .. } = vtk.data else {

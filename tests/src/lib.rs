@@ -85,6 +85,24 @@ pub fn check_mcap(mcap: &Path, flag: &str) -> (bool, String) {
     (o.status.success(), text)
 }
 
+/// Open every VTK file (.vtu, .vtk) under `dir` with meshio, the independent reader
+/// (`tools/check_vtk.py`), requiring the named arrays in each; (passed, its output).
+pub fn check_vtk(dir: &Path, require: &[&str]) -> (bool, String) {
+    let mut cmd = Command::new("python3");
+    cmd.arg(workspace_root().join("tools/check_vtk.py"))
+        .arg(dir);
+    for r in require {
+        cmd.args(["--require", r]);
+    }
+    let o = cmd.output().expect("python3 runs");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    (o.status.success(), text)
+}
+
 /// Per-window 3-vector `key` of a node's report (e.g. `interface_impulse`), from the
 /// `/cosim/node/<node>` channel: (window, [x, y, z]).
 pub fn node_vectors(mcap: &Path, node: &str, key: &str) -> Vec<(u64, [f64; 3])> {
