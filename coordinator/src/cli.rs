@@ -76,12 +76,17 @@ pub enum Cmd {
         #[arg(required = true)]
         runs: Vec<PathBuf>,
         /// NODE.QUANTITY to plot (a scalar of the node's report, kinetic_energy,
-        /// internal_energy, momentum_x, ...), repeatable.
+        /// internal_energy, momentum_x, ...), repeatable; `*.QUANTITY`: whichever node of each
+        /// run reports it.
         #[arg(long = "series", required = true)]
         series: Vec<String>,
         /// Directory for the PNG files.
         #[arg(long, short, default_value = "plots")]
         output: PathBuf,
+        /// NODE.QUANTITY for the horizontal axis instead of time (e.g. a displacement, for a
+        /// force–displacement curve).
+        #[arg(long)]
+        x: Option<String>,
     },
     /// Benchmarks.
     Bench {
@@ -247,7 +252,8 @@ pub fn main_with(cli: Cli) -> i32 {
             runs,
             series,
             output,
-        } => match crate::plot::compare(&runs, &series, &output) {
+            x,
+        } => match crate::plot::compare(&runs, &series, x.as_deref(), &output) {
             Ok(files) => {
                 for f in files {
                     println!("{}", f.display());

@@ -247,11 +247,61 @@ pub fn run_plots(hist: &Histories, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     Ok(written)
 }
 
+/// `NODE.QUANTITY` of one run's histories; `*.QUANTITY` is the one node that reports it.
+fn lookup<'a>(h: &'a Histories, label: &str, spec: &str) -> anyhow::Result<&'a [(f64, f64)]> {
+    let (node, q) = spec
+        .split_once('.')
+        .with_context(|| format!("{spec}: must be NODE.QUANTITY (or *.QUANTITY)"))?;
+    if node == "*" {
+        let hits: Vec<(&String, &Vec<(f64, f64)>)> = h
+            .iter()
+            .filter_map(|(n, m)| m.get(q).map(|p| (n, p)))
+            .collect();
+        return match hits.as_slice() {
+            [(_, p)] => Ok(p.as_slice()),
+            [] => bail!("run '{label}': no node reports {q}"),
+            many => bail!(
+                "run '{label}': several nodes report {q} ({}); name one",
+                many.iter()
+                    .map(|(n, _)| n.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        };
+    }
+    match h.get(node).and_then(|m| m.get(q)) {
+        Some(p) => Ok(p.as_slice()),
+        None => {
+            let known: Vec<&String> = h.get(node).map(|m| m.keys().collect()).unwrap_or_default();
+            bail!("run '{label}' has no {node}.{q} (it has: {known:?})")
+        }
+    }
+}
+
+/// Pair two histories of one run by time (same window ends): (x(t), y(t)).
+fn pair(x: &[(f64, f64)], y: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    let mut out = Vec::with_capacity(y.len());
+    let mut i = 0;
+    for &(t, v) in y {
+        while i < x.len() && x[i].0 < t * (1.0 - 1e-12) {
+            i += 1;
+        }
+        if i < x.len() && (x[i].0 - t).abs() <= 1e-12 * t.abs().max(1e-300) {
+            out.push((x[i].1, v));
+        }
+    }
+    out
+}
+
 /// `cosim plot`: for each `node.quantity` in `series`, one PNG with a line per run (a run is a
-/// recording or an output directory holding `run.mcap`), labelled by the run's directory name.
+/// recording or an output directory holding `run.mcap`), labelled by the run's directory name,
+/// against time or against another reported quantity `x` (e.g. force against displacement).
+/// A node named `*` is whichever node of each run reports the quantity (runs whose nodes are
+/// named differently, e.g. a two-scale and a single-scale model of one coupon).
 pub fn compare(
     runs: &[PathBuf],
     series: &[String],
+    x: Option<&str>,
     out_dir: &Path,
 ) -> anyhow::Result<Vec<PathBuf>> {
     let mut data = Vec::new();
@@ -275,23 +325,31 @@ pub fn compare(
         .with_context(|| format!("cannot create {}", out_dir.display()))?;
     let mut written = Vec::new();
     for s in series {
-        let (node, q) = s
-            .split_once('.')
-            .with_context(|| format!("--series {s}: must be NODE.QUANTITY"))?;
         let mut lines = Vec::new();
         for (label, h) in &data {
-            let Some(pts) = h.get(node).and_then(|m| m.get(q)) else {
-                let known: Vec<&String> =
-                    h.get(node).map(|m| m.keys().collect()).unwrap_or_default();
-                bail!("run '{label}' has no {node}.{q} (it has: {known:?})");
+            let ys = lookup(h, label, s).with_context(|| format!("--series {s}"))?;
+            let points = match x {
+                None => ys.to_vec(),
+                Some(xs) => pair(
+                    lookup(h, label, xs).with_context(|| format!("--x {xs}"))?,
+                    ys,
+                ),
             };
             lines.push(Series {
                 label: label.clone(),
-                points: pts.clone(),
+                points,
             });
         }
-        let p = out_dir.join(format!("{}.png", file_stem(s)));
-        line_chart(&p, s, "t [s]", q, &lines)?;
+        let q = s.split_once('.').map_or(s.as_str(), |(_, q)| q);
+        let (stem, x_label) = match x {
+            None => (file_stem(s), "t [s]".to_string()),
+            Some(xs) => (
+                format!("{}_vs_{}", file_stem(s), file_stem(xs)),
+                xs.split_once('.').map_or(xs, |(_, q)| q).to_string(),
+            ),
+        };
+        let p = out_dir.join(format!("{stem}.png"));
+        line_chart(&p, s, &x_label, q, &lines)?;
         written.push(p);
     }
     Ok(written)
@@ -300,6 +358,33 @@ pub fn compare(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_quantity_is_paired_with_another_by_time_and_found_by_wildcard() {
+        // Displacement reported at every window, force from the second one on.
+        let disp: Vec<(f64, f64)> = (1..=4).map(|k| (k as f64 * 0.1, k as f64 * 2.0)).collect();
+        let force = vec![(0.2, 10.0), (0.30000000000000004, 15.0), (0.4, 12.0)];
+        assert_eq!(
+            pair(&disp, &force),
+            vec![(4.0, 10.0), (6.0, 15.0), (8.0, 12.0)]
+        );
+        let mut h = Histories::new();
+        h.entry("coupon".into())
+            .or_default()
+            .insert("force".into(), force.clone());
+        h.entry("shell".into())
+            .or_default()
+            .insert("kinetic_energy".into(), disp.clone());
+        assert_eq!(lookup(&h, "run", "*.force").unwrap(), force.as_slice());
+        assert_eq!(lookup(&h, "run", "coupon.force").unwrap(), force.as_slice());
+        assert!(lookup(&h, "run", "*.nothing").is_err());
+        h.entry("shell".into())
+            .or_default()
+            .insert("force".into(), force.clone());
+        let e = lookup(&h, "run", "*.force").unwrap_err().to_string();
+        assert!(e.contains("several") && e.contains("shell"), "{e}");
+        assert!(lookup(&h, "run", "force").is_err());
+    }
 
     #[test]
     fn a_chart_is_a_png_of_the_requested_size() {
