@@ -88,10 +88,15 @@ pub enum Cmd {
         #[arg(long)]
         x: Option<String>,
     },
-    /// Benchmarks.
+    /// Benchmarks: without a subcommand, every kernel of the project (transport, fluid,
+    /// pd-bond, pd-correspondence, shell, joint; CPU at 1 and 2 threads, GPU where an adapter
+    /// exists) at 4 sizes each, written to DIR/bench.json and DIR/bench.md.
+    #[command(args_conflicts_with_subcommands = true)]
     Bench {
         #[command(subcommand)]
-        what: BenchCmd,
+        what: Option<BenchCmd>,
+        #[command(flatten)]
+        suite: crate::bench::SuiteArgs,
     },
     /// Internal: the echo side of `cosim bench transport` (configured by its environment).
     #[command(hide = true)]
@@ -410,13 +415,15 @@ pub fn main_with(cli: Cli) -> i32 {
         },
         Cmd::Bench {
             what:
-                BenchCmd::Transport {
+                Some(BenchCmd::Transport {
                     rounds,
                     transport,
                     sizes,
-                },
-        } => bench_transport(rounds, &transport, &sizes),
-        Cmd::BenchEcho => bench_echo(),
+                }),
+            ..
+        } => crate::bench::bench_transport(rounds, &transport, &sizes),
+        Cmd::Bench { what: None, suite } => crate::bench::suite(&suite),
+        Cmd::BenchEcho => crate::bench::bench_echo(),
     }
 }
 
@@ -487,57 +494,6 @@ fn print_replay(
         }
         if let Err(e) = std::fs::write(p, s) {
             eprintln!("cosim replay: cannot write {}: {e}", p.display());
-        }
-    }
-}
-
-fn bench_transport(rounds: usize, which: &str, sizes: &[usize]) -> i32 {
-    use protocol::transport::TransportKind;
-    use protocol::transport::bench::{BenchTable, bench_transport as bench};
-    let kinds = match which {
-        "all" => vec![
-            TransportKind::Local,
-            TransportKind::Shm,
-            TransportKind::Zenoh,
-        ],
-        k => match k.parse::<TransportKind>() {
-            Ok(k) => vec![k],
-            Err(e) => {
-                eprintln!("cosim bench transport: --transport: {e}");
-                return 2;
-            }
-        },
-    };
-    let exe = match std::env::current_exe() {
-        Ok(e) => e,
-        Err(e) => {
-            eprintln!("cosim bench transport: {e}");
-            return 1;
-        }
-    };
-    let mut rows = Vec::new();
-    for kind in kinds {
-        let mut cmd = std::process::Command::new(&exe);
-        cmd.arg("bench-echo");
-        match bench(kind, sizes, rounds.max(1), &mut cmd) {
-            Ok(r) => rows.extend(r),
-            Err(e) => {
-                eprintln!("cosim bench transport: {}: {e}", kind.as_str());
-                return 1;
-            }
-        }
-    }
-    println!("{}", BenchTable(&rows));
-    0
-}
-
-fn bench_echo() -> i32 {
-    use protocol::transport::bench::{echo_main, echo_spec_from_env};
-    match echo_spec_from_env().and_then(|s| echo_main(&s)) {
-        Ok(()) => 0,
-        Err(e) => {
-            eprintln!("cosim bench-echo: {e}");
-            1
         }
     }
 }

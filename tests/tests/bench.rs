@@ -1,0 +1,213 @@
+//! `cosim bench` end to end (issue 8): the suite on tiny problems (`--quick`) writes a
+//! bench.json that parses, names every selected kernel on the CPU at 1 and 2 threads (and on
+//! the GPU, or says why not), and whose numbers are consistent with each other: throughput ×
+//! median time per step = updates per step, time per update = median time / updates, cost
+//! growth = time per update / that of the smallest size. `--only` filters; unknown kernels
+//! are refused naming the option; `cosim bench transport` keeps working. No timing is
+//! asserted (the machine is shared): only positivity and the identities above.
+
+use cosim_tests::{cosim, scratch};
+use serde_json::Value;
+
+fn rel(a: f64, b: f64) -> f64 {
+    (a - b).abs() / b.abs().max(f64::MIN_POSITIVE)
+}
+
+fn run_suite(only: &str) -> (Value, String) {
+    let (dir, _) = scratch("bench");
+    let out = dir.join("bench");
+    let o = cosim(&[
+        "bench",
+        "--quick",
+        "--only",
+        only,
+        "-o",
+        out.to_str().expect("utf-8 path"),
+    ]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.success(),
+        "cosim bench failed\nstdout:\n{stdout}\nstderr:\n{stderr}"
+    );
+    let text = std::fs::read_to_string(out.join("bench.json")).expect("bench.json written");
+    let json: Value = serde_json::from_str(&text).expect("bench.json parses");
+    let md = std::fs::read_to_string(out.join("bench.md")).expect("bench.md written");
+    (json, md)
+}
+
+#[test]
+fn quick_suite_covers_every_kernel_with_consistent_numbers() {
+    let (j, md) = run_suite("transport,fluid,solid,shell,joint");
+    let rows = j["results"].as_array().expect("results");
+    let skipped = j["skipped"].as_array().expect("skipped");
+    assert!(j["errors"].as_array().expect("errors").is_empty(), "{j:#}");
+    let m = &j["machine"];
+    assert!(!m["cpu_model"].as_str().unwrap_or("").is_empty());
+    assert!(m["logical_cpus"].as_u64().unwrap_or(0) >= 1);
+    assert!(m["loadavg_start"][0].as_f64().is_some_and(|x| x >= 0.0));
+    assert!(j["total_wall_s"].as_f64().is_some_and(|x| x > 0.0));
+
+    let has = |k: &str, dev: &str, th: Option<u64>| {
+        rows.iter()
+            .filter(|r| r["kernel"] == k && r["device"] == dev && r["threads"].as_u64() == th)
+            .count()
+    };
+    // Every CPU kernel at 1 and 2 threads, at both quick sizes.
+    for k in ["fluid", "pd-bond", "pd-correspondence", "shell", "joint"] {
+        for th in [1, 2] {
+            assert_eq!(has(k, "cpu", Some(th)), 2, "{k} at {th} thread(s)");
+        }
+    }
+    // GPU rows, or a skip with its reason.
+    for k in ["fluid", "pd-bond"] {
+        let gpu = has(k, "gpu", None);
+        let skip = skipped
+            .iter()
+            .any(|s| s["kernel"] == k && s["device"] == "gpu" && s["reason"] != "");
+        assert!(gpu == 2 || skip, "{k}: neither GPU rows nor a skip reason");
+    }
+    // The transports (local always works; the others run or say why not).
+    for t in ["local", "shm", "zenoh"] {
+        let n = has("transport", t, None);
+        let skip = skipped.iter().any(|s| s["device"] == t);
+        assert!(n == 2 || (t != "local" && skip), "transport {t}");
+    }
+
+    for r in rows {
+        let f = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
+        let what = format!("{} {} {}", r["kernel"], r["device"], r["problem"]);
+        let (upd, t, thr, ns) = (
+            f("updates_per_step"),
+            f("median_step_s"),
+            f("throughput_per_s"),
+            f("ns_per_update"),
+        );
+        assert!(
+            upd >= 1.0 && t > 0.0 && thr > 0.0 && ns > 0.0,
+            "{what}: {r}"
+        );
+        assert!(
+            rel(thr * t, upd) < 1e-9,
+            "{what}: throughput × time ≠ updates"
+        );
+        assert!(
+            rel(ns * 1e-9 * upd, t) < 1e-9,
+            "{what}: ns/update ≠ time/updates"
+        );
+        assert!(
+            f("p10_step_s") <= t && t <= f("p90_step_s"),
+            "{what}: median outside p10–p90"
+        );
+        assert!(
+            r["samples"].as_u64().unwrap_or(0) >= 5,
+            "{what}: fewer than 5 samples"
+        );
+        // Kernels run in this process also carry their CPU time (the transports do not).
+        if r["kernel"] != "transport" {
+            assert!(f("cpu_ns_per_update") > 0.0, "{what}: no CPU time");
+            assert!(f("core_share") > 0.0, "{what}: no core share");
+        }
+        // cost growth against the smallest size of the same series
+        let base = rows
+            .iter()
+            .filter(|q| {
+                q["kernel"] == r["kernel"]
+                    && q["device"] == r["device"]
+                    && q["threads"] == r["threads"]
+            })
+            .min_by_key(|q| q["updates_per_step"].as_u64().unwrap_or(u64::MAX))
+            .expect("series");
+        let g = ns / base["ns_per_update"].as_f64().unwrap_or(f64::NAN);
+        assert!(rel(f("cost_growth"), g) < 1e-9, "{what}: cost growth");
+        // every row is in the Markdown table
+        assert!(
+            md.contains(r["problem"].as_str().unwrap_or("?")),
+            "{what} missing from bench.md"
+        );
+    }
+    // The units the issues define.
+    let unit = |k: &str| {
+        rows.iter()
+            .find(|r| r["kernel"] == k)
+            .map(|r| r["unit"].as_str().unwrap_or("").to_string())
+    };
+    assert_eq!(unit("fluid").as_deref(), Some("cell-updates"));
+    assert_eq!(unit("pd-bond").as_deref(), Some("bond-updates"));
+    assert_eq!(unit("shell").as_deref(), Some("element-cycles"));
+    assert_eq!(unit("joint").as_deref(), Some("particle-updates"));
+    assert!(j["fits"].as_array().is_some_and(|f| !f.is_empty()));
+    // The pd block's bonds per step are the lattice count: Σ over offsets d ≠ 0 with
+    // |d| ≤ 3.015 of Π_k (n − |d_k|) (this formula gives issue 4's 3,244,494 for n = 31).
+    for n in [6u64, 8] {
+        let mut count = 0;
+        for a in -3i64..=3 {
+            for b in -3i64..=3 {
+                for c in -3i64..=3 {
+                    if (a, b, c) != (0, 0, 0) && ((a * a + b * b + c * c) as f64) <= 3.015 * 3.015 {
+                        count += (n - a.unsigned_abs())
+                            * (n - b.unsigned_abs())
+                            * (n - c.unsigned_abs());
+                    }
+                }
+            }
+        }
+        for k in ["pd-bond", "pd-correspondence"] {
+            let r = rows
+                .iter()
+                .find(|r| r["kernel"] == k && r["size"] == n)
+                .expect("pd block row");
+            assert_eq!(r["updates_per_step"].as_u64(), Some(count), "{k} {n}³");
+        }
+    }
+    assert!(md.contains("| kernel | device | problem |"));
+    assert!(md.contains("Load average"));
+}
+
+#[test]
+fn only_filters_and_unknown_kernels_are_refused() {
+    let (j, _) = run_suite("shell");
+    let rows = j["results"].as_array().expect("results");
+    assert!(!rows.is_empty() && rows.iter().all(|r| r["kernel"] == "shell"));
+    // shell needs no GPU: none acquired, none skipped
+    assert!(j["machine"]["gpu"].is_null());
+    assert!(j["skipped"].as_array().is_some_and(|s| s.is_empty()));
+
+    let (dir, _) = scratch("bench-bad");
+    let o = cosim(&[
+        "bench",
+        "--only",
+        "fluid,lbm",
+        "-o",
+        dir.to_str().expect("utf-8"),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("--only") && e.contains("lbm"), "{e}");
+    assert!(!dir.join("bench.json").exists());
+}
+
+#[test]
+fn transport_subcommand_still_prints_its_table() {
+    let o = cosim(&[
+        "bench",
+        "transport",
+        "--transport",
+        "local",
+        "--rounds",
+        "5",
+        "--sizes",
+        "1024,65536",
+    ]);
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{s}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(s.contains("| transport | payload |"), "{s}");
+    assert!(
+        s.contains("| local | 1 KiB |") && s.contains("| local | 64 KiB |"),
+        "{s}"
+    );
+}
