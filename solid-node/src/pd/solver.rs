@@ -90,6 +90,35 @@ pub struct PdParams {
     pub pressure_pulse: Option<PressurePulse>,
     #[serde(default)]
     pub interfaces: Vec<InterfaceParams>,
+    /// Smallest connected component (particles) counted in the `fragments` report scalar;
+    /// smaller ones are `debris_particles`.
+    #[serde(default = "default_fragment_min_size")]
+    pub fragment_min_size: usize,
+}
+
+fn default_fragment_min_size() -> usize {
+    20
+}
+
+/// Damage index φ (seed 000 App. C: the volume fraction of a particle's family whose bonds
+/// are broken) at or above which a particle counts in the `damaged_particles` report scalar:
+/// half of its family cut off, as for a particle on a crack through its family's centre.
+pub const DAMAGED_INDEX: f64 = 0.5;
+
+/// Where and when damage first appeared (issue 7: "cracks start from the re-entrant
+/// corners"): reference position of the most damaged particle of the first window with any
+/// φ > 0, how many particles were damaged then, and the distances of all of them to the
+/// nearest inner corner of a hollow-square body / from the axis of a hollow-cylinder body
+/// (negative when the body has no such shape).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FirstDamage {
+    pub time: f64,
+    pub position: [f64; 3],
+    pub count: usize,
+    /// Largest distance (m) of a first-damaged particle to its nearest inner corner.
+    pub corner_distance: f64,
+    /// Smallest and largest radius (m) of the first-damaged particles.
+    pub radius: [f64; 2],
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -175,6 +204,8 @@ struct Coupled {
     interface: String,
     kind: CouplingKind,
     role: Role,
+    /// Decoupled (seed 000 §4): a force still in flight is applied, nothing more is sent.
+    ended: bool,
 }
 
 /// The peridynamic solver node.
@@ -195,10 +226,11 @@ pub struct PdSolver {
     interface_impulse: [f64; 3],
     interface_work: f64,
     external_work: f64,
+    first_damage: Option<FirstDamage>,
 }
 
 /// First bytes of a checkpoint of this node.
-const CHECKPOINT_MAGIC: &[u8] = b"cosim-pd-state-v1";
+const CHECKPOINT_MAGIC: &[u8] = b"cosim-pd-state-v2";
 
 fn cfg<T>(key: &str, reason: impl Into<String>) -> SolverResult<T> {
     Err(SolverError::config(key, reason))
@@ -581,6 +613,7 @@ impl PdSolver {
             interface_impulse: [0.0; 3],
             interface_work: 0.0,
             external_work: 0.0,
+            first_damage: None,
         })
     }
 
@@ -636,6 +669,65 @@ impl PdSolver {
         (big, debris)
     }
 
+    /// The window's fracture and stress scalars (issue 7): with a damage model,
+    /// `damaged_particles` (φ ≥ [`DAMAGED_INDEX`]), `cracked_particles` (φ > 0), `fragments`
+    /// (components of ≥ `fragment_min_size` particles) and `debris_particles`, and from the
+    /// first window with damage on, where it first appeared ([`FirstDamage`]); with a stress,
+    /// `max_von_mises` (Pa); with plasticity, `max_plastic_strain`.
+    fn fracture_scalars(&mut self, t1: f64, damage: &[f64]) -> Vec<(String, f64)> {
+        let mut v: Vec<(String, f64)> = Vec::new();
+        if let Some(st) = self.body.model.stress() {
+            let vm = st.iter().map(von_mises).fold(0.0, f64::max);
+            v.push(("max_von_mises".into(), vm));
+        }
+        if self.params.yield_stress.is_some()
+            && let Some(ep) = self.body.model.plastic_strain()
+        {
+            let m = ep.iter().cloned().fold(0.0, f64::max);
+            v.push(("max_plastic_strain".into(), m));
+        }
+        if matches!(self.params.damage, None | Some(DamageParams::None)) {
+            return v;
+        }
+        let damaged = damage.iter().filter(|&&d| d >= DAMAGED_INDEX).count();
+        let cracked = damage.iter().filter(|&&d| d > 0.0).count();
+        v.push(("damaged_particles".into(), damaged as f64));
+        v.push(("cracked_particles".into(), cracked as f64));
+        let (frags, debris) = self.fragments(self.params.fragment_min_size);
+        v.push(("fragments".into(), frags.len() as f64));
+        v.push(("debris_particles".into(), debris as f64));
+        if self.first_damage.is_none() && cracked > 0 {
+            self.first_damage = Some(first_damage_of(
+                &self.params.bodies,
+                &self.body.x0,
+                damage,
+                t1,
+            ));
+        }
+        if let Some(f) = &self.first_damage {
+            v.push(("first_damage_time".into(), f.time));
+            v.push(("first_damage_x".into(), f.position[0]));
+            v.push(("first_damage_y".into(), f.position[1]));
+            if self.body.dim.three_d() {
+                v.push(("first_damage_z".into(), f.position[2]));
+            }
+            v.push(("first_damage_particles".into(), f.count as f64));
+            if f.corner_distance >= 0.0 {
+                v.push(("first_damage_corner_distance".into(), f.corner_distance));
+            }
+            if f.radius[0] >= 0.0 {
+                v.push(("first_damage_radius_min".into(), f.radius[0]));
+                v.push(("first_damage_radius_max".into(), f.radius[1]));
+            }
+        }
+        v
+    }
+
+    /// Where and when damage first appeared, once it has.
+    pub fn first_damage(&self) -> Option<FirstDamage> {
+        self.first_damage
+    }
+
     fn pressure_at(&self, t: f64) -> f64 {
         self.params
             .pressure_pulse
@@ -647,6 +739,68 @@ impl PdSolver {
     pub fn dt(&self) -> f64 {
         self.params.cfl * self.body.stable_dt()
     }
+}
+
+/// [`FirstDamage`] from the damage indices `damage` at time `t1` of the first window with any
+/// φ > 0, over the reference positions `x0`; the corners and axes are those of the
+/// `hollow_square` / `hollow_cylinder` shapes among `bodies`.
+pub fn first_damage_of(bodies: &[Shape], x0: &[[f64; 3]], damage: &[f64], t1: f64) -> FirstDamage {
+    let mut corners: Vec<[f64; 2]> = Vec::new();
+    let mut axes: Vec<[f64; 2]> = Vec::new();
+    for b in bodies {
+        match b {
+            Shape::HollowSquare {
+                center, inner_half, ..
+            } => {
+                for (sx, sy) in [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)] {
+                    corners.push([center[0] + sx * inner_half, center[1] + sy * inner_half]);
+                }
+            }
+            Shape::HollowCylinder { center, .. } => axes.push([center[0], center[1]]),
+            _ => {}
+        }
+    }
+    let nearest = |p: &[f64; 3], set: &[[f64; 2]]| {
+        set.iter()
+            .map(|c| (p[0] - c[0]).hypot(p[1] - c[1]))
+            .fold(f64::MAX, f64::min)
+    };
+    let mut worst = 0usize;
+    let (mut count, mut corner, mut rmin, mut rmax) = (0, 0.0f64, f64::MAX, 0.0f64);
+    for i in 0..damage.len() {
+        if damage[i] <= 0.0 {
+            continue;
+        }
+        count += 1;
+        if damage[i] > damage[worst] || damage[worst] <= 0.0 {
+            worst = i;
+        }
+        if !corners.is_empty() {
+            corner = corner.max(nearest(&x0[i], &corners));
+        }
+        if !axes.is_empty() {
+            let r = nearest(&x0[i], &axes);
+            rmin = rmin.min(r);
+            rmax = rmax.max(r);
+        }
+    }
+    FirstDamage {
+        time: t1,
+        position: x0[worst],
+        count,
+        corner_distance: if corners.is_empty() { -1.0 } else { corner },
+        radius: if axes.is_empty() {
+            [-1.0, -1.0]
+        } else {
+            [rmin, rmax]
+        },
+    }
+}
+
+/// Von Mises equivalent stress of a symmetric stress [xx, yy, zz, yz, xz, xy] (Pa).
+pub fn von_mises(s: &[f64; 6]) -> f64 {
+    let (a, b, c) = (s[0] - s[1], s[1] - s[2], s[2] - s[0]);
+    (0.5 * (a * a + b * b + c * c) + 3.0 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5])).sqrt()
 }
 
 impl Solver for PdSolver {
@@ -732,6 +886,7 @@ impl Solver for PdSolver {
                 interface: b.interface.clone(),
                 kind: b.kind,
                 role: b.role,
+                ended: false,
             });
         }
         Ok(())
@@ -870,6 +1025,7 @@ impl Solver for PdSolver {
         for c in &coupled {
             let pts = self.points_of(&c.interface)?.to_vec();
             match (c.kind, c.role) {
+                (CouplingKind::Immersed, _) if c.ended => {}
                 (CouplingKind::Immersed, _) => self.send_motion(&c.interface, &pts, out, true),
                 (CouplingKind::Kinematic, Role::Responder) => {
                     self.send_force(&c.interface, &pts, out)
@@ -883,6 +1039,7 @@ impl Solver for PdSolver {
         let damage = self.body.damage();
         let broken = damage.iter().filter(|&&d| d >= 1.0 - 1e-12).count();
         let maxd = damage.iter().cloned().fold(0.0, f64::max);
+        let fracture = self.fracture_scalars(w.t1, &damage);
         Ok(StepReport {
             kinetic_energy: self.body.kinetic_energy(),
             internal_energy: 0.0,
@@ -913,9 +1070,27 @@ impl Solver for PdSolver {
                         u / m.max(f64::MIN_POSITIVE),
                     ));
                 }
+                v.extend(fracture);
                 v
             },
         })
+    }
+
+    /// Seed 000 §4 decoupling: an immersed coupling ends and the body goes on alone. The
+    /// force the gas sent before the end (in flight across the one-window lag) is still
+    /// applied when it arrives; nothing more is sent there. A kinematic coupling holds
+    /// particles on a driver's path and cannot simply end.
+    fn decouple(&mut self, interface: &str) -> SolverResult<()> {
+        for c in self.coupled.iter_mut().filter(|c| c.interface == interface) {
+            if c.kind != CouplingKind::Immersed {
+                return Err(SolverError::interface(
+                    interface,
+                    "only an immersed coupling can be decoupled",
+                ));
+            }
+            c.ended = true;
+        }
+        Ok(())
     }
 
     fn save_state(&self) -> SolverResult<Vec<u8>> {
@@ -945,6 +1120,21 @@ impl Solver for PdSolver {
             self.external_work,
         ];
         w.f64s(acc.into_iter());
+        let fd = match &self.first_damage {
+            None => [0.0; 9],
+            Some(f) => [
+                1.0,
+                f.time,
+                f.position[0],
+                f.position[1],
+                f.position[2],
+                f.count as f64,
+                f.corner_distance,
+                f.radius[0],
+                f.radius[1],
+            ],
+        };
+        w.f64s(fd.into_iter());
         b.model.save_state(&mut w);
         Ok(w.buf)
     }
@@ -979,6 +1169,7 @@ impl Solver for PdSolver {
         let pres = r.bytes(n, "prescribed flags").map_err(bad)?.to_vec();
         let intact = r.f64s(nb, "bond damage").map_err(bad)?;
         let acc = r.f64s(9, "accumulators").map_err(bad)?;
+        let fd = r.f64s(9, "first damage").map_err(bad)?;
         b.model.load_state(&mut r).map_err(bad)?;
         if !r.rest.is_empty() {
             return Err(bad(format!("{} trailing bytes", r.rest.len())));
@@ -996,6 +1187,13 @@ impl Solver for PdSolver {
         self.applied_impulse = acc[6];
         self.interface_work = acc[7];
         self.external_work = acc[8];
+        self.first_damage = (fd[0] != 0.0).then(|| FirstDamage {
+            time: fd[1],
+            position: [fd[2], fd[3], fd[4]],
+            count: fd[5] as usize,
+            corner_distance: fd[6],
+            radius: [fd[7], fd[8]],
+        });
         Ok(())
     }
 
