@@ -98,7 +98,11 @@ impl EulerSolver {
             if pos.iter().chain(vel).chain(vol).any(|x| !x.is_finite()) {
                 return Err(SolverError::interface(&name, "non-finite particle data"));
             }
-            im.set_particles(&mut self.fluid, pos, vel, vol);
+            match self.gpu.as_mut() {
+                // the state is on the device: only the cells the interface touches cross
+                Some(g) => g.set_particles(&mut im, &mut self.fluid, pos, vel, vol)?,
+                None => im.set_particles(&mut self.fluid, pos, vel, vol),
+            }
             Ok(())
         })();
         self.fluid.immersed = Some(im);
@@ -193,7 +197,16 @@ impl Solver for EulerSolver {
             self.read_particles(inbox)?;
         }
         if let Some(g) = self.gpu.as_mut() {
-            return Self::advance_gpu(g, &mut self.fluid, &mut self.probe_history, w, start);
+            let mut report =
+                Self::advance_gpu(g, &mut self.fluid, &mut self.probe_history, w, start)?;
+            if let Some(im) = self.fluid.immersed.as_mut() {
+                g.read_impulses(im)?;
+                let nd = self.fluid.grid.nd;
+                self.interface_work -= crate::gpu::immersed_outputs(im, nd, w, out, &mut report);
+                report.interface_work = self.interface_work;
+                report.wall_s = start.elapsed().as_secs_f64();
+            }
+            return Ok(report);
         }
         let substeps = self.advance_to(w.t1)?;
         if let Some(im) = &self.fluid.immersed {

@@ -566,7 +566,8 @@ fn finish() {
 // ---------------------------------------------------------------- diagnostics
 
 // diagnostics.rs totals(), one interior row per thread in x order: mass, momentum,
-// kinetic and internal energy, largest pressure; written to the flux buffer (scratch
+// kinetic and internal energy, largest pressure, solid cells of an immersed body skipped
+// (is_solid_cell: immersed.wgsl, or `false` without an interface); written to the flux buffer (scratch
 // between steps) at 7 t + q for the t-th interior row. The host sums rows in order.
 @compute @workgroup_size(WG)
 fn row_totals(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
@@ -582,6 +583,9 @@ fn row_totals(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
     var int = real(0.0);
     var pmax = real(0.0);
     for (var i = g(0u); i < g(0u) + n(0u); i++) {
+        if is_solid_cell(r * mx() + i) {
+            continue;
+        }
         let ar = max(cons[at(r, 0u, i)], real(0.0));
         let rho = real(0.0) + ar;
         let m0 = cons[at(r, 1u, i)];

@@ -7,25 +7,35 @@
 //! the field crosses only when [`GpuEuler::download`] asks for it.
 //!
 //! Scope: one ideal-gas material, 1-D, 2-D or 3-D, every boundary kind (wall, symmetry,
-//! outflow, periodic, inflow). Multi-material, stiffened/JWL and immersed particles are
-//! refused with an error that names the reason.
+//! outflow, periodic, inflow), with or without an immersed particle interface (its kernels in
+//! `immersed.wgsl`, its per-window host work in [`interface`]). Multi-material and
+//! stiffened/JWL models are refused with an error that names the reason.
 
 use crate::boundary::Boundary;
 use crate::diagnostics::Totals;
 use crate::eos::Material;
 use crate::grid::Grid;
+use crate::immersed::Immersed;
 use crate::limiter::Limiter;
 use crate::model::Fluid;
-use crate::step::{RK3, RK3_FLUX_WEIGHT};
+use crate::step::{RK3, RK3_FLUX_WEIGHT, RK3_PROJECTION_WEIGHT};
 use mechanics::gpu::{
     GpuContext, GpuError, GpuUnavailable, Precision, PrecisionRequest, bytes_to_reals,
     dispatch_dims, reals_to_bytes,
 };
-use protocol::SolverError;
+use protocol::message::StepReport;
+use protocol::{Outbox, SolverError, Window};
 use std::fmt;
 use std::sync::Arc;
 
+mod interface;
+#[cfg(test)]
+mod tests;
+
 const SHADER: &str = include_str!("euler.wgsl");
+const IMMERSED_SHADER: &str = include_str!("immersed.wgsl");
+/// Storage buffers per shader stage the kernels with an immersed interface bind.
+const IMMERSED_STORAGE_BUFFERS: u32 = 9;
 /// Workgroup sizes of the shader (WG for cell/face kernels, RWG for reductions).
 const WG: u32 = 64;
 const RWG: u32 = 256;
@@ -92,13 +102,43 @@ pub fn supports(f: &Fluid) -> Result<(), String> {
             f.material_names[0]
         ));
     }
-    if f.immersed.is_some() {
-        return Err("immersed particles (the [immersed] coupling runs on the CPU only)".into());
-    }
     if f.nv != 5 {
         return Err(format!("{} variables per cell (expected 5)", f.nv));
     }
     Ok(())
+}
+
+/// The immersed interface's window outputs on the GPU path, as the CPU path of
+/// `EulerSolver::advance` writes them: the window-averaged force on each particle into `out`,
+/// the interface impulse, the reclassification momentum (counted with the external impulse)
+/// and its scalars into `report`. Returns the window's work of the particle impulses at the
+/// particle velocities (to subtract from the interface work).
+pub fn immersed_outputs(
+    im: &Immersed,
+    nd: usize,
+    w: &Window,
+    out: &mut Outbox,
+    report: &mut StepReport,
+) -> f64 {
+    let buf = out.put(&im.interface, "force", 3, im.n);
+    im.forces(w.t1 - w.t0, buf);
+    let work = im
+        .impulse
+        .iter()
+        .zip(&im.velocities)
+        .map(|(j, v)| j[0] * v[0] + j[1] * v[1] + j[2] * v[2])
+        .sum::<f64>();
+    for c in 0..3 {
+        report.interface_impulse[c] = -im.total_impulse[c];
+        report.external_impulse[c] += im.reclass_momentum[c];
+    }
+    for (c, axis) in ["x", "y", "z"].iter().enumerate().take(nd) {
+        report.scalars.push((
+            format!("reclassification_momentum_{axis}"),
+            im.reclass_momentum[c],
+        ));
+    }
+    work
 }
 
 fn whole(b: &wgpu::Buffer, binding: u32) -> wgpu::BindGroupEntry<'_> {
@@ -166,6 +206,8 @@ pub struct GpuEuler {
     last_dt: f64,
     /// Steps allowed per `advance_to` before giving up (the CPU's max_steps_per_window).
     max_steps: u64,
+    /// The immersed interface's kernels and tables (models with `[immersed]`).
+    im: Option<interface::ImDevice>,
 }
 
 impl GpuEuler {
@@ -263,6 +305,8 @@ impl GpuEuler {
         }
         debug_assert_eq!(inflow_at, 14);
         prs.push(grid.cell_volume());
+        // 45..48: projection weights of the RK stages (seed 002 eq. 35)
+        prs.extend_from_slice(&RK3_PROJECTION_WEIGHT);
         // stage uniforms at aligned offsets
         let align = ctx.limits.min_uniform_buffer_offset_alignment.max(32) as usize;
         let mut stage_bytes = vec![0u8; 3 * align];
@@ -278,7 +322,22 @@ impl GpuEuler {
         }
         let stage_size = (3 * rb + 4).div_ceil(rb) * rb;
 
-        let src = format!("alias real = {};\n{SHADER}", p.wgsl());
+        let immersed = f.immersed.is_some();
+        if immersed && ctx.limits.max_storage_buffers_per_shader_stage < IMMERSED_STORAGE_BUFFERS {
+            return Err(GpuSetupError::Unsupported(format!(
+                "an immersed interface on this adapter ({} storage buffers per shader stage, the kernels need {IMMERSED_STORAGE_BUFFERS})",
+                ctx.limits.max_storage_buffers_per_shader_stage
+            )));
+        }
+        let src = if immersed {
+            format!("alias real = {};\n{SHADER}\n{IMMERSED_SHADER}", p.wgsl())
+        } else {
+            // without an interface no cell is solid
+            format!(
+                "alias real = {};\n{SHADER}\nfn is_solid_cell(c: u32) -> bool {{ return false; }}\n",
+                p.wgsl()
+            )
+        };
         let module = ctx.shader("euler", &src)?;
         let uni = |binding: u32, dynamic: bool| wgpu::BindGroupLayoutEntry {
             binding,
@@ -300,7 +359,7 @@ impl GpuEuler {
             },
             count: None,
         };
-        let (bgl, layout, pipes) = ctx.checked("building the fluid pipelines", || {
+        let (bgl, layout, pipes, im_parts) = ctx.checked("building the fluid pipelines", || {
             let bgl = ctx
                 .device
                 .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -317,11 +376,12 @@ impl GpuEuler {
                         uni(8, true),
                     ],
                 });
+            let ibgl = immersed.then(|| interface::layout(&ctx));
             let layout = ctx
                 .device
                 .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                     label: Some("euler"),
-                    bind_group_layouts: &[Some(&bgl)],
+                    bind_group_layouts: &[Some(&bgl), ibgl.as_ref()],
                     immediate_size: 0,
                 });
             let mk = |entry: &str| {
@@ -346,7 +406,20 @@ impl GpuEuler {
                 finish: mk("finish"),
                 row_totals: mk("row_totals"),
             };
-            (bgl, layout, pipes)
+            let im_parts = ibgl.map(|l| {
+                (
+                    l,
+                    [
+                        mk("im_fill"),
+                        mk("im_wall"),
+                        mk("im_project"),
+                        mk("im_total"),
+                        mk("im_gather"),
+                        mk("im_scatter"),
+                    ],
+                )
+            });
+            (bgl, layout, pipes, im_parts)
         })?;
         drop(layout);
         let bytes_u32: Vec<u8> = pu.iter().flat_map(|x| x.to_le_bytes()).collect();
@@ -403,6 +476,7 @@ impl GpuEuler {
             c[d] += 1;
             (c[0] * c[1] * c[2]) as u32
         });
+        let ctx_im = ctx.clone();
         Ok(GpuEuler {
             ctx,
             pipes,
@@ -428,6 +502,23 @@ impl GpuEuler {
             impulse: f.boundary_impulse,
             last_dt: 0.0,
             max_steps: f.max_steps_per_window,
+            im: match (im_parts, &f.immersed) {
+                (Some((l, [fill, wall, project, total, gather, scatter])), Some(im)) => {
+                    Some(interface::ImDevice::new(
+                        &ctx_im,
+                        l,
+                        fill,
+                        wall,
+                        project,
+                        total,
+                        gather,
+                        scatter,
+                        im,
+                        grid.rows() * mx,
+                    ))
+                }
+                _ => None,
+            },
         })
     }
 
@@ -453,6 +544,44 @@ impl GpuEuler {
     /// `Fluid::boundary_impulse`.
     pub fn boundary_impulse(&self) -> [f64; 3] {
         self.impulse
+    }
+
+    /// Start a window of the immersed coupling with new particle data: what
+    /// `Immersed::set_particles` does on the CPU, with the state on the device. Only the
+    /// cells the classification can read or change cross (gathered into `f.cons`, updated by
+    /// the CPU code, scattered back); `f` must be the model this solver was built from.
+    pub fn set_particles(
+        &mut self,
+        im: &mut Immersed,
+        f: &mut Fluid,
+        pos: &[f64],
+        vel: &[f64],
+        vol: &[f64],
+    ) -> Result<(), SolverError> {
+        let group0 = (&self.bind, self.stage_off[0]);
+        let Some(dev) = self.im.as_mut() else {
+            return Err(SolverError::Other(
+                "GPU set_particles: this solver was built without an immersed interface".into(),
+            ));
+        };
+        if f.cons.len() != self.len {
+            return Err(SolverError::Other(format!(
+                "GPU set_particles: the model has {} values, the device grid {}",
+                f.cons.len(),
+                self.len
+            )));
+        }
+        dev.set_particles(&self.ctx, group0, self.max_wg, im, f, pos, vel, vol)
+            .map_err(gpu_err)
+    }
+
+    /// The window's impulse on each particle (`im.impulse`) and the running totals
+    /// (`im.total_impulse`, `im.wall_mass`) from the device, after `advance_to`.
+    pub fn read_impulses(&self, im: &mut Immersed) -> Result<(), SolverError> {
+        match &self.im {
+            Some(dev) => dev.impulses(&self.ctx, im).map_err(gpu_err),
+            None => Ok(()),
+        }
     }
 
     /// Replace the device state by `f`'s conserved state, time, step count and impulse
@@ -569,6 +698,9 @@ impl GpuEuler {
             let mut pass = enc.begin_compute_pass(&Default::default());
             pass.set_pipeline(&self.pipes.row_totals);
             pass.set_bind_group(0, &self.bind, &[self.stage_off[0]]);
+            if let Some(im) = &self.im {
+                pass.set_bind_group(1, &im.bind, &[]);
+            }
             let (x, y) = dispatch_dims((nrows as u32).div_ceil(WG), self.max_wg);
             pass.dispatch_workgroups(x, y, 1);
         }
@@ -696,6 +828,8 @@ impl GpuEuler {
 
     /// Encode `k` steps in one submission; return the control reals and status words.
     fn batch(&self, k: u64) -> Result<([f64; NCTRL], [u32; NST]), SolverError> {
+        // the immersed kernels, when the interface has occupied cells this window
+        let active = self.im.as_ref().filter(|im| im.ncells > 0);
         self.encode_and_read(|pass, go| {
             for _ in 0..k {
                 go(pass, &self.pipes.prim_rate, 0, self.dims(self.cells, RWG));
@@ -703,6 +837,9 @@ impl GpuEuler {
                 for s in 0..3 {
                     if s > 0 {
                         go(pass, &self.pipes.prim_only, s, self.dims(self.cells, RWG));
+                    }
+                    if let Some(im) = active {
+                        go(pass, &im.fill, s, self.dims(im.ncells, WG));
                     }
                     for d in 0..self.nd {
                         go(
@@ -715,8 +852,15 @@ impl GpuEuler {
                     for d in 0..self.nd {
                         go(pass, &self.pipes.flux[d], s, self.dims(self.face_n[d], WG));
                     }
+                    if let Some(im) = active.filter(|im| im.nwalls > 0) {
+                        go(pass, &im.wall, s, self.dims(im.nwalls, WG));
+                    }
                     go(pass, &self.pipes.impulse, s, (1, 1));
                     go(pass, &self.pipes.update, s, self.dims(self.cells, WG));
+                    if let Some(im) = active {
+                        go(pass, &im.project, s, self.dims(im.ncells, WG));
+                        go(pass, &im.total, s, (1, 1));
+                    }
                 }
                 go(pass, &self.pipes.finish, 0, (1, 1));
             }
@@ -748,6 +892,9 @@ impl GpuEuler {
                       (x, y): (u32, u32)| {
                 pass.set_pipeline(pipe);
                 pass.set_bind_group(0, &self.bind, &[self.stage_off[s]]);
+                if let Some(im) = &self.im {
+                    pass.set_bind_group(1, &im.bind, &[]);
+                }
                 pass.dispatch_workgroups(x, y, 1);
             };
             body(&mut pass, &go);

@@ -1,6 +1,8 @@
 //! GPU path of the `pd-bond` body (issue 8): the bond force loop of `bond.rs` (Silling 2000,
 //! pairwise force c·s·ŷ with breaking above s0; seed 000 App. A, seed 001 eq. 183) and the
-//! velocity-Verlet step of `integrate.rs`, device-resident. One thread per particle gathers
+//! velocity-Verlet step of `integrate.rs`, device-resident. [`GpuCorrBody`] does the same for
+//! the `pd-correspondence` force state (seed 001 eq. 180–189, rate-form J2 of seed 000
+//! App. B; plane strain or 3-D, without bond damage). One thread per particle gathers
 //! over its own compressed row of bonds (no atomics, no scatter), so the result is the CPU's
 //! to round-off; broken bonds are zeroed in the thread's own row, as on the CPU.
 //!
@@ -9,11 +11,15 @@
 //! offsets | nbr), per-bond reals into one (inv_len | coef).
 
 use super::bond::BondModel;
+use super::correspondence::Correspondence;
 use super::integrate::Body;
+use super::model::Dim;
+use mechanics::damage::NoDamage;
 use mechanics::gpu::wgpu;
 use mechanics::gpu::{
     GpuContext, GpuError, Precision, bytes_to_reals, dispatch_dims, reals_to_bytes,
 };
+use mechanics::j2::J2State;
 use std::sync::Arc;
 
 const WG: u32 = 64;
@@ -316,5 +322,770 @@ fn entry(b: &wgpu::Buffer, binding: u32) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry {
         binding,
         resource: b.as_entire_binding(),
+    }
+}
+
+// ------------------------------------------------------------------ pd-correspondence
+
+/// The correspondence force state on the device (seed 001 §4.1–4.3, eq. 180–189, with the
+/// rate-form J2 stress of seed 000 App. B): `correspondence.rs` pass 1 (F = N K⁻¹, Ḟ, L,
+/// Jaumann rotation, radial return, Â = P K⁻¹ − κF/δ) and the bond force gather of
+/// eq. (183)/(186), one thread per particle over its own row (no scatter, no atomics).
+const CORR_SHADER: &str = r#"
+struct U { n: u32, nb: u32, three_d: u32, pad: u32 }
+@group(0) @binding(0) var<uniform> pu: U;
+// mp: dt, half_dt, rho, inv_h, kappa0, mu, lambda, yield, iso, 2/3 kin, dgamma denominator,
+// sqrt(2/3), 1e-300
+@group(0) @binding(1) var<storage, read> mp: array<real>;
+// pos 0, vel 3n, force 6n, fext 9n, vpres 12n, vol 15n
+@group(0) @binding(2) var<storage, read_write> pv: array<real>;
+// prescribed 0, offsets n, nbr 2n+1
+@group(0) @binding(3) var<storage, read> iu: array<u32>;
+// xi 0 (3 per bond), intact 3nb
+@group(0) @binding(4) var<storage, read> bd: array<real>;
+// kinv 0 (9n), active 9n, stress 10n (6n), back 16n (6n), eqp 22n, ahat 23n (9n), kappa 32n
+@group(0) @binding(5) var<storage, read_write> pt: array<real>;
+
+fn lin(gid: vec3<u32>, nwg: vec3<u32>) -> u32 { return gid.x + gid.y * nwg.x * 64u; }
+
+fn kick(i: u32) {
+    let n = pu.n;
+    if iu[i] != 0u {
+        for (var d = 0u; d < 3u; d++) {
+            pv[3u * n + 3u * i + d] = pv[12u * n + 3u * i + d];
+        }
+        return;
+    }
+    let rho = mp[2];
+    let inv_m = real(1.0) / (rho * pv[15u * n + i]);
+    for (var d = 0u; d < 3u; d++) {
+        let k = 3u * i + d;
+        pv[3u * n + k] += mp[1] * (pv[6u * n + k] / rho + pv[9u * n + k] * inv_m);
+    }
+}
+
+@compute @workgroup_size(64)
+fn kick_drift(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = lin(gid, nwg);
+    if i >= pu.n { return; }
+    kick(i);
+    for (var d = 0u; d < 3u; d++) {
+        pv[3u * i + d] += mp[0] * pv[3u * pu.n + 3u * i + d];
+    }
+}
+
+@compute @workgroup_size(64)
+fn kick_only(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = lin(gid, nwg);
+    if i >= pu.n { return; }
+    kick(i);
+}
+
+// correspondence.rs matmul / det / inverse, row-major 3x3
+fn mm(a: array<real, 9>, b: array<real, 9>) -> array<real, 9> {
+    var r: array<real, 9>;
+    for (var i = 0u; i < 3u; i++) {
+        for (var j = 0u; j < 3u; j++) {
+            r[3u * i + j] = a[3u * i] * b[j] + a[3u * i + 1u] * b[3u + j] + a[3u * i + 2u] * b[6u + j];
+        }
+    }
+    return r;
+}
+
+fn det3(a: array<real, 9>) -> real {
+    return a[0] * (a[4] * a[8] - a[5] * a[7])
+        - a[1] * (a[3] * a[8] - a[5] * a[6])
+        + a[2] * (a[3] * a[7] - a[4] * a[6]);
+}
+
+struct Inv { m: array<real, 9>, ok: bool }
+
+fn inv3(a: array<real, 9>, tiny: real) -> Inv {
+    var r: Inv;
+    let d = det3(a);
+    r.ok = abs(d) > tiny;
+    if !r.ok {
+        return r;
+    }
+    let id = real(1.0) / d;
+    r.m = array<real, 9>(
+        (a[4] * a[8] - a[5] * a[7]) * id,
+        (a[2] * a[7] - a[1] * a[8]) * id,
+        (a[1] * a[5] - a[2] * a[4]) * id,
+        (a[5] * a[6] - a[3] * a[8]) * id,
+        (a[0] * a[8] - a[2] * a[6]) * id,
+        (a[2] * a[3] - a[0] * a[5]) * id,
+        (a[3] * a[7] - a[4] * a[6]) * id,
+        (a[1] * a[6] - a[0] * a[7]) * id,
+        (a[0] * a[4] - a[1] * a[3]) * id);
+    return r;
+}
+
+// mechanics::j2 to_matrix (Voigt xx, yy, zz, yz, xz, xy)
+fn to_mat(s: array<real, 6>) -> array<real, 9> {
+    return array<real, 9>(s[0], s[5], s[4], s[5], s[1], s[3], s[4], s[3], s[2]);
+}
+
+// mechanics::j2 jaumann_rotate: s += dt (W s − s W), symmetric part
+fn jaumann(s: array<real, 6>, w: array<real, 9>, dt: real) -> array<real, 6> {
+    let m = to_mat(s);
+    var r: array<real, 9>;
+    for (var i = 0u; i < 3u; i++) {
+        for (var j = 0u; j < 3u; j++) {
+            var acc = real(0.0);
+            for (var k = 0u; k < 3u; k++) {
+                acc += w[3u * i + k] * m[3u * k + j] - m[3u * i + k] * w[3u * k + j];
+            }
+            r[3u * i + j] = acc;
+        }
+    }
+    let d = array<real, 6>(r[0], r[4], r[8], real(0.5) * (r[5] + r[7]), real(0.5) * (r[2] + r[6]),
+        real(0.5) * (r[1] + r[3]));
+    var o = s;
+    for (var k = 0u; k < 6u; k++) {
+        o[k] += dt * d[k];
+    }
+    return o;
+}
+
+fn ddot6(a: array<real, 6>, b: array<real, 6>) -> real {
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + real(2.0) * (a[3] * b[3] + a[4] * b[4] + a[5] * b[5]);
+}
+
+// pass 1 of correspondence.rs at particle i
+@compute @workgroup_size(64)
+fn pass1(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = lin(gid, nwg);
+    let n = pu.n;
+    if i >= n { return; }
+    let nb = pu.nb;
+    let dt = mp[0];
+    let pi = array<real, 3>(pv[3u * i], pv[3u * i + 1u], pv[3u * i + 2u]);
+    let vi = array<real, 3>(pv[3u * n + 3u * i], pv[3u * n + 3u * i + 1u], pv[3u * n + 3u * i + 2u]);
+    var nn: array<real, 9>;
+    var nd: array<real, 9>;
+    for (var q = 0u; q < 9u; q++) { nn[q] = real(0.0); nd[q] = real(0.0); }
+    var w0 = real(0.0);
+    let b0 = iu[n + i];
+    let b1 = iu[n + i + 1u];
+    for (var b = b0; b < b1; b++) {
+        let om = bd[3u * nb + b];
+        if om == real(0.0) { continue; }
+        let j = iu[2u * n + 1u + b];
+        let w = om * pv[15u * n + j];
+        w0 += w;
+        let wy = array<real, 3>(w * (pv[3u * j] - pi[0]), w * (pv[3u * j + 1u] - pi[1]),
+            w * (pv[3u * j + 2u] - pi[2]));
+        for (var a = 0u; a < 3u; a++) {
+            for (var c = 0u; c < 3u; c++) {
+                nn[3u * a + c] += wy[a] * bd[3u * b + c];
+            }
+        }
+    }
+    for (var b = b0; b < b1; b++) {
+        let om = bd[3u * nb + b];
+        if om == real(0.0) { continue; }
+        let j = iu[2u * n + 1u + b];
+        let w = om * pv[15u * n + j];
+        let o = 3u * n + 3u * j;
+        let wv = array<real, 3>(w * (pv[o] - vi[0]), w * (pv[o + 1u] - vi[1]), w * (pv[o + 2u] - vi[2]));
+        for (var a = 0u; a < 3u; a++) {
+            for (var c = 0u; c < 3u; c++) {
+                nd[3u * a + c] += wv[a] * bd[3u * b + c];
+            }
+        }
+    }
+    if pt[9u * n + i] == real(0.0) {
+        // an inactive family carries no stress
+        for (var q = 0u; q < 9u; q++) { pt[23u * n + 9u * i + q] = real(0.0); }
+        pt[32u * n + i] = real(0.0);
+        return;
+    }
+    var kinv: array<real, 9>;
+    for (var q = 0u; q < 9u; q++) { kinv[q] = pt[9u * i + q]; }
+    if pu.three_d == 0u {
+        nn[8] = real(1.0);
+    }
+    let f = mm(nn, kinv);
+    let fi = inv3(f, mp[12]);
+    var st: array<real, 6>;
+    var bs: array<real, 6>;
+    for (var k = 0u; k < 6u; k++) {
+        st[k] = pt[10u * n + 6u * i + k];
+        bs[k] = pt[16u * n + 6u * i + k];
+    }
+    if dt > real(0.0) && fi.ok {
+        let fdot = mm(nd, kinv);
+        let l = mm(fdot, fi.m);
+        var spin: array<real, 9>;
+        for (var a = 0u; a < 3u; a++) {
+            for (var c = 0u; c < 3u; c++) {
+                spin[3u * a + c] = real(0.5) * (l[3u * a + c] - l[3u * c + a]);
+            }
+        }
+        let de = array<real, 6>(l[0] * dt, l[4] * dt, l[8] * dt, real(0.5) * (l[5] + l[7]) * dt,
+            real(0.5) * (l[2] + l[6]) * dt, real(0.5) * (l[1] + l[3]) * dt);
+        st = jaumann(st, spin, dt);
+        bs = jaumann(bs, spin, dt);
+        // J2Material::update: elastic predictor, then radial return
+        let mu = mp[5];
+        let tr = mp[6] * (de[0] + de[1] + de[2]);
+        for (var k = 0u; k < 3u; k++) {
+            st[k] += tr + real(2.0) * mu * de[k];
+            st[3u + k] += real(2.0) * mu * de[3u + k];
+        }
+        let m3 = (st[0] + st[1] + st[2]) / real(3.0);
+        let sd = array<real, 6>(st[0] - m3, st[1] - m3, st[2] - m3, st[3], st[4], st[5]);
+        var xi: array<real, 6>;
+        for (var k = 0u; k < 6u; k++) { xi[k] = sd[k] - bs[k]; }
+        let norm = sqrt(ddot6(xi, xi));
+        var eqp = pt[22u * n + i];
+        let radius = mp[11] * (mp[7] + mp[8] * eqp);
+        let fy = norm - radius;
+        if !(fy <= real(0.0) || norm == real(0.0)) {
+            let dgamma = fy / mp[10];
+            let inv = real(1.0) / norm;
+            for (var k = 0u; k < 6u; k++) {
+                let nk = xi[k] * inv;
+                st[k] -= real(2.0) * mu * dgamma * nk;
+                bs[k] += mp[9] * dgamma * nk;
+            }
+            eqp += mp[11] * dgamma;
+            pt[22u * n + i] = eqp;
+        }
+        for (var k = 0u; k < 6u; k++) {
+            pt[10u * n + 6u * i + k] = st[k];
+            pt[16u * n + 6u * i + k] = bs[k];
+        }
+    }
+    // P = J σ F⁻ᵀ, A = P K⁻¹, Â = A − κ F/δ
+    var a: array<real, 9>;
+    for (var q = 0u; q < 9u; q++) { a[q] = real(0.0); }
+    if fi.ok {
+        let jac = det3(f);
+        var ft: array<real, 9>;
+        for (var r = 0u; r < 3u; r++) {
+            for (var c = 0u; c < 3u; c++) {
+                ft[3u * r + c] = jac * fi.m[3u * c + r];
+            }
+        }
+        a = mm(mm(to_mat(st), ft), kinv);
+    }
+    var kappa = real(0.0);
+    if w0 > real(0.0) {
+        kappa = mp[4] / w0;
+    }
+    let kd = kappa * mp[3];
+    for (var q = 0u; q < 9u; q++) {
+        pt[23u * n + 9u * i + q] = a[q] - kd * f[q];
+    }
+    pt[32u * n + i] = kappa;
+}
+
+// correspondence.rs force_density's gather (no damage): f_i = Σ ω V_j [(Â_i + Â_j) ξ + (κ_i + κ_j) y/δ]
+@compute @workgroup_size(64)
+fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = lin(gid, nwg);
+    let n = pu.n;
+    if i >= n { return; }
+    let nb = pu.nb;
+    let inv_h = mp[3];
+    var ai: array<real, 9>;
+    for (var q = 0u; q < 9u; q++) { ai[q] = pt[23u * n + 9u * i + q]; }
+    let ki = pt[32u * n + i];
+    let xp = array<real, 3>(pv[3u * i], pv[3u * i + 1u], pv[3u * i + 2u]);
+    var acc = array<real, 3>(real(0.0), real(0.0), real(0.0));
+    let b0 = iu[n + i];
+    let b1 = iu[n + i + 1u];
+    for (var b = b0; b < b1; b++) {
+        let om = bd[3u * nb + b];
+        if om == real(0.0) { continue; }
+        let j = iu[2u * n + 1u + b];
+        let y = array<real, 3>(pv[3u * j] - xp[0], pv[3u * j + 1u] - xp[1], pv[3u * j + 2u] - xp[2]);
+        let w = om * pv[15u * n + j];
+        let ks = (ki + pt[32u * n + j]) * inv_h;
+        let x = array<real, 3>(bd[3u * b], bd[3u * b + 1u], bd[3u * b + 2u]);
+        let aj = 23u * n + 9u * j;
+        for (var c = 0u; c < 3u; c++) {
+            let t = (ai[3u * c] + pt[aj + 3u * c]) * x[0]
+                + (ai[3u * c + 1u] + pt[aj + 3u * c + 1u]) * x[1]
+                + (ai[3u * c + 2u] + pt[aj + 3u * c + 2u]) * x[2];
+            acc[c] += w * (t + ks * y[c]);
+        }
+    }
+    for (var c = 0u; c < 3u; c++) {
+        pv[6u * n + 3u * i + c] = acc[c];
+    }
+}
+"#;
+
+/// A `pd-correspondence` body (without bond damage) on the device.
+pub struct GpuCorrBody {
+    ctx: Arc<GpuContext>,
+    pipes: [wgpu::ComputePipeline; 4],
+    bind: wgpu::BindGroup,
+    mp: wgpu::Buffer,
+    pv: wgpu::Buffer,
+    pt: wgpu::Buffer,
+    n: usize,
+    /// dt, half_dt and the material constants (`mp` without the step).
+    consts: Vec<f64>,
+    max_wg: u32,
+    pub time: f64,
+    pub steps: u64,
+}
+
+impl GpuCorrBody {
+    /// Upload `body`, whose model is `model` (built identically and evaluated once, as
+    /// `Body::new` does: its K⁻¹, activity and J2 states are copied), to the device.
+    /// Bond damage is not implemented on the device: `model` is `Correspondence<NoDamage>`.
+    pub fn new(
+        ctx: Arc<GpuContext>,
+        body: &Body,
+        model: &Correspondence<NoDamage>,
+    ) -> Result<GpuCorrBody, GpuError> {
+        let n = body.len();
+        let nb = body.bonds.len();
+        if model.kin.len() != n || model.state.len() != n {
+            return Err(GpuError(format!(
+                "the model has {} particles, the body {n}",
+                model.kin.len()
+            )));
+        }
+        if model.dim == Dim::PlaneStress {
+            return Err(GpuError(
+                "plane stress (its through-thickness secant iteration) is not implemented on the device: use plane_strain or 3-D".into(),
+            ));
+        }
+        if model.kin.iter().any(|k| k.wsum.is_nan()) {
+            return Err(GpuError(
+                "the model was never evaluated (its K⁻¹ is not built)".into(),
+            ));
+        }
+        if 2 * n + 1 + nb >= u32::MAX as usize {
+            return Err(GpuError(format!("{nb} bonds exceed 32-bit indices")));
+        }
+        let p = ctx.precision;
+        let rb = p.bytes();
+        let m = &model.material;
+        let mu = m.shear_modulus();
+        let lambda = m.bulk_modulus() - 2.0 / 3.0 * mu;
+        // the constants exactly as correspondence.rs / mechanics::j2 form them
+        let consts = vec![
+            0.0,
+            0.0,
+            body.density,
+            1.0 / model.horizon,
+            model.stabilization * model.micromodulus * model.horizon_volume,
+            mu,
+            lambda,
+            m.yield_stress,
+            m.iso_hardening,
+            2.0 / 3.0 * m.kin_hardening,
+            2.0 * mu + 2.0 / 3.0 * (m.iso_hardening + m.kin_hardening),
+            (2.0f64 / 3.0).sqrt(),
+            1e-300,
+        ];
+        let module = ctx.shader(
+            "pd-correspondence",
+            &format!("alias real = {};\n{CORR_SHADER}", p.wgsl()),
+        )?;
+        let mut reals = Vec::with_capacity(16 * n);
+        for a in [&body.pos, &body.vel, &body.force, &body.fext, &body.vpres] {
+            reals.extend_from_slice(flat(a));
+        }
+        reals.extend_from_slice(&body.vol);
+        let mut ints: Vec<u32> = body.prescribed.iter().map(|&x| x as u32).collect();
+        ints.extend(body.bonds.offsets.iter().map(|&o| o as u32));
+        ints.extend_from_slice(&body.bonds.nbr);
+        let mut breal: Vec<f64> = flat(&body.bonds.xi).to_vec();
+        breal.extend_from_slice(&body.bonds.intact);
+        let mut pts = vec![0.0; 33 * n];
+        for (i, (k, s)) in model.kin.iter().zip(&model.state).enumerate() {
+            pts[9 * i..9 * i + 9].copy_from_slice(k.kinv.as_flattened());
+            pts[9 * n + i] = if k.active { 1.0 } else { 0.0 };
+            pts[10 * n + 6 * i..10 * n + 6 * i + 6].copy_from_slice(&s.stress);
+            pts[16 * n + 6 * i..16 * n + 6 * i + 6].copy_from_slice(&s.back_stress);
+            pts[22 * n + i] = s.eq_plastic_strain;
+        }
+        let max_bind = ctx.limits.max_storage_buffer_binding_size as usize;
+        if reals.len().max(breal.len()).max(pts.len()) * rb > max_bind {
+            return Err(GpuError(format!(
+                "{n} particles / {nb} bonds need more than the adapter's {max_bind} bytes per binding"
+            )));
+        }
+        let mut u = [0u32; 4];
+        u[0] = n as u32;
+        u[1] = nb as u32;
+        u[2] = model.dim.three_d() as u32;
+        let (pipes, bind, mp, pv, pt) =
+            ctx.checked("building the pd-correspondence pipelines", || {
+                let buf = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
+                    binding,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                };
+                let sto = |read_only| wgpu::BufferBindingType::Storage { read_only };
+                let layout =
+                    ctx.device
+                        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                            label: Some("pd-corr"),
+                            entries: &[
+                                buf(0, wgpu::BufferBindingType::Uniform),
+                                buf(1, sto(true)),
+                                buf(2, sto(false)),
+                                buf(3, sto(true)),
+                                buf(4, sto(true)),
+                                buf(5, sto(false)),
+                            ],
+                        });
+                let pl = ctx
+                    .device
+                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some("pd-corr"),
+                        bind_group_layouts: &[Some(&layout)],
+                        immediate_size: 0,
+                    });
+                let mk = |e: &str| {
+                    ctx.device
+                        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                            label: Some(e),
+                            layout: Some(&pl),
+                            module: &module,
+                            entry_point: Some(e),
+                            compilation_options: Default::default(),
+                            cache: None,
+                        })
+                };
+                let pipes = [mk("kick_drift"), mk("pass1"), mk("force"), mk("kick_only")];
+                let pu = ctx.uniform_init("pd-corr params", mechanics::gpu::u32_bytes(&u));
+                let mp = ctx.storage_init("pd-corr constants", &reals_to_bytes(p, &consts));
+                let pv = ctx.storage_init("pd-corr particles", &reals_to_bytes(p, &reals));
+                let iu = ctx.storage_init("pd-corr ints", mechanics::gpu::u32_bytes(&ints));
+                let bd = ctx.storage_init("pd-corr bonds", &reals_to_bytes(p, &breal));
+                let pt = ctx.storage_init("pd-corr points", &reals_to_bytes(p, &pts));
+                let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("pd-corr"),
+                    layout: &layout,
+                    entries: &[
+                        entry(&pu, 0),
+                        entry(&mp, 1),
+                        entry(&pv, 2),
+                        entry(&iu, 3),
+                        entry(&bd, 4),
+                        entry(&pt, 5),
+                    ],
+                });
+                (pipes, bind, mp, pv, pt)
+            })?;
+        Ok(GpuCorrBody {
+            max_wg: ctx.limits.max_compute_workgroups_per_dimension,
+            ctx,
+            pipes,
+            bind,
+            mp,
+            pv,
+            pt,
+            n,
+            consts,
+            time: body.time,
+            steps: body.steps,
+        })
+    }
+
+    /// `k` velocity-Verlet steps of size `dt` (integrate.rs `Body::step`: kick, drift,
+    /// pass 1 + force gather, kick), one submission.
+    pub fn steps(&mut self, k: u64, dt: f64) -> Result<(), GpuError> {
+        let p = self.ctx.precision;
+        self.consts[0] = dt;
+        self.consts[1] = 0.5 * dt;
+        self.ctx
+            .upload(&self.mp, 0, &reals_to_bytes(p, &self.consts[..2]));
+        let (x, y) = dispatch_dims((self.n as u32).div_ceil(WG), self.max_wg);
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_bind_group(0, &self.bind, &[]);
+            for _ in 0..k {
+                for pipe in &self.pipes {
+                    pass.set_pipeline(pipe);
+                    pass.dispatch_workgroups(x, y, 1);
+                }
+            }
+        }
+        self.ctx.checked("pd-correspondence steps", || {
+            self.ctx.queue.submit(Some(enc.finish()))
+        })?;
+        for _ in 0..k {
+            self.time += dt;
+        }
+        self.steps += k;
+        Ok(())
+    }
+
+    /// Copy positions, velocities, forces, time and step count into `body`, and the J2
+    /// states (stress, back stress, equivalent plastic strain) into `state`.
+    pub fn download(&self, body: &mut Body, state: &mut [J2State]) -> Result<(), GpuError> {
+        let p = self.ctx.precision;
+        let rb = p.bytes();
+        let n = self.n;
+        let n3 = 3 * n;
+        let b = self.ctx.read(&self.pv, 0, (3 * n3 * rb) as u64)?;
+        let mut all = vec![0.0; 3 * n3];
+        bytes_to_reals(p, &b, &mut all)?;
+        body.pos.as_flattened_mut().copy_from_slice(&all[..n3]);
+        body.vel
+            .as_flattened_mut()
+            .copy_from_slice(&all[n3..2 * n3]);
+        body.force
+            .as_flattened_mut()
+            .copy_from_slice(&all[2 * n3..]);
+        if state.len() == n {
+            let b = self
+                .ctx
+                .read(&self.pt, (10 * n * rb) as u64, (13 * n * rb) as u64)?;
+            let mut s = vec![0.0; 13 * n];
+            bytes_to_reals(p, &b, &mut s)?;
+            for (i, st) in state.iter_mut().enumerate() {
+                st.stress.copy_from_slice(&s[6 * i..6 * i + 6]);
+                st.back_stress
+                    .copy_from_slice(&s[6 * n + 6 * i..6 * n + 6 * i + 6]);
+                st.eq_plastic_strain = s[12 * n + i];
+            }
+        }
+        body.time = self.time;
+        body.steps = self.steps;
+        Ok(())
+    }
+
+    pub fn precision(&self) -> Precision {
+        self.ctx.precision
+    }
+}
+
+/// `pd-correspondence` on the device against the CPU (issue 8, must-show 1, the PD bar
+/// wave): the free-free steel strip of pd_verification.rs's long-wave test (plane strain,
+/// Δx 1 mm, δ 3.015 Δx) in its fundamental mode v = V cos(πx/L), advanced by `Body::step` on
+/// the CPU and by `GpuCorrBody::steps` with the same dt; displacements, velocities, forces and
+/// stresses must agree within 1e-10 of their largest magnitude (f64 kernels). A second run
+/// with a yield stress below the modal stress checks the radial return (the same particles
+/// yield, the same plastic strain). The CPU model is verified against the patch test, the
+/// elastic constants and √(E/ρ) by pd_verification.rs. Without an adapter the tests print why
+/// they were skipped and pass.
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pd::family::Bonds;
+    use crate::pd::geometry::{Shape, lattice};
+    use crate::pd::model::Kinematics;
+    use mechanics::j2::J2Material;
+    use std::time::Instant;
+
+    fn context(test: &str) -> Option<Arc<GpuContext>> {
+        match GpuContext::new() {
+            Ok(c) if c.precision == Precision::F64 => {
+                println!("{test}: GPU {}", c.describe());
+                Some(Arc::new(c))
+            }
+            Ok(c) => {
+                println!(
+                    "{test}: skipped: the 1e-10 agreement needs f64 kernels ({})",
+                    c.warning.clone().unwrap_or_default()
+                );
+                None
+            }
+            Err(e) => {
+                println!("{test}: skipped: {e}");
+                None
+            }
+        }
+    }
+
+    /// Plane-strain steel strip nx × ny in its fundamental mode; the body and an identical,
+    /// evaluated twin of its model.
+    fn bar(nx: usize, ny: usize, amp: f64, yield_stress: f64) -> (Body, Correspondence<NoDamage>) {
+        let (rho, dx) = (7850.0, 1e-3);
+        let mat = J2Material {
+            young: 200e9,
+            poisson: 0.3,
+            yield_stress,
+            iso_hardening: 1e9,
+            kin_hardening: 0.5e9,
+        };
+        let x0 = lattice(
+            &[Shape::Box {
+                min: [0.0; 3],
+                max: [nx as f64 * dx, ny as f64 * dx, dx],
+            }],
+            &[],
+            dx,
+            false,
+        );
+        let vol = vec![dx * dx * dx; x0.len()];
+        let delta = 3.015 * dx;
+        let bonds = Bonds::build(&x0, delta);
+        let v = vec![[0.0; 3]; x0.len()];
+        let k = Kinematics {
+            x0: &x0,
+            pos: &x0,
+            vel: &v,
+            vol: &vol,
+        };
+        let make =
+            || Correspondence::new(Dim::PlaneStrain, mat, 0.5, delta, dx, NoDamage, &k, &bonds);
+        let mut twin = make();
+        twin.update_stress(&k, &bonds, 0.0);
+        let mut b = Body::new(
+            Dim::PlaneStrain,
+            dx,
+            delta,
+            rho,
+            x0.clone(),
+            vol.clone(),
+            bonds.clone(),
+            Box::new(make()),
+        );
+        let length = nx as f64 * dx;
+        for i in 0..b.len() {
+            b.vel[i][0] = amp * (std::f64::consts::PI * b.x0[i][0] / length).cos();
+        }
+        (b, twin)
+    }
+
+    fn max_rel(a: &[f64], b: &[f64]) -> f64 {
+        let scale = b.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+        let diff = a.iter().zip(b).fold(0.0_f64, |m, (x, y)| {
+            let e = (x - y).abs();
+            if e.is_nan() { f64::INFINITY } else { m.max(e) }
+        });
+        if scale > 0.0 { diff / scale } else { diff }
+    }
+
+    /// (displacement, velocity, force, stress, plastic strain differences; particles that
+    /// yielded on the CPU, on the GPU).
+    fn compare(
+        ctx: Arc<GpuContext>,
+        nx: usize,
+        ny: usize,
+        amp: f64,
+        ys: f64,
+        steps: u64,
+    ) -> [f64; 7] {
+        let (mut cpu, twin) = bar(nx, ny, amp, ys);
+        let dt = 0.5 * cpu.stable_dt();
+        let mut gpu = GpuCorrBody::new(ctx, &cpu, &twin).expect("GPU body");
+        let t = Instant::now();
+        for _ in 0..steps {
+            cpu.step(dt);
+        }
+        let t_cpu = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        gpu.steps(steps, dt).expect("GPU steps");
+        let (mut out, _) = bar(nx, ny, amp, ys);
+        let mut st = vec![J2State::default(); out.len()];
+        gpu.download(&mut out, &mut st).expect("download");
+        let t_gpu = t.elapsed().as_secs_f64();
+        let bu = (cpu.bonds.len() as u64 * steps) as f64;
+        println!(
+            "  {} particles, {} bonds, {steps} steps: CPU {t_cpu:.3} s ({:.3e} bond-updates/s), GPU {t_gpu:.3} s ({:.3e} bond-updates/s)",
+            cpu.len(),
+            cpu.bonds.len(),
+            bu / t_cpu,
+            bu / t_gpu
+        );
+        assert_eq!(out.time, cpu.time);
+        let disp = |b: &Body| -> Vec<f64> {
+            b.pos
+                .iter()
+                .zip(&b.x0)
+                .flat_map(|(p, x)| (0..3).map(move |d| p[d] - x[d]))
+                .collect()
+        };
+        let cs = cpu.model.stress().expect("stress");
+        let cp = cpu.model.plastic_strain().expect("plastic strain");
+        let gs: Vec<f64> = st.iter().flat_map(|s| s.stress).collect();
+        let gp: Vec<f64> = st.iter().map(|s| s.eq_plastic_strain).collect();
+        [
+            max_rel(&disp(&out), &disp(&cpu)),
+            max_rel(out.vel.as_flattened(), cpu.vel.as_flattened()),
+            max_rel(out.force.as_flattened(), cpu.force.as_flattened()),
+            max_rel(&gs, cs.as_flattened()),
+            max_rel(&gp, &cp),
+            cp.iter().filter(|&&x| x > 0.0).count() as f64,
+            gp.iter().filter(|&&x| x > 0.0).count() as f64,
+        ]
+    }
+
+    /// The CPU against itself with the initial amplitude one ulp larger: the round-off
+    /// sensitivity of the case (velocity, force, stress differences).
+    fn one_ulp_control(nx: usize, ny: usize, amp: f64, ys: f64, steps: u64) -> [f64; 3] {
+        let (mut a, _) = bar(nx, ny, amp, ys);
+        let (mut b, _) = bar(nx, ny, f64::from_bits(amp.to_bits() + 1), ys);
+        let dt = 0.5 * a.stable_dt();
+        for _ in 0..steps {
+            a.step(dt);
+            b.step(dt);
+        }
+        let (sa, sb) = (
+            a.model.stress().expect("stress"),
+            b.model.stress().expect("stress"),
+        );
+        [
+            max_rel(b.vel.as_flattened(), a.vel.as_flattened()),
+            max_rel(b.force.as_flattened(), a.force.as_flattened()),
+            max_rel(sb.as_flattened(), sa.as_flattened()),
+        ]
+    }
+
+    #[test]
+    fn correspondence_bar_wave_gpu_matches_cpu() {
+        let Some(ctx) = context("pd-correspondence bar 120x8") else {
+            return;
+        };
+        // about a quarter of the fundamental period (T/2 = L/c ≈ 20 µs)
+        let r = compare(ctx, 120, 8, 0.01, f64::MAX, 150);
+        println!(
+            "pd-correspondence bar: max relative difference GPU vs CPU: displacement {:.3e}, velocity {:.3e}, force {:.3e}, stress {:.3e}",
+            r[0], r[1], r[2], r[3]
+        );
+        assert_eq!(r[5], 0.0, "the elastic case must not yield");
+        assert!(r[..4].iter().all(|&x| x <= 1e-10), "{r:?}");
+    }
+
+    #[test]
+    fn correspondence_plastic_bar_gpu_matches_cpu() {
+        let Some(ctx) = context("pd-correspondence plastic bar 60x6") else {
+            return;
+        };
+        // modal stress ≈ ρ c V ≈ 7850 · 5800 · 2 ≈ 90 MPa at the centre against a 40 MPa yield
+        // stress: the middle yields, the free ends stay elastic
+        let r = compare(ctx, 60, 6, 2.0, 40e6, 150);
+        // The radial return makes the case sensitive to round-off (whether a particle
+        // is a hair above or below the yield surface in a step): the CPU against itself
+        // with a one-ulp larger amplitude differs by ~3e-10 in velocity and ~4e-9 in force
+        // (measured). Velocity, force and stress are held to that envelope (×10), the rest
+        // to 1e-10.
+        let c = one_ulp_control(60, 6, 2.0, 40e6, 150);
+        println!(
+            "pd-correspondence plastic bar: differences displacement {:.3e}, velocity {:.3e}, force {:.3e}, stress {:.3e}, plastic strain {:.3e}; yielded particles CPU {}, GPU {}; one-ulp CPU control: velocity {:.3e}, force {:.3e}, stress {:.3e}",
+            r[0], r[1], r[2], r[3], r[4], r[5], r[6], c[0], c[1], c[2]
+        );
+        assert!(r[5] > 0.0, "the case must yield");
+        assert!(r[5] < 360.0, "only the middle should yield: {}", r[5]);
+        assert_eq!(r[5], r[6]);
+        assert!(r[0] <= 1e-10 && r[4] <= 1e-10, "{r:?}");
+        for (k, name) in [(1, "velocity"), (2, "force"), (3, "stress")] {
+            let env = c[k - 1].max(1e-10);
+            assert!(
+                r[k] <= 10.0 * env,
+                "{name}: GPU differs by {:e}, the one-ulp control by {env:e}",
+                r[k]
+            );
+        }
     }
 }
