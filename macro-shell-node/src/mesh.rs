@@ -130,6 +130,24 @@ pub fn plate(length: f64, width: f64, nx: usize, ny: usize, origin: [f64; 3]) ->
     m
 }
 
+/// Several separate flat plates (no shared nodes), each `(origin, length, width, nx, ny)` in
+/// the x–y plane at its origin's z: e.g. the two shell ends of seed 004 §4.1's two-scale
+/// coupon, or a lap joint with the plates at chosen heights. Sets: `plate<k>` (elements and
+/// nodes of plate k) and `all`.
+pub fn plates(list: &[([f64; 3], f64, f64, usize, usize)]) -> Mesh {
+    let mut m = Mesh::default();
+    for (k, &(origin, length, width, nx, ny)) in list.iter().enumerate() {
+        let (n0, e0) = (m.nodes.len() as u32, m.elements.len() as u32);
+        m.grid(origin, [length, 0.0, 0.0], [0.0, width, 0.0], nx, ny);
+        m.node_sets
+            .insert(format!("plate{k}"), (n0..m.nodes.len() as u32).collect());
+        m.element_sets
+            .insert(format!("plate{k}"), (e0..m.elements.len() as u32).collect());
+    }
+    m.all_sets();
+    m
+}
+
 /// A single-lap joint: plate A on [0, L] × [0, W] at z = 0 and plate B on
 /// [L − overlap, 2L − overlap] × [0, W] at z = gap (separate nodes; joints connect them).
 /// Sets: `a`, `b` (elements), `a_overlap`, `b_overlap` (elements in the overlap),
@@ -183,6 +201,21 @@ pub fn square_tube(
     n_length: usize,
     overlap: f64,
     gap: f64,
+) -> Mesh {
+    square_tube_seams(side, length, n_side, n_length, overlap, gap, 1)
+}
+
+/// [`square_tube`] with one or two seams: the second (`seams = 2`, sets `seam2_outer`,
+/// `seam2_inner`) over face 2 (y = +h) from x = h − overlap to h, at y = h + gap — the two
+/// flanges of seed 004 §4.3's tube, fastened by the joint pairs k, k'.
+pub fn square_tube_seams(
+    side: f64,
+    length: f64,
+    n_side: usize,
+    n_length: usize,
+    overlap: f64,
+    gap: f64,
+    seams: usize,
 ) -> Mesh {
     let mut m = Mesh::default();
     let h = 0.5 * side;
@@ -242,6 +275,27 @@ pub fn square_tube(
             (c[1] + h).abs() < tol && c[0] <= -h + ov + tol
         })
         .collect();
+    if seams >= 2 {
+        let e2 = m.elements.len() as u32;
+        m.grid(
+            [h, h + gap, 0.0],
+            [-ov, 0.0, 0.0],
+            [0.0, 0.0, length],
+            n_ov,
+            nz,
+        );
+        let outer2: Vec<u32> = (e2..m.elements.len() as u32).collect();
+        let inner2: Vec<u32> = wall
+            .iter()
+            .copied()
+            .filter(|&e| {
+                let c = m.centroid(e as usize);
+                (c[1] - h).abs() < tol && c[0] >= h - ov - tol
+            })
+            .collect();
+        m.element_sets.insert("seam2_outer".into(), outer2);
+        m.element_sets.insert("seam2_inner".into(), inner2);
+    }
     let big = f64::INFINITY;
     let bottom = m.nodes_in_box([-big, -big, 0.0], [big, big, 0.0], tol);
     let top = m.nodes_in_box([-big, -big, length], [big, big, length], tol);

@@ -41,8 +41,9 @@ pub struct ShellConfig {
     pub output: OutputConfig,
 }
 
-/// `kind` = "plate" (length, width, nx, ny, origin), "lap_joint" (length, width, overlap,
-/// gap, nx, ny), "tube" (side, length, n_side, n_length, overlap, gap) or "explicit" (nodes,
+/// `kind` = "plate" (length, width, nx, ny, origin), "plates" (a list `plates` of plates,
+/// each with origin, length, width, nx, ny), "lap_joint" (length, width, overlap, gap, nx,
+/// ny), "tube" (side, length, n_side, n_length, overlap, gap, seams) or "explicit" (nodes,
 /// elements).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -60,6 +61,21 @@ pub struct MeshConfig {
     pub origin: Option<[f64; 3]>,
     pub nodes: Option<Vec<[f64; 3]>>,
     pub elements: Option<Vec<[u32; 4]>>,
+    pub plates: Option<Vec<PlateConfig>>,
+    /// Tube: 1 (default) or 2 seams (the second on the opposite face).
+    pub seams: Option<usize>,
+}
+
+/// One plate of a `kind = "plates"` mesh.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlateConfig {
+    #[serde(default)]
+    pub origin: [f64; 3],
+    pub length: f64,
+    pub width: f64,
+    pub nx: usize,
+    pub ny: usize,
 }
 
 /// `model` = "elastic" or "j2". Hardening either by plastic moduli (`isotropic_modulus`,
@@ -155,7 +171,7 @@ impl Default for TimeConfig {
 }
 
 /// A named set: by explicit ids, by a box `[xmin, ymin, zmin, xmax, ymax, zmax]` (nodes by
-/// position, elements by centroid), or both (union).
+/// position, elements by centroid), by a list of such `boxes`, or any of them (union).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SetConfig {
@@ -163,6 +179,8 @@ pub struct SetConfig {
     pub ids: Option<Vec<u32>>,
     #[serde(rename = "box")]
     pub bbox: Option<[f64; 6]>,
+    /// Several boxes (union), e.g. the footprints of several joints.
+    pub boxes: Option<Vec<[f64; 6]>>,
 }
 
 /// Constrained DOFs of a node set: any of "x", "y", "z", "rx", "ry", "rz", "translations",
@@ -261,92 +279,122 @@ fn count(key: &str, v: Option<usize>) -> SolverResult<usize> {
 }
 
 fn build_mesh(c: &MeshConfig) -> SolverResult<Mesh> {
-    let m = match c.kind.as_str() {
-        "plate" => mesh::plate(
-            positive("mesh.length", need("mesh.length", c.length)?)?,
-            positive("mesh.width", need("mesh.width", c.width)?)?,
-            count("mesh.nx", c.nx)?,
-            count("mesh.ny", c.ny)?,
-            c.origin.unwrap_or([0.0; 3]),
-        ),
-        "lap_joint" => {
-            let l = positive("mesh.length", need("mesh.length", c.length)?)?;
-            let ov = positive("mesh.overlap", need("mesh.overlap", c.overlap)?)?;
-            if ov > l {
-                return Err(SolverError::config(
-                    "mesh.overlap",
-                    format!("must be ≤ mesh.length = {l}, got {ov}"),
-                ));
-            }
-            mesh::lap_joint(
-                l,
+    let m =
+        match c.kind.as_str() {
+            "plate" => mesh::plate(
+                positive("mesh.length", need("mesh.length", c.length)?)?,
                 positive("mesh.width", need("mesh.width", c.width)?)?,
-                ov,
-                positive("mesh.gap", need("mesh.gap", c.gap)?)?,
                 count("mesh.nx", c.nx)?,
                 count("mesh.ny", c.ny)?,
-            )
-        }
-        "tube" => {
-            let side = positive("mesh.side", need("mesh.side", c.side)?)?;
-            let ov = positive("mesh.overlap", need("mesh.overlap", c.overlap)?)?;
-            if ov > side {
+                c.origin.unwrap_or([0.0; 3]),
+            ),
+            "plates" => {
+                let list = c.plates.as_ref().filter(|p| !p.is_empty()).ok_or_else(|| {
+                    SolverError::config("mesh.plates", "required for kind 'plates'")
+                })?;
+                let mut specs = Vec::with_capacity(list.len());
+                for (k, p) in list.iter().enumerate() {
+                    if p.origin.iter().any(|v| !v.is_finite()) {
+                        return Err(SolverError::config(
+                            format!("mesh.plates[{k}].origin"),
+                            "must be finite",
+                        ));
+                    }
+                    specs.push((
+                        p.origin,
+                        positive(&format!("mesh.plates[{k}].length"), p.length)?,
+                        positive(&format!("mesh.plates[{k}].width"), p.width)?,
+                        count(&format!("mesh.plates[{k}].nx"), Some(p.nx))?,
+                        count(&format!("mesh.plates[{k}].ny"), Some(p.ny))?,
+                    ));
+                }
+                mesh::plates(&specs)
+            }
+            "lap_joint" => {
+                let l = positive("mesh.length", need("mesh.length", c.length)?)?;
+                let ov = positive("mesh.overlap", need("mesh.overlap", c.overlap)?)?;
+                if ov > l {
+                    return Err(SolverError::config(
+                        "mesh.overlap",
+                        format!("must be ≤ mesh.length = {l}, got {ov}"),
+                    ));
+                }
+                mesh::lap_joint(
+                    l,
+                    positive("mesh.width", need("mesh.width", c.width)?)?,
+                    ov,
+                    positive("mesh.gap", need("mesh.gap", c.gap)?)?,
+                    count("mesh.nx", c.nx)?,
+                    count("mesh.ny", c.ny)?,
+                )
+            }
+            "tube" => {
+                let side = positive("mesh.side", need("mesh.side", c.side)?)?;
+                let ov = positive("mesh.overlap", need("mesh.overlap", c.overlap)?)?;
+                if ov > side {
+                    return Err(SolverError::config(
+                        "mesh.overlap",
+                        format!("must be ≤ mesh.side = {side}, got {ov}"),
+                    ));
+                }
+                let seams = c.seams.unwrap_or(1);
+                if !(1..=2).contains(&seams) {
+                    return Err(SolverError::config(
+                        "mesh.seams",
+                        format!("must be 1 or 2, got {seams}"),
+                    ));
+                }
+                mesh::square_tube_seams(
+                    side,
+                    positive("mesh.length", need("mesh.length", c.length)?)?,
+                    count("mesh.n_side", c.n_side)?,
+                    count("mesh.n_length", c.n_length)?,
+                    ov,
+                    positive("mesh.gap", need("mesh.gap", c.gap)?)?,
+                    seams,
+                )
+            }
+            "explicit" => {
+                let nodes = c.nodes.clone().ok_or_else(|| {
+                    SolverError::config("mesh.nodes", "required for kind 'explicit'")
+                })?;
+                let elements = c.elements.clone().ok_or_else(|| {
+                    SolverError::config("mesh.elements", "required for kind 'explicit'")
+                })?;
+                for (i, p) in nodes.iter().enumerate() {
+                    if p.iter().any(|v| !v.is_finite()) {
+                        return Err(SolverError::config(
+                            format!("mesh.nodes[{i}]"),
+                            "coordinates must be finite",
+                        ));
+                    }
+                }
+                for (e, c) in elements.iter().enumerate() {
+                    if let Some(&n) = c.iter().find(|&&n| n as usize >= nodes.len()) {
+                        return Err(SolverError::config(
+                            format!("mesh.elements[{e}]"),
+                            format!("node {n} does not exist ({} nodes)", nodes.len()),
+                        ));
+                    }
+                }
+                let mut m = Mesh {
+                    nodes,
+                    elements,
+                    ..Default::default()
+                };
+                m.node_sets
+                    .insert("all".into(), (0..m.nodes.len() as u32).collect());
+                m.element_sets
+                    .insert("all".into(), (0..m.elements.len() as u32).collect());
+                m
+            }
+            other => {
                 return Err(SolverError::config(
-                    "mesh.overlap",
-                    format!("must be ≤ mesh.side = {side}, got {ov}"),
+                    "mesh.kind",
+                    format!("unknown '{other}' (plate, plates, lap_joint, tube, explicit)"),
                 ));
             }
-            mesh::square_tube(
-                side,
-                positive("mesh.length", need("mesh.length", c.length)?)?,
-                count("mesh.n_side", c.n_side)?,
-                count("mesh.n_length", c.n_length)?,
-                ov,
-                positive("mesh.gap", need("mesh.gap", c.gap)?)?,
-            )
-        }
-        "explicit" => {
-            let nodes = c
-                .nodes
-                .clone()
-                .ok_or_else(|| SolverError::config("mesh.nodes", "required for kind 'explicit'"))?;
-            let elements = c.elements.clone().ok_or_else(|| {
-                SolverError::config("mesh.elements", "required for kind 'explicit'")
-            })?;
-            for (i, p) in nodes.iter().enumerate() {
-                if p.iter().any(|v| !v.is_finite()) {
-                    return Err(SolverError::config(
-                        format!("mesh.nodes[{i}]"),
-                        "coordinates must be finite",
-                    ));
-                }
-            }
-            for (e, c) in elements.iter().enumerate() {
-                if let Some(&n) = c.iter().find(|&&n| n as usize >= nodes.len()) {
-                    return Err(SolverError::config(
-                        format!("mesh.elements[{e}]"),
-                        format!("node {n} does not exist ({} nodes)", nodes.len()),
-                    ));
-                }
-            }
-            let mut m = Mesh {
-                nodes,
-                elements,
-                ..Default::default()
-            };
-            m.node_sets
-                .insert("all".into(), (0..m.nodes.len() as u32).collect());
-            m.element_sets
-                .insert("all".into(), (0..m.elements.len() as u32).collect());
-            m
-        }
-        other => {
-            return Err(SolverError::config(
-                "mesh.kind",
-                format!("unknown '{other}' (plate, lap_joint, tube, explicit)"),
-            ));
-        }
-    };
+        };
     if m.elements.is_empty() {
         return Err(SolverError::config("mesh", "has no elements"));
     }
@@ -503,19 +551,30 @@ fn resolve_sets(
             }
             v.extend_from_slice(ids);
         }
-        if let Some(b) = s.bbox {
+        let boxes = s
+            .bbox
+            .iter()
+            .map(|b| (format!("{key}[{i}].box"), *b))
+            .chain(
+                s.boxes
+                    .iter()
+                    .flatten()
+                    .enumerate()
+                    .map(|(k, b)| (format!("{key}[{i}].boxes[{k}]"), *b)),
+            );
+        for (bkey, b) in boxes {
             if (0..3).any(|k| b[k].is_nan() || b[k + 3].is_nan() || b[k] > b[k + 3]) {
                 return Err(SolverError::config(
-                    format!("{key}[{i}].box"),
+                    bkey,
                     "must be [xmin, ymin, zmin, xmax, ymax, zmax] with min ≤ max",
                 ));
             }
             v.extend(in_box([b[0], b[1], b[2]], [b[3], b[4], b[5]]));
         }
-        if s.ids.is_none() && s.bbox.is_none() {
+        if s.ids.is_none() && s.bbox.is_none() && s.boxes.is_none() {
             return Err(SolverError::config(
                 format!("{key}[{i}]"),
-                "give ids or box",
+                "give ids, box or boxes",
             ));
         }
         v.sort_unstable();

@@ -101,9 +101,49 @@ impl ShellSolver {
 
     fn report(&self, substeps: u64, wall: f64) -> StepReport {
         let m = &self.model;
+        let (ke, ie) = (m.kinetic_energy(), m.internal_energy());
+        let mut scalars = vec![
+            ("dt".into(), m.dt_prev),
+            ("added_mass".into(), m.added_mass),
+            (
+                "added_mass_fraction".into(),
+                m.added_mass / (m.total_mass() - m.added_mass),
+            ),
+            (
+                "max_plastic_strain".into(),
+                match m.material {
+                    crate::element::Material::J2(_) => {
+                        (0..m.num_elements()).map(|e| m.eqps(e)).fold(0.0, f64::max)
+                    }
+                    _ => 0.0,
+                },
+            ),
+            (
+                "kinetic_over_internal".into(),
+                if ie > 0.0 { ke / ie } else { 0.0 },
+            ),
+        ];
+        // Reaction force (support on the structure, last step) and mean displacement of
+        // every reaction set, e.g. the pulled edge of a tension test.
+        for set in &m.reaction_sets {
+            let r = output::reaction_sum(m, &set.nodes);
+            let mut u = [0.0; 3];
+            for &n in &set.nodes {
+                for d in 0..3 {
+                    u[d] += m.x[n as usize][d] - m.x0[n as usize][d];
+                }
+            }
+            let k = set.nodes.len().max(1) as f64;
+            for (d, axis) in ["x", "y", "z"].iter().enumerate() {
+                scalars.push((format!("force_{}_{axis}", set.name), r[d]));
+            }
+            for (d, axis) in ["x", "y", "z"].iter().enumerate() {
+                scalars.push((format!("displacement_{}_{axis}", set.name), u[d] / k));
+            }
+        }
         StepReport {
-            kinetic_energy: m.kinetic_energy(),
-            internal_energy: m.internal_energy(),
+            kinetic_energy: ke,
+            internal_energy: ie,
             external_work: m.external_work + m.support_work + m.pressure_work(),
             interface_work: m.interface_work,
             momentum: m.momentum(),
@@ -114,23 +154,7 @@ impl ShellSolver {
             wall_s: wall,
             coupling_wait_s: 0.0,
             idle_s: 0.0,
-            scalars: vec![
-                ("dt".into(), m.dt_prev),
-                ("added_mass".into(), m.added_mass),
-                (
-                    "added_mass_fraction".into(),
-                    m.added_mass / (m.total_mass() - m.added_mass),
-                ),
-                (
-                    "max_plastic_strain".into(),
-                    match m.material {
-                        crate::element::Material::J2(_) => {
-                            (0..m.num_elements()).map(|e| m.eqps(e)).fold(0.0, f64::max)
-                        }
-                        _ => 0.0,
-                    },
-                ),
-            ],
+            scalars,
         }
     }
 }

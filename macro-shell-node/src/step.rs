@@ -479,9 +479,17 @@ pub fn stable_dt(m: &Model) -> f64 {
     }
 }
 
-/// Mass scaling to the target step: where a node's frequency bound needs a smaller step,
-/// multiply its mass and rotational inertia by ω_i²/ω_target². Returns the added
-/// translational mass (kg); also accumulated in `added_mass` / `added_inertia`.
+/// Mass scaling to the target step. A node's squared frequency is bounded by
+/// max((Σs_m + k_c)/m, (Σs_w + k_c)/m + Σs_θ/I) (`node_omega2`); where that exceeds the
+/// target, the translational mass is raised only as far as the translational terms need,
+/// m' = max(m, (Σs_m + k_c)/ω_t²), and — when the bending branch is still too high — to at
+/// most half of that branch's budget, m' ≥ 2(Σs_w + k_c)/ω_t², and the rest is taken by the
+/// rotary inertia, I' = max(I, Σs_θ/(ω_t² − (Σs_w + k_c)/m')) (rotary-inertia scaling). Scaling
+/// m and I by one common factor instead lets the rotational branch of a thick shell on small
+/// elements — or of a node carrying a joint's coupling mass — multiply translational mass
+/// (and with it the inertia of the structure and the coupling) by orders of magnitude.
+/// Returns the added translational mass (kg); also accumulated in `added_mass` /
+/// `added_inertia`.
 pub fn apply_mass_scaling(m: &mut Model, target_dt: f64) -> f64 {
     let est = element_estimates(m);
     let w_t = m.dt_scale * 2.0 / target_dt;
@@ -489,15 +497,31 @@ pub fn apply_mass_scaling(m: &mut Model, target_dt: f64) -> f64 {
     let mut added = 0.0;
     let mut added_i = 0.0;
     for i in 0..m.num_nodes() {
-        let w2 = node_omega2(m, &est, i);
-        if w2 > w2t {
-            let f = w2 / w2t - 1.0;
-            let (dm, di) = (m.mass[i] * f, m.inertia[i] * f);
-            m.mass[i] += dm;
-            m.inertia[i] += di;
-            added += dm;
-            added_i += di;
+        if node_omega2(m, &est, i) <= w2t {
+            continue;
         }
+        let mut s = [0.0; 3];
+        for &k in &m.adj[m.adj_offsets[i] as usize..m.adj_offsets[i + 1] as usize] {
+            let r = &est[(k >> 2) as usize];
+            for c in 0..3 {
+                s[c] += r[c];
+            }
+        }
+        let kc = m.k_c[i];
+        let (m0, i0) = (m.mass[i], m.inertia[i]);
+        let mut m1 = m0.max((s[0] + kc) / w2t);
+        let mut i1 = i0;
+        if (s[1] + kc) / m1 + s[2] / i0 > w2t {
+            if (s[1] + kc) / m1 > 0.5 * w2t {
+                m1 = 2.0 * (s[1] + kc) / w2t;
+            }
+            let room = w2t - (s[1] + kc) / m1;
+            i1 = i0.max(s[2] / room);
+        }
+        m.mass[i] = m1;
+        m.inertia[i] = i1;
+        added += m1 - m0;
+        added_i += i1 - i0;
     }
     m.added_mass += added;
     m.added_inertia += added_i;

@@ -255,3 +255,81 @@ fn vtk_and_csv_output_are_written() {
     assert_eq!(csv.lines().count(), 2);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The meshes and sets the coupled examples use: several separate plates (`kind =
+/// "plates"`), element sets from several boxes, a tube with two seams; bad input named.
+#[test]
+fn plates_boxes_and_two_seams_build_with_the_expected_counts() {
+    let s = ShellSolver::from_toml_str(&format!(
+        r#"
+[mesh]
+kind = "plates"
+plates = [
+  {{ origin = [0.0, 0.0, 2e-3], length = 6e-3, width = 8e-3, nx = 6, ny = 8 }},
+  {{ origin = [18e-3, 0.0, 2e-3], length = 6e-3, width = 8e-3, nx = 3, ny = 4 }},
+]
+{STEEL}
+[section]
+thickness = 4e-3
+[[element_sets]]
+name = "ends"
+boxes = [[4.9e-3, -1.0, -1.0, 6.1e-3, 1.0, 1.0], [17.9e-3, -1.0, -1.0, 20.1e-3, 1.0, 1.0]]
+[[interfaces]]
+name = "ends"
+element_set = "ends"
+"#
+    ))
+    .unwrap_or_else(|e| panic!("{e}"));
+    let m = &s.model;
+    // 7 × 9 + 4 × 5 nodes, 48 + 12 elements, no shared nodes.
+    assert_eq!(m.num_nodes(), 63 + 20);
+    assert_eq!(m.num_elements(), 60);
+    // The last column of plate 0 (8 elements) and the first of plate 1 (4).
+    assert_eq!(m.element_sets["ends"].len(), 12);
+    assert_eq!(s.interfaces[0].cells.len(), 12);
+    assert_eq!(m.element_sets["plate1"].len(), 12);
+    // Mass: ρ h A of both plates.
+    let mass = 7800.0 * 4e-3 * (48e-6 + 48e-6);
+    assert!((m.total_mass() / mass - 1.0).abs() < 1e-12);
+
+    let tube = |seams: &str| {
+        ShellSolver::from_toml_str(&format!(
+            r#"
+[mesh]
+kind = "tube"
+side = 0.05
+length = 0.2
+n_side = 8
+n_length = 32
+overlap = 0.0125
+gap = 0.001
+{seams}
+{STEEL}
+[section]
+thickness = 1e-3
+"#
+        ))
+    };
+    let one = tube("").unwrap_or_else(|e| panic!("{e}"));
+    let two = tube("seams = 2").unwrap_or_else(|e| panic!("{e}"));
+    // Each seam adds a strip of 2 × 32 elements (12.5 mm of a 6.25 mm mesh).
+    assert_eq!(two.model.num_elements(), one.model.num_elements() + 2 * 32);
+    assert_eq!(two.model.element_sets["seam2_outer"].len(), 64);
+    assert_eq!(two.model.element_sets["seam2_inner"].len(), 64);
+    // The second strip is 1 mm outside the face y = +h.
+    let e = two.model.element_sets["seam2_outer"][0] as usize;
+    let y = two.model.conn[e]
+        .iter()
+        .map(|&n| two.model.x0[n as usize][1])
+        .sum::<f64>()
+        / 4.0;
+    assert!((y - 0.026).abs() < 1e-12, "{y}");
+    match tube("seams = 3") {
+        Ok(_) => panic!("three seams accepted"),
+        Err(e) => assert!(e.to_string().starts_with("mesh.seams:"), "{e}"),
+    }
+    let e = refused(&format!(
+        "[mesh]\nkind = \"plates\"\nplates = [{{ length = 1.0, width = -1.0, nx = 1, ny = 1 }}]\n{STEEL}\n[section]\nthickness = 0.01\n"
+    ));
+    assert!(e.starts_with("mesh.plates[0].width:"), "{e}");
+}

@@ -75,23 +75,93 @@ pub struct VelocityBc {
     pub ramp: f64,
 }
 
+/// A coupling region: the free particles inside `[lo, hi]`; a named region's summed
+/// constraint force is reported every window (`force_<name>_x`, ..., `force_<name>`).
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CouplingRegion {
+    #[serde(default)]
+    pub name: String,
+    pub lo: [f64; 3],
+    pub hi: [f64; 3],
+}
+
+impl CouplingRegion {
+    pub fn contains(&self, p: &[f64; 3]) -> bool {
+        (0..3).all(|d| p[d] >= self.lo[d] && p[d] <= self.hi[d])
+    }
+}
+
 /// The responder side of a kinematic coupling (ARCHITECTURE §5; seed 004 eq. 29–33).
+///
+/// The node works in its own layout, one point per coupling particle: the participant
+/// runtime maps the driver's shell-node motion onto the particles with the shell's shape
+/// functions at each particle's projection (`v_r = W v_d`, eq. 29–30; the projection is done
+/// once, on the reference meshes) and maps the particle loads back with `Wᵀ` (eq. 33).
 #[derive(Debug, Clone, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct CouplingParams {
     /// This node's interface name (the binding's `interface`).
     #[serde(default = "default_interface")]
     pub interface: String,
-    /// The coupling particles: every particle inside one of these regions.
-    pub regions: Vec<Region>,
-    /// Quad connectivity of the driver's interface mesh (4 node indices per cell), when the
-    /// set-up inbox does not carry a `cells` field.
-    #[serde(default)]
-    pub cells: Vec<[u32; 4]>,
+    /// The coupling particles: every free particle inside one of these regions.
+    pub regions: Vec<CouplingRegion>,
 }
 
 fn default_interface() -> String {
     "shell".to_string()
+}
+
+/// One copy of the joint geometry in the model (several joints in one node, e.g. the crash
+/// tube's fasteners): its local frame (`origin`, and the directions of its local x and z axes;
+/// y completes a right-handed frame) and optional fastener overrides (`bolt_radius`,
+/// `head_radius`: a screw instead of a bolt). Coupling regions are given in the local frame
+/// and apply to every placement; a placement's region forces are reported as
+/// `force_<placement>_<region>...`.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Placement {
+    pub name: String,
+    #[serde(default)]
+    pub origin: [f64; 3],
+    #[serde(default = "ex")]
+    pub x_axis: [f64; 3],
+    #[serde(default = "ez")]
+    pub z_axis: [f64; 3],
+    pub bolt_radius: Option<f64>,
+    pub head_radius: Option<f64>,
+}
+
+fn ex() -> [f64; 3] {
+    [1.0, 0.0, 0.0]
+}
+fn ez() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
+}
+
+impl Placement {
+    /// Rotation of the placement: its local x, y, z axes in global coordinates; None when
+    /// the axes are zero or parallel.
+    pub fn frame(&self) -> Option<[[f64; 3]; 3]> {
+        let unit = |a: [f64; 3]| {
+            let l = crate::shape::norm(&a);
+            (l > 0.0 && l.is_finite()).then(|| a.map(|c| c / l))
+        };
+        let z = unit(self.z_axis)?;
+        let xd = unit(self.x_axis)?;
+        let d = crate::shape::dot(&xd, &z);
+        if d.abs() > 1.0 - 1e-9 {
+            return None;
+        }
+        let x = unit([xd[0] - d * z[0], xd[1] - d * z[1], xd[2] - d * z[2]])?;
+        let y = crate::shape::cross(&z, &x);
+        Some([x, y, z])
+    }
+
+    /// Local → global.
+    pub fn apply(&self, f: &[[f64; 3]; 3], p: &[f64; 3]) -> [f64; 3] {
+        std::array::from_fn(|d| self.origin[d] + f[0][d] * p[0] + f[1][d] * p[1] + f[2][d] * p[2])
+    }
 }
 
 /// The whole parameter table of model `mc-spg`.
@@ -120,6 +190,13 @@ pub struct Params {
     /// Critical stretch ratio (eq. 15, 17): bonds fail only when stretched beyond it.
     #[serde(default = "one")]
     pub e_crit: f64,
+    /// Separation after bond failure: a particle keeping less than this share of its
+    /// kernel weight (eq. 16, broken bonds weigh zero) is cut loose — it carries no stress
+    /// and moves on as a free lump of mass. 0 (default): only when its remaining support is
+    /// singular. Values near 1 erode particles at their first broken bonds (robust through
+    /// tearing, as in the joint examples, but it weakens a damaged zone under compression).
+    #[serde(default)]
+    pub separation_weight: f64,
     /// Steps between re-anchoring of the adaptive anisotropic Lagrangian kernel (eq. 12–14).
     #[serde(default = "default_reanchor")]
     pub reanchor_every: u64,
@@ -135,6 +212,9 @@ pub struct Params {
     pub velocity_bc: Vec<VelocityBc>,
     #[serde(default)]
     pub coupling: Option<CouplingParams>,
+    /// Copies of the geometry (default: one, in the global frame, unnamed).
+    #[serde(default)]
+    pub placements: Vec<Placement>,
     /// Write the joint force history CSV every this many windows (0: every window).
     #[serde(default)]
     pub history_every: u64,
@@ -186,6 +266,82 @@ impl Params {
             iso_hardening: self.iso_hardening,
             kin_hardening: kin,
         }
+    }
+
+    /// The geometry of one placement (its fastener overrides applied).
+    pub fn geometry_for(&self, pl: Option<&Placement>) -> Geometry {
+        let mut g = self.geometry.clone();
+        if let (
+            Some(pl),
+            Geometry::BoltedPlates {
+                bolt_radius,
+                head_radius,
+                ..
+            },
+        ) = (pl, &mut g)
+        {
+            if let Some(r) = pl.bolt_radius {
+                *bolt_radius = r;
+            }
+            if let Some(r) = pl.head_radius {
+                *head_radius = r;
+            }
+        }
+        g
+    }
+
+    fn validate_geometry(&self, g: &Geometry) -> SolverResult<()> {
+        match g {
+            Geometry::Block { size, .. } => {
+                for (d, s) in size.iter().enumerate() {
+                    positive(&format!("geometry.size[{d}]"), *s)?;
+                    if *s < self.spacing {
+                        return Err(SolverError::config(
+                            format!("geometry.size[{d}]"),
+                            format!(
+                                "must hold at least two particles (≥ spacing {}), got {s}",
+                                self.spacing
+                            ),
+                        ));
+                    }
+                }
+            }
+            Geometry::BoltedPlates {
+                thickness,
+                width,
+                length,
+                overlap,
+                bolt_radius,
+                head_radius,
+                head_height,
+            } => {
+                positive("geometry.thickness", *thickness)?;
+                positive("geometry.width", *width)?;
+                positive("geometry.length", *length)?;
+                positive("geometry.overlap", *overlap)?;
+                positive("geometry.bolt_radius", *bolt_radius)?;
+                positive("geometry.head_height", *head_height)?;
+                if head_radius <= bolt_radius {
+                    return Err(SolverError::config(
+                        "geometry.head_radius",
+                        "must exceed bolt_radius",
+                    ));
+                }
+                if 2.0 * head_radius >= overlap.min(*width) {
+                    return Err(SolverError::config(
+                        "geometry.head_radius",
+                        "bolt head must fit in the overlap",
+                    ));
+                }
+                if overlap > length {
+                    return Err(SolverError::config(
+                        "geometry.overlap",
+                        "must not exceed length",
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     pub fn validate(&self) -> SolverResult<()> {
@@ -242,6 +398,12 @@ impl Params {
         self.material()
             .validate()
             .map_err(|(k, r)| SolverError::config(k, r))?;
+        if !(0.0..1.0).contains(&self.separation_weight) {
+            return Err(SolverError::config(
+                "separation_weight",
+                format!("must be in [0, 1), got {}", self.separation_weight),
+            ));
+        }
         if self.reanchor_every == 0 {
             return Err(SolverError::config("reanchor_every", "must be ≥ 1"));
         }
@@ -254,56 +416,48 @@ impl Params {
         if let Some(dt) = self.mass_scaling_dt {
             positive("mass_scaling_dt", dt)?;
         }
-        match &self.geometry {
-            Geometry::Block { size, .. } => {
-                for (d, s) in size.iter().enumerate() {
-                    positive(&format!("geometry.size[{d}]"), *s)?;
-                    if *s < self.spacing {
-                        return Err(SolverError::config(
-                            format!("geometry.size[{d}]"),
-                            format!(
-                                "must hold at least two particles (≥ spacing {}), got {s}",
-                                self.spacing
-                            ),
-                        ));
+        let mut names = std::collections::BTreeSet::new();
+        for (k, pl) in self.placements.iter().enumerate() {
+            if pl.name.is_empty()
+                || !pl
+                    .name
+                    .chars()
+                    .all(|ch| ch.is_ascii_alphanumeric() || ch == '_' || ch == '-')
+            {
+                return Err(SolverError::config(
+                    format!("placements[{k}].name"),
+                    "must be 1 or more of [A-Za-z0-9_-]",
+                ));
+            }
+            if !names.insert(pl.name.clone()) {
+                return Err(SolverError::config(
+                    format!("placements[{k}].name"),
+                    format!("'{}' is used twice", pl.name),
+                ));
+            }
+            if pl.origin.iter().any(|v| !v.is_finite()) || pl.frame().is_none() {
+                return Err(SolverError::config(
+                    format!("placements[{k}]"),
+                    "needs a finite origin and non-zero, non-parallel x_axis and z_axis",
+                ));
+            }
+            if (pl.bolt_radius.is_some() || pl.head_radius.is_some())
+                && !matches!(self.geometry, Geometry::BoltedPlates { .. })
+            {
+                return Err(SolverError::config(
+                    format!("placements[{k}].bolt_radius"),
+                    "only for geometry kind \"bolted-plates\"",
+                ));
+            }
+            self.validate_geometry(&self.geometry_for(Some(pl)))
+                .map_err(|e| match e {
+                    SolverError::Config { key, reason } => {
+                        SolverError::config(format!("placements[{k}] ({key})"), reason)
                     }
-                }
-            }
-            Geometry::BoltedPlates {
-                thickness,
-                width,
-                length,
-                overlap,
-                bolt_radius,
-                head_radius,
-                head_height,
-            } => {
-                positive("geometry.thickness", *thickness)?;
-                positive("geometry.width", *width)?;
-                positive("geometry.length", *length)?;
-                positive("geometry.overlap", *overlap)?;
-                positive("geometry.bolt_radius", *bolt_radius)?;
-                positive("geometry.head_height", *head_height)?;
-                if head_radius <= bolt_radius {
-                    return Err(SolverError::config(
-                        "geometry.head_radius",
-                        "must exceed bolt_radius",
-                    ));
-                }
-                if 2.0 * head_radius >= overlap.min(*width) {
-                    return Err(SolverError::config(
-                        "geometry.head_radius",
-                        "bolt head must fit in the overlap",
-                    ));
-                }
-                if overlap > length {
-                    return Err(SolverError::config(
-                        "geometry.overlap",
-                        "must not exceed length",
-                    ));
-                }
-            }
+                    other => other,
+                })?;
         }
+        self.validate_geometry(&self.geometry)?;
         for (k, bc) in self.velocity_bc.iter().enumerate() {
             if bc.ramp < 0.0 {
                 return Err(SolverError::config(
@@ -312,13 +466,31 @@ impl Params {
                 ));
             }
         }
-        if let Some(c) = &self.coupling
-            && c.regions.is_empty()
-        {
-            return Err(SolverError::config(
-                "coupling.regions",
-                "no coupling region given",
-            ));
+        if let Some(c) = &self.coupling {
+            if c.regions.is_empty() {
+                return Err(SolverError::config(
+                    "coupling.regions",
+                    "no coupling region given",
+                ));
+            }
+            for (k, r) in c.regions.iter().enumerate() {
+                if (0..3).any(|d| !(r.lo[d] <= r.hi[d])) {
+                    return Err(SolverError::config(
+                        format!("coupling.regions[{k}]"),
+                        "needs lo ≤ hi in every direction",
+                    ));
+                }
+                if !r
+                    .name
+                    .chars()
+                    .all(|ch| ch.is_ascii_alphanumeric() || ch == '_' || ch == '-')
+                {
+                    return Err(SolverError::config(
+                        format!("coupling.regions[{k}].name"),
+                        "only [A-Za-z0-9_-]",
+                    ));
+                }
+            }
         }
         Ok(())
     }

@@ -132,6 +132,13 @@ pub struct Model {
     pub steps: u64,
     pub time: f64,
     pub broken_bonds: usize,
+    /// Row rebuilds that found a particle cut loose by broken bonds (detached rows).
+    pub detached: usize,
+    /// The damage zone: particles that have lost a bond, and their support neighbours.
+    pub damaged: Vec<bool>,
+    /// A particle keeping less than this share of its kernel weight after bond failure is
+    /// separated (0, the default: only when its moment matrix is singular).
+    pub separation_weight: f64,
     /// Work of the prescribed-velocity supports and of the coupling (reaction power).
     pub bc_work: f64,
     pub bc_impulse: [f64; 3],
@@ -198,6 +205,9 @@ impl Model {
             steps: 0,
             time: 0.0,
             broken_bonds: 0,
+            detached: 0,
+            damaged: vec![false; n],
+            separation_weight: 0.0,
             bc_work: 0.0,
             bc_impulse: [0.0; 3],
             coupling_work: 0.0,
@@ -233,19 +243,33 @@ impl Model {
     }
 
     /// Recompute shape functions (all rows or the flagged ones) and the smoothed masses.
+    /// At set-up (`self.steps == 0`) a singular row is an error (the support is too small
+    /// for the lattice); during the run it is a particle that broken bonds (eq. 16) have cut
+    /// loose, and it is detached (`Rows::compute_detaching`; counted in `detached`).
     pub fn rebuild_shapes(&mut self, which: Option<&[bool]>) -> Result<(), String> {
         let singular = |i: usize| {
             format!(
                 "particle {i}: singular moment matrix (kernel support holds too few intact neighbours)"
             )
         };
-        self.rows
-            .compute(&self.xa, &self.vol_a, self.p.support, which)
-            .map_err(singular)?;
-        if self.p.smoothing == Smoothing::Consistent {
+        if self.steps == 0 {
             self.rows
-                .compute_psi(&self.mh, self.p.support, which)
+                .compute(&self.xa, &self.vol_a, self.p.support, which)
                 .map_err(singular)?;
+            if self.p.smoothing == Smoothing::Consistent {
+                self.rows
+                    .compute_psi(&self.mh, self.p.support, which)
+                    .map_err(singular)?;
+            }
+        } else {
+            let keep = self.separation_weight;
+            self.detached +=
+                self.rows
+                    .compute_detaching(&self.xa, &self.vol_a, self.p.support, which, keep);
+            if self.p.smoothing == Smoothing::Consistent {
+                self.rows
+                    .compute_psi_detaching(&self.mh, self.p.support, which, keep);
+            }
         }
         self.rows.refresh_transposed();
         self.update_smoothed_mass();
@@ -571,6 +595,14 @@ impl Model {
             }
         }
         if any {
+            // The damage zone: particles that lost a bond and their support neighbours.
+            for i in 0..self.len() {
+                if self.dirty[i] {
+                    for p in self.rows.range(i) {
+                        self.damaged[self.rows.cols[p] as usize] = true;
+                    }
+                }
+            }
             let dirty = std::mem::take(&mut self.dirty);
             let r = self.rebuild_shapes(Some(&dirty));
             self.dirty = dirty;
@@ -884,6 +916,7 @@ fn kinematics_and_stress(m: &mut Model, dt: f64) -> StepResult {
     let u = &m.u;
     let material = &m.p.material;
     let mass = &m.mass;
+    let damaged = &m.damaged;
     let failed = std::sync::atomic::AtomicUsize::new(usize::MAX);
     m.fhat
         .par_iter_mut()
@@ -894,11 +927,24 @@ fn kinematics_and_stress(m: &mut Model, dt: f64) -> StepResult {
         .zip(m.eint.par_iter_mut())
         .enumerate()
         .for_each(|(i, (((((fh, st), rho), vol), bm), ei))| {
+            // A particle with broken bonds (eq. 16) whose remaining support no longer gives
+            // an invertible deformation (or a positive density) has separated: it carries no
+            // stress from now on (its state is kept, its force contribution is zero). An
+            // intact particle in that state is a divergence.
+            let separate = |st: &mut J2State, bm: &mut M3| {
+                if damaged[i] {
+                    st.stress = [0.0; 6];
+                    st.back_stress = [0.0; 6];
+                    *bm = [[0.0; 3]; 3];
+                } else {
+                    failed.fetch_min(i, std::sync::atomic::Ordering::Relaxed);
+                }
+            };
             let f_new = incremental_f_u(rows, u, i);
             let f_mid: M3 =
                 std::array::from_fn(|a| std::array::from_fn(|b| 0.5 * (f_new[a][b] + fh[a][b])));
             let Some(fmi) = inv(&f_mid) else {
-                failed.fetch_min(i, std::sync::atomic::Ordering::Relaxed);
+                separate(st, bm);
                 return;
             };
             // L Δt = (F̂ⁿ⁺¹ − F̂ⁿ) F̂_mid⁻¹
@@ -922,6 +968,10 @@ fn kinematics_and_stress(m: &mut Model, dt: f64) -> StepResult {
             material.update(st, &de);
             // Continuity (eq. 8) and volume (eq. 9).
             let tr = de[0] + de[1] + de[2];
+            if damaged[i] && !(1.0 - tr > 0.0 && det(&f_new) > 0.0) {
+                separate(st, bm);
+                return;
+            }
             *rho *= 1.0 - tr;
             *vol = mass[i] / *rho;
             let s = &st.stress;
@@ -936,7 +986,7 @@ fn kinematics_and_stress(m: &mut Model, dt: f64) -> StepResult {
             *ei += 0.5 * (v_old + *vol) * work;
             *fh = f_new;
             let Some(fi) = inv(&f_new) else {
-                failed.fetch_min(i, std::sync::atomic::Ordering::Relaxed);
+                separate(st, bm);
                 return;
             };
             *bm = stress_factor(&st.stress, *vol, &fi);

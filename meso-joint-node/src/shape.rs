@@ -142,6 +142,37 @@ impl Rows {
         support: f64,
         which: Option<&[bool]>,
     ) -> Result<(), usize> {
+        match self.compute_rows(xa, vol, support, which, None) {
+            (_, Some(i)) => Err(i),
+            _ => Ok(()),
+        }
+    }
+
+    /// As [`Rows::compute`], but a row left singular (or with less than `keep` of its
+    /// kernel weight) by broken bonds (eq. 16: the particle
+    /// has lost its support, i.e. it has separated from the body) is *detached* instead of
+    /// failing the run: `φ = δ_IJ` and `∇φ = 0`, so the particle no longer deforms or carries
+    /// stress and moves on with its velocity as a free lump of mass. Returns how many rows
+    /// were detached now.
+    pub fn compute_detaching(
+        &mut self,
+        xa: &[[f64; 3]],
+        vol: &[f64],
+        support: f64,
+        which: Option<&[bool]>,
+        keep: f64,
+    ) -> usize {
+        self.compute_rows(xa, vol, support, which, Some(keep)).0
+    }
+
+    fn compute_rows(
+        &mut self,
+        xa: &[[f64; 3]],
+        vol: &[f64],
+        support: f64,
+        which: Option<&[bool]>,
+        detach: Option<f64>,
+    ) -> (usize, Option<usize>) {
         let offsets = &self.offsets;
         let cols = &self.cols;
         let alive = &self.alive;
@@ -151,7 +182,7 @@ impl Rows {
         let d = split_rows(&mut self.d, offsets);
         let w = split_rows(&mut self.w, offsets);
         let vw = split_rows(&mut self.vw, offsets);
-        let bad: Option<usize> = phi
+        let bad: (usize, usize) = phi
             .into_par_iter()
             .zip(grad)
             .zip(d)
@@ -175,13 +206,40 @@ impl Rows {
                     w[k] = if alive[p] { cubic_spline(q) } else { 0.0 };
                     vw[k] = vol[j];
                 }
-                rk_row(d, w, vw, support, phi, grad).err().map(|_| i)
+                // A row that has lost most of its kernel weight to broken bonds is as good
+                // as cut loose (its moment matrix is near-singular and its gradients would
+                // be wild): detach it before it is exactly singular.
+                let mut full = 0.0;
+                let mut kept = 0.0;
+                for k in 0..phi.len() {
+                    let c = cubic_spline(len0[base + k] / support) * vw[k];
+                    full += c;
+                    kept += w[k] * vw[k];
+                }
+                let res = if detach.is_some_and(|f| kept < f * full) {
+                    Err(())
+                } else {
+                    rk_row(d, w, vw, support, phi, grad).map_err(|_| ())
+                };
+                match res {
+                    Ok(()) => None,
+                    Err(_) if detach.is_some() => {
+                        for k in 0..phi.len() {
+                            phi[k] = if cols[base + k] as usize == i {
+                                1.0
+                            } else {
+                                0.0
+                            };
+                            grad[k] = [0.0; 3];
+                        }
+                        Some((1usize, usize::MAX))
+                    }
+                    Err(_) => Some((0, i)),
+                }
             })
-            .min();
-        match bad {
-            Some(i) => Err(i),
-            None => Ok(()),
-        }
+            .reduce(|| (0, usize::MAX), |a, b| (a.0 + b.0, a.1.min(b.1)));
+        let first = (bad.1 != usize::MAX).then_some(bad.1);
+        (bad.0, first)
     }
 }
 
@@ -196,11 +254,33 @@ impl Rows {
         support: f64,
         which: Option<&[bool]>,
     ) -> Result<(), usize> {
+        self.compute_psi_rows(mh, support, which, None)
+    }
+
+    /// As [`Rows::compute_psi`], detaching rows as [`Rows::compute_detaching`] does
+    /// (`ψ = δ_IJ`).
+    pub fn compute_psi_detaching(
+        &mut self,
+        mh: &[f64],
+        support: f64,
+        which: Option<&[bool]>,
+        keep: f64,
+    ) {
+        let _ = self.compute_psi_rows(mh, support, which, Some(keep));
+    }
+
+    fn compute_psi_rows(
+        &mut self,
+        mh: &[f64],
+        support: f64,
+        which: Option<&[bool]>,
+        detach: Option<f64>,
+    ) -> Result<(), usize> {
         let offsets = &self.offsets;
         let cols = &self.cols;
         let psi = split_rows(&mut self.psi, offsets);
         let vw = split_rows(&mut self.vw, offsets);
-        let (d, w) = (&self.d, &self.w);
+        let (d, w, len0) = (&self.d, &self.w, &self.len0);
         let bad: Option<usize> = psi
             .into_par_iter()
             .zip(vw)
@@ -215,9 +295,26 @@ impl Rows {
                 for (k, p) in r.clone().enumerate() {
                     vw[k] = mh[cols[p] as usize];
                 }
-                rk_values(&d[r.clone()], &w[r], vw, support, psi)
-                    .err()
-                    .map(|_| i)
+                let (mut full, mut kept) = (0.0, 0.0);
+                for (k, p) in r.clone().enumerate() {
+                    full += cubic_spline(len0[p] / support) * vw[k];
+                    kept += w[p] * vw[k];
+                }
+                let res = if detach.is_some_and(|f| kept < f * full) {
+                    Err(())
+                } else {
+                    rk_values(&d[r.clone()], &w[r.clone()], vw, support, psi).map_err(|_| ())
+                };
+                match res {
+                    Ok(()) => None,
+                    Err(_) if detach.is_some() => {
+                        for (k, p) in r.enumerate() {
+                            psi[k] = if cols[p] as usize == i { 1.0 } else { 0.0 };
+                        }
+                        None
+                    }
+                    Err(_) => Some(i),
+                }
             })
             .min();
         match bad {

@@ -1,12 +1,26 @@
 //! The `mc-spg` model as a `protocol::Solver`: set-up (parameters → particles, supports,
-//! mass scaling, coupling projection), the window loop with sub-cycling (coupling particles
-//! moved along the driver's motion interpolated in time, eq. 31–32), and output (VTK, joint
-//! force history CSV).
+//! mass scaling, coupling particles), the window loop with sub-cycling (coupling particles
+//! moved along the driver's motion interpolated in time, seed 004 eq. 31–32), the constraint
+//! loads at every synchronisation time (eq. 33), and output (VTK, joint force history CSV).
+//!
+//! **Coupling layout.** The interface is one point per coupling particle (its reference
+//! position). The participant runtime builds `W` from the driver's shell mesh (bilinear shape
+//! functions of the closest quad at each particle's projection, eq. 29 — once, on the
+//! reference meshes) and hands this node, per particle, the interpolated shell motion
+//! `position = W x_d` (the foot point on the mid-surface), `normal = W n_d`, `rotation`,
+//! `velocity`; the loads it returns per particle are mapped back with `Wᵀ`, which is eq. 33:
+//! `F_J = Σ_I N_J(ξ_I) f_I`, `M_J = Σ_I N_J(ξ_I) (a_I × f_I)` with `a_I` the lever arm from
+//! the mid-surface to the particle. The reference offset `a_I⁰ = X_I − W X_d` is taken at
+//! the first window from `position − displacement` (or `position − Δt·velocity`, the window's
+//! mean velocity); its normal part `d_I = a_I⁰·n̄⁰` follows the current normal,
+//! `x_I = W x_d + d_I n̄(t)` (eq. 31), the rest (non-zero only for particles outside the
+//! shell's footprint) is carried along unrotated.
 
 use crate::config::{Geometry, Params};
-use crate::coupling::{self, Projection};
+use crate::coupling;
 use crate::geometry;
 use crate::model::{Kind, Model, ModelParams};
+use crate::shape::{cross, dot, norm};
 use protocol::{
     Binding, Inbox, InterfaceInfo, InterfaceMesh, NodeDescription, Outbox, Solver, SolverError,
     SolverResult, StepReport, Window,
@@ -14,28 +28,28 @@ use protocol::{
 use std::io::Write;
 use std::path::Path;
 
-/// Runtime state of the responder coupling.
+/// Runtime state of the responder coupling (one entry per coupling particle).
 #[derive(Debug, Clone, Default)]
 struct CouplingRt {
     interface: String,
     particles: Vec<u32>,
-    proj: Vec<Projection>,
-    nodes: usize,
-    quads: Vec<[u32; 4]>,
-    n_ref: Vec<[f64; 3]>,
-    x_prev: Vec<[f64; 3]>,
-    n_prev: Vec<[f64; 3]>,
-    x_next: Vec<[f64; 3]>,
-    n_next: Vec<[f64; 3]>,
-    xs: Vec<[f64; 3]>,
-    ns: Vec<[f64; 3]>,
-    f: Vec<[f64; 3]>,
+    /// Index of the region each particle belongs to, and the region names.
+    region: Vec<u32>,
+    region_names: Vec<String>,
+    /// Reference offset along the normal (eq. 31) and the in-plane rest of it.
+    depth: Vec<f64>,
+    tang: Vec<[f64; 3]>,
+    anchored: bool,
+    /// Target positions at the last and the next synchronisation time.
+    target_prev: Vec<[f64; 3]>,
+    target_next: Vec<[f64; 3]>,
+    /// Lever arm `d n̄ + rest` at the last synchronisation time.
     arm: Vec<[f64; 3]>,
     ready: bool,
 }
 
-/// One history row: time, reaction force per velocity-BC group, total coupling force.
-pub type HistoryRow = (f64, Vec<[f64; 3]>, [f64; 3]);
+/// One history row: time, reaction force per velocity-BC group, force per coupling region.
+pub type HistoryRow = (f64, Vec<[f64; 3]>, Vec<[f64; 3]>);
 
 /// The MC-SPG joint solver.
 pub struct SpgSolver {
@@ -45,38 +59,92 @@ pub struct SpgSolver {
     pub added_mass: f64,
     pub mass_scaling_dt: Option<f64>,
     coupling: Option<CouplingRt>,
-    /// (time, reaction force per velocity-BC group, total coupling force).
+    /// (time, reaction force per velocity-BC group, force per coupling region).
     pub history: Vec<HistoryRow>,
 }
 
-fn to_vec3(v: &[f64]) -> Vec<[f64; 3]> {
-    v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+fn unit(a: [f64; 3]) -> [f64; 3] {
+    let l = norm(&a);
+    if l > 0.0 { a.map(|c| c / l) } else { a }
+}
+
+/// A per-particle 3-vector field of the inbox, if present (checked length, finite values).
+fn field3<'a>(
+    inbox: &'a Inbox,
+    itf: &str,
+    name: &str,
+    n: usize,
+) -> SolverResult<Option<&'a [f64]>> {
+    match inbox.get(itf, name) {
+        None => Ok(None),
+        Some(_) => {
+            let v = inbox.require(itf, name, 3 * n)?;
+            if let Some(p) = v.iter().position(|x| !x.is_finite()) {
+                return Err(SolverError::interface(
+                    itf,
+                    format!("'{name}' value {p} is not finite"),
+                ));
+            }
+            Ok(Some(v))
+        }
+    }
+}
+
+fn at(v: &[f64], k: usize) -> [f64; 3] {
+    [v[3 * k], v[3 * k + 1], v[3 * k + 2]]
 }
 
 impl SpgSolver {
     pub fn new(params: Params) -> SolverResult<Self> {
         let h = params.spacing;
-        let set = match &params.geometry {
-            Geometry::Block { origin, size } => geometry::block(*origin, *size, h),
-            Geometry::BoltedPlates {
-                thickness,
-                width,
-                length,
-                overlap,
-                bolt_radius,
-                head_radius,
-                head_height,
-            } => geometry::bolted_plates(
-                *thickness,
-                *width,
-                *length,
-                *overlap,
-                *bolt_radius,
-                *head_radius,
-                *head_height,
-                h,
-            ),
+        // One particle set per placement (default: one, global frame), in its local frame
+        // (`local`, where the coupling regions are evaluated) and placed (`set`).
+        let placements: Vec<Option<&crate::config::Placement>> = if params.placements.is_empty() {
+            vec![None]
+        } else {
+            params.placements.iter().map(Some).collect()
         };
+        let mut set = geometry::ParticleSet::default();
+        let mut local: Vec<[f64; 3]> = Vec::new();
+        let mut instance: Vec<u32> = Vec::new();
+        for (k, pl) in placements.iter().enumerate() {
+            let one = match params.geometry_for(*pl) {
+                Geometry::Block { origin, size } => geometry::block(origin, size, h),
+                Geometry::BoltedPlates {
+                    thickness,
+                    width,
+                    length,
+                    overlap,
+                    bolt_radius,
+                    head_radius,
+                    head_height,
+                } => geometry::bolted_plates(
+                    thickness,
+                    width,
+                    length,
+                    overlap,
+                    bolt_radius,
+                    head_radius,
+                    head_height,
+                    h,
+                ),
+            };
+            // Parts of different placements never bond (3 parts per copy).
+            let offset = 3 * k as u32;
+            let frame = pl.and_then(|p| p.frame());
+            for (q, x) in one.x.iter().enumerate() {
+                local.push(*x);
+                instance.push(k as u32);
+                set.x.push(match (pl, frame) {
+                    (Some(p), Some(f)) => p.apply(&f, x),
+                    _ => *x,
+                });
+                set.vol.push(one.vol[q]);
+                set.part.push(one.part[q] + offset);
+            }
+            set.rigid_parts
+                .extend(one.rigid_parts.iter().map(|r| r + offset));
+        }
         let mp = ModelParams {
             material: params.material(),
             density: params.density,
@@ -90,6 +158,7 @@ impl SpgSolver {
         };
         let mut model = Model::new(mp, set.x, set.vol, set.part, &set.rigid_parts)
             .map_err(|e| SolverError::config("kernel_support", e))?;
+        model.separation_weight = params.separation_weight;
         for (k, bc) in params.velocity_bc.iter().enumerate() {
             let r = bc.region;
             let n = model.add_velocity_bc(&bc.name, bc.velocity, bc.ramp, |x| r.contains(x));
@@ -103,13 +172,32 @@ impl SpgSolver {
         let coupling = match &params.coupling {
             None => None,
             Some(c) => {
-                let particles: Vec<u32> = (0..model.len())
-                    .filter(|&i| {
-                        model.kind[i] == Kind::Free
-                            && c.regions.iter().any(|r| r.contains(&model.x0[i]))
-                    })
-                    .map(|i| i as u32)
-                    .collect();
+                // Reported region names: `<region>` or `<placement>_<region>`; regions with
+                // the same name add up (e.g. the four sides of a ring).
+                let mut region_names: Vec<String> = Vec::new();
+                let mut particles = Vec::new();
+                let mut region = Vec::new();
+                for i in 0..model.len() {
+                    if model.kind[i] != Kind::Free {
+                        continue;
+                    }
+                    if let Some(r) = c.regions.iter().position(|r| r.contains(&local[i])) {
+                        let base = &c.regions[r].name;
+                        let name = match placements[instance[i] as usize] {
+                            Some(p) if !base.is_empty() => format!("{}_{base}", p.name),
+                            _ => base.clone(),
+                        };
+                        let k = match region_names.iter().position(|n| *n == name) {
+                            Some(k) => k,
+                            None => {
+                                region_names.push(name);
+                                region_names.len() - 1
+                            }
+                        };
+                        particles.push(i as u32);
+                        region.push(k as u32);
+                    }
+                }
                 if particles.is_empty() {
                     return Err(SolverError::config(
                         "coupling.regions",
@@ -119,11 +207,20 @@ impl SpgSolver {
                 for &i in &particles {
                     model.kind[i as usize] = Kind::Coupled;
                 }
+                let n = particles.len();
+                let target_prev = particles.iter().map(|&i| model.x0[i as usize]).collect();
                 Some(CouplingRt {
                     interface: c.interface.clone(),
                     particles,
-                    quads: c.cells.clone(),
-                    ..Default::default()
+                    region,
+                    region_names,
+                    depth: vec![0.0; n],
+                    tang: vec![[0.0; 3]; n],
+                    anchored: false,
+                    target_prev,
+                    target_next: vec![[0.0; 3]; n],
+                    arm: vec![[0.0; 3]; n],
+                    ready: false,
                 })
             }
         };
@@ -156,15 +253,30 @@ impl SpgSolver {
         self.model.mass.iter().sum()
     }
 
+    /// Number of coupling particles (the interface's points).
+    pub fn coupling_points(&self) -> usize {
+        self.coupling.as_ref().map_or(0, |c| c.particles.len())
+    }
+
+    /// Support reaction of each velocity-BC group at the current time: the force the support
+    /// exerts on its particles, `Σ (m̂ a − f)`, with `a` the prescribed acceleration (nonzero
+    /// while the velocity ramps up) — the same definition as the shell's support reaction.
     fn bc_reactions(&self) -> Vec<[f64; 3]> {
+        let t = self.model.time;
         self.model
             .bcs
             .iter()
             .map(|g| {
+                let a = if g.ramp > 0.0 && t < g.ramp {
+                    g.velocity.map(|v| v / g.ramp)
+                } else {
+                    [0.0; 3]
+                };
                 let mut s = [0.0; 3];
                 for &i in &g.particles {
+                    let i = i as usize;
                     for d in 0..3 {
-                        s[d] -= self.model.f[i as usize][d];
+                        s[d] += self.model.mh[i] * a[d] - self.model.f[i][d];
                     }
                 }
                 s
@@ -172,59 +284,120 @@ impl SpgSolver {
             .collect()
     }
 
-    fn write_loads(c: &mut CouplingRt, model: &Model, out: &mut Outbox) {
-        for (k, &i) in c.particles.iter().enumerate() {
-            c.f[k] = model.f[i as usize];
-            let (_, arm) = coupling::follow(&c.proj[k], &c.x_prev, &c.n_prev);
-            c.arm[k] = arm;
-        }
-        let nodes = c.nodes;
-        let mut force = vec![0.0; 3 * nodes];
-        let mut moment = vec![0.0; 3 * nodes];
-        coupling::constraint_loads(&c.proj, &c.f, &c.arm, &mut force, &mut moment);
-        out.put(&c.interface, "force", 3, nodes)
-            .copy_from_slice(&force);
-        out.put(&c.interface, "moment", 3, nodes)
-            .copy_from_slice(&moment);
+    /// Mean displacement of each velocity-BC group.
+    fn bc_displacements(&self) -> Vec<[f64; 3]> {
+        self.model
+            .bcs
+            .iter()
+            .map(|g| {
+                let mut s = [0.0; 3];
+                for &i in &g.particles {
+                    for d in 0..3 {
+                        s[d] += self.model.x[i as usize][d] - self.model.x0[i as usize][d];
+                    }
+                }
+                s.map(|v| v / g.particles.len().max(1) as f64)
+            })
+            .collect()
     }
 
-    #[allow(clippy::type_complexity)]
-    fn read_motion(c: &CouplingRt, inbox: &Inbox) -> SolverResult<(Vec<[f64; 3]>, Vec<[f64; 3]>)> {
-        let n = c.nodes;
-        let x = to_vec3(inbox.require(&c.interface, "position", 3 * n)?);
-        let normals = if let Some(f) = inbox.get(&c.interface, "normal") {
-            if f.values.len() != 3 * n {
-                return Err(SolverError::interface(
-                    &c.interface,
-                    format!("'normal' has {} values, expected {}", f.values.len(), 3 * n),
-                ));
-            }
-            to_vec3(&f.values)
-        } else if let Some(f) = inbox.get(&c.interface, "rotation") {
-            if f.values.len() != 3 * n {
-                return Err(SolverError::interface(
-                    &c.interface,
-                    format!(
-                        "'rotation' has {} values, expected {}",
-                        f.values.len(),
-                        3 * n
-                    ),
-                ));
-            }
-            let r = to_vec3(&f.values);
-            (0..n)
-                .map(|k| coupling::rotate(&r[k], &c.n_ref[k]))
-                .collect()
-        } else {
-            coupling::node_normals(&x, &c.quads)
+    /// Force the body exerts on the coupling particles, summed per region (the joint force
+    /// carried through each coupling surface; eq. 33 before the mapping).
+    fn region_forces(&self) -> Vec<[f64; 3]> {
+        let Some(c) = &self.coupling else {
+            return Vec::new();
         };
-        if x.iter().flatten().any(|v| !v.is_finite()) {
-            return Err(SolverError::interface(
-                &c.interface,
-                "non-finite 'position'",
-            ));
+        let mut s = vec![[0.0; 3]; c.region_names.len()];
+        for (k, &i) in c.particles.iter().enumerate() {
+            for d in 0..3 {
+                s[c.region[k] as usize][d] += self.model.f[i as usize][d];
+            }
         }
-        Ok((x, normals))
+        s
+    }
+
+    /// The constraint loads per coupling particle (eq. 33 before the `Wᵀ` mapping): the
+    /// internal force `f_I` and the moment `a_I × f_I` about the mid-surface.
+    fn write_loads(c: &CouplingRt, model: &Model, out: &mut Outbox) {
+        let n = c.particles.len();
+        {
+            let f = out.put(&c.interface, "force", 3, n);
+            for (k, &i) in c.particles.iter().enumerate() {
+                f[3 * k..3 * k + 3].copy_from_slice(&model.f[i as usize]);
+            }
+        }
+        let m = out.put(&c.interface, "moment", 3, n);
+        for (k, &i) in c.particles.iter().enumerate() {
+            m[3 * k..3 * k + 3].copy_from_slice(&cross(&c.arm[k], &model.f[i as usize]));
+        }
+    }
+
+    /// The driver's motion at the end of the window, per particle → target positions and
+    /// lever arms (eq. 31). `span` is the window length (for the first-window reference).
+    fn read_motion(
+        c: &mut CouplingRt,
+        model: &Model,
+        inbox: &Inbox,
+        span: f64,
+    ) -> SolverResult<()> {
+        let n = c.particles.len();
+        let itf = c.interface.clone();
+        let pos = field3(inbox, &itf, "position", n)?.ok_or_else(|| {
+            SolverError::interface(&itf, "no 'position' received from the driver")
+        })?;
+        let normal = field3(inbox, &itf, "normal", n)?;
+        let rotation = field3(inbox, &itf, "rotation", n)?;
+        if !c.anchored {
+            // Reference foot points W X_d: position − displacement, or position minus the
+            // window's motion (the driver's velocity is its mean over the window).
+            let disp = field3(inbox, &itf, "displacement", n)?;
+            let vel = field3(inbox, &itf, "velocity", n)?;
+            for (k, &i) in c.particles.iter().enumerate() {
+                let p = at(pos, k);
+                let foot0: [f64; 3] = match (disp, vel) {
+                    (Some(u), _) => std::array::from_fn(|d| p[d] - u[3 * k + d]),
+                    (None, Some(v)) => std::array::from_fn(|d| p[d] - span * v[3 * k + d]),
+                    (None, None) => {
+                        return Err(SolverError::interface(
+                            &itf,
+                            "the first window needs 'displacement' or 'velocity' to find the reference mid-surface",
+                        ));
+                    }
+                };
+                let x0 = model.x0[i as usize];
+                let a0: [f64; 3] = std::array::from_fn(|d| x0[d] - foot0[d]);
+                match normal {
+                    Some(nv) => {
+                        // Reference normal: the current one rotated back (exact for a
+                        // uniform rotation; at the first window the rotation is ~0 anyway).
+                        let nt = unit(at(nv, k));
+                        let n0 = match rotation {
+                            Some(r) => {
+                                let th = at(r, k);
+                                unit(coupling::rotate(&th.map(|v| -v), &nt))
+                            }
+                            None => nt,
+                        };
+                        let d = dot(&a0, &n0);
+                        c.depth[k] = d;
+                        c.tang[k] = std::array::from_fn(|q| a0[q] - d * n0[q]);
+                    }
+                    None => {
+                        c.depth[k] = 0.0;
+                        c.tang[k] = a0;
+                    }
+                }
+            }
+            c.anchored = true;
+        }
+        for k in 0..n {
+            let nb = normal.map_or([0.0; 3], |nv| unit(at(nv, k)));
+            let p = at(pos, k);
+            let arm: [f64; 3] = std::array::from_fn(|d| c.depth[k] * nb[d] + c.tang[k][d]);
+            c.arm[k] = arm;
+            c.target_next[k] = std::array::from_fn(|d| p[d] + arm[d]);
+        }
+        Ok(())
     }
 }
 
@@ -235,7 +408,7 @@ impl Solver for SpgSolver {
             .iter()
             .map(|c| InterfaceInfo {
                 name: c.interface.clone(),
-                points: c.nodes,
+                points: c.particles.len(),
                 provides: vec![
                     "mass".into(),
                     "stiffness".into(),
@@ -245,6 +418,7 @@ impl Solver for SpgSolver {
                 accepts: vec![
                     "position".into(),
                     "velocity".into(),
+                    "displacement".into(),
                     "normal".into(),
                     "rotation".into(),
                 ],
@@ -257,104 +431,57 @@ impl Solver for SpgSolver {
         }
     }
 
+    /// One point per coupling particle, at its reference position.
     fn interface(&self, name: &str) -> SolverResult<InterfaceMesh> {
         match &self.coupling {
             Some(c) if c.interface == name => Ok(InterfaceMesh::points(
                 c.particles
                     .iter()
-                    .map(|&i| self.model.x[i as usize])
+                    .map(|&i| self.model.x0[i as usize])
                     .collect(),
             )),
             _ => Err(SolverError::interface(name, "no such interface")),
         }
     }
 
-    /// The set-up inbox carries the driver's interface mesh in its layout: `position` (3 per
-    /// shell node), optionally `normal` (3) and `cells` (4 node indices per quad, as f64),
-    /// else the cells come from `coupling.cells`. Writes `mass`, `stiffness`, `force`,
-    /// `moment` per shell node.
+    /// Writes, per coupling particle, its lumped (scaled) mass, a stiffness bound
+    /// `k = m̂ ω²` with `ω = 2c/h` the particle's frequency bound (its stable step is
+    /// `cfl·h/c = cfl·2/ω`, so `ω = 2·cfl/Δt`; the driver applies its own safety factor), and the
+    /// constraint force and moment at t0 (the moment is zero before the lever arms are known;
+    /// so is the force of an unstressed start).
     fn setup(&mut self, bindings: &[Binding], inbox: &Inbox, out: &mut Outbox) -> SolverResult<()> {
-        let _ = bindings;
+        let _ = inbox;
         let Some(c) = self.coupling.as_mut() else {
-            return Ok(());
-        };
-        let pos = inbox.get(&c.interface, "position").ok_or_else(|| {
-            SolverError::interface(&c.interface, "no 'position' of the driver mesh at set-up")
-        })?;
-        if pos.values.len() % 3 != 0 || pos.values.is_empty() {
-            return Err(SolverError::interface(
-                &c.interface,
-                "'position' must hold 3 values per node",
-            ));
-        }
-        c.nodes = pos.values.len() / 3;
-        let x = to_vec3(&pos.values);
-        if let Some(cells) = inbox.get(&c.interface, "cells") {
-            if cells.values.len() % 4 != 0 {
+            if let Some(b) = bindings.first() {
                 return Err(SolverError::interface(
-                    &c.interface,
-                    "'cells' must hold 4 node indices per quad",
+                    &b.interface,
+                    "this mc-spg node has no [coupling] table",
                 ));
             }
-            c.quads = cells
-                .values
-                .chunks_exact(4)
-                .map(|q| std::array::from_fn(|k| q[k] as u32))
-                .collect();
-        }
-        if c.quads.is_empty() {
-            return Err(SolverError::config(
-                "coupling.cells",
-                "no quad cells for the driver mesh (params or 'cells' field)",
-            ));
-        }
-        if c.quads.iter().flatten().any(|&k| k as usize >= c.nodes) {
-            return Err(SolverError::interface(
-                &c.interface,
-                "a cell refers to a node beyond 'position'",
-            ));
-        }
-        let normals = match inbox.get(&c.interface, "normal") {
-            Some(f) if f.values.len() == 3 * c.nodes => to_vec3(&f.values)
-                .into_iter()
-                .map(|n| {
-                    let l = crate::shape::norm(&n);
-                    n.map(|v| v / l)
-                })
-                .collect(),
-            _ => coupling::node_normals(&x, &c.quads),
+            return Ok(());
         };
-        let px: Vec<[f64; 3]> = c
-            .particles
-            .iter()
-            .map(|&i| self.model.x0[i as usize])
-            .collect();
-        c.proj = coupling::project(&px, &x, &normals, &c.quads);
-        c.n_ref = normals.clone();
-        c.x_prev = x.clone();
-        c.n_prev = normals.clone();
-        c.xs = x;
-        c.ns = normals;
-        c.f = vec![[0.0; 3]; c.particles.len()];
-        c.arm = vec![[0.0; 3]; c.particles.len()];
-        c.ready = true;
-        // Lumped mass and a stiffness bound k = m (2/Δt)² per particle, mapped with Wᵀ.
-        let dt = self.model.stable_dt();
-        let mut mass = vec![0.0; c.nodes];
-        let mut stiff = vec![0.0; c.nodes];
-        for (k, &i) in c.particles.iter().enumerate() {
-            let m = self.model.mh[i as usize];
-            for a in 0..4 {
-                let j = c.proj[k].nodes[a] as usize;
-                mass[j] += c.proj[k].weights[a] * m;
-                stiff[j] += c.proj[k].weights[a] * m * (2.0 / dt).powi(2);
+        if let Some(b) = bindings.iter().find(|b| b.interface != c.interface) {
+            return Err(SolverError::interface(
+                &b.interface,
+                format!("no such interface (this node's is '{}')", c.interface),
+            ));
+        }
+        let n = c.particles.len();
+        let omega = 2.0 * self.model.p.cfl / self.model.stable_dt();
+        {
+            let mass = out.put(&c.interface, "mass", 1, n);
+            for (k, &i) in c.particles.iter().enumerate() {
+                mass[k] = self.model.mh[i as usize];
             }
         }
-        out.put(&c.interface, "mass", 1, c.nodes)
-            .copy_from_slice(&mass);
-        out.put(&c.interface, "stiffness", 1, c.nodes)
-            .copy_from_slice(&stiff);
+        {
+            let stiff = out.put(&c.interface, "stiffness", 1, n);
+            for (k, &i) in c.particles.iter().enumerate() {
+                stiff[k] = self.model.mh[i as usize] * omega * omega;
+            }
+        }
         SpgSolver::write_loads(c, &self.model, out);
+        c.ready = true;
         Ok(())
     }
 
@@ -378,28 +505,21 @@ impl Solver for SpgSolver {
                     "advance before set-up",
                 ));
             }
-            let (x, n) = SpgSolver::read_motion(c, inbox)?;
-            c.x_next = x;
-            c.n_next = n;
+            SpgSolver::read_motion(c, &self.model, inbox, span)?;
         }
         let dt_stable = self.model.stable_dt();
-        let nsub = ((span / dt_stable).ceil() as u64).max(1);
+        let nsub = ((span / dt_stable * (1.0 - 1e-9)).ceil() as u64).max(1);
         let dt = span / nsub as f64;
         for k in 0..nsub {
-            if let Some(c) = self.coupling.as_mut() {
-                // Driver motion interpolated in time (eq. 31–32): positions linearly, normals
-                // linearly then normalised.
+            if let Some(c) = self.coupling.as_ref() {
+                // Driver motion interpolated linearly in time between the synchronisation
+                // times (eq. 31–32); the velocity lands each particle on its target.
                 let s = (k + 1) as f64 / nsub as f64;
-                for j in 0..c.nodes {
-                    for d in 0..3 {
-                        c.xs[j][d] = (1.0 - s) * c.x_prev[j][d] + s * c.x_next[j][d];
-                        c.ns[j][d] = (1.0 - s) * c.n_prev[j][d] + s * c.n_next[j][d];
-                    }
-                }
                 for (q, &i) in c.particles.iter().enumerate() {
-                    let (target, _) = coupling::follow(&c.proj[q], &c.xs, &c.ns);
+                    let (a, b) = (c.target_prev[q], c.target_next[q]);
                     let x = self.model.x[i as usize];
-                    self.model.presc[i as usize] = std::array::from_fn(|d| (target[d] - x[d]) / dt);
+                    self.model.presc[i as usize] =
+                        std::array::from_fn(|d| ((1.0 - s) * a[d] + s * b[d] - x[d]) / dt);
                 }
             }
             self.model.velocity_phase(dt);
@@ -411,22 +531,16 @@ impl Solver for SpgSolver {
                 })?;
         }
         if let Some(c) = self.coupling.as_mut() {
-            std::mem::swap(&mut c.x_prev, &mut c.x_next);
-            std::mem::swap(&mut c.n_prev, &mut c.n_next);
+            std::mem::swap(&mut c.target_prev, &mut c.target_next);
             SpgSolver::write_loads(c, &self.model, out);
         }
         let reactions = self.bc_reactions();
-        let mut ctot = [0.0; 3];
-        if let Some(c) = &self.coupling {
-            for &i in &c.particles {
-                for d in 0..3 {
-                    ctot[d] += self.model.f[i as usize][d];
-                }
-            }
-        }
+        let displacements = self.bc_displacements();
+        let regions = self.region_forces();
         let every = self.params.history_every.max(1);
         if w.index.is_multiple_of(every) {
-            self.history.push((w.t1, reactions.clone(), ctot));
+            self.history
+                .push((w.t1, reactions.clone(), regions.clone()));
         }
         let ke = self.model.kinetic_energy();
         let ie = self.model.internal_energy();
@@ -443,8 +557,20 @@ impl Solver for SpgSolver {
             ("broken_bonds".to_string(), self.model.broken_bonds as f64),
             ("max_eq_plastic_strain".to_string(), self.model.max_eps),
         ];
-        for (g, r) in self.model.bcs.iter().zip(&reactions) {
+        for ((g, r), u) in self.model.bcs.iter().zip(&reactions).zip(&displacements) {
             scalars.push((format!("force_{}_x", g.name), r[0]));
+            scalars.push((format!("displacement_{}_x", g.name), u[0]));
+        }
+        if let Some(c) = &self.coupling {
+            for (name, f) in c.region_names.iter().zip(&regions) {
+                if name.is_empty() {
+                    continue;
+                }
+                for (d, axis) in ["x", "y", "z"].iter().enumerate() {
+                    scalars.push((format!("force_{name}_{axis}"), f[d]));
+                }
+                scalars.push((format!("force_{name}"), norm(f)));
+            }
         }
         Ok(StepReport {
             kinetic_energy: ke,
@@ -467,18 +593,28 @@ impl Solver for SpgSolver {
     fn write_output(&self, t: f64, window: u64, dir: &Path) -> SolverResult<()> {
         std::fs::create_dir_all(dir)?;
         crate::output::write_vtu(&self.model, &dir.join(format!("joint_{window:06}.vtu")), t)?;
-        let mut csv = std::fs::File::create(dir.join("joint_force.csv"))?;
+        let mut csv = std::io::BufWriter::new(std::fs::File::create(dir.join("joint_force.csv"))?);
         write!(csv, "time")?;
         for g in &self.model.bcs {
             write!(csv, ",{0}_fx,{0}_fy,{0}_fz", g.name)?;
         }
-        writeln!(csv, ",coupling_fx,coupling_fy,coupling_fz")?;
+        if let Some(c) = &self.coupling {
+            for (k, name) in c.region_names.iter().enumerate() {
+                let name = if name.is_empty() {
+                    format!("region{k}")
+                } else {
+                    name.clone()
+                };
+                write!(csv, ",{name}_fx,{name}_fy,{name}_fz")?;
+            }
+        }
+        writeln!(csv)?;
         for (t, r, c) in &self.history {
             write!(csv, "{t:e}")?;
-            for f in r {
+            for f in r.iter().chain(c) {
                 write!(csv, ",{:e},{:e},{:e}", f[0], f[1], f[2])?;
             }
-            writeln!(csv, ",{:e},{:e},{:e}", c[0], c[1], c[2])?;
+            writeln!(csv)?;
         }
         Ok(())
     }

@@ -6,7 +6,8 @@
 #![allow(clippy::needless_range_loop)]
 
 use meso_joint_node::factory;
-use protocol::{Field, FieldSet, SolverError, Window};
+use protocol::mapping::Mapping;
+use protocol::{CellKind, Cells, Field, FieldSet, InterfaceMesh, SolverError, Window};
 
 fn base() -> toml::Table {
     toml::from_str(
@@ -64,9 +65,9 @@ fn bad_input_is_refused_with_the_key_named() {
 }
 
 /// Two shell strips (one quad each) over the ends of the block, mid-surface z = 1 mm.
-fn shell_nodes() -> Vec<[f64; 3]> {
+fn shell_mesh() -> InterfaceMesh {
     let z = 1e-3;
-    vec![
+    let positions = vec![
         [0.0, 0.0, z],
         [1e-3, 0.0, z],
         [1e-3, 2e-3, z],
@@ -75,11 +76,41 @@ fn shell_nodes() -> Vec<[f64; 3]> {
         [6e-3, 0.0, z],
         [6e-3, 2e-3, z],
         [5e-3, 2e-3, z],
-    ]
+    ];
+    InterfaceMesh {
+        ids: (0..8).collect(),
+        normals: vec![[0.0, 0.0, 1.0]; 8],
+        weights: vec![0.5e-6; 8],
+        positions,
+        cells: Some(Cells {
+            kind: CellKind::Quad,
+            connectivity: vec![0, 1, 2, 3, 4, 5, 6, 7],
+        }),
+    }
 }
 
 fn flat(v: &[[f64; 3]]) -> Vec<f64> {
     v.iter().flatten().copied().collect()
+}
+
+/// The driver's node field `name` mapped onto the particles with `W`, as the participant
+/// runtime does (`v_r = W v_d`).
+fn motion(w: &Mapping, name: &str, nodes: &[f64]) -> Field {
+    let mut values = vec![0.0; 3 * w.n_responder()];
+    w.map_motion(nodes, 3, &mut values).unwrap();
+    Field {
+        name: name.into(),
+        components: 3,
+        values,
+    }
+}
+
+/// A particle load field mapped back onto the shell nodes with `Wᵀ`.
+fn load(w: &Mapping, out: &FieldSet, name: &str, c: usize) -> Vec<f64> {
+    let f = out.require("shell", name, c * w.n_responder()).unwrap();
+    let mut d = vec![0.0; c * w.n_driver()];
+    w.map_load(f, c, &mut d).unwrap();
+    d
 }
 
 #[test]
@@ -88,7 +119,7 @@ fn stand_in_driver_gets_the_support_reactions_and_the_power_balances() {
     // Responder: coupling particles in the two end regions.
     let mut tc = base();
     let c: toml::Table = toml::from_str(
-        "interface = \"shell\"\ncells = [[0, 1, 2, 3], [4, 5, 6, 7]]\nregions = [{ lo = [-1.0, -1.0, -1.0], hi = [1e-3, 1.0, 1.0] }, { lo = [5e-3, -1.0, -1.0], hi = [1.0, 1.0, 1.0] }]",
+        "interface = \"shell\"\nregions = [{ name = \"left\", lo = [-1.0, -1.0, -1.0], hi = [1e-3, 1.0, 1.0] }, { name = \"right\", lo = [5e-3, -1.0, -1.0], hi = [1.0, 1.0, 1.0] }]",
     )
     .unwrap();
     tc.insert("coupling".into(), toml::Value::Table(c));
@@ -104,20 +135,15 @@ fn stand_in_driver_gets_the_support_reactions_and_the_power_balances() {
     }
     let mut supported = factory("mc-spg", &tb).unwrap();
 
-    let mut x = shell_nodes();
-    let mut setup_in = FieldSet::new();
-    setup_in.insert(
-        "shell",
-        Field {
-            name: "position".into(),
-            components: 3,
-            values: flat(&x),
-        },
-    );
+    // The mapping the runtime builds: particles projected onto the shell quads (eq. 29).
+    let mesh = shell_mesh();
+    let own = coupled.interface("shell").unwrap();
+    let w = Mapping::consistent(&mesh, &own.positions).unwrap();
+    let mut x = mesh.positions.clone();
     let mut out = FieldSet::new();
-    coupled.setup(&[], &setup_in, &mut out).unwrap();
-    let mass = out.require("shell", "mass", 8).unwrap().to_vec();
-    let stiff = out.require("shell", "stiffness", 8).unwrap().to_vec();
+    coupled.setup(&[], &FieldSet::new(), &mut out).unwrap();
+    let mass = load(&w, &out, "mass", 1);
+    let stiff = load(&w, &out, "stiffness", 1);
     // 2 end layers × 4 × 4 particles at each end, 0.5 mm lattice, ρ 7850.
     let m_expected = 2.0 * 32.0 * 0.125e-9 * 7850.0;
     let m_sum: f64 = mass.iter().sum();
@@ -135,37 +161,31 @@ fn stand_in_driver_gets_the_support_reactions_and_the_power_balances() {
     let mut f_prev = vec![0.0; 24];
     let (mut p_driver, mut p_resp) = (0.0, 0.0);
     let mut sup_out = FieldSet::new();
-    for w in 1..=20u64 {
-        for (k, p) in x.iter_mut().enumerate() {
-            p[0] += window * node_v[k][0];
+    for k in 1..=20u64 {
+        for (i, p) in x.iter_mut().enumerate() {
+            p[0] += window * node_v[i][0];
         }
         let mut inbox = FieldSet::new();
-        inbox.insert(
-            "shell",
-            Field {
-                name: "position".into(),
-                components: 3,
-                values: flat(&x),
-            },
-        );
+        inbox.insert("shell", motion(&w, "position", &flat(&x)));
+        inbox.insert("shell", motion(&w, "velocity", &flat(&node_v)));
+        inbox.insert("shell", motion(&w, "normal", &flat(&mesh.normals)));
         let win = Window {
-            index: w,
-            t0: (w - 1) as f64 * window,
-            t1: w as f64 * window,
+            index: k,
+            t0: (k - 1) as f64 * window,
+            t1: k as f64 * window,
             write_output: false,
         };
         let rc = coupled.advance(&win, &inbox, &mut out).unwrap();
         let rs = supported
             .advance(&win, &FieldSet::new(), &mut sup_out)
             .unwrap();
-        let f = out.require("shell", "force", 24).unwrap().to_vec();
+        let f = load(&w, &out, "force", 3);
         let right: f64 = (4..8).map(|k| f[3 * k]).sum();
-        let reaction = rs
-            .scalars
-            .iter()
-            .find(|(n, _)| n == "force_right_x")
-            .unwrap()
-            .1;
+        let scalar =
+            |r: &protocol::StepReport, n: &str| r.scalars.iter().find(|(m, _)| m == n).unwrap().1;
+        let reaction = scalar(&rs, "force_right_x");
+        // The region sum reported by the coupled node is the same force before the mapping.
+        assert!((scalar(&rc, "force_right_x") - right).abs() <= 1e-9 * right.abs());
         worst = worst.max((right + reaction).abs() / reaction.abs().max(1e-30));
         // Interface power: driver side uses the nodal forces and velocities; the responder
         // side its own interface work (Σ f·v of its coupling particles), both trapezoidal.
@@ -230,4 +250,125 @@ fn bolted_plate_geometry_builds_and_steps() {
         .unwrap();
     assert!(r.substeps >= 10);
     assert!(r.kinetic_energy.is_finite() && r.internal_energy >= 0.0);
+}
+
+/// Several joints in one node (`placements`): each copy is the local geometry moved rigidly
+/// into its frame, the copies never bond to each other, coupling regions apply in the local
+/// frame of every copy and are reported per copy; a bad placement is refused by name.
+#[test]
+fn placements_copy_the_joint_rigidly_and_report_per_copy() {
+    let base = r#"
+        spacing = 0.5e-3
+        kernel_support = 1.0e-3
+        density = 7850.0
+        young = 210e9
+        poisson = 0.3
+        yield_stress = 0.2e9
+        tangent_modulus = 20e9
+        eps_crit = 0.1
+        geometry = { kind = "bolted-plates", width = 6e-3, length = 6e-3, overlap = 6e-3, bolt_radius = 1e-3, head_radius = 2e-3, head_height = 1e-3 }
+        coupling = { regions = [{ name = "a", lo = [-1.0, -1.0, -1.0], hi = [0.5e-3, 1.0, 1.0e-3] }] }
+        "#;
+    let one: toml::Table = toml::from_str(base).unwrap();
+    let mut two: toml::Table = toml::from_str(base).unwrap();
+    let pl: toml::Value = toml::from_str::<toml::Table>(
+        r#"p = [
+          { name = "p", origin = [0.0, 0.0, 0.0] },
+          { name = "q", origin = [0.1, 0.2, 0.3], x_axis = [0.0, 0.0, 1.0], z_axis = [0.0, -1.0, 0.0], bolt_radius = 1.5e-3 },
+        ]"#,
+    )
+    .unwrap()["p"]
+        .clone();
+    two.insert("placements".into(), pl);
+    let s1 = meso_joint_node::solver::SpgSolver::new(
+        meso_joint_node::config::Params::from_table(&one).unwrap(),
+    )
+    .unwrap();
+    let s2 = meso_joint_node::solver::SpgSolver::new(
+        meso_joint_node::config::Params::from_table(&two).unwrap(),
+    )
+    .unwrap();
+    let n1 = s1.model.len();
+    // Copy "q" has a wider shank: fewer plate particles, more bolt particles.
+    assert!(s2.model.len() > n1 && s2.model.len() < 2 * n1 + n1 / 2);
+    // Copy "p" is the unplaced geometry, particle for particle.
+    for i in 0..n1 {
+        assert_eq!(s2.model.x0[i], s1.model.x0[i]);
+    }
+    // Copy "q": local (x, y, z) ↦ origin + x ẑ + y (−ŷ × ẑ = −x̂) + z (−ŷ).
+    let q0 = s2.model.x0[n1];
+    let l0 = s1.model.x0[0];
+    let want = [0.1 - l0[1], 0.2 - l0[2], 0.3 + l0[0]];
+    for d in 0..3 {
+        assert!((q0[d] - want[d]).abs() < 1e-15, "{q0:?} vs {want:?}");
+    }
+    // No bond between the copies (they are 0.37 m apart anyway; parts differ).
+    let rows = &s2.model.rows;
+    for i in 0..s2.model.len() {
+        for p in rows.range(i) {
+            let j = rows.cols[p] as usize;
+            assert_eq!(i < n1, j < n1, "bond {i}–{j} across copies");
+        }
+    }
+    // Both copies couple the same local region; region forces are named per copy.
+    assert_eq!(s2.coupling_points(), 2 * s1.coupling_points());
+    let d = protocol::Solver::describe(&s2);
+    assert_eq!(d.interfaces[0].points, s2.coupling_points());
+    let mut bad = two.clone();
+    bad["placements"].as_array_mut().unwrap()[1]
+        .as_table_mut()
+        .unwrap()
+        .insert("name".into(), "p".into());
+    assert_eq!(key_of(factory("mc-spg", &bad)), "placements[1].name");
+    let mut bad = two.clone();
+    bad["placements"].as_array_mut().unwrap()[1]
+        .as_table_mut()
+        .unwrap()
+        .insert(
+            "x_axis".into(),
+            toml::Value::try_from([0.0, 2.0, 0.0]).unwrap(),
+        );
+    assert_eq!(key_of(factory("mc-spg", &bad)), "placements[1]");
+}
+
+/// Tearing through (bond failure, eq. 15–17, with `separation_weight`): a bar pulled apart
+/// with a small ε_crit runs through separation without diverging, and its end force drops
+/// from its peak to a small fraction once it has torn.
+#[test]
+fn a_bar_pulled_apart_tears_and_its_force_drops() {
+    let mut t = base();
+    let extra: toml::Table = toml::from_str(
+        r#"
+        eps_crit = 0.02
+        separation_weight = 0.9
+        velocity_bc = [
+          { name = "left", velocity = [-0.5, 0.0, 0.0], region = { lo = [-1.0, -1.0, -1.0], hi = [1e-3, 1.0, 1.0] } },
+          { name = "right", velocity = [0.5, 0.0, 0.0], region = { lo = [5e-3, -1.0, -1.0], hi = [1.0, 1.0, 1.0] } },
+        ]
+        "#,
+    )
+    .unwrap();
+    for (k, v) in extra {
+        t.insert(k, v);
+    }
+    let mut s = factory("mc-spg", &t).unwrap();
+    let (inbox, mut out) = (FieldSet::new(), FieldSet::new());
+    let (mut peak, mut last, mut broken) = (0.0f64, 0.0, 0.0);
+    let w = 2e-6;
+    for k in 1..=250u64 {
+        let win = Window {
+            index: k,
+            t0: (k - 1) as f64 * w,
+            t1: k as f64 * w,
+            write_output: false,
+        };
+        let r = s.advance(&win, &inbox, &mut out).unwrap();
+        let get = |n: &str| r.scalars.iter().find(|(m, _)| m == n).unwrap().1;
+        last = get("force_right_x");
+        peak = peak.max(last);
+        broken = get("broken_bonds");
+    }
+    eprintln!("tearing: peak {peak:.2} N, final {last:.3} N, {broken} bonds broken");
+    assert!(peak > 0.0 && broken > 0.0);
+    assert!(last.abs() < 0.1 * peak, "{last} of {peak}");
 }
