@@ -533,31 +533,8 @@ fn run_node(binary: &str, factory: SolverFactory, args: &NodeArgs) -> anyhow::Re
         w.send_up(&Message::Failed(Failed { reason }))?;
         Ok(1)
     };
-    let params: toml::Table = match toml::from_str(&welcome.params_toml) {
-        Ok(p) => p,
-        Err(e) => return fail(&mut w, format!("params: {}", e.message())),
-    };
-    let solver = match factory(&welcome.model, &params) {
-        Ok(s) => s,
-        Err(SolverError::Config { key, reason }) => {
-            return fail(
-                &mut w,
-                format!("nodes.{}.params.{key}: {reason}", args.node),
-            );
-        }
-        Err(e) => return fail(&mut w, e.to_string()),
-    };
-    let mut engine = NodeEngine::new(solver, &welcome.bindings);
-    for b in &welcome.bindings {
-        w.t.subscribe(&topic::data(&welcome.run, &b.coupling, &b.peer))?;
-        let readers = vec![b.peer.clone(), "coordinator".to_string()];
-        let p = w.t.publisher(
-            &topic::data(&welcome.run, &b.coupling, &args.node),
-            &readers,
-        )?;
-        w.data.push((b.coupling.clone(), p));
-    }
-    // Heartbeats from a thread, so a long window does not look like a hang.
+    // Heartbeats from a thread, from now on: building the solver (a GPU node compiles its
+    // shaders) or a long window must not look like a hang.
     let alive = Arc::new(AtomicBool::new(true));
     let progress = Arc::new(Progress::default());
     let hb = {
@@ -587,13 +564,53 @@ fn run_node(binary: &str, factory: SolverFactory, args: &NodeArgs) -> anyhow::Re
             }
         })
     };
-    let result = node_loop(&mut w, &mut engine, &welcome, &args.node, &progress);
+    let result = build_and_run(&mut w, factory, &welcome, args, &progress);
     alive.store(false, Ordering::Relaxed);
     let _ = hb.join();
     match result {
-        Ok(code) => Ok(code),
-        Err(e) => fail(&mut w, format!("{e:#}")),
+        Ok(Ok(code)) => Ok(code),
+        Ok(Err(reason)) | Err(reason) => fail(&mut w, reason),
     }
+}
+
+/// Build the solver from the Welcome, wire its couplings and run the window loop. `Ok(Err)`
+/// is a refused set-up (a bad parameter), `Err` a failure while running: both are reported
+/// to the coordinator by the caller.
+fn build_and_run(
+    w: &mut Wire,
+    factory: SolverFactory,
+    welcome: &Welcome,
+    args: &NodeArgs,
+    progress: &Progress,
+) -> Result<Result<i32, String>, String> {
+    let params: toml::Table = match toml::from_str(&welcome.params_toml) {
+        Ok(p) => p,
+        Err(e) => return Ok(Err(format!("params: {}", e.message()))),
+    };
+    let solver = match factory(&welcome.model, &params) {
+        Ok(s) => s,
+        Err(SolverError::Config { key, reason }) => {
+            return Ok(Err(format!("nodes.{}.params.{key}: {reason}", args.node)));
+        }
+        Err(e) => return Ok(Err(e.to_string())),
+    };
+    let mut engine = NodeEngine::new(solver, &welcome.bindings);
+    let wire = |w: &mut Wire| -> anyhow::Result<()> {
+        for b in &welcome.bindings {
+            w.t.subscribe(&topic::data(&welcome.run, &b.coupling, &b.peer))?;
+            let readers = vec![b.peer.clone(), "coordinator".to_string()];
+            let p = w.t.publisher(
+                &topic::data(&welcome.run, &b.coupling, &args.node),
+                &readers,
+            )?;
+            w.data.push((b.coupling.clone(), p));
+        }
+        Ok(())
+    };
+    wire(w).map_err(|e| format!("{e:#}"))?;
+    node_loop(w, &mut engine, welcome, &args.node, progress)
+        .map(Ok)
+        .map_err(|e| format!("{e:#}"))
 }
 
 /// What the heartbeat thread reports of the main loop.
