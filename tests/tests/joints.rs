@@ -121,13 +121,19 @@ fn coupon_two_scale_matches_single_scale_up_to_the_peak() {
         single.to_str().expect("utf-8"),
         "--series",
         "coupon.force_right_x",
+        "--x",
+        "coupon.displacement_right_x",
         "-o",
         dir.to_str().expect("utf-8"),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let png = std::fs::read(dir.join("coupon_force_right_x.png")).expect("plot written");
+    let png = std::fs::read(dir.join("coupon_force_right_x_vs_coupon_displacement_right_x.png"))
+        .expect("force–displacement plot written");
     assert!(png.len() > 1000 && png.starts_with(b"\x89PNG"));
     for out in [&single, &two] {
+        // Every VTK file of both runs (shell elements, SPG particles) opens with meshio.
+        let (ok, text) = check_vtk(out, &[]);
+        assert!(ok, "check_vtk {}: {text}", out.display());
         let p = out.join("plots/coupon_force_right_x.png");
         assert!(
             std::fs::metadata(&p)
