@@ -6,8 +6,11 @@
 //! over its own compressed row of bonds (no atomics, no scatter), so the result is the CPU's
 //! to round-off; broken bonds are zeroed in the thread's own row, as on the CPU.
 //!
-//! Data: particle arrays packed into one real buffer (pos | vel | force | fext | vpres | vol,
-//! 3 reals per vector), per-particle/per-bond integers into one u32 buffer (prescribed |
+//! [`DeviceBody`] is what the node's solver (`device = "gpu"`) drives: one of the two bodies,
+//! the external force uploaded per window, the state read back at window ends.
+//!
+//! Data: particle arrays packed into one real buffer (pos | vel | force | fext | vpres | vol |
+//! window work | window internal-force impulse, 3 reals per vector), per-particle/per-bond integers into one u32 buffer (prescribed |
 //! offsets | nbr), per-bond reals into one (inv_len | coef).
 
 use super::bond::BondModel;
@@ -23,11 +26,14 @@ use mechanics::j2::J2State;
 use std::sync::Arc;
 
 const WG: u32 = 64;
+/// Reals per particle in the particle buffer: pos, vel, force, fext, vpres (3 each), vol,
+/// and the window accumulators (work 1, impulse 3).
+const PV_REALS: usize = 20;
 
 const SHADER: &str = r#"
 struct P { n: u32, nb: u32, pad0: u32, pad1: u32, dt: real, half_dt: real, rho: real, bf: real }
 @group(0) @binding(0) var<uniform> pp: P;
-// pos 0, vel 3n, force 6n, fext 9n, vpres 12n, vol 15n
+// pos 0, vel 3n, force 6n, fext 9n, vpres 12n, vol 15n, work 16n, impulse 17n
 @group(0) @binding(1) var<storage, read_write> pv: array<real>;
 // prescribed 0, offsets n, nbr 2n+1
 @group(0) @binding(2) var<storage, read> iu: array<u32>;
@@ -35,6 +41,19 @@ struct P { n: u32, nb: u32, pad0: u32, pad1: u32, dt: real, half_dt: real, rho: 
 @group(0) @binding(3) var<storage, read_write> bd: array<real>;
 
 fn lin(gid: vec3<u32>, nwg: vec3<u32>) -> u32 { return gid.x + gid.y * nwg.x * 64u; }
+
+// The window sums of the node's report (solver.rs, per step after the last kick): the work
+// of the external force at the end-of-step velocity, Σ (f_ext dt)·v (16n), and the impulse
+// of the internal force, Σ (f V) dt (17n, 3 per particle). Cleared by the host each window.
+fn accumulate(i: u32, n: u32, dt: real) {
+    var w = real(0.0);
+    for (var d = 0u; d < 3u; d++) {
+        let k = 3u * i + d;
+        w += pv[9u * n + k] * dt * pv[3u * n + k];
+        pv[17u * n + k] += pv[6u * n + k] * pv[15u * n + i] * dt;
+    }
+    pv[16u * n + i] += w;
+}
 
 // integrate.rs kick(): v += dt/2 (f/ρ + f_ext/(ρV)), or the prescribed velocity
 fn kick(i: u32) {
@@ -67,6 +86,7 @@ fn kick_only(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgro
     let i = lin(gid, nwg);
     if i >= pp.n { return; }
     kick(i);
+    accumulate(i, pp.n, pp.dt);
 }
 
 // bond.rs row_force(): f_i = Σ_j c_ij (1/|ξ| − 1/|y|) y, breaking bonds with s > s0 first
@@ -155,11 +175,13 @@ impl GpuBondBody {
         // BondModel::new: break_factor = 1/(1+s0), 0 without damage
         let bf = critical_stretch.map_or(0.0, |s0| 1.0 / (1.0 + s0));
         let module = ctx.shader("pd-bond", &format!("alias real = {};\n{SHADER}", p.wgsl()))?;
-        let mut reals = Vec::with_capacity(16 * n);
+        let mut reals = Vec::with_capacity(PV_REALS * n);
         for a in [&body.pos, &body.vel, &body.force, &body.fext, &body.vpres] {
             reals.extend_from_slice(flat(a));
         }
         reals.extend_from_slice(&body.vol);
+        // window accumulators (work 16n, internal-force impulse 17n): see `accumulate`
+        reals.resize(PV_REALS * n, 0.0);
         let mut ints: Vec<u32> = body.prescribed.iter().map(|&x| x as u32).collect();
         ints.extend(body.bonds.offsets.iter().map(|&o| o as u32));
         ints.extend_from_slice(&body.bonds.nbr);
@@ -313,9 +335,72 @@ impl GpuBondBody {
         Ok(())
     }
 
+    /// Start of a coupling window: `fext` (N per particle) held over it; accumulators cleared.
+    pub fn begin_window(&mut self, fext: &[[f64; 3]]) -> Result<(), GpuError> {
+        begin_window(&self.ctx, &self.pv, self.n, fext)
+    }
+
+    /// What the steps of this window accumulated (see `accumulate` in the shader).
+    pub fn window_sums(&self, work: &mut [f64], impulse: &mut [[f64; 3]]) -> Result<(), GpuError> {
+        window_sums(&self.ctx, &self.pv, self.n, work, impulse)
+    }
+
+    /// Set when the kernels run in f32 (for the log and the report).
+    pub fn warning(&self) -> Option<&str> {
+        self.ctx.warning.as_deref()
+    }
+
     pub fn precision(&self) -> Precision {
         self.ctx.precision
     }
+}
+
+/// Start of a coupling window on a particle buffer of `n` particles: the external force per
+/// particle (N) held over the window goes to the device and the window accumulators are
+/// cleared (the only host → device traffic of a window).
+fn begin_window(
+    ctx: &GpuContext,
+    pv: &wgpu::Buffer,
+    n: usize,
+    fext: &[[f64; 3]],
+) -> Result<(), GpuError> {
+    if fext.len() != n {
+        return Err(GpuError(format!(
+            "{} external forces for {n} particles",
+            fext.len()
+        )));
+    }
+    let p = ctx.precision;
+    let rb = p.bytes() as u64;
+    ctx.upload(pv, 9 * n as u64 * rb, &reals_to_bytes(p, flat(fext)));
+    ctx.upload(pv, 16 * n as u64 * rb, &vec![0u8; 4 * n * p.bytes()]);
+    ctx.take_uncaptured("starting a pd window")
+}
+
+/// The window accumulators of `accumulate`: per particle the work of the external force
+/// Σ (f_ext dt)·v (J) and the impulse of the internal force Σ (f V) dt (N s).
+fn window_sums(
+    ctx: &GpuContext,
+    pv: &wgpu::Buffer,
+    n: usize,
+    work: &mut [f64],
+    impulse: &mut [[f64; 3]],
+) -> Result<(), GpuError> {
+    if work.len() != n || impulse.len() != n {
+        return Err(GpuError(format!(
+            "window sums of {n} particles asked into {} / {}",
+            work.len(),
+            impulse.len()
+        )));
+    }
+    let p = ctx.precision;
+    let rb = p.bytes();
+    let b = ctx.read(pv, (16 * n * rb) as u64, (4 * n * rb) as u64)?;
+    let mut all = vec![0.0; 4 * n];
+    bytes_to_reals(p, &b, &mut all)?;
+    work.copy_from_slice(&all[..n]);
+    impulse.as_flattened_mut().copy_from_slice(&all[n..]);
+    Ok(())
 }
 
 fn entry(b: &wgpu::Buffer, binding: u32) -> wgpu::BindGroupEntry<'_> {
@@ -337,7 +422,7 @@ struct U { n: u32, nb: u32, three_d: u32, pad: u32 }
 // mp: dt, half_dt, rho, inv_h, kappa0, mu, lambda, yield, iso, 2/3 kin, dgamma denominator,
 // sqrt(2/3), 1e-300
 @group(0) @binding(1) var<storage, read> mp: array<real>;
-// pos 0, vel 3n, force 6n, fext 9n, vpres 12n, vol 15n
+// pos 0, vel 3n, force 6n, fext 9n, vpres 12n, vol 15n, work 16n, impulse 17n
 @group(0) @binding(2) var<storage, read_write> pv: array<real>;
 // prescribed 0, offsets n, nbr 2n+1
 @group(0) @binding(3) var<storage, read> iu: array<u32>;
@@ -347,6 +432,19 @@ struct U { n: u32, nb: u32, three_d: u32, pad: u32 }
 @group(0) @binding(5) var<storage, read_write> pt: array<real>;
 
 fn lin(gid: vec3<u32>, nwg: vec3<u32>) -> u32 { return gid.x + gid.y * nwg.x * 64u; }
+
+// The window sums of the node's report (solver.rs, per step after the last kick): the work
+// of the external force at the end-of-step velocity, Σ (f_ext dt)·v (16n), and the impulse
+// of the internal force, Σ (f V) dt (17n, 3 per particle). Cleared by the host each window.
+fn accumulate(i: u32, n: u32, dt: real) {
+    var w = real(0.0);
+    for (var d = 0u; d < 3u; d++) {
+        let k = 3u * i + d;
+        w += pv[9u * n + k] * dt * pv[3u * n + k];
+        pv[17u * n + k] += pv[6u * n + k] * pv[15u * n + i] * dt;
+    }
+    pv[16u * n + i] += w;
+}
 
 fn kick(i: u32) {
     let n = pu.n;
@@ -379,6 +477,7 @@ fn kick_only(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgro
     let i = lin(gid, nwg);
     if i >= pu.n { return; }
     kick(i);
+    accumulate(i, pu.n, mp[0]);
 }
 
 // correspondence.rs matmul / det / inverse, row-major 3x3
@@ -690,11 +789,13 @@ impl GpuCorrBody {
             "pd-correspondence",
             &format!("alias real = {};\n{CORR_SHADER}", p.wgsl()),
         )?;
-        let mut reals = Vec::with_capacity(16 * n);
+        let mut reals = Vec::with_capacity(PV_REALS * n);
         for a in [&body.pos, &body.vel, &body.force, &body.fext, &body.vpres] {
             reals.extend_from_slice(flat(a));
         }
         reals.extend_from_slice(&body.vol);
+        // window accumulators (work 16n, internal-force impulse 17n): see `accumulate`
+        reals.resize(PV_REALS * n, 0.0);
         let mut ints: Vec<u32> = body.prescribed.iter().map(|&x| x as u32).collect();
         ints.extend(body.bonds.offsets.iter().map(|&o| o as u32));
         ints.extend_from_slice(&body.bonds.nbr);
@@ -863,8 +964,172 @@ impl GpuCorrBody {
         Ok(())
     }
 
+    /// Start of a coupling window: `fext` (N per particle) held over it; accumulators cleared.
+    pub fn begin_window(&mut self, fext: &[[f64; 3]]) -> Result<(), GpuError> {
+        begin_window(&self.ctx, &self.pv, self.n, fext)
+    }
+
+    /// What the steps of this window accumulated (see `accumulate` in the shader).
+    pub fn window_sums(&self, work: &mut [f64], impulse: &mut [[f64; 3]]) -> Result<(), GpuError> {
+        window_sums(&self.ctx, &self.pv, self.n, work, impulse)
+    }
+
+    /// Set when the kernels run in f32 (for the log and the report).
+    pub fn warning(&self) -> Option<&str> {
+        self.ctx.warning.as_deref()
+    }
+
     pub fn precision(&self) -> Precision {
         self.ctx.precision
+    }
+}
+
+// ------------------------------------------------------------------ the node's device body
+
+/// The body of a `pd-bond` / `pd-correspondence` node when `device = "gpu"` (issue 8): the
+/// device copy owns the time stepping for the whole run. Per window the held external force
+/// goes up ([`DeviceBody::advance`]) and, at the window end, positions, velocities, forces,
+/// the window sums and (pd-correspondence) the J2 states come back into the host `Body` and
+/// its model ([`DeviceBody::finish`]): one read-back per window, which the node's report,
+/// interface outputs, VTK and checkpoints use; nothing crosses per substep.
+pub struct DeviceBody {
+    ctx: Arc<GpuContext>,
+    kind: DeviceKind,
+    work: Vec<f64>,
+    impulse: Vec<[f64; 3]>,
+}
+
+enum DeviceKind {
+    Bond {
+        gpu: GpuBondBody,
+        /// The host model's twin (its bond coefficients; no damage on the device path).
+        twin: Box<BondModel>,
+    },
+    Corr {
+        gpu: GpuCorrBody,
+        /// The host model's twin: K⁻¹ of the reference families, J2 states for rebuilds.
+        twin: Box<Correspondence<NoDamage>>,
+        states: Vec<J2State>,
+    },
+}
+
+impl DeviceBody {
+    /// `pd-bond` without damage: `twin` is a copy of the model `body` holds.
+    pub fn bond(ctx: Arc<GpuContext>, body: &Body, twin: BondModel) -> Result<Self, GpuError> {
+        let gpu = GpuBondBody::new(ctx.clone(), body, &twin, None)?;
+        Ok(Self::with(
+            ctx,
+            body.len(),
+            DeviceKind::Bond {
+                gpu,
+                twin: Box::new(twin),
+            },
+        ))
+    }
+
+    /// `pd-correspondence` without damage (plane strain or 3-D): `twin` is a copy of the
+    /// model `body` holds, as built (it is evaluated here in the reference configuration at
+    /// rest, as `Body::new` evaluated the body's own).
+    pub fn corr(
+        ctx: Arc<GpuContext>,
+        body: &Body,
+        mut twin: Correspondence<NoDamage>,
+    ) -> Result<Self, GpuError> {
+        let rest = vec![[0.0; 3]; body.len()];
+        let k = super::model::Kinematics {
+            x0: &body.x0,
+            pos: &body.x0,
+            vel: &rest,
+            vol: &body.vol,
+        };
+        twin.update_stress(&k, &body.bonds, 0.0);
+        let gpu = GpuCorrBody::new(ctx.clone(), body, &twin)?;
+        let states = twin.state.clone();
+        Ok(Self::with(
+            ctx,
+            body.len(),
+            DeviceKind::Corr {
+                gpu,
+                twin: Box::new(twin),
+                states,
+            },
+        ))
+    }
+
+    fn with(ctx: Arc<GpuContext>, n: usize, kind: DeviceKind) -> Self {
+        DeviceBody {
+            ctx,
+            kind,
+            work: vec![0.0; n],
+            impulse: vec![[0.0; 3]; n],
+        }
+    }
+
+    /// Upload `body` again (after a checkpoint was loaded into it and its model).
+    pub fn rebuild(&mut self, body: &Body) -> Result<(), GpuError> {
+        match &mut self.kind {
+            DeviceKind::Bond { gpu, twin } => {
+                *gpu = GpuBondBody::new(self.ctx.clone(), body, twin, None)?;
+            }
+            DeviceKind::Corr { gpu, twin, states } => {
+                // the J2 states through the model's own checkpoint format
+                let mut w = super::checkpoint::Writer::default();
+                body.model.save_state(&mut w);
+                let mut r = super::checkpoint::Reader::new(&w.buf);
+                super::checkpoint::get_j2(&mut r, &mut twin.state, "particle J2 states")
+                    .map_err(GpuError)?;
+                states.clone_from(&twin.state);
+                *gpu = GpuCorrBody::new(self.ctx.clone(), body, twin)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// One window: `fext` (N per particle) held over `k` velocity-Verlet steps of `dt`.
+    pub fn advance(&mut self, fext: &[[f64; 3]], k: u64, dt: f64) -> Result<(), GpuError> {
+        match &mut self.kind {
+            DeviceKind::Bond { gpu, .. } => {
+                gpu.begin_window(fext)?;
+                gpu.steps(k, dt)
+            }
+            DeviceKind::Corr { gpu, .. } => {
+                gpu.begin_window(fext)?;
+                gpu.steps(k, dt)
+            }
+        }
+    }
+
+    /// Window end: the device state into `body` (positions, velocities, forces, time, steps;
+    /// the J2 states into its model) with time set to `t1`; returns the window sums per
+    /// particle (work of the external force, impulse of the internal force).
+    pub fn finish(&mut self, body: &mut Body, t1: f64) -> Result<(&[f64], &[[f64; 3]]), GpuError> {
+        match &mut self.kind {
+            DeviceKind::Bond { gpu, .. } => {
+                gpu.time = t1;
+                gpu.download(body, &mut [])?;
+                gpu.window_sums(&mut self.work, &mut self.impulse)?;
+            }
+            DeviceKind::Corr { gpu, states, .. } => {
+                gpu.time = t1;
+                gpu.download(body, states)?;
+                gpu.window_sums(&mut self.work, &mut self.impulse)?;
+                let mut w = super::checkpoint::Writer::default();
+                super::checkpoint::put_j2(&mut w, states);
+                let mut r = super::checkpoint::Reader::new(&w.buf);
+                body.model.load_state(&mut r).map_err(GpuError)?;
+            }
+        }
+        Ok((&self.work, &self.impulse))
+    }
+
+    /// Adapter, backend and precision.
+    pub fn describe(&self) -> String {
+        self.ctx.describe()
+    }
+
+    /// Set when the kernels run in f32 (for the log and the report).
+    pub fn warning(&self) -> Option<&str> {
+        self.ctx.warning.as_deref()
     }
 }
 

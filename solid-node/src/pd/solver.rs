@@ -3,6 +3,8 @@
 //! the coupling sides (ARCHITECTURE §5): immersed provider (send position, velocity, volume;
 //! apply the received window-averaged force over the next window) and kinematic driver and
 //! responder (seed 004 eq. 29–33, seed 001 §5.1: boundary-layer particles moved by a driver).
+//! With `device = "gpu"` (issue 8) the body's time stepping runs on the device
+//! ([`DeviceBody`]); what the device kernels do not implement is refused at set-up.
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
 // `!(x > 0.0)` is deliberate: it also rejects NaN.
 #![allow(
@@ -15,6 +17,7 @@ use super::bond::{BondModel, implied_poisson};
 use super::correspondence::Correspondence;
 use super::family::{Bonds, surface_particles};
 use super::geometry::{Shape, lattice};
+use super::gpu::DeviceBody;
 use super::integrate::Body;
 use super::model::{Dim, PdModel};
 use super::output::{PointData, write_vtu};
@@ -22,6 +25,7 @@ use super::rk_ba::RkBa;
 use mechanics::damage::{
     BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain, NoDamage,
 };
+use mechanics::gpu::{GpuContext, PrecisionRequest};
 use mechanics::j2::J2Material;
 use protocol::{
     Binding, CouplingKind, InterfaceInfo, InterfaceMesh, NodeDescription, Role, Solver,
@@ -30,6 +34,7 @@ use protocol::{
 use protocol::{Inbox, Outbox};
 use serde::Deserialize;
 use std::path::Path;
+use std::sync::Arc;
 
 fn default_thickness() -> f64 {
     1.0
@@ -94,6 +99,9 @@ pub struct PdParams {
     /// smaller ones are `debris_particles`.
     #[serde(default = "default_fragment_min_size")]
     pub fragment_min_size: usize,
+    /// "cpu" (default) or "gpu" (pd-bond and pd-correspondence; issue 8).
+    #[serde(default)]
+    pub device: Option<String>,
 }
 
 fn default_fragment_min_size() -> usize {
@@ -227,6 +235,9 @@ pub struct PdSolver {
     interface_work: f64,
     external_work: f64,
     first_damage: Option<FirstDamage>,
+    /// The device copy of the body when `device = "gpu"`: it owns the time stepping; `body`
+    /// is brought up to date at every window end.
+    device: Option<DeviceBody>,
 }
 
 /// First bytes of a checkpoint of this node.
@@ -262,6 +273,19 @@ impl PdSolver {
             }
         };
         let three_d = dim.three_d();
+        let on_gpu = match p.device.as_deref() {
+            None | Some("cpu") => false,
+            Some("gpu") => {
+                gpu_supports(model, dim, &p).map_err(|r| SolverError::config("device", r))?;
+                true
+            }
+            Some(other) => {
+                return cfg(
+                    "device",
+                    format!("must be \"cpu\" or \"gpu\", got \"{other}\""),
+                );
+            }
+        };
         if !(p.spacing.is_finite() && p.spacing > 0.0) {
             return cfg("spacing", format!("must be > 0, got {}", p.spacing));
         }
@@ -598,6 +622,11 @@ impl PdSolver {
             }
             interfaces.push((ip.name.clone(), pts));
         }
+        let device = if on_gpu {
+            Some(device_body(&model_name, dim, &p, material, &body)?)
+        } else {
+            None
+        };
         let n = body.len();
         Ok(PdSolver {
             model_name,
@@ -614,6 +643,7 @@ impl PdSolver {
             interface_work: 0.0,
             external_work: 0.0,
             first_damage: None,
+            device,
         })
     }
 
@@ -741,6 +771,93 @@ impl PdSolver {
     }
 }
 
+/// Why `device = "gpu"` cannot run this configuration (`Err` is the reason, for the key
+/// `device`): the device kernels (gpu.rs) step pd-bond and the pd-correspondence force state
+/// without bond damage, with the external force held over a window.
+fn gpu_supports(model: &str, dim: Dim, p: &PdParams) -> Result<(), String> {
+    let cpu = "use device = \"cpu\"";
+    match model {
+        "pd-bond" | "pd-correspondence" => {}
+        other => {
+            return Err(format!(
+                "\"gpu\" is offered for pd-bond and pd-correspondence, not {other} (no device kernels): {cpu}"
+            ));
+        }
+    }
+    let kind = match &p.damage {
+        None | Some(DamageParams::None) => None,
+        Some(DamageParams::CriticalStretch { .. }) => Some("critical_stretch"),
+        Some(DamageParams::VonMises { .. }) => Some("von_mises"),
+        Some(DamageParams::PlasticStrain { .. }) => Some("plastic_strain"),
+    };
+    if let Some(kind) = kind {
+        return Err(format!(
+            "\"gpu\" does not support bond damage (damage.kind = \"{kind}\"): the device path has no bond breaking, damage index or fragment report; {cpu}"
+        ));
+    }
+    if model == "pd-correspondence" && dim == Dim::PlaneStress {
+        return Err(format!(
+            "\"gpu\" does not support dimension = \"plane_stress\" for pd-correspondence (its through-thickness iteration has no device kernel): use plane_strain or 3d, or {cpu}"
+        ));
+    }
+    if p.pressure_pulse.is_some() {
+        return Err(format!(
+            "\"gpu\" does not support pressure_pulse (it changes the external force every substep; the device path holds the external force over a window): {cpu}"
+        ));
+    }
+    Ok(())
+}
+
+/// The device copy of a freshly built `body` (issue 8); no adapter is a config error.
+fn device_body(
+    model: &str,
+    dim: Dim,
+    p: &PdParams,
+    material: J2Material,
+    body: &Body,
+) -> SolverResult<DeviceBody> {
+    let bad = |e: String| SolverError::config("device", format!("device = \"gpu\": {e}"));
+    let ctx = GpuContext::with_precision(PrecisionRequest::Best).map_err(|e| bad(e.to_string()))?;
+    let ctx = Arc::new(ctx);
+    // the arguments the body's own model was built with (PdSolver::new)
+    let k = super::model::Kinematics {
+        x0: &body.x0,
+        pos: &body.x0,
+        vel: &body.x0,
+        vol: &body.vol,
+    };
+    let dev = match model {
+        "pd-bond" => {
+            let twin = BondModel::new(dim, p.young, p.horizon, p.thickness, None, &k, &body.bonds);
+            DeviceBody::bond(ctx, body, twin)
+        }
+        "pd-correspondence" => {
+            let twin = Correspondence::new(
+                dim,
+                material,
+                p.stabilization,
+                p.horizon,
+                p.thickness,
+                NoDamage,
+                &k,
+                &body.bonds,
+            );
+            DeviceBody::corr(ctx, body, twin)
+        }
+        other => return Err(bad(format!("no device kernels for {other}"))),
+    }
+    .map_err(|e| bad(e.to_string()))?;
+    tracing::info!("{model} body on the GPU: {}", dev.describe());
+    if let Some(w) = dev.warning() {
+        tracing::warn!("{w}");
+    }
+    Ok(dev)
+}
+
+fn gpu_err(e: mechanics::gpu::GpuError) -> SolverError {
+    SolverError::Other(e.to_string())
+}
+
 /// [`FirstDamage`] from the damage indices `damage` at time `t1` of the first window with any
 /// φ > 0, over the reference positions `x0`; the corners and axes are those of the
 /// `hollow_square` / `hollow_cylinder` shapes among `bodies`.
@@ -848,6 +965,15 @@ impl Solver for PdSolver {
             match (b.kind, b.role) {
                 (CouplingKind::Immersed, _) => self.send_motion(&b.interface, &pts, out, true),
                 (CouplingKind::Kinematic, Role::Responder) => {
+                    if self.device.is_some() {
+                        return Err(SolverError::config(
+                            "device",
+                            format!(
+                                "\"gpu\" does not support a kinematic responder coupling (interface '{}'): it moves particles along the driver's path every substep, which the device path does not; use device = \"cpu\"",
+                                b.interface
+                            ),
+                        ));
+                    }
                     let m = out.put(&b.interface, "mass", 1, pts.len());
                     for (k, &i) in pts.iter().enumerate() {
                         m[k] = self.body.density * self.body.vol[i];
@@ -962,43 +1088,68 @@ impl Solver for PdSolver {
         let coupled_pts: Vec<usize> = (0..self.body.len())
             .filter(|&i| self.fcouple[i] != [0.0; 3])
             .collect();
-        for step in 0..nsub {
-            let t = w.t0 + step as f64 * dt;
-            let pr = self.pressure_at(t + 0.5 * dt);
-            self.body.fext.copy_from_slice(&self.fcouple);
-            for &(i, a) in &self.pressure_area {
-                for d in 0..3 {
-                    self.body.fext[i][d] += pr * a[d];
+        if let Some(dev) = self.device.as_mut() {
+            // The body on the device (kinematic responders and pressure pulses were refused
+            // at set-up, so `targets` is empty and the external force is `fcouple` for the
+            // whole window). The state comes back once, at the window end.
+            dev.advance(&self.fcouple, nsub, dt).map_err(gpu_err)?;
+            let (work, imp) = dev.finish(&mut self.body, w.t1).map_err(gpu_err)?;
+            // The held force's impulse, summed in the CPU path's order.
+            for _ in 0..nsub {
+                for &i in &coupled_pts {
+                    for d in 0..3 {
+                        self.interface_impulse[d] += self.fcouple[i][d] * dt;
+                    }
                 }
-                for d in 0..3 {
-                    self.external_impulse[d] += pr * a[d] * dt;
-                }
-                self.applied_impulse += pr * (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt() * dt;
             }
-            self.body.step(dt);
             for &i in &coupled_pts {
-                for d in 0..3 {
-                    self.interface_impulse[d] += self.fcouple[i][d] * dt;
-                    self.interface_work += self.fcouple[i][d] * dt * self.body.vel[i][d];
-                }
+                self.interface_work += work[i];
             }
-            // Supports: the impulse that holds prescribed particles on their path.
             for &i in &self.bc_particles {
-                let f = self.internal_force(i);
                 for d in 0..3 {
-                    self.external_impulse[d] -= f[d] * dt;
+                    self.external_impulse[d] -= imp[i][d];
                 }
             }
-            for (k, &(i, _)) in targets.iter().enumerate() {
-                // seed 004 eq. (31): along the driver's motion, integrated from the window
-                // start so no drift builds up.
-                let s = (step + 1) as f64 * dt;
-                for d in 0..3 {
-                    self.body.pos[i][d] = start[k][d] + s * self.body.vpres[i][d];
+        } else {
+            for step in 0..nsub {
+                let t = w.t0 + step as f64 * dt;
+                let pr = self.pressure_at(t + 0.5 * dt);
+                self.body.fext.copy_from_slice(&self.fcouple);
+                for &(i, a) in &self.pressure_area {
+                    for d in 0..3 {
+                        self.body.fext[i][d] += pr * a[d];
+                    }
+                    for d in 0..3 {
+                        self.external_impulse[d] += pr * a[d] * dt;
+                    }
+                    self.applied_impulse +=
+                        pr * (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt() * dt;
                 }
-                let f = self.internal_force(i);
-                for d in 0..3 {
-                    self.interface_impulse[d] -= f[d] * dt;
+                self.body.step(dt);
+                for &i in &coupled_pts {
+                    for d in 0..3 {
+                        self.interface_impulse[d] += self.fcouple[i][d] * dt;
+                        self.interface_work += self.fcouple[i][d] * dt * self.body.vel[i][d];
+                    }
+                }
+                // Supports: the impulse that holds prescribed particles on their path.
+                for &i in &self.bc_particles {
+                    let f = self.internal_force(i);
+                    for d in 0..3 {
+                        self.external_impulse[d] -= f[d] * dt;
+                    }
+                }
+                for (k, &(i, _)) in targets.iter().enumerate() {
+                    // seed 004 eq. (31): along the driver's motion, integrated from the window
+                    // start so no drift builds up.
+                    let s = (step + 1) as f64 * dt;
+                    for d in 0..3 {
+                        self.body.pos[i][d] = start[k][d] + s * self.body.vpres[i][d];
+                    }
+                    let f = self.internal_force(i);
+                    for d in 0..3 {
+                        self.interface_impulse[d] -= f[d] * dt;
+                    }
                 }
             }
         }
@@ -1071,6 +1222,11 @@ impl Solver for PdSolver {
                     ));
                 }
                 v.extend(fracture);
+                if let Some(dev) = &self.device {
+                    // precision of the device arithmetic (64, or 32 with a warning in the log)
+                    let bits = if dev.warning().is_some() { 32.0 } else { 64.0 };
+                    v.push(("gpu_precision_bits".into(), bits));
+                }
                 v
             },
         })
@@ -1194,6 +1350,9 @@ impl Solver for PdSolver {
             corner_distance: fd[6],
             radius: [fd[7], fd[8]],
         });
+        if let Some(dev) = self.device.as_mut() {
+            dev.rebuild(&self.body).map_err(gpu_err)?;
+        }
         Ok(())
     }
 
