@@ -703,82 +703,10 @@ fn skip(cx: &mut Ctx, kernel: &str, reason: &str) {
     });
 }
 
-/// The issue-4 block: n³ particles on a cubic lattice (Δx 1 mm), δ = 3.015 Δx, steel, a smooth
-/// non-trivial velocity field so every bond does real work (as solid-node's pd_throughput).
-/// Also returns the bytes of the model's own per-particle and per-bond arrays.
-fn pd_block(
-    n: usize,
-    model: &str,
-) -> (
-    solid_node::pd::integrate::Body,
-    Option<solid_node::pd::bond::BondModel>,
-    usize,
-) {
-    use mechanics::damage::CriticalStretch;
-    use mechanics::j2::J2Material;
-    use solid_node::pd::bond::BondModel;
-    use solid_node::pd::correspondence::Correspondence;
-    use solid_node::pd::family::Bonds;
-    use solid_node::pd::geometry::cube_lattice;
-    use solid_node::pd::integrate::Body;
-    use solid_node::pd::model::{Dim, Kinematics, PdModel};
-    let dx = 1e-3;
-    let horizon = 3.015 * dx;
-    let x0 = cube_lattice(n, dx);
-    let vol = vec![dx * dx * dx; x0.len()];
-    let bonds = Bonds::build(&x0, horizon);
-    let v0 = vec![[0.0; 3]; x0.len()];
-    let k = Kinematics {
-        x0: &x0,
-        pos: &x0,
-        vel: &v0,
-        vol: &vol,
-    };
-    let (e, rho) = (200e9, 7850.0);
-    let (m, bond, model_bytes): (Box<dyn PdModel>, _, _) = if model == "pd-bond" {
-        let m = BondModel::new(Dim::Three, e, horizon, 1.0, Some(0.01), &k, &bonds);
-        let bytes = std::mem::size_of_val(&m.coef[..]);
-        (Box::new(m.clone()), Some(m), bytes)
-    } else {
-        let mat = J2Material {
-            young: e,
-            poisson: 0.3,
-            yield_stress: 500e6,
-            iso_hardening: 1e9,
-            kin_hardening: 0.0,
-        };
-        let m = Correspondence::new(
-            Dim::Three,
-            mat,
-            0.5,
-            horizon,
-            1.0,
-            CriticalStretch {
-                critical_stretch: 0.01,
-            },
-            &k,
-            &bonds,
-        );
-        let bytes = std::mem::size_of_val(&m.state[..])
-            + std::mem::size_of_val(&m.kin[..])
-            + std::mem::size_of_val(&m.side[..]);
-        (Box::new(m), None, bytes)
-    };
-    let mut b = Body::new(Dim::Three, dx, horizon, rho, x0, vol, bonds, m);
-    for i in 0..b.len() {
-        let x = b.x0[i];
-        b.vel[i] = [
-            5.0 * (x[1] * 200.0).sin(),
-            -3.0 * (x[2] * 150.0).cos(),
-            2.0 * (x[0] * 300.0).sin(),
-        ];
-    }
-    (b, bond, model_bytes)
-}
-
 fn pd(cx: &mut Ctx, kernel: &'static str, n: usize) -> anyhow::Result<Case> {
     let t0 = Instant::now();
-    let (mut b, bond, model_bytes) = pd_block(n, kernel);
+    let blk = solid_node::pd::cases::benchmark_block(n, kernel).map_err(|e| anyhow!("{e}"))?;
+    let (mut b, bond, model_bytes) = (blk.body, blk.bond, blk.model_bytes.unwrap_or(0));
     let nb = b.bonds.len();
     let np = b.len();
     // pos, vel, force, fext, vpres, x0 (3 reals each), vol, offsets; per bond: nbr, xi,
@@ -822,33 +750,12 @@ fn pd(cx: &mut Ctx, kernel: &'static str, n: usize) -> anyhow::Result<Case> {
 }
 
 fn shell(n: usize) -> anyhow::Result<Case> {
-    use macro_shell_node::{ShellSolver, step};
-    let toml = format!(
-        r#"
-[mesh]
-kind = "plate"
-length = 1.0
-width = 1.0
-nx = {n}
-ny = {n}
-[material]
-model = "elastic"
-density = 7800.0
-youngs_modulus = 210.0e9
-poisson_ratio = 0.3
-[section]
-thickness = 0.01
-[[fixed]]
-node_set = "x0"
-"#
-    );
+    use macro_shell_node::step;
     let t0 = Instant::now();
-    let mut s = ShellSolver::from_toml_str(&toml).map_err(|e| anyhow!("shell plate: {e}"))?;
+    // Five through-thickness points (the default).
+    let mut s =
+        macro_shell_node::setup::benchmark_plate(n, 5).map_err(|e| anyhow!("shell plate: {e}"))?;
     let m = &mut s.model;
-    for i in 0..m.num_nodes() {
-        let x = m.x0[i][0];
-        m.v[i][2] = 0.1 * x * x;
-    }
     let p = Problem {
         kernel: "shell",
         problem: format!("plate {n}×{n} elements"),
@@ -873,36 +780,9 @@ node_set = "x0"
 }
 
 fn joint(n: usize) -> anyhow::Result<Case> {
-    use mechanics::j2::J2Material;
-    use meso_joint_node::config::Smoothing;
-    use meso_joint_node::geometry::block;
-    use meso_joint_node::model::{Model, ModelParams};
-    let h = 1e-3;
     let t0 = Instant::now();
-    let s = block([0.0; 3], [n as f64 * h; 3], h);
-    let p = ModelParams {
-        material: J2Material {
-            young: 210e9,
-            poisson: 0.3,
-            yield_stress: 0.2e9,
-            iso_hardening: 0.0,
-            kin_hardening: 22e9,
-        },
-        density: 7850.0,
-        spacing: h,
-        support: 2.0 * h,
-        eps_crit: 0.1,
-        e_crit: 1.0,
-        reanchor_every: 100,
-        smoothing: Smoothing::Consistent,
-        cfl: 0.4,
-    };
-    let mut m = Model::new(p, s.x, s.vol, s.part, &s.rigid_parts)
-        .map_err(|e| anyhow!("joint block: {e}"))?;
-    let top = n as f64 * h;
-    m.add_velocity_bc("bottom", [0.0, 0.0, -1.0], 0.0, |x| x[2] < 2.0 * h);
-    m.add_velocity_bc("top", [0.0, 0.0, 1.0], 0.0, |x| x[2] > top - 2.0 * h);
-    m.initial_forces();
+    let mut m =
+        meso_joint_node::geometry::benchmark_block(n).map_err(|e| anyhow!("joint block: {e}"))?;
     let p = Problem {
         kernel: "joint",
         problem: format!("block {n}³ = {} particles", m.len()),

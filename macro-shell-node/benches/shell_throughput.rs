@@ -14,27 +14,7 @@ fn env(name: &str) -> Option<usize> {
 }
 
 fn plate(n: usize, nip: usize) -> ShellSolver {
-    let toml = format!(
-        r#"
-[mesh]
-kind = "plate"
-length = 1.0
-width = 1.0
-nx = {n}
-ny = {n}
-[material]
-model = "elastic"
-density = 7800.0
-youngs_modulus = 210.0e9
-poisson_ratio = 0.3
-[section]
-thickness = 0.01
-integration_points = {nip}
-[[fixed]]
-node_set = "x0"
-"#
-    );
-    match ShellSolver::from_toml_str(&toml) {
+    match macro_shell_node::setup::benchmark_plate(n, nip) {
         Ok(s) => s,
         Err(e) => panic!("{e}"),
     }
@@ -53,10 +33,6 @@ fn main() {
         let mut s = plate(n, nip);
         let setup_s = t_setup.elapsed().as_secs_f64();
         let m = &mut s.model;
-        for i in 0..m.num_nodes() {
-            let x = m.x0[i][0];
-            m.v[i][2] = 0.1 * x * x;
-        }
         let dt = step::stable_dt(m);
         for _ in 0..20 {
             step::step(m, dt).unwrap_or_else(|e| panic!("{e}"));

@@ -958,3 +958,36 @@ impl Model {
         self.constrained_nodes = (0..n).filter(|&i| self.fix[i as usize] != 0).collect();
     }
 }
+
+/// The benchmark plate (issue 5): a 1 × 1 m, 10 mm elastic steel plate of `n × n` elements
+/// with `nip` through-thickness points, clamped along x = 0 and set vibrating by a transverse
+/// velocity 0.1 x². Shared by the crate's benchmark and `cosim bench`.
+pub fn benchmark_plate(n: usize, nip: usize) -> SolverResult<crate::ShellSolver> {
+    let toml = format!(
+        r#"
+[mesh]
+kind = "plate"
+length = 1.0
+width = 1.0
+nx = {n}
+ny = {n}
+[material]
+model = "elastic"
+density = 7800.0
+youngs_modulus = 210.0e9
+poisson_ratio = 0.3
+[section]
+thickness = 0.01
+integration_points = {nip}
+[[fixed]]
+node_set = "x0"
+"#
+    );
+    let mut s = crate::ShellSolver::from_toml_str(&toml)?;
+    let m = &mut s.model;
+    for i in 0..m.num_nodes() {
+        let x = m.x0[i][0];
+        m.v[i][2] = 0.1 * x * x;
+    }
+    Ok(s)
+}

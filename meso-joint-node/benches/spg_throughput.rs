@@ -5,40 +5,13 @@
 
 #![allow(clippy::needless_range_loop)]
 
-use mechanics::j2::J2Material;
-use meso_joint_node::config::Smoothing;
-use meso_joint_node::geometry::block;
-use meso_joint_node::model::{Model, ModelParams};
+use meso_joint_node::geometry::benchmark_block;
 
 fn main() {
     let n = 40;
-    let h = 1e-3;
-    let s = block([0.0; 3], [n as f64 * h; 3], h);
-    let p = ModelParams {
-        material: J2Material {
-            young: 210e9,
-            poisson: 0.3,
-            yield_stress: 0.2e9,
-            iso_hardening: 0.0,
-            kin_hardening: 22e9,
-        },
-        density: 7850.0,
-        spacing: h,
-        support: 2.0 * h,
-        eps_crit: 0.1,
-        e_crit: 1.0,
-        // The default rate; one re-anchoring falls inside the timed steps (amortised cost).
-        reanchor_every: 100,
-        smoothing: Smoothing::Consistent,
-        cfl: 0.4,
-    };
     let t_setup = std::time::Instant::now();
-    let mut m = Model::new(p, s.x, s.vol, s.part, &s.rigid_parts).expect("model");
+    let mut m = benchmark_block(n).expect("model");
     let setup = t_setup.elapsed().as_secs_f64();
-    let top = n as f64 * h;
-    m.add_velocity_bc("bottom", [0.0, 0.0, -1.0], 0.0, |x| x[2] < 2.0 * h);
-    m.add_velocity_bc("top", [0.0, 0.0, 1.0], 0.0, |x| x[2] > top - 2.0 * h);
-    m.initial_forces();
     let dt = m.stable_dt();
     for _ in 0..5 {
         m.step(dt).expect("warm-up step");

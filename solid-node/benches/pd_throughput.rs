@@ -12,84 +12,15 @@
     clippy::too_many_arguments
 )]
 
-use mechanics::damage::CriticalStretch;
-use mechanics::j2::J2Material;
-use solid_node::pd::bond::BondModel;
-use solid_node::pd::correspondence::Correspondence;
-use solid_node::pd::family::Bonds;
-use solid_node::pd::geometry::cube_lattice;
+use solid_node::pd::cases::benchmark_block;
 use solid_node::pd::integrate::Body;
-use solid_node::pd::model::{Dim, Kinematics, PdModel};
-use solid_node::pd::rk_ba::RkBa;
 use std::time::Instant;
 
 fn block(model: &str) -> Body {
-    let dx = 1e-3;
-    let horizon = 3.015 * dx;
-    let x0 = cube_lattice(31, dx);
-    let vol = vec![dx * dx * dx; x0.len()];
-    let bonds = Bonds::build(&x0, horizon);
-    let k = Kinematics {
-        x0: &x0,
-        pos: &x0,
-        vel: &x0,
-        vol: &vol,
-    };
-    let (e, rho) = (200e9, 7850.0);
-    let mat = J2Material {
-        young: e,
-        poisson: 0.3,
-        yield_stress: 500e6,
-        iso_hardening: 1e9,
-        kin_hardening: 0.0,
-    };
-    let m: Box<dyn PdModel> = if model == "pd-rk-ba" {
-        // Order 2 on the same families (δ = 3.015 Δx), bond-level J2 and stretch damage.
-        Box::new(RkBa::new(
-            Dim::Three,
-            2,
-            horizon,
-            mat,
-            CriticalStretch {
-                critical_stretch: 0.01,
-            },
-            &bonds,
-        ))
-    } else if model == "pd-bond" {
-        Box::new(BondModel::new(
-            Dim::Three,
-            e,
-            horizon,
-            1.0,
-            Some(0.01),
-            &k,
-            &bonds,
-        ))
-    } else {
-        Box::new(Correspondence::new(
-            Dim::Three,
-            mat,
-            0.5,
-            horizon,
-            1.0,
-            CriticalStretch {
-                critical_stretch: 0.01,
-            },
-            &k,
-            &bonds,
-        ))
-    };
-    let mut b = Body::new(Dim::Three, dx, horizon, rho, x0, vol, bonds, m);
-    // A smooth, non-trivial initial velocity field so every bond does real work.
-    for i in 0..b.len() {
-        let x = b.x0[i];
-        b.vel[i] = [
-            5.0 * (x[1] * 200.0).sin(),
-            -3.0 * (x[2] * 150.0).cos(),
-            2.0 * (x[0] * 300.0).sin(),
-        ];
+    match benchmark_block(31, model) {
+        Ok(b) => b.body,
+        Err(e) => panic!("{e}"),
     }
-    b
 }
 
 fn main() {

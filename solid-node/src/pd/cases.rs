@@ -250,3 +250,83 @@ pressure_pulse = {{ surface = "inner", center = [0.0, 0.0, 0.0], inner_radius = 
         ))
     }
 }
+
+/// The benchmark block of issue 4 and `cosim bench`: an `n³` cubic lattice, Δx 1 mm,
+/// δ = 3.015 Δx (122-member interior families), steel (E 200 GPa, ρ 7850, J2 σy 500 MPa,
+/// H 1 GPa for the correspondence models), critical stretch 0.01 so the damage check runs,
+/// and a smooth non-trivial velocity field so every bond does real work.
+pub struct BenchmarkBlock {
+    pub body: Body,
+    /// The bond model itself for `pd-bond` (what the GPU body is built from).
+    pub bond: Option<BondModel>,
+    /// Bytes of the model's own arrays (bond coefficients, or the correspondence model's
+    /// per-particle kinematics and state and per-bond data); `None` for `pd-rk-ba`.
+    pub model_bytes: Option<usize>,
+}
+
+/// See [`BenchmarkBlock`]; `model` is `pd-bond`, `pd-correspondence` or `pd-rk-ba` (order 2).
+pub fn benchmark_block(n: usize, model: &str) -> Result<BenchmarkBlock, String> {
+    use super::correspondence::Correspondence;
+    use super::geometry::cube_lattice;
+    use super::model::PdModel;
+    use super::rk_ba::RkBa;
+    use mechanics::damage::CriticalStretch;
+    use mechanics::j2::J2Material;
+    let dx = 1e-3;
+    let horizon = 3.015 * dx;
+    let x0 = cube_lattice(n, dx);
+    let vol = vec![dx * dx * dx; x0.len()];
+    let bonds = Bonds::build(&x0, horizon);
+    let v0 = vec![[0.0; 3]; x0.len()];
+    let k = Kinematics {
+        x0: &x0,
+        pos: &x0,
+        vel: &v0,
+        vol: &vol,
+    };
+    let (e, rho) = (200e9, 7850.0);
+    let mat = J2Material {
+        young: e,
+        poisson: 0.3,
+        yield_stress: 500e6,
+        iso_hardening: 1e9,
+        kin_hardening: 0.0,
+    };
+    let stretch = CriticalStretch {
+        critical_stretch: 0.01,
+    };
+    let (m, bond, model_bytes): (Box<dyn PdModel>, _, _) = match model {
+        "pd-bond" => {
+            let m = BondModel::new(Dim::Three, e, horizon, 1.0, Some(0.01), &k, &bonds);
+            let bytes = std::mem::size_of_val(&m.coef[..]);
+            (Box::new(m.clone()), Some(m), Some(bytes))
+        }
+        "pd-correspondence" => {
+            let m = Correspondence::new(Dim::Three, mat, 0.5, horizon, 1.0, stretch, &k, &bonds);
+            let bytes = std::mem::size_of_val(&m.state[..])
+                + std::mem::size_of_val(&m.kin[..])
+                + std::mem::size_of_val(&m.side[..]);
+            (Box::new(m), None, Some(bytes))
+        }
+        "pd-rk-ba" => (
+            Box::new(RkBa::new(Dim::Three, 2, horizon, mat, stretch, &bonds)),
+            None,
+            None,
+        ),
+        o => return Err(format!("no benchmark block for model '{o}'")),
+    };
+    let mut body = Body::new(Dim::Three, dx, horizon, rho, x0, vol, bonds, m);
+    for i in 0..body.len() {
+        let x = body.x0[i];
+        body.vel[i] = [
+            5.0 * (x[1] * 200.0).sin(),
+            -3.0 * (x[2] * 150.0).cos(),
+            2.0 * (x[0] * 300.0).sin(),
+        ];
+    }
+    Ok(BenchmarkBlock {
+        body,
+        bond,
+        model_bytes,
+    })
+}
