@@ -79,6 +79,18 @@ pub enum PrecisionRequest {
     ForceF32,
 }
 
+/// How a compute shader binds one buffer (`GpuContext::bind_layout`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BufferBinding {
+    Uniform,
+    /// A uniform buffer bound at a dynamic offset (one slice per dispatch).
+    UniformDynamic,
+    /// Storage, read only.
+    Read,
+    /// Storage, read and write.
+    ReadWrite,
+}
+
 /// Device, queue and what was negotiated.
 pub struct GpuContext {
     pub device: wgpu::Device,
@@ -249,6 +261,90 @@ impl GpuContext {
                     label: Some(label),
                     source: wgpu::ShaderSource::Wgsl(src.into()),
                 })
+        })
+    }
+
+    /// A compute bind-group layout: binding `i` is a buffer of kind `bindings[i]`.
+    pub fn bind_layout(&self, label: &str, bindings: &[BufferBinding]) -> wgpu::BindGroupLayout {
+        let entries: Vec<wgpu::BindGroupLayoutEntry> = bindings
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupLayoutEntry {
+                binding: i as u32,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: match b {
+                        BufferBinding::Uniform | BufferBinding::UniformDynamic => {
+                            wgpu::BufferBindingType::Uniform
+                        }
+                        BufferBinding::Read => wgpu::BufferBindingType::Storage { read_only: true },
+                        BufferBinding::ReadWrite => {
+                            wgpu::BufferBindingType::Storage { read_only: false }
+                        }
+                    },
+                    has_dynamic_offset: *b == BufferBinding::UniformDynamic,
+                    min_binding_size: None,
+                },
+                count: None,
+            })
+            .collect();
+        self.device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(label),
+                entries: &entries,
+            })
+    }
+
+    /// One compute pipeline per entry point of `module`, all on one layout of `groups`.
+    pub fn pipelines(
+        &self,
+        label: &str,
+        groups: &[Option<&wgpu::BindGroupLayout>],
+        module: &wgpu::ShaderModule,
+        entry_points: &[&str],
+    ) -> Vec<wgpu::ComputePipeline> {
+        let layout = self
+            .device
+            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: groups,
+                immediate_size: 0,
+            });
+        entry_points
+            .iter()
+            .map(|e| {
+                self.device
+                    .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some(e),
+                        layout: Some(&layout),
+                        module,
+                        entry_point: Some(e),
+                        compilation_options: Default::default(),
+                        cache: None,
+                    })
+            })
+            .collect()
+    }
+
+    /// A bind group of whole buffers, binding `i` = `buffers[i]`.
+    pub fn bind_group(
+        &self,
+        label: &str,
+        layout: &wgpu::BindGroupLayout,
+        buffers: &[&wgpu::Buffer],
+    ) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(label),
+            layout,
+            entries: &entries,
         })
     }
 

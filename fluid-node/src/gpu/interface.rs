@@ -52,21 +52,8 @@ pub(super) struct ImDevice {
 
 /// The bind group layout of the immersed tables (group 1).
 pub(super) fn layout(ctx: &GpuContext) -> wgpu::BindGroupLayout {
-    let sto = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    };
-    ctx.device
-        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("immersed"),
-            entries: &[sto(0, true), sto(1, false)],
-        })
+    use mechanics::gpu::BufferBinding::{Read, ReadWrite};
+    ctx.bind_layout("immersed", &[Read, ReadWrite])
 }
 
 fn bind(

@@ -339,43 +339,22 @@ impl GpuEuler {
             )
         };
         let module = ctx.shader("euler", &src)?;
-        let uni = |binding: u32, dynamic: bool| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: dynamic,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let sto = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
         let (bgl, layout, pipes, im_parts) = ctx.checked("building the fluid pipelines", || {
-            let bgl = ctx
-                .device
-                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some("euler"),
-                    entries: &[
-                        uni(0, false),
-                        sto(1, true),
-                        sto(2, false),
-                        sto(3, false),
-                        sto(4, false),
-                        sto(5, false),
-                        sto(6, false),
-                        sto(7, false),
-                        uni(8, true),
-                    ],
-                });
+            use mechanics::gpu::BufferBinding::{Read, ReadWrite, Uniform, UniformDynamic};
+            let bgl = ctx.bind_layout(
+                "euler",
+                &[
+                    Uniform,
+                    Read,
+                    ReadWrite,
+                    ReadWrite,
+                    ReadWrite,
+                    ReadWrite,
+                    ReadWrite,
+                    ReadWrite,
+                    UniformDynamic,
+                ],
+            );
             let ibgl = immersed.then(|| interface::layout(&ctx));
             let layout = ctx
                 .device

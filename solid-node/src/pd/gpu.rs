@@ -195,47 +195,17 @@ impl GpuBondBody {
         }
         let (kick_drift, kick_only, force, bind, params, pv, bd) =
             ctx.checked("building the pd-bond pipelines", || {
-                let buf = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
-                    binding,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                };
-                let sto = |read_only| wgpu::BufferBindingType::Storage { read_only };
-                let layout =
-                    ctx.device
-                        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                            label: Some("pd"),
-                            entries: &[
-                                buf(0, wgpu::BufferBindingType::Uniform),
-                                buf(1, sto(false)),
-                                buf(2, sto(true)),
-                                buf(3, sto(false)),
-                            ],
-                        });
-                let pl = ctx
-                    .device
-                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                        label: Some("pd"),
-                        bind_group_layouts: &[Some(&layout)],
-                        immediate_size: 0,
-                    });
-                let mk = |e: &str| {
-                    ctx.device
-                        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                            label: Some(e),
-                            layout: Some(&pl),
-                            module: &module,
-                            entry_point: Some(e),
-                            compilation_options: Default::default(),
-                            cache: None,
-                        })
-                };
-                let (kd, ko, fo) = (mk("kick_drift"), mk("kick_only"), mk("force"));
+                use mechanics::gpu::BufferBinding::{Read, ReadWrite, Uniform};
+                let layout = ctx.bind_layout("pd", &[Uniform, ReadWrite, Read, ReadWrite]);
+                let [kd, ko, fo]: [wgpu::ComputePipeline; 3] = ctx
+                    .pipelines(
+                        "pd",
+                        &[Some(&layout)],
+                        &module,
+                        &["kick_drift", "kick_only", "force"],
+                    )
+                    .try_into()
+                    .unwrap_or_else(|_| unreachable!("three entry points, three pipelines"));
                 let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("pd params"),
                     size: 64,
@@ -245,16 +215,7 @@ impl GpuBondBody {
                 let pv = ctx.storage_init("pd particles", &reals_to_bytes(p, &reals));
                 let iu = ctx.storage_init("pd ints", mechanics::gpu::u32_bytes(&ints));
                 let bd = ctx.storage_init("pd bonds", &reals_to_bytes(p, &breal));
-                let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("pd"),
-                    layout: &layout,
-                    entries: &[
-                        entry(&params, 0),
-                        entry(&pv, 1),
-                        entry(&iu, 2),
-                        entry(&bd, 3),
-                    ],
-                });
+                let bind = ctx.bind_group("pd", &layout, &[&params, &pv, &iu, &bd]);
                 (kd, ko, fo, bind, params, pv, bd)
             })?;
         Ok(GpuBondBody {
@@ -401,13 +362,6 @@ fn window_sums(
     work.copy_from_slice(&all[..n]);
     impulse.as_flattened_mut().copy_from_slice(&all[n..]);
     Ok(())
-}
-
-fn entry(b: &wgpu::Buffer, binding: u32) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry {
-        binding,
-        resource: b.as_entire_binding(),
-    }
 }
 
 // ------------------------------------------------------------------ pd-correspondence
@@ -821,67 +775,27 @@ impl GpuCorrBody {
         u[2] = model.dim.three_d() as u32;
         let (pipes, bind, mp, pv, pt) =
             ctx.checked("building the pd-correspondence pipelines", || {
-                let buf = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
-                    binding,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                };
-                let sto = |read_only| wgpu::BufferBindingType::Storage { read_only };
-                let layout =
-                    ctx.device
-                        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                            label: Some("pd-corr"),
-                            entries: &[
-                                buf(0, wgpu::BufferBindingType::Uniform),
-                                buf(1, sto(true)),
-                                buf(2, sto(false)),
-                                buf(3, sto(true)),
-                                buf(4, sto(true)),
-                                buf(5, sto(false)),
-                            ],
-                        });
-                let pl = ctx
-                    .device
-                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                        label: Some("pd-corr"),
-                        bind_group_layouts: &[Some(&layout)],
-                        immediate_size: 0,
-                    });
-                let mk = |e: &str| {
-                    ctx.device
-                        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                            label: Some(e),
-                            layout: Some(&pl),
-                            module: &module,
-                            entry_point: Some(e),
-                            compilation_options: Default::default(),
-                            cache: None,
-                        })
-                };
-                let pipes = [mk("kick_drift"), mk("pass1"), mk("force"), mk("kick_only")];
+                use mechanics::gpu::BufferBinding::{Read, ReadWrite, Uniform};
+                let layout = ctx.bind_layout(
+                    "pd-corr",
+                    &[Uniform, Read, ReadWrite, Read, Read, ReadWrite],
+                );
+                let pipes: [wgpu::ComputePipeline; 4] = ctx
+                    .pipelines(
+                        "pd-corr",
+                        &[Some(&layout)],
+                        &module,
+                        &["kick_drift", "pass1", "force", "kick_only"],
+                    )
+                    .try_into()
+                    .unwrap_or_else(|_| unreachable!("four entry points, four pipelines"));
                 let pu = ctx.uniform_init("pd-corr params", mechanics::gpu::u32_bytes(&u));
                 let mp = ctx.storage_init("pd-corr constants", &reals_to_bytes(p, &consts));
                 let pv = ctx.storage_init("pd-corr particles", &reals_to_bytes(p, &reals));
                 let iu = ctx.storage_init("pd-corr ints", mechanics::gpu::u32_bytes(&ints));
                 let bd = ctx.storage_init("pd-corr bonds", &reals_to_bytes(p, &breal));
                 let pt = ctx.storage_init("pd-corr points", &reals_to_bytes(p, &pts));
-                let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("pd-corr"),
-                    layout: &layout,
-                    entries: &[
-                        entry(&pu, 0),
-                        entry(&mp, 1),
-                        entry(&pv, 2),
-                        entry(&iu, 3),
-                        entry(&bd, 4),
-                        entry(&pt, 5),
-                    ],
-                });
+                let bind = ctx.bind_group("pd-corr", &layout, &[&pu, &mp, &pv, &iu, &bd, &pt]);
                 (pipes, bind, mp, pv, pt)
             })?;
         Ok(GpuCorrBody {
