@@ -957,6 +957,17 @@ fn drive(
     }
     bar.finish_and_clear();
     let loop_s = loop_start.elapsed().as_secs_f64();
+    // A node publishes its last window's data before its Done, but on another topic: that
+    // data may still be queued here. Record it before the nodes go (a quiet 50 ms, at most
+    // 2 s), so the recording holds every message of every window.
+    let drain_until = Instant::now() + Duration::from_secs(2);
+    while Instant::now() < drain_until {
+        match c.pump_one(Duration::from_millis(50)) {
+            Ok(true) => {}
+            Ok(false) => break,
+            Err(f) => return Err(f),
+        }
+    }
     for i in active.clone() {
         c.send(
             i,
