@@ -209,31 +209,9 @@ fn vtk_output_reads_back_with_vtkio() {
 
 #[test]
 fn probe_history_csv() {
-    let mut s = solver(
-        r#"
-        cfl = 0.5
-        [grid]
-        cells = [50, 1, 1]
-        lower = [0.0, 0.0, 0.0]
-        upper = [1.0, 1.0, 1.0]
-        [materials.gas]
-        eos = "ideal"
-        gamma = 1.4
-        [[regions]]
-        shape = "all"
-        material = "gas"
-        density = 0.125
-        pressure = 0.1
-        [[regions]]
-        shape = "box"
-        lower = [0.0, 0.0, 0.0]
-        upper = [0.5, 1.0, 1.0]
-        material = "gas"
-        density = 1.0
-        pressure = 1.0
-        [boundaries]
-        x_lower = "outflow"
-        x_upper = "outflow"
+    // Sod's tube (50 cells) with two probes.
+    let mut s = solver(&format!(
+        r#"{}
         [[probes]]
         name = "left"
         position = [0.43, 0.5, 0.5]
@@ -241,7 +219,8 @@ fn probe_history_csv() {
         name = "right"
         position = [0.71, 0.5, 0.5]
     "#,
-    );
+        setup::sod_case(50, "van_leer")
+    ));
     let (inbox, mut outbox) = (Inbox::new(), Outbox::new());
     let win = 0.05;
     for k in 1..=3u64 {

@@ -496,6 +496,28 @@ pub fn dispatch_dims(groups: u32, max_per_dim: u32) -> (u32, u32) {
     }
 }
 
+/// For the tests that compare a GPU path with the CPU to 1e-10: a context with f64 kernels,
+/// or `None` after printing why `test` is skipped (no adapter, or f32 kernels only).
+pub fn f64_context_or_skip(test: &str) -> Option<GpuContext> {
+    match GpuContext::new() {
+        Ok(c) if c.precision == Precision::F64 => {
+            println!("{test}: GPU {}", c.describe());
+            Some(c)
+        }
+        Ok(c) => {
+            println!(
+                "{test}: skipped: the 1e-10 agreement needs f64 kernels ({})",
+                c.warning.clone().unwrap_or_default()
+            );
+            None
+        }
+        Err(e) => {
+            println!("{test}: skipped: {e}");
+            None
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

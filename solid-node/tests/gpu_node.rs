@@ -11,30 +11,14 @@
 //! What the device path does not implement is refused at set-up naming `device`. Without an
 //! adapter with f64 kernels the comparisons print why they were skipped and pass.
 
-use mechanics::gpu::{GpuContext, Precision};
+use mechanics::gpu::GpuContext;
 use protocol::{
     Binding, CouplingKind, Inbox, Outbox, Role, Solver, SolverError, StepReport, Window,
 };
 
 /// Some(()) when an adapter with f64 kernels exists; prints why not otherwise.
 fn adapter(test: &str) -> Option<()> {
-    match GpuContext::new() {
-        Ok(c) if c.precision == Precision::F64 => {
-            println!("{test}: GPU {}", c.describe());
-            Some(())
-        }
-        Ok(c) => {
-            println!(
-                "{test}: skipped: the 1e-10 agreement needs f64 kernels ({})",
-                c.warning.clone().unwrap_or_default()
-            );
-            None
-        }
-        Err(e) => {
-            println!("{test}: skipped: {e}");
-            None
-        }
-    }
+    mechanics::gpu::f64_context_or_skip(test).map(|_| ())
 }
 
 fn table(model: &str, device: &str) -> toml::Table {

@@ -6,7 +6,7 @@
 //! break checks that the same bonds break. The CPU path is verified against √(E/ρ) by
 //! pd_verification.rs. Without an adapter the tests print why they were skipped and pass.
 
-use mechanics::gpu::{GpuContext, Precision};
+use mechanics::gpu::GpuContext;
 use solid_node::pd::bond::BondModel;
 use solid_node::pd::family::Bonds;
 use solid_node::pd::geometry::{Shape, lattice};
@@ -17,23 +17,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 fn context(test: &str) -> Option<Arc<GpuContext>> {
-    match GpuContext::new() {
-        Ok(c) if c.precision == Precision::F64 => {
-            println!("{test}: GPU {}", c.describe());
-            Some(Arc::new(c))
-        }
-        Ok(c) => {
-            println!(
-                "{test}: skipped: the 1e-10 agreement needs f64 kernels ({})",
-                c.warning.clone().unwrap_or_default()
-            );
-            None
-        }
-        Err(e) => {
-            println!("{test}: skipped: {e}");
-            None
-        }
-    }
+    mechanics::gpu::f64_context_or_skip(test).map(Arc::new)
 }
 
 /// Plane-stress steel strip nx × ny (Δx 1 mm, δ 3.015 Δx) in its fundamental mode.

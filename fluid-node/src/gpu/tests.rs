@@ -13,7 +13,6 @@
 
 use crate::EulerSolver;
 use crate::immersed::SOLID;
-use mechanics::gpu::{GpuContext, Precision};
 use protocol::message::StepReport;
 use protocol::{Field, Inbox, Outbox, Solver, Window};
 
@@ -77,19 +76,8 @@ fn scalar(r: &StepReport, name: &str) -> f64 {
 
 #[test]
 fn moving_disc_in_a_blast_matches_cpu() {
-    match GpuContext::new() {
-        Ok(c) if c.precision == Precision::F64 => println!("GPU: {}", c.describe()),
-        Ok(c) => {
-            println!(
-                "skipped: the 1e-10 agreement needs f64 kernels ({})",
-                c.warning.clone().unwrap_or_default()
-            );
-            return;
-        }
-        Err(e) => {
-            println!("skipped: {e}");
-            return;
-        }
+    if mechanics::gpu::f64_context_or_skip("moving_disc_in_a_blast_matches_cpu").is_none() {
+        return;
     }
     let n = 40;
     let h = 1.0 / n as f64;

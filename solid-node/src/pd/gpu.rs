@@ -30,16 +30,11 @@ const WG: u32 = 64;
 /// and the window accumulators (work 1, impulse 3).
 const PV_REALS: usize = 20;
 
-const SHADER: &str = r#"
-struct P { n: u32, nb: u32, pad0: u32, pad1: u32, dt: real, half_dt: real, rho: real, bf: real }
-@group(0) @binding(0) var<uniform> pp: P;
-// pos 0, vel 3n, force 6n, fext 9n, vpres 12n, vol 15n, work 16n, impulse 17n
-@group(0) @binding(1) var<storage, read_write> pv: array<real>;
-// prescribed 0, offsets n, nbr 2n+1
-@group(0) @binding(2) var<storage, read> iu: array<u32>;
-// inv_len 0, coef nb
-@group(0) @binding(3) var<storage, read_write> bd: array<real>;
-
+/// Velocity Verlet of integrate.rs (`Body::step`) on the device, shared by both force models.
+/// Each model's shader defines the layout of `pv` (pos 0, vel 3n, force 6n, fext 9n, vpres 12n,
+/// vol 15n, work 16n, impulse 17n), `iu` (prescribed flags first) and the accessors `n_pts`,
+/// `step_dt`, `half_dt` and `density`.
+const INTEGRATE_SHADER: &str = r#"
 fn lin(gid: vec3<u32>, nwg: vec3<u32>) -> u32 { return gid.x + gid.y * nwg.x * 64u; }
 
 // The window sums of the node's report (solver.rs, per step after the last kick): the work
@@ -57,37 +52,56 @@ fn accumulate(i: u32, n: u32, dt: real) {
 
 // integrate.rs kick(): v += dt/2 (f/ρ + f_ext/(ρV)), or the prescribed velocity
 fn kick(i: u32) {
-    let n = pp.n;
+    let n = n_pts();
     if iu[i] != 0u {
         for (var d = 0u; d < 3u; d++) {
             pv[3u * n + 3u * i + d] = pv[12u * n + 3u * i + d];
         }
         return;
     }
-    let inv_m = real(1.0) / (pp.rho * pv[15u * n + i]);
+    let rho = density();
+    let inv_m = real(1.0) / (rho * pv[15u * n + i]);
     for (var d = 0u; d < 3u; d++) {
         let k = 3u * i + d;
-        pv[3u * n + k] += pp.half_dt * (pv[6u * n + k] / pp.rho + pv[9u * n + k] * inv_m);
+        pv[3u * n + k] += half_dt() * (pv[6u * n + k] / rho + pv[9u * n + k] * inv_m);
     }
 }
 
 @compute @workgroup_size(64)
 fn kick_drift(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let i = lin(gid, nwg);
-    if i >= pp.n { return; }
+    let n = n_pts();
+    if i >= n { return; }
     kick(i);
     for (var d = 0u; d < 3u; d++) {
-        pv[3u * i + d] += pp.dt * pv[3u * pp.n + 3u * i + d];
+        pv[3u * i + d] += step_dt() * pv[3u * n + 3u * i + d];
     }
 }
 
 @compute @workgroup_size(64)
 fn kick_only(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let i = lin(gid, nwg);
-    if i >= pp.n { return; }
+    if i >= n_pts() { return; }
     kick(i);
-    accumulate(i, pp.n, pp.dt);
+    accumulate(i, n_pts(), step_dt());
 }
+"#;
+
+/// The `pd-bond` force loop (bond.rs `row_force`) over compressed rows, one thread per particle.
+const SHADER: &str = r#"
+struct P { n: u32, nb: u32, pad0: u32, pad1: u32, dt: real, half_dt: real, rho: real, bf: real }
+@group(0) @binding(0) var<uniform> pp: P;
+// pos 0, vel 3n, force 6n, fext 9n, vpres 12n, vol 15n, work 16n, impulse 17n
+@group(0) @binding(1) var<storage, read_write> pv: array<real>;
+// prescribed 0, offsets n, nbr 2n+1
+@group(0) @binding(2) var<storage, read> iu: array<u32>;
+// inv_len 0, coef nb
+@group(0) @binding(3) var<storage, read_write> bd: array<real>;
+
+fn n_pts() -> u32 { return pp.n; }
+fn step_dt() -> real { return pp.dt; }
+fn half_dt() -> real { return pp.half_dt; }
+fn density() -> real { return pp.rho; }
 
 // bond.rs row_force(): f_i = Σ_j c_ij (1/|ξ| − 1/|y|) y, breaking bonds with s > s0 first
 @compute @workgroup_size(64)
@@ -174,7 +188,10 @@ impl GpuBondBody {
         let rb = p.bytes();
         // BondModel::new: break_factor = 1/(1+s0), 0 without damage
         let bf = critical_stretch.map_or(0.0, |s0| 1.0 / (1.0 + s0));
-        let module = ctx.shader("pd-bond", &format!("alias real = {};\n{SHADER}", p.wgsl()))?;
+        let module = ctx.shader(
+            "pd-bond",
+            &format!("alias real = {};\n{SHADER}\n{INTEGRATE_SHADER}", p.wgsl()),
+        )?;
         let mut reals = Vec::with_capacity(PV_REALS * n);
         for a in [&body.pos, &body.vel, &body.force, &body.fext, &body.vpres] {
             reals.extend_from_slice(flat(a));
@@ -385,54 +402,10 @@ struct U { n: u32, nb: u32, three_d: u32, pad: u32 }
 // kinv 0 (9n), active 9n, stress 10n (6n), back 16n (6n), eqp 22n, ahat 23n (9n), kappa 32n
 @group(0) @binding(5) var<storage, read_write> pt: array<real>;
 
-fn lin(gid: vec3<u32>, nwg: vec3<u32>) -> u32 { return gid.x + gid.y * nwg.x * 64u; }
-
-// The window sums of the node's report (solver.rs, per step after the last kick): the work
-// of the external force at the end-of-step velocity, Σ (f_ext dt)·v (16n), and the impulse
-// of the internal force, Σ (f V) dt (17n, 3 per particle). Cleared by the host each window.
-fn accumulate(i: u32, n: u32, dt: real) {
-    var w = real(0.0);
-    for (var d = 0u; d < 3u; d++) {
-        let k = 3u * i + d;
-        w += pv[9u * n + k] * dt * pv[3u * n + k];
-        pv[17u * n + k] += pv[6u * n + k] * pv[15u * n + i] * dt;
-    }
-    pv[16u * n + i] += w;
-}
-
-fn kick(i: u32) {
-    let n = pu.n;
-    if iu[i] != 0u {
-        for (var d = 0u; d < 3u; d++) {
-            pv[3u * n + 3u * i + d] = pv[12u * n + 3u * i + d];
-        }
-        return;
-    }
-    let rho = mp[2];
-    let inv_m = real(1.0) / (rho * pv[15u * n + i]);
-    for (var d = 0u; d < 3u; d++) {
-        let k = 3u * i + d;
-        pv[3u * n + k] += mp[1] * (pv[6u * n + k] / rho + pv[9u * n + k] * inv_m);
-    }
-}
-
-@compute @workgroup_size(64)
-fn kick_drift(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
-    let i = lin(gid, nwg);
-    if i >= pu.n { return; }
-    kick(i);
-    for (var d = 0u; d < 3u; d++) {
-        pv[3u * i + d] += mp[0] * pv[3u * pu.n + 3u * i + d];
-    }
-}
-
-@compute @workgroup_size(64)
-fn kick_only(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
-    let i = lin(gid, nwg);
-    if i >= pu.n { return; }
-    kick(i);
-    accumulate(i, pu.n, mp[0]);
-}
+fn n_pts() -> u32 { return pu.n; }
+fn step_dt() -> real { return mp[0]; }
+fn half_dt() -> real { return mp[1]; }
+fn density() -> real { return mp[2]; }
 
 // correspondence.rs matmul / det / inverse, row-major 3x3
 fn mm(a: array<real, 9>, b: array<real, 9>) -> array<real, 9> {
@@ -741,7 +714,10 @@ impl GpuCorrBody {
         ];
         let module = ctx.shader(
             "pd-correspondence",
-            &format!("alias real = {};\n{CORR_SHADER}", p.wgsl()),
+            &format!(
+                "alias real = {};\n{CORR_SHADER}\n{INTEGRATE_SHADER}",
+                p.wgsl()
+            ),
         )?;
         let mut reals = Vec::with_capacity(PV_REALS * n);
         for a in [&body.pos, &body.vel, &body.force, &body.fext, &body.vpres] {
@@ -1066,23 +1042,7 @@ mod tests {
     use std::time::Instant;
 
     fn context(test: &str) -> Option<Arc<GpuContext>> {
-        match GpuContext::new() {
-            Ok(c) if c.precision == Precision::F64 => {
-                println!("{test}: GPU {}", c.describe());
-                Some(Arc::new(c))
-            }
-            Ok(c) => {
-                println!(
-                    "{test}: skipped: the 1e-10 agreement needs f64 kernels ({})",
-                    c.warning.clone().unwrap_or_default()
-                );
-                None
-            }
-            Err(e) => {
-                println!("{test}: skipped: {e}");
-                None
-            }
-        }
+        mechanics::gpu::f64_context_or_skip(test).map(Arc::new)
     }
 
     /// Plane-strain steel strip nx × ny in its fundamental mode; the body and an identical,

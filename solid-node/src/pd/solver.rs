@@ -235,6 +235,9 @@ pub struct PdSolver {
     interface_work: f64,
     external_work: f64,
     first_damage: Option<FirstDamage>,
+    /// (Σ damage, fragments, debris) of the last count: bonds never heal, so an unchanged
+    /// damage sum means no bond broke and the components need no recount.
+    fragment_cache: Option<(f64, usize, usize)>,
     /// The device copy of the body when `device = "gpu"`: it owns the time stepping; `body`
     /// is brought up to date at every window end.
     device: Option<DeviceBody>,
@@ -643,6 +646,7 @@ impl PdSolver {
             interface_work: 0.0,
             external_work: 0.0,
             first_damage: None,
+            fragment_cache: None,
             device,
         })
     }
@@ -723,8 +727,16 @@ impl PdSolver {
         let cracked = damage.iter().filter(|&&d| d > 0.0).count();
         v.push(("damaged_particles".into(), damaged as f64));
         v.push(("cracked_particles".into(), cracked as f64));
-        let (frags, debris) = self.fragments(self.params.fragment_min_size);
-        v.push(("fragments".into(), frags.len() as f64));
+        let dsum: f64 = damage.iter().sum();
+        let (frags, debris) = match self.fragment_cache {
+            Some((d, f, r)) if d == dsum => (f, r),
+            _ => {
+                let (big, debris) = self.fragments(self.params.fragment_min_size);
+                self.fragment_cache = Some((dsum, big.len(), debris));
+                (big.len(), debris)
+            }
+        };
+        v.push(("fragments".into(), frags as f64));
         v.push(("debris_particles".into(), debris as f64));
         if self.first_damage.is_none() && cracked > 0 {
             self.first_damage = Some(first_damage_of(
@@ -1298,6 +1310,7 @@ impl Solver for PdSolver {
     fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
         use super::checkpoint::{Reader, unflat3};
         let bad = |e: String| SolverError::Other(format!("load_state: {e}"));
+        self.fragment_cache = None;
         let mut r = Reader::new(bytes);
         r.bytes(CHECKPOINT_MAGIC.len(), "magic")
             .and_then(|m| {
