@@ -354,7 +354,7 @@ pub fn main_with(cli: Cli) -> i32 {
                         )
                     } else {
                         format!(
-                            "largest momentum residual {:.3e} of the largest impulse",
+                            "largest momentum residual {:.3e} of the largest impulse or gross momentum",
                             f("max_momentum_residual_relative")
                         )
                     };

@@ -10,6 +10,8 @@ use protocol::SolverResult;
 pub struct Totals {
     pub mass: f64,
     pub momentum: [f64; 3],
+    /// Σ |ρu| V: the scale of momentum sums that cancel.
+    pub momentum_gross: f64,
     pub kinetic: f64,
     pub internal: f64,
     pub max_pressure: f64,
@@ -82,9 +84,13 @@ pub fn totals(f: &mut Fluid) -> SolverResult<Totals> {
             let e = f.cons[(r * nv + nm + 3) * mx + i];
             let ke = 0.5 * rho * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
             row.mass += rho * vol;
+            let mut m2 = 0.0;
             for d in 0..3 {
-                row.momentum[d] += f.cons[(r * nv + nm + d) * mx + i] * vol;
+                let m = f.cons[(r * nv + nm + d) * mx + i];
+                row.momentum[d] += m * vol;
+                m2 += m * m;
             }
+            row.momentum_gross += m2.sqrt() * vol;
             row.kinetic += ke * vol;
             row.internal += (e - ke) * vol;
             row.max_pressure = row.max_pressure.max(p);
@@ -93,6 +99,7 @@ pub fn totals(f: &mut Fluid) -> SolverResult<Totals> {
         for d in 0..3 {
             t.momentum[d] += row.momentum[d];
         }
+        t.momentum_gross += row.momentum_gross;
         t.kinetic += row.kinetic;
         t.internal += row.internal;
         t.max_pressure = t.max_pressure.max(row.max_pressure);

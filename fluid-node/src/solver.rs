@@ -226,6 +226,7 @@ impl Solver for EulerSolver {
             kinetic_energy: d.kinetic,
             internal_energy: d.internal,
             momentum: d.momentum,
+            momentum_gross: d.momentum_gross,
             external_impulse: self.fluid.boundary_impulse,
             interface_work: self.interface_work,
             substeps,
@@ -321,6 +322,7 @@ impl EulerSolver {
             kinetic_energy: d.kinetic,
             internal_energy: d.internal,
             momentum: d.momentum,
+            momentum_gross: d.momentum_gross,
             external_impulse: g.boundary_impulse(),
             substeps,
             ..Default::default()

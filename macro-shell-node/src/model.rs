@@ -144,6 +144,16 @@ impl Model {
         p
     }
 
+    /// Gross momentum Σ m|v| (translation only), the scale of momentum sums that cancel.
+    pub fn momentum_gross(&self) -> f64 {
+        (0..self.x.len())
+            .map(|i| {
+                let v = self.v[i];
+                self.mass[i] * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+            })
+            .sum()
+    }
+
     /// Angular momentum about the origin, Σ x_n × m v_{n+½} + I ω_{n+½}; evaluated after a
     /// step, x_{n+1} × v_{n+½} = x_n × v_{n+½} since x_{n+1} − x_n ∥ v_{n+½}. With
     /// self-equilibrated element forces it changes exactly by Σ Δt (x_n × F + M).

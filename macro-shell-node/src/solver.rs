@@ -147,6 +147,7 @@ impl ShellSolver {
             external_work: m.external_work + m.support_work + m.pressure_work(),
             interface_work: m.interface_work,
             momentum: m.momentum(),
+            momentum_gross: m.momentum_gross(),
             external_impulse: m.external_impulse,
             interface_impulse: m.interface_impulse,
             applied_impulse: element::norm(m.load_impulse),

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 pub const MAGIC: [u8; 4] = *b"CSIM";
-pub const PROTOCOL_VERSION: u16 = 3;
+pub const PROTOCOL_VERSION: u16 = 4;
 pub const HEADER_LEN: usize = 20;
 /// Largest body accepted (1 GiB), also the cap on any allocation the decoder makes.
 pub const MAX_BODY: usize = 1 << 30;

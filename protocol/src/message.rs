@@ -268,6 +268,10 @@ pub struct StepReport {
     pub interface_work: f64,
     /// Total linear momentum of the node (kg m/s).
     pub momentum: [f64; 3],
+    /// Gross momentum of the node, Σ m|v| (kg m/s): the scale of momentum sums that cancel
+    /// (a symmetric blast pushes a ring outward with a net momentum of round-off). 0 when
+    /// the node does not report it.
+    pub momentum_gross: f64,
     /// Impulse of the node's own external loads and supports over the run so far (N s).
     pub external_impulse: [f64; 3],
     /// Magnitude of the impulse of the node's prescribed loads so far, supports excluded

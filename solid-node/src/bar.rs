@@ -501,6 +501,10 @@ impl Solver for Bar {
             external_work: self.s.external_work,
             interface_work: self.s.interface_work,
             momentum: [p, 0.0, 0.0],
+            momentum_gross: (0..self.s.v.len())
+                .filter(|&i| !self.is_prescribed(i))
+                .map(|i| self.m[i] * self.s.v[i].abs())
+                .sum(),
             external_impulse: [self.s.external_impulse, 0.0, 0.0],
             applied_impulse: self.s.applied_impulse,
             interface_impulse: [self.s.interface_impulse, 0.0, 0.0],

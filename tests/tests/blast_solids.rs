@@ -111,6 +111,41 @@ fn the_ring_receives_what_the_gas_gives_every_window() {
     );
 }
 
+/// The published charge sits on the ring's axis: the net impulses are round-off, so the
+/// residual is judged against the gross momentum Σ m|v| of the nodes (gas and ring).
+#[test]
+fn a_symmetric_blast_balances_momentum_against_the_gross_scale() {
+    let out = ring_published();
+    let b = &summary(out)["balance"];
+    let get = |k: &str| {
+        b[k].as_f64()
+            .unwrap_or_else(|| panic!("balance.{k} in summary.json"))
+    };
+    let (resid, impulse, gross, rel) = (
+        get("max_momentum_residual"),
+        get("impulse_scale"),
+        get("momentum_scale"),
+        get("max_momentum_residual_relative"),
+    );
+    println!(
+        "symmetric blast: residual {resid:.3e} N s, largest net impulse {impulse:.3e} N s, \
+         gross momentum {gross:.3e} kg m/s, relative {rel:.3e}"
+    );
+    // The gas's gross momentum: at least the ring's outward momentum, which is physical.
+    let ring_gross = node_series(&out.join("run.mcap"), "ring", "momentum_gross")
+        .iter()
+        .map(|&(_, v)| v)
+        .fold(0.0f64, f64::max);
+    assert!(
+        ring_gross > 1e-3 && gross >= ring_gross,
+        "{ring_gross:e} {gross:e}"
+    );
+    assert!(
+        rel <= 1e-12 && (rel - resid / impulse.max(gross)).abs() <= 1e-15,
+        "{rel:e}"
+    );
+}
+
 #[test]
 fn the_published_charge_stays_far_below_failure() {
     // Lamé's thick ring (a = 7 cm, b = 10 cm) under an inner pressure p, plane strain

@@ -582,6 +582,7 @@ fn row_totals(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
     var kin = real(0.0);
     var int = real(0.0);
     var pmax = real(0.0);
+    var gross = real(0.0);
     for (var i = g(0u); i < g(0u) + n(0u); i++) {
         if is_solid_cell(r * mx() + i) {
             continue;
@@ -605,8 +606,9 @@ fn row_totals(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
         kin += ke * vol;
         int += (e - ke) * vol;
         pmax = max(pmax, p);
+        gross += sqrt(m0 * m0 + m1 * m1 + m2 * m2) * vol;
     }
-    let o = 7u * t;
+    let o = 8u * t;
     flux[o] = mass;
     flux[o + 1u] = mom[0];
     flux[o + 2u] = mom[1];
@@ -614,4 +616,5 @@ fn row_totals(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
     flux[o + 4u] = kin;
     flux[o + 5u] = int;
     flux[o + 6u] = pmax;
+    flux[o + 7u] = gross;
 }

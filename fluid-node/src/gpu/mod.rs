@@ -688,12 +688,12 @@ impl GpuEuler {
             .map_err(gpu_err)?;
         let b = self
             .ctx
-            .read(&self.flux, 0, (7 * nrows * p.bytes()) as u64)
+            .read(&self.flux, 0, (8 * nrows * p.bytes()) as u64)
             .map_err(gpu_err)?;
-        let mut rows = vec![0.0; 7 * nrows];
+        let mut rows = vec![0.0; 8 * nrows];
         bytes_to_reals(p, &b, &mut rows).map_err(gpu_err)?;
         let mut t = Totals::default();
-        for row in rows.chunks_exact(7) {
+        for row in rows.chunks_exact(8) {
             t.mass += row[0];
             for d in 0..3 {
                 t.momentum[d] += row[1 + d];
@@ -701,6 +701,7 @@ impl GpuEuler {
             t.kinetic += row[4];
             t.internal += row[5];
             t.max_pressure = t.max_pressure.max(row[6]);
+            t.momentum_gross += row[7];
         }
         Ok(t)
     }

@@ -1209,6 +1209,15 @@ impl Solver for PdSolver {
             external_work: self.external_work,
             interface_work: self.interface_work,
             momentum: self.body.momentum(),
+            momentum_gross: {
+                let b = &self.body;
+                (0..b.len())
+                    .map(|i| {
+                        let v = b.vel[i];
+                        b.density * b.vol[i] * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+                    })
+                    .sum()
+            },
             external_impulse: self.external_impulse,
             applied_impulse: self.applied_impulse,
             interface_impulse: self.interface_impulse,
