@@ -187,6 +187,7 @@ pub fn load_variant(
     let mut all: Vec<String> = Vec::new();
     if let Some(name) = variant {
         let v = config::variant_sets(&doc, name)?;
+        config::apply_variant_structure(&mut doc, name)?;
         // A variant writes beside the others unless it says where.
         if !v.iter().any(|s| {
             s.split_once('=')

@@ -732,7 +732,11 @@ pub fn variant_names(doc: &toml::Table) -> Result<Vec<String>, ConfigError> {
         let b = body
             .as_table()
             .ok_or_else(|| err(&key, "must be a table with `description` and `set`"))?;
-        check_keys(b, &format!("{key}."), &["description", "set"])?;
+        check_keys(
+            b,
+            &format!("{key}."),
+            &["description", "set", "remove", "nodes", "couplings"],
+        )?;
         if let Some(d) = b.get("description")
             && !d.is_str()
         {
@@ -779,6 +783,125 @@ pub fn variant_sets(doc: &toml::Table, name: &str) -> Result<Vec<String>, Config
             )),
         })
         .collect()
+}
+
+/// Apply the structural part of variant `name` to the case document, before its `set`
+/// list: `remove = ["nodes.NAME", "couplings.NAME", ...]` drops nodes and couplings (a
+/// coupling's name is its `name` or `DRIVER-RESPONDER`), then `[variants.NAME.nodes.X]`
+/// tables add nodes and `[[variants.NAME.couplings]]` entries add couplings, exactly as in
+/// the case's own `[nodes]` and `[[couplings]]`. A node removed while a coupling still
+/// names it is caught by the validation of the result.
+pub fn apply_variant_structure(doc: &mut toml::Table, name: &str) -> Result<(), ConfigError> {
+    let key = format!("variants.{name}");
+    let Some(v) = doc
+        .get("variants")
+        .and_then(|v| v.get(name))
+        .and_then(|v| v.as_table())
+        .cloned()
+    else {
+        return Ok(());
+    };
+    let coupling_name = |t: &toml::Value| -> String {
+        let node = |k: &str| {
+            t.get(k)
+                .and_then(|v| v.as_str())
+                .and_then(|v| v.split_once('.'))
+                .map(|(n, _)| n.to_string())
+                .unwrap_or_default()
+        };
+        t.get("name")
+            .and_then(|v| v.as_str())
+            .map(str::to_string)
+            .unwrap_or_else(|| format!("{}-{}", node("driver"), node("responder")))
+    };
+    if let Some(r) = v.get("remove") {
+        let arr = r.as_array().ok_or_else(|| {
+            err(
+                format!("{key}.remove"),
+                "must be an array of \"nodes.NAME\" or \"couplings.NAME\" strings",
+            )
+        })?;
+        for (i, item) in arr.iter().enumerate() {
+            let k = format!("{key}.remove[{i}]");
+            let Some((table, what)) = item.as_str().and_then(|s| s.split_once('.')) else {
+                return Err(err(
+                    k,
+                    "must be a \"nodes.NAME\" or \"couplings.NAME\" string",
+                ));
+            };
+            match table {
+                "nodes" => {
+                    let nodes = doc.get_mut("nodes").and_then(|n| n.as_table_mut());
+                    if nodes.and_then(|n| n.remove(what)).is_none() {
+                        return Err(err(k, format!("the case has no node '{what}'")));
+                    }
+                }
+                "couplings" => {
+                    let list = doc.get_mut("couplings").and_then(|c| c.as_array_mut());
+                    let Some(list) = list else {
+                        return Err(err(k, "the case has no [[couplings]]"));
+                    };
+                    let before = list.len();
+                    list.retain(|c| coupling_name(c) != what);
+                    if list.len() == before {
+                        return Err(err(k, format!("the case has no coupling '{what}'")));
+                    }
+                }
+                _ => {
+                    return Err(err(
+                        k,
+                        "must be a \"nodes.NAME\" or \"couplings.NAME\" string",
+                    ));
+                }
+            }
+        }
+    }
+    if let Some(n) = v.get("nodes") {
+        let add = n.as_table().ok_or_else(|| {
+            err(
+                format!("{key}.nodes"),
+                "must be a table of [variants.NAME.nodes.X] tables",
+            )
+        })?;
+        let nodes = doc
+            .entry("nodes")
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()))
+            .as_table_mut()
+            .ok_or_else(|| err("nodes", "must be a table"))?;
+        for (node, body) in add {
+            if nodes.contains_key(node) {
+                return Err(err(
+                    format!("{key}.nodes.{node}"),
+                    "the case already has this node (remove it first: remove = [\"nodes.NAME\"])",
+                ));
+            }
+            nodes.insert(node.clone(), body.clone());
+        }
+    }
+    if let Some(c) = v.get("couplings") {
+        let add = c.as_array().ok_or_else(|| {
+            err(
+                format!("{key}.couplings"),
+                "must be an array of [[variants.NAME.couplings]] tables",
+            )
+        })?;
+        let list = doc
+            .entry("couplings")
+            .or_insert_with(|| toml::Value::Array(Vec::new()))
+            .as_array_mut()
+            .ok_or_else(|| err("couplings", "must be an array of tables"))?;
+        for (i, cp) in add.iter().enumerate() {
+            let this = coupling_name(cp);
+            if list.iter().any(|c| coupling_name(c) == this) {
+                return Err(err(
+                    format!("{key}.couplings[{i}]"),
+                    format!("the case already has a coupling '{this}' (remove it first)"),
+                ));
+            }
+            list.push(cp.clone());
+        }
+    }
+    Ok(())
 }
 
 /// Bindings of one node: its side of every coupling.

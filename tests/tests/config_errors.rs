@@ -202,3 +202,75 @@ fn variants_are_checked_and_applied() {
         "end_time 2e-5 / window 1e-6"
     );
 }
+
+/// A variant can restructure the case: `remove` drops nodes and couplings, its own `nodes`
+/// and `couplings` tables add new ones (as the grouped crash tube swaps ten joint nodes for
+/// one). Bad entries are refused with their key.
+#[test]
+fn variants_can_remove_and_add_nodes_and_couplings() {
+    let regroup = r#"
+[variants.split]
+description = "the right bar replaced by a longer one with another name"
+remove = ["nodes.right", "couplings.left-right"]
+set = ["run.end_time=1e-5"]
+[variants.split.nodes.far]
+solver = "solid-node"
+model = "bar-1d"
+[variants.split.nodes.far.params]
+length = 1.0
+elements = 20
+young = 200e9
+density = 7860.0
+area = 1e-4
+fixed = "none"
+interfaces = { root = "left" }
+[[variants.split.couplings]]
+kind = "kinematic"
+driver = "left.tip"
+responder = "far.root"
+
+[variants.unknown-node]
+remove = ["nodes.middle"]
+
+[variants.clash]
+[variants.clash.nodes.left]
+solver = "solid-node"
+
+[variants.dangling]
+remove = ["nodes.right"]
+"#;
+    let (dir, id) = scratch("variant-structure");
+    let out = dir.join("out");
+    let case = dir.join("case.toml");
+    std::fs::write(
+        &case,
+        format!("{GOOD}{regroup}").replace("OUT", out.to_str().unwrap()),
+    )
+    .unwrap();
+    let c = case.to_str().unwrap();
+    for (variant, key) in [
+        ("unknown-node", "variants.unknown-node.remove[0]"),
+        ("clash", "variants.clash.nodes.left"),
+        // the coupling still names the removed node
+        ("dangling", "right"),
+    ] {
+        let o = cosim(&["run", c, "--variant", variant, "--run-id", &id, "--quiet"]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        println!("{variant}: {err}");
+        assert_eq!(o.status.code(), Some(2), "{variant}: {err}");
+        assert!(err.contains(key), "{variant}: '{err}' does not name {key}");
+        assert!(!out.join(variant).exists(), "{variant}: output written");
+    }
+    let o = cosim(&["run", c, "--variant", "split", "--run-id", &id, "--quiet"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s = summary(&out.join("split"));
+    let nodes: Vec<&String> = s["nodes"].as_object().expect("nodes").keys().collect();
+    assert_eq!(nodes, ["far", "left"], "{nodes:?}");
+    assert_eq!(s["couplings"][0]["responder"].as_str(), Some("far.root"));
+    assert_eq!(s["windows"].as_u64(), Some(10));
+    // `cosim validate` checks every variant of the case, so the broken ones show there too.
+    let o = cosim(&["validate", c]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("(variant "), "{err}");
+}
