@@ -68,6 +68,8 @@ struct NodeRt {
     exited: Option<String>,
     /// Finished before the end (its couplings ended, seed 000 §4): the window after which.
     finished: Option<u64>,
+    /// What the node warned of in its descriptions (each once).
+    warnings: Vec<String>,
 }
 
 struct Coord<'a> {
@@ -322,6 +324,12 @@ impl<'a> Coord<'a> {
             Message::Describe(d) => {
                 n.described += 1;
                 n.stable_dt = d.stable_dt;
+                for w in d.warnings {
+                    if !n.warnings.contains(&w) {
+                        tracing::warn!("node '{}': {w}", n.name);
+                        n.warnings.push(w);
+                    }
+                }
             }
             Message::Done(d) => {
                 n.done = Some(d.window);
@@ -595,6 +603,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             idle_s: 0.0,
             hello: false,
             described: 0,
+            warnings: Vec::new(),
             stable_dt: 0.0,
             done: None,
             report: StepReport::default(),
@@ -1014,6 +1023,7 @@ fn drive(
                 "coupling_fraction": of_loop(n.wait_s),
                 "idle_fraction": of_loop(n.idle_s),
                 "finished_after_window": n.finished,
+                "warnings": n.warnings,
                 "final": {
                     "kinetic_energy": n.report.kinetic_energy, "internal_energy": n.report.internal_energy,
                     "external_work": n.report.external_work, "interface_work": n.report.interface_work,
@@ -1047,6 +1057,12 @@ fn drive(
         "window": case.run.window,
         "windows": windows,
         "nodes": nodes_json,
+        // Every node's warnings, "node: text" (also per node above, and in the log).
+        "warnings": c
+            .nodes
+            .iter()
+            .flat_map(|n| n.warnings.iter().map(move |w| format!("{}: {w}", n.name)))
+            .collect::<Vec<_>>(),
         "couplings": couplings,
         // What the run costs beyond its slowest node's own work: the coupling overhead on
         // the critical path (exchange, waiting, coordination).

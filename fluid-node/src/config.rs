@@ -32,6 +32,11 @@ pub struct Params {
     /// immersed particles yet).
     #[serde(default)]
     pub device: Option<String>,
+    /// Arithmetic of the GPU kernels: "f64" (default: f64 where the adapter has
+    /// `SHADER_F64`, else f32 with a warning) or "f32" (faster on consumer GPUs, whose f64
+    /// rate is a small fraction of f32; about 1e-6 relative accuracy, with a warning).
+    #[serde(default)]
+    pub precision: Option<String>,
 }
 
 fn default_cfl() -> f64 {

@@ -7,6 +7,7 @@ use crate::gpu::GpuEuler;
 use crate::immersed::Immersed;
 use crate::model::Fluid;
 use crate::{diagnostics, output, setup, step};
+use mechanics::gpu::PrecisionRequest;
 use protocol::message::{InterfaceMesh, StepReport};
 use protocol::{
     Inbox, InterfaceInfo, NodeDescription, Outbox, Solver, SolverError, SolverResult, Window,
@@ -30,10 +31,26 @@ impl EulerSolver {
     pub fn new(params: &toml::Table) -> SolverResult<Self> {
         let p = setup::parse(params)?;
         let fluid = setup::build(&p)?;
+        let request = match (p.precision.as_deref(), p.device.as_deref()) {
+            (None | Some("f64"), _) => PrecisionRequest::Best,
+            (Some("f32"), Some("gpu")) => PrecisionRequest::ForceF32,
+            (Some("f32"), _) => {
+                return Err(SolverError::config(
+                    "precision",
+                    "\"f32\" applies to device = \"gpu\" only (the CPU path is f64)",
+                ));
+            }
+            (Some(other), _) => {
+                return Err(SolverError::config(
+                    "precision",
+                    format!("must be \"f64\" or \"f32\", got \"{other}\""),
+                ));
+            }
+        };
         let gpu = match p.device.as_deref() {
             None | Some("cpu") => None,
             Some("gpu") => {
-                let g = GpuEuler::new(&fluid)?;
+                let g = GpuEuler::with_precision(&fluid, request)?;
                 tracing::info!("fluid step on the GPU: {}", g.context().describe());
                 if let Some(w) = g.warning() {
                     tracing::warn!("{w}");
@@ -134,6 +151,11 @@ impl EulerSolver {
 }
 
 impl Solver for EulerSolver {
+    fn warnings(&self) -> Vec<String> {
+        let w = self.gpu.as_ref().and_then(|g| g.warning());
+        w.map(|w| vec![w.to_string()]).unwrap_or_default()
+    }
+
     fn describe(&self) -> NodeDescription {
         let interfaces = self
             .fluid

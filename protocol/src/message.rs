@@ -103,6 +103,9 @@ pub struct Describe {
     /// The solver's own stable time step, after set-up (s).
     pub stable_dt: f64,
     pub units: String,
+    /// Conditions the user should know about that do not stop the run (a GPU without f64
+    /// running in f32, ...): logged by the coordinator and listed in `summary.json`.
+    pub warnings: Vec<String>,
 }
 
 /// Interface cell shapes for mapping (ARCHITECTURE §5, "Mapping").

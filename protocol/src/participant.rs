@@ -643,6 +643,7 @@ fn node_loop(
             .collect(),
         stable_dt: engine.solver.stable_dt(),
         units: desc.units,
+        warnings: engine.solver.warnings(),
     });
     w.send_up(&describe)?;
     // Set-up starts when the coordinator says so (window 0): by then every node has
@@ -710,6 +711,7 @@ fn node_loop(
                 interfaces: vec![],
                 stable_dt: engine.solver.stable_dt(),
                 units: String::new(),
+                warnings: engine.solver.warnings(),
             });
             w.send_up(&describe_after)?;
             w.send_up(&Message::Done(Done { window: 0, report }))?;

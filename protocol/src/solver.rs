@@ -224,6 +224,13 @@ pub trait Solver: Send {
         let _ = interface;
         Ok(())
     }
+
+    /// Conditions the user should know about that do not stop the run, e.g. a GPU adapter
+    /// without f64 (the node runs in f32). Sent with the node's description after set-up;
+    /// the coordinator logs them and lists them in `summary.json`.
+    fn warnings(&self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 /// Builds a solver from its model name and TOML parameter table; each node binary has one.

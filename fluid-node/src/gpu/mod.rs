@@ -213,9 +213,13 @@ pub struct GpuEuler {
 impl GpuEuler {
     /// Build on the best adapter of this machine (f64 where possible).
     pub fn new(f: &Fluid) -> Result<GpuEuler, GpuSetupError> {
+        Self::with_precision(f, PrecisionRequest::Best)
+    }
+
+    /// As `new`, with the arithmetic asked for (f32 on request, with a warning).
+    pub fn with_precision(f: &Fluid, req: PrecisionRequest) -> Result<GpuEuler, GpuSetupError> {
         supports(f).map_err(GpuSetupError::Unsupported)?;
-        let ctx = GpuContext::with_precision(PrecisionRequest::Best)
-            .map_err(GpuSetupError::Unavailable)?;
+        let ctx = GpuContext::with_precision(req).map_err(GpuSetupError::Unavailable)?;
         Self::with_context(Arc::new(ctx), f)
     }
 

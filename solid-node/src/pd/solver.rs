@@ -933,6 +933,11 @@ pub fn von_mises(s: &[f64; 6]) -> f64 {
 }
 
 impl Solver for PdSolver {
+    fn warnings(&self) -> Vec<String> {
+        let w = self.device.as_ref().and_then(|d| d.warning());
+        w.map(|w| vec![w.to_string()]).unwrap_or_default()
+    }
+
     fn describe(&self) -> NodeDescription {
         NodeDescription {
             model: self.model_name.clone(),
