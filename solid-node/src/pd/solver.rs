@@ -102,6 +102,11 @@ pub struct PdParams {
     /// "cpu" (default) or "gpu" (pd-bond and pd-correspondence; issue 8).
     #[serde(default)]
     pub device: Option<String>,
+    /// Arithmetic of the GPU kernels: "f64" (default: f64 where the adapter has
+    /// `SHADER_F64`, else f32 with a warning) or "f32" (faster on consumer GPUs; about 1e-6
+    /// relative accuracy, with a warning).
+    #[serde(default)]
+    pub precision: Option<String>,
 }
 
 fn default_fragment_min_size() -> usize {
@@ -289,6 +294,22 @@ impl PdSolver {
                 );
             }
         };
+        match p.precision.as_deref() {
+            None | Some("f64") => {}
+            Some("f32") if on_gpu => {}
+            Some("f32") => {
+                return cfg(
+                    "precision",
+                    "\"f32\" applies to device = \"gpu\" only (the CPU path is f64)",
+                );
+            }
+            Some(other) => {
+                return cfg(
+                    "precision",
+                    format!("must be \"f64\" or \"f32\", got \"{other}\""),
+                );
+            }
+        }
         if !(p.spacing.is_finite() && p.spacing > 0.0) {
             return cfg("spacing", format!("must be > 0, got {}", p.spacing));
         }
@@ -829,7 +850,11 @@ fn device_body(
     body: &Body,
 ) -> SolverResult<DeviceBody> {
     let bad = |e: String| SolverError::config("device", format!("device = \"gpu\": {e}"));
-    let ctx = GpuContext::with_precision(PrecisionRequest::Best).map_err(|e| bad(e.to_string()))?;
+    let req = match p.precision.as_deref() {
+        Some("f32") => PrecisionRequest::ForceF32,
+        _ => PrecisionRequest::Best,
+    };
+    let ctx = GpuContext::with_precision(req).map_err(|e| bad(e.to_string()))?;
     let ctx = Arc::new(ctx);
     // the arguments the body's own model was built with (PdSolver::new)
     let k = super::model::Kinematics {
