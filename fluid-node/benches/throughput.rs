@@ -2,21 +2,24 @@
 //! step of one cell = one update) on the 2-D cylindrical blast — p 10 in r < 0.1, 0.1
 //! outside, ρ 1, γ 1.4, unit square, 400×400 — at 1 and 2 threads (rayon pools built here;
 //! `RAYON_NUM_THREADS` is not needed). Also checks the two runs are bit-identical.
-//! Run: `cargo bench -p fluid-node --bench throughput` (optional argument: grid size).
+//! Run: `cargo bench -p fluid-node --bench throughput` (optional arguments: grid size;
+//! `base`, `avx2` or `avx512` to cap the instruction set of the row kernels, which changes
+//! the speed, never the values).
 
-use fluid_node::{EulerSolver, setup};
+use fluid_node::{EulerSolver, setup, simd::Simd};
 use std::time::Instant;
 
 fn case(n: usize) -> String {
     setup::benchmark_blast_case(n)
 }
 
-fn run(n: usize, threads: usize, steps: usize) -> anyhow::Result<(f64, Vec<f64>)> {
+fn run(n: usize, threads: usize, steps: usize, simd: Simd) -> anyhow::Result<(f64, Vec<f64>)> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()?;
     pool.install(|| {
         let mut s = EulerSolver::from_fluid(setup::from_toml_str(&case(n))?);
+        s.fluid.simd = simd;
         // warm-up step (first touch of the buffers)
         fluid_node::step::step(&mut s.fluid, f64::INFINITY)?;
         let t0 = Instant::now();
@@ -33,12 +36,21 @@ fn main() -> anyhow::Result<()> {
         .skip(1)
         .find_map(|a| a.parse().ok())
         .unwrap_or(400);
+    let simd = std::env::args()
+        .skip(1)
+        .find_map(|a| match a.as_str() {
+            "base" => Some(Simd::Base),
+            "avx2" => Some(Simd::Avx2),
+            "avx512" => Some(Simd::Avx512),
+            _ => None,
+        })
+        .unwrap_or_else(Simd::detect);
     let steps = 40;
     let mut best = [0.0_f64; 2];
     let mut states: Vec<Vec<f64>> = Vec::new();
     for rep in 0..3 {
         for (k, th) in [1usize, 2].iter().enumerate() {
-            let (rate, st) = run(n, *th, steps)?;
+            let (rate, st) = run(n, *th, steps, simd)?;
             best[k] = best[k].max(rate);
             if rep == 0 {
                 states.push(st);
@@ -46,7 +58,10 @@ fn main() -> anyhow::Result<()> {
         }
     }
     let same = states[0] == states[1];
-    println!("cylindrical blast {n}x{n}, {steps} SSP-RK3 steps, best of 3:");
+    println!(
+        "cylindrical blast {n}x{n}, {steps} SSP-RK3 steps, best of 3 ({simd:?} kernels, {:?} detected):",
+        Simd::detect()
+    );
     println!("  1 thread : {:.3} M cell-updates/s", best[0] / 1e6);
     println!(
         "  2 threads: {:.3} M cell-updates/s (speed-up {:.2})",

@@ -1,9 +1,10 @@
 //! Bit-level fingerprint of the benchmark case (2-D cylindrical blast, issue #3 must-show 8)
 //! after a number of SSP-RK3 steps: prints an FNV-1a hash of every conserved value's bits, so
 //! two builds of the kernels can be compared for bit-identical results, plus the run time.
-//! Run: `cargo run --release -p fluid-node --example blast_checksum -- [n] [steps]`.
+//! Run: `cargo run --release -p fluid-node --example blast_checksum -- [n] [steps]
+//! [base|avx2|avx512]` (the last argument caps the instruction set of the row kernels).
 
-use fluid_node::setup;
+use fluid_node::{setup, simd::Simd};
 use std::time::Instant;
 
 fn main() -> anyhow::Result<()> {
@@ -15,6 +16,14 @@ fn main() -> anyhow::Result<()> {
     let steps = args.get(1).copied().unwrap_or(20);
     let text = setup::benchmark_blast_case(n);
     let mut f = setup::from_toml_str(&text)?;
+    for a in std::env::args().skip(1) {
+        match a.as_str() {
+            "base" => f.simd = Simd::Base,
+            "avx2" => f.simd = Simd::Avx2,
+            "avx512" => f.simd = Simd::Avx512,
+            _ => {}
+        }
+    }
     let t0 = Instant::now();
     for _ in 0..steps {
         fluid_node::step::step(&mut f, f64::INFINITY)?;
@@ -28,7 +37,8 @@ fn main() -> anyhow::Result<()> {
         }
     }
     println!(
-        "n {n}, steps {steps}, t {:.9e}: checksum {h:016x}; {:.3} M cell-updates/s",
+        "n {n}, steps {steps}, {:?}, t {:.9e}: checksum {h:016x}; {:.3} M cell-updates/s",
+        f.simd,
         f.time,
         (n * n * steps) as f64 / el / 1e6
     );

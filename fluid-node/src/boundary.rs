@@ -4,6 +4,7 @@
 //! wraps, inflow imposes a fixed state.
 
 use crate::grid::Grid;
+use rayon::prelude::*;
 
 #[derive(Debug, Clone, PartialEq)]
 pub enum Boundary {
@@ -21,40 +22,41 @@ pub enum Boundary {
 pub fn fill_ghosts(grid: &Grid, prim: &mut [f64], nv: usize, vel0: usize, bc: &[[Boundary; 2]; 3]) {
     let mx = grid.mx();
     let g = grid.g;
-    // x: inside each interior row
+    // x: inside each interior row (rows are independent: rayon over rows)
     if g[0] > 0 {
         let nx = grid.n[0];
-        for r in 0..grid.rows() {
-            if !grid.interior_row(r) {
-                continue;
-            }
-            let base = r * nv * mx;
-            for side in 0..2 {
-                for l in 0..g[0] {
-                    // ghost index and its source
-                    let (gi, mirror, inner, wrap) = if side == 0 {
-                        (g[0] - 1 - l, g[0] + l, g[0], g[0] + nx - 1 - l)
-                    } else {
-                        (g[0] + nx + l, g[0] + nx - 1 - l, g[0] + nx - 1, g[0] + l)
-                    };
-                    for v in 0..nv {
-                        let row = &mut prim[base + v * mx..base + (v + 1) * mx];
-                        row[gi] = match &bc[0][side] {
-                            Boundary::Wall | Boundary::Symmetry => {
-                                if v == vel0 {
-                                    -row[mirror]
-                                } else {
-                                    row[mirror]
-                                }
-                            }
-                            Boundary::Outflow => row[inner],
-                            Boundary::Periodic => row[wrap],
-                            Boundary::Inflow(s) => s[v],
+        prim.par_chunks_mut(nv * mx)
+            .enumerate()
+            .for_each(|(r, block)| {
+                if !grid.interior_row(r) {
+                    return;
+                }
+                for side in 0..2 {
+                    for l in 0..g[0] {
+                        // ghost index and its source
+                        let (gi, mirror, inner, wrap) = if side == 0 {
+                            (g[0] - 1 - l, g[0] + l, g[0], g[0] + nx - 1 - l)
+                        } else {
+                            (g[0] + nx + l, g[0] + nx - 1 - l, g[0] + nx - 1, g[0] + l)
                         };
+                        for v in 0..nv {
+                            let row = &mut block[v * mx..(v + 1) * mx];
+                            row[gi] = match &bc[0][side] {
+                                Boundary::Wall | Boundary::Symmetry => {
+                                    if v == vel0 {
+                                        -row[mirror]
+                                    } else {
+                                        row[mirror]
+                                    }
+                                }
+                                Boundary::Outflow => row[inner],
+                                Boundary::Periodic => row[wrap],
+                                Boundary::Inflow(s) => s[v],
+                            };
+                        }
                     }
                 }
-            }
-        }
+            });
     }
     // y and z: whole rows (ghost x cells included)
     for d in 1..3 {

@@ -10,6 +10,7 @@ use crate::grid::Grid;
 use crate::immersed::Immersed;
 use crate::limiter::Limiter;
 use crate::mixture::Phase;
+use crate::simd::Simd;
 
 /// A probe: a cell whose state is recorded every window.
 #[derive(Debug, Clone)]
@@ -49,6 +50,9 @@ pub struct Fluid {
     pub max_steps_per_window: u64,
     /// True once `prim` holds the primitives of `cons` (interior cells).
     pub prim_valid: bool,
+    /// Widest instruction set the row kernels may use (`Simd::detect()` by default; every
+    /// choice gives bit-identical results).
+    pub simd: Simd,
 }
 
 impl Fluid {

@@ -425,6 +425,7 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
         immersed: None,
         max_steps_per_window: p.max_steps_per_window.unwrap_or(10_000_000),
         prim_valid: false,
+        simd: crate::simd::Simd::detect(),
     };
     initialise(&mut f, &regions, &mats);
     for (pi, pr) in p.probes.iter().enumerate() {

@@ -3,6 +3,13 @@
 //! fluxes, the quasi-conservative volume-fraction update of Johnsen & Colonius (2006), and
 //! the three-stage SSP Runge–Kutta scheme of Shu & Osher (seed 002 eq. 35 uses its weights).
 //! rayon parallelises over rows; every reduction is per row then in row order.
+//!
+//! Throughput (issue #3 must-show 8): the row kernels are compiled for SSE2, AVX2 and
+//! AVX-512 and chosen at run time (`simd.rs`, bit-identical results); each cell's limited
+//! slope is computed once for both of its faces; and a 2-D stage without an immersed body
+//! runs fused per block of rows (x and y fluxes into row-local scratch, then the update),
+//! so no flux array goes through memory. None of this changes a value: the same
+//! operations on the same operands in the same order as the plain per-face form.
 
 use crate::boundary::fill_ghosts;
 use crate::eos::Material;
@@ -12,6 +19,7 @@ use crate::limiter::Limiter;
 use crate::mixture::{self, Phase};
 use crate::model::Fluid;
 use crate::riemann::{FaceState, MAXF, hllc};
+use crate::simd::multiversion;
 use protocol::{SolverError, SolverResult};
 use rayon::prelude::*;
 
@@ -162,7 +170,8 @@ fn prim_row<const NM: usize>(
 
 /// [`prim_row`] with a branch-free, vectorisable loop for a single ideal gas (the same
 /// arithmetic, so identical values); any inadmissible cell reruns the general row to name it.
-fn prim_row_fast<const NM: usize>(
+#[inline(always)]
+fn prim_row_fast_body<const NM: usize>(
     ph: &[Phase; NM],
     cons: &[f64],
     prim: &mut [f64],
@@ -212,10 +221,22 @@ fn prim_row_fast<const NM: usize>(
     None
 }
 
+multiversion! {
+    /// [`prim_row_fast_body`] for the widest instruction set allowed.
+    fn prim_row_fast<const NM: usize>(
+        ph: &[Phase; NM],
+        cons: &[f64],
+        prim: &mut [f64],
+        mx: usize,
+        irange: std::ops::Range<usize>,
+    ) -> Option<(usize, usize, f64)> = prim_row_fast_body;
+}
+
 /// Primitive variables of every interior cell; a diverged cell becomes an error naming the
 /// cell, the time and the variable.
 fn prim_all<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], stage: usize) -> SolverResult<()> {
     let grid = &f.grid;
+    let simd = f.simd;
     let nv = f.nv;
     let mx = grid.mx();
     let ir = grid.irange();
@@ -226,11 +247,20 @@ fn prim_all<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], stage: usize) -> S
         .enumerate()
         .for_each(|(r, ((c, p), bad))| {
             *bad = if grid.interior_row(r) {
-                prim_row_fast::<NM>(ph, c, p, mx, ir.clone())
+                prim_row_fast::<NM>(simd, ph, c, p, mx, ir.clone())
             } else {
                 None
             };
         });
+    check_rows::<NM>(f, stage)?;
+    f.prim_valid = true;
+    Ok(())
+}
+
+/// The first inadmissible cell recorded in `row_bad` (in row order) as an error naming the
+/// cell, the time, the variable and the RK stage whose primitives were being recovered.
+fn check_rows<const NM: usize>(f: &Fluid, stage: usize) -> SolverResult<()> {
+    let grid = &f.grid;
     for (r, bad) in f.row_bad.iter().enumerate() {
         if let Some((i, v, val)) = *bad {
             let (j, k) = grid.jk(r);
@@ -249,13 +279,13 @@ fn prim_all<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], stage: usize) -> S
             });
         }
     }
-    f.prim_valid = true;
     Ok(())
 }
 
 /// Largest Σ_d (|u_d| + c)/Δx_d over the interior cells of one row block of primitives `p`
 /// (row `r`); 0 for a ghost row.
-fn row_rate<const NM: usize>(grid: &Grid, ph: &[Phase; NM], p: &[f64], r: usize) -> f64 {
+#[inline(always)]
+fn row_rate_body<const NM: usize>(grid: &Grid, ph: &[Phase; NM], p: &[f64], r: usize) -> f64 {
     let nv = 2 * NM + 3;
     let mx = grid.mx();
     let nd = grid.nd;
@@ -273,19 +303,11 @@ fn row_rate<const NM: usize>(grid: &Grid, ph: &[Phase; NM], p: &[f64], r: usize)
         let n = rho.len();
         let vel: [&[f64]; 3] = std::array::from_fn(|d| &p[(1 + d) * mx + lo..][..n]);
         let pr = &p[4 * mx + lo..][..n];
-        for t in 0..n {
-            let c2 = gamma * pr[t] / rho[t];
-            let c = if rho[t] > 0.0 && c2 > 0.0 && c2.is_finite() {
-                c2.sqrt()
-            } else {
-                f64::INFINITY
-            };
-            let mut s = 0.0;
-            for d in 0..nd {
-                s += (vel[d][t].abs() + c) * idx[d];
-            }
-            m = m.max(s);
-        }
+        m = match nd {
+            1 => rate_ideal::<1>(gamma, idx, rho, vel, pr),
+            2 => rate_ideal::<2>(gamma, idx, rho, vel, pr),
+            _ => rate_ideal::<3>(gamma, idx, rho, vel, pr),
+        };
     } else if grid.interior_row(r) {
         for i in ir.clone() {
             let mut q = [0.0; MAXF];
@@ -306,9 +328,60 @@ fn row_rate<const NM: usize>(grid: &Grid, ph: &[Phase; NM], p: &[f64], r: usize)
     m
 }
 
+/// Largest Σ_d (|u_d| + c)/Δx_d over contiguous single-ideal-gas cells, c = ∞ where
+/// `face_state` would reject the cell. Rates of blocks of cells into a stack buffer
+/// (branch-free, so it vectorises), then running maxima per lane; a maximum is exact, so
+/// the grouping does not change the value.
+#[inline(always)]
+fn rate_ideal<const ND: usize>(
+    gamma: f64,
+    idx: [f64; 3],
+    rho: &[f64],
+    vel: [&[f64]; 3],
+    pr: &[f64],
+) -> f64 {
+    const B: usize = 64;
+    const W: usize = 8;
+    let mut acc = [0.0_f64; W];
+    let mut buf = [0.0_f64; B];
+    let n = rho.len();
+    let mut t0 = 0;
+    while t0 < n {
+        let m = B.min(n - t0);
+        let rho = &rho[t0..t0 + m];
+        let pr = &pr[t0..t0 + m];
+        let vel = vel.map(|v| &v[t0..t0 + m]);
+        let out = &mut buf[..m];
+        for t in 0..m {
+            let c2 = gamma * pr[t] / rho[t];
+            let ok = (rho[t] > 0.0) & (c2 > 0.0) & (c2 < f64::INFINITY);
+            let c = if ok { c2.sqrt() } else { f64::INFINITY };
+            let mut s = 0.0;
+            for d in 0..ND {
+                s += (vel[d][t].abs() + c) * idx[d];
+            }
+            out[t] = s;
+        }
+        for (t, &s) in out.iter().enumerate() {
+            // f64::max semantics (a NaN rate is ignored), as a select
+            let a = &mut acc[t % W];
+            *a = if s > *a { s } else { *a };
+        }
+        t0 += m;
+    }
+    acc.iter().fold(0.0, |a, &b| a.max(b))
+}
+
+multiversion! {
+    /// [`row_rate_body`] for the widest instruction set allowed.
+    fn row_rate<const NM: usize>(grid: &Grid, ph: &[Phase; NM], p: &[f64], r: usize) -> f64
+        = row_rate_body;
+}
+
 /// Largest Σ_d (|u_d| + c)/Δx_d over the interior (for the CFL step).
 fn max_rate<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM]) -> f64 {
     let grid = &f.grid;
+    let simd = f.simd;
     let nv = f.nv;
     let mx = grid.mx();
     f.prim
@@ -316,7 +389,7 @@ fn max_rate<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM]) -> f64 {
         .zip(f.row_max.par_iter_mut())
         .enumerate()
         .for_each(|(r, (p, out))| {
-            *out = row_rate::<NM>(grid, ph, p, r);
+            *out = row_rate::<NM>(simd, grid, ph, p, r);
         });
     f.row_max.iter().fold(0.0, |a, &b| a.max(b))
 }
@@ -345,6 +418,7 @@ pub fn stable_dt_of(f: &Fluid) -> SolverResult<f64> {
 fn stable_dt_of_nm<const NM: usize>(f: &Fluid) -> SolverResult<f64> {
     let ph: [Phase; NM] = std::array::from_fn(|k| f.phases[k].clone());
     let grid = &f.grid;
+    let simd = f.simd;
     let nv = f.nv;
     let mx = grid.mx();
     let ir = grid.irange();
@@ -352,7 +426,7 @@ fn stable_dt_of_nm<const NM: usize>(f: &Fluid) -> SolverResult<f64> {
         f.prim
             .par_chunks(nv * mx)
             .enumerate()
-            .map(|(r, p)| row_rate::<NM>(grid, &ph, p, r))
+            .map(|(r, p)| row_rate::<NM>(simd, grid, &ph, p, r))
             .reduce(|| 0.0, f64::max)
     } else {
         f.cons
@@ -367,9 +441,9 @@ fn stable_dt_of_nm<const NM: usize>(f: &Fluid) -> SolverResult<f64> {
                     if p.len() < nv * mx {
                         p.resize(nv * mx, 0.0);
                     }
-                    match prim_row_fast::<NM>(&ph, c, &mut p, mx, ir.clone()) {
+                    match prim_row_fast::<NM>(simd, &ph, c, &mut p, mx, ir.clone()) {
                         Some(_) => f64::INFINITY,
-                        None => row_rate::<NM>(grid, &ph, &p, r),
+                        None => row_rate::<NM>(simd, grid, &ph, &p, r),
                     }
                 })
             })
@@ -385,36 +459,96 @@ fn stable_dt_of_nm<const NM: usize>(f: &Fluid) -> SolverResult<f64> {
 }
 
 thread_local! {
-    /// Per-thread scratch for one line of reconstructed face values (left block, right
-    /// block, each nv·mx); grows once, then reused every step (no allocation per step).
+    /// Per-thread scratch of the flux kernels (face values, sound speeds, energies and
+    /// limited slopes of one line); grows once, then reused every step (no allocation per
+    /// step).
     static LINE_SCRATCH: std::cell::RefCell<Vec<f64>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
-/// Limited MUSCL face values of one variable along a line: `lo[i] = q1[i] + ½σ(q1-q0,
-/// q2-q1)`, `hi[i] = q2[i] - ½σ(q2-q1, q3-q2)` for i in `range`, where `qs[s][i]` is stencil
-/// cell s of face i. Written as a plain slice loop so that it vectorises.
+/// Lines of y faces per rayon task: the lines of a block run in order on one thread, so a
+/// row's limited slopes serve the faces on both its sides.
+const FACE_BLOCK: usize = 16;
+
+/// Limited slopes of one variable across a stencil: `s[i] = σ(q[i] - qm[i], qp[i] - q[i])`
+/// (qm, q, qp: the cells before, at and after along the reconstruction direction).
 #[inline(always)]
-fn recon_var<S: Fn(f64, f64) -> f64>(slope: S, qs: [&[f64]; 4], lo: &mut [f64], hi: &mut [f64]) {
-    let n = lo.len();
-    let (q0, q1, q2, q3) = (&qs[0][..n], &qs[1][..n], &qs[2][..n], &qs[3][..n]);
-    let hi = &mut hi[..n];
-    for i in 0..n {
-        let dm = q1[i] - q0[i];
-        let dc = q2[i] - q1[i];
-        let dp = q3[i] - q2[i];
-        lo[i] = q1[i] + 0.5 * slope(dm, dc);
-        hi[i] = q2[i] - 0.5 * slope(dc, dp);
+fn slope_var<S: Fn(f64, f64) -> f64>(slope: S, qm: &[f64], q: &[f64], qp: &[f64], s: &mut [f64]) {
+    let n = s.len();
+    let (qm, q, qp) = (&qm[..n], &q[..n], &qp[..n]);
+    for (((s, &qm), &q), &qp) in s.iter_mut().zip(qm).zip(q).zip(qp) {
+        *s = slope(q - qm, qp - q);
     }
 }
 
-/// MUSCL-reconstructed HLLC fluxes along one line of faces. `rows[s]` holds stencil cell s
-/// (s = 0..3 around the face between cells 1 and 2) at x index `i + sh[s] - 1`.
-/// Two passes: the limited face values of the whole line (vectorisable, one limiter call per
-/// face side), then the Riemann solve of every face.
-#[allow(clippy::too_many_arguments)]
-fn flux_line<const NM: usize, const D: usize>(
+/// [`slope_var`] for the limiter `lim`.
+#[inline(always)]
+fn slopes(lim: Limiter, qm: &[f64], q: &[f64], qp: &[f64], s: &mut [f64]) {
+    match lim {
+        Limiter::Minmod => slope_var(crate::limiter::minmod, qm, q, qp, s),
+        Limiter::VanLeer => slope_var(crate::limiter::van_leer, qm, q, qp, s),
+        Limiter::Mc => slope_var(crate::limiter::mc, qm, q, qp, s),
+    }
+}
+
+/// MUSCL face values from cell values and limited slopes (seed 002 §2.3): `lo = q + ½s` on
+/// the side of the face towards the cell, `hi = q - ½s` on the other.
+#[inline(always)]
+fn face_values(q: &[f64], s: &[f64], out: &mut [f64], sign: f64) {
+    let n = out.len();
+    let (q, s) = (&q[..n], &s[..n]);
+    for ((o, &q), &s) in out.iter_mut().zip(q).zip(s) {
+        *o = if sign > 0.0 { q + 0.5 * s } else { q - 0.5 * s };
+    }
+}
+
+/// Limited MUSCL face values of the faces i0-1/2+1 .. of one x row, each cell's slope
+/// computed once for both of its faces: face t lies between cells `i0 + t` and
+/// `i0 + t + 1`, `lo[t] = q + ½σ` of the left cell and `hi[t] = q - ½σ` of the right one
+/// (σ of a cell from its two neighbour differences, the same calls as a per-face
+/// reconstruction).
+#[inline(always)]
+fn recon_row_x(lim: Limiter, q: &[f64], i0: usize, s: &mut [f64], lo: &mut [f64], hi: &mut [f64]) {
+    let n = lo.len();
+    let s = &mut s[..n + 1];
+    slopes(lim, &q[i0 - 1..], &q[i0..], &q[i0 + 1..], s);
+    face_values(&q[i0..], &s[..n], lo, 1.0);
+    face_values(&q[i0 + 1..], &s[1..], hi, -1.0);
+}
+
+/// Sound speed and total energy per volume of every face side of a single ideal gas
+/// (branch-free, so it vectorises; the same arithmetic as [`face_state`], so identical
+/// values). c = NaN marks a side `face_state` would reject.
+#[inline(always)]
+fn sides_ideal(gamma: f64, inv_g: f64, off: f64, q: &[f64], c: &mut [f64], e: &mut [f64]) {
+    let n = c.len();
+    let (e, rho, vx, vy, vz, pr) = (
+        &mut e[..n],
+        &q[..n],
+        &q[n..2 * n],
+        &q[2 * n..3 * n],
+        &q[3 * n..4 * n],
+        &q[4 * n..5 * n],
+    );
+    for t in 0..n {
+        let (r, p) = (rho[t], pr[t]);
+        let c2 = gamma * p / r;
+        // c2 > 0 and finite, written without short-circuit so that the loop vectorises
+        let ok = (r > 0.0) & (c2 > 0.0) & (c2 < f64::INFINITY);
+        c[t] = if ok { c2.sqrt() } else { f64::NAN };
+        e[t] = (p * inv_g + 1.0 * off) + 0.5 * r * (vx[t] * vx[t] + vy[t] * vy[t] + vz[t] * vz[t]);
+    }
+}
+
+/// HLLC fluxes of one line of faces from its reconstructed sides: `lb`/`rb` hold the left
+/// and right face values (nv blocks of `len`), `ce` is scratch of 4·len. `rows[s]` holds
+/// stencil cell s (s = 0..3 around the face between cells 1 and 2) at x index
+/// `i + sh[s] - 1`, for the first-order fallback where a reconstructed side is inadmissible.
+#[inline(always)]
+fn riemann_line<const NM: usize, const D: usize>(
     ph: &[Phase; NM],
-    lim: Limiter,
+    lb: &[f64],
+    rb: &[f64],
+    ce: &mut [f64],
     rows: [&[f64]; 4],
     sh: [usize; 4],
     out: &mut [f64],
@@ -424,124 +558,216 @@ fn flux_line<const NM: usize, const D: usize>(
     let nv = 2 * NM + 3;
     let (i0, i1) = (irange.start, irange.end);
     let len = i1 - i0;
-    LINE_SCRATCH.with(|cell| {
-        let mut buf = cell.borrow_mut();
-        if buf.len() < (2 * nv + 4) * len {
-            buf.resize((2 * nv + 4) * len, 0.0);
+    // single ideal gas: sound speed and total energy of every face side in one
+    // vectorisable pass, then every face at once; faces with a rejected side are redone
+    // by the general path below
+    let ideal = match (&ph[0].eos, NM) {
+        (Material::Ideal(g), 1) => Some((g.gamma, ph[0].inv_g, ph[0].off)),
+        _ => None,
+    };
+    let ce = &mut ce[..4 * len];
+    let mut all_ok = false;
+    if let Some((gamma, inv_g, off)) = ideal {
+        let (cl, rest) = ce.split_at_mut(len);
+        let (el, rest) = rest.split_at_mut(len);
+        let (cr, er) = rest.split_at_mut(len);
+        sides_ideal(gamma, inv_g, off, &lb[..5 * len], cl, el);
+        sides_ideal(gamma, inv_g, off, &rb[..5 * len], cr, er);
+        let (o0, rest) = out.split_at_mut(mx);
+        let (o1, rest) = rest.split_at_mut(mx);
+        let (o2, rest) = rest.split_at_mut(mx);
+        let (o3, rest) = rest.split_at_mut(mx);
+        let (o4, o5) = rest.split_at_mut(mx);
+        let lsides: [&[f64]; 5] = std::array::from_fn(|v| &lb[v * len..(v + 1) * len]);
+        let rsides: [&[f64]; 5] = std::array::from_fn(|v| &rb[v * len..(v + 1) * len]);
+        hllc::flux_line_ideal::<D>(
+            lsides,
+            rsides,
+            cl,
+            el,
+            cr,
+            er,
+            [
+                &mut o0[i0..i1],
+                &mut o1[i0..i1],
+                &mut o2[i0..i1],
+                &mut o3[i0..i1],
+                &mut o4[i0..i1],
+                &mut o5[i0..i1],
+            ],
+        );
+        // any rejected side? (a vectorisable reduction, no early exit)
+        let cr = &cr[..len];
+        all_ok = !cl
+            .iter()
+            .zip(cr)
+            .fold(false, |bad, (a, b)| bad | a.is_nan() | b.is_nan());
+    }
+    if all_ok {
+        return;
+    }
+    let (cl, rest) = ce.split_at(len);
+    let (_, rest) = rest.split_at(len);
+    let (cr, _) = rest.split_at(len);
+    for (t, i) in (i0..i1).enumerate() {
+        if ideal.is_some() && !cl[t].is_nan() && !cr[t].is_nan() {
+            continue;
         }
-        let (lb, rest) = buf.split_at_mut(nv * len);
-        let (rb, extra) = rest.split_at_mut(nv * len);
+        let mut l = [0.0; MAXF];
+        let mut r = [0.0; MAXF];
         for v in 0..nv {
-            let qs: [&[f64]; 4] =
-                std::array::from_fn(|s| &rows[s][v * mx + i0 + sh[s] - 1..v * mx + i1 + sh[s] - 1]);
-            let lo = &mut lb[v * len..(v + 1) * len];
-            let hi = &mut rb[v * len..(v + 1) * len];
-            match lim {
-                Limiter::Minmod => recon_var(crate::limiter::minmod, qs, lo, hi),
-                Limiter::VanLeer => recon_var(crate::limiter::van_leer, qs, lo, hi),
-                Limiter::Mc => recon_var(crate::limiter::mc, qs, lo, hi),
-            }
+            l[v] = lb[v * len + t];
+            r[v] = rb[v * len + t];
         }
-        // single ideal gas: sound speed and total energy of every face side in one
-        // vectorisable pass (the same arithmetic as `face_state`, so identical values);
-        // c = NaN marks a side `face_state` would reject, which then takes the general path
-        let ideal = match (&ph[0].eos, NM) {
-            (Material::Ideal(g), 1) => Some((g.gamma, ph[0].inv_g, ph[0].off)),
-            _ => None,
-        };
-        let (ce, _) = extra.split_at_mut(4 * len);
-        if let Some((gamma, inv_g, off)) = ideal {
-            let (cl, rest) = ce.split_at_mut(len);
-            let (el, rest) = rest.split_at_mut(len);
-            let (cr, er) = rest.split_at_mut(len);
-            for (qb, c, e) in [(&*lb, cl, el), (&*rb, cr, er)] {
-                let (rho, rest) = qb.split_at(len);
-                let (vx, rest) = rest.split_at(len);
-                let (vy, rest) = rest.split_at(len);
-                let (vz, pr) = rest.split_at(len);
-                let e = &mut e[..len];
-                let pr = &pr[..len];
-                for t in 0..len {
-                    let (r, p) = (rho[t], pr[t]);
-                    let c2 = gamma * p / r;
-                    let ok = r > 0.0 && c2 > 0.0 && c2.is_finite();
-                    c[t] = if ok { c2.sqrt() } else { f64::NAN };
-                    e[t] = (p * inv_g + 1.0 * off)
-                        + 0.5 * r * (vx[t] * vx[t] + vy[t] * vy[t] + vz[t] * vz[t]);
+        let (sl, sr) = match (face_state::<NM>(ph, &l), face_state::<NM>(ph, &r)) {
+            (Some(a), Some(b)) => (a, b),
+            // first order where the reconstruction leaves the admissible set
+            _ => {
+                let mut q1 = [0.0; MAXF];
+                let mut q2 = [0.0; MAXF];
+                for v in 0..nv {
+                    q1[v] = rows[1][v * mx + i + sh[1] - 1];
+                    q2[v] = rows[2][v * mx + i + sh[2] - 1];
                 }
-            }
-        }
-        let (cl, rest) = ce.split_at(len);
-        let (el, rest) = rest.split_at(len);
-        let (cr, er) = rest.split_at(len);
-        if ideal.is_some() {
-            // every face at once (vectorised); faces with a rejected side are redone below
-            let (o0, rest) = out.split_at_mut(mx);
-            let (o1, rest) = rest.split_at_mut(mx);
-            let (o2, rest) = rest.split_at_mut(mx);
-            let (o3, rest) = rest.split_at_mut(mx);
-            let (o4, o5) = rest.split_at_mut(mx);
-            let lsides: [&[f64]; 5] = std::array::from_fn(|v| &lb[v * len..(v + 1) * len]);
-            let rsides: [&[f64]; 5] = std::array::from_fn(|v| &rb[v * len..(v + 1) * len]);
-            hllc::flux_line_ideal::<D>(
-                lsides,
-                rsides,
-                cl,
-                el,
-                cr,
-                er,
-                [
-                    &mut o0[i0..i1],
-                    &mut o1[i0..i1],
-                    &mut o2[i0..i1],
-                    &mut o3[i0..i1],
-                    &mut o4[i0..i1],
-                    &mut o5[i0..i1],
-                ],
-            );
-        }
-        for (t, i) in (i0..i1).enumerate() {
-            if ideal.is_some() && !cl[t].is_nan() && !cr[t].is_nan() {
-                continue;
-            }
-            let mut l = [0.0; MAXF];
-            let mut r = [0.0; MAXF];
-            for v in 0..nv {
-                l[v] = lb[v * len + t];
-                r[v] = rb[v * len + t];
-            }
-            let (sl, sr) = match (face_state::<NM>(ph, &l), face_state::<NM>(ph, &r)) {
-                (Some(a), Some(b)) => (a, b),
-                // first order where the reconstruction leaves the admissible set
-                _ => {
-                    let mut q1 = [0.0; MAXF];
-                    let mut q2 = [0.0; MAXF];
-                    for v in 0..nv {
-                        q1[v] = rows[1][v * mx + i + sh[1] - 1];
-                        q2[v] = rows[2][v * mx + i + sh[2] - 1];
-                    }
-                    match (face_state::<NM>(ph, &q1), face_state::<NM>(ph, &q2)) {
-                        (Some(a), Some(b)) => (a, b),
-                        _ => {
-                            for v in 0..=nv {
-                                out[v * mx + i] = f64::NAN;
-                            }
-                            continue;
+                match (face_state::<NM>(ph, &q1), face_state::<NM>(ph, &q2)) {
+                    (Some(a), Some(b)) => (a, b),
+                    _ => {
+                        for v in 0..=nv {
+                            out[v * mx + i] = f64::NAN;
                         }
+                        continue;
                     }
                 }
-            };
-            let fl = hllc::flux_dir::<NM, D>(&sl, &sr);
-            for v in 0..=nv {
-                out[v * mx + i] = fl[v];
             }
+        };
+        let fl = hllc::flux_dir::<NM, D>(&sl, &sr);
+        for v in 0..=nv {
+            out[v * mx + i] = fl[v];
         }
-    });
+    }
+}
+
+/// MUSCL-reconstructed HLLC fluxes of the x faces of primitive row `row` (nv blocks of
+/// `mx`), faces `irange` (indexed by the cell on their left). `work` is scratch of at
+/// least (2·nv + 5)·len + 1 values.
+#[inline(always)]
+fn flux_row_x_into<const NM: usize>(
+    ph: &[Phase; NM],
+    lim: Limiter,
+    row: &[f64],
+    out: &mut [f64],
+    mx: usize,
+    irange: std::ops::Range<usize>,
+    work: &mut [f64],
+) {
+    let nv = 2 * NM + 3;
+    let (i0, i1) = (irange.start, irange.end);
+    let len = i1 - i0;
+    let (lb, rest) = work.split_at_mut(nv * len);
+    let (rb, rest) = rest.split_at_mut(nv * len);
+    let (ce, rest) = rest.split_at_mut(4 * len);
+    let s = &mut rest[..len + 1];
+    for v in 0..nv {
+        let q = &row[v * mx..(v + 1) * mx];
+        let lo = &mut lb[v * len..(v + 1) * len];
+        let hi = &mut rb[v * len..(v + 1) * len];
+        recon_row_x(lim, q, i0, s, lo, hi);
+    }
+    riemann_line::<NM, 0>(ph, lb, rb, ce, [row; 4], [0, 1, 2, 3], out, mx, irange);
+}
+
+/// [`flux_row_x_into`] with a growable per-thread scratch.
+#[inline(always)]
+fn flux_row_x_body<const NM: usize>(
+    ph: &[Phase; NM],
+    lim: Limiter,
+    row: &[f64],
+    out: &mut [f64],
+    mx: usize,
+    irange: std::ops::Range<usize>,
+    buf: &mut Vec<f64>,
+) {
+    let nv = 2 * NM + 3;
+    let need = (2 * nv + 5) * irange.len() + 1;
+    if buf.len() < need {
+        buf.resize(need, 0.0);
+    }
+    flux_row_x_into::<NM>(ph, lim, row, out, mx, irange, buf);
+}
+
+multiversion! {
+    /// [`flux_row_x_body`] for the widest instruction set allowed.
+    fn flux_row_x<const NM: usize>(
+        ph: &[Phase; NM],
+        lim: Limiter,
+        row: &[f64],
+        out: &mut [f64],
+        mx: usize,
+        irange: std::ops::Range<usize>,
+        buf: &mut Vec<f64>,
+    ) = flux_row_x_body;
+}
+
+/// MUSCL-reconstructed HLLC fluxes of a block of lines of faces normal to `D` (1 or 2):
+/// `out` holds the flux rows `r0..` (a face row r lies between primitive rows r and
+/// r + stride), `prim` all primitive rows (blocks of `nv·mx`). The lines run in order;
+/// when line r + stride follows line r (y faces), [`face_line`] reuses the slopes of the
+/// row they share.
+#[inline(always)]
+fn flux_block_body<const NM: usize, const D: usize>(
+    ph: &[Phase; NM],
+    lim: Limiter,
+    grid: &Grid,
+    prim: &[f64],
+    r0: usize,
+    out: &mut [f64],
+    buf: &mut Vec<f64>,
+) {
+    let nv = 2 * NM + 3;
+    let nf = nv + 1;
+    let mx = grid.mx();
+    let g = grid.g;
+    let n = grid.n;
+    let len = grid.n[0];
+    let need = (4 * nv + 4) * len;
+    if buf.len() < need {
+        buf.resize(need, 0.0);
+    }
+    let (work, sl) = buf.split_at_mut((2 * nv + 4) * len);
+    let mut cached = None;
+    for (k, out) in out.chunks_mut(nf * mx).enumerate() {
+        let r = r0 + k;
+        let (j, kk) = grid.jk(r);
+        // faces between row r and the next row along D
+        let (t, other_ok) = if D == 1 {
+            (j, kk >= g[2] && kk < g[2] + n[2])
+        } else {
+            (kk, j >= g[1] && j < g[1] + n[1])
+        };
+        if !other_ok || t + 1 < g[D] || t >= g[D] + n[D] {
+            continue;
+        }
+        face_line::<NM, D>(ph, lim, grid, prim, r, out, work, sl, &mut cached);
+    }
+}
+
+multiversion! {
+    /// [`flux_block_body`] for the widest instruction set allowed.
+    fn flux_block<const NM: usize, const D: usize>(
+        ph: &[Phase; NM],
+        lim: Limiter,
+        grid: &Grid,
+        prim: &[f64],
+        r0: usize,
+        out: &mut [f64],
+        buf: &mut Vec<f64>,
+    ) = flux_block_body;
 }
 
 /// Fluxes through every interior face in direction d.
 fn fluxes<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], d: usize) {
     let grid = &f.grid;
+    let simd = f.simd;
     let nv = f.nv;
     let nf = nv + 1;
     let mx = grid.mx();
@@ -549,117 +775,365 @@ fn fluxes<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], d: usize) {
     let prim = &f.prim;
     let g = grid.g;
     let n = grid.n;
-    let stride = if d == 0 { 0 } else { grid.row_stride(d) };
     let rowblk = nv * mx;
+    if d == 0 {
+        f.flux[0]
+            .par_chunks_mut(nf * mx)
+            .enumerate()
+            .for_each(|(r, out)| {
+                if !grid.interior_row(r) {
+                    return;
+                }
+                let row = &prim[r * rowblk..(r + 1) * rowblk];
+                LINE_SCRATCH.with(|cell| {
+                    let mut buf = cell.borrow_mut();
+                    let faces = g[0] - 1..g[0] + n[0];
+                    flux_row_x::<NM>(simd, ph, lim, row, out, mx, faces, &mut buf);
+                });
+            });
+        return;
+    }
     f.flux[d]
-        .par_chunks_mut(nf * mx)
+        .par_chunks_mut(FACE_BLOCK * nf * mx)
         .enumerate()
-        .for_each(|(r, out)| {
-            let (j, k) = grid.jk(r);
-            match d {
-                0 => {
-                    if !grid.interior_row(r) {
-                        return;
-                    }
-                    let row = &prim[r * rowblk..(r + 1) * rowblk];
-                    flux_line::<NM, 0>(
-                        ph,
-                        lim,
-                        [row; 4],
-                        [0, 1, 2, 3],
-                        out,
-                        mx,
-                        g[0] - 1..g[0] + n[0],
-                    );
+        .for_each(|(b, out)| {
+            LINE_SCRATCH.with(|cell| {
+                let mut buf = cell.borrow_mut();
+                let r0 = b * FACE_BLOCK;
+                if d == 1 {
+                    flux_block::<NM, 1>(simd, ph, lim, grid, prim, r0, out, &mut buf);
+                } else {
+                    flux_block::<NM, 2>(simd, ph, lim, grid, prim, r0, out, &mut buf);
                 }
-                _ => {
-                    // faces between row r and the next row along d
-                    let (t, other_ok) = if d == 1 {
-                        (j, k >= g[2] && k < g[2] + n[2])
-                    } else {
-                        (k, j >= g[1] && j < g[1] + n[1])
-                    };
-                    if !other_ok || t + 1 < g[d] || t >= g[d] + n[d] {
-                        return;
-                    }
-                    let rr = |o: isize| -> &[f64] {
-                        let q = (r as isize + o * stride as isize) as usize;
-                        &prim[q * rowblk..(q + 1) * rowblk]
-                    };
-                    let rows = [rr(-1), rr(0), rr(1), rr(2)];
-                    if d == 1 {
-                        flux_line::<NM, 1>(ph, lim, rows, [1; 4], out, mx, grid.irange());
-                    } else {
-                        flux_line::<NM, 2>(ph, lim, rows, [1; 4], out, mx, grid.irange());
-                    }
-                }
+            });
+        });
+}
+
+/// Rows per rayon task of the fused 2-D stage: about eight tasks per thread for load
+/// balance, at most 32 rows so that a task's rows stay in cache, at least 4 so that the
+/// extra y line each task recomputes stays cheap. Any block size gives the same values
+/// (each face's fluxes are the same arithmetic whichever task computes them).
+fn fused_block_rows(rows: usize) -> usize {
+    (rows / (8 * rayon::current_num_threads())).clamp(4, 32)
+}
+
+/// The fluxes of face line `r` normal to `D` (1 or 2; between primitive rows r and
+/// r + stride) into `out`: limited MUSCL face values (seed 002 §2.3), then
+/// [`riemann_line`]. `sl` holds two rows of limited slopes (nv·len each) and
+/// `cached = (row, half)` says which half holds the slopes of which row, so consecutive
+/// lines compute each row's slopes once. `work` is scratch of at least (2·nv + 4)·len.
+/// The values are those of a per-face reconstruction (the same limiter calls on the same
+/// differences).
+#[inline(always)]
+fn face_line<const NM: usize, const D: usize>(
+    ph: &[Phase; NM],
+    lim: Limiter,
+    grid: &Grid,
+    prim: &[f64],
+    r: usize,
+    out: &mut [f64],
+    work: &mut [f64],
+    sl: &mut [f64],
+    cached: &mut Option<(usize, usize)>,
+) {
+    let nv = 2 * NM + 3;
+    let mx = grid.mx();
+    let ir = grid.irange();
+    let (i0, i1) = (ir.start, ir.end);
+    let len = i1 - i0;
+    let rowblk = nv * mx;
+    let stride = grid.row_stride(D);
+    let (lb, rest) = work.split_at_mut(nv * len);
+    let (rb, rest) = rest.split_at_mut(nv * len);
+    let ce = &mut rest[..4 * len];
+    let rows: [&[f64]; 4] = std::array::from_fn(|s| {
+        let q = r + s * stride - stride;
+        &prim[q * rowblk..(q + 1) * rowblk]
+    });
+    // half `h` of `sl` gets row r's slopes (reused if cached), the other half those of the
+    // next row along D
+    let reuse = matches!(*cached, Some((row, _)) if row == r);
+    let h = match *cached {
+        Some((row, half)) if row == r => half,
+        _ => 0,
+    };
+    let (s0, s1) = sl[..2 * nv * len].split_at_mut(nv * len);
+    let (sr, sn) = if h == 0 { (s0, s1) } else { (s1, s0) };
+    for v in 0..nv {
+        let var = |s: usize| &rows[s][v * mx + i0..v * mx + i1];
+        let sv = &mut sr[v * len..(v + 1) * len];
+        if !reuse {
+            slopes(lim, var(0), var(1), var(2), sv);
+        }
+        face_values(var(1), sv, &mut lb[v * len..(v + 1) * len], 1.0);
+        let sv = &mut sn[v * len..(v + 1) * len];
+        slopes(lim, var(1), var(2), var(3), sv);
+        face_values(var(2), sv, &mut rb[v * len..(v + 1) * len], -1.0);
+    }
+    *cached = Some((r + stride, 1 - h));
+    riemann_line::<NM, D>(ph, lb, rb, ce, rows, [1; 4], out, mx, ir);
+}
+
+/// One RK stage of a block of rows of a 2-D grid without an immersed body, fused: for each
+/// interior row, its x-face fluxes and its upper y-face fluxes (the lower ones kept from the
+/// row before) go into row-local scratch and the row is updated at once, so no flux array
+/// is written or read back (the memory traffic of the stage halves). Only the domain
+/// boundary faces are stored in `fxb`/`fyb` (the block's rows of `flux[0]`, `flux[1]`),
+/// for [`boundary_impulse`]. Every value is that of `fluxes` + `update`.
+#[inline(always)]
+fn fused_block_body<const NM: usize>(
+    ph: &[Phase; NM],
+    lim: Limiter,
+    grid: &Grid,
+    prim: &[f64],
+    r0: usize,
+    u: &mut [f64],
+    u0: &[f64],
+    fxb: &mut [f64],
+    fyb: &mut [f64],
+    a: f64,
+    b: f64,
+    dt: f64,
+    buf: &mut Vec<f64>,
+    first: bool,
+) {
+    let nv = 2 * NM + 3;
+    let nf = nv + 1;
+    let mx = grid.mx();
+    let g = grid.g;
+    let n = grid.n;
+    let ir = grid.irange();
+    let len = ir.end - ir.start;
+    let lx = len + 1;
+    let work_n = (2 * nv + 5) * lx + 1;
+    let need = work_n + 2 * nv * len + 3 * nf * mx;
+    if buf.len() < need {
+        buf.resize(need, 0.0);
+    }
+    let (work, rest) = buf.split_at_mut(work_n);
+    let (sl, rest) = rest.split_at_mut(2 * nv * len);
+    let (fx, rest) = rest.split_at_mut(nf * mx);
+    let (fa, rest) = rest.split_at_mut(nf * mx);
+    let (fb, _) = rest.split_at_mut(nf * mx);
+    let (mut fy_lo, mut fy_hi) = (fa, fb);
+    let mut cached: Option<(usize, usize)> = None;
+    // the y line whose fluxes `fy_lo` holds
+    let mut have: Option<usize> = None;
+    let rowblk = nv * mx;
+    let xfaces = g[0] - 1..g[0] + n[0];
+    for (k, (uu, u0r)) in u.chunks_mut(rowblk).zip(u0.chunks(rowblk)).enumerate() {
+        let r = r0 + k;
+        if first {
+            // U ← U0 row by row while it is in cache (the step swapped the buffers
+            // instead of copying them)
+            uu.copy_from_slice(u0r);
+        }
+        if !grid.interior_row(r) {
+            continue;
+        }
+        if have != Some(r - 1) {
+            face_line::<NM, 1>(ph, lim, grid, prim, r - 1, fy_lo, work, sl, &mut cached);
+        }
+        face_line::<NM, 1>(ph, lim, grid, prim, r, fy_hi, work, sl, &mut cached);
+        let row = &prim[r * rowblk..(r + 1) * rowblk];
+        flux_row_x_into::<NM>(ph, lim, row, fx, mx, xfaces.clone(), work);
+        update_row_faces::<NM>(
+            grid,
+            [&*fx, &*fy_hi, &*fy_lo, &*fx, &*fx],
+            uu,
+            u0r,
+            a,
+            b,
+            dt,
+        );
+        // the domain boundary faces, for the boundary impulse
+        for v in 0..nf {
+            for i in [g[0] - 1, g[0] + n[0] - 1] {
+                fxb[k * nf * mx + v * mx + i] = fx[v * mx + i];
             }
+        }
+        for (line, fl) in [(r - 1, &*fy_lo), (r, &*fy_hi)] {
+            if (line == g[1] - 1 || line == g[1] + n[1] - 1) && line >= r0 {
+                let o = (line - r0) * nf * mx;
+                fyb[o..o + nf * mx].copy_from_slice(fl);
+            }
+        }
+        std::mem::swap(&mut fy_lo, &mut fy_hi);
+        have = Some(r);
+    }
+}
+
+multiversion! {
+    /// [`fused_block_body`] for the widest instruction set allowed.
+    fn fused_block<const NM: usize>(
+        ph: &[Phase; NM],
+        lim: Limiter,
+        grid: &Grid,
+        prim: &[f64],
+        r0: usize,
+        u: &mut [f64],
+        u0: &[f64],
+        fxb: &mut [f64],
+        fyb: &mut [f64],
+        a: f64,
+        b: f64,
+        dt: f64,
+        buf: &mut Vec<f64>,
+        first: bool,
+    ) = fused_block_body;
+}
+
+/// [`fluxes`] in x and y, then [`update`], fused per block of rows (2-D, no immersed body).
+/// `first`: the first stage, for which `cons` holds nothing yet and each row is copied from
+/// `cons0` before its update.
+fn fused_stage_2d<const NM: usize>(
+    f: &mut Fluid,
+    ph: &[Phase; NM],
+    a: f64,
+    b: f64,
+    dt: f64,
+    first: bool,
+) {
+    let grid = &f.grid;
+    let simd = f.simd;
+    let lim = f.limiter;
+    let nv = f.nv;
+    let nf = nv + 1;
+    let mx = grid.mx();
+    let prim = &f.prim;
+    let [fx, fy, _] = &mut f.flux;
+    let nb = fused_block_rows(grid.rows());
+    f.cons
+        .par_chunks_mut(nb * nv * mx)
+        .zip(f.cons0.par_chunks(nb * nv * mx))
+        .zip(fx.par_chunks_mut(nb * nf * mx))
+        .zip(fy.par_chunks_mut(nb * nf * mx))
+        .enumerate()
+        .for_each(|(blk, (((u, u0), fxb), fyb))| {
+            LINE_SCRATCH.with(|cell| {
+                let mut buf = cell.borrow_mut();
+                let r0 = blk * nb;
+                fused_block::<NM>(
+                    simd, ph, lim, grid, prim, r0, u, u0, fxb, fyb, a, b, dt, &mut buf, first,
+                );
+            });
         });
 }
 
 /// Residual and RK stage update of every interior cell: U = a U0 + b (U + dt L(U)).
 fn update<const NM: usize>(f: &mut Fluid, a: f64, b: f64, dt: f64) {
     let grid = &f.grid;
+    let simd = f.simd;
     let nv = f.nv;
-    let nf = nv + 1;
     let mx = grid.mx();
-    let nd = grid.nd;
-    let idx = [1.0 / grid.dx[0], 1.0 / grid.dx[1], 1.0 / grid.dx[2]];
-    let ir = grid.irange();
     let fl = &f.flux;
-    let fb = nf * mx;
     f.cons
         .par_chunks_mut(nv * mx)
         .zip(f.cons0.par_chunks(nv * mx))
         .enumerate()
         .for_each(|(r, (u, u0))| {
-            if !grid.interior_row(r) {
-                return;
-            }
-            let fx = &fl[0][r * fb..(r + 1) * fb];
-            let (fy, fym) = if nd > 1 {
-                (&fl[1][r * fb..(r + 1) * fb], &fl[1][(r - 1) * fb..r * fb])
-            } else {
-                (fx, fx)
-            };
-            let s2 = grid.row_stride(2);
-            let (fz, fzm) = if nd > 2 {
-                (
-                    &fl[2][r * fb..(r + 1) * fb],
-                    &fl[2][(r - s2) * fb..(r + 1 - s2) * fb],
-                )
-            } else {
-                (fx, fx)
-            };
-            let uf = nv * mx;
-            let (lo, hi) = (ir.start, ir.end);
-            // face velocities (Johnsen–Colonius) for the α rows
-            let ufx = &fx[uf + lo - 1..uf + hi];
-            let (ufy, ufym) = (&fy[uf + lo..uf + hi], &fym[uf + lo..uf + hi]);
-            let (ufz, ufzm) = (&fz[uf + lo..uf + hi], &fzm[uf + lo..uf + hi]);
-            for v in 0..nv {
-                let o = v * mx;
-                let is_alpha = v >= NM + 4;
-                // slices of exactly n (n + 1 for x faces) so the loop has no bounds checks
-                let uv = &mut u[o + lo..o + hi];
-                let u0v = &u0[o + lo..o + hi];
-                let fxv = &fx[o + lo - 1..o + hi];
-                let (fyv, fymv) = (&fy[o + lo..o + hi], &fym[o + lo..o + hi]);
-                let (fzv, fzmv) = (&fz[o + lo..o + hi], &fzm[o + lo..o + hi]);
-                let fs = [fxv, fyv, fymv, fzv, fzmv];
-                let uf = [ufx, ufy, ufym, ufz, ufzm];
-                // the stage update with the dimension and the α terms fixed at compile time
-                // (so the loop vectorises); the same operations as the general form
-                match (nd, is_alpha) {
-                    (1, false) => update_var::<1, false>(uv, u0v, fs, uf, idx, a, b, dt),
-                    (2, false) => update_var::<2, false>(uv, u0v, fs, uf, idx, a, b, dt),
-                    (_, false) => update_var::<3, false>(uv, u0v, fs, uf, idx, a, b, dt),
-                    (1, true) => update_var::<1, true>(uv, u0v, fs, uf, idx, a, b, dt),
-                    (2, true) => update_var::<2, true>(uv, u0v, fs, uf, idx, a, b, dt),
-                    (_, true) => update_var::<3, true>(uv, u0v, fs, uf, idx, a, b, dt),
-                }
+            if grid.interior_row(r) {
+                update_row::<NM>(simd, grid, fl, r, u, u0, a, b, dt);
             }
         });
+}
+
+/// The stage update of interior row `r` (`u`, `u0`: its blocks of U and U0).
+#[inline(always)]
+fn update_row_body<const NM: usize>(
+    grid: &Grid,
+    fl: &[Vec<f64>; 3],
+    r: usize,
+    u: &mut [f64],
+    u0: &[f64],
+    a: f64,
+    b: f64,
+    dt: f64,
+) {
+    let nv = 2 * NM + 3;
+    let nf = nv + 1;
+    let mx = grid.mx();
+    let nd = grid.nd;
+    let fb = nf * mx;
+    let fx = &fl[0][r * fb..(r + 1) * fb];
+    let (fy, fym) = if nd > 1 {
+        (&fl[1][r * fb..(r + 1) * fb], &fl[1][(r - 1) * fb..r * fb])
+    } else {
+        (fx, fx)
+    };
+    let s2 = grid.row_stride(2);
+    let (fz, fzm) = if nd > 2 {
+        (
+            &fl[2][r * fb..(r + 1) * fb],
+            &fl[2][(r - s2) * fb..(r + 1 - s2) * fb],
+        )
+    } else {
+        (fx, fx)
+    };
+    update_row_faces::<NM>(grid, [fx, fy, fym, fz, fzm], u, u0, a, b, dt);
+}
+
+/// The stage update of one interior row from its face-flux rows `[x, y upper, y lower,
+/// z upper, z lower]` (each nf blocks of `mx`, indexed by the cell left of / below the face;
+/// rows of absent directions are ignored).
+#[inline(always)]
+fn update_row_faces<const NM: usize>(
+    grid: &Grid,
+    faces: [&[f64]; 5],
+    u: &mut [f64],
+    u0: &[f64],
+    a: f64,
+    b: f64,
+    dt: f64,
+) {
+    let nv = 2 * NM + 3;
+    let mx = grid.mx();
+    let nd = grid.nd;
+    let idx = [1.0 / grid.dx[0], 1.0 / grid.dx[1], 1.0 / grid.dx[2]];
+    let ir = grid.irange();
+    let [fx, fy, fym, fz, fzm] = faces;
+    let uf = nv * mx;
+    let (lo, hi) = (ir.start, ir.end);
+    // face velocities (Johnsen–Colonius) for the α rows
+    let ufx = &fx[uf + lo - 1..uf + hi];
+    let (ufy, ufym) = (&fy[uf + lo..uf + hi], &fym[uf + lo..uf + hi]);
+    let (ufz, ufzm) = (&fz[uf + lo..uf + hi], &fzm[uf + lo..uf + hi]);
+    for v in 0..nv {
+        let o = v * mx;
+        let is_alpha = v >= NM + 4;
+        // slices of exactly n (n + 1 for x faces) so the loop has no bounds checks
+        let uv = &mut u[o + lo..o + hi];
+        let u0v = &u0[o + lo..o + hi];
+        let fxv = &fx[o + lo - 1..o + hi];
+        let (fyv, fymv) = (&fy[o + lo..o + hi], &fym[o + lo..o + hi]);
+        let (fzv, fzmv) = (&fz[o + lo..o + hi], &fzm[o + lo..o + hi]);
+        let fs = [fxv, fyv, fymv, fzv, fzmv];
+        let uf = [ufx, ufy, ufym, ufz, ufzm];
+        // the stage update with the dimension and the α terms fixed at compile time
+        // (so the loop vectorises); the same operations as the general form
+        match (nd, is_alpha) {
+            (1, false) => update_var::<1, false>(uv, u0v, fs, uf, idx, a, b, dt),
+            (2, false) => update_var::<2, false>(uv, u0v, fs, uf, idx, a, b, dt),
+            (_, false) => update_var::<3, false>(uv, u0v, fs, uf, idx, a, b, dt),
+            (1, true) => update_var::<1, true>(uv, u0v, fs, uf, idx, a, b, dt),
+            (2, true) => update_var::<2, true>(uv, u0v, fs, uf, idx, a, b, dt),
+            (_, true) => update_var::<3, true>(uv, u0v, fs, uf, idx, a, b, dt),
+        }
+    }
+}
+
+multiversion! {
+    /// [`update_row_body`] for the widest instruction set allowed.
+    fn update_row<const NM: usize>(
+        grid: &Grid,
+        fl: &[Vec<f64>; 3],
+        r: usize,
+        u: &mut [f64],
+        u0: &[f64],
+        a: f64,
+        b: f64,
+        dt: f64,
+    ) = update_row_body;
 }
 
 /// One variable of one row: U = a U0 + b (U + dt L(U)) with L the flux divergence
@@ -805,11 +1279,17 @@ fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
         });
     }
     let dt = (f.cfl / rate).min(dt_max);
-    let chunk = f.nv * f.grid.mx();
-    f.cons0
-        .par_chunks_mut(chunk)
-        .zip(f.cons.par_chunks(chunk))
-        .for_each(|(a, b)| a.copy_from_slice(b));
+    let fused = f.grid.nd == 2 && f.immersed.is_none();
+    if fused {
+        // U0 ← U by swapping; the first fused stage copies each row back before updating it
+        std::mem::swap(&mut f.cons, &mut f.cons0);
+    } else {
+        let chunk = f.nv * f.grid.mx();
+        f.cons0
+            .par_chunks_mut(chunk)
+            .zip(f.cons.par_chunks(chunk))
+            .for_each(|(a, b)| a.copy_from_slice(b));
+    }
     let mut ib = f.immersed.take();
     let result = (|| -> SolverResult<()> {
         for (s, &(a, b)) in RK3.iter().enumerate() {
@@ -821,17 +1301,27 @@ fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
             }
             let vel0 = f.vel0();
             fill_ghosts(&f.grid, &mut f.prim, f.nv, vel0, &f.bc);
-            for d in 0..f.grid.nd {
-                fluxes::<NM>(f, &ph, d);
+            if fused {
+                // fluxes and update fused per block of rows; only the domain boundary
+                // faces are stored, which is all `boundary_impulse` reads
+                fused_stage_2d::<NM>(f, &ph, a, b, dt, s == 0);
+                let bi = boundary_impulse(f, RK3_FLUX_WEIGHT[s] * dt);
+                for c in 0..3 {
+                    f.boundary_impulse[c] += bi[c];
+                }
+            } else {
+                for d in 0..f.grid.nd {
+                    fluxes::<NM>(f, &ph, d);
+                }
+                if let Some(im) = ib.as_mut() {
+                    immersed::wall_fluxes::<NM>(f, &ph, im, RK3_FLUX_WEIGHT[s] * dt);
+                }
+                let bi = boundary_impulse(f, RK3_FLUX_WEIGHT[s] * dt);
+                for c in 0..3 {
+                    f.boundary_impulse[c] += bi[c];
+                }
+                update::<NM>(f, a, b, dt);
             }
-            if let Some(im) = ib.as_mut() {
-                immersed::wall_fluxes::<NM>(f, &ph, im, RK3_FLUX_WEIGHT[s] * dt);
-            }
-            let bi = boundary_impulse(f, RK3_FLUX_WEIGHT[s] * dt);
-            for c in 0..3 {
-                f.boundary_impulse[c] += bi[c];
-            }
-            update::<NM>(f, a, b, dt);
             if let Some(im) = ib.as_mut() {
                 immersed::project(f, im, RK3_PROJECTION_WEIGHT[s]);
             }

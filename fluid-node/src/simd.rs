@@ -1,0 +1,114 @@
+//! Run-time choice of the instruction set for the row kernels of `step.rs` (issue #3
+//! must-show 8, throughput). Each kernel is written once as an `#[inline(always)]` body over
+//! slices and compiled three times: baseline x86-64 (SSE2), AVX2 and AVX-512, so its loops
+//! vectorise 2, 4 or 8 doubles wide; [`multiversion!`] generates the dispatching wrapper.
+//!
+//! Results are bit-identical on every path: only IEEE-754 operations that are correctly
+//! rounded at any vector width are used (add, sub, mul, div, sqrt, compare, select), and FMA
+//! is deliberately not enabled (Rust never contracts a·b + c by itself, but leaving the
+//! feature out makes that certain). The GPU shaders therefore still match the CPU.
+
+/// Widest instruction set the row kernels may use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Simd {
+    /// Baseline x86-64 (or any other architecture).
+    Base,
+    /// AVX2 (4 doubles per vector).
+    Avx2,
+    /// AVX-512 F/DQ/VL (8 doubles per vector).
+    Avx512,
+}
+
+impl Simd {
+    /// The widest instruction set this CPU supports.
+    pub fn detect() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if has_avx512() {
+                return Simd::Avx512;
+            }
+            if has_avx2() {
+                return Simd::Avx2;
+            }
+        }
+        Simd::Base
+    }
+
+    /// Every instruction set this CPU supports, narrowest first (for tests that compare
+    /// the paths bit for bit).
+    pub fn available() -> Vec<Self> {
+        let mut v = vec![Simd::Base];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if has_avx2() {
+                v.push(Simd::Avx2);
+            }
+            if has_avx512() {
+                v.push(Simd::Avx512);
+            }
+        }
+        v
+    }
+}
+
+/// True when the CPU runs the AVX-512 kernels (cached by the standard library).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub fn has_avx512() -> bool {
+    std::arch::is_x86_feature_detected!("avx512f")
+        && std::arch::is_x86_feature_detected!("avx512dq")
+        && std::arch::is_x86_feature_detected!("avx512vl")
+        && has_avx2()
+}
+
+/// True when the CPU runs the AVX2 kernels (cached by the standard library).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub fn has_avx2() -> bool {
+    std::arch::is_x86_feature_detected!("avx2")
+}
+
+/// `multiversion! { fn name<const N: usize>(a: A, ...) -> R = body; }` defines
+/// `name::<N>(simd: Simd, a, ...)`, which runs `body::<N>(a, ...)` compiled for the widest
+/// instruction set allowed by `simd` that the CPU has (checked again on every call, so a
+/// `Simd` value the CPU lacks falls back safely). `body` must be `#[inline(always)]`.
+macro_rules! multiversion {
+    (
+        $(#[$meta:meta])*
+        $vis:vis fn $name:ident<$(const $cp:ident: $ct:ty),*>($($arg:ident: $ty:ty),* $(,)?)
+            $(-> $ret:ty)? = $body:ident;
+    ) => {
+        $(#[$meta])*
+        #[inline]
+        $vis fn $name<$(const $cp: $ct),*>(simd: $crate::simd::Simd, $($arg: $ty),*) $(-> $ret)? {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,avx")]
+                fn avx512<$(const $cp: $ct),*>($($arg: $ty),*) $(-> $ret)? {
+                    $body::<$($cp),*>($($arg),*)
+                }
+                #[target_feature(enable = "avx2,avx")]
+                fn avx2<$(const $cp: $ct),*>($($arg: $ty),*) $(-> $ret)? {
+                    $body::<$($cp),*>($($arg),*)
+                }
+                match simd {
+                    $crate::simd::Simd::Avx512 if $crate::simd::has_avx512() => {
+                        // SAFETY: the CPU has every feature `avx512` enables (checked just
+                        // above), the only requirement of calling a target-feature function.
+                        return unsafe { avx512::<$($cp),*>($($arg),*) };
+                    }
+                    $crate::simd::Simd::Avx512 | $crate::simd::Simd::Avx2
+                        if $crate::simd::has_avx2() =>
+                    {
+                        // SAFETY: as above, for AVX2.
+                        return unsafe { avx2::<$($cp),*>($($arg),*) };
+                    }
+                    _ => {}
+                }
+            }
+            let _ = simd;
+            $body::<$($cp),*>($($arg),*)
+        }
+    };
+}
+pub(crate) use multiversion;
