@@ -110,69 +110,6 @@ fn stable_dt_query_matches_the_step() {
     }
 }
 
-/// A blast off-centre in a box with every boundary kind, one gas or air + helium, 2-D or
-/// 3-D, with the given limiter: the shock crosses every kernel path (x rows, blocked y and
-/// z lines, reflecting and outflow ghosts).
-fn blast_case(nd: usize, two: bool, limiter: &str) -> String {
-    let cells = if nd == 3 {
-        "[14, 12, 10]"
-    } else {
-        "[34, 30, 1]"
-    };
-    let helium = if two {
-        r#"
-        [materials.helium]
-        eos = "ideal"
-        gamma = 1.67
-        [[regions]]
-        shape = "sphere"
-        center = [0.7, 0.6, 0.5]
-        radius = 0.15
-        material = "helium"
-        density = 0.138
-        pressure = 0.1
-        "#
-    } else {
-        ""
-    };
-    let z = if nd == 3 {
-        "z_lower = \"wall\"\n        z_upper = \"outflow\""
-    } else {
-        ""
-    };
-    format!(
-        r#"
-        limiter = "{limiter}"
-        [grid]
-        cells = {cells}
-        lower = [0.0, 0.0, 0.0]
-        upper = [1.0, 0.9, 0.8]
-        [materials.air]
-        eos = "ideal"
-        gamma = 1.4
-        [[regions]]
-        shape = "all"
-        material = "air"
-        density = 1.0
-        pressure = 0.1
-        [[regions]]
-        shape = "sphere"
-        center = [0.35, 0.4, 0.3]
-        radius = 0.15
-        material = "air"
-        density = 1.0
-        pressure = 10.0
-        {helium}
-        [boundaries]
-        x_lower = "wall"
-        x_upper = "outflow"
-        y_lower = "symmetry"
-        y_upper = "wall"
-        {z}
-    "#
-    )
-}
-
 #[test]
 fn bit_identical_for_every_instruction_set() {
     use fluid_node::simd::Simd;
@@ -184,7 +121,8 @@ fn bit_identical_for_every_instruction_set() {
         (2, true, "van_leer"),
         (3, false, "van_leer"),
     ] {
-        let text = blast_case(nd, two, limiter);
+        let cells = if nd == 3 { [14, 12, 10] } else { [34, 30, 1] };
+        let text = common::walled_blast_case(cells, two, limiter);
         let runs: Vec<Vec<f64>> = available
             .iter()
             .map(|&simd| {

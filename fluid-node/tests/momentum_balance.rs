@@ -9,69 +9,11 @@ mod common;
 use common::solver;
 use fluid_node::diagnostics;
 
-fn case(nd: usize, two: bool) -> String {
-    let cells = if nd == 3 {
-        "[16, 14, 12]"
-    } else {
-        "[48, 40, 1]"
-    };
-    let helium = if two {
-        r#"
-        [materials.helium]
-        eos = "ideal"
-        gamma = 1.67
-        [[regions]]
-        shape = "sphere"
-        center = [0.75, 0.5, 0.4]
-        radius = 0.12
-        material = "helium"
-        density = 0.138
-        pressure = 0.1
-        "#
-    } else {
-        ""
-    };
-    let z = if nd == 3 {
-        "z_lower = \"symmetry\"\n        z_upper = \"outflow\""
-    } else {
-        ""
-    };
-    format!(
-        r#"
-        [grid]
-        cells = {cells}
-        lower = [0.0, 0.0, 0.0]
-        upper = [1.0, 0.8, 0.7]
-        [materials.air]
-        eos = "ideal"
-        gamma = 1.4
-        [[regions]]
-        shape = "all"
-        material = "air"
-        density = 1.0
-        pressure = 0.1
-        [[regions]]
-        shape = "sphere"
-        center = [0.3, 0.3, 0.3]
-        radius = 0.15
-        material = "air"
-        density = 1.0
-        pressure = 10.0
-        {helium}
-        [boundaries]
-        x_lower = "wall"
-        x_upper = "outflow"
-        y_lower = "symmetry"
-        y_upper = "outflow"
-        {z}
-    "#
-    )
-}
-
 #[test]
 fn momentum_change_equals_boundary_impulse() {
     for (nd, two) in [(2, false), (2, true), (3, false)] {
-        let mut s = solver(&case(nd, two));
+        let cells = if nd == 3 { [16, 14, 12] } else { [48, 40, 1] };
+        let mut s = solver(&common::walled_blast_case(cells, two, "van_leer"));
         let t0 = diagnostics::totals(&mut s.fluid).expect("totals");
         // long enough for the shock to reflect from the wall and leave through the outflow
         s.advance_to(0.25).expect("run");

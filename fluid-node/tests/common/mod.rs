@@ -158,3 +158,63 @@ pub fn sedov_alpha(nu: usize, g: f64) -> f64 {
     };
     d * d * sigma * integral
 }
+
+/// A blast off-centre in a box with every boundary kind, one gas or air + helium, 2-D or
+/// 3-D, with the given limiter (3-D when cells[2] > 1): the shock crosses every kernel path (x rows, blocked y and
+/// z lines, reflecting and outflow ghosts).
+pub fn walled_blast_case(cells: [usize; 3], two: bool, limiter: &str) -> String {
+    let nd = if cells[2] > 1 { 3 } else { 2 };
+    let cells = format!("{cells:?}");
+    let helium = if two {
+        r#"
+        [materials.helium]
+        eos = "ideal"
+        gamma = 1.67
+        [[regions]]
+        shape = "sphere"
+        center = [0.7, 0.6, 0.5]
+        radius = 0.15
+        material = "helium"
+        density = 0.138
+        pressure = 0.1
+        "#
+    } else {
+        ""
+    };
+    let z = if nd == 3 {
+        "z_lower = \"wall\"\n        z_upper = \"outflow\""
+    } else {
+        ""
+    };
+    format!(
+        r#"
+        limiter = "{limiter}"
+        [grid]
+        cells = {cells}
+        lower = [0.0, 0.0, 0.0]
+        upper = [1.0, 0.9, 0.8]
+        [materials.air]
+        eos = "ideal"
+        gamma = 1.4
+        [[regions]]
+        shape = "all"
+        material = "air"
+        density = 1.0
+        pressure = 0.1
+        [[regions]]
+        shape = "sphere"
+        center = [0.35, 0.4, 0.3]
+        radius = 0.15
+        material = "air"
+        density = 1.0
+        pressure = 10.0
+        {helium}
+        [boundaries]
+        x_lower = "wall"
+        x_upper = "outflow"
+        y_lower = "symmetry"
+        y_upper = "wall"
+        {z}
+    "#
+    )
+}
