@@ -64,8 +64,24 @@ fn build(model: &str, t: &toml::Table) -> Result<Box<dyn Solver>, SolverError> {
     }
 }
 
-/// (initial positions, final positions, final velocities, reports) of 6 windows of 2 µs.
-type Run = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<StepReport>);
+/// (initial positions, final positions, final velocities, reports) of 6 windows of 2 µs, and
+/// the full state (displacements, velocities, forces) from the node's checkpoint at the end:
+/// on the device path read from the device in full only there (per window only the report
+/// crosses).
+type Run = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<StepReport>, [Vec<f64>; 3]);
+
+/// Displacements, velocities and forces from a checkpoint (solver.rs `save_state` layout).
+fn full_state(bytes: &[u8]) -> [Vec<f64>; 3] {
+    use solid_node::pd::checkpoint::Reader;
+    let mut r = Reader::new(bytes);
+    let magic_len = r.u64().expect("magic length") as usize;
+    r.rest = &r.rest[magic_len..];
+    let n = r.u64().expect("n") as usize;
+    let _nb = r.u64().expect("nb");
+    let _t = r.f64().expect("time");
+    let _steps = r.u64().expect("steps");
+    std::array::from_fn(|_| r.f64s(3 * n, "state").expect("state block"))
+}
 
 fn run(model: &str, device: &str) -> Run {
     run_with(model, device, 7850.0)
@@ -108,7 +124,18 @@ fn run_with(model: &str, device: &str, density: f64) -> Run {
     }
     let x = out.require("all", "position", 3 * n).expect("x").to_vec();
     let v = out.require("all", "velocity", 3 * n).expect("v").to_vec();
-    (x0, x, v, reports)
+    // an output frame from the (device) state
+    let dir = std::env::temp_dir().join(format!(
+        "solid-gpu-node-{}-{model}-{device}",
+        std::process::id()
+    ));
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    s.write_output(12e-6, 6, &dir).expect("output frame");
+    let frames = std::fs::read_dir(&dir).expect("frames").count();
+    assert!(frames > 0, "no output frame written");
+    let _ = std::fs::remove_dir_all(&dir);
+    let full = full_state(&s.save_state().expect("checkpoint"));
+    (x0, x, v, reports, full)
 }
 
 /// max |a − b| / max |b| (NaN counts as infinitely different).
@@ -131,13 +158,16 @@ fn compare(model: &str) {
     if adapter(&test).is_none() {
         return;
     }
-    let (x0, xc, vc, rc) = run(model, "cpu");
-    let (x0g, xg, vg, rg) = run(model, "gpu");
+    let (x0, xc, vc, rc, fc) = run(model, "cpu");
+    let (x0g, xg, vg, rg, fg) = run(model, "gpu");
     assert_eq!(x0, x0g);
     let disp = |x: &[f64]| -> Vec<f64> { x.iter().zip(&x0).map(|(a, b)| a - b).collect() };
     let mut worst: Vec<(&str, f64)> = vec![
         ("displacement", rel(&disp(&xg), &disp(&xc))),
         ("velocity", rel(&vg, &vc)),
+        ("full-state displacement", rel(&fg[0], &fc[0])),
+        ("full-state velocity", rel(&fg[1], &fc[1])),
+        ("full-state force", rel(&fg[2], &fc[2])),
     ];
     let (mut p, mut ke, mut wk, mut ii, mut ei, mut com, mut vm) =
         (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
@@ -180,7 +210,7 @@ fn compare(model: &str) {
     }
     // For scale (printed, not asserted): the CPU against itself with the density one ulp
     // larger, the round-off sensitivity of the case.
-    let (_, xu, vu, _) = run_with(model, "cpu", f64::from_bits(7850.0f64.to_bits() + 1));
+    let (_, xu, vu, _, _) = run_with(model, "cpu", f64::from_bits(7850.0f64.to_bits() + 1));
     println!(
         "  one-ulp CPU control (density 7850 + 1 ulp): displacement {:.3e}, velocity {:.3e}",
         rel(&disp(&xu), &disp(&xc)),
@@ -188,7 +218,10 @@ fn compare(model: &str) {
     );
     // the case is not trivial: the support held, the wave moved, the forces did work
     assert!(last.external_impulse[0].abs() > 0.0 && last.interface_work.abs() > 0.0);
-    assert!(worst.iter().all(|(_, e)| *e <= 1e-10), "{worst:?}");
+    // Issue 8 asks 1e-10. With displacement-based kinematics (session 4) the worst measured
+    // on lavapipe is 2.4e-13 (pd-correspondence displacement; velocity was 6.5e-11 before):
+    // held to 1e-11.
+    assert!(worst.iter().all(|(_, e)| *e <= 1e-11), "{worst:?}");
 }
 
 #[test]

@@ -39,6 +39,7 @@ fn bar(nx: usize, ny: usize, amp: f64, s0: Option<f64>) -> (Body, BondModel) {
     let k = Kinematics {
         x0: &x0,
         pos: &x0,
+        disp: &displacements(&x0, &x0),
         vel: &v,
         vol: &vol,
     };
@@ -165,4 +166,12 @@ fn breaking_bonds_match_cpu() {
     );
     assert_eq!(r[3], r[4]);
     assert!(r[0] <= 1e-10 && r[1] <= 1e-10, "{r:?}");
+}
+
+/// u = x − X per particle (the models read displacements; see `Kinematics::disp`).
+fn displacements(pos: &[[f64; 3]], x0: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    pos.iter()
+        .zip(x0)
+        .map(|(p, q)| std::array::from_fn(|d| p[d] - q[d]))
+        .collect()
 }

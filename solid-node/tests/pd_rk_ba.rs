@@ -241,7 +241,10 @@ fn rk_ba_momentum_conserved_in_free_body() {
         let broken = b.damage().iter().filter(|&&d| d > 0.0).count();
         println!("order {order}: relative momentum drift {err:e}, {broken} damaged particles");
         assert!(broken > 0, "the test must break bonds");
-        assert!(err < 1e-13, "order {order}: {err:e}");
+        // Round-off: 150 steps of sums over ~100 bonds per particle. Measured 1.6e-14
+        // (order 1) and 1.13e-13 (order 2) since positions are x = X + u (session 4); the
+        // earlier x += v dt rounding gave < 1e-13. 150 steps × ~1e-15 per step = 1.5e-13.
+        assert!(err < 2e-13, "order {order}: {err:e}");
         assert!(b.vel.iter().all(|v| v.iter().all(|c| c.is_finite())));
     }
 }

@@ -72,6 +72,7 @@ fn patch_test_deformation_gradient_is_exact() {
         let k = Kinematics {
             x0: &x0,
             pos: &pos,
+            disp: &displacements(&pos, &x0),
             vel: &vel,
             vol: &vol,
         };
@@ -132,6 +133,7 @@ fn zigzag_mode_needs_stabilization() {
         let k = Kinematics {
             x0: &x0,
             pos: &x0,
+            disp: &displacements(&x0, &x0),
             vel: &vel,
             vol: &vol,
         };
@@ -155,6 +157,7 @@ fn zigzag_mode_needs_stabilization() {
         let k = Kinematics {
             x0: &x0,
             pos: &pos,
+            disp: &displacements(&pos, &x0),
             vel: &velu,
             vol: &vol,
         };
@@ -216,6 +219,7 @@ fn elastic_constants(three_d: bool, correspondence: bool, nu_in: f64) -> (f64, f
         let k0 = Kinematics {
             x0: &x0,
             pos: &x0,
+            disp: &displacements(&x0, &x0),
             vel: &vel,
             vol: &vol,
         };
@@ -235,6 +239,7 @@ fn elastic_constants(three_d: bool, correspondence: bool, nu_in: f64) -> (f64, f
             let k = Kinematics {
                 x0: &x0,
                 pos: &pos,
+                disp: &displacements(&pos, &x0),
                 vel: &velu,
                 vol: &vol,
             };
@@ -250,6 +255,7 @@ fn elastic_constants(three_d: bool, correspondence: bool, nu_in: f64) -> (f64, f
             let k = Kinematics {
                 x0: &x0,
                 pos: &pos,
+                disp: &displacements(&pos, &x0),
                 vel: &vel,
                 vol: &vol,
             };
@@ -349,6 +355,7 @@ fn long_wave_speed_in_a_bar() {
         let k = Kinematics {
             x0: &x0,
             pos: &x0,
+            disp: &displacements(&x0, &x0),
             vel: &v,
             vol: &vol,
         };
@@ -378,6 +385,7 @@ fn long_wave_speed_in_a_bar() {
         let k = Kinematics {
             x0: &x0,
             pos: &x0,
+            disp: &displacements(&x0, &x0),
             vel: &v,
             vol: &vol,
         };
@@ -409,6 +417,7 @@ fn uniform_stretch_matches_single_point_radial_return() {
     let k0 = Kinematics {
         x0: &x0,
         pos: &x0,
+        disp: &displacements(&x0, &x0),
         vel: &vel0,
         vol: &vol,
     };
@@ -426,6 +435,7 @@ fn uniform_stretch_matches_single_point_radial_return() {
         let k = Kinematics {
             x0: &x0,
             pos: &pos,
+            disp: &displacements(&pos, &x0),
             vel: &vel,
             vol: &vol,
         };
@@ -462,6 +472,7 @@ fn random_body(model: &str, s0: Option<f64>) -> Body {
     let k = Kinematics {
         x0: &x0,
         pos: &x0,
+        disp: &displacements(&x0, &x0),
         vel: &v,
         vol: &vol,
     };
@@ -618,6 +629,7 @@ fn plane_stress_correspondence_recovers_e_and_nu() {
         let k0 = Kinematics {
             x0: &x0,
             pos: &x0,
+            disp: &displacements(&x0, &x0),
             vel: &vel,
             vol: &vol,
         };
@@ -639,6 +651,7 @@ fn plane_stress_correspondence_recovers_e_and_nu() {
         let k = Kinematics {
             x0: &x0,
             pos: &pos,
+            disp: &displacements(&pos, &x0),
             vel: &velu,
             vol: &vol,
         };
@@ -659,4 +672,12 @@ fn plane_stress_correspondence_recovers_e_and_nu() {
     println!("plane-stress correspondence: E = {e:.5e}, ν = {nu:.5}");
     assert!((e - 200e9).abs() / 200e9 < 0.02, "E = {e:e}");
     assert!((nu - 0.3).abs() < 0.02, "ν = {nu}");
+}
+
+/// u = x − X per particle (the models read displacements; see `Kinematics::disp`).
+fn displacements(pos: &[[f64; 3]], x0: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    pos.iter()
+        .zip(x0)
+        .map(|(p, q)| std::array::from_fn(|d| p[d] - q[d]))
+        .collect()
 }

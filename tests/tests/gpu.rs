@@ -6,16 +6,17 @@
 //! bar's particle positions, velocities and volumes), relative to the field's largest
 //! magnitude in that window.
 //!
-//! The coupled system amplifies round-off: a third, CPU-only run whose initial air
-//! temperature differs by one ulp (290 K · (1 + 2.2e-16)) — the control — sends bar
-//! velocities that differ from the reference run by ~1e-7 relative after 20 windows (measured),
-//! while the gas forces stay within ~1e-12. Bit-for-bit agreement of the GPU and CPU
-//! arithmetic would be needed for the bar's fields to stay within 1e-10 to the end. So:
-//! * the gas's forces (what the GPU path computes) must agree within 1e-10 in every window,
-//!   and so must the gas's reported interface impulse;
-//! * the bar's fields must agree within 1e-10 in every window before the control first
-//!   exceeds 1e-10 (the round-off horizon of the coupled run), and after it stay within the
-//!   control's own largest difference for that field (×10).
+//! Every field must agree within 1e-10 in every window, relative to the run's largest
+//! |value| of that field (sender/field over all windows of the CPU run): gas forces, bar
+//! positions, velocities and volumes; and the gas's reported interface impulse likewise.
+//! Until session 3 the bar's strains (~1e-6) were formed from absolute positions (0.3 m) and
+//! kept ~8 digits, so any two differently rounded runs drifted apart by ~1e-7 in the bar's
+//! velocities; the solid node now forms bond deformations from displacements. A third,
+//! CPU-only run whose initial air temperature differs by one ulp (the control) is printed
+//! for scale (the coupled system's own round-off sensitivity), not asserted.
+//! Measured (lavapipe, session 4, 80 windows): bar positions 1.9e-16, bar velocities 1.3e-13
+//! (control 1.1e-13), gas forces 1.6e-15 of their largest values; the gas's interface
+//! impulse 1.3e-18 of 2.55e-3 N s.
 //!
 //! The CPU run itself is checked against momentum conservation by immersed.rs, and the GPU
 //! immersed kernels against the CPU ones in process (fluid-node/src/gpu/tests.rs: ≤ 4e-15).
@@ -29,7 +30,9 @@ use std::path::Path;
 use std::time::Instant;
 
 /// (coupling, sender, window, field) → values of every recorded `Fields` message.
-type Traffic = BTreeMap<(String, String, u64, String), Vec<f64>>;
+/// (sender, coupling, window, field).
+type FieldKey = (String, String, u64, String);
+type Traffic = BTreeMap<FieldKey, Vec<f64>>;
 
 fn traffic(mcap: &Path) -> Traffic {
     let (msgs, complete) = coordinator::record::read_all(mcap).expect("readable recording");
@@ -53,18 +56,23 @@ fn traffic(mcap: &Path) -> Traffic {
     out
 }
 
-/// Largest |a − b| / max|a| per recorded field, window by window: (key, relative difference).
-fn compare(a: &Traffic, b: &Traffic) -> Vec<((String, String, u64, String), f64)> {
+/// Largest |a − b| per recorded field, window by window: (key, difference, scale), with the
+/// scale the largest |value| of that sender/field in `a` over all windows.
+fn compare(a: &Traffic, b: &Traffic) -> Vec<(FieldKey, f64, f64)> {
     assert_eq!(
         a.keys().collect::<Vec<_>>(),
         b.keys().collect::<Vec<_>>(),
         "the runs exchanged different messages"
     );
+    let mut scale: BTreeMap<(String, String), f64> = BTreeMap::new();
+    for (k, x) in a {
+        let m = scale.entry((k.1.clone(), k.3.clone())).or_default();
+        *m = x.iter().fold(*m, |m, v| m.max(v.abs()));
+    }
     a.iter()
         .map(|(k, x)| {
             let y = &b[k];
             assert_eq!(x.len(), y.len(), "{k:?}: lengths");
-            let scale = x.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
             let diff = x
                 .iter()
                 .zip(y)
@@ -75,7 +83,7 @@ fn compare(a: &Traffic, b: &Traffic) -> Vec<((String, String, u64, String), f64)
                         if e.is_nan() { f64::INFINITY } else { m.max(e) }
                     },
                 );
-            (k.clone(), if scale > 0.0 { diff / scale } else { diff })
+            (k.clone(), diff, scale[&(k.1.clone(), k.3.clone())])
         })
         .collect()
 }
@@ -144,27 +152,23 @@ fn chamber_with_the_gas_on_the_gpu_sends_the_same_coupling_traffic() {
     let cpu = traffic(&dir.join("cpu/run.mcap"));
     let gpu = compare(&cpu, &traffic(&gmcap));
     let ulp = compare(&cpu, &traffic(&dir.join("ulp/run.mcap")));
-    // the round-off horizon: the first window in which the control differs by more than 1e-10
-    let horizon = ulp
-        .iter()
-        .filter(|(_, r)| *r > 1e-10)
-        .map(|(k, _)| k.2)
-        .min()
-        .unwrap_or(u64::MAX);
-    let mut worst_gpu: BTreeMap<String, f64> = BTreeMap::new();
+    let mut worst_gpu: BTreeMap<String, (f64, f64)> = BTreeMap::new();
     let mut worst_ulp: BTreeMap<String, f64> = BTreeMap::new();
-    for ((k, rg), (_, ru)) in gpu.iter().zip(&ulp) {
+    for ((k, dg, sc), (_, du, _)) in gpu.iter().zip(&ulp) {
         let name = format!("{}/{}", k.1, k.3);
         let w = worst_gpu.entry(name.clone()).or_default();
-        *w = w.max(*rg);
+        *w = (w.0.max(dg / sc.max(f64::MIN_POSITIVE)), *sc);
         let w = worst_ulp.entry(name).or_default();
-        *w = w.max(*ru);
+        *w = w.max(du / sc.max(f64::MIN_POSITIVE));
     }
     let windows = cpu.keys().map(|k| k.2).max().unwrap_or(0);
-    println!(
-        "{} fields over {windows} windows; largest relative difference GPU vs CPU {worst_gpu:?}; one-ulp CPU control vs CPU {worst_ulp:?}; control past 1e-10 from window {horizon}",
-        cpu.len()
-    );
+    println!("{} fields over {windows} windows", cpu.len());
+    for (name, (r, sc)) in &worst_gpu {
+        println!(
+            "  {name}: largest |value| {sc:.4e}; max difference GPU vs CPU {r:.3e} of it; one-ulp CPU control {:.3e}",
+            worst_ulp[name]
+        );
+    }
     let peak_force = cpu
         .iter()
         .filter(|(k, _)| k.3 == "force")
@@ -172,17 +176,16 @@ fn chamber_with_the_gas_on_the_gpu_sends_the_same_coupling_traffic() {
         .fold(0.0_f64, f64::max);
     // not trivially 0 = 0: the blast reached the bar
     assert!(peak_force > 0.0, "no force crossed the interface");
-    assert!(worst_gpu.contains_key("gas/force") && worst_gpu.contains_key("bar/velocity"));
-    for (k, r) in &gpu {
-        if k.1 == "gas" || k.2 < horizon {
-            assert!(*r <= 1e-10, "{k:?}: GPU differs from CPU by {r:e}");
-        } else {
-            let env = worst_ulp[&format!("{}/{}", k.1, k.3)].max(1e-10);
-            assert!(
-                *r <= 10.0 * env,
-                "{k:?}: GPU differs from CPU by {r:e}, the one-ulp control by at most {env:e}"
-            );
-        }
+    for q in ["gas/force", "bar/velocity", "bar/position"] {
+        assert!(worst_gpu.contains_key(q), "{q} was not exchanged");
+    }
+    for (k, d, sc) in &gpu {
+        assert!(*sc > 0.0 || k.3 != "force", "{k:?}: no scale");
+        assert!(
+            *d <= 1e-10 * sc,
+            "{k:?}: GPU differs from CPU by {d:e}, {:e} of the run's largest |value| {sc:e}",
+            d / sc
+        );
     }
     // the gas's reported interface impulse, window by window
     let ic = node_vectors(&dir.join("cpu/run.mcap"), "gas", "interface_impulse");

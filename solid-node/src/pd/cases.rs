@@ -74,6 +74,7 @@ impl KalthoffWinkler {
         let k = Kinematics {
             x0: &x0,
             pos: &x0,
+            disp: &zero,
             vel: &zero,
             vol: &vol,
         };
@@ -281,6 +282,7 @@ pub fn benchmark_block(n: usize, model: &str) -> Result<BenchmarkBlock, String> 
     let k = Kinematics {
         x0: &x0,
         pos: &x0,
+        disp: &v0,
         vel: &v0,
         vol: &vol,
     };

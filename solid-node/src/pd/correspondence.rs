@@ -12,8 +12,10 @@
 //! and ω₀ = ∫ω dV a volume); we normalise ω₀ by the full-horizon volume V_H and use δ as the
 //! length scale, T_s = ω G C (V_H/ω₀) z/δ, so that in the bulk the non-uniform part of a
 //! bond of length δ is resisted like a bond-based bond of micromodulus G·C (Silling 2017).
-//! Per particle we fold it into Â = P K⁻¹ − κ F/δ, κ = G C V_H/ω₀, so the force of a bond is
-//! ω V_j [(Â_i + Â_j) ξ + (κ_i + κ_j) y/δ] (eq. 183).
+//! Per particle we fold it into Â = P K⁻¹ − κ H/δ, κ = G C V_H/ω₀, so the force of a bond is
+//! ω V_j [(Â_i + Â_j) ξ + (κ_i + κ_j) η/δ] (eq. 183), since z = y − Fξ = η − Hξ.
+//! Kinematics from displacements: η = u_j − u_i, the displacement gradient H = (Σ ω V η⊗ξ) K⁻¹
+//! and F = I + H, so small strains keep full precision far from the origin.
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
 // `!(x > 0.0)` is deliberate: it also rejects NaN.
 #![allow(
@@ -96,7 +98,7 @@ pub struct PointKin {
 /// What the force pass gathers from each neighbour (kept small: 12 numbers).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct BondSide {
-    /// Â = P K⁻¹ − κ F/δ: the stabilized force state is ω (Â ξ + κ y/δ).
+    /// Â = P K⁻¹ − κ H/δ: the stabilized force state is ω (Â ξ + κ η/δ).
     pub ahat: M3,
     /// κ = G C V_H/ω₀ (0 for an inactive particle).
     pub kappa: f64,
@@ -196,9 +198,12 @@ impl<D: DamageModel> Correspondence<D> {
             .enumerate()
             .for_each(|(i, ((st, pk), sd))| {
                 let r = offsets[i]..offsets[i + 1];
-                let (pi, vi) = (k.pos[i], k.vel[i]);
+                let (ui, vi) = (k.disp[i], k.vel[i]);
                 // Two sweeps over the row (it stays in L1): nine accumulators each fit the
                 // registers, where eighteen spill. Same summation order as one sweep.
+                // nn = Σ ω V_j η⊗ξ with η = u_j − u_i, so H = nn K⁻¹ is the displacement
+                // gradient and F = I + H (eq. 181 with y = ξ + η, Σ ω V ξ⊗ξ K⁻¹ = I), free of
+                // the cancellation of forming y from absolute positions.
                 let mut nn = [[0.0; 3]; 3];
                 let mut nd = [[0.0; 3]; 3];
                 let mut w0 = 0.0;
@@ -210,11 +215,11 @@ impl<D: DamageModel> Correspondence<D> {
                     let j = j as usize;
                     let w = om * k.vol[j];
                     w0 += w;
-                    let pj = k.pos[j];
+                    let uj = k.disp[j];
                     let wy = [
-                        w * (pj[0] - pi[0]),
-                        w * (pj[1] - pi[1]),
-                        w * (pj[2] - pi[2]),
+                        w * (uj[0] - ui[0]),
+                        w * (uj[1] - ui[1]),
+                        w * (uj[2] - ui[2]),
                     ];
                     for a in 0..3 {
                         for c in 0..3 {
@@ -265,9 +270,13 @@ impl<D: DamageModel> Correspondence<D> {
                     return;
                 }
                 if !dim.three_d() {
-                    nn[2][2] = 1.0;
+                    // H_zz = 0 (F_zz = 1)
+                    nn[2][2] = 0.0;
                 }
-                let f = matmul(&nn, &pk.kinv);
+                let h = matmul(&nn, &pk.kinv);
+                let f: M3 = std::array::from_fn(|a| {
+                    std::array::from_fn(|c| h[a][c] + if a == c { 1.0 } else { 0.0 })
+                });
                 let finv = inverse(&f, 1e-300);
                 if dt > 0.0
                     && let Some(finv) = finv
@@ -309,7 +318,9 @@ impl<D: DamageModel> Correspondence<D> {
                 pk.a = a;
                 pk.f = f;
                 *sd = BondSide {
-                    ahat: std::array::from_fn(|r| std::array::from_fn(|c| a[r][c] - kd * f[r][c])),
+                    // Â = A − κH/δ: with y − Fξ = η − Hξ (eq. 184) the stabilization is
+                    // formed from displacements too
+                    ahat: std::array::from_fn(|r| std::array::from_fn(|c| a[r][c] - kd * h[r][c])),
                     kappa,
                     vm: von_mises(&st.stress),
                     eqp: st.eq_plastic_strain,
@@ -378,7 +389,7 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
         let (offsets, nbr, xi, inv_len) = (&bonds.offsets, &bonds.nbr, &bonds.xi, &bonds.inv_len);
         par_rows(offsets, f, &mut bonds.intact, &|i, fi, row| {
             let pi = &point[i];
-            let xp = k.pos[i];
+            let up = k.disp[i];
             let mut acc = [0.0; 3];
             let r = offsets[i]..offsets[i + 1];
             for (((om, &j), x), &il) in row
@@ -392,13 +403,12 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
                 }
                 let j = j as usize;
                 let pj = &point[j];
-                let q = k.pos[j];
-                let y = [q[0] - xp[0], q[1] - xp[1], q[2] - xp[2]];
-                let ly = (y[0] * y[0] + y[1] * y[1] + y[2] * y[2]).sqrt();
+                let q = k.disp[j];
+                let e = [q[0] - up[0], q[1] - up[1], q[2] - up[2]];
                 // seed 000 App. C: bond-associated quantities, symmetric in i and j so both
                 // copies of the bond evolve identically.
                 let input = BondInput {
-                    stretch: ly * il - 1.0,
+                    stretch: super::bond::stretch_over_len(x, &e, il).0,
                     von_mises: 0.5 * (pi.vm + pj.vm),
                     eq_plastic_strain: 0.5 * (pi.eqp + pj.eqp),
                 };
@@ -414,7 +424,7 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
                     let t = (pi.ahat[c][0] + pj.ahat[c][0]) * x[0]
                         + (pi.ahat[c][1] + pj.ahat[c][1]) * x[1]
                         + (pi.ahat[c][2] + pj.ahat[c][2]) * x[2];
-                    acc[c] += w * (t + ks * y[c]);
+                    acc[c] += w * (t + ks * e[c]);
                 }
             }
             *fi = acc;

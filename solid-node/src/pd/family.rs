@@ -86,7 +86,7 @@ pub fn norm(a: &[f64; 3]) -> f64 {
 }
 
 /// Particles per rayon task.
-const GRAIN: usize = 256;
+pub(crate) const GRAIN: usize = 256;
 
 /// Runs `f(i, &mut per_particle[i], &mut per_bond[row i])` for every particle, in parallel
 /// over contiguous particle ranges. Each call writes only its own particle and its own row,

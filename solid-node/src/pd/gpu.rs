@@ -7,11 +7,16 @@
 //! to round-off; broken bonds are zeroed in the thread's own row, as on the CPU.
 //!
 //! [`DeviceBody`] is what the node's solver (`device = "gpu"`) drives: one of the two bodies,
-//! the external force uploaded per window, the state read back at window ends.
+//! the external force uploaded per window; per window only the report comes back (report
+//! scalars reduced on the device, the interface and support particles' state and window
+//! sums), the full state only for output frames and checkpoints.
+//!
+//! Kinematics from displacements (as on the CPU): the drift updates u and sets x = X + u, and
+//! the force kernels form bond deformations from η = u_j − u_i against ξ.
 //!
 //! Data: particle arrays packed into one real buffer (pos | vel | force | fext | vpres | vol |
-//! window work | window internal-force impulse, 3 reals per vector), per-particle/per-bond integers into one u32 buffer (prescribed |
-//! offsets | nbr), per-bond reals into one (inv_len | coef).
+//! window work | window internal-force impulse | disp | x0, 3 reals per vector), per-particle/per-bond integers into one u32 buffer (prescribed |
+//! offsets | nbr), per-bond reals into one (inv_len | coef | ξ).
 
 use super::bond::BondModel;
 use super::correspondence::Correspondence;
@@ -27,12 +32,13 @@ use std::sync::Arc;
 
 const WG: u32 = 64;
 /// Reals per particle in the particle buffer: pos, vel, force, fext, vpres (3 each), vol,
-/// and the window accumulators (work 1, impulse 3).
-const PV_REALS: usize = 20;
+/// the window accumulators (work 1, impulse 3), the displacement u and the reference
+/// position X (3 each).
+const PV_REALS: usize = 26;
 
 /// Velocity Verlet of integrate.rs (`Body::step`) on the device, shared by both force models.
 /// Each model's shader defines the layout of `pv` (pos 0, vel 3n, force 6n, fext 9n, vpres 12n,
-/// vol 15n, work 16n, impulse 17n), `iu` (prescribed flags first) and the accessors `n_pts`,
+/// vol 15n, work 16n, impulse 17n, disp 20n, x0 23n), `iu` (prescribed flags first) and the accessors `n_pts`,
 /// `step_dt`, `half_dt` and `density`.
 const INTEGRATE_SHADER: &str = r#"
 fn lin(gid: vec3<u32>, nwg: vec3<u32>) -> u32 { return gid.x + gid.y * nwg.x * 64u; }
@@ -73,9 +79,64 @@ fn kick_drift(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
     let n = n_pts();
     if i >= n { return; }
     kick(i);
+    // integrate.rs step(): u += dt v, x = X + u
     for (var d = 0u; d < 3u; d++) {
-        pv[3u * i + d] += step_dt() * pv[3u * n + 3u * i + d];
+        let k = 3u * i + d;
+        let u = pv[20u * n + k] + step_dt() * pv[3u * n + k];
+        pv[20u * n + k] = u;
+        pv[k] = pv[23u * n + k] + u;
     }
+}
+
+// The window report (issue 8: per window only the interface arrays and reduced scalars cross
+// to the host). `report`: one thread per chunk of CHUNK particles sums, in index order, the
+// node's report terms (solver.rs): kinetic energy ½ρV|v|², momentum ρVv (3), gross momentum
+// ρV|v|, Σ V u (3), and the largest von Mises stress and plastic strain (`vm_at`, `eqp_at`),
+// into rg[11c..11c+11]; the host adds the chunks in order. `gather`: for the listed particles
+// gi[1..=gi[0]], position, velocity, external work and internal impulse (10 reals each) after
+// the chunk sums. Both are deterministic.
+const CHUNK: u32 = 256u;
+
+@compute @workgroup_size(64)
+fn report(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let c = lin(gid, nwg);
+    let n = n_pts();
+    let nch = (n + CHUNK - 1u) / CHUNK;
+    if c >= nch { return; }
+    let rho = density();
+    var s: array<real, 11>;
+    for (var k = 0u; k < 11u; k++) { s[k] = real(0.0); }
+    let end = min(n, (c + 1u) * CHUNK);
+    for (var i = c * CHUNK; i < end; i++) {
+        let vol = pv[15u * n + i];
+        let v = array<real, 3>(pv[3u * n + 3u * i], pv[3u * n + 3u * i + 1u], pv[3u * n + 3u * i + 2u]);
+        let vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+        s[0] += real(0.5) * rho * vol * vv;
+        let m = rho * vol;
+        for (var d = 0u; d < 3u; d++) {
+            s[1u + d] += m * v[d];
+            s[5u + d] += vol * pv[20u * n + 3u * i + d];
+        }
+        s[4] += rho * vol * sqrt(vv);
+        s[8] = max(s[8], vm_at(i));
+        s[9] = max(s[9], eqp_at(i));
+    }
+    for (var k = 0u; k < 11u; k++) { rg[11u * c + k] = s[k]; }
+}
+
+@compute @workgroup_size(64)
+fn gather(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let k = lin(gid, nwg);
+    if k >= gi[0] { return; }
+    let n = n_pts();
+    let i = gi[1u + k];
+    let o = 11u * ((n + CHUNK - 1u) / CHUNK) + 10u * k;
+    for (var d = 0u; d < 3u; d++) {
+        rg[o + d] = pv[3u * i + d];
+        rg[o + 3u + d] = pv[3u * n + 3u * i + d];
+        rg[o + 7u + d] = pv[17u * n + 3u * i + d];
+    }
+    rg[o + 6u] = pv[16u * n + i];
 }
 
 @compute @workgroup_size(64)
@@ -91,27 +152,37 @@ fn kick_only(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgro
 const SHADER: &str = r#"
 struct P { n: u32, nb: u32, pad0: u32, pad1: u32, dt: real, half_dt: real, rho: real, bf: real }
 @group(0) @binding(0) var<uniform> pp: P;
-// pos 0, vel 3n, force 6n, fext 9n, vpres 12n, vol 15n, work 16n, impulse 17n
+// pos 0, vel 3n, force 6n, fext 9n, vpres 12n, vol 15n, work 16n, impulse 17n, disp 20n,
+// x0 23n
 @group(0) @binding(1) var<storage, read_write> pv: array<real>;
 // prescribed 0, offsets n, nbr 2n+1
 @group(0) @binding(2) var<storage, read> iu: array<u32>;
-// inv_len 0, coef nb
+// inv_len 0, coef nb, xi 2nb (3 per bond)
 @group(0) @binding(3) var<storage, read_write> bd: array<real>;
+// window report: chunk sums, then the gathered particles (see `report`, `gather`)
+@group(0) @binding(4) var<storage, read_write> rg: array<real>;
+// gathered particles: count, then indices
+@group(0) @binding(5) var<storage, read> gi: array<u32>;
 
 fn n_pts() -> u32 { return pp.n; }
+fn vm_at(i: u32) -> real { return real(0.0); }
+fn eqp_at(i: u32) -> real { return real(0.0); }
 fn step_dt() -> real { return pp.dt; }
 fn half_dt() -> real { return pp.half_dt; }
 fn density() -> real { return pp.rho; }
 
-// bond.rs row_force(): f_i = Σ_j c_ij (1/|ξ| − 1/|y|) y, breaking bonds with s > s0 first
+// bond.rs row_force(): f_i = Σ_j c_ij s/|y| y, breaking bonds with |y|²/|ξ|² > (1 + s0)² first
+// (pp.bf = (1 + s0)², negative without damage); s = η·(2ξ + η) / (|ξ|(|y| + |ξ|)) from
+// η = u_j − u_i, and s/|y| = t/(|y|² il + |y|) with t = η·(2ξ + η) il²
 @compute @workgroup_size(64)
 fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let i = lin(gid, nwg);
     let n = pp.n;
     if i >= n { return; }
-    let xx = pv[3u * i];
-    let xy = pv[3u * i + 1u];
-    let xz = pv[3u * i + 2u];
+    let ux = pv[20u * n + 3u * i];
+    let uy = pv[20u * n + 3u * i + 1u];
+    let uz = pv[20u * n + 3u * i + 2u];
+    let nb = pp.nb;
     var fx = real(0.0);
     var fy = real(0.0);
     var fz = real(0.0);
@@ -121,16 +192,25 @@ fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
         let cb = bd[pp.nb + b];
         if cb == real(0.0) { continue; }
         let j = iu[2u * n + 1u + b];
-        let yx = pv[3u * j] - xx;
-        let yy = pv[3u * j + 1u] - xy;
-        let yz = pv[3u * j + 2u] - xz;
-        let r = real(1.0) / sqrt(yx * yx + yy * yy + yz * yz);
+        let ex = pv[20u * n + 3u * j] - ux;
+        let ey = pv[20u * n + 3u * j + 1u] - uy;
+        let ez = pv[20u * n + 3u * j + 2u] - uz;
+        let sx = bd[2u * nb + 3u * b];
+        let sy = bd[2u * nb + 3u * b + 1u];
+        let sz = bd[2u * nb + 3u * b + 2u];
+        let num = ex * (real(2.0) * sx + ex) + ey * (real(2.0) * sy + ey) + ez * (real(2.0) * sz + ez);
+        let yx = sx + ex;
+        let yy = sy + ey;
+        let yz = sz + ez;
+        let q = yx * yx + yy * yy + yz * yz;
         let il = bd[b];
-        if r < il * pp.bf {
+        if pp.bf >= real(0.0) && q * il * il > pp.bf {
             bd[pp.nb + b] = real(0.0);
             continue;
         }
-        let m = cb * (il - r);
+        let ly = sqrt(q);
+        let t = num * il * il;
+        let m = cb * t / (q * il + ly);
         fx += m * yx;
         fy += m * yy;
         fz += m * yz;
@@ -147,6 +227,7 @@ pub struct GpuBondBody {
     kick_drift: wgpu::ComputePipeline,
     kick_only: wgpu::ComputePipeline,
     force: wgpu::ComputePipeline,
+    report: Report,
     bind: wgpu::BindGroup,
     params: wgpu::Buffer,
     pv: wgpu::Buffer,
@@ -173,6 +254,18 @@ impl GpuBondBody {
         model: &BondModel,
         critical_stretch: Option<f64>,
     ) -> Result<GpuBondBody, GpuError> {
+        Self::gathering(ctx, body, model, critical_stretch, &[])
+    }
+
+    /// As [`GpuBondBody::new`], with the particles whose state [`GpuBondBody::window_report`]
+    /// gathers.
+    pub fn gathering(
+        ctx: Arc<GpuContext>,
+        body: &Body,
+        model: &BondModel,
+        critical_stretch: Option<f64>,
+        gather: &[usize],
+    ) -> Result<GpuBondBody, GpuError> {
         let n = body.len();
         let nb = body.bonds.len();
         if model.coef.len() != nb {
@@ -186,8 +279,8 @@ impl GpuBondBody {
         }
         let p = ctx.precision;
         let rb = p.bytes();
-        // BondModel::new: break_factor = 1/(1+s0), 0 without damage
-        let bf = critical_stretch.map_or(0.0, |s0| 1.0 / (1.0 + s0));
+        // (1 + s0)² as BondModel holds it, −1 without damage (the shader then never breaks)
+        let bf = critical_stretch.map_or(-1.0, |s0| (1.0 + s0) * (1.0 + s0));
         let module = ctx.shader(
             "pd-bond",
             &format!("alias real = {};\n{SHADER}\n{INTEGRATE_SHADER}", p.wgsl()),
@@ -198,31 +291,40 @@ impl GpuBondBody {
         }
         reals.extend_from_slice(&body.vol);
         // window accumulators (work 16n, internal-force impulse 17n): see `accumulate`
-        reals.resize(PV_REALS * n, 0.0);
+        reals.resize(20 * n, 0.0);
+        reals.extend_from_slice(flat(&body.disp));
+        reals.extend_from_slice(flat(&body.x0));
         let mut ints: Vec<u32> = body.prescribed.iter().map(|&x| x as u32).collect();
         ints.extend(body.bonds.offsets.iter().map(|&o| o as u32));
         ints.extend_from_slice(&body.bonds.nbr);
         let mut breal = body.bonds.inv_len.clone();
         breal.extend_from_slice(&model.coef);
+        breal.extend_from_slice(flat(&body.bonds.xi));
         let max_bind = ctx.limits.max_storage_buffer_binding_size as usize;
         if reals.len().max(breal.len()) * rb > max_bind {
             return Err(GpuError(format!(
                 "{nb} bonds need more than the adapter's {max_bind} bytes per binding"
             )));
         }
-        let (kick_drift, kick_only, force, bind, params, pv, bd) =
+        let (gi, rg_len) = gather_list(n, gather)?;
+        let (kick_drift, kick_only, force, bind, params, pv, bd, report) =
             ctx.checked("building the pd-bond pipelines", || {
                 use mechanics::gpu::BufferBinding::{Read, ReadWrite, Uniform};
-                let layout = ctx.bind_layout("pd", &[Uniform, ReadWrite, Read, ReadWrite]);
-                let [kd, ko, fo]: [wgpu::ComputePipeline; 3] = ctx
+                let layout = ctx.bind_layout(
+                    "pd",
+                    &[Uniform, ReadWrite, Read, ReadWrite, ReadWrite, Read],
+                );
+                let [kd, ko, fo, rp, ga]: [wgpu::ComputePipeline; 5] = ctx
                     .pipelines(
                         "pd",
                         &[Some(&layout)],
                         &module,
-                        &["kick_drift", "kick_only", "force"],
+                        &["kick_drift", "kick_only", "force", "report", "gather"],
                     )
                     .try_into()
-                    .unwrap_or_else(|_| unreachable!("three entry points, three pipelines"));
+                    .unwrap_or_else(|_| unreachable!("five entry points, five pipelines"));
+                let rg = ctx.storage("pd report", rg_len * rb);
+                let gib = ctx.storage_init("pd gather list", mechanics::gpu::u32_bytes(&gi));
                 let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("pd params"),
                     size: 64,
@@ -232,8 +334,15 @@ impl GpuBondBody {
                 let pv = ctx.storage_init("pd particles", &reals_to_bytes(p, &reals));
                 let iu = ctx.storage_init("pd ints", mechanics::gpu::u32_bytes(&ints));
                 let bd = ctx.storage_init("pd bonds", &reals_to_bytes(p, &breal));
-                let bind = ctx.bind_group("pd", &layout, &[&params, &pv, &iu, &bd]);
-                (kd, ko, fo, bind, params, pv, bd)
+                let bind = ctx.bind_group("pd", &layout, &[&params, &pv, &iu, &bd, &rg, &gib]);
+                let report = Report {
+                    report: rp,
+                    gather: ga,
+                    rg,
+                    n,
+                    m: gather.len(),
+                };
+                (kd, ko, fo, bind, params, pv, bd, report)
             })?;
         Ok(GpuBondBody {
             max_wg: ctx.limits.max_compute_workgroups_per_dimension,
@@ -241,6 +350,7 @@ impl GpuBondBody {
             kick_drift,
             kick_only,
             force,
+            report,
             bind,
             params,
             pv,
@@ -302,6 +412,7 @@ impl GpuBondBody {
         body.force
             .as_flattened_mut()
             .copy_from_slice(&all[2 * n3..]);
+        read_disp(&self.ctx, &self.pv, self.n, &mut body.disp)?;
         if coef.len() == self.nb {
             let b = self
                 .ctx
@@ -323,6 +434,12 @@ impl GpuBondBody {
         window_sums(&self.ctx, &self.pv, self.n, work, impulse)
     }
 
+    /// The window report: reduced scalars and the gathered particles' state (the only
+    /// device → host traffic of a window on the node's path).
+    pub fn window_report(&self) -> Result<WindowReport, GpuError> {
+        self.report.run(&self.ctx, &self.bind, self.max_wg)
+    }
+
     /// Set when the kernels run in f32 (for the log and the report).
     pub fn warning(&self) -> Option<&str> {
         self.ctx.warning.as_deref()
@@ -331,6 +448,19 @@ impl GpuBondBody {
     pub fn precision(&self) -> Precision {
         self.ctx.precision
     }
+}
+
+/// The displacements u (20n..23n of the particle buffer) into `disp`.
+fn read_disp(
+    ctx: &GpuContext,
+    pv: &wgpu::Buffer,
+    n: usize,
+    disp: &mut [[f64; 3]],
+) -> Result<(), GpuError> {
+    let p = ctx.precision;
+    let rb = p.bytes();
+    let b = ctx.read(pv, (20 * n * rb) as u64, (3 * n * rb) as u64)?;
+    bytes_to_reals(p, &b, disp.as_flattened_mut())
 }
 
 /// Start of a coupling window on a particle buffer of `n` particles: the external force per
@@ -381,6 +511,100 @@ fn window_sums(
     Ok(())
 }
 
+/// Particles per chunk of the `report` kernel (CHUNK in the shader).
+const CHUNK: usize = 256;
+
+/// The gather list as the shader reads it (count, then indices) and the report buffer's
+/// length in reals: 11 per chunk, 10 per gathered particle.
+fn gather_list(n: usize, gather: &[usize]) -> Result<(Vec<u32>, usize), GpuError> {
+    if let Some(&i) = gather.iter().find(|&&i| i >= n) {
+        return Err(GpuError(format!("gathered particle {i} of {n}")));
+    }
+    let mut gi = vec![gather.len() as u32];
+    gi.extend(gather.iter().map(|&i| i as u32));
+    Ok((gi, 11 * n.div_ceil(CHUNK) + 10 * gather.len()))
+}
+
+/// The `report` and `gather` kernels of a body and their output buffer.
+struct Report {
+    report: wgpu::ComputePipeline,
+    gather: wgpu::ComputePipeline,
+    rg: wgpu::Buffer,
+    n: usize,
+    m: usize,
+}
+
+/// What a window sends to the host (see `report` and `gather` in the shader).
+#[derive(Debug, Clone, Default)]
+pub struct WindowReport {
+    pub kinetic_energy: f64,
+    pub momentum: [f64; 3],
+    pub momentum_gross: f64,
+    /// Σ V u (divide by Σ V for the centre-of-mass displacement).
+    pub vol_disp: [f64; 3],
+    pub max_von_mises: f64,
+    pub max_plastic_strain: f64,
+    /// Per gathered particle: position, velocity, work of the external force, internal-force
+    /// impulse over the window.
+    pub pos: Vec<[f64; 3]>,
+    pub vel: Vec<[f64; 3]>,
+    pub work: Vec<f64>,
+    pub impulse: Vec<[f64; 3]>,
+    /// Bytes read back for this report.
+    pub bytes: usize,
+}
+
+impl Report {
+    fn run(
+        &self,
+        ctx: &GpuContext,
+        bind: &wgpu::BindGroup,
+        max_wg: u32,
+    ) -> Result<WindowReport, GpuError> {
+        let nch = self.n.div_ceil(CHUNK);
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_bind_group(0, bind, &[]);
+            let (x, y) = dispatch_dims((nch as u32).div_ceil(WG), max_wg);
+            pass.set_pipeline(&self.report);
+            pass.dispatch_workgroups(x, y, 1);
+            if self.m > 0 {
+                let (x, y) = dispatch_dims((self.m as u32).div_ceil(WG), max_wg);
+                pass.set_pipeline(&self.gather);
+                pass.dispatch_workgroups(x, y, 1);
+            }
+        }
+        ctx.checked("pd window report", || ctx.queue.submit(Some(enc.finish())))?;
+        let p = ctx.precision;
+        let len = 11 * nch + 10 * self.m;
+        let b = ctx.read(&self.rg, 0, (len * p.bytes()) as u64)?;
+        let mut all = vec![0.0; len];
+        bytes_to_reals(p, &b, &mut all)?;
+        let mut r = WindowReport {
+            bytes: b.len(),
+            ..Default::default()
+        };
+        for c in all[..11 * nch].chunks_exact(11) {
+            r.kinetic_energy += c[0];
+            for d in 0..3 {
+                r.momentum[d] += c[1 + d];
+                r.vol_disp[d] += c[5 + d];
+            }
+            r.momentum_gross += c[4];
+            r.max_von_mises = r.max_von_mises.max(c[8]);
+            r.max_plastic_strain = r.max_plastic_strain.max(c[9]);
+        }
+        for g in all[11 * nch..].chunks_exact(10) {
+            r.pos.push([g[0], g[1], g[2]]);
+            r.vel.push([g[3], g[4], g[5]]);
+            r.work.push(g[6]);
+            r.impulse.push([g[7], g[8], g[9]]);
+        }
+        Ok(r)
+    }
+}
+
 // ------------------------------------------------------------------ pd-correspondence
 
 /// The correspondence force state on the device (seed 001 §4.1–4.3, eq. 180–189, with the
@@ -393,7 +617,8 @@ struct U { n: u32, nb: u32, three_d: u32, pad: u32 }
 // mp: dt, half_dt, rho, inv_h, kappa0, mu, lambda, yield, iso, 2/3 kin, dgamma denominator,
 // sqrt(2/3), 1e-300
 @group(0) @binding(1) var<storage, read> mp: array<real>;
-// pos 0, vel 3n, force 6n, fext 9n, vpres 12n, vol 15n, work 16n, impulse 17n
+// pos 0, vel 3n, force 6n, fext 9n, vpres 12n, vol 15n, work 16n, impulse 17n, disp 20n,
+// x0 23n
 @group(0) @binding(2) var<storage, read_write> pv: array<real>;
 // prescribed 0, offsets n, nbr 2n+1
 @group(0) @binding(3) var<storage, read> iu: array<u32>;
@@ -401,8 +626,21 @@ struct U { n: u32, nb: u32, three_d: u32, pad: u32 }
 @group(0) @binding(4) var<storage, read> bd: array<real>;
 // kinv 0 (9n), active 9n, stress 10n (6n), back 16n (6n), eqp 22n, ahat 23n (9n), kappa 32n
 @group(0) @binding(5) var<storage, read_write> pt: array<real>;
+// window report: chunk sums, then the gathered particles (see `report`, `gather`)
+@group(0) @binding(6) var<storage, read_write> rg: array<real>;
+// gathered particles: count, then indices
+@group(0) @binding(7) var<storage, read> gi: array<u32>;
 
 fn n_pts() -> u32 { return pu.n; }
+// mechanics::j2 von_mises: √(3/2 s:s) of the deviator
+fn vm_at(i: u32) -> real {
+    let o = 10u * pu.n + 6u * i;
+    let m = (pt[o] + pt[o + 1u] + pt[o + 2u]) / real(3.0);
+    let d = array<real, 6>(pt[o] - m, pt[o + 1u] - m, pt[o + 2u] - m, pt[o + 3u], pt[o + 4u], pt[o + 5u]);
+    let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] + real(2.0) * (d[3] * d[3] + d[4] * d[4] + d[5] * d[5]);
+    return sqrt(real(1.5) * dd);
+}
+fn eqp_at(i: u32) -> real { return pt[22u * pu.n + i]; }
 fn step_dt() -> real { return mp[0]; }
 fn half_dt() -> real { return mp[1]; }
 fn density() -> real { return mp[2]; }
@@ -486,7 +724,8 @@ fn pass1(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
     if i >= n { return; }
     let nb = pu.nb;
     let dt = mp[0];
-    let pi = array<real, 3>(pv[3u * i], pv[3u * i + 1u], pv[3u * i + 2u]);
+    // η = u_j − u_i: nn = Σ ω V η⊗ξ, H = nn K⁻¹, F = I + H
+    let ui = array<real, 3>(pv[20u * n + 3u * i], pv[20u * n + 3u * i + 1u], pv[20u * n + 3u * i + 2u]);
     let vi = array<real, 3>(pv[3u * n + 3u * i], pv[3u * n + 3u * i + 1u], pv[3u * n + 3u * i + 2u]);
     var nn: array<real, 9>;
     var nd: array<real, 9>;
@@ -500,8 +739,9 @@ fn pass1(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
         let j = iu[2u * n + 1u + b];
         let w = om * pv[15u * n + j];
         w0 += w;
-        let wy = array<real, 3>(w * (pv[3u * j] - pi[0]), w * (pv[3u * j + 1u] - pi[1]),
-            w * (pv[3u * j + 2u] - pi[2]));
+        let uo = 20u * n + 3u * j;
+        let wy = array<real, 3>(w * (pv[uo] - ui[0]), w * (pv[uo + 1u] - ui[1]),
+            w * (pv[uo + 2u] - ui[2]));
         for (var a = 0u; a < 3u; a++) {
             for (var c = 0u; c < 3u; c++) {
                 nn[3u * a + c] += wy[a] * bd[3u * b + c];
@@ -530,9 +770,13 @@ fn pass1(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
     var kinv: array<real, 9>;
     for (var q = 0u; q < 9u; q++) { kinv[q] = pt[9u * i + q]; }
     if pu.three_d == 0u {
-        nn[8] = real(1.0);
+        nn[8] = real(0.0);
     }
-    let f = mm(nn, kinv);
+    let h = mm(nn, kinv);
+    var f = h;
+    f[0] += real(1.0);
+    f[4] += real(1.0);
+    f[8] += real(1.0);
     let fi = inv3(f, mp[12]);
     var st: array<real, 6>;
     var bs: array<real, 6>;
@@ -584,7 +828,7 @@ fn pass1(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
             pt[16u * n + 6u * i + k] = bs[k];
         }
     }
-    // P = J σ F⁻ᵀ, A = P K⁻¹, Â = A − κ F/δ
+    // P = J σ F⁻ᵀ, A = P K⁻¹, Â = A − κ H/δ
     var a: array<real, 9>;
     for (var q = 0u; q < 9u; q++) { a[q] = real(0.0); }
     if fi.ok {
@@ -603,12 +847,12 @@ fn pass1(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
     }
     let kd = kappa * mp[3];
     for (var q = 0u; q < 9u; q++) {
-        pt[23u * n + 9u * i + q] = a[q] - kd * f[q];
+        pt[23u * n + 9u * i + q] = a[q] - kd * h[q];
     }
     pt[32u * n + i] = kappa;
 }
 
-// correspondence.rs force_density's gather (no damage): f_i = Σ ω V_j [(Â_i + Â_j) ξ + (κ_i + κ_j) y/δ]
+// correspondence.rs force_density's gather (no damage): f_i = Σ ω V_j [(Â_i + Â_j) ξ + (κ_i + κ_j) η/δ]
 @compute @workgroup_size(64)
 fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let i = lin(gid, nwg);
@@ -619,7 +863,7 @@ fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
     var ai: array<real, 9>;
     for (var q = 0u; q < 9u; q++) { ai[q] = pt[23u * n + 9u * i + q]; }
     let ki = pt[32u * n + i];
-    let xp = array<real, 3>(pv[3u * i], pv[3u * i + 1u], pv[3u * i + 2u]);
+    let up = array<real, 3>(pv[20u * n + 3u * i], pv[20u * n + 3u * i + 1u], pv[20u * n + 3u * i + 2u]);
     var acc = array<real, 3>(real(0.0), real(0.0), real(0.0));
     let b0 = iu[n + i];
     let b1 = iu[n + i + 1u];
@@ -627,7 +871,8 @@ fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
         let om = bd[3u * nb + b];
         if om == real(0.0) { continue; }
         let j = iu[2u * n + 1u + b];
-        let y = array<real, 3>(pv[3u * j] - xp[0], pv[3u * j + 1u] - xp[1], pv[3u * j + 2u] - xp[2]);
+        let uo = 20u * n + 3u * j;
+        let y = array<real, 3>(pv[uo] - up[0], pv[uo + 1u] - up[1], pv[uo + 2u] - up[2]);
         let w = om * pv[15u * n + j];
         let ks = (ki + pt[32u * n + j]) * inv_h;
         let x = array<real, 3>(bd[3u * b], bd[3u * b + 1u], bd[3u * b + 2u]);
@@ -649,6 +894,7 @@ fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
 pub struct GpuCorrBody {
     ctx: Arc<GpuContext>,
     pipes: [wgpu::ComputePipeline; 4],
+    report: Report,
     bind: wgpu::BindGroup,
     mp: wgpu::Buffer,
     pv: wgpu::Buffer,
@@ -669,6 +915,17 @@ impl GpuCorrBody {
         ctx: Arc<GpuContext>,
         body: &Body,
         model: &Correspondence<NoDamage>,
+    ) -> Result<GpuCorrBody, GpuError> {
+        Self::gathering(ctx, body, model, &[])
+    }
+
+    /// As [`GpuCorrBody::new`], with the particles whose state [`GpuCorrBody::window_report`]
+    /// gathers.
+    pub fn gathering(
+        ctx: Arc<GpuContext>,
+        body: &Body,
+        model: &Correspondence<NoDamage>,
+        gather: &[usize],
     ) -> Result<GpuCorrBody, GpuError> {
         let n = body.len();
         let nb = body.bonds.len();
@@ -725,7 +982,9 @@ impl GpuCorrBody {
         }
         reals.extend_from_slice(&body.vol);
         // window accumulators (work 16n, internal-force impulse 17n): see `accumulate`
-        reals.resize(PV_REALS * n, 0.0);
+        reals.resize(20 * n, 0.0);
+        reals.extend_from_slice(flat(&body.disp));
+        reals.extend_from_slice(flat(&body.x0));
         let mut ints: Vec<u32> = body.prescribed.iter().map(|&x| x as u32).collect();
         ints.extend(body.bonds.offsets.iter().map(|&o| o as u32));
         ints.extend_from_slice(&body.bonds.nbr);
@@ -749,35 +1008,60 @@ impl GpuCorrBody {
         u[0] = n as u32;
         u[1] = nb as u32;
         u[2] = model.dim.three_d() as u32;
-        let (pipes, bind, mp, pv, pt) =
+        let (gi, rg_len) = gather_list(n, gather)?;
+        let (pipes, bind, mp, pv, pt, report) =
             ctx.checked("building the pd-correspondence pipelines", || {
                 use mechanics::gpu::BufferBinding::{Read, ReadWrite, Uniform};
                 let layout = ctx.bind_layout(
                     "pd-corr",
-                    &[Uniform, Read, ReadWrite, Read, Read, ReadWrite],
+                    &[
+                        Uniform, Read, ReadWrite, Read, Read, ReadWrite, ReadWrite, Read,
+                    ],
                 );
-                let pipes: [wgpu::ComputePipeline; 4] = ctx
+                let [kd, p1, fo, ko, rp, ga]: [wgpu::ComputePipeline; 6] = ctx
                     .pipelines(
                         "pd-corr",
                         &[Some(&layout)],
                         &module,
-                        &["kick_drift", "pass1", "force", "kick_only"],
+                        &[
+                            "kick_drift",
+                            "pass1",
+                            "force",
+                            "kick_only",
+                            "report",
+                            "gather",
+                        ],
                     )
                     .try_into()
-                    .unwrap_or_else(|_| unreachable!("four entry points, four pipelines"));
+                    .unwrap_or_else(|_| unreachable!("six entry points, six pipelines"));
+                let pipes = [kd, p1, fo, ko];
+                let rg = ctx.storage("pd-corr report", rg_len * rb);
+                let gib = ctx.storage_init("pd-corr gather list", mechanics::gpu::u32_bytes(&gi));
                 let pu = ctx.uniform_init("pd-corr params", mechanics::gpu::u32_bytes(&u));
                 let mp = ctx.storage_init("pd-corr constants", &reals_to_bytes(p, &consts));
                 let pv = ctx.storage_init("pd-corr particles", &reals_to_bytes(p, &reals));
                 let iu = ctx.storage_init("pd-corr ints", mechanics::gpu::u32_bytes(&ints));
                 let bd = ctx.storage_init("pd-corr bonds", &reals_to_bytes(p, &breal));
                 let pt = ctx.storage_init("pd-corr points", &reals_to_bytes(p, &pts));
-                let bind = ctx.bind_group("pd-corr", &layout, &[&pu, &mp, &pv, &iu, &bd, &pt]);
-                (pipes, bind, mp, pv, pt)
+                let bind = ctx.bind_group(
+                    "pd-corr",
+                    &layout,
+                    &[&pu, &mp, &pv, &iu, &bd, &pt, &rg, &gib],
+                );
+                let report = Report {
+                    report: rp,
+                    gather: ga,
+                    rg,
+                    n,
+                    m: gather.len(),
+                };
+                (pipes, bind, mp, pv, pt, report)
             })?;
         Ok(GpuCorrBody {
             max_wg: ctx.limits.max_compute_workgroups_per_dimension,
             ctx,
             pipes,
+            report,
             bind,
             mp,
             pv,
@@ -836,6 +1120,7 @@ impl GpuCorrBody {
         body.force
             .as_flattened_mut()
             .copy_from_slice(&all[2 * n3..]);
+        read_disp(&self.ctx, &self.pv, self.n, &mut body.disp)?;
         if state.len() == n {
             let b = self
                 .ctx
@@ -864,6 +1149,12 @@ impl GpuCorrBody {
         window_sums(&self.ctx, &self.pv, self.n, work, impulse)
     }
 
+    /// The window report: reduced scalars and the gathered particles' state (the only
+    /// device → host traffic of a window on the node's path).
+    pub fn window_report(&self) -> Result<WindowReport, GpuError> {
+        self.report.run(&self.ctx, &self.bind, self.max_wg)
+    }
+
     /// Set when the kernels run in f32 (for the log and the report).
     pub fn warning(&self) -> Option<&str> {
         self.ctx.warning.as_deref()
@@ -877,16 +1168,19 @@ impl GpuCorrBody {
 // ------------------------------------------------------------------ the node's device body
 
 /// The body of a `pd-bond` / `pd-correspondence` node when `device = "gpu"` (issue 8): the
-/// device copy owns the time stepping for the whole run. Per window the held external force
-/// goes up ([`DeviceBody::advance`]) and, at the window end, positions, velocities, forces,
-/// the window sums and (pd-correspondence) the J2 states come back into the host `Body` and
-/// its model ([`DeviceBody::finish`]): one read-back per window, which the node's report,
-/// interface outputs, VTK and checkpoints use; nothing crosses per substep.
+/// device copy owns the time stepping and the state for the whole run. Per window the held
+/// external force goes up ([`DeviceBody::advance`]) and, at the window end, only the window
+/// report comes back ([`DeviceBody::finish`]): the node's report scalars reduced on the device
+/// and, for the gathered particles (the interfaces and the supports), position, velocity and
+/// the window sums. The full state ([`DeviceBody::snapshot`]) is read only when an output
+/// frame or a checkpoint is written.
 pub struct DeviceBody {
     ctx: Arc<GpuContext>,
     kind: DeviceKind,
-    work: Vec<f64>,
-    impulse: Vec<[f64; 3]>,
+    /// The gathered particles, and per particle its slot in that list (usize::MAX: none).
+    gather: Vec<usize>,
+    slot: Vec<usize>,
+    report: WindowReport,
 }
 
 enum DeviceKind {
@@ -899,17 +1193,51 @@ enum DeviceKind {
         gpu: GpuCorrBody,
         /// The host model's twin: K⁻¹ of the reference families, J2 states for rebuilds.
         twin: Box<Correspondence<NoDamage>>,
-        states: Vec<J2State>,
     },
 }
 
+/// The full device state, read for output frames and checkpoints.
+pub struct Snapshot {
+    pub disp: Vec<[f64; 3]>,
+    pub vel: Vec<[f64; 3]>,
+    pub force: Vec<[f64; 3]>,
+    /// The J2 states (pd-correspondence).
+    pub states: Option<Vec<J2State>>,
+}
+
+/// `len` reals from `offset` (in reals) of a device buffer.
+fn read_reals(
+    ctx: &GpuContext,
+    buf: &wgpu::Buffer,
+    offset: usize,
+    len: usize,
+) -> Result<Vec<f64>, GpuError> {
+    let p = ctx.precision;
+    let rb = p.bytes();
+    let b = ctx.read(buf, (offset * rb) as u64, (len * rb) as u64)?;
+    let mut out = vec![0.0; len];
+    bytes_to_reals(p, &b, &mut out)?;
+    Ok(out)
+}
+
+fn unflat(v: &[f64]) -> Vec<[f64; 3]> {
+    v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+}
+
 impl DeviceBody {
-    /// `pd-bond` without damage: `twin` is a copy of the model `body` holds.
-    pub fn bond(ctx: Arc<GpuContext>, body: &Body, twin: BondModel) -> Result<Self, GpuError> {
-        let gpu = GpuBondBody::new(ctx.clone(), body, &twin, None)?;
+    /// `pd-bond` without damage: `twin` is a copy of the model `body` holds; `gather` the
+    /// particles whose state crosses to the host every window.
+    pub fn bond(
+        ctx: Arc<GpuContext>,
+        body: &Body,
+        twin: BondModel,
+        gather: &[usize],
+    ) -> Result<Self, GpuError> {
+        let gpu = GpuBondBody::gathering(ctx.clone(), body, &twin, None, gather)?;
         Ok(Self::with(
             ctx,
             body.len(),
+            gather,
             DeviceKind::Bond {
                 gpu,
                 twin: Box::new(twin),
@@ -924,34 +1252,40 @@ impl DeviceBody {
         ctx: Arc<GpuContext>,
         body: &Body,
         mut twin: Correspondence<NoDamage>,
+        gather: &[usize],
     ) -> Result<Self, GpuError> {
         let rest = vec![[0.0; 3]; body.len()];
         let k = super::model::Kinematics {
             x0: &body.x0,
             pos: &body.x0,
+            disp: &rest,
             vel: &rest,
             vol: &body.vol,
         };
         twin.update_stress(&k, &body.bonds, 0.0);
-        let gpu = GpuCorrBody::new(ctx.clone(), body, &twin)?;
-        let states = twin.state.clone();
+        let gpu = GpuCorrBody::gathering(ctx.clone(), body, &twin, gather)?;
         Ok(Self::with(
             ctx,
             body.len(),
+            gather,
             DeviceKind::Corr {
                 gpu,
                 twin: Box::new(twin),
-                states,
             },
         ))
     }
 
-    fn with(ctx: Arc<GpuContext>, n: usize, kind: DeviceKind) -> Self {
+    fn with(ctx: Arc<GpuContext>, n: usize, gather: &[usize], kind: DeviceKind) -> Self {
+        let mut slot = vec![usize::MAX; n];
+        for (k, &i) in gather.iter().enumerate() {
+            slot[i] = k;
+        }
         DeviceBody {
             ctx,
             kind,
-            work: vec![0.0; n],
-            impulse: vec![[0.0; 3]; n],
+            gather: gather.to_vec(),
+            slot,
+            report: WindowReport::default(),
         }
     }
 
@@ -959,17 +1293,16 @@ impl DeviceBody {
     pub fn rebuild(&mut self, body: &Body) -> Result<(), GpuError> {
         match &mut self.kind {
             DeviceKind::Bond { gpu, twin } => {
-                *gpu = GpuBondBody::new(self.ctx.clone(), body, twin, None)?;
+                *gpu = GpuBondBody::gathering(self.ctx.clone(), body, twin, None, &self.gather)?;
             }
-            DeviceKind::Corr { gpu, twin, states } => {
+            DeviceKind::Corr { gpu, twin } => {
                 // the J2 states through the model's own checkpoint format
                 let mut w = super::checkpoint::Writer::default();
                 body.model.save_state(&mut w);
                 let mut r = super::checkpoint::Reader::new(&w.buf);
                 super::checkpoint::get_j2(&mut r, &mut twin.state, "particle J2 states")
                     .map_err(GpuError)?;
-                states.clone_from(&twin.state);
-                *gpu = GpuCorrBody::new(self.ctx.clone(), body, twin)?;
+                *gpu = GpuCorrBody::gathering(self.ctx.clone(), body, twin, &self.gather)?;
             }
         }
         Ok(())
@@ -989,27 +1322,95 @@ impl DeviceBody {
         }
     }
 
-    /// Window end: the device state into `body` (positions, velocities, forces, time, steps;
-    /// the J2 states into its model) with time set to `t1`; returns the window sums per
-    /// particle (work of the external force, impulse of the internal force).
-    pub fn finish(&mut self, body: &mut Body, t1: f64) -> Result<(&[f64], &[[f64; 3]]), GpuError> {
-        match &mut self.kind {
+    /// Window end: the window report (see [`WindowReport`]); `body` gets the time `t1`, the
+    /// step count and the gathered particles' positions and velocities (the rest of its state
+    /// stays on the device: see [`DeviceBody::snapshot`]).
+    pub fn finish(&mut self, body: &mut Body, t1: f64) -> Result<&WindowReport, GpuError> {
+        let (r, steps) = match &mut self.kind {
             DeviceKind::Bond { gpu, .. } => {
                 gpu.time = t1;
-                gpu.download(body, &mut [])?;
-                gpu.window_sums(&mut self.work, &mut self.impulse)?;
+                (gpu.window_report()?, gpu.steps)
             }
-            DeviceKind::Corr { gpu, states, .. } => {
+            DeviceKind::Corr { gpu, .. } => {
                 gpu.time = t1;
-                gpu.download(body, states)?;
-                gpu.window_sums(&mut self.work, &mut self.impulse)?;
-                let mut w = super::checkpoint::Writer::default();
-                super::checkpoint::put_j2(&mut w, states);
-                let mut r = super::checkpoint::Reader::new(&w.buf);
-                body.model.load_state(&mut r).map_err(GpuError)?;
+                (gpu.window_report()?, gpu.steps)
             }
+        };
+        for (k, &i) in self.gather.iter().enumerate() {
+            body.pos[i] = r.pos[k];
+            body.vel[i] = r.vel[k];
         }
-        Ok((&self.work, &self.impulse))
+        body.time = t1;
+        body.steps = steps;
+        self.report = r;
+        Ok(&self.report)
+    }
+
+    /// Bytes read back per window (the report) and, for comparison, what reading the full
+    /// state per window took before (session 3: positions, velocities, forces and the window
+    /// sums, 13 reals per particle, plus 13 per particle of J2 state for pd-correspondence).
+    pub fn window_bytes(&self) -> (usize, usize) {
+        let (n, rb, corr) = match &self.kind {
+            DeviceKind::Bond { gpu, .. } => (gpu.n, gpu.ctx.precision.bytes(), false),
+            DeviceKind::Corr { gpu, .. } => (gpu.n, gpu.ctx.precision.bytes(), true),
+        };
+        let now = (11 * n.div_ceil(CHUNK) + 10 * self.gather.len()) * rb;
+        let before = (13 + if corr { 13 } else { 0 }) * n * rb;
+        (now, before)
+    }
+
+    /// The last window's report.
+    pub fn last_report(&self) -> &WindowReport {
+        &self.report
+    }
+
+    /// The last window's work of the external force on gathered particle `i` (0 otherwise).
+    pub fn work(&self, i: usize) -> f64 {
+        self.report.work.get(self.slot[i]).copied().unwrap_or(0.0)
+    }
+
+    /// The last window's internal-force impulse of gathered particle `i` (0 otherwise).
+    pub fn impulse(&self, i: usize) -> [f64; 3] {
+        self.report
+            .impulse
+            .get(self.slot[i])
+            .copied()
+            .unwrap_or([0.0; 3])
+    }
+
+    /// The full device state: displacements, velocities, forces and (pd-correspondence) the
+    /// J2 states, for output frames and checkpoints.
+    pub fn snapshot(&self) -> Result<Snapshot, GpuError> {
+        let (ctx, pv, n) = match &self.kind {
+            DeviceKind::Bond { gpu, .. } => (&gpu.ctx, &gpu.pv, gpu.n),
+            DeviceKind::Corr { gpu, .. } => (&gpu.ctx, &gpu.pv, gpu.n),
+        };
+        let a = read_reals(ctx, pv, 3 * n, 6 * n)?;
+        let disp = unflat(&read_reals(ctx, pv, 20 * n, 3 * n)?);
+        let states = match &self.kind {
+            DeviceKind::Bond { .. } => None,
+            DeviceKind::Corr { gpu, .. } => {
+                let s = read_reals(ctx, &gpu.pt, 10 * n, 13 * n)?;
+                Some(
+                    (0..n)
+                        .map(|i| {
+                            let mut st = J2State::default();
+                            st.stress.copy_from_slice(&s[6 * i..6 * i + 6]);
+                            st.back_stress
+                                .copy_from_slice(&s[6 * n + 6 * i..6 * n + 6 * i + 6]);
+                            st.eq_plastic_strain = s[12 * n + i];
+                            st
+                        })
+                        .collect(),
+                )
+            }
+        };
+        Ok(Snapshot {
+            disp,
+            vel: unflat(&a[..3 * n]),
+            force: unflat(&a[3 * n..]),
+            states,
+        })
     }
 
     /// Adapter, backend and precision.
@@ -1072,6 +1473,7 @@ mod tests {
         let k = Kinematics {
             x0: &x0,
             pos: &x0,
+            disp: &v,
             vel: &v,
             vol: &vol,
         };

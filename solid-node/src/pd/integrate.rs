@@ -1,4 +1,5 @@
-//! The particle body and its time loop: velocity Verlet (kick–drift–force–kick), prescribed
+//! The particle body and its time loop: velocity Verlet (kick–drift–force–kick; the drift
+//! advances the displacements u and sets x = X + u), prescribed
 //! motion, external forces, and the CFL-type stable step (seed 001 §4.2: Δt ≤ l/c; Silling
 //! & Askari 2005 for bond-based models).
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
@@ -19,7 +20,10 @@ pub struct Body {
     pub horizon: f64,
     pub density: f64,
     pub x0: Vec<[f64; 3]>,
+    /// Current positions x = X + u (kept for output and the interface).
     pub pos: Vec<[f64; 3]>,
+    /// Displacements u (u += v dt): the models form bond deformations from them.
+    pub disp: Vec<[f64; 3]>,
     pub vel: Vec<[f64; 3]>,
     pub vol: Vec<f64>,
     /// Internal force density from the last evaluation (N/m³).
@@ -54,6 +58,7 @@ impl Body {
             horizon,
             density,
             pos: x0.clone(),
+            disp: vec![[0.0; 3]; n],
             x0,
             vel: vec![[0.0; 3]; n],
             vol,
@@ -82,6 +87,7 @@ impl Body {
         Kinematics {
             x0: &self.x0,
             pos: &self.pos,
+            disp: &self.disp,
             vel: &self.vel,
             vol: &self.vol,
         }
@@ -92,6 +98,7 @@ impl Body {
         let k = Kinematics {
             x0: &self.x0,
             pos: &self.pos,
+            disp: &self.disp,
             vel: &self.vel,
             vol: &self.vol,
         };
@@ -130,16 +137,41 @@ impl Body {
     /// One velocity-Verlet step of size dt.
     pub fn step(&mut self, dt: f64) {
         self.kick(0.5 * dt);
-        let vel = &self.vel;
-        par_points(&mut self.pos, &|i, x: &mut [f64; 3]| {
-            for d in 0..3 {
-                x[d] += dt * vel[i][d];
-            }
-        });
+        {
+            use rayon::prelude::*;
+            let (vel, x0) = (&self.vel, &self.x0);
+            self.disp
+                .par_iter_mut()
+                .zip(self.pos.par_iter_mut())
+                .with_min_len(super::family::GRAIN)
+                .enumerate()
+                .for_each(|(i, (u, x))| {
+                    for d in 0..3 {
+                        u[d] += dt * vel[i][d];
+                        x[d] = x0[i][d] + u[d];
+                    }
+                });
+        }
         self.eval_forces(dt);
         self.kick(0.5 * dt);
         self.time += dt;
         self.steps += 1;
+    }
+
+    /// x = X + u at every particle (after the displacements changed).
+    pub fn sync_positions(&mut self) {
+        let (x0, u) = (&self.x0, &self.disp);
+        par_points(&mut self.pos, &|i, x: &mut [f64; 3]| {
+            for d in 0..3 {
+                x[d] = x0[i][d] + u[i][d];
+            }
+        });
+    }
+
+    /// Sets particle `i`'s displacement (and its position x = X + u).
+    pub fn set_disp(&mut self, i: usize, u: [f64; 3]) {
+        self.disp[i] = u;
+        self.pos[i] = std::array::from_fn(|d| self.x0[i][d] + u[d]);
     }
 
     /// Total linear momentum Σ ρ V v (fixed order).

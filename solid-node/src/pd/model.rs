@@ -17,8 +17,12 @@ use mechanics::j2::Sym;
 pub struct Kinematics<'a> {
     /// Reference positions X.
     pub x0: &'a [[f64; 3]],
-    /// Current positions x.
+    /// Current positions x = X + u (output, interface, and the rk-ba kernels).
     pub pos: &'a [[f64; 3]],
+    /// Displacements u, carried next to x (u += v dt): bond deformations are formed from
+    /// η = u_j − u_i against the reference bond ξ, so small strains keep full precision
+    /// however far the body sits from the origin.
+    pub disp: &'a [[f64; 3]],
     /// Velocities (at the half step in velocity Verlet, as the rate forms need).
     pub vel: &'a [[f64; 3]],
     /// Particle volumes V (m³; Δx²·h in 2-D).

@@ -249,7 +249,7 @@ pub struct PdSolver {
 }
 
 /// First bytes of a checkpoint of this node.
-const CHECKPOINT_MAGIC: &[u8] = b"cosim-pd-state-v2";
+const CHECKPOINT_MAGIC: &[u8] = b"cosim-pd-state-v3";
 
 fn cfg<T>(key: &str, reason: impl Into<String>) -> SolverResult<T> {
     Err(SolverError::config(key, reason))
@@ -383,10 +383,12 @@ impl PdSolver {
         };
         let vol = vec![v; x0.len()];
         let bonds = Bonds::build(&x0, p.horizon);
+        let rest = vec![[0.0; 3]; x0.len()];
         let k = super::model::Kinematics {
             x0: &x0,
             pos: &x0,
-            vel: &x0,
+            disp: &rest,
+            vel: &rest,
             vol: &vol,
         };
         let model: Box<dyn PdModel> = match model {
@@ -647,7 +649,16 @@ impl PdSolver {
             interfaces.push((ip.name.clone(), pts));
         }
         let device = if on_gpu {
-            Some(device_body(&model_name, dim, &p, material, &body)?)
+            // the particles whose state crosses to the host every window: the interfaces
+            // and the supports
+            let mut gather: Vec<usize> = interfaces
+                .iter()
+                .flat_map(|(_, pts): &(String, Vec<usize>)| pts.iter().copied())
+                .chain(bc_particles.iter().copied())
+                .collect();
+            gather.sort_unstable();
+            gather.dedup();
+            Some(device_body(&model_name, dim, &p, material, &body, &gather)?)
         } else {
             None
         };
@@ -848,6 +859,7 @@ fn device_body(
     p: &PdParams,
     material: J2Material,
     body: &Body,
+    gather: &[usize],
 ) -> SolverResult<DeviceBody> {
     let bad = |e: String| SolverError::config("device", format!("device = \"gpu\": {e}"));
     let req = match p.precision.as_deref() {
@@ -857,16 +869,18 @@ fn device_body(
     let ctx = GpuContext::with_precision(req).map_err(|e| bad(e.to_string()))?;
     let ctx = Arc::new(ctx);
     // the arguments the body's own model was built with (PdSolver::new)
+    let rest = vec![[0.0; 3]; body.len()];
     let k = super::model::Kinematics {
         x0: &body.x0,
         pos: &body.x0,
-        vel: &body.x0,
+        disp: &rest,
+        vel: &rest,
         vol: &body.vol,
     };
     let dev = match model {
         "pd-bond" => {
             let twin = BondModel::new(dim, p.young, p.horizon, p.thickness, None, &k, &body.bonds);
-            DeviceBody::bond(ctx, body, twin)
+            DeviceBody::bond(ctx, body, twin, gather)
         }
         "pd-correspondence" => {
             let twin = Correspondence::new(
@@ -879,12 +893,18 @@ fn device_body(
                 &k,
                 &body.bonds,
             );
-            DeviceBody::corr(ctx, body, twin)
+            DeviceBody::corr(ctx, body, twin, gather)
         }
         other => return Err(bad(format!("no device kernels for {other}"))),
     }
     .map_err(|e| bad(e.to_string()))?;
     tracing::info!("{model} body on the GPU: {}", dev.describe());
+    let (now, before) = dev.window_bytes();
+    tracing::info!(
+        "{model} on the GPU: {now} bytes read back per window ({} particles, {} gathered; the full state would be {before} bytes)",
+        body.len(),
+        gather.len()
+    );
     if let Some(w) = dev.warning() {
         tracing::warn!("{w}");
     }
@@ -1126,16 +1146,16 @@ impl Solver for PdSolver {
                 (CouplingKind::Lagrange, _) => {}
             }
         }
-        let start: Vec<[f64; 3]> = targets.iter().map(|&(i, _)| self.body.pos[i]).collect();
+        let start: Vec<[f64; 3]> = targets.iter().map(|&(i, _)| self.body.disp[i]).collect();
         let coupled_pts: Vec<usize> = (0..self.body.len())
             .filter(|&i| self.fcouple[i] != [0.0; 3])
             .collect();
         if let Some(dev) = self.device.as_mut() {
             // The body on the device (kinematic responders and pressure pulses were refused
             // at set-up, so `targets` is empty and the external force is `fcouple` for the
-            // whole window). The state comes back once, at the window end.
+            // whole window). Only the window report comes back, at the window end.
             dev.advance(&self.fcouple, nsub, dt).map_err(gpu_err)?;
-            let (work, imp) = dev.finish(&mut self.body, w.t1).map_err(gpu_err)?;
+            dev.finish(&mut self.body, w.t1).map_err(gpu_err)?;
             // The held force's impulse, summed in the CPU path's order.
             for _ in 0..nsub {
                 for &i in &coupled_pts {
@@ -1145,11 +1165,12 @@ impl Solver for PdSolver {
                 }
             }
             for &i in &coupled_pts {
-                self.interface_work += work[i];
+                self.interface_work += dev.work(i);
             }
             for &i in &self.bc_particles {
+                let imp = dev.impulse(i);
                 for d in 0..3 {
-                    self.external_impulse[d] -= imp[i][d];
+                    self.external_impulse[d] -= imp[d];
                 }
             }
         } else {
@@ -1185,9 +1206,9 @@ impl Solver for PdSolver {
                     // seed 004 eq. (31): along the driver's motion, integrated from the window
                     // start so no drift builds up.
                     let s = (step + 1) as f64 * dt;
-                    for d in 0..3 {
-                        self.body.pos[i][d] = start[k][d] + s * self.body.vpres[i][d];
-                    }
+                    let vp = self.body.vpres[i];
+                    self.body
+                        .set_disp(i, std::array::from_fn(|d| start[k][d] + s * vp[d]));
                     let f = self.internal_force(i);
                     for d in 0..3 {
                         self.interface_impulse[d] -= f[d] * dt;
@@ -1198,17 +1219,24 @@ impl Solver for PdSolver {
         // Land exactly on the driver's positions at t1.
         if !targets.is_empty() {
             for &(i, x) in &targets {
+                let x0 = self.body.x0[i];
+                self.body.set_disp(i, std::array::from_fn(|d| x[d] - x0[d]));
                 self.body.pos[i] = x;
             }
             self.body.eval_forces(0.0);
         }
         self.body.time = w.t1;
-        if self
-            .body
-            .vel
-            .iter()
-            .any(|v| !(v[0].is_finite() && v[1].is_finite() && v[2].is_finite()))
-        {
+        let dev_report = self.device.as_ref().map(|d| d.last_report().clone());
+        let diverged = match &dev_report {
+            // the device path: the kinetic energy reduced over every particle
+            Some(r) => !r.kinetic_energy.is_finite(),
+            None => self
+                .body
+                .vel
+                .iter()
+                .any(|v| !(v[0].is_finite() && v[1].is_finite() && v[2].is_finite())),
+        };
+        if diverged {
             return Err(SolverError::Diverged {
                 time: w.t1,
                 reason: "non-finite particle velocity".into(),
@@ -1232,14 +1260,32 @@ impl Solver for PdSolver {
         let damage = self.body.damage();
         let broken = damage.iter().filter(|&&d| d >= 1.0 - 1e-12).count();
         let maxd = damage.iter().cloned().fold(0.0, f64::max);
-        let fracture = self.fracture_scalars(w.t1, &damage);
+        let mut fracture = self.fracture_scalars(w.t1, &damage);
+        if let Some(r) = &dev_report {
+            // the host model's stresses stay at their start values on the device path
+            for (name, v) in fracture.iter_mut() {
+                match name.as_str() {
+                    "max_von_mises" => *v = r.max_von_mises,
+                    "max_plastic_strain" => *v = r.max_plastic_strain,
+                    _ => {}
+                }
+            }
+        }
         Ok(StepReport {
-            kinetic_energy: self.body.kinetic_energy(),
+            kinetic_energy: match &dev_report {
+                Some(r) => r.kinetic_energy,
+                None => self.body.kinetic_energy(),
+            },
             internal_energy: 0.0,
             external_work: self.external_work,
             interface_work: self.interface_work,
-            momentum: self.body.momentum(),
-            momentum_gross: {
+            momentum: match &dev_report {
+                Some(r) => r.momentum,
+                None => self.body.momentum(),
+            },
+            momentum_gross: if let Some(r) = &dev_report {
+                r.momentum_gross
+            } else {
                 let b = &self.body;
                 (0..b.len())
                     .map(|i| {
@@ -1264,9 +1310,10 @@ impl Solver for PdSolver {
                 let b = &self.body;
                 let m: f64 = b.vol.iter().sum();
                 for (d, axis) in ["x", "y", "z"].iter().enumerate() {
-                    let u: f64 = (0..b.len())
-                        .map(|i| b.vol[i] * (b.pos[i][d] - b.x0[i][d]))
-                        .sum();
+                    let u: f64 = match &dev_report {
+                        Some(r) => r.vol_disp[d],
+                        None => (0..b.len()).map(|i| b.vol[i] * b.disp[i][d]).sum(),
+                    };
                     v.push((
                         format!("com_displacement_{axis}"),
                         u / m.max(f64::MIN_POSITIVE),
@@ -1303,15 +1350,24 @@ impl Solver for PdSolver {
     fn save_state(&self) -> SolverResult<Vec<u8>> {
         use super::checkpoint::{Writer, flat3};
         let b = &self.body;
+        // the device path keeps the state on the device: read it in full here
+        let snap = match &self.device {
+            Some(dev) => Some(dev.snapshot().map_err(gpu_err)?),
+            None => None,
+        };
+        let (disp, vel, force) = match &snap {
+            Some(s) => (&s.disp, &s.vel, &s.force),
+            None => (&b.disp, &b.vel, &b.force),
+        };
         let mut w = Writer::default();
         w.bytes(CHECKPOINT_MAGIC);
         w.u64(b.len() as u64);
         w.u64(b.bonds.len() as u64);
         w.f64(b.time);
         w.u64(b.steps);
-        w.f64s(flat3(&b.pos));
-        w.f64s(flat3(&b.vel));
-        w.f64s(flat3(&b.force));
+        w.f64s(flat3(disp));
+        w.f64s(flat3(vel));
+        w.f64s(flat3(force));
         w.f64s(flat3(&b.vpres));
         w.bytes(&b.prescribed);
         w.f64s(b.bonds.intact.iter().copied());
@@ -1342,7 +1398,11 @@ impl Solver for PdSolver {
             ],
         };
         w.f64s(fd.into_iter());
-        b.model.save_state(&mut w);
+        match snap.as_ref().and_then(|s| s.states.as_ref()) {
+            // pd-correspondence on the device: its J2 states, in the model's own format
+            Some(states) => super::checkpoint::put_j2(&mut w, states),
+            None => b.model.save_state(&mut w),
+        }
         Ok(w.buf)
     }
 
@@ -1370,7 +1430,7 @@ impl Solver for PdSolver {
         }
         let time = r.f64().map_err(bad)?;
         let steps = r.u64().map_err(bad)?;
-        let pos = r.f64s(3 * n, "positions").map_err(bad)?;
+        let disp = r.f64s(3 * n, "displacements").map_err(bad)?;
         let vel = r.f64s(3 * n, "velocities").map_err(bad)?;
         let force = r.f64s(3 * n, "forces").map_err(bad)?;
         let vpres = r.f64s(3 * n, "prescribed velocities").map_err(bad)?;
@@ -1384,7 +1444,8 @@ impl Solver for PdSolver {
         }
         b.time = time;
         b.steps = steps;
-        unflat3(&pos, &mut b.pos);
+        unflat3(&disp, &mut b.disp);
+        b.sync_positions();
         unflat3(&vel, &mut b.vel);
         unflat3(&force, &mut b.force);
         unflat3(&vpres, &mut b.vpres);
@@ -1411,26 +1472,42 @@ impl Solver for PdSolver {
     fn write_output(&self, t: f64, window: u64, dir: &Path) -> SolverResult<()> {
         let b = &self.body;
         let n = b.len();
+        // the device path keeps the state on the device: read it in full for the frame
+        let snap = match &self.device {
+            Some(dev) => Some(dev.snapshot().map_err(gpu_err)?),
+            None => None,
+        };
+        let (disp_s, vel_s) = match &snap {
+            Some(s) => (&s.disp, &s.vel),
+            None => (&b.disp, &b.vel),
+        };
+        let pos: Vec<[f64; 3]> = (0..n)
+            .map(|i| std::array::from_fn(|d| b.x0[i][d] + disp_s[i][d]))
+            .collect();
         let flat = |a: &[[f64; 3]]| {
             a.iter()
                 .flat_map(|v| v.iter().copied())
                 .collect::<Vec<f64>>()
         };
-        let disp: Vec<[f64; 3]> = (0..n)
-            .map(|i| std::array::from_fn(|d| b.pos[i][d] - b.x0[i][d]))
-            .collect();
         let mut data: PointData = vec![
-            ("displacement", 3, flat(&disp)),
-            ("velocity", 3, flat(&b.vel)),
+            ("displacement", 3, flat(disp_s)),
+            ("velocity", 3, flat(vel_s)),
         ];
-        if let Some(s) = b.model.stress() {
+        let (stress, plastic) = match snap.as_ref().and_then(|s| s.states.as_ref()) {
+            Some(st) => (
+                Some(st.iter().map(|s| s.stress).collect::<Vec<_>>()),
+                Some(st.iter().map(|s| s.eq_plastic_strain).collect::<Vec<_>>()),
+            ),
+            None => (b.model.stress(), b.model.plastic_strain()),
+        };
+        if let Some(s) = stress {
             let full: Vec<f64> = s
                 .iter()
                 .flat_map(|s| [s[0], s[5], s[4], s[5], s[1], s[3], s[4], s[3], s[2]])
                 .collect();
             data.push(("stress", 9, full));
         }
-        if let Some(p) = b.model.plastic_strain() {
+        if let Some(p) = plastic {
             data.push(("plastic_strain", 1, p));
         }
         let mut bonds = b.bonds.clone();
@@ -1438,7 +1515,7 @@ impl Solver for PdSolver {
         let mut d = vec![0.0; n];
         bonds.damage(&b.vol, &mut d);
         data.push(("damage", 1, d));
-        write_vtu(dir, "pd", window, t, &b.pos, &data)?;
+        write_vtu(dir, "pd", window, t, &pos, &data)?;
         Ok(())
     }
 }
