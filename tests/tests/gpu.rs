@@ -204,3 +204,83 @@ fn chamber_with_the_gas_on_the_gpu_sends_the_same_coupling_traffic() {
     println!("gas interface impulse: largest difference {diff:.3e} of {scale:.3e} N s");
     assert!(diff <= 1e-10 * scale, "{diff:e} vs {scale:e}");
 }
+
+/// `precision = "f32"` on both GPU nodes (for consumer GPUs, whose f64 rate is a small
+/// fraction of f32): each node warns, the warning reaches the log and `summary.json`
+/// (per node and in the run's `warnings`), and the f32 run still tracks the f64 CPU run.
+#[test]
+fn f32_on_request_warns_in_the_summary_and_tracks_the_cpu_run() {
+    let case = workspace_root().join("examples/chamber_detonation.toml");
+    let (dir, id) = scratch("gpu-f32");
+    let short = "run.end_time=1.5e-4";
+    let (o, _) = run(
+        &case,
+        &dir.join("f32"),
+        &format!("{id}f"),
+        &[
+            short,
+            "gas.device=\"gpu\"",
+            "gas.precision=\"f32\"",
+            "bar.device=\"gpu\"",
+            "bar.precision=\"f32\"",
+        ],
+    );
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    if !o.status.success() && text.contains("no GPU adapter") {
+        println!("skipped: the GPU run found no adapter:\n{text}");
+        return;
+    }
+    ok(&o, "f32 GPU run");
+    let s = summary(&dir.join("f32"));
+    let all: Vec<&str> = s["warnings"]
+        .as_array()
+        .expect("warnings in summary.json")
+        .iter()
+        .filter_map(|w| w.as_str())
+        .collect();
+    println!("summary.json warnings: {all:#?}");
+    for node in ["gas", "bar"] {
+        assert!(
+            all.iter()
+                .any(|w| w.starts_with(&format!("{node}: ")) && w.contains("f32")),
+            "{node}: no f32 warning in {all:?}"
+        );
+        let own = s["nodes"][node]["warnings"]
+            .as_array()
+            .expect("node warnings");
+        assert_eq!(own.len(), 1, "{node}: {own:?}");
+    }
+    assert!(
+        text.contains("f32"),
+        "the warning is not in the log:\n{text}"
+    );
+    let (o, _) = run(&case, &dir.join("cpu"), &format!("{id}c"), &[short]);
+    ok(&o, "CPU run");
+    assert_eq!(
+        summary(&dir.join("cpu"))["warnings"]
+            .as_array()
+            .map(Vec::len),
+        Some(0)
+    );
+    // The bar's centre-of-mass displacement, f32 GPU against f64 CPU.
+    let a = node_series(&dir.join("cpu/run.mcap"), "bar", "com_displacement_x");
+    let b = node_series(&dir.join("f32/run.mcap"), "bar", "com_displacement_x");
+    assert_eq!(a.len(), b.len());
+    let peak = a.iter().map(|p| p.1.abs()).fold(0.0f64, f64::max);
+    let worst = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| (x.1 - y.1).abs())
+        .fold(0.0f64, f64::max);
+    println!(
+        "bar centre of mass: largest displacement {peak:.4e} m, f32 GPU vs f64 CPU differ by \
+         {worst:.3e} m ({:.2e} of it)",
+        worst / peak
+    );
+    assert!(peak > 0.0, "the bar did not move");
+    assert!(worst <= 1e-4 * peak, "{worst:e} of {peak:e}");
+}

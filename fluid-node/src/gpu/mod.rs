@@ -796,6 +796,11 @@ impl GpuEuler {
                 }
             }
             if st[0] == 0 {
+                if mode == 0 {
+                    // Landed on t1. The device holds time in its own precision: in f32 it
+                    // landed on t1 rounded to f32, so the host keeps the exact window end.
+                    self.time = t_or_cap;
+                }
                 return Ok(done);
             }
             if done > self.max_steps {
