@@ -439,7 +439,11 @@ impl Model {
                 self.v.copy_from_slice(&self.vh);
             }
         }
-        // Rigid bodies: Newton–Euler on the sum of the particle forces.
+        // Rigid bodies: Newton–Euler on the sum of the particle forces. With the consistent
+        // scatter, free neighbours also push momentum into the body's particles (their rows
+        // reach them): that momentum, m (v̂ − v_rigid), joins the body's force and torque
+        // instead of being overwritten, so the body conserves what it receives.
+        let consistent = self.p.smoothing == Smoothing::Consistent;
         for b in &mut self.rigid {
             let mut force = [0.0; 3];
             let mut torque = [0.0; 3];
@@ -447,10 +451,18 @@ impl Model {
             for &i in &b.particles {
                 let i = i as usize;
                 let r = sub(&self.x[i], &b.com);
-                let t = cross(&r, &self.f[i]);
+                let mut fi = self.f[i];
+                if consistent && dt > 0.0 {
+                    let w = cross(&b.omega, &r);
+                    for d in 0..3 {
+                        let v_rigid = b.vel[d] + w[d];
+                        fi[d] += self.mh[i] * (self.vh[i][d] - v_rigid) / dt;
+                    }
+                }
+                let t = cross(&r, &fi);
                 let r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
                 for a in 0..3 {
-                    force[a] += self.f[i][a];
+                    force[a] += fi[a];
                     torque[a] += t[a];
                     for c in 0..3 {
                         inertia[a][c] += self.mh[i] * (if a == c { r2 } else { 0.0 } - r[a] * r[c]);
@@ -491,22 +503,27 @@ impl Model {
             let vel = g.velocity.map(|c| c * s);
             for &i in &g.particles {
                 let i = i as usize;
+                // The support's impulse: its particle's own force, which the update left
+                // out (−f dt), plus what it takes to set the velocity the update gave it to
+                // the prescribed one, in the momentum the node reports (`momentum`).
+                let j = self.overwrite_impulse(i, &vel);
                 self.v[i] = vel;
                 self.vh[i] = vel;
-                // Support reaction ≈ −f (quasi-static), its power on the body.
                 for d in 0..3 {
                     self.bc_work -= dt * self.f[i][d] * vel[d];
-                    self.bc_impulse[d] -= dt * self.f[i][d];
+                    self.bc_impulse[d] += j[d] - dt * self.f[i][d];
                 }
             }
         }
         for i in 0..self.len() {
             if self.kind[i] == Kind::Coupled {
-                self.v[i] = self.presc[i];
-                self.vh[i] = self.presc[i];
+                let vel = self.presc[i];
+                let j = self.overwrite_impulse(i, &vel);
+                self.v[i] = vel;
+                self.vh[i] = vel;
                 for d in 0..3 {
-                    self.coupling_work -= dt * self.f[i][d] * self.presc[i][d];
-                    self.coupling_impulse[d] -= dt * self.f[i][d];
+                    self.coupling_work -= dt * self.f[i][d] * vel[d];
+                    self.coupling_impulse[d] += j[d] - dt * self.f[i][d];
                 }
             }
         }
@@ -716,6 +733,34 @@ impl Model {
     }
     /// Linear momentum: `Σ m̂_J v̂_J` with the consistent pair (the conjugate momentum,
     /// module doc), `Σ m_I v_I` otherwise (the two agree for `Shepard`).
+    /// Momentum change of particle `i` when its velocity is set to `vel`, in the mass and
+    /// velocity `momentum` sums.
+    fn overwrite_impulse(&self, i: usize, vel: &[f64; 3]) -> [f64; 3] {
+        let (m, v) = match self.p.smoothing {
+            Smoothing::Consistent => (self.mh[i], self.vh[i]),
+            _ => (self.ms[i], self.v[i]),
+        };
+        [
+            m * (vel[0] - v[0]),
+            m * (vel[1] - v[1]),
+            m * (vel[2] - v[2]),
+        ]
+    }
+
+    /// Gross momentum Σ m|v| (in the mass and velocity `momentum` sums).
+    pub fn momentum_gross(&self) -> f64 {
+        let (m, vel) = match self.p.smoothing {
+            Smoothing::Consistent => (&self.mh, &self.vh),
+            _ => (&self.ms, &self.v),
+        };
+        (0..self.len())
+            .map(|i| {
+                m[i] * (vel[i][0] * vel[i][0] + vel[i][1] * vel[i][1] + vel[i][2] * vel[i][2])
+                    .sqrt()
+            })
+            .sum()
+    }
+
     pub fn momentum(&self) -> [f64; 3] {
         let (m, vel) = match self.p.smoothing {
             Smoothing::Consistent => (&self.mh, &self.vh),

@@ -578,6 +578,7 @@ impl Solver for SpgSolver {
             external_work: self.model.bc_work,
             interface_work: self.model.coupling_work,
             momentum: self.model.momentum(),
+            momentum_gross: self.model.momentum_gross(),
             external_impulse: self.model.bc_impulse,
             interface_impulse: self.model.coupling_impulse,
             substeps: nsub,

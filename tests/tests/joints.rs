@@ -34,7 +34,29 @@ fn run_small(case: &str, label: &str, extra: &[&str]) -> PathBuf {
     );
     let (ok, text) = check_mcap(&out.join("run.mcap"), "--require-json");
     assert!(ok, "{case}: check_mcap failed: {text}");
+    momentum_balances(&out, case);
     out
+}
+
+/// Every window, the nodes' momentum is what their supports, prescribed-velocity regions
+/// and coupling impulses explain, to round-off of the run's gross momentum Σ m|v| (or its
+/// largest impulse, if larger): the supports' reactions include the momentum it takes to
+/// hold the prescribed velocity, and a rigid bolt keeps what its neighbours push into it.
+fn momentum_balances(out: &Path, case: &str) {
+    let b = &summary(out)["balance"];
+    let get = |k: &str| b[k].as_f64().unwrap_or_else(|| panic!("balance.{k}"));
+    let (resid, rel) = (
+        get("max_momentum_residual"),
+        get("max_momentum_residual_relative"),
+    );
+    println!(
+        "{case}: momentum residual {resid:.3e} N s, {rel:.3e} of the gross momentum {:.3e} \
+         or largest impulse {:.3e}",
+        get("momentum_scale"),
+        get("impulse_scale")
+    );
+    assert!(get("momentum_scale") > 0.0, "{case}: nothing moved");
+    assert!(rel <= 1e-12, "{case}: momentum residual {rel:e}");
 }
 
 fn series(out: &Path, node: &str, key: &str) -> Vec<(f64, f64)> {
