@@ -20,10 +20,14 @@ use std::path::{Path, PathBuf};
 /// Runs `examples/<case>.toml --variant small` into a scratch directory named `label`
 /// (the label is what `cosim plot` prints in the legend).
 fn run_small(case: &str, label: &str, extra: &[&str]) -> PathBuf {
+    run_variant(case, "small", label, extra)
+}
+
+fn run_variant(case: &str, variant: &str, label: &str, extra: &[&str]) -> PathBuf {
     let (dir, id) = scratch(label);
     let out = dir.join(label);
     let path = workspace_root().join(format!("examples/{case}.toml"));
-    let mut args = vec!["--variant", "small"];
+    let mut args = vec!["--variant", variant];
     args.extend_from_slice(extra);
     let o = run_case(&path, &out, &id, &args);
     assert!(
@@ -202,89 +206,13 @@ fn single_joint_force_rises_then_drops_after_failure() {
     assert!(broken[broken.len() - 1].1 > 100.0);
 }
 
-/// `examples/crash_tube.toml` with its ten joint nodes grouped into one `mc-spg` node
-/// (`placements`) coupled through one shell interface holding all ten footprints.
-fn grouped_crash_tube(dir: &Path) -> PathBuf {
-    let path = workspace_root().join("examples/crash_tube.toml");
-    let text = std::fs::read_to_string(&path).expect("crash_tube.toml");
-    let mut case: toml::Table = toml::from_str(&text).expect("valid TOML");
-    let nodes = case["nodes"].as_table().expect("nodes").clone();
-    let mut joint_names: Vec<String> = nodes
-        .keys()
-        .filter(|k| k.as_str() != "tube")
-        .cloned()
-        .collect();
-    joint_names.sort();
-    let mut params = nodes[&joint_names[0]]["params"]
-        .as_table()
-        .expect("joint params")
-        .clone();
-    let placements: Vec<toml::Value> = joint_names
-        .iter()
-        .flat_map(|n| {
-            nodes[n]["params"]["placements"]
-                .as_array()
-                .expect("placements")
-                .clone()
-        })
-        .collect();
-    params.insert("placements".into(), toml::Value::Array(placements));
-    let mut tube = nodes["tube"].as_table().expect("tube").clone();
-    let tp = tube["params"].as_table_mut().expect("tube params");
-    let boxes: Vec<toml::Value> = tp["element_sets"]
-        .as_array()
-        .expect("element sets")
-        .iter()
-        .map(|s| s["box"].clone())
-        .collect();
-    let mut set = toml::Table::new();
-    set.insert("name".into(), "joints".into());
-    set.insert("boxes".into(), toml::Value::Array(boxes));
-    tp.insert("element_sets".into(), toml::Value::Array(vec![set.into()]));
-    let mut itf = toml::Table::new();
-    itf.insert("name".into(), "joints".into());
-    itf.insert("element_set".into(), "joints".into());
-    tp.insert("interfaces".into(), toml::Value::Array(vec![itf.into()]));
-    let mut joint = nodes[&joint_names[0]].as_table().expect("joint").clone();
-    joint.insert("params".into(), toml::Value::Table(params));
-    let mut new_nodes = toml::Table::new();
-    new_nodes.insert("tube".into(), toml::Value::Table(tube));
-    new_nodes.insert("joints".into(), toml::Value::Table(joint));
-    case.insert("nodes".into(), toml::Value::Table(new_nodes));
-    let mut c = toml::Table::new();
-    c.insert("name".into(), "joints".into());
-    c.insert("kind".into(), "kinematic".into());
-    c.insert("driver".into(), "tube.joints".into());
-    c.insert("responder".into(), "joints.shell".into());
-    case.insert("couplings".into(), toml::Value::Array(vec![c.into()]));
-    case.remove("variants");
-    let p = dir.join("crash_tube_grouped.toml");
-    std::fs::write(&p, toml::to_string(&case).expect("serialise")).expect("write case");
-    p
-}
-
 #[test]
 fn crash_tube_runs_one_process_per_joint_and_grouped_alike() {
     // 5 ms of crush loading: short, but every joint is loaded through the shell.
     let end = ["--set", "run.end_time=5e-3"];
     let separate = run_small("crash_tube", "crash_tube", &end);
-    let (dir, id) = scratch("crash-grouped");
-    let case = grouped_crash_tube(&dir);
-    let out = dir.join("grouped");
-    let o = run_case(
-        &case,
-        &out,
-        &id,
-        &["--set", "run.end_time=5e-3", "--set", "run.output_every=0"],
-    );
-    assert!(
-        o.status.success(),
-        "grouped: {}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let (ok, text) = check_mcap(&out.join("run.mcap"), "--require-json");
-    assert!(ok, "grouped: check_mcap failed: {text}");
+    // The same case with the ten joints in one node (`--variant grouped`).
+    let out = run_variant("crash_tube", "grouped", "crash_grouped", &end);
     let mut largest: f64 = 0.0;
     let mut worst: f64 = 0.0;
     for k in 1..=5 {
