@@ -5,6 +5,17 @@
 use protocol::{SolverError, SolverResult};
 use serde::Deserialize;
 
+/// How a rigid fastener holds the plates (`fastener`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Fastener {
+    /// Bonded to the material around it (a thread-formed screw).
+    #[default]
+    Bonded,
+    /// Bearing contact only (a bolt in a hole).
+    Bearing,
+}
+
 /// Velocity smoothing variant (seed 004 §2.1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
@@ -197,6 +208,16 @@ pub struct Params {
     /// tearing, as in the joint examples, but it weakens a damaged zone under compression).
     #[serde(default)]
     pub separation_weight: f64,
+    /// How a rigid fastener holds the plates: "bonded" (default: it shares kernel rows with
+    /// the material around it, as a thread-formed screw that interlocks with the plate) or
+    /// "bearing" (a bolt in a hole: no bonds, a penalty contact on the hole wall and under
+    /// the heads, so it carries load only by bearing).
+    #[serde(default)]
+    pub fastener: Fastener,
+    /// Penalty stiffness of the "bearing" contact per particle pair (N/m); default
+    /// E × spacing, the axial stiffness of one particle column.
+    #[serde(default)]
+    pub contact_stiffness: Option<f64>,
     /// Steps between re-anchoring of the adaptive anisotropic Lagrangian kernel (eq. 12–14).
     #[serde(default = "default_reanchor")]
     pub reanchor_every: u64,
@@ -398,6 +419,20 @@ impl Params {
         self.material()
             .validate()
             .map_err(|(k, r)| SolverError::config(k, r))?;
+        if let Some(k) = self.contact_stiffness
+            && !(k.is_finite() && k > 0.0)
+        {
+            return Err(SolverError::config(
+                "contact_stiffness",
+                format!("must be > 0, got {k}"),
+            ));
+        }
+        if self.contact_stiffness.is_some() && self.fastener != Fastener::Bearing {
+            return Err(SolverError::config(
+                "contact_stiffness",
+                "applies to fastener = \"bearing\" only",
+            ));
+        }
         if !(0.0..1.0).contains(&self.separation_weight) {
             return Err(SolverError::config(
                 "separation_weight",

@@ -118,6 +118,7 @@ pub fn benchmark_block(n: usize) -> Result<crate::model::Model, String> {
         reanchor_every: 100,
         smoothing: Smoothing::Consistent,
         cfl: 0.4,
+        bearing: None,
     };
     let mut m = Model::new(p, s.x, s.vol, s.part, &s.rigid_parts)?;
     let top = n as f64 * h;

@@ -36,7 +36,7 @@
 //! (eq. 16) also changes `A`; it is not corrected (an open, dissipative event).
 
 use crate::config::Smoothing;
-use crate::shape::{IDENTITY, M3, Rows, cross, det, inv, mat_mul, mul_vec, sub};
+use crate::shape::{IDENTITY, M3, Rows, cross, det, inv, mat_mul, mul_vec, norm, sub};
 use mechanics::j2::{J2Material, J2State, jaumann_rotate};
 use rayon::prelude::*;
 
@@ -84,7 +84,15 @@ pub struct ModelParams {
     pub reanchor_every: u64,
     pub smoothing: Smoothing,
     pub cfl: f64,
+    /// `Some(k)`: rigid fasteners bear on the plates through a penalty contact of
+    /// stiffness k (N/m) instead of sharing kernel rows with them (a bolt in a hole);
+    /// `None`: rigid bodies are bonded to the material around them (a thread-formed screw).
+    pub bearing: Option<f64>,
 }
+
+/// Steps between refreshes of the bearing-contact candidate pairs (2 h apart or less):
+/// a pair cannot close the gap h in this many steps at the speeds of a joint test.
+const CONTACT_REFRESH: u64 = 10;
 
 /// The particle state (structure of arrays).
 #[derive(Debug, Clone)]
@@ -145,6 +153,11 @@ pub struct Model {
     pub coupling_work: f64,
     pub coupling_impulse: [f64; 3],
     pub max_eps: f64,
+    /// Candidate (rigid, other) particle pairs of the bearing contact, refreshed every
+    /// `CONTACT_REFRESH` steps from a 2-spacing neighbour search.
+    pub contact_pairs: Vec<(u32, u32)>,
+    /// Elastic energy stored in the bearing contact now (J).
+    pub contact_energy: f64,
 }
 
 /// Why a step failed.
@@ -168,9 +181,14 @@ impl Model {
         // The 1e-9 margin drops lattice pairs at exactly the support that round-off puts a hair
         // inside (weight ~1e-27 of the centre value, far below round-off).
         let reach = p.support * (1.0 - 1e-9);
+        let bonded_to_rigid = p.bearing.is_none();
         let rows = Rows::build(&fam, &x, |i, j| {
-            (part[i] == part[j] || is_rigid(i) || is_rigid(j))
-                && crate::shape::dist(&x[i], &x[j]) < reach
+            let rigid_pair = if bonded_to_rigid {
+                is_rigid(i) || is_rigid(j)
+            } else {
+                is_rigid(i) && is_rigid(j)
+            };
+            (part[i] == part[j] || rigid_pair) && crate::shape::dist(&x[i], &x[j]) < reach
         });
         let mass: Vec<f64> = vol.iter().map(|v| v * p.density).collect();
         let mut m = Model {
@@ -213,6 +231,8 @@ impl Model {
             coupling_work: 0.0,
             coupling_impulse: [0.0; 3],
             max_eps: 0.0,
+            contact_pairs: Vec::new(),
+            contact_energy: 0.0,
             x,
             p,
         };
@@ -558,6 +578,7 @@ impl Model {
             self.reanchor()?;
         }
         internal_force(&self.rows, &self.bmat, &mut self.f);
+        self.bearing_contact();
         Ok(())
     }
 
@@ -565,6 +586,69 @@ impl Model {
     pub fn step(&mut self, dt: f64) -> StepResult {
         self.velocity_phase(dt);
         self.position_phase(dt)
+    }
+
+    /// Bearing contact of rigid fasteners (`ModelParams::bearing`): a rigid particle and a
+    /// particle of the material closer than d0 (one spacing h, or their reference distance
+    /// if smaller) push each other apart with k (d0 − d) along the line between them, equal and opposite, so the pair adds no
+    /// momentum; the rigid body takes its share through the sum of its particle forces. The
+    /// bolt carries load by bearing on the hole wall and under its heads, not by bonds.
+    fn bearing_contact(&mut self) {
+        let Some(k) = self.p.bearing else {
+            return;
+        };
+        let h = self.p.spacing;
+        if self.contact_pairs.is_empty() || self.steps.is_multiple_of(CONTACT_REFRESH) {
+            // Search only around the rigid bodies (debris may fly far: a neighbour grid
+            // over the whole cloud would grow with it).
+            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+            for b in &self.rigid {
+                for &i in &b.particles {
+                    for a in 0..3 {
+                        lo[a] = lo[a].min(self.x[i as usize][a] - 2.0 * h);
+                        hi[a] = hi[a].max(self.x[i as usize][a] + 2.0 * h);
+                    }
+                }
+            }
+            let near: Vec<u32> = (0..self.len() as u32)
+                .filter(|&i| (0..3).all(|a| (lo[a]..=hi[a]).contains(&self.x[i as usize][a])))
+                .collect();
+            let xs: Vec<[f64; 3]> = near.iter().map(|&i| self.x[i as usize]).collect();
+            let fam = mechanics::neighbour::find_neighbours(&xs, 2.0 * h);
+            self.contact_pairs.clear();
+            for (k, &i) in near.iter().enumerate() {
+                if self.kind[i as usize] != Kind::Rigid {
+                    continue;
+                }
+                for &q in &fam.indices[fam.offsets[k]..fam.offsets[k + 1]] {
+                    let j = near[q as usize];
+                    if self.kind[j as usize] != Kind::Rigid {
+                        self.contact_pairs.push((i, j));
+                    }
+                }
+            }
+        }
+        let mut energy = 0.0;
+        for &(i, j) in &self.contact_pairs {
+            let (i, j) = (i as usize, j as usize);
+            let r = sub(&self.x[j], &self.x[i]);
+            let d = norm(&r);
+            // Contact distance: one spacing, or the pair's distance in the reference state
+            // if that is closer (the lattices of bolt and plate need not mesh), so the
+            // contact is at rest in the reference state.
+            let d0 = h.min(norm(&sub(&self.x0[j], &self.x0[i])));
+            if d >= d0 || d <= 0.0 {
+                continue;
+            }
+            let pen = d0 - d;
+            let c = k * pen / d;
+            for a in 0..3 {
+                self.f[j][a] += c * r[a];
+                self.f[i][a] -= c * r[a];
+            }
+            energy += 0.5 * k * pen * pen;
+        }
+        self.contact_energy = energy;
     }
 
     /// Compute stresses and forces at the current state (after set-up or a restart).
@@ -575,6 +659,7 @@ impl Model {
             self.bmat[i] = stress_factor(&self.mat[i].stress, self.vol[i], &fi);
         }
         internal_force(&self.rows, &self.bmat, &mut self.f);
+        self.bearing_contact();
     }
 
     /// Bond failure (eq. 15–17): a bond breaks, for good, when the pair-averaged effective

@@ -155,6 +155,14 @@ impl SpgSolver {
             reanchor_every: params.reanchor_every,
             smoothing: params.smoothing,
             cfl: params.cfl,
+            bearing: match params.fastener {
+                crate::config::Fastener::Bonded => None,
+                crate::config::Fastener::Bearing => Some(
+                    params
+                        .contact_stiffness
+                        .unwrap_or(params.young * params.spacing),
+                ),
+            },
         };
         let mut model = Model::new(mp, set.x, set.vol, set.part, &set.rigid_parts)
             .map_err(|e| SolverError::config("kernel_support", e))?;

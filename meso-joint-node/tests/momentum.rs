@@ -30,6 +30,7 @@ fn params(smoothing: Smoothing) -> ModelParams {
         reanchor_every: 7,
         smoothing,
         cfl: 0.4,
+        bearing: None,
     }
 }
 

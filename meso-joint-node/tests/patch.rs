@@ -37,6 +37,7 @@ fn jittered_model() -> Model {
         reanchor_every: 10,
         smoothing: Smoothing::Consistent,
         cfl: 0.4,
+        bearing: None,
     };
     Model::new(p, s.x, s.vol, s.part, &s.rigid_parts).unwrap()
 }

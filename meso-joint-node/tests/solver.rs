@@ -372,3 +372,94 @@ fn a_bar_pulled_apart_tears_and_its_force_drops() {
     assert!(peak > 0.0 && broken > 0.0);
     assert!(last.abs() < 0.1 * peak, "{last} of {peak}");
 }
+
+/// `fastener = "bearing"` (a bolt in a hole): no kernel row pairs the rigid bolt with plate
+/// material, the bearing contact is at rest in the reference state (the initial forces are
+/// those of the unloaded body: zero), and pushing the plate against the shank gives equal and
+/// opposite contact forces. `contact_stiffness` is checked and needs "bearing".
+#[test]
+fn a_bearing_bolt_is_not_bonded_and_pushes_back_by_contact() {
+    let text = r#"
+        spacing = 0.5e-3
+        kernel_support = 1.0e-3
+        density = 7850.0
+        young = 210e9
+        poisson = 0.3
+        yield_stress = 0.2e9
+        tangent_modulus = 20e9
+        eps_crit = 0.1
+        geometry = { kind = "bolted-plates", width = 6e-3, length = 6e-3, overlap = 6e-3, bolt_radius = 1e-3, head_radius = 2e-3, head_height = 1e-3 }
+        "#;
+    let build = |extra: &str| {
+        let t: toml::Table = toml::from_str(&format!("{text}\n{extra}")).unwrap();
+        meso_joint_node::solver::SpgSolver::new(
+            meso_joint_node::config::Params::from_table(&t).unwrap(),
+        )
+        .unwrap()
+    };
+    let rigid_plate_pairs = |s: &meso_joint_node::solver::SpgSolver| {
+        let m = &s.model;
+        let rigid = |i: usize| m.kind[i] == meso_joint_node::model::Kind::Rigid;
+        (0..m.len())
+            .flat_map(|i| m.rows.range(i).map(move |p| (i, p)))
+            .filter(|&(i, p)| rigid(i) != rigid(m.rows.cols[p] as usize))
+            .count()
+    };
+    let bonded = build("");
+    let mut bearing = build("fastener = \"bearing\"");
+    assert!(
+        rigid_plate_pairs(&bonded) > 0,
+        "a bonded fastener shares rows"
+    );
+    assert_eq!(rigid_plate_pairs(&bearing), 0);
+    let m = &mut bearing.model;
+    let fmax =
+        m.f.iter()
+            .flat_map(|f| f.iter())
+            .fold(0.0f64, |a, &b| a.max(b.abs()));
+    assert_eq!(fmax, 0.0, "contact not at rest in the reference state");
+    // Push every plate particle next to the shank 1 % of a spacing towards the bolt axis.
+    let h = 0.5e-3;
+    let axis = m.rigid[0].com;
+    let mut moved = 0;
+    for i in 0..m.len() {
+        let r = [m.x[i][0] - axis[0], m.x[i][1] - axis[1]];
+        let d = (r[0] * r[0] + r[1] * r[1]).sqrt();
+        if m.kind[i] != meso_joint_node::model::Kind::Rigid
+            && d < 1e-3 + 1.5 * h
+            && m.x[i][2] > 0.0
+            && m.x[i][2] < 2e-3
+        {
+            m.x[i][0] -= 0.01 * h * r[0] / d;
+            m.x[i][1] -= 0.01 * h * r[1] / d;
+            moved += 1;
+        }
+    }
+    assert!(moved > 10, "{moved}");
+    m.contact_pairs.clear();
+    m.initial_forces();
+    let mut total = [0.0f64; 3];
+    let mut on_bolt = [0.0f64; 3];
+    let mut gross = 0.0f64;
+    for i in 0..m.len() {
+        for a in 0..3 {
+            total[a] += m.f[i][a];
+            gross += m.f[i][a].abs();
+            if m.kind[i] == meso_joint_node::model::Kind::Rigid {
+                on_bolt[a] += m.f[i][a];
+            }
+        }
+    }
+    println!("contact: gross force {gross:.3e} N, net {total:?}, on the bolt {on_bolt:?}");
+    assert!(gross > 1.0, "no contact force");
+    for a in 0..3 {
+        assert!(total[a].abs() <= 1e-12 * gross, "{total:?}");
+    }
+    let bad: toml::Table = toml::from_str(&format!("{text}\ncontact_stiffness = 1e8")).unwrap();
+    assert_eq!(key_of(factory("mc-spg", &bad)), "contact_stiffness");
+    let bad: toml::Table = toml::from_str(&format!(
+        "{text}\nfastener = \"bearing\"\ncontact_stiffness = -1.0"
+    ))
+    .unwrap();
+    assert_eq!(key_of(factory("mc-spg", &bad)), "contact_stiffness");
+}

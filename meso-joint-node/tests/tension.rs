@@ -40,6 +40,7 @@ fn bar_r(eps_crit: f64, v_end: f64, reanchor_every: u64) -> Model {
         reanchor_every,
         smoothing: Smoothing::Consistent,
         cfl: 0.4,
+        bearing: None,
     };
     let mut m = Model::new(p, s.x, s.vol, s.part, &s.rigid_parts).unwrap();
     // Grips two particle layers deep: with one layer, direct nodal integration lets the odd
