@@ -29,7 +29,7 @@ pub mod model;
 pub mod output;
 pub mod riemann;
 pub mod setup;
-pub mod simd;
+pub use mechanics::simd;
 pub mod solver;
 pub mod step;
 

@@ -9,3 +9,4 @@ pub mod j2;
 pub mod j2_plane_stress;
 pub mod kernel;
 pub mod neighbour;
+pub mod simd;

@@ -1,5 +1,6 @@
-//! Run-time choice of the instruction set for the row kernels of `step.rs` (issue #3
-//! must-show 8, throughput). Each kernel is written once as an `#[inline(always)]` body over
+//! Run-time choice of the instruction set for hot row kernels, shared by the solver nodes
+//! (first written in fluid-node for issue #3 must-show 8, throughput; moved here so
+//! solid-node and fluid-node use one copy). Each kernel is written once as an `#[inline(always)]` body over
 //! slices and compiled three times: baseline x86-64 (SSE2), AVX2 and AVX-512, so its loops
 //! vectorise 2, 4 or 8 doubles wide; [`multiversion!`] generates the dispatching wrapper.
 //!
@@ -72,6 +73,26 @@ pub fn has_avx2() -> bool {
 /// `name::<N>(simd: Simd, a, ...)`, which runs `body::<N>(a, ...)` compiled for the widest
 /// instruction set allowed by `simd` that the CPU has (checked again on every call, so a
 /// `Simd` value the CPU lacks falls back safely). `body` must be `#[inline(always)]`.
+/// Exported at the crate root; other crates write `use mechanics::simd::multiversion;`
+/// (the generated code names `$crate::simd::Simd`, so the caller needs no other import).
+///
+/// ```
+/// use mechanics::simd::{multiversion, Simd};
+///
+/// #[inline(always)]
+/// fn scale_body<const K: usize>(x: &mut [f64]) {
+///     for v in x.iter_mut() {
+///         *v = (*v * K as f64).sqrt();
+///     }
+/// }
+/// multiversion! {
+///     fn scale<const K: usize>(x: &mut [f64]) = scale_body;
+/// }
+/// let mut x = vec![2.0; 9];
+/// scale::<2>(Simd::detect(), &mut x);
+/// assert!(x.iter().all(|v| *v == 2.0));
+/// ```
+#[macro_export]
 macro_rules! multiversion {
     (
         $(#[$meta:meta])*
@@ -111,4 +132,55 @@ macro_rules! multiversion {
         }
     };
 }
-pub(crate) use multiversion;
+pub use crate::multiversion;
+
+#[cfg(test)]
+mod tests {
+    use super::Simd;
+
+    /// A bond-stretch-like chain (sub, mul, add, sqrt, div) that vectorises.
+    #[inline(always)]
+    fn chain_body<const K: usize>(a: &[f64], b: &[f64], out: &mut [f64]) {
+        let n = a.len().min(b.len()).min(out.len());
+        let (a, b, out) = (&a[..n], &b[..n], &mut out[..n]);
+        for i in 0..n {
+            let mut x = a[i];
+            for _ in 0..K {
+                let y = (x * x + b[i]).sqrt();
+                x = (y - x) / (y + b[i] + 1.0);
+            }
+            out[i] = x;
+        }
+    }
+
+    multiversion! {
+        fn chain<const K: usize>(a: &[f64], b: &[f64], out: &mut [f64]) = chain_body;
+    }
+
+    #[test]
+    fn every_instruction_set_is_bit_identical() {
+        let n = 1037;
+        let a: Vec<f64> = (0..n)
+            .map(|i| ((i * 7919) % 1000) as f64 * 1.37e-3 - 0.6)
+            .collect();
+        let b: Vec<f64> = (0..n)
+            .map(|i| ((i * 104_729) % 997) as f64 * 2.1e-3 + 0.1)
+            .collect();
+        let mut reference = vec![0.0; n];
+        chain_body::<3>(&a, &b, &mut reference);
+        let avail = Simd::available();
+        assert_eq!(avail[0], Simd::Base);
+        assert!(avail.contains(&Simd::detect()));
+        for simd in avail {
+            let mut out = vec![0.0; n];
+            chain::<3>(simd, &a, &b, &mut out);
+            for (i, (x, r)) in out.iter().zip(&reference).enumerate() {
+                assert_eq!(
+                    x.to_bits(),
+                    r.to_bits(),
+                    "{simd:?} differs at {i}: {x} vs {r}"
+                );
+            }
+        }
+    }
+}
