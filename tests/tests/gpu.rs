@@ -101,6 +101,21 @@ fn run(case: &Path, out: &Path, id: &str, sets: &[&str]) -> (std::process::Outpu
     (o, t.elapsed().as_secs_f64())
 }
 
+/// The run's stdout and stderr, or `None` (with the reason printed) when it found no GPU
+/// adapter: the test is then skipped.
+fn output_unless_no_adapter(o: &std::process::Output) -> Option<String> {
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    if !o.status.success() && text.contains("no GPU adapter") {
+        println!("skipped: the GPU run found no adapter:\n{text}");
+        return None;
+    }
+    Some(text)
+}
+
 fn ok(o: &std::process::Output, what: &str) {
     assert!(
         o.status.success(),
@@ -120,13 +135,7 @@ fn chamber_with_the_gas_on_the_gpu_sends_the_same_coupling_traffic() {
         &format!("{id}g"),
         &["gas.device=\"gpu\""],
     );
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    if !o.status.success() && text.contains("no GPU adapter") {
-        println!("skipped: the GPU run found no adapter:\n{text}");
+    if output_unless_no_adapter(&o).is_none() {
         return;
     }
     ok(&o, "GPU run");
@@ -225,15 +234,9 @@ fn f32_on_request_warns_in_the_summary_and_tracks_the_cpu_run() {
             "bar.precision=\"f32\"",
         ],
     );
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    if !o.status.success() && text.contains("no GPU adapter") {
-        println!("skipped: the GPU run found no adapter:\n{text}");
+    let Some(text) = output_unless_no_adapter(&o) else {
         return;
-    }
+    };
     ok(&o, "f32 GPU run");
     let s = summary(&dir.join("f32"));
     let all: Vec<&str> = s["warnings"]

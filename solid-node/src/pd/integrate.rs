@@ -186,6 +186,16 @@ impl Body {
         p
     }
 
+    /// Gross momentum Σ m|v|: the scale of momentum sums that cancel.
+    pub fn momentum_gross(&self) -> f64 {
+        (0..self.len())
+            .map(|i| {
+                let v = self.vel[i];
+                self.density * self.vol[i] * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+            })
+            .sum()
+    }
+
     pub fn kinetic_energy(&self) -> f64 {
         (0..self.len())
             .map(|i| {

@@ -1283,16 +1283,9 @@ impl Solver for PdSolver {
                 Some(r) => r.momentum,
                 None => self.body.momentum(),
             },
-            momentum_gross: if let Some(r) = &dev_report {
-                r.momentum_gross
-            } else {
-                let b = &self.body;
-                (0..b.len())
-                    .map(|i| {
-                        let v = b.vel[i];
-                        b.density * b.vol[i] * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
-                    })
-                    .sum()
+            momentum_gross: match &dev_report {
+                Some(r) => r.momentum_gross,
+                None => self.body.momentum_gross(),
             },
             external_impulse: self.external_impulse,
             applied_impulse: self.applied_impulse,
