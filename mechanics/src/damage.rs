@@ -37,6 +37,15 @@ pub trait DamageModel: Send + Sync + std::fmt::Debug {
         old.min(self.intact_fraction(input))
     }
 
+    /// `Some(s0)` when the law is exactly "broken for good once the stretch exceeds s0"
+    /// (and reads nothing else): a bond kernel may then test |y|²/|ξ|² > (1 + s0)² instead
+    /// of forming the stretch, saving a square root and a division per bond (the same test
+    /// pd-bond uses). `None` (the default): call [`DamageModel::update`].
+    #[inline]
+    fn stretch_limit(&self) -> Option<f64> {
+        None
+    }
+
     /// Checks the parameters; on error returns (key, reason).
     fn validate(&self) -> Result<(), (String, String)>;
 
@@ -90,6 +99,10 @@ impl DamageModel for CriticalStretch {
         } else {
             1.0
         }
+    }
+    #[inline]
+    fn stretch_limit(&self) -> Option<f64> {
+        Some(self.critical_stretch)
     }
     fn validate(&self) -> Result<(), (String, String)> {
         if !(self.critical_stretch.is_finite() && self.critical_stretch > 0.0) {

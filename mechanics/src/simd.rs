@@ -73,6 +73,8 @@ pub fn has_avx2() -> bool {
 /// `name::<N>(simd: Simd, a, ...)`, which runs `body::<N>(a, ...)` compiled for the widest
 /// instruction set allowed by `simd` that the CPU has (checked again on every call, so a
 /// `Simd` value the CPU lacks falls back safely). `body` must be `#[inline(always)]`.
+/// A kernel generic over one type (e.g. a damage law) takes it first:
+/// `fn name<D: Trait, const N: usize>(...) = body;`, and `fn name<>(...)` has no parameters.
 /// Exported at the crate root; other crates write `use mechanics::simd::multiversion;`
 /// (the generated code names `$crate::simd::Simd`, so the caller needs no other import).
 ///
@@ -131,6 +133,45 @@ macro_rules! multiversion {
             $body::<$($cp),*>($($arg),*)
         }
     };
+    // The same with one type parameter before the const ones (a kernel generic over, e.g.,
+    // a damage law): `fn name<D: Trait, const N: usize>(...) = body;`.
+    (
+        $(#[$meta:meta])*
+        $vis:vis fn $name:ident<$tp:ident: $tb:path $(, const $cp:ident: $ct:ty)*>($($arg:ident: $ty:ty),* $(,)?)
+            $(-> $ret:ty)? = $body:ident;
+    ) => {
+        $(#[$meta])*
+        #[inline]
+        $vis fn $name<$tp: $tb $(, const $cp: $ct)*>(simd: $crate::simd::Simd, $($arg: $ty),*) $(-> $ret)? {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,avx")]
+                fn avx512<$tp: $tb $(, const $cp: $ct)*>($($arg: $ty),*) $(-> $ret)? {
+                    $body::<$tp $(, $cp)*>($($arg),*)
+                }
+                #[target_feature(enable = "avx2,avx")]
+                fn avx2<$tp: $tb $(, const $cp: $ct)*>($($arg: $ty),*) $(-> $ret)? {
+                    $body::<$tp $(, $cp)*>($($arg),*)
+                }
+                match simd {
+                    $crate::simd::Simd::Avx512 if $crate::simd::has_avx512() => {
+                        // SAFETY: the CPU has every feature `avx512` enables (checked just
+                        // above), the only requirement of calling a target-feature function.
+                        return unsafe { avx512::<$tp $(, $cp)*>($($arg),*) };
+                    }
+                    $crate::simd::Simd::Avx512 | $crate::simd::Simd::Avx2
+                        if $crate::simd::has_avx2() =>
+                    {
+                        // SAFETY: as above, for AVX2.
+                        return unsafe { avx2::<$tp $(, $cp)*>($($arg),*) };
+                    }
+                    _ => {}
+                }
+            }
+            let _ = simd;
+            $body::<$tp $(, $cp)*>($($arg),*)
+        }
+    };
 }
 pub use crate::multiversion;
 
@@ -155,6 +196,50 @@ mod tests {
 
     multiversion! {
         fn chain<const K: usize>(a: &[f64], b: &[f64], out: &mut [f64]) = chain_body;
+    }
+
+    /// A law the kernel is generic over (as the PD force kernels are over damage laws).
+    trait Law {
+        fn apply(&self, x: f64) -> f64;
+    }
+    struct Damped(f64);
+    impl Law for Damped {
+        #[inline]
+        fn apply(&self, x: f64) -> f64 {
+            (x * self.0).min(1.0) / (x.abs() + 1.0).sqrt()
+        }
+    }
+
+    #[inline(always)]
+    fn law_body<L: Law, const K: usize>(law: &L, a: &[f64], out: &mut [f64]) {
+        for (o, &x) in out.iter_mut().zip(a) {
+            let mut y = x;
+            for _ in 0..K {
+                y = law.apply(y) - x;
+            }
+            *o = y;
+        }
+    }
+
+    multiversion! {
+        fn law_kernel<L: Law, const K: usize>(law: &L, a: &[f64], out: &mut [f64]) = law_body;
+    }
+
+    #[test]
+    fn the_type_generic_form_is_bit_identical_too() {
+        let a: Vec<f64> = (0..517).map(|i| (i as f64 * 0.37).sin() * 3.0).collect();
+        let mut reference = vec![0.0; a.len()];
+        law_body::<Damped, 4>(&Damped(0.7), &a, &mut reference);
+        for simd in Simd::available() {
+            let mut out = vec![0.0; a.len()];
+            law_kernel::<Damped, 4>(simd, &Damped(0.7), &a, &mut out);
+            assert!(
+                out.iter()
+                    .zip(&reference)
+                    .all(|(x, r)| x.to_bits() == r.to_bits()),
+                "{simd:?}"
+            );
+        }
     }
 
     #[test]

@@ -24,10 +24,11 @@
     clippy::too_many_arguments
 )]
 
-use super::family::{Bonds, par_rows};
+use super::family::{Bonds, par_row_blocks};
 use super::model::{Dim, Kinematics, PdModel};
 use mechanics::damage::{BondInput, DamageModel};
 use mechanics::j2::{J2Material, J2State, Sym, jaumann_rotate, von_mises};
+use mechanics::simd::Simd;
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
@@ -124,6 +125,9 @@ pub struct Correspondence<D: DamageModel> {
     pub side: Vec<BondSide>,
     /// det K of the intact family (to detect a family too damaged for a gradient).
     k0det: Vec<f64>,
+    /// Instruction set of the bond kernels (the widest the CPU has; every choice gives the
+    /// same bits).
+    pub simd: Simd,
 }
 
 impl<D: DamageModel> Correspondence<D> {
@@ -175,6 +179,7 @@ impl<D: DamageModel> Correspondence<D> {
             ],
             side: vec![BondSide::default(); n],
             k0det: vec![0.0; n],
+            simd: Simd::detect(),
         };
         for i in 0..n {
             m.k0det[i] = det(&shape_tensor(dim, i, k, bonds));
@@ -189,7 +194,8 @@ impl<D: DamageModel> Correspondence<D> {
         let kappa0 = self.stabilization * self.micromodulus * self.horizon_volume;
         let inv_h = 1.0 / self.horizon;
         let (dim, k0det) = (self.dim, &self.k0det);
-        let (offsets, nbr, xi, intact) = (&bonds.offsets, &bonds.nbr, &bonds.xi, &bonds.intact);
+        let (offsets, nbr, intact) = (&bonds.offsets, &bonds.nbr, &bonds.intact);
+        let simd = self.simd;
         self.state
             .par_iter_mut()
             .zip(self.kin.par_iter_mut())
@@ -198,53 +204,20 @@ impl<D: DamageModel> Correspondence<D> {
             .enumerate()
             .for_each(|(i, ((st, pk), sd))| {
                 let r = offsets[i]..offsets[i + 1];
-                let (ui, vi) = (k.disp[i], k.vel[i]);
-                // Two sweeps over the row (it stays in L1): nine accumulators each fit the
-                // registers, where eighteen spill. Same summation order as one sweep.
+                let (ui, vi, xp) = (k.disp[i], k.vel[i], k.x0[i]);
                 // nn = Σ ω V_j η⊗ξ with η = u_j − u_i, so H = nn K⁻¹ is the displacement
                 // gradient and F = I + H (eq. 181 with y = ξ + η, Σ ω V ξ⊗ξ K⁻¹ = I), free of
                 // the cancellation of forming y from absolute positions.
-                let mut nn = [[0.0; 3]; 3];
-                let mut nd = [[0.0; 3]; 3];
-                let mut w0 = 0.0;
-                let (rn, rx, rw) = (&nbr[r.clone()], &xi[r.clone()], &intact[r]);
-                for ((&j, x), &om) in rn.iter().zip(rx).zip(rw) {
-                    if om == 0.0 {
-                        continue;
-                    }
-                    let j = j as usize;
-                    let w = om * k.vol[j];
-                    w0 += w;
-                    let uj = k.disp[j];
-                    let wy = [
-                        w * (uj[0] - ui[0]),
-                        w * (uj[1] - ui[1]),
-                        w * (uj[2] - ui[2]),
-                    ];
-                    for a in 0..3 {
-                        for c in 0..3 {
-                            nn[a][c] += wy[a] * x[c];
-                        }
-                    }
-                }
-                for ((&j, x), &om) in rn.iter().zip(rx).zip(rw) {
-                    if om == 0.0 {
-                        continue;
-                    }
-                    let j = j as usize;
-                    let w = om * k.vol[j];
-                    let vj = k.vel[j];
-                    let wv = [
-                        w * (vj[0] - vi[0]),
-                        w * (vj[1] - vi[1]),
-                        w * (vj[2] - vi[2]),
-                    ];
-                    for a in 0..3 {
-                        for c in 0..3 {
-                            nd[a][c] += wv[a] * x[c];
-                        }
-                    }
-                }
+                let FamilySums { mut nn, nd, w0 } = family_sums(
+                    simd,
+                    &nbr[r.clone()],
+                    &intact[r],
+                    k.x0,
+                    k.disp,
+                    k.vel,
+                    k.vol,
+                    (xp, ui, vi),
+                );
                 if w0 != pk.wsum {
                     // The family changed (or first call): rebuild K⁻¹ (eq. 182).
                     pk.wsum = w0;
@@ -376,6 +349,168 @@ fn shape_tensor(dim: Dim, i: usize, k: &Kinematics, bonds: &Bonds) -> M3 {
     kk
 }
 
+/// What pass 1 sums over a family: N = Σ ω V_j η⊗ξ, Ṅ = Σ ω V_j (v_j − v_i)⊗ξ, Σ ω V_j.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct FamilySums {
+    pub nn: M3,
+    pub nd: M3,
+    pub w0: f64,
+}
+
+/// Pass-1 sums over one row (`me` = X_i, u_i, v_i), in row order. ξ = X_j − X_i is formed
+/// from the neighbour's X (bit for bit `Bonds::xi`, built the same way), which is in cache
+/// next to its u and v, instead of streaming a per-bond array. One sweep with nineteen
+/// accumulators: they spill on the 16-register SSE2/AVX2 builds, not on AVX-512's 32.
+#[inline(always)]
+fn family_sums_body(
+    nbr: &[u32],
+    intact: &[f64],
+    x0: &[[f64; 3]],
+    disp: &[[f64; 3]],
+    vel: &[[f64; 3]],
+    vol: &[f64],
+    me: ([f64; 3], [f64; 3], [f64; 3]),
+) -> FamilySums {
+    let (xp, ui, vi) = me;
+    let mut nn = [[0.0; 3]; 3];
+    let mut nd = [[0.0; 3]; 3];
+    let mut w0 = 0.0;
+    for (&j, &om) in nbr.iter().zip(intact) {
+        if om == 0.0 {
+            continue;
+        }
+        let j = j as usize;
+        let w = om * vol[j];
+        w0 += w;
+        let xj = x0[j];
+        let x = [xj[0] - xp[0], xj[1] - xp[1], xj[2] - xp[2]];
+        let (uj, vj) = (disp[j], vel[j]);
+        let wy = [
+            w * (uj[0] - ui[0]),
+            w * (uj[1] - ui[1]),
+            w * (uj[2] - ui[2]),
+        ];
+        let wv = [
+            w * (vj[0] - vi[0]),
+            w * (vj[1] - vi[1]),
+            w * (vj[2] - vi[2]),
+        ];
+        for a in 0..3 {
+            for c in 0..3 {
+                nn[a][c] += wy[a] * x[c];
+                nd[a][c] += wv[a] * x[c];
+            }
+        }
+    }
+    FamilySums { nn, nd, w0 }
+}
+
+// Each kernel is compiled for SSE2, AVX2 and AVX-512 ([`mechanics::simd`]); the scalar loops
+// gain the wider register file (no spilled accumulators), and no FMA, so every path gives
+// the same bits.
+mechanics::simd::multiversion! {
+    fn family_sums<>(
+        nbr: &[u32],
+        intact: &[f64],
+        x0: &[[f64; 3]],
+        disp: &[[f64; 3]],
+        vel: &[[f64; 3]],
+        vol: &[f64],
+        me: ([f64; 3], [f64; 3], [f64; 3]),
+    ) -> FamilySums = family_sums_body;
+}
+
+/// The force pass (eq. 183 with 186) over the block of particles `lo..lo + f.len()`, whose
+/// rows' intact fractions are `intact`.
+#[inline(always)]
+fn force_block_body<D: DamageModel>(
+    lo: usize,
+    f: &mut [[f64; 3]],
+    intact: &mut [f64],
+    offsets: &[usize],
+    nbr: &[u32],
+    inv_len: &[f64],
+    x0: &[[f64; 3]],
+    disp: &[[f64; 3]],
+    vol: &[f64],
+    point: &[BondSide],
+    damage: &D,
+    inv_h: f64,
+) {
+    let base = offsets[lo];
+    // (1 + s0)² of a pure critical-stretch law
+    let limit = damage.stretch_limit().map(|s0| (1.0 + s0) * (1.0 + s0));
+    for (p, fi) in f.iter_mut().enumerate() {
+        let i = lo + p;
+        let pi = &point[i];
+        let (up, xp) = (disp[i], x0[i]);
+        let mut acc = [0.0; 3];
+        let r = offsets[i]..offsets[i + 1];
+        let row = &mut intact[r.start - base..r.end - base];
+        for ((om, &j), &il) in row.iter_mut().zip(&nbr[r.clone()]).zip(&inv_len[r]) {
+            if *om == 0.0 {
+                continue;
+            }
+            let j = j as usize;
+            let pj = &point[j];
+            // ξ = X_j − X_i as in pass 1
+            let xj = x0[j];
+            let x = [xj[0] - xp[0], xj[1] - xp[1], xj[2] - xp[2]];
+            let q = disp[j];
+            let e = [q[0] - up[0], q[1] - up[1], q[2] - up[2]];
+            // seed 000 App. C: bond-associated quantities, symmetric in i and j so both
+            // copies of the bond evolve identically.
+            let w = match limit {
+                // s > s0 ⇔ |y|²/|ξ|² > (1 + s0)²: no square root or division on the path
+                Some(lim) => {
+                    let y = [x[0] + e[0], x[1] + e[1], x[2] + e[2]];
+                    let q = y[0] * y[0] + y[1] * y[1] + y[2] * y[2];
+                    if q * il * il > lim { 0.0 } else { *om }
+                }
+                None => {
+                    let input = BondInput {
+                        stretch: super::bond::stretch_over_len(&x, &e, il).0,
+                        von_mises: 0.5 * (pi.vm + pj.vm),
+                        eq_plastic_strain: 0.5 * (pi.eqp + pj.eqp),
+                    };
+                    damage.update(*om, &input)
+                }
+            };
+            *om = w;
+            if w == 0.0 {
+                continue;
+            }
+            let w = w * vol[j];
+            let ks = (pi.kappa + pj.kappa) * inv_h;
+            for c in 0..3 {
+                // eq. (183) with (186): T_i⟨ξ⟩ − T_j⟨−ξ⟩
+                let t = (pi.ahat[c][0] + pj.ahat[c][0]) * x[0]
+                    + (pi.ahat[c][1] + pj.ahat[c][1]) * x[1]
+                    + (pi.ahat[c][2] + pj.ahat[c][2]) * x[2];
+                acc[c] += w * (t + ks * e[c]);
+            }
+        }
+        *fi = acc;
+    }
+}
+
+mechanics::simd::multiversion! {
+    fn force_block<D: DamageModel>(
+        lo: usize,
+        f: &mut [[f64; 3]],
+        intact: &mut [f64],
+        offsets: &[usize],
+        nbr: &[u32],
+        inv_len: &[f64],
+        x0: &[[f64; 3]],
+        disp: &[[f64; 3]],
+        vol: &[f64],
+        point: &[BondSide],
+        damage: &D,
+        inv_h: f64,
+    ) = force_block_body;
+}
+
 impl<D: DamageModel> PdModel for Correspondence<D> {
     fn name(&self) -> &'static str {
         "pd-correspondence"
@@ -386,48 +521,12 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
         let point = &self.side;
         let damage = &self.damage;
         let inv_h = 1.0 / self.horizon;
-        let (offsets, nbr, xi, inv_len) = (&bonds.offsets, &bonds.nbr, &bonds.xi, &bonds.inv_len);
-        par_rows(offsets, f, &mut bonds.intact, &|i, fi, row| {
-            let pi = &point[i];
-            let up = k.disp[i];
-            let mut acc = [0.0; 3];
-            let r = offsets[i]..offsets[i + 1];
-            for (((om, &j), x), &il) in row
-                .iter_mut()
-                .zip(&nbr[r.clone()])
-                .zip(&xi[r.clone()])
-                .zip(&inv_len[r])
-            {
-                if *om == 0.0 {
-                    continue;
-                }
-                let j = j as usize;
-                let pj = &point[j];
-                let q = k.disp[j];
-                let e = [q[0] - up[0], q[1] - up[1], q[2] - up[2]];
-                // seed 000 App. C: bond-associated quantities, symmetric in i and j so both
-                // copies of the bond evolve identically.
-                let input = BondInput {
-                    stretch: super::bond::stretch_over_len(x, &e, il).0,
-                    von_mises: 0.5 * (pi.vm + pj.vm),
-                    eq_plastic_strain: 0.5 * (pi.eqp + pj.eqp),
-                };
-                let w = damage.update(*om, &input);
-                *om = w;
-                if w == 0.0 {
-                    continue;
-                }
-                let w = w * k.vol[j];
-                let ks = (pi.kappa + pj.kappa) * inv_h;
-                for c in 0..3 {
-                    // eq. (183) with (186): T_i⟨ξ⟩ − T_j⟨−ξ⟩
-                    let t = (pi.ahat[c][0] + pj.ahat[c][0]) * x[0]
-                        + (pi.ahat[c][1] + pj.ahat[c][1]) * x[1]
-                        + (pi.ahat[c][2] + pj.ahat[c][2]) * x[2];
-                    acc[c] += w * (t + ks * e[c]);
-                }
-            }
-            *fi = acc;
+        let (offsets, nbr, inv_len) = (&bonds.offsets, &bonds.nbr, &bonds.inv_len);
+        let simd = self.simd;
+        par_row_blocks(offsets, f, &mut bonds.intact, &|lo, fb, ib| {
+            force_block::<D>(
+                simd, lo, fb, ib, offsets, nbr, inv_len, k.x0, k.disp, k.vol, point, damage, inv_h,
+            );
         });
     }
 
@@ -467,6 +566,10 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
         Ok(())
     }
 
+    fn set_simd(&mut self, simd: Simd) {
+        self.simd = simd;
+    }
+
     fn stiffness_bound(&self, k: &Kinematics, bonds: &Bonds, i: usize) -> f64 {
         // (K + 4G/3) Δx-scaled: modulus × V_i / l_min²
         let m = &self.material;
@@ -479,5 +582,218 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
         } else {
             0.0
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pd::geometry::cube_lattice;
+    use mechanics::damage::{BrittleVonMises, CriticalStretch};
+
+    /// The force loop as it was before the kernels were multiversioned (ξ streamed from
+    /// `Bonds::xi`, the stretch formed for every damage law), kept as their bitwise reference.
+    fn force_scalar<D: DamageModel>(
+        m: &Correspondence<D>,
+        k: &Kinematics,
+        bonds: &Bonds,
+        intact: &mut [f64],
+    ) -> Vec<[f64; 3]> {
+        let inv_h = 1.0 / m.horizon;
+        let point = &m.side;
+        (0..bonds.particles())
+            .map(|i| {
+                let pi = &point[i];
+                let up = k.disp[i];
+                let mut acc = [0.0; 3];
+                for b in bonds.offsets[i]..bonds.offsets[i + 1] {
+                    let om = &mut intact[b];
+                    if *om == 0.0 {
+                        continue;
+                    }
+                    let (j, x, il) = (bonds.nbr[b] as usize, &bonds.xi[b], bonds.inv_len[b]);
+                    let pj = &point[j];
+                    let q = k.disp[j];
+                    let e = [q[0] - up[0], q[1] - up[1], q[2] - up[2]];
+                    let input = BondInput {
+                        stretch: crate::pd::bond::stretch_over_len(x, &e, il).0,
+                        von_mises: 0.5 * (pi.vm + pj.vm),
+                        eq_plastic_strain: 0.5 * (pi.eqp + pj.eqp),
+                    };
+                    let w = m.damage.update(*om, &input);
+                    *om = w;
+                    if w == 0.0 {
+                        continue;
+                    }
+                    let w = w * k.vol[j];
+                    let ks = (pi.kappa + pj.kappa) * inv_h;
+                    for c in 0..3 {
+                        let t = (pi.ahat[c][0] + pj.ahat[c][0]) * x[0]
+                            + (pi.ahat[c][1] + pj.ahat[c][1]) * x[1]
+                            + (pi.ahat[c][2] + pj.ahat[c][2]) * x[2];
+                        acc[c] += w * (t + ks * e[c]);
+                    }
+                }
+                acc
+            })
+            .collect()
+    }
+
+    /// X, u, v, V and the bonds of the test body.
+    type State = (Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<f64>, Bonds);
+
+    /// A deformed, moving block far from the origin with long rows (250 members); some bonds
+    /// broken beforehand.
+    fn state() -> State {
+        let dx = 1e-3;
+        let x0: Vec<[f64; 3]> = cube_lattice(10, dx)
+            .into_iter()
+            .map(|p| [p[0] - 30.0, p[1] + 70.0, p[2]])
+            .collect();
+        let mut bonds = Bonds::build(&x0, 4.02 * dx);
+        assert!((0..bonds.particles()).any(|i| bonds.offsets[i + 1] - bonds.offsets[i] > 200));
+        for b in (0..bonds.len()).step_by(23) {
+            bonds.intact[b] = 0.0;
+        }
+        let f = |i: usize, a: f64, s: f64| s * (i as f64 * a).sin();
+        let disp = (0..x0.len())
+            .map(|i| [f(i, 0.37, 2e-4), f(i, 0.11, -3e-4), f(i, 0.71, 5e-4)])
+            .collect();
+        let vel = (0..x0.len())
+            .map(|i| [f(i, 0.53, 3.0), f(i, 0.29, 1.0), f(i, 0.97, -2.0)])
+            .collect();
+        let vol = vec![dx * dx * dx; x0.len()];
+        (x0, disp, vel, vol, bonds)
+    }
+
+    fn check<D: DamageModel + Clone>(damage: D, min_breaks: usize) {
+        let (x0, disp, vel, vol, bonds) = state();
+        let k = Kinematics {
+            x0: &x0,
+            pos: &x0,
+            disp: &disp,
+            vel: &vel,
+            vol: &vol,
+        };
+        let mat = J2Material {
+            young: 200e9,
+            poisson: 0.3,
+            yield_stress: 300e6,
+            iso_hardening: 1e9,
+            kin_hardening: 5e8,
+        };
+        let mut m = Correspondence::new(Dim::Three, mat, 0.5, 4.02e-3, 1.0, damage, &k, &bonds);
+        m.pass1(&k, &bonds, 1e-6);
+        for i in 0..bonds.particles() {
+            let r = bonds.offsets[i]..bonds.offsets[i + 1];
+            let (mut nn, mut nd, mut w0) = ([[0.0; 3]; 3], [[0.0; 3]; 3], 0.0);
+            for b in r.clone() {
+                if bonds.intact[b] == 0.0 {
+                    continue;
+                }
+                let (j, x) = (bonds.nbr[b] as usize, bonds.xi[b]);
+                let w = bonds.intact[b] * vol[j];
+                w0 += w;
+                for a in 0..3 {
+                    for c in 0..3 {
+                        nn[a][c] += w * (disp[j][a] - disp[i][a]) * x[c];
+                    }
+                }
+            }
+            for b in r.clone() {
+                if bonds.intact[b] == 0.0 {
+                    continue;
+                }
+                let (j, x) = (bonds.nbr[b] as usize, bonds.xi[b]);
+                let w = bonds.intact[b] * vol[j];
+                for a in 0..3 {
+                    for c in 0..3 {
+                        nd[a][c] += w * (vel[j][a] - vel[i][a]) * x[c];
+                    }
+                }
+            }
+            for simd in Simd::available() {
+                let s = family_sums(
+                    simd,
+                    &bonds.nbr[r.clone()],
+                    &bonds.intact[r.clone()],
+                    &x0,
+                    &disp,
+                    &vel,
+                    &vol,
+                    (x0[i], disp[i], vel[i]),
+                );
+                let bits = |m: &M3| m.map(|r| r.map(f64::to_bits));
+                assert_eq!(bits(&s.nn), bits(&nn), "{simd:?}: N at {i}");
+                assert_eq!(bits(&s.nd), bits(&nd), "{simd:?}: Ṅ at {i}");
+                assert_eq!(s.w0.to_bits(), w0.to_bits(), "{simd:?}: Σ ω V at {i}");
+            }
+        }
+        let mut reference = bonds.intact.clone();
+        let fref = force_scalar(&m, &k, &bonds, &mut reference);
+        let breaks = reference
+            .iter()
+            .zip(&bonds.intact)
+            .filter(|(a, b)| a != b)
+            .count();
+        assert!(breaks >= min_breaks, "{breaks} bonds broke");
+        assert!(fref.iter().any(|f| f[0] != 0.0));
+        for simd in Simd::available() {
+            let mut intact = bonds.intact.clone();
+            let mut fs = vec![[0.0; 3]; bonds.particles()];
+            force_block::<D>(
+                simd,
+                0,
+                &mut fs,
+                &mut intact,
+                &bonds.offsets,
+                &bonds.nbr,
+                &bonds.inv_len,
+                &x0,
+                &disp,
+                &vol,
+                &m.side,
+                &m.damage,
+                1.0 / m.horizon,
+            );
+            for (i, (f, r)) in fs.iter().zip(&fref).enumerate() {
+                for d in 0..3 {
+                    assert_eq!(
+                        f[d].to_bits(),
+                        r[d].to_bits(),
+                        "{simd:?}: particle {i}, component {d}: {} vs {}",
+                        f[d],
+                        r[d]
+                    );
+                }
+            }
+            assert!(
+                intact
+                    .iter()
+                    .zip(&reference)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "{simd:?}: bond states differ"
+            );
+        }
+    }
+
+    /// Pass 1's family sums and the force kernel on every instruction set this CPU has,
+    /// against the reference loops bit for bit, with bonds breaking by stretch (the squared
+    /// length test) and by von Mises stress, and without damage.
+    #[test]
+    fn kernels_match_the_reference_loops_bitwise_on_every_instruction_set() {
+        check(
+            CriticalStretch {
+                critical_stretch: 0.02,
+            },
+            100,
+        );
+        check(
+            BrittleVonMises {
+                critical_stress: 2e8,
+            },
+            100,
+        );
+        check(mechanics::damage::NoDamage, 0);
     }
 }

@@ -97,7 +97,29 @@ where
     B: Send,
     F: Fn(usize, &mut P, &mut [B]) + Sync,
 {
-    fn rec<P: Send, B: Send, F: Fn(usize, &mut P, &mut [B]) + Sync>(
+    par_row_blocks(offsets, per_particle, per_bond, &|lo, pp, pb| {
+        let mut rest = pb;
+        for (k, p) in pp.iter_mut().enumerate() {
+            let i = lo + k;
+            let len = offsets[i + 1] - offsets[i];
+            let (row, tail) = std::mem::take(&mut rest).split_at_mut(len);
+            rest = tail;
+            f(i, p, row);
+        }
+    });
+}
+
+/// Runs `f(lo, &mut per_particle[lo..hi], &mut per_bond[offsets[lo]..offsets[hi]])` on
+/// contiguous blocks of at most [`GRAIN`] particles, in parallel: a kernel that keeps scratch
+/// per block (set up once, not per row) sees whole blocks. The blocks depend only on the
+/// particle count, so results are bit-identical for any thread count. No allocation.
+pub fn par_row_blocks<P, B, F>(offsets: &[usize], per_particle: &mut [P], per_bond: &mut [B], f: &F)
+where
+    P: Send,
+    B: Send,
+    F: Fn(usize, &mut [P], &mut [B]) + Sync,
+{
+    fn rec<P: Send, B: Send, F: Fn(usize, &mut [P], &mut [B]) + Sync>(
         lo: usize,
         offsets: &[usize],
         pp: &mut [P],
@@ -106,16 +128,7 @@ where
     ) {
         let n = pp.len();
         if n <= GRAIN {
-            let base = offsets[lo];
-            let mut rest = pb;
-            for (k, p) in pp.iter_mut().enumerate() {
-                let i = lo + k;
-                let len = offsets[i + 1] - offsets[i];
-                let (row, tail) = rest.split_at_mut(len);
-                rest = tail;
-                let _ = base;
-                f(i, p, row);
-            }
+            f(lo, pp, pb);
             return;
         }
         let mid = n / 2;

@@ -148,7 +148,8 @@ fn kick_only(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgro
 }
 "#;
 
-/// The `pd-bond` force loop (bond.rs `row_force`) over compressed rows, one thread per particle.
+/// The `pd-bond` force loop (bond.rs `row_force_body`) over compressed rows, one thread per
+/// particle: the same operations, bonds added in the same order.
 const SHADER: &str = r#"
 struct P { n: u32, nb: u32, pad0: u32, pad1: u32, dt: real, half_dt: real, rho: real, bf: real }
 @group(0) @binding(0) var<uniform> pp: P;
@@ -171,7 +172,7 @@ fn step_dt() -> real { return pp.dt; }
 fn half_dt() -> real { return pp.half_dt; }
 fn density() -> real { return pp.rho; }
 
-// bond.rs row_force(): f_i = Σ_j c_ij s/|y| y, breaking bonds with |y|²/|ξ|² > (1 + s0)² first
+// bond.rs row_force_body(): f_i = Σ_j c_ij s/|y| y, breaking bonds with |y|²/|ξ|² > (1 + s0)² first
 // (pp.bf = (1 + s0)², negative without damage); s = η·(2ξ + η) / (|ξ|(|y| + |ξ|)) from
 // η = u_j − u_i, and s/|y| = t/(|y|² il + |y|) with t = η·(2ξ + η) il²
 @compute @workgroup_size(64)

@@ -78,6 +78,12 @@ pub trait PdModel: Send + Sync {
     /// Restores what [`PdModel::save_state`] wrote; caches are rebuilt on the next step.
     fn load_state(&mut self, r: &mut super::checkpoint::Reader) -> Result<(), String>;
 
+    /// Caps the instruction set of the model's bond kernels (benchmarks compare the builds;
+    /// every choice gives the same bits). Default: the model has no multiversioned kernel.
+    fn set_simd(&mut self, simd: mechanics::simd::Simd) {
+        let _ = simd;
+    }
+
     /// A bound on the stiffness (N/m) a particle of volume `v` presents to a driver.
     fn stiffness_bound(&self, k: &Kinematics, bonds: &Bonds, i: usize) -> f64;
 }
