@@ -726,16 +726,21 @@ fn pd(cx: &mut Ctx, kernel: &'static str, n: usize) -> anyhow::Result<Case> {
     let dt = 0.5 * b.stable_dt();
     let mut gpu: Option<StepFn> = None;
     if let (Some(ctx), Some(model)) = (cx.gpu.clone(), bond) {
-        let mut g = solid_node::pd::gpu::GpuBondBody::new(ctx.clone(), &b, &model, Some(0.01))
-            .map_err(|e| anyhow!("GPU pd-bond: {e}"))?;
-        gpu = Some(Box::new(move |k| {
-            g.steps(k, dt).map_err(|e| anyhow!("{e}"))?;
-            ctx.device
-                .poll(wgpu::PollType::wait_indefinitely())
-                .map_err(|e| anyhow!("waiting for the device: {e}"))?;
-            ctx.take_uncaptured("pd-bond steps")
-                .map_err(|e| anyhow!("{e}"))
-        }));
+        // An adapter limit (e.g. the largest storage binding) skips the GPU row of this size
+        // with the reason; the CPU rows are still measured.
+        match solid_node::pd::gpu::GpuBondBody::new(ctx.clone(), &b, &model, Some(0.01)) {
+            Ok(mut g) => {
+                gpu = Some(Box::new(move |k| {
+                    g.steps(k, dt).map_err(|e| anyhow!("{e}"))?;
+                    ctx.device
+                        .poll(wgpu::PollType::wait_indefinitely())
+                        .map_err(|e| anyhow!("waiting for the device: {e}"))?;
+                    ctx.take_uncaptured("pd-bond steps")
+                        .map_err(|e| anyhow!("{e}"))
+                }));
+            }
+            Err(e) => skip(cx, &format!("{kernel} at {n}³"), &e.to_string()),
+        }
     }
     Ok(Case {
         p,
