@@ -813,8 +813,10 @@ impl Model {
         }
         e
     }
+    /// Internal energy: the stress work stored in the particles plus the elastic energy of
+    /// the bearing contact's penalty springs (½ k (d0 − d)² per pair in contact).
     pub fn internal_energy(&self) -> f64 {
-        self.eint.iter().sum()
+        self.eint.iter().sum::<f64>() + self.contact_energy
     }
     /// Linear momentum: `Σ m̂_J v̂_J` with the consistent pair (the conjugate momentum,
     /// module doc), `Σ m_I v_I` otherwise (the two agree for `Shepard`).

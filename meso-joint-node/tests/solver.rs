@@ -423,17 +423,21 @@ fn a_bearing_bolt_is_not_bonded_and_pushes_back_by_contact() {
     let h = 0.5e-3;
     let axis = m.rigid[0].com;
     let mut moved = 0;
-    for i in 0..m.len() {
+    // plate particles beside the shank on its +x side: their unit direction from the axis
+    let beside = |m: &meso_joint_node::model::Model, i: usize| -> Option<[f64; 2]> {
         let r = [m.x[i][0] - axis[0], m.x[i][1] - axis[1]];
         let d = (r[0] * r[0] + r[1] * r[1]).sqrt();
-        if m.kind[i] != meso_joint_node::model::Kind::Rigid
+        (m.kind[i] != meso_joint_node::model::Kind::Rigid
             && r[0] > 0.0
             && d < 1e-3 + 1.5 * h
             && m.x[i][2] > 0.0
-            && m.x[i][2] < 2e-3
-        {
-            m.x[i][0] -= 0.01 * h * r[0] / d;
-            m.x[i][1] -= 0.01 * h * r[1] / d;
+            && m.x[i][2] < 2e-3)
+            .then_some([r[0] / d, r[1] / d])
+    };
+    for i in 0..m.len() {
+        if let Some(n) = beside(m, i) {
+            m.x[i][0] -= 0.01 * h * n[0];
+            m.x[i][1] -= 0.01 * h * n[1];
             moved += 1;
         }
     }
@@ -465,6 +469,41 @@ fn a_bearing_bolt_is_not_bonded_and_pushes_back_by_contact() {
     for a in 0..3 {
         assert!(total[a].abs() <= 1e-12 * gross, "{total:?}");
     }
+    // The contact's energy is in the internal energy and is the potential of its forces:
+    // pushing the same particles a further 0.1 % of a spacing changes it by the work of the
+    // contact forces, −½ Σ (f_before + f_after)·Δx (trapezoid rule).
+    let e1 = m.internal_energy();
+    assert!(
+        m.contact_energy > 0.0 && e1 >= m.contact_energy,
+        "{e1} vs {}",
+        m.contact_energy
+    );
+    let f1 = m.f.clone();
+    let mut dx = vec![[0.0f64; 3]; m.len()];
+    for i in 0..m.len() {
+        if let Some(n) = beside(m, i) {
+            dx[i] = [-0.001 * h * n[0], -0.001 * h * n[1], 0.0];
+            m.x[i][0] += dx[i][0];
+            m.x[i][1] += dx[i][1];
+        }
+    }
+    m.initial_forces();
+    let e2 = m.internal_energy();
+    let work: f64 = (0..m.len())
+        .map(|i| {
+            (0..3)
+                .map(|a| 0.5 * (f1[i][a] + m.f[i][a]) * dx[i][a])
+                .sum::<f64>()
+        })
+        .sum();
+    println!("contact energy {e1:.6e} -> {e2:.6e} J, work of the contact forces {work:.6e} J");
+    assert!(e2 > e1, "pushing further must store energy");
+    assert!(
+        ((e2 - e1) + work).abs() <= 1e-3 * (e2 - e1),
+        "energy change {} vs −work {}",
+        e2 - e1,
+        -work
+    );
     let bad: toml::Table = toml::from_str(&format!("{text}\ncontact_stiffness = 1e8")).unwrap();
     assert_eq!(key_of(factory("mc-spg", &bad)), "contact_stiffness");
     let bad: toml::Table = toml::from_str(&format!(
