@@ -172,7 +172,7 @@ fn step_dt() -> real { return pp.dt; }
 fn half_dt() -> real { return pp.half_dt; }
 fn density() -> real { return pp.rho; }
 
-// bond.rs row_force_body(): f_i = Σ_j c_ij s/|y| y, breaking bonds with |y|²/|ξ|² > (1 + s0)² first
+// bond.rs row_force_body(): f_i = Σ_j c_ij s/|y| y (summed in bond.rs's lane order), breaking bonds with |y|²/|ξ|² > (1 + s0)² first
 // (pp.bf = (1 + s0)², negative without damage); s = η·(2ξ + η) / (|ξ|(|y| + |ξ|)) from
 // η = u_j − u_i, and s/|y| = t/(|y|² il + |y|) with t = η·(2ξ + η) il²
 @compute @workgroup_size(64)
@@ -184,12 +184,15 @@ fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
     let uy = pv[20u * n + 3u * i + 1u];
     let uz = pv[20u * n + 3u * i + 2u];
     let nb = pp.nb;
-    var fx = real(0.0);
-    var fy = real(0.0);
-    var fz = real(0.0);
+    // eight lane sums (lane = bond index in the row mod 8), then bond.rs lane_tree()
+    var ax: array<real, 8>;
+    var ay: array<real, 8>;
+    var az: array<real, 8>;
+    for (var l = 0u; l < 8u; l++) { ax[l] = real(0.0); ay[l] = real(0.0); az[l] = real(0.0); }
     let b0 = iu[n + i];
     let b1 = iu[n + i + 1u];
     for (var b = b0; b < b1; b++) {
+        let l = (b - b0) & 7u;
         let cb = bd[pp.nb + b];
         if cb == real(0.0) { continue; }
         let j = iu[2u * n + 1u + b];
@@ -212,13 +215,13 @@ fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
         let ly = sqrt(q);
         let t = num * il * il;
         let m = cb * t / (q * il + ly);
-        fx += m * yx;
-        fy += m * yy;
-        fz += m * yz;
+        ax[l] += m * yx;
+        ay[l] += m * yy;
+        az[l] += m * yz;
     }
-    pv[6u * n + 3u * i] = fx;
-    pv[6u * n + 3u * i + 1u] = fy;
-    pv[6u * n + 3u * i + 2u] = fz;
+    pv[6u * n + 3u * i] = ((ax[0] + ax[4]) + (ax[2] + ax[6])) + ((ax[1] + ax[5]) + (ax[3] + ax[7]));
+    pv[6u * n + 3u * i + 1u] = ((ay[0] + ay[4]) + (ay[2] + ay[6])) + ((ay[1] + ay[5]) + (ay[3] + ay[7]));
+    pv[6u * n + 3u * i + 2u] = ((az[0] + az[4]) + (az[2] + az[6])) + ((az[1] + az[5]) + (az[3] + az[7]));
 }
 "#;
 
