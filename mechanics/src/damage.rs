@@ -40,7 +40,8 @@ pub trait DamageModel: Send + Sync + std::fmt::Debug {
     /// `Some(s0)` when the law is exactly "broken for good once the stretch exceeds s0"
     /// (and reads nothing else): a bond kernel may then test |y|²/|ξ|² > (1 + s0)² instead
     /// of forming the stretch, saving a square root and a division per bond (the same test
-    /// pd-bond uses). `None` (the default): call [`DamageModel::update`].
+    /// pd-bond uses). `Some(∞)` for a law that never breaks a bond. `None` (the default):
+    /// call [`DamageModel::update`].
     #[inline]
     fn stretch_limit(&self) -> Option<f64> {
         None
@@ -60,6 +61,10 @@ pub struct NoDamage;
 impl DamageModel for NoDamage {
     fn intact_fraction(&self, _: &BondInput) -> f64 {
         1.0
+    }
+    #[inline]
+    fn stretch_limit(&self) -> Option<f64> {
+        Some(f64::INFINITY)
     }
     fn validate(&self) -> Result<(), (String, String)> {
         Ok(())

@@ -3,7 +3,7 @@
 //! (122-member interior families, 3,244,494 bonds), 100 full time steps (forces, damage
 //! check, velocity-Verlet integration); pd-rk-ba (order 2) on the same block for reference.
 //! Select models by naming them after `--`, and cap the instruction set of the bond kernels
-//! with `base`, `avx2` or `avx512` (every build gives the same bits). Run with RAYON_NUM_THREADS=1 and 2:
+//! with `base`, `avx2` or `avx512` (the same bits, except correspondence's AVX-512 lane sums). Run with RAYON_NUM_THREADS=1 and 2:
 //! `RAYON_NUM_THREADS=1 cargo bench -p solid-node --bench pd_throughput`.
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
 // `!(x > 0.0)` is deliberate: it also rejects NaN.
@@ -35,7 +35,7 @@ fn main() {
     let threads = rayon::current_num_threads();
     let args: Vec<String> = std::env::args().skip(1).collect();
     let which: Vec<&String> = args.iter().filter(|a| a.starts_with("pd-")).collect();
-    // `base`, `avx2` or `avx512` caps the instruction set of the bond kernels (same bits)
+    // `base`, `avx2` or `avx512` caps the instruction set of the bond kernels
     let simd = args.iter().find_map(|a| match a.as_str() {
         "base" => Some(Simd::Base),
         "avx2" => Some(Simd::Avx2),

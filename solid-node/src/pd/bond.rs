@@ -37,7 +37,7 @@ pub struct BondModel {
     pub simd: Simd,
     /// X and u per particle in one cache line, packed each step for the AVX-512 kernel.
     #[cfg(target_arch = "x86_64")]
-    records: Vec<avx512::Record>,
+    records: Vec<crate::pd::avx512::Record>,
 }
 
 /// Micromodulus c for the dimension (PHYSICS.md "Solid node").
@@ -197,7 +197,7 @@ pub fn stretch_over_len(xi: &[f64; 3], eta: &[f64; 3], il: f64) -> (f64, f64) {
 }
 
 /// Lanes of the row sum.
-const LANES: usize = 8;
+pub(crate) const LANES: usize = 8;
 
 /// The summation order of a row's bond terms t₀ … t₍ₙ₋₁₎, shared by every path (scalar,
 /// chunked, explicit AVX-512, WGSL): eight lane sums S_l = ((0 + t_l) + t₍l+8₎) + …, then
@@ -206,13 +206,13 @@ const LANES: usize = 8;
 /// bond, and measured 1.2× slower in the AVX-512 kernel); a skipped bond adds nothing, which
 /// is the same as adding −0.0.
 #[inline(always)]
-fn lane_tree(s: &[f64; LANES]) -> f64 {
+pub(crate) fn lane_tree(s: &[f64; LANES]) -> f64 {
     ((s[0] + s[4]) + (s[2] + s[6])) + ((s[1] + s[5]) + (s[3] + s[7]))
 }
 
 /// The row sum of [`lane_tree`] over a row's terms.
 #[cfg(test)]
-fn lane_sum(terms: &[f64]) -> f64 {
+pub(crate) fn lane_sum(terms: &[f64]) -> f64 {
     let mut s = [0.0; LANES];
     for (k, t) in terms.iter().enumerate() {
         s[k % LANES] += t;
@@ -514,6 +514,37 @@ impl PdModel for BondModel {
     }
 }
 
+/// Forces and bond states equal the reference's bit for bit (the kernels' tests).
+#[cfg(test)]
+pub(crate) fn assert_same_bits(
+    path: &str,
+    fs: &[[f64; 3]],
+    bond_state: &[f64],
+    fref: &[[f64; 3]],
+    state_ref: &[f64],
+) {
+    assert_eq!(fs.len(), fref.len());
+    for (i, (f, r)) in fs.iter().zip(fref).enumerate() {
+        for d in 0..3 {
+            assert_eq!(
+                f[d].to_bits(),
+                r[d].to_bits(),
+                "{path}: particle {i}, component {d}: {} vs {}",
+                f[d],
+                r[d]
+            );
+        }
+    }
+    assert!(
+        bond_state.len() == state_ref.len()
+            && bond_state
+                .iter()
+                .zip(state_ref)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+        "{path}: bond states differ"
+    );
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -574,25 +605,8 @@ mod tests {
             .count();
         assert!(newly > 100, "the test should break bonds: {newly}");
         assert!(fref.iter().any(|f| f[0] != 0.0));
-        // forces and bond states equal the reference's bit for bit
         let same = |path: &str, fs: &[[f64; 3]], coef: &[f64]| {
-            for (i, f) in fs.iter().enumerate() {
-                for d in 0..3 {
-                    assert_eq!(
-                        f[d].to_bits(),
-                        fref[i][d].to_bits(),
-                        "{path}: particle {i}, component {d}: {} vs {}",
-                        f[d],
-                        fref[i][d]
-                    );
-                }
-            }
-            assert!(
-                coef.iter()
-                    .zip(&reference)
-                    .all(|(a, b)| a.to_bits() == b.to_bits()),
-                "{path}: bond states differ"
-            );
+            assert_same_bits(path, fs, coef, &fref, &reference)
         };
         for simd in Simd::available() {
             let mut coef = coef0.clone();

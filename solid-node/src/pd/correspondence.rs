@@ -80,6 +80,9 @@ pub fn mv(a: &M3, v: &[f64; 3]) -> [f64; 3] {
     std::array::from_fn(|i| a[i][0] * v[0] + a[i][1] * v[1] + a[i][2] * v[2])
 }
 
+#[cfg(target_arch = "x86_64")]
+mod avx512;
+
 const IDENTITY: M3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
 /// Per-particle kinematic results of pass 1 (not gathered by neighbours).
@@ -125,9 +128,13 @@ pub struct Correspondence<D: DamageModel> {
     pub side: Vec<BondSide>,
     /// det K of the intact family (to detect a family too damaged for a gradient).
     k0det: Vec<f64>,
-    /// Instruction set of the bond kernels (the widest the CPU has; every choice gives the
-    /// same bits).
+    /// Instruction set of the bond kernels (the widest the CPU has). SSE2 and AVX2 give the
+    /// same bits; AVX-512 runs the explicit kernels, which sum in eight lanes instead of row
+    /// order and agree with the others to rounding (see `avx512.rs`).
     pub simd: Simd,
+    /// Per-particle records of the explicit AVX-512 kernels, packed each step.
+    #[cfg(target_arch = "x86_64")]
+    packed: avx512::Packed,
 }
 
 impl<D: DamageModel> Correspondence<D> {
@@ -178,6 +185,8 @@ impl<D: DamageModel> Correspondence<D> {
                 n
             ],
             side: vec![BondSide::default(); n],
+            #[cfg(target_arch = "x86_64")]
+            packed: avx512::Packed::default(),
             k0det: vec![0.0; n],
             simd: Simd::detect(),
         };
@@ -196,6 +205,13 @@ impl<D: DamageModel> Correspondence<D> {
         let (dim, k0det) = (self.dim, &self.k0det);
         let (offsets, nbr, intact) = (&bonds.offsets, &bonds.nbr, &bonds.intact);
         let simd = self.simd;
+        let explicit = self.explicit_avx512();
+        #[cfg(target_arch = "x86_64")]
+        if explicit {
+            self.packed.pack_particles(k);
+        }
+        #[cfg(target_arch = "x86_64")]
+        let packed = &self.packed;
         self.state
             .par_iter_mut()
             .zip(self.kin.par_iter_mut())
@@ -208,16 +224,19 @@ impl<D: DamageModel> Correspondence<D> {
                 // nn = Σ ω V_j η⊗ξ with η = u_j − u_i, so H = nn K⁻¹ is the displacement
                 // gradient and F = I + H (eq. 181 with y = ξ + η, Σ ω V ξ⊗ξ K⁻¹ = I), free of
                 // the cancellation of forming y from absolute positions.
-                let FamilySums { mut nn, nd, w0 } = family_sums(
-                    simd,
-                    &nbr[r.clone()],
-                    &intact[r],
-                    k.x0,
-                    k.disp,
-                    k.vel,
-                    k.vol,
-                    (xp, ui, vi),
-                );
+                let (rn, ri) = (&nbr[r.clone()], &intact[r]);
+                let multiversioned =
+                    || family_sums(simd, rn, ri, k.x0, k.disp, k.vel, k.vol, (xp, ui, vi));
+                #[cfg(target_arch = "x86_64")]
+                let sums = if explicit {
+                    // SAFETY: `explicit` holds only on a CPU with AVX-512 F/DQ/VL.
+                    unsafe { avx512::family_sums(i, packed, rn, ri) }
+                } else {
+                    multiversioned()
+                };
+                #[cfg(not(target_arch = "x86_64"))]
+                let sums = multiversioned();
+                let FamilySums { mut nn, nd, w0 } = sums;
                 if w0 != pk.wsum {
                     // The family changed (or first call): rebuild K⁻¹ (eq. 182).
                     pk.wsum = w0;
@@ -299,6 +318,23 @@ impl<D: DamageModel> Correspondence<D> {
                     eqp: st.eq_plastic_strain,
                 };
             });
+        #[cfg(target_arch = "x86_64")]
+        if explicit {
+            self.packed.pack_sides(&self.side);
+        }
+    }
+
+    /// True when the bond kernels run as explicit AVX-512 (the instruction set allows it and
+    /// the CPU has it).
+    fn explicit_avx512(&self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        {
+            self.simd == Simd::Avx512 && mechanics::simd::has_avx512()
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            false
+        }
     }
 
     /// Runs only the stress update (pass 1), e.g. for prescribed-motion tests.
@@ -523,6 +559,19 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
         let inv_h = 1.0 / self.horizon;
         let (offsets, nbr, inv_len) = (&bonds.offsets, &bonds.nbr, &bonds.inv_len);
         let simd = self.simd;
+        #[cfg(target_arch = "x86_64")]
+        if self.explicit_avx512()
+            && let Some(s0) = damage.stretch_limit()
+        {
+            let (packed, lim) = (&self.packed, (1.0 + s0) * (1.0 + s0));
+            par_row_blocks(offsets, f, &mut bonds.intact, &|lo, fb, ib| {
+                // SAFETY: `explicit_avx512` holds only on a CPU with AVX-512 F/DQ/VL.
+                unsafe {
+                    avx512::force_block(lo, fb, ib, offsets, nbr, inv_len, packed, lim, inv_h)
+                };
+            });
+            return;
+        }
         par_row_blocks(offsets, f, &mut bonds.intact, &|lo, fb, ib| {
             force_block::<D>(
                 simd, lo, fb, ib, offsets, nbr, inv_len, k.x0, k.disp, k.vol, point, damage, inv_h,
@@ -588,16 +637,20 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::pd::bond::{LANES, assert_same_bits, lane_sum, lane_tree};
     use crate::pd::geometry::cube_lattice;
     use mechanics::damage::{BrittleVonMises, CriticalStretch};
 
     /// The force loop as it was before the kernels were multiversioned (ξ streamed from
     /// `Bonds::xi`, the stretch formed for every damage law), kept as their bitwise reference.
+    /// `lanes`: sum in the eight-lane order of the explicit AVX-512 kernels (`lane_tree`)
+    /// instead of row order.
     fn force_scalar<D: DamageModel>(
         m: &Correspondence<D>,
         k: &Kinematics,
         bonds: &Bonds,
         intact: &mut [f64],
+        lanes: bool,
     ) -> Vec<[f64; 3]> {
         let inv_h = 1.0 / m.horizon;
         let point = &m.side;
@@ -605,8 +658,10 @@ mod tests {
             .map(|i| {
                 let pi = &point[i];
                 let up = k.disp[i];
-                let mut acc = [0.0; 3];
-                for b in bonds.offsets[i]..bonds.offsets[i + 1] {
+                // lane k % 8 for bond k of the row, or one lane
+                let mut acc = [[0.0; LANES]; 3];
+                let lane = |k: usize| if lanes { k % LANES } else { 0 };
+                for (k8, b) in (bonds.offsets[i]..bonds.offsets[i + 1]).enumerate() {
                     let om = &mut intact[b];
                     if *om == 0.0 {
                         continue;
@@ -631,10 +686,10 @@ mod tests {
                         let t = (pi.ahat[c][0] + pj.ahat[c][0]) * x[0]
                             + (pi.ahat[c][1] + pj.ahat[c][1]) * x[1]
                             + (pi.ahat[c][2] + pj.ahat[c][2]) * x[2];
-                        acc[c] += w * (t + ks * e[c]);
+                        acc[c][lane(k8)] += w * (t + ks * e[c]);
                     }
                 }
-                acc
+                acc.map(|l| if lanes { lane_tree(&l) } else { l[0] })
             })
             .collect()
     }
@@ -684,6 +739,18 @@ mod tests {
         };
         let mut m = Correspondence::new(Dim::Three, mat, 0.5, 4.02e-3, 1.0, damage, &k, &bonds);
         m.pass1(&k, &bonds, 1e-6);
+        // the explicit AVX-512 kernels' records (None without AVX-512)
+        #[cfg(target_arch = "x86_64")]
+        let packed = mechanics::simd::has_avx512().then(|| {
+            let mut p = avx512::Packed::default();
+            p.pack_particles(&k);
+            p.pack_sides(&m.side);
+            p
+        });
+        #[cfg(target_arch = "x86_64")]
+        if packed.is_none() {
+            eprintln!("no AVX-512 on this CPU: the explicit AVX-512 kernels are not tested here");
+        }
         for i in 0..bonds.particles() {
             let r = bonds.offsets[i]..bonds.offsets[i + 1];
             let (mut nn, mut nd, mut w0) = ([[0.0; 3]; 3], [[0.0; 3]; 3], 0.0);
@@ -712,6 +779,46 @@ mod tests {
                     }
                 }
             }
+            // the explicit AVX-512 kernel against the same sums in the lane order of
+            // `lane_sum`
+            let (mut ln, mut ld) = ([[0.0; 3]; 3], [[0.0; 3]; 3]);
+            let terms = |f: &dyn Fn(usize, usize, &[f64; 3]) -> f64| -> f64 {
+                let t: Vec<f64> = r
+                    .clone()
+                    .map(|b| {
+                        if bonds.intact[b] == 0.0 {
+                            -0.0
+                        } else {
+                            let (j, x) = (bonds.nbr[b] as usize, &bonds.xi[b]);
+                            f(b, j, x)
+                        }
+                    })
+                    .collect();
+                lane_sum(&t)
+            };
+            let w = |b: usize, j: usize| bonds.intact[b] * vol[j];
+            for a in 0..3 {
+                for c in 0..3 {
+                    ln[a][c] = terms(&|b, j, x| w(b, j) * (disp[j][a] - disp[i][a]) * x[c]);
+                    ld[a][c] = terms(&|b, j, x| w(b, j) * (vel[j][a] - vel[i][a]) * x[c]);
+                }
+            }
+            let lw = terms(&|b, j, _| w(b, j));
+            #[cfg(target_arch = "x86_64")]
+            if let Some(p) = &packed {
+                // SAFETY: `packed` is Some only on a CPU with AVX-512 (checked above).
+                let s = unsafe {
+                    avx512::family_sums(i, p, &bonds.nbr[r.clone()], &bonds.intact[r.clone()])
+                };
+                let bits = |m: &M3| m.map(|r| r.map(f64::to_bits));
+                assert_eq!(bits(&s.nn), bits(&ln), "explicit AVX-512: N at {i}");
+                assert_eq!(bits(&s.nd), bits(&ld), "explicit AVX-512: Ṅ at {i}");
+                assert_eq!(
+                    s.w0.to_bits(),
+                    lw.to_bits(),
+                    "explicit AVX-512: Σ ω V at {i}"
+                );
+            }
             for simd in Simd::available() {
                 let s = family_sums(
                     simd,
@@ -730,7 +837,7 @@ mod tests {
             }
         }
         let mut reference = bonds.intact.clone();
-        let fref = force_scalar(&m, &k, &bonds, &mut reference);
+        let fref = force_scalar(&m, &k, &bonds, &mut reference, false);
         let breaks = reference
             .iter()
             .zip(&bonds.intact)
@@ -756,24 +863,46 @@ mod tests {
                 &m.damage,
                 1.0 / m.horizon,
             );
-            for (i, (f, r)) in fs.iter().zip(&fref).enumerate() {
-                for d in 0..3 {
-                    assert_eq!(
-                        f[d].to_bits(),
-                        r[d].to_bits(),
-                        "{simd:?}: particle {i}, component {d}: {} vs {}",
-                        f[d],
-                        r[d]
-                    );
-                }
-            }
+            assert_same_bits(&format!("{simd:?}"), &fs, &intact, &fref, &reference);
+        }
+        #[cfg(target_arch = "x86_64")]
+        if let (Some(p), Some(s0)) = (&packed, m.damage.stretch_limit()) {
+            let mut reference = bonds.intact.clone();
+            let rows = fref;
+            let fref = force_scalar(&m, &k, &bonds, &mut reference, true);
+            // the two summation orders agree to rounding: 1e-12 of the largest force
+            let scale = rows.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
+            let worst = rows
+                .iter()
+                .flatten()
+                .zip(fref.iter().flatten())
+                .fold(0.0f64, |a, (r, l)| a.max((r - l).abs()));
             assert!(
-                intact
-                    .iter()
-                    .zip(&reference)
-                    .all(|(a, b)| a.to_bits() == b.to_bits()),
-                "{simd:?}: bond states differ"
+                worst <= 1e-12 * scale,
+                "lane vs row order: {worst:e} of {scale:e}"
             );
+            let mut intact = bonds.intact.clone();
+            let mut fs = vec![[0.0; 3]; bonds.particles()];
+            let o = &bonds.offsets;
+            // blocks of 37 particles: block starts fall mid-way through the bond array
+            for lo in (0..bonds.particles()).step_by(37) {
+                let hi = (lo + 37).min(bonds.particles());
+                // SAFETY: `packed` is Some only on a CPU with AVX-512.
+                unsafe {
+                    avx512::force_block(
+                        lo,
+                        &mut fs[lo..hi],
+                        &mut intact[o[lo]..o[hi]],
+                        o,
+                        &bonds.nbr,
+                        &bonds.inv_len,
+                        p,
+                        (1.0 + s0) * (1.0 + s0),
+                        1.0 / m.horizon,
+                    )
+                };
+            }
+            assert_same_bits("explicit AVX-512", &fs, &intact, &fref, &reference);
         }
     }
 

@@ -9,6 +9,8 @@
     clippy::too_many_arguments
 )]
 
+#[cfg(target_arch = "x86_64")]
+mod avx512;
 pub mod bond;
 pub mod cases;
 pub mod checkpoint;

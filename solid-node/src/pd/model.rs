@@ -79,7 +79,8 @@ pub trait PdModel: Send + Sync {
     fn load_state(&mut self, r: &mut super::checkpoint::Reader) -> Result<(), String>;
 
     /// Caps the instruction set of the model's bond kernels (benchmarks compare the builds;
-    /// every choice gives the same bits). Default: the model has no multiversioned kernel.
+    /// every choice gives the same bits, except pd-correspondence's explicit AVX-512 kernels,
+    /// which sum in another order). Default: the model has no multiversioned kernel.
     fn set_simd(&mut self, simd: mechanics::simd::Simd) {
         let _ = simd;
     }

@@ -12,97 +12,15 @@
 // The kernel names the bond quantities as the scalar loop does (x, e, y, q, il, cb).
 #![allow(clippy::too_many_arguments, clippy::many_single_char_names)]
 
+use crate::pd::avx512::{Record, gather8, lane_mask, load_lanes, reduce, splat3};
 use std::arch::x86_64::*;
 
-/// One particle's reference position and displacement in one cache line:
-/// `[X₀, X₁, X₂, u₀, u₁, u₂, 0, 0]`.
-#[derive(Debug, Clone, Copy, Default)]
-#[repr(C, align(64))]
-pub struct Record(pub [f64; 8]);
-
-/// Packs X and u into `out` (resized to the particle count), in parallel.
+/// Packs X and u into `out` (resized to the particle count): `[X₀, X₁, X₂, u₀, u₁, u₂, 0, 0]`.
 pub fn pack(x0: &[[f64; 3]], disp: &[[f64; 3]], out: &mut Vec<Record>) {
-    use rayon::prelude::*;
-    let n = x0.len().min(disp.len());
-    out.resize(n, Record::default());
-    out.par_iter_mut()
-        .with_min_len(4096)
-        .zip(x0.par_iter().zip(disp.par_iter()))
-        .for_each(|(r, (x, u))| {
-            r.0 = [x[0], x[1], x[2], u[0], u[1], u[2], 0.0, 0.0];
-        });
-}
-
-/// Loads one record.
-#[inline]
-#[target_feature(enable = "avx512f")]
-fn load_record(r: &Record) -> __m512d {
-    // SAFETY: `r` is a reference to 8 initialised, 64-byte-aligned doubles.
-    unsafe { _mm512_load_pd(r.0.as_ptr()) }
-}
-
-/// The first `n ≤ 8` values of `v` in a vector, zeros above (those lanes are not read).
-#[inline]
-#[target_feature(enable = "avx512f")]
-fn load_lanes(v: &[f64], n: usize) -> __m512d {
-    assert!(n <= 8 && v.len() >= n);
-    if n == 8 {
-        // SAFETY: `v` has at least 8 elements (asserted).
-        unsafe { _mm512_loadu_pd(v.as_ptr()) }
-    } else {
-        // SAFETY: only the lanes set in the mask, the first n < v.len() + 1 elements, are
-        // read; masked-off lanes are neither read nor faulted on.
-        unsafe { _mm512_maskz_loadu_pd(((1u32 << n) - 1) as u8, v.as_ptr()) }
-    }
-}
-
-/// Index vector of `_mm512_permutex2var_pd` (lane k takes element `e[k]`; 8–15 = 2nd source).
-#[inline]
-#[target_feature(enable = "avx512f")]
-fn idx(e: [i64; 8]) -> __m512i {
-    _mm512_set_epi64(e[7], e[6], e[5], e[4], e[3], e[2], e[1], e[0])
-}
-
-/// Fields 0–5 of eight records, transposed: `out[f]` lane `b` = record `b` field `f`.
-#[inline]
-#[target_feature(enable = "avx512f")]
-fn transpose6(r: [__m512d; 8]) -> [__m512d; 6] {
-    // stage 1: pairs of records, even and odd fields
-    let t0 = _mm512_unpacklo_pd(r[0], r[1]);
-    let t1 = _mm512_unpackhi_pd(r[0], r[1]);
-    let t2 = _mm512_unpacklo_pd(r[2], r[3]);
-    let t3 = _mm512_unpackhi_pd(r[2], r[3]);
-    let t4 = _mm512_unpacklo_pd(r[4], r[5]);
-    let t5 = _mm512_unpackhi_pd(r[4], r[5]);
-    let t6 = _mm512_unpacklo_pd(r[6], r[7]);
-    let t7 = _mm512_unpackhi_pd(r[6], r[7]);
-    // stage 2: quads of records; s0 = [f0 of r0..r3 | f4 of r0..r3], s1 = [f2 | f6],
-    // s2 = [f1 | f5], s3 = [f3 | f7]; s4..s7 the same for r4..r7
-    let (plo, phi) = (
-        idx([0, 1, 8, 9, 4, 5, 12, 13]),
-        idx([2, 3, 10, 11, 6, 7, 14, 15]),
-    );
-    let s0 = _mm512_permutex2var_pd(t0, plo, t2);
-    let s1 = _mm512_permutex2var_pd(t0, phi, t2);
-    let s2 = _mm512_permutex2var_pd(t1, plo, t3);
-    let s3 = _mm512_permutex2var_pd(t1, phi, t3);
-    let s4 = _mm512_permutex2var_pd(t4, plo, t6);
-    let s5 = _mm512_permutex2var_pd(t4, phi, t6);
-    let s6 = _mm512_permutex2var_pd(t5, plo, t7);
-    let s7 = _mm512_permutex2var_pd(t5, phi, t7);
-    // stage 3: the low or high halves of a quad of r0..r3 and of r4..r7
-    let (qlo, qhi) = (
-        idx([0, 1, 2, 3, 8, 9, 10, 11]),
-        idx([4, 5, 6, 7, 12, 13, 14, 15]),
-    );
-    [
-        _mm512_permutex2var_pd(s0, qlo, s4),
-        _mm512_permutex2var_pd(s2, qlo, s6),
-        _mm512_permutex2var_pd(s1, qlo, s5),
-        _mm512_permutex2var_pd(s3, qlo, s7),
-        _mm512_permutex2var_pd(s0, qhi, s4),
-        _mm512_permutex2var_pd(s2, qhi, s6),
-    ]
+    crate::pd::avx512::pack(x0.len().min(disp.len()), out, |i, r| {
+        let (x, u) = (x0[i], disp[i]);
+        r.0 = [x[0], x[1], x[2], u[0], u[1], u[2], 0.0, 0.0];
+    });
 }
 
 /// The force density of particle `i` over its row (`nbr`, `inv_len`, `coef` are the row's
@@ -118,16 +36,8 @@ fn row_force(
     critical: f64,
 ) -> [f64; 3] {
     let ri = rec[i].0;
-    let (bx0, bx1, bx2) = (
-        _mm512_set1_pd(ri[0]),
-        _mm512_set1_pd(ri[1]),
-        _mm512_set1_pd(ri[2]),
-    );
-    let (bu0, bu1, bu2) = (
-        _mm512_set1_pd(ri[3]),
-        _mm512_set1_pd(ri[4]),
-        _mm512_set1_pd(ri[5]),
-    );
+    let [bx0, bx1, bx2] = splat3(ri[0], ri[1], ri[2]);
+    let [bu0, bu1, bu2] = splat3(ri[3], ri[4], ri[5]);
     let two = _mm512_set1_pd(2.0);
     let zero = _mm512_setzero_pd();
     let neg_zero = _mm512_set1_pd(-0.0);
@@ -141,17 +51,8 @@ fn row_force(
         let nb = &nbr[start..start + n];
         // lanes past the row's end load particle i itself (any valid record; not summed)
         let j = |b: usize| if b < n { nb[b] as usize } else { i };
-        let r = [
-            load_record(&rec[j(0)]),
-            load_record(&rec[j(1)]),
-            load_record(&rec[j(2)]),
-            load_record(&rec[j(3)]),
-            load_record(&rec[j(4)]),
-            load_record(&rec[j(5)]),
-            load_record(&rec[j(6)]),
-            load_record(&rec[j(7)]),
-        ];
-        let [gx0, gx1, gx2, gu0, gu1, gu2] = transpose6(r);
+        let js = [j(0), j(1), j(2), j(3), j(4), j(5), j(6), j(7)];
+        let [gx0, gx1, gx2, gu0, gu1, gu2, _, _] = gather8(rec, &js);
         let il = load_lanes(&inv_len[start..], n);
         let cb = load_lanes(&coef[start..], n);
         // the scalar loop's operations, in its order (no FMA)
@@ -181,7 +82,7 @@ fn row_force(
             _mm512_add_pd(_mm512_mul_pd(yx, yx), _mm512_mul_pd(yy, yy)),
             _mm512_mul_pd(yz, yz),
         );
-        let lanes = ((1u32 << n) - 1) as u8;
+        let lanes = lane_mask(n);
         let qil = _mm512_mul_pd(q, il);
         let broken = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(_mm512_mul_pd(qil, il), crit) & lanes;
         let ly = _mm512_sqrt_pd(q);
@@ -200,17 +101,6 @@ fn row_force(
         start += n;
     }
     [reduce(ax), reduce(ay), reduce(az)]
-}
-
-/// ((S₀ + S₄) + (S₂ + S₆)) + ((S₁ + S₅) + (S₃ + S₇)), the tree of [`super::lane_tree`].
-#[inline]
-#[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,avx")]
-fn reduce(a: __m512d) -> f64 {
-    // [S₀ + S₄, S₁ + S₅, S₂ + S₆, S₃ + S₇]
-    let h = _mm256_add_pd(_mm512_castpd512_pd256(a), _mm512_extractf64x4_pd::<1>(a));
-    // [(S₀ + S₄) + (S₂ + S₆), (S₁ + S₅) + (S₃ + S₇)]
-    let g = _mm_add_pd(_mm256_castpd256_pd128(h), _mm256_extractf128_pd::<1>(h));
-    _mm_cvtsd_f64(g) + _mm_cvtsd_f64(_mm_unpackhi_pd(g, g))
 }
 
 /// The force densities of the block of particles `lo..lo + f.len()`; `coef` holds those
