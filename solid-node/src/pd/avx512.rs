@@ -1,8 +1,8 @@
 //! Building blocks of the explicit AVX-512 bond kernels (`bond/avx512.rs`,
 //! `correspondence/avx512.rs`): per-particle data packed in cache-line records, eight
 //! neighbours' records transposed in registers (one load per record, two-source permutes),
-//! and the lane tree of the eight-lane row sums every path shares ([`super::bond`]'s
-//! `lane_tree`). Data movement only: the kernels' arithmetic is the scalar loops' own.
+//! and the tree that ends the eight-lane row sums ([`super::bond`]'s `lane_tree`). Data
+//! movement only: the kernels' arithmetic is the scalar loops' own.
 
 use std::arch::x86_64::*;
 
