@@ -15,8 +15,11 @@
 //! the force kernels form bond deformations from η = u_j − u_i against ξ.
 //!
 //! Data: particle arrays packed into one real buffer (pos | vel | force | fext | vpres | vol |
-//! window work | window internal-force impulse | disp | x0, 3 reals per vector), per-particle/per-bond integers into one u32 buffer (prescribed |
-//! offsets | nbr), per-bond reals into one (inv_len | coef | ξ).
+//! window work | window internal-force impulse | disp | x0, 3 reals per vector),
+//! per-particle/per-bond integers into one u32 buffer (prescribed | offsets | nbr), per-bond
+//! reals into one: `pd-bond` (inv_len | coef; ξ = X_j − X_i is formed from x0, bit for bit
+//! `Bonds::xi`, which keeps 7 M bonds within a 128 MiB binding), `pd-correspondence`
+//! (ξ | intact).
 
 use super::bond::BondModel;
 use super::correspondence::Correspondence;
@@ -158,7 +161,7 @@ struct P { n: u32, nb: u32, pad0: u32, pad1: u32, dt: real, half_dt: real, rho: 
 @group(0) @binding(1) var<storage, read_write> pv: array<real>;
 // prescribed 0, offsets n, nbr 2n+1
 @group(0) @binding(2) var<storage, read> iu: array<u32>;
-// inv_len 0, coef nb, xi 2nb (3 per bond)
+// inv_len 0, coef nb (ξ is formed from x0, as on the CPU)
 @group(0) @binding(3) var<storage, read_write> bd: array<real>;
 // window report: chunk sums, then the gathered particles (see `report`, `gather`)
 @group(0) @binding(4) var<storage, read_write> rg: array<real>;
@@ -183,7 +186,9 @@ fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
     let ux = pv[20u * n + 3u * i];
     let uy = pv[20u * n + 3u * i + 1u];
     let uz = pv[20u * n + 3u * i + 2u];
-    let nb = pp.nb;
+    let xx = pv[23u * n + 3u * i];
+    let xy = pv[23u * n + 3u * i + 1u];
+    let xz = pv[23u * n + 3u * i + 2u];
     // eight lane sums (lane = bond index in the row mod 8), then bond.rs lane_tree()
     var ax: array<real, 8>;
     var ay: array<real, 8>;
@@ -199,9 +204,10 @@ fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
         let ex = pv[20u * n + 3u * j] - ux;
         let ey = pv[20u * n + 3u * j + 1u] - uy;
         let ez = pv[20u * n + 3u * j + 2u] - uz;
-        let sx = bd[2u * nb + 3u * b];
-        let sy = bd[2u * nb + 3u * b + 1u];
-        let sz = bd[2u * nb + 3u * b + 2u];
+        // ξ = X_j − X_i, formed as Bonds::xi is (and as the CPU kernels form it)
+        let sx = pv[23u * n + 3u * j] - xx;
+        let sy = pv[23u * n + 3u * j + 1u] - xy;
+        let sz = pv[23u * n + 3u * j + 2u] - xz;
         let num = ex * (real(2.0) * sx + ex) + ey * (real(2.0) * sy + ey) + ez * (real(2.0) * sz + ez);
         let yx = sx + ex;
         let yy = sy + ey;
@@ -303,7 +309,6 @@ impl GpuBondBody {
         ints.extend_from_slice(&body.bonds.nbr);
         let mut breal = body.bonds.inv_len.clone();
         breal.extend_from_slice(&model.coef);
-        breal.extend_from_slice(flat(&body.bonds.xi));
         let max_bind = ctx.limits.max_storage_buffer_binding_size as usize;
         if reals.len().max(breal.len()) * rb > max_bind {
             return Err(GpuError(format!(
