@@ -28,6 +28,104 @@ impl Families {
     }
 }
 
+/// A uniform cell list that can be rebuilt over new points without allocating once its
+/// buffers have grown (for searches repeated during a run, e.g. contact candidates).
+/// Points are counting-sorted into cubic cells of the edge given to [`CellGrid::rebuild`];
+/// [`CellGrid::for_each_within`] visits the points in the 27 cells around a position.
+#[derive(Debug, Clone, Default)]
+pub struct CellGrid {
+    lo: [f64; 3],
+    cell: f64,
+    dims: [usize; 3],
+    /// Points of cell c: `sorted[start[c]..start[c + 1]]`, ascending.
+    start: Vec<usize>,
+    sorted: Vec<u32>,
+    /// Scratch of the rebuild: each point's cell, then the fill cursor per cell.
+    cell_of_point: Vec<usize>,
+    fill: Vec<usize>,
+}
+
+impl CellGrid {
+    /// Sort `x` into cells of edge `cell` (> 0) over its bounding box.
+    pub fn rebuild(&mut self, x: &[[f64; 3]], cell: f64) {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in x {
+            for d in 0..3 {
+                lo[d] = lo[d].min(p[d]);
+                hi[d] = hi[d].max(p[d]);
+            }
+        }
+        if x.is_empty() {
+            (lo, hi) = ([0.0; 3], [0.0; 3]);
+        }
+        self.lo = lo;
+        self.cell = cell;
+        self.dims = std::array::from_fn(|d| (((hi[d] - lo[d]) / cell).floor() as usize + 1).max(1));
+        let ncell = self.dims[0] * self.dims[1] * self.dims[2];
+        self.start.clear();
+        self.start.resize(ncell + 1, 0);
+        self.cell_of_point.clear();
+        for p in x {
+            let c = self.flat(self.cell_of(p));
+            self.cell_of_point.push(c);
+            self.start[c + 1] += 1;
+        }
+        for c in 0..ncell {
+            self.start[c + 1] += self.start[c];
+        }
+        self.fill.clear();
+        self.fill.extend_from_slice(&self.start[..ncell]);
+        self.sorted.clear();
+        self.sorted.resize(x.len(), 0);
+        for (i, &c) in self.cell_of_point.iter().enumerate() {
+            self.sorted[self.fill[c]] = i as u32;
+            self.fill[c] += 1;
+        }
+    }
+
+    fn cell_of(&self, p: &[f64; 3]) -> [usize; 3] {
+        std::array::from_fn(|d| {
+            (((p[d] - self.lo[d]) / self.cell).floor().max(0.0) as usize).min(self.dims[d] - 1)
+        })
+    }
+
+    fn flat(&self, c: [usize; 3]) -> usize {
+        (c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]
+    }
+
+    /// Call `f(j)` for every point j of the last rebuild over `x` with `|x_j − p|² ≤ r2`, where
+    /// √r2 must not exceed the cell edge; cell by cell (z, y, x outermost to innermost), each
+    /// cell's points ascending. `p` itself is visited if it is one of the points.
+    pub fn for_each_within(&self, x: &[[f64; 3]], p: &[f64; 3], r2: f64, mut f: impl FnMut(u32)) {
+        if self.sorted.is_empty() {
+            return;
+        }
+        let c = self.cell_of(p);
+        let range = |d: usize| c[d].saturating_sub(1)..=(c[d] + 1).min(self.dims[d] - 1);
+        for cz in range(2) {
+            for cy in range(1) {
+                for cx in range(0) {
+                    let k = self.flat([cx, cy, cz]);
+                    for &j in &self.sorted[self.start[k]..self.start[k + 1]] {
+                        let q = &x[j as usize];
+                        let d2 =
+                            (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2);
+                        if d2 <= r2 {
+                            f(j);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The squared search radius with the relative tolerance of [`find_neighbours`].
+pub fn radius_squared(radius: f64) -> f64 {
+    radius * radius * (1.0 + 1e-12)
+}
+
 /// All points `j != i` with `|x_j - x_i| <= radius` (with a relative tolerance of 1e-12 on the
 /// radius, so lattice points exactly on the horizon are included deterministically).
 /// Works for 2-D data too (leave z = 0).
@@ -39,64 +137,18 @@ pub fn find_neighbours(x: &[[f64; 3]], radius: f64) -> Families {
             indices: Vec::new(),
         };
     }
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in x {
-        for d in 0..3 {
-            lo[d] = lo[d].min(p[d]);
-            hi[d] = hi[d].max(p[d]);
-        }
-    }
-    let cell = radius;
-    let dims: [usize; 3] =
-        std::array::from_fn(|d| (((hi[d] - lo[d]) / cell).floor() as usize + 1).max(1));
-    let cell_of = |p: &[f64; 3]| -> [usize; 3] {
-        std::array::from_fn(|d| (((p[d] - lo[d]) / cell).floor() as usize).min(dims[d] - 1))
-    };
-    let flat = |c: [usize; 3]| (c[2] * dims[1] + c[1]) * dims[0] + c[0];
-    let ncell = dims[0] * dims[1] * dims[2];
-    // Counting sort of points into cells.
-    let mut start = vec![0usize; ncell + 1];
-    let cells: Vec<usize> = x.iter().map(|p| flat(cell_of(p))).collect();
-    for &c in &cells {
-        start[c + 1] += 1;
-    }
-    for c in 0..ncell {
-        start[c + 1] += start[c];
-    }
-    let mut fill = start.clone();
-    let mut sorted = vec![0u32; n];
-    for (i, &c) in cells.iter().enumerate() {
-        sorted[fill[c]] = i as u32;
-        fill[c] += 1;
-    }
-    let r2 = radius * radius * (1.0 + 1e-12);
+    let mut grid = CellGrid::default();
+    grid.rebuild(x, radius);
+    let r2 = radius_squared(radius);
     let rows: Vec<Vec<u32>> = (0..n)
         .into_par_iter()
         .map(|i| {
-            let p = &x[i];
-            let c = cell_of(p);
             let mut row = Vec::new();
-            let range = |d: usize| c[d].saturating_sub(1)..=(c[d] + 1).min(dims[d] - 1);
-            for cz in range(2) {
-                for cy in range(1) {
-                    for cx in range(0) {
-                        let k = flat([cx, cy, cz]);
-                        for &j in &sorted[start[k]..start[k + 1]] {
-                            if j as usize == i {
-                                continue;
-                            }
-                            let q = &x[j as usize];
-                            let d2 = (q[0] - p[0]).powi(2)
-                                + (q[1] - p[1]).powi(2)
-                                + (q[2] - p[2]).powi(2);
-                            if d2 <= r2 {
-                                row.push(j);
-                            }
-                        }
-                    }
+            grid.for_each_within(x, &x[i], r2, |j| {
+                if j as usize != i {
+                    row.push(j);
                 }
-            }
+            });
             row.sort_unstable();
             row
         })
@@ -151,6 +203,39 @@ mod tests {
         }
         // Centre of the 9^3 lattice: the 122-member family of delta = 3.015 h.
         assert_eq!(fam.of(4 * 81 + 4 * 9 + 4).len(), 122);
+    }
+
+    #[test]
+    fn rebuilt_grid_finds_the_same_rows_without_growing() {
+        let h = 0.1;
+        let mut x = lattice(7, h);
+        let r = 2.0 * h;
+        let mut grid = CellGrid::default();
+        let mut row = Vec::new();
+        let mut capacity = None;
+        // Rebuild over moved points (a shear), as a contact search does every few steps.
+        for step in 0..3 {
+            for p in x.iter_mut() {
+                p[0] += 0.01 * h * step as f64 * p[2];
+            }
+            grid.rebuild(&x, r);
+            let fam = find_neighbours(&x, r);
+            for i in 0..x.len() {
+                row.clear();
+                grid.for_each_within(&x, &x[i], radius_squared(r), |j| {
+                    if j as usize != i {
+                        row.push(j)
+                    }
+                });
+                row.sort_unstable();
+                assert_eq!(fam.of(i), row.as_slice(), "step {step}, row {i}");
+            }
+            let c = (grid.start.capacity(), grid.sorted.capacity());
+            if step > 0 {
+                assert_eq!(Some(c), capacity, "the rebuild must reuse its buffers");
+            }
+            capacity = Some(c);
+        }
     }
 
     #[test]

@@ -94,6 +94,15 @@ pub struct ModelParams {
 /// a pair cannot close the gap h in this many steps at the speeds of a joint test.
 const CONTACT_REFRESH: u64 = 10;
 
+/// Buffers of the bearing-contact candidate search: the particles within 2 h of the rigid
+/// bodies' bounding box, their positions and a cell list over them.
+#[derive(Debug, Clone, Default)]
+pub struct ContactSearch {
+    near: Vec<u32>,
+    xs: Vec<[f64; 3]>,
+    grid: mechanics::neighbour::CellGrid,
+}
+
 /// The particle state (structure of arrays).
 #[derive(Debug, Clone)]
 pub struct Model {
@@ -156,6 +165,8 @@ pub struct Model {
     /// Candidate (rigid, other) particle pairs of the bearing contact, refreshed every
     /// `CONTACT_REFRESH` steps from a 2-spacing neighbour search.
     pub contact_pairs: Vec<(u32, u32)>,
+    /// Scratch of the candidate search (kept between refreshes).
+    pub contact_search: ContactSearch,
     /// Elastic energy stored in the bearing contact now (J).
     pub contact_energy: f64,
 }
@@ -232,6 +243,7 @@ impl Model {
             coupling_impulse: [0.0; 3],
             max_eps: 0.0,
             contact_pairs: Vec::new(),
+            contact_search: ContactSearch::default(),
             contact_energy: 0.0,
             x,
             p,
@@ -610,22 +622,34 @@ impl Model {
                     }
                 }
             }
-            let near: Vec<u32> = (0..self.len() as u32)
-                .filter(|&i| (0..3).all(|a| (lo[a]..=hi[a]).contains(&self.x[i as usize][a])))
-                .collect();
-            let xs: Vec<[f64; 3]> = near.iter().map(|&i| self.x[i as usize]).collect();
-            let fam = mechanics::neighbour::find_neighbours(&xs, 2.0 * h);
+            // The search reuses its buffers (`ContactSearch`): no allocation once they have
+            // grown to the neighbourhood's size.
+            let cs = &mut self.contact_search;
+            cs.near.clear();
+            cs.xs.clear();
+            for (i, x) in self.x.iter().enumerate() {
+                if (0..3).all(|a| (lo[a]..=hi[a]).contains(&x[a])) {
+                    cs.near.push(i as u32);
+                    cs.xs.push(*x);
+                }
+            }
+            cs.grid.rebuild(&cs.xs, 2.0 * h);
+            let r2 = mechanics::neighbour::radius_squared(2.0 * h);
             self.contact_pairs.clear();
-            for (k, &i) in near.iter().enumerate() {
+            for (k, &i) in cs.near.iter().enumerate() {
                 if self.kind[i as usize] != Kind::Rigid {
                     continue;
                 }
-                for &q in &fam.indices[fam.offsets[k]..fam.offsets[k + 1]] {
+                let row = self.contact_pairs.len();
+                let (near, kind, pairs) = (&cs.near, &self.kind, &mut self.contact_pairs);
+                cs.grid.for_each_within(&cs.xs, &cs.xs[k], r2, |q| {
                     let j = near[q as usize];
-                    if self.kind[j as usize] != Kind::Rigid {
-                        self.contact_pairs.push((i, j));
+                    if kind[j as usize] != Kind::Rigid {
+                        pairs.push((i, j));
                     }
-                }
+                });
+                // each rigid particle's partners ascending, as a compressed-row family
+                self.contact_pairs[row..].sort_unstable();
             }
         }
         let mut energy = 0.0;
@@ -1154,4 +1178,72 @@ pub fn internal_force(rows: &Rows, bmat: &[M3], f: &mut [[f64; 3]]) {
         }
         *fk = s;
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::bolted_plates;
+
+    /// The bearing-contact candidates (rigid particle, material particle within 2 h) from the
+    /// reused cell list equal a brute-force search, in compressed-row order, after the bolt
+    /// has moved against the plates; refreshes reuse the search buffers.
+    #[test]
+    fn contact_candidates_match_brute_force() {
+        let h = 1e-3;
+        let s = bolted_plates(2e-3, 8e-3, 12e-3, 8e-3, 2e-3, 3e-3, 1e-3, h);
+        let p = ModelParams {
+            material: J2Material {
+                young: 70e9,
+                poisson: 0.3,
+                yield_stress: 3e8,
+                iso_hardening: 1e8,
+                kin_hardening: 0.0,
+            },
+            density: 2700.0,
+            spacing: h,
+            support: 2.0 * h,
+            eps_crit: 0.5,
+            e_crit: 1.0,
+            reanchor_every: 100,
+            smoothing: Smoothing::Consistent,
+            cfl: 0.4,
+            bearing: Some(1e9),
+        };
+        let mut m = Model::new(p, s.x, s.vol, s.part, &s.rigid_parts).unwrap();
+        let mut capacity = None;
+        for shift in [0.0, 0.4, 0.9] {
+            // move the bolt along x against the hole wall
+            for i in 0..m.len() {
+                if m.kind[i] == Kind::Rigid {
+                    m.x[i][0] = m.x0[i][0] + shift * h;
+                }
+            }
+            m.contact_pairs.clear();
+            m.bearing_contact();
+            let r2 = mechanics::neighbour::radius_squared(2.0 * h);
+            let mut brute = Vec::new();
+            for i in 0..m.len() {
+                if m.kind[i] != Kind::Rigid {
+                    continue;
+                }
+                for j in 0..m.len() {
+                    let d2: f64 = (0..3).map(|a| (m.x[j][a] - m.x[i][a]).powi(2)).sum();
+                    if m.kind[j] != Kind::Rigid && d2 <= r2 {
+                        brute.push((i as u32, j as u32));
+                    }
+                }
+            }
+            assert!(!brute.is_empty(), "the bolt must touch the plates");
+            assert_eq!(m.contact_pairs, brute, "shift {shift} h");
+            let c = (
+                m.contact_search.near.capacity(),
+                m.contact_search.xs.capacity(),
+            );
+            if let Some(c0) = capacity {
+                assert_eq!(c, c0, "a refresh must reuse the search buffers");
+            }
+            capacity = Some(c);
+        }
+    }
 }
