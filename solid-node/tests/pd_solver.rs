@@ -1,6 +1,6 @@
 //! The peridynamic `Solver`: config validation names the key (issue #4 must-show 8), and the
 //! coupling sides against an in-process stand-in peer (immersed provider, kinematic
-//! responder).
+//! responder and driver).
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
 // `!(x > 0.0)` is deliberate: it also rejects NaN.
 #![allow(
@@ -92,6 +92,38 @@ fn binding(kind: CouplingKind, role: Role, iface: &str) -> Binding {
     }
 }
 
+/// Window `index` of 2 µs.
+fn window(index: u64) -> Window {
+    Window {
+        index,
+        t0: (index - 1) as f64 * 2e-6,
+        t1: index as f64 * 2e-6,
+        write_output: false,
+    }
+}
+
+/// From rest, a per-particle force summing to `fsum` held over the first 2 µs window: the
+/// body's momentum and the interface impulse both equal Σ F · window. Relative to the
+/// impulse's largest component: a zero component carries only the round-off of the internal
+/// forces' sum (1.6e-21 N s measured against 2.4e-6 N s since the bond stretch is formed from
+/// displacements).
+fn assert_impulse(rep: &protocol::StepReport, fsum: [f64; 3]) {
+    let scale = (0..3).map(|d| (fsum[d] * 2e-6).abs()).fold(0.0, f64::max);
+    for d in 0..3 {
+        let expect = fsum[d] * 2e-6;
+        assert!(
+            (rep.momentum[d] - expect).abs() <= 1e-12 * scale,
+            "d={d}: {} vs {expect}",
+            rep.momentum[d]
+        );
+        assert!(
+            (rep.interface_impulse[d] - expect).abs() <= 1e-12 * scale,
+            "d={d}: {} vs {expect}",
+            rep.interface_impulse[d]
+        );
+    }
+}
+
 /// Immersed provider: sends position/velocity/volume at set-up and each window; a received
 /// per-particle force F held over the window changes the momentum by Σ F · window exactly.
 #[test]
@@ -118,27 +150,8 @@ fn immersed_provider_applies_forces_and_conserves_impulse() {
         f[3 * k + 2] = -0.5;
     }
     let fsum: [f64; 3] = std::array::from_fn(|d| f.chunks(3).map(|c| c[d]).sum());
-    let w = Window {
-        index: 1,
-        t0: 0.0,
-        t1: 2e-6,
-        write_output: false,
-    };
-    let rep = s.advance(&w, &inbox, &mut out).expect("advance");
-    // Relative to the impulse's largest component: the y component is 0 and carries only
-    // the round-off of the internal forces' sum (1.6e-21 N s measured against 2.4e-6 N s
-    // since the bond stretch is formed from displacements; the old floor of 1e-21 N s was
-    // below that round-off).
-    let scale = (0..3).map(|d| (fsum[d] * 2e-6).abs()).fold(0.0, f64::max);
-    for d in 0..3 {
-        let expect = fsum[d] * 2e-6;
-        assert!(
-            (rep.momentum[d] - expect).abs() <= 1e-12 * scale,
-            "d={d}: {} vs {expect}",
-            rep.momentum[d]
-        );
-        assert!((rep.interface_impulse[d] - expect).abs() <= 1e-12 * (expect.abs() + 1e-9));
-    }
+    let rep = s.advance(&window(1), &inbox, &mut out).expect("advance");
+    assert_impulse(&rep, fsum);
     assert!(out.require("surface", "velocity", 3 * n).is_ok());
 }
 
@@ -196,6 +209,67 @@ fn kinematic_responder_follows_the_driver() {
     let f = out.require("left", "force", 3 * n).expect("force");
     let fx: f64 = f.chunks(3).map(|c| c[0]).sum();
     assert!(fx > 0.0, "the body must resist being pulled: {fx}");
+}
+
+/// Kinematic driver (the PD body drives a responder's boundary layer): set-up sends the
+/// interface's positions and velocities; each window the responder's constraint force is
+/// applied over the window (momentum and interface impulse change by Σ F · window), and the
+/// motion at t1 goes out, equal to the body's interface state. A non-physical set-up mass
+/// and a missing force are refused, naming the interface.
+#[test]
+fn kinematic_driver_sends_motion_and_applies_the_force() {
+    let build = || match solid_node::pd::factory("pd-bond", &base()) {
+        Some(Ok(s)) => s,
+        _ => panic!("base config must build"),
+    };
+    let b = [binding(CouplingKind::Kinematic, Role::Driver, "left")];
+    let mut s = build();
+    let mut set_up = Inbox::new();
+    set_up.put("left", "mass", 1, 1)[0] = f64::NAN;
+    match build().setup(&b, &set_up, &mut Outbox::new()) {
+        Err(e) => assert!(e.to_string().contains("left"), "{e}"),
+        Ok(()) => panic!("a NaN set-up mass must be refused"),
+    }
+    let mut out = Outbox::new();
+    s.setup(&b, &Inbox::new(), &mut out).expect("setup");
+    let mesh = s.interface("left").expect("iface");
+    let n = mesh.len();
+    assert!(n > 0);
+    let x = out.require("left", "position", 3 * n).expect("position");
+    for k in 0..n {
+        assert_eq!(&x[3 * k..3 * k + 3], &mesh.positions[k][..]);
+    }
+    assert!(
+        out.require("left", "velocity", 3 * n)
+            .expect("velocity")
+            .iter()
+            .all(|&v| v == 0.0)
+    );
+    // The responder's constraint force: pulls the layer in −x, a little shear in z.
+    let mut inbox = Inbox::new();
+    let f = inbox.put("left", "force", 3, n);
+    for k in 0..n {
+        f[3 * k] = -2.0 - 0.01 * k as f64;
+        f[3 * k + 2] = 0.25;
+    }
+    let fsum: [f64; 3] = std::array::from_fn(|d| f.chunks(3).map(|c| c[d]).sum());
+    let rep = s.advance(&window(1), &inbox, &mut out).expect("advance");
+    assert_impulse(&rep, fsum);
+    // The motion at t1 is the body's interface state, and the layer moved in −x.
+    let after = s.interface("left").expect("iface");
+    let x = out.require("left", "position", 3 * n).expect("position");
+    let v = out.require("left", "velocity", 3 * n).expect("velocity");
+    let mut vx = 0.0;
+    for k in 0..n {
+        assert_eq!(&x[3 * k..3 * k + 3], &after.positions[k][..]);
+        vx += v[3 * k];
+    }
+    assert!(vx < 0.0, "the pulled layer must move in −x: Σ vx = {vx}");
+    // A driver needs the responder's force every window.
+    match s.advance(&window(2), &Inbox::new(), &mut out) {
+        Err(e) => assert!(e.to_string().contains("left"), "{e}"),
+        Ok(_) => panic!("a window without the responder's force must be refused"),
+    }
 }
 
 /// Checkpoint: `save_state` after some windows, then (a) keep running and (b) a fresh node

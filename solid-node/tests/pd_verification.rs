@@ -17,6 +17,7 @@ use solid_node::pd::family::Bonds;
 use solid_node::pd::geometry::{Shape, lattice};
 use solid_node::pd::integrate::Body;
 use solid_node::pd::model::{Dim, Kinematics, PdModel};
+use solid_node::pd::rk_ba::RkBa;
 
 fn block(n: [usize; 3], dx: f64, three_d: bool) -> Vec<[f64; 3]> {
     lattice(
@@ -284,20 +285,26 @@ fn elastic_constants(three_d: bool, correspondence: bool, nu_in: f64) -> (f64, f
     }
 }
 
-/// Must-show 2: uniaxial tension recovers E within 2 % and ν within 0.02.
+/// Must-show 2: uniaxial tension recovers E within 2 % and ν within 0.02: bond-based gives
+/// its fixed ν (1/4 in 3-D, 1/3 in plane stress) whatever the input, correspondence the
+/// input ν (three values, 3-D and plane strain).
 #[test]
 fn elastic_constants_are_recovered() {
     let e = 200e9;
-    for (three_d, corr, nu_expect) in [
-        (true, false, 0.25),
-        (false, false, 1.0 / 3.0),
-        (true, true, 0.3),
-        (false, true, 0.3),
+    for (three_d, corr, nu_in, nu_expect) in [
+        (true, false, 0.25, 0.25),
+        (false, false, 1.0 / 3.0, 1.0 / 3.0),
+        (true, true, 0.15, 0.15),
+        (true, true, 0.3, 0.3),
+        (true, true, 0.45, 0.45),
+        (false, true, 0.15, 0.15),
+        (false, true, 0.3, 0.3),
+        (false, true, 0.45, 0.45),
     ] {
-        let (ee, nu) = elastic_constants(three_d, corr, 0.3);
+        let (ee, nu) = elastic_constants(three_d, corr, nu_in);
         let rel = (ee - e).abs() / e;
         println!(
-            "3d={three_d} correspondence={corr}: E = {ee:.4e} ({:.3} %), ν = {nu:.4}",
+            "3d={three_d} correspondence={corr} ν in {nu_in:.3}: E = {ee:.4e} ({:.3} %), ν = {nu:.4}",
             100.0 * rel
         );
         assert!(rel < 0.02, "E = {ee:e}");
@@ -462,6 +469,14 @@ fn uniform_stretch_matches_single_point_radial_return() {
     assert!(worst < 1e-10, "{worst:e}");
 }
 
+/// The models of `random_body` (pd-rk-ba at both RK orders).
+const ALL_MODELS: [&str; 4] = [
+    "pd-bond",
+    "pd-correspondence",
+    "pd-rk-ba order 1",
+    "pd-rk-ba order 2",
+];
+
 fn random_body(model: &str, s0: Option<f64>) -> Body {
     let dx = 1e-3;
     let x0 = block([8, 7, 6], dx, true);
@@ -478,6 +493,19 @@ fn random_body(model: &str, s0: Option<f64>) -> Body {
     };
     let m: Box<dyn PdModel> = if model == "pd-bond" {
         Box::new(BondModel::new(Dim::Three, 200e9, delta, dx, s0, &k, &bonds))
+    } else if let Some(order) = model.strip_prefix("pd-rk-ba order ") {
+        let order = order.parse().unwrap_or(1);
+        let crit = CriticalStretch {
+            critical_stretch: s0.unwrap_or(1.0),
+        };
+        Box::new(RkBa::new(
+            Dim::Three,
+            order,
+            delta,
+            steel(0.3),
+            crit,
+            &bonds,
+        ))
     } else {
         let mat = J2Material {
             yield_stress: 400e6,
@@ -536,10 +564,11 @@ fn momentum_conserved_in_free_body() {
     }
 }
 
-/// Must-show 4: damage never heals, and a fully detached particle moves freely.
+/// Must-show 4: damage never heals, and a fully detached particle moves freely, for every
+/// model (pd-rk-ba: a particle left with too few bonds for a gradient loses the rest).
 #[test]
 fn damage_is_irreversible_and_free_particles_fly() {
-    for model in ["pd-bond", "pd-correspondence"] {
+    for model in ALL_MODELS {
         let mut b = random_body(model, Some(0.002));
         b.vel.iter_mut().for_each(|v| *v = [0.0; 3]);
         // Pull one corner particle far away: all its bonds break.
@@ -574,7 +603,7 @@ fn damage_is_irreversible_and_free_particles_fly() {
 /// Determinism: bit-identical state for 1 and 2 threads.
 #[test]
 fn results_are_independent_of_thread_count() {
-    for model in ["pd-bond", "pd-correspondence"] {
+    for model in ALL_MODELS {
         let run = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)

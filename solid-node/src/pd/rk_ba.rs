@@ -494,13 +494,22 @@ impl<D: DamageModel> PdModel for RkBa<D> {
                 .zip(&nbr[r.clone()])
                 .zip(omega[r.clone()].iter().zip(&inv_len[r]))
             {
+                // A particle whose moment matrix has become singular (too few intact bonds
+                // left to form a gradient: every particle is active in the reference state,
+                // set-up checks that) carries no force; its remaining bonds break for good,
+                // both ways, so it is reported fully damaged, counts as detached, and cannot
+                // pick up force again if its neighbours' geometry later allows a gradient.
                 if om0 == 0.0 || !pi.active {
+                    if !pi.active {
+                        h.wd = 0.0;
+                    }
                     h.om = 0.0;
                     continue;
                 }
                 let j = j as usize;
                 let pj = &point[j];
                 if !pj.active {
+                    h.wd = 0.0;
                     h.om = 0.0;
                     continue;
                 }
