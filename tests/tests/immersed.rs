@@ -82,7 +82,10 @@ fn the_recording_passes_the_official_reader_and_plots_are_written() {
     let (ok, text) = check_mcap(&out.join("run.mcap"), "--require-json");
     assert!(ok, "check_mcap: {text}");
     // Every VTK file opens with meshio, with the fields a user looks at.
-    let (ok, text) = check_vtk(&out.join("bar"), &["displacement", "stress", "damage"]);
+    let (ok, text) = check_vtk(
+        &out.join("bar"),
+        &["displacement", "velocity", "stress", "damage"],
+    );
     assert!(ok, "check_vtk bar: {text}");
     let (ok, text) = check_vtk(&out.join("gas"), &["pressure", "density", "velocity"]);
     assert!(ok, "check_vtk gas: {text}");

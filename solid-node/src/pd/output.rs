@@ -1,4 +1,4 @@
-//! VTK output per particle for ParaView (ARCHITECTURE §10): an XML UnstructuredGrid (.vtu)
+//! VTK output per particle for ParaView (ARCHITECTURE §10), written with vtkio: an XML UnstructuredGrid (.vtu)
 //! of vertex cells with displacement, velocity, Cauchy stress, plastic strain and damage,
 //! plus a .pvd time series listing every file written so far.
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
@@ -11,11 +11,16 @@
 
 use std::fmt::Write as _;
 use std::path::Path;
+use vtkio::model::{
+    Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version,
+    VertexNumbers, Vtk,
+};
 
 /// Named per-particle arrays to write: (name, components, values).
 pub type PointData<'a> = Vec<(&'a str, usize, Vec<f64>)>;
 
-/// Writes `<dir>/<stem>_<window>.vtu` and refreshes `<dir>/<stem>.pvd`.
+/// Writes `<dir>/<stem>_<window>.vtu` (vertex cells, one per particle, written with vtkio:
+/// binary, exact f64) and refreshes `<dir>/<stem>.pvd`.
 pub fn write_vtu(
     dir: &Path,
     stem: &str,
@@ -25,45 +30,36 @@ pub fn write_vtu(
     data: &PointData,
 ) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
-    let n = points.len();
-    let mut s = String::with_capacity(64 * n * (2 + data.len()));
-    s.push_str("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" byte_order=\"LittleEndian\">\n<UnstructuredGrid>\n");
-    let _ = writeln!(s, "<Piece NumberOfPoints=\"{n}\" NumberOfCells=\"{n}\">");
-    s.push_str(
-        "<Points>\n<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n",
-    );
-    for p in points {
-        let _ = writeln!(s, "{:e} {:e} {:e}", p[0], p[1], p[2]);
-    }
-    s.push_str("</DataArray>\n</Points>\n<Cells>\n<DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">\n");
-    for i in 0..n {
-        let _ = write!(s, "{i} ");
-    }
-    s.push_str("\n</DataArray>\n<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n");
-    for i in 0..n {
-        let _ = write!(s, "{} ", i + 1);
-    }
-    s.push_str("\n</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n");
-    for _ in 0..n {
-        s.push_str("1 ");
-    }
-    s.push_str("\n</DataArray>\n</Cells>\n<PointData>\n");
-    for (name, comps, vals) in data {
-        let _ = writeln!(
-            s,
-            "<DataArray type=\"Float64\" Name=\"{name}\" NumberOfComponents=\"{comps}\" format=\"ascii\">"
-        );
-        for row in vals.chunks(*comps) {
-            for v in row {
-                let _ = write!(s, "{v:e} ");
-            }
-            s.push('\n');
-        }
-        s.push_str("</DataArray>\n");
-    }
-    s.push_str("</PointData>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n");
+    let n = points.len() as u64;
+    let piece = UnstructuredGridPiece {
+        points: points.as_flattened().to_vec().into(),
+        cells: Cells {
+            cell_verts: VertexNumbers::XML {
+                connectivity: (0..n).collect(),
+                offsets: (1..=n).collect(),
+            },
+            types: vec![CellType::Vertex; n as usize],
+        },
+        data: Attributes {
+            point: data
+                .iter()
+                .map(|(name, comps, vals)| {
+                    Attribute::generic(*name, *comps as u32).with_data(vals.clone())
+                })
+                .collect(),
+            cell: Vec::new(),
+        },
+    };
+    let vtk = Vtk {
+        version: Version::new((1, 0)),
+        title: format!("{stem} t={time:e}"),
+        byte_order: ByteOrder::LittleEndian,
+        file_path: None,
+        data: DataSet::inline(piece),
+    };
     let file = format!("{stem}_{window:06}.vtu");
-    std::fs::write(dir.join(&file), s)?;
+    vtk.export(dir.join(&file))
+        .map_err(|e| std::io::Error::other(format!("writing {file}: {e}")))?;
     // Time series: keep a small index file of (time, file) lines next to the .pvd.
     let index = dir.join(format!("{stem}.pvd.index"));
     let mut idx = std::fs::read_to_string(&index).unwrap_or_default();
