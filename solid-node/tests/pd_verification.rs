@@ -405,6 +405,16 @@ fn long_wave_speed_in_a_bar() {
     }
 }
 
+/// Steel with isotropic and kinematic hardening (the J2 tests).
+fn hardening_steel() -> J2Material {
+    J2Material {
+        yield_stress: 300e6,
+        iso_hardening: 2e9,
+        kin_hardening: 1e9,
+        ..steel(0.3)
+    }
+}
+
 /// Must-show 3: uniform stretch beyond yield — every particle's J2 stress equals a
 /// single-point radial return driven by the same strain increments, to 1e-10.
 #[test]
@@ -413,13 +423,7 @@ fn uniform_stretch_matches_single_point_radial_return() {
     let x0 = block([7, 6, 5], dx, true);
     let vol = vec![dx * dx * dx; x0.len()];
     let bonds = Bonds::build(&x0, 3.015 * dx);
-    let mat = J2Material {
-        young: 200e9,
-        poisson: 0.3,
-        yield_stress: 300e6,
-        iso_hardening: 2e9,
-        kin_hardening: 1e9,
-    };
+    let mat = hardening_steel();
     let vel0 = vec![[0.0; 3]; x0.len()];
     let k0 = Kinematics {
         x0: &x0,
@@ -467,6 +471,120 @@ fn uniform_stretch_matches_single_point_radial_return() {
         single.eq_plastic_strain
     );
     assert!(worst < 1e-10, "{worst:e}");
+}
+
+/// Jaumann rate at the model level (seed 000 App. B, B.1), for both rate-form models: a block
+/// stretched along x past yield, partly unloaded, then spun a quarter turn about z as a rigid
+/// body (x = R(ωt) F X, v = Ω x). The PD velocity gradient is exact for this linear field, so
+/// every particle's stress equals a single-point integration with the same increments to
+/// 1e-10; and the stress turns with the body: σ_xx and σ_yy swap, to the error of the explicit
+/// (forward Euler) rotation, which grows |σ| by (ω dt)² per step: (π/2)²/N after N steps.
+/// No plastic flow while spinning.
+#[test]
+fn stress_rotates_with_a_spinning_body() {
+    let dx = 1e-3;
+    let delta = 3.015 * dx;
+    let x0 = block([7, 6, 5], dx, true);
+    let vol = vec![dx * dx * dx; x0.len()];
+    let mat = hardening_steel();
+    let (r, dt, stretch_steps, unload_steps, spin_steps) = (10.0, 1e-5, 30, 6, 2000usize);
+    let omega = std::f64::consts::FRAC_PI_2 / (spin_steps as f64 * dt);
+    let w = [[0.0, -omega, 0.0], [omega, 0.0, 0.0], [0.0, 0.0, 0.0]];
+    for name in ["pd-correspondence", "pd-rk-ba"] {
+        let mut bonds = Bonds::build(&x0, delta);
+        let v0 = vec![[0.0; 3]; x0.len()];
+        let k0 = Kinematics {
+            x0: &x0,
+            pos: &x0,
+            disp: &displacements(&x0, &x0),
+            vel: &v0,
+            vol: &vol,
+        };
+        let mut m: Box<dyn PdModel> = if name == "pd-rk-ba" {
+            Box::new(RkBa::new(Dim::Three, 1, delta, mat, NoDamage, &bonds))
+        } else {
+            Box::new(Correspondence::new(
+                Dim::Three,
+                mat,
+                0.5,
+                delta,
+                dx,
+                NoDamage,
+                &k0,
+                &bonds,
+            ))
+        };
+        let mut single = J2State::default();
+        let mut f = vec![[0.0; 3]; x0.len()];
+        // Stretch (rate r) then unload (rate −r): x = (1 + e) X along x, ė = ±r.
+        let mut e = 0.0;
+        for n in 0..stretch_steps + unload_steps {
+            let rate = if n < stretch_steps { r } else { -r };
+            e += rate * dt;
+            let pos: Vec<[f64; 3]> = x0.iter().map(|p| [p[0] * (1.0 + e), p[1], p[2]]).collect();
+            let vel: Vec<[f64; 3]> = x0.iter().map(|p| [p[0] * rate, 0.0, 0.0]).collect();
+            with_kinematics(&x0, &pos, &vel, &vol, |k| {
+                m.force_density(k, &mut bonds, dt, &mut f)
+            });
+            let d = rate / (1.0 + e);
+            mat.update(&mut single, &[d * dt, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        }
+        let before = single;
+        assert!(before.eq_plastic_strain > 0.0, "the stretch must yield");
+        // Rigid spin about z.
+        for n in 1..=spin_steps {
+            let th = omega * n as f64 * dt;
+            let (c, s) = (th.cos(), th.sin());
+            let pos: Vec<[f64; 3]> = x0
+                .iter()
+                .map(|p| {
+                    let q = [p[0] * (1.0 + e), p[1], p[2]];
+                    [c * q[0] - s * q[1], s * q[0] + c * q[1], q[2]]
+                })
+                .collect();
+            let vel: Vec<[f64; 3]> = pos
+                .iter()
+                .map(|p| [-omega * p[1], omega * p[0], 0.0])
+                .collect();
+            with_kinematics(&x0, &pos, &vel, &vol, |k| {
+                m.force_density(k, &mut bonds, dt, &mut f)
+            });
+            mechanics::j2::jaumann_rotate(&mut single.stress, &w, dt);
+            mechanics::j2::jaumann_rotate(&mut single.back_stress, &w, dt);
+            mat.update(&mut single, &[0.0; 6]);
+        }
+        let scale = mechanics::j2::von_mises(&before.stress);
+        // single point against the closed-form quarter turn: σ_xx ↔ σ_yy, shear 0
+        let b = before.stress;
+        let turned = [b[1], b[0], b[2], -b[4], b[3], -b[5]];
+        let bound = 1.5 * std::f64::consts::FRAC_PI_2.powi(2) / spin_steps as f64;
+        let rot_err = (0..6)
+            .map(|c| (single.stress[c] - turned[c]).abs() / scale)
+            .fold(0.0, f64::max);
+        assert!(
+            rot_err < bound,
+            "{name}: rotation error {rot_err:e} ≥ {bound:e}"
+        );
+        assert_eq!(
+            single.eq_plastic_strain, before.eq_plastic_strain,
+            "{name}: no plastic flow in a rigid spin"
+        );
+        // every particle against the single point
+        let stress = m.stress().expect("a J2 model has stress");
+        let plastic = m.plastic_strain().expect("a J2 model has plastic strain");
+        let mut worst: f64 = 0.0;
+        for (st, ep) in stress.iter().zip(&plastic) {
+            for c in 0..6 {
+                worst = worst.max((st[c] - single.stress[c]).abs() / scale);
+            }
+            worst = worst.max((ep - single.eq_plastic_strain).abs());
+        }
+        println!(
+            "{name}: σ before {:?} MPa, rotation error {rot_err:.2e} (bound {bound:.2e}), particles vs single point {worst:.2e}",
+            b.map(|v| (v / 1e6 * 10.0).round() / 10.0)
+        );
+        assert!(worst < 1e-10, "{name}: {worst:e}");
+    }
 }
 
 /// The models of `random_body` (pd-rk-ba at both RK orders).
@@ -701,6 +819,24 @@ fn plane_stress_correspondence_recovers_e_and_nu() {
     println!("plane-stress correspondence: E = {e:.5e}, ν = {nu:.5}");
     assert!((e - 200e9).abs() / 200e9 < 0.02, "E = {e:e}");
     assert!((nu - 0.3).abs() < 0.02, "ν = {nu}");
+}
+
+/// Calls `f` with the kinematics of positions `pos` and velocities `vel` (u = x − X).
+fn with_kinematics<R>(
+    x0: &[[f64; 3]],
+    pos: &[[f64; 3]],
+    vel: &[[f64; 3]],
+    vol: &[f64],
+    f: impl FnOnce(&Kinematics) -> R,
+) -> R {
+    let disp = displacements(pos, x0);
+    f(&Kinematics {
+        x0,
+        pos,
+        disp: &disp,
+        vel,
+        vol,
+    })
 }
 
 /// u = x − X per particle (the models read displacements; see `Kinematics::disp`).
