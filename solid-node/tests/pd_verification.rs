@@ -9,7 +9,7 @@
     clippy::too_many_arguments
 )]
 
-use mechanics::damage::{CriticalStretch, NoDamage};
+use mechanics::damage::{BondInput, CriticalStretch, DamageModel, DuctilePlasticStrain, NoDamage};
 use mechanics::j2::{J2Material, J2State};
 use solid_node::pd::bond::BondModel;
 use solid_node::pd::correspondence::Correspondence;
@@ -473,6 +473,35 @@ fn uniform_stretch_matches_single_point_radial_return() {
     assert!(worst < 1e-10, "{worst:e}");
 }
 
+/// A 3-D `pd-correspondence` (stabilization 0.5) or `pd-rk-ba` (RK order 1) model of
+/// `hardening_steel` with damage law `law`, on a lattice of spacing 1 mm.
+fn j2_model<D: DamageModel + 'static>(
+    name: &str,
+    law: D,
+    x0: &[[f64; 3]],
+    vol: &[f64],
+    bonds: &Bonds,
+) -> Box<dyn PdModel> {
+    let (dx, delta) = (1e-3, 3.015e-3);
+    let mat = hardening_steel();
+    if name == "pd-rk-ba" {
+        return Box::new(RkBa::new(Dim::Three, 1, delta, mat, law, bonds));
+    }
+    let v0 = vec![[0.0; 3]; x0.len()];
+    with_kinematics(x0, x0, &v0, vol, |k| {
+        Box::new(Correspondence::new(
+            Dim::Three,
+            mat,
+            0.5,
+            delta,
+            dx,
+            law,
+            k,
+            bonds,
+        ))
+    })
+}
+
 /// Jaumann rate at the model level (seed 000 App. B, B.1), for both rate-form models: a block
 /// stretched along x past yield, partly unloaded, then spun a quarter turn about z as a rigid
 /// body (x = R(ωt) F X, v = Ω x). The PD velocity gradient is exact for this linear field, so
@@ -492,28 +521,7 @@ fn stress_rotates_with_a_spinning_body() {
     let w = [[0.0, -omega, 0.0], [omega, 0.0, 0.0], [0.0, 0.0, 0.0]];
     for name in ["pd-correspondence", "pd-rk-ba"] {
         let mut bonds = Bonds::build(&x0, delta);
-        let v0 = vec![[0.0; 3]; x0.len()];
-        let k0 = Kinematics {
-            x0: &x0,
-            pos: &x0,
-            disp: &displacements(&x0, &x0),
-            vel: &v0,
-            vol: &vol,
-        };
-        let mut m: Box<dyn PdModel> = if name == "pd-rk-ba" {
-            Box::new(RkBa::new(Dim::Three, 1, delta, mat, NoDamage, &bonds))
-        } else {
-            Box::new(Correspondence::new(
-                Dim::Three,
-                mat,
-                0.5,
-                delta,
-                dx,
-                NoDamage,
-                &k0,
-                &bonds,
-            ))
-        };
+        let mut m = j2_model(name, NoDamage, &x0, &vol, &bonds);
         let mut single = J2State::default();
         let mut f = vec![[0.0; 3]; x0.len()];
         // Stretch (rate r) then unload (rate −r): x = (1 + e) X along x, ė = ±r.
@@ -584,6 +592,96 @@ fn stress_rotates_with_a_spinning_body() {
             b.map(|v| (v / 1e6 * 10.0).round() / 10.0)
         );
         assert!(worst < 1e-10, "{name}: {worst:e}");
+    }
+}
+
+/// Ductile damage at model level (seed 000 eq. C.2) for both J2 models: a uniform biaxial
+/// stretch gives every particle the same ε̄ᵖ (that of a single-point radial return), so every
+/// bond's intact fraction is 1 − D(ε̄ᵖ) with D ramping from ε_th to ε_cr, and every particle's
+/// damage index is D, to 1e-12: checked while the ramp is under way (D between 0 and 1) and
+/// after ε_cr (all broken). The bond damage never rises back although ε̄ᵖ only grows.
+#[test]
+fn ductile_damage_follows_the_plastic_strain_ramp() {
+    let dx = 1e-3;
+    let delta = 3.015 * dx;
+    let x0 = block([6, 6, 5], dx, true);
+    let vol = vec![dx * dx * dx; x0.len()];
+    let mat = hardening_steel();
+    let law = DuctilePlasticStrain {
+        threshold: 0.004,
+        critical: 0.012,
+    };
+    let (r, dt) = (10.0, 1e-5);
+    for name in ["pd-correspondence", "pd-rk-ba"] {
+        let mut bonds = Bonds::build(&x0, delta);
+        let mut m = j2_model(name, law, &x0, &vol, &bonds);
+        let mut single = J2State::default();
+        let mut f = vec![[0.0; 3]; x0.len()];
+        let (mut checked_ramp, mut checked_broken, mut broken) = (false, false, false);
+        for n in 1..=300 {
+            let t = n as f64 * dt;
+            let pos: Vec<[f64; 3]> = x0
+                .iter()
+                .map(|p| [p[0] * (1.0 + r * t), p[1] * (1.0 + r * t), p[2]])
+                .collect();
+            let vel: Vec<[f64; 3]> = x0.iter().map(|p| [p[0] * r, p[1] * r, 0.0]).collect();
+            with_kinematics(&x0, &pos, &vel, &vol, |k| {
+                m.force_density(k, &mut bonds, dt, &mut f)
+            });
+            let d = r / (1.0 + r * t);
+            mat.update(&mut single, &[d * dt, d * dt, 0.0, 0.0, 0.0, 0.0]);
+            let ramp = 1.0
+                - law.intact_fraction(&BondInput {
+                    stretch: 0.0,
+                    von_mises: 0.0,
+                    eq_plastic_strain: single.eq_plastic_strain,
+                });
+            // "broken": one step after D reaches 1 (a particle is found without a gradient,
+            // and detached, in the step after its last bond broke)
+            let broken_before = std::mem::replace(&mut broken, ramp == 1.0);
+            let phase = if ramp > 0.2 && ramp < 0.8 && !checked_ramp {
+                checked_ramp = true;
+                "ramp"
+            } else if broken_before && !checked_broken {
+                checked_broken = true;
+                "broken"
+            } else {
+                continue;
+            };
+            m.sync_bonds(&mut bonds);
+            // pd-rk-ba is semi-Lagrangian: its kernel is evaluated on the current bond, so a
+            // bond stretched past the horizon carries nothing and its history (J2 state and
+            // damage) rests until it comes back; the ramp is checked on the bonds inside it,
+            // the damage index (which counts every family bond) on correspondence only
+            let semi_lagrangian = name == "pd-rk-ba";
+            let mut bond_err: f64 = 0.0;
+            for i in 0..x0.len() {
+                for b in bonds.offsets[i]..bonds.offsets[i + 1] {
+                    let j = bonds.nbr[b] as usize;
+                    let len2: f64 = (0..3).map(|a| (pos[j][a] - pos[i][a]).powi(2)).sum();
+                    if !semi_lagrangian || len2 < delta * delta * (1.0 - 1e-9) || broken {
+                        bond_err = bond_err.max((bonds.intact[b] - (1.0 - ramp)).abs());
+                    }
+                }
+            }
+            let mut phi = vec![0.0; x0.len()];
+            bonds.damage(&vol, &mut phi);
+            let phi_err = phi.iter().map(|p| (p - ramp).abs()).fold(0.0, f64::max);
+            println!(
+                "{name} {phase}: ε̄ᵖ = {:.5}, D = {ramp:.4}, bond error {bond_err:.1e}, damage index error {phi_err:.1e}",
+                single.eq_plastic_strain
+            );
+            assert!(bond_err < 1e-12, "{name} {phase}: bonds");
+            assert!(
+                phi_err < 1e-12 || (semi_lagrangian && !broken),
+                "{name} {phase}: damage index"
+            );
+        }
+        assert!(
+            checked_ramp && checked_broken,
+            "{name}: the path must cross the ramp (ε̄ᵖ = {})",
+            single.eq_plastic_strain
+        );
     }
 }
 

@@ -547,6 +547,32 @@ mechanics::simd::multiversion! {
     ) = force_block_body;
 }
 
+/// A particle whose shape tensor has become singular (its intact bonds too few or too
+/// weak, det K < 10⁻³ det K₀: every particle is active in the reference state) carries no
+/// stress; its remaining bonds break for good, both ways, so it is reported fully damaged,
+/// counts as detached in fragment counts, feels no force from its former neighbours, and
+/// cannot carry stress again. Serial and rare: only rows of inactive particles that still
+/// hold an intact bond are touched (the partner's row is rebuilt from the next step on).
+fn detach_inactive(kin: &[PointKin], bonds: &mut Bonds) {
+    for (i, pk) in kin.iter().enumerate() {
+        if pk.active {
+            continue;
+        }
+        for b in bonds.offsets[i]..bonds.offsets[i + 1] {
+            if bonds.intact[b] == 0.0 {
+                continue;
+            }
+            bonds.intact[b] = 0.0;
+            let j = bonds.nbr[b] as usize;
+            let row = bonds.offsets[j]..bonds.offsets[j + 1];
+            // families are symmetric (one horizon), so (j, i) exists
+            if let Some(q) = bonds.nbr[row.clone()].iter().position(|&n| n as usize == i) {
+                bonds.intact[row.start + q] = 0.0;
+            }
+        }
+    }
+}
+
 impl<D: DamageModel> PdModel for Correspondence<D> {
     fn name(&self) -> &'static str {
         "pd-correspondence"
@@ -554,6 +580,7 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
 
     fn force_density(&mut self, k: &Kinematics, bonds: &mut Bonds, dt: f64, f: &mut [[f64; 3]]) {
         self.pass1(k, bonds, dt);
+        detach_inactive(&self.kin, bonds);
         let point = &self.side;
         let damage = &self.damage;
         let inv_h = 1.0 / self.horizon;
