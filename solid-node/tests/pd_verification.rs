@@ -816,6 +816,44 @@ fn damage_is_irreversible_and_free_particles_fly() {
     }
 }
 
+/// The stable step estimates (pd-bond: Silling & Askari 2005; correspondence and pd-rk-ba:
+/// spacing over the dilatational wave speed) are stable and not far from the true limit:
+/// from zero displacement and small random velocities (total energy = the initial kinetic
+/// energy), 1000 velocity-Verlet steps at the estimate keep the kinetic energy below its
+/// initial value (+5 % for the integrator's shadow energy), and at twice the estimate the
+/// motion blows up (kinetic energy × 1000) within those steps. Measured: pd-bond turns
+/// unstable between 1.5× and 2×, correspondence and pd-rk-ba between 1.2× and 1.5×.
+#[test]
+fn stable_step_estimate_is_stable_and_sharp() {
+    for model in ["pd-bond", "pd-correspondence", "pd-rk-ba order 1"] {
+        for (factor, stable) in [(1.0, true), (2.0, false)] {
+            let mut b = random_body(model, None);
+            for v in b.vel.iter_mut() {
+                v.iter_mut().for_each(|c| *c *= 1e-3);
+            }
+            let k0 = b.kinetic_energy();
+            let dt = factor * b.stable_dt();
+            let mut worst: f64 = 0.0;
+            for _ in 0..1000 {
+                b.step(dt);
+                worst = worst.max(b.kinetic_energy() / k0);
+                if !(worst < 1e3) {
+                    break;
+                }
+            }
+            println!("{model}: dt = {factor} × estimate, largest KE / KE0 = {worst:.3e}");
+            if stable {
+                assert!(
+                    worst < 1.05,
+                    "{model}: unstable at the estimate ({worst:e})"
+                );
+            } else {
+                assert!(!(worst < 1e3), "{model}: still stable at 2× ({worst:e})");
+            }
+        }
+    }
+}
+
 /// Determinism: bit-identical state for 1 and 2 threads.
 #[test]
 fn results_are_independent_of_thread_count() {
