@@ -12,6 +12,7 @@
 )]
 
 use solid_node::pd::cases::{HollowCylinder, KalthoffWinkler};
+use solid_node::pd::fracture::components;
 
 /// Kalthoff–Winkler at Δx = 1 mm (19,800 particles, 90 µs): the cracks from both notch
 /// tips, fitted by a line through the tip over 3δ–40 mm, run at 65–72° to the notch.
@@ -68,7 +69,39 @@ fn hollow_cylinder_cracks_from_inside_and_fragments() {
     let delta = 3.015 * c.dx;
     assert!(rmax <= 0.07 + delta, "first damage at r = {rmax}");
     assert!(r.fragments.len() >= 2, "fragments: {:?}", r.fragments);
-    // Fragments separate: most of the mass is in fragments, not dust.
+    // Fragments separate: most of the mass is in fragments, not dust ...
     let in_frag: usize = r.fragments.iter().sum();
     assert!(in_frag > s.body.len() / 2);
+    // ... every fragment flies outward, and every pair moves apart: with centroids c and
+    // mean velocities v (volume-weighted), c·v > 0 and (c_a − c_b)·(v_a − v_b) > 0.
+    let mut s = s;
+    let _ = s.body.damage(); // brings the model's bond damage into `bonds`
+    let b = &s.body;
+    let (label, sizes) = components(&b.bonds, &b.bonds.intact);
+    let mut frags: Vec<([f64; 2], [f64; 2])> = Vec::new();
+    for (l, &size) in sizes.iter().enumerate() {
+        if size < 20 {
+            continue;
+        }
+        let (mut c, mut v, mut w) = ([0.0; 2], [0.0; 2], 0.0);
+        for i in (0..b.len()).filter(|&i| label[i] as usize == l) {
+            for d in 0..2 {
+                c[d] += b.vol[i] * b.pos[i][d];
+                v[d] += b.vol[i] * b.vel[i][d];
+            }
+            w += b.vol[i];
+        }
+        frags.push((c.map(|x| x / w), v.map(|x| x / w)));
+    }
+    assert_eq!(frags.len(), r.fragments.len());
+    for (a, (ca, va)) in frags.iter().enumerate() {
+        assert!(
+            ca[0] * va[0] + ca[1] * va[1] > 0.0,
+            "fragment {a} moves inward"
+        );
+        for (cb, vb) in &frags[a + 1..] {
+            let sep = (ca[0] - cb[0]) * (va[0] - vb[0]) + (ca[1] - cb[1]) * (va[1] - vb[1]);
+            assert!(sep > 0.0, "two fragments approach each other");
+        }
+    }
 }
