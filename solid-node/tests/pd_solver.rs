@@ -54,6 +54,25 @@ fn bad_input_is_refused_with_the_key() {
     assert_eq!(key_of("pd-correspondence", &t), "accepted");
     t.insert("poisson".into(), toml::Value::Float(0.5));
     assert_eq!(key_of("pd-correspondence", &t), "poisson");
+    assert_eq!(key_of("pd-rk-ba", &t), "poisson");
+    t.insert("poisson".into(), toml::Value::Float(-1.0));
+    assert_eq!(key_of("pd-rk-ba", &t), "poisson");
+    // bond-based plane stress fixes 1/3 (1/4 is the 3-D value), plane strain 1/4
+    let mut t = base();
+    for (k, v) in [
+        ("dimension", toml::Value::String("plane_stress".into())),
+        ("thickness", toml::Value::Float(1e-3)),
+    ] {
+        t.insert(k.into(), v);
+    }
+    assert_eq!(key_of("pd-bond", &t), "poisson");
+    t.insert("poisson".into(), toml::Value::Float(1.0 / 3.0));
+    assert_eq!(key_of("pd-bond", &t), "accepted");
+    t.insert(
+        "dimension".into(),
+        toml::Value::String("plane_strain".into()),
+    );
+    assert_eq!(key_of("pd-bond", &t), "poisson");
     // Damage threshold above the failure value.
     let mut t = base();
     t.insert("yield_stress".into(), toml::Value::Float(300e6));
