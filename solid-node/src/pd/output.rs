@@ -1,6 +1,6 @@
-//! VTK output per particle for ParaView (ARCHITECTURE §10), written with vtkio: an XML UnstructuredGrid (.vtu)
-//! of vertex cells with displacement, velocity, Cauchy stress, plastic strain and damage,
-//! plus a .pvd time series listing every file written so far.
+//! VTK output per particle for ParaView (ARCHITECTURE §10), written with vtkio: an XML
+//! UnstructuredGrid (.vtu) of vertex cells with displacement, velocity, Cauchy stress, plastic
+//! strain and damage, plus a .pvd time series listing every file written so far.
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
 // `!(x > 0.0)` is deliberate: it also rejects NaN.
 #![allow(
