@@ -45,7 +45,7 @@ fn main() {
         1,
         kw.end_time,
         &b.pos,
-        &vec![
+        vec![
             ("displacement", 3, disp),
             ("velocity", 3, vel),
             ("damage", 1, d.clone()),

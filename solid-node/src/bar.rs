@@ -525,7 +525,7 @@ impl Solver for Bar {
             ("displacement", 3, vec3(&self.s.u)),
             ("velocity", 3, vec3(&self.s.v)),
         ];
-        crate::pd::output::write_vtu(dir, "bar", window, t, &points, &data)?;
+        crate::pd::output::write_vtu(dir, "bar", window, t, &points, data)?;
         Ok(())
     }
 

@@ -246,10 +246,17 @@ fn kinematic_driver_sends_motion_and_applies_the_force() {
     };
     let b = [binding(CouplingKind::Kinematic, Role::Driver, "left")];
     let mut s = build();
+    // the responder's set-up masses, one per interface particle, one of them NaN
+    let n_left = s.interface("left").expect("iface").len();
     let mut set_up = Inbox::new();
-    set_up.put("left", "mass", 1, 1)[0] = f64::NAN;
+    let m = set_up.put("left", "mass", 1, n_left);
+    m.fill(1e-6);
+    m[n_left / 2] = f64::NAN;
     match build().setup(&b, &set_up, &mut Outbox::new()) {
-        Err(e) => assert!(e.to_string().contains("left"), "{e}"),
+        Err(e) => assert!(
+            e.to_string().contains("left") && e.to_string().contains("mass"),
+            "{e}"
+        ),
         Ok(()) => panic!("a NaN set-up mass must be refused"),
     }
     let mut out = Outbox::new();

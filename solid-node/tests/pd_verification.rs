@@ -9,7 +9,7 @@
     clippy::too_many_arguments
 )]
 
-use mechanics::damage::{BondInput, CriticalStretch, DamageModel, DuctilePlasticStrain, NoDamage};
+use mechanics::damage::{CriticalStretch, DamageModel, DuctilePlasticStrain, NoDamage};
 use mechanics::j2::{J2Material, J2State};
 use solid_node::pd::bond::BondModel;
 use solid_node::pd::correspondence::Correspondence;
@@ -463,8 +463,19 @@ fn uniform_stretch_matches_single_point_radial_return() {
     assert!(worst < 1e-10, "{worst:e}");
 }
 
+/// Spacing and horizon of the J2 model tests.
+const J2_DX: f64 = 1e-3;
+const J2_DELTA: f64 = 3.015e-3;
+
+/// A 3-D block of `n` particles at `J2_DX`: reference positions and volumes.
+fn j2_block(n: [usize; 3]) -> (Vec<[f64; 3]>, Vec<f64>) {
+    let x0 = block(n, J2_DX, true);
+    let vol = vec![J2_DX.powi(3); x0.len()];
+    (x0, vol)
+}
+
 /// A 3-D `pd-correspondence` (stabilization 0.5) or `pd-rk-ba` (RK order 1) model of
-/// `hardening_steel` with damage law `law`, on a lattice of spacing 1 mm.
+/// `hardening_steel` with damage law `law`, on a `j2_block`.
 fn j2_model<D: DamageModel + 'static>(
     name: &str,
     law: D,
@@ -472,7 +483,7 @@ fn j2_model<D: DamageModel + 'static>(
     vol: &[f64],
     bonds: &Bonds,
 ) -> Box<dyn PdModel> {
-    let (dx, delta) = (1e-3, 3.015e-3);
+    let (dx, delta) = (J2_DX, J2_DELTA);
     let mat = hardening_steel();
     if name == "pd-rk-ba" {
         return Box::new(RkBa::new(Dim::Three, 1, delta, mat, law, bonds));
@@ -496,15 +507,14 @@ fn j2_model<D: DamageModel + 'static>(
 /// stretched along x past yield, partly unloaded, then spun a quarter turn about z as a rigid
 /// body (x = R(ωt) F X, v = Ω x). The PD velocity gradient is exact for this linear field, so
 /// every particle's stress equals a single-point integration with the same increments to
-/// 1e-10; and the stress turns with the body: σ_xx and σ_yy swap, to the error of the explicit
-/// (forward Euler) rotation, which grows |σ| by (ω dt)² per step: (π/2)²/N after N steps.
-/// No plastic flow while spinning.
+/// 1e-10; and the stress turns with the body as R σ Rᵀ, checked against the closed form at
+/// 45° (where the sign of σ_xy tells the sense of the turn) and at 90° (σ_xx and σ_yy swap),
+/// to the error of the explicit (forward Euler) rotation, which grows |σ| by (ω dt)² per
+/// step: θ²/n after n steps to the angle θ. No plastic flow while spinning.
 #[test]
 fn stress_rotates_with_a_spinning_body() {
-    let dx = 1e-3;
-    let delta = 3.015 * dx;
-    let x0 = block([7, 6, 5], dx, true);
-    let vol = vec![dx * dx * dx; x0.len()];
+    let (x0, vol) = j2_block([7, 6, 5]);
+    let delta = J2_DELTA;
     let mat = hardening_steel();
     let (r, dt, stretch_steps, unload_steps, spin_steps) = (10.0, 1e-5, 30, 6, 2000usize);
     let omega = std::f64::consts::FRAC_PI_2 / (spin_steps as f64 * dt);
@@ -529,6 +539,25 @@ fn stress_rotates_with_a_spinning_body() {
         }
         let before = single;
         assert!(before.eq_plastic_strain > 0.0, "the stretch must yield");
+        let scale = mechanics::j2::von_mises(&before.stress);
+        // R σ Rᵀ for a turn θ about z (Voigt order xx, yy, zz, yz, xz, xy), and the largest
+        // difference of `s` from it relative to the von Mises stress
+        let b = before.stress;
+        let turn_error = |s: &[f64; 6], th: f64| -> f64 {
+            let (c, sn) = (th.cos(), th.sin());
+            let r = [
+                c * c * b[0] + sn * sn * b[1] - 2.0 * c * sn * b[5],
+                sn * sn * b[0] + c * c * b[1] + 2.0 * c * sn * b[5],
+                b[2],
+                sn * b[4] + c * b[3],
+                c * b[4] - sn * b[3],
+                c * sn * (b[0] - b[1]) + (c * c - sn * sn) * b[5],
+            ];
+            (0..6)
+                .map(|k| (s[k] - r[k]).abs() / scale)
+                .fold(0.0, f64::max)
+        };
+        let mut half_err = f64::NAN;
         // Rigid spin about z.
         for n in 1..=spin_steps {
             let th = omega * n as f64 * dt;
@@ -550,15 +579,19 @@ fn stress_rotates_with_a_spinning_body() {
             mechanics::j2::jaumann_rotate(&mut single.stress, &w, dt);
             mechanics::j2::jaumann_rotate(&mut single.back_stress, &w, dt);
             mat.update(&mut single, &[0.0; 6]);
+            if n == spin_steps / 2 {
+                half_err = turn_error(&single.stress, omega * n as f64 * dt);
+            }
         }
-        let scale = mechanics::j2::von_mises(&before.stress);
-        // single point against the closed-form quarter turn: σ_xx ↔ σ_yy, shear 0
-        let b = before.stress;
-        let turned = [b[1], b[0], b[2], -b[4], b[3], -b[5]];
-        let bound = 1.5 * std::f64::consts::FRAC_PI_2.powi(2) / spin_steps as f64;
-        let rot_err = (0..6)
-            .map(|c| (single.stress[c] - turned[c]).abs() / scale)
-            .fold(0.0, f64::max);
+        // single point against the closed form, at 45° and 90°
+        let (q1, q2) = (std::f64::consts::FRAC_PI_4, std::f64::consts::FRAC_PI_2);
+        let half_bound = 1.5 * q1 * q1 / (spin_steps / 2) as f64;
+        let bound = 1.5 * q2 * q2 / spin_steps as f64;
+        let rot_err = turn_error(&single.stress, q2);
+        assert!(
+            half_err < half_bound,
+            "{name}: error at 45° {half_err:e} ≥ {half_bound:e}"
+        );
         assert!(
             rot_err < bound,
             "{name}: rotation error {rot_err:e} ≥ {bound:e}"
@@ -578,7 +611,7 @@ fn stress_rotates_with_a_spinning_body() {
             worst = worst.max((ep - single.eq_plastic_strain).abs());
         }
         println!(
-            "{name}: σ before {:?} MPa, rotation error {rot_err:.2e} (bound {bound:.2e}), particles vs single point {worst:.2e}",
+            "{name}: σ before {:?} MPa, turn error at 45° {half_err:.2e} (bound {half_bound:.2e}), at 90° {rot_err:.2e} (bound {bound:.2e}), particles vs single point {worst:.2e}",
             b.map(|v| (v / 1e6 * 10.0).round() / 10.0)
         );
         assert!(worst < 1e-10, "{name}: {worst:e}");
@@ -589,17 +622,17 @@ fn stress_rotates_with_a_spinning_body() {
 /// stretch gives every particle the same ε̄ᵖ (that of a single-point radial return), so every
 /// bond's intact fraction is 1 − D(ε̄ᵖ) with D ramping from ε_th to ε_cr, and every particle's
 /// damage index is D, to 1e-12: checked while the ramp is under way (D between 0 and 1) and
-/// after ε_cr (all broken). The bond damage never rises back although ε̄ᵖ only grows.
+/// after ε_cr (all broken). D is the closed form of eq. C.2, D = (ε̄ᵖ − ε_th)/(ε_cr − ε_th)
+/// clamped to [0, 1], written out here, not the law's own code.
 #[test]
 fn ductile_damage_follows_the_plastic_strain_ramp() {
-    let dx = 1e-3;
-    let delta = 3.015 * dx;
-    let x0 = block([6, 6, 5], dx, true);
-    let vol = vec![dx * dx * dx; x0.len()];
+    let (x0, vol) = j2_block([6, 6, 5]);
+    let delta = J2_DELTA;
     let mat = hardening_steel();
+    let (eps_th, eps_cr) = (0.004, 0.012);
     let law = DuctilePlasticStrain {
-        threshold: 0.004,
-        critical: 0.012,
+        threshold: eps_th,
+        critical: eps_cr,
     };
     let (r, dt) = (10.0, 1e-5);
     for name in ["pd-correspondence", "pd-rk-ba"] {
@@ -620,12 +653,7 @@ fn ductile_damage_follows_the_plastic_strain_ramp() {
             });
             let d = r / (1.0 + r * t);
             mat.update(&mut single, &[d * dt, d * dt, 0.0, 0.0, 0.0, 0.0]);
-            let ramp = 1.0
-                - law.intact_fraction(&BondInput {
-                    stretch: 0.0,
-                    von_mises: 0.0,
-                    eq_plastic_strain: single.eq_plastic_strain,
-                });
+            let ramp = ((single.eq_plastic_strain - eps_th) / (eps_cr - eps_th)).clamp(0.0, 1.0);
             // "broken": one step after D reaches 1 (a particle is found without a gradient,
             // and detached, in the step after its last bond broke)
             let broken_before = std::mem::replace(&mut broken, ramp == 1.0);

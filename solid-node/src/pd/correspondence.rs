@@ -547,15 +547,16 @@ mechanics::simd::multiversion! {
     ) = force_block_body;
 }
 
-/// A particle whose shape tensor has become singular (its intact bonds too few or too
-/// weak, det K < 10⁻³ det K₀: every particle is active in the reference state) carries no
-/// stress; its remaining bonds break for good, both ways, so it is reported fully damaged,
-/// counts as detached in fragment counts, feels no force from its former neighbours, and
-/// cannot carry stress again. Serial and rare: only rows of inactive particles that still
-/// hold an intact bond are touched (the partner's row is rebuilt from the next step on).
-fn detach_inactive(kin: &[PointKin], bonds: &mut Bonds) {
+/// A particle whose shape tensor has become singular through damage (its intact bonds too
+/// few or too weak, det K < 10⁻³ det K₀) carries no stress; its remaining bonds break for
+/// good, both ways, so it is reported fully damaged, counts as detached in fragment counts,
+/// feels no force from its former neighbours, and cannot carry stress again. A particle
+/// whose family is degenerate already in the reference state (det K₀ = 0: no neighbours, or
+/// all of them on a line or a plane in 3-D) never had a gradient to lose and keeps its bonds,
+/// as before. Serial and cheap: one flag per particle, and the rows of inactive particles.
+fn detach_inactive(kin: &[PointKin], k0det: &[f64], bonds: &mut Bonds) {
     for (i, pk) in kin.iter().enumerate() {
-        if pk.active {
+        if pk.active || k0det[i] == 0.0 {
             continue;
         }
         for b in bonds.offsets[i]..bonds.offsets[i + 1] {
@@ -580,7 +581,7 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
 
     fn force_density(&mut self, k: &Kinematics, bonds: &mut Bonds, dt: f64, f: &mut [[f64; 3]]) {
         self.pass1(k, bonds, dt);
-        detach_inactive(&self.kin, bonds);
+        detach_inactive(&self.kin, &self.k0det, bonds);
         let point = &self.side;
         let damage = &self.damage;
         let inv_h = 1.0 / self.horizon;

@@ -27,7 +27,7 @@ pub fn write_vtu(
     window: u64,
     time: f64,
     points: &[[f64; 3]],
-    data: &PointData,
+    data: PointData,
 ) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
     let n = points.len() as u64;
@@ -42,10 +42,8 @@ pub fn write_vtu(
         },
         data: Attributes {
             point: data
-                .iter()
-                .map(|(name, comps, vals)| {
-                    Attribute::generic(*name, *comps as u32).with_data(vals.clone())
-                })
+                .into_iter()
+                .map(|(name, comps, vals)| Attribute::generic(name, comps as u32).with_data(vals))
                 .collect(),
             cell: Vec::new(),
         },

@@ -1508,7 +1508,7 @@ impl Solver for PdSolver {
         let mut d = vec![0.0; n];
         bonds.damage(&b.vol, &mut d);
         data.push(("damage", 1, d));
-        write_vtu(dir, "pd", window, t, &pos, &data)?;
+        write_vtu(dir, "pd", window, t, &pos, data)?;
         Ok(())
     }
 }
