@@ -6,7 +6,9 @@
 //!
 //! The instance is configured from the environment (`WGPU_BACKEND=vulkan` pins Vulkan;
 //! Mesa's lavapipe has `SHADER_F64`). Without any adapter, [`GpuContext::new`] returns
-//! [`GpuUnavailable`], whose text is the skip message GPU tests print.
+//! [`GpuUnavailable`], whose text is the skip message GPU tests print — outside CI only:
+//! under `CI=true` a test that finds no adapter fails ([`skip_or_fail`]), so a CI machine
+//! that lost its driver cannot pass the GPU tests by skipping them.
 
 use std::fmt;
 use std::sync::{Arc, Mutex};
@@ -496,8 +498,24 @@ pub fn dispatch_dims(groups: u32, max_per_dim: u32) -> (u32, u32) {
     }
 }
 
+/// Whether this process runs under CI (`CI=true` or `CI=1`, set by `.ci/run`).
+pub fn under_ci() -> bool {
+    std::env::var("CI").is_ok_and(|v| v == "true" || v == "1")
+}
+
+/// The policy of every test that needs something a machine may lack (a GPU adapter, f64
+/// kernels, network namespaces): outside CI it prints why `test` is skipped and returns;
+/// under CI, where everything it needs is installed, it fails the test with the same text.
+pub fn skip_or_fail(test: &str, why: &str) {
+    assert!(
+        !under_ci(),
+        "{test}: cannot run under CI=true: {why} (CI installs what this test needs)"
+    );
+    println!("{test}: skipped: {why}");
+}
+
 /// For the tests that compare a GPU path with the CPU to 1e-10: a context with f64 kernels,
-/// or `None` after printing why `test` is skipped (no adapter, or f32 kernels only).
+/// or `None` after [`skip_or_fail`] (no adapter, or f32 kernels only).
 pub fn f64_context_or_skip(test: &str) -> Option<GpuContext> {
     match GpuContext::new() {
         Ok(c) if c.precision == Precision::F64 => {
@@ -505,14 +523,17 @@ pub fn f64_context_or_skip(test: &str) -> Option<GpuContext> {
             Some(c)
         }
         Ok(c) => {
-            println!(
-                "{test}: skipped: the 1e-10 agreement needs f64 kernels ({})",
-                c.warning.clone().unwrap_or_default()
+            skip_or_fail(
+                test,
+                &format!(
+                    "the 1e-10 agreement needs f64 kernels ({})",
+                    c.warning.clone().unwrap_or_default()
+                ),
             );
             None
         }
         Err(e) => {
-            println!("{test}: skipped: {e}");
+            skip_or_fail(test, &e.to_string());
             None
         }
     }
@@ -556,7 +577,7 @@ mod tests {
         let ctx = match GpuContext::new() {
             Ok(c) => c,
             Err(e) => {
-                println!("skipped: {e}");
+                skip_or_fail("device_axpy_and_caught_errors", &e.to_string());
                 return;
             }
         };

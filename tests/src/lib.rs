@@ -1,6 +1,9 @@
 //! Helpers shared by the end-to-end tests: find the built binaries, write case files into a
 //! scratch directory, run `cosim`, and read back what a run recorded.
 
+/// The policy of tests that need something a machine may lack: skip with a message outside
+/// CI, fail under `CI=true`.
+pub use mechanics::gpu::skip_or_fail;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -225,6 +228,7 @@ pub fn amplitude() -> f64 {
 
 /// Largest |tip − exact| / amplitude over a series.
 pub fn tip_error(series: &[(f64, f64)]) -> f64 {
+    assert!(!series.is_empty(), "no tip displacement was recorded");
     series
         .iter()
         .map(|&(t, u)| (u - exact_tip(t)).abs() / amplitude())

@@ -21,7 +21,7 @@
 //! The CPU run itself is checked against momentum conservation by immersed.rs, and the GPU
 //! immersed kernels against the CPU ones in process (fluid-node/src/gpu/tests.rs: ≤ 4e-15).
 //! Without an adapter (or with f32-only kernels) the test prints why it was skipped and
-//! passes.
+//! passes outside CI; under `CI=true` it fails.
 
 use cosim_tests::*;
 use protocol::{Message, codec};
@@ -101,16 +101,16 @@ fn run(case: &Path, out: &Path, id: &str, sets: &[&str]) -> (std::process::Outpu
     (o, t.elapsed().as_secs_f64())
 }
 
-/// The run's stdout and stderr, or `None` (with the reason printed) when it found no GPU
-/// adapter: the test is then skipped.
-fn output_unless_no_adapter(o: &std::process::Output) -> Option<String> {
+/// The run's stdout and stderr, or `None` when it found no GPU adapter: the test is then
+/// skipped outside CI and fails under `CI=true`.
+fn output_unless_no_adapter(test: &str, o: &std::process::Output) -> Option<String> {
     let text = format!(
         "{}{}",
         String::from_utf8_lossy(&o.stdout),
         String::from_utf8_lossy(&o.stderr)
     );
     if !o.status.success() && text.contains("no GPU adapter") {
-        println!("skipped: the GPU run found no adapter:\n{text}");
+        skip_or_fail(test, &format!("the GPU run found no adapter:\n{text}"));
         return None;
     }
     Some(text)
@@ -135,7 +135,7 @@ fn chamber_with_the_gas_on_the_gpu_sends_the_same_coupling_traffic() {
         &format!("{id}g"),
         &["gas.device=\"gpu\""],
     );
-    if output_unless_no_adapter(&o).is_none() {
+    if output_unless_no_adapter("chamber_with_the_gas_on_the_gpu", &o).is_none() {
         return;
     }
     ok(&o, "GPU run");
@@ -143,7 +143,10 @@ fn chamber_with_the_gas_on_the_gpu_sends_the_same_coupling_traffic() {
     let bits = node_series(&gmcap, "gas", "gpu_precision_bits");
     assert!(!bits.is_empty(), "the GPU run must report its precision");
     if bits.iter().any(|&(_, b)| b != 64.0) {
-        println!("skipped: the 1e-10 agreement needs f64 kernels (the adapter has no SHADER_F64)");
+        skip_or_fail(
+            "chamber_with_the_gas_on_the_gpu_sends_the_same_coupling_traffic",
+            "the 1e-10 agreement needs f64 kernels (the adapter has no SHADER_F64)",
+        );
         return;
     }
     let (o, t_cpu) = run(&case, &dir.join("cpu"), &format!("{id}c"), &[]);
@@ -234,7 +237,7 @@ fn f32_on_request_warns_in_the_summary_and_tracks_the_cpu_run() {
             "bar.precision=\"f32\"",
         ],
     );
-    let Some(text) = output_unless_no_adapter(&o) else {
+    let Some(text) = output_unless_no_adapter("f32_on_request_warns", &o) else {
         return;
     };
     ok(&o, "f32 GPU run");

@@ -87,6 +87,12 @@ fn non_integer_and_large_sub_cycle_ratios_run_stable() {
             "ratio {}: {sub} substeps per window, tip error {err:.4e}",
             n_right as f64 / 100.0
         );
+        // Every window reported a tip (an empty series would make the error 0).
+        assert_eq!(
+            tip.len() as u64,
+            s["windows"].as_u64().unwrap(),
+            "tip samples against windows"
+        );
         assert!(tip.iter().all(|(_, u)| u.is_finite()));
         assert!(
             err <= bound,
