@@ -359,8 +359,12 @@ pub fn main_with(cli: Cli) -> i32 {
                             f("max_momentum_residual_relative")
                         )
                     };
+                    let energy = format!(
+                        "largest energy residual {:+.3e} of the largest energy or work",
+                        f("max_energy_residual_relative")
+                    );
                     println!(
-                        "cosim: {} finished: {} windows in {:.2} s; {balance}; output in {}",
+                        "cosim: {} finished: {} windows in {:.2} s; {balance}; {energy}; output in {}",
                         c.run.name,
                         o.summary["windows"],
                         o.summary["wall_s"].as_f64().unwrap_or(0.0),

@@ -61,7 +61,9 @@ struct NodeRt {
     stable_dt: f64,
     done: Option<u64>,
     report: StepReport,
+    /// Energy and momentum after set-up: the audit balances against them.
     initial_energy: f64,
+    initial_momentum: [f64; 3],
     substeps: u64,
     wall_s: f64,
     wait_s: f64,
@@ -340,6 +342,7 @@ impl<'a> Coord<'a> {
                 n.wait_s += d.report.coupling_wait_s;
                 if d.window == 0 {
                     n.initial_energy = d.report.kinetic_energy + d.report.internal_energy;
+                    n.initial_momentum = d.report.momentum;
                 }
                 n.report = d.report;
             }
@@ -608,6 +611,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             done: None,
             report: StepReport::default(),
             initial_energy: 0.0,
+            initial_momentum: [0.0; 3],
             substeps: 0,
             wall_s: 0.0,
             wait_s: 0.0,
@@ -820,6 +824,10 @@ fn drive(
     let mut balance_rows = Vec::new();
     let mut worst_p: f64 = 0.0;
     let mut worst_resid: f64 = 0.0;
+    // Energy not explained by the work done on the system since the start, and its scale
+    // (the largest energy of the run or work done on it).
+    let mut worst_e_resid: f64 = 0.0;
+    let mut energy_scale: f64 = 0.0;
     // Largest impulse any node saw (applied, supports and walls, coupling): the scale of the
     // residual when no load is prescribed (a blast).
     let mut impulse_scale: f64 = 0.0;
@@ -896,6 +904,7 @@ fn drive(
         c.wait_all(&active, "Done", None, |n| n.done == Some(k))?;
         // Audit (ARCHITECTURE §5): momentum against external impulse, energy against work.
         let mut p = [0.0; 3];
+        let mut p0 = [0.0; 3];
         let mut jx = [0.0; 3];
         let mut ji = [0.0; 3];
         let (mut e, mut wext, mut wif, mut applied) = (0.0, 0.0, 0.0, 0.0);
@@ -903,6 +912,9 @@ fn drive(
             let r = &n.report;
             for d in 0..3 {
                 p[d] += r.momentum[d];
+                // the balance is against the start: a node may begin moving (an inflow, a
+                // launched block)
+                p0[d] += n.initial_momentum[d];
                 jx[d] += r.external_impulse[d];
                 ji[d] += r.interface_impulse[d];
             }
@@ -912,16 +924,22 @@ fn drive(
             applied += r.applied_impulse;
         }
         let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        let imb = norm([p[0] - jx[0], p[1] - jx[1], p[2] - jx[2]]);
+        let dp = [p[0] - p0[0], p[1] - p0[1], p[2] - p0[2]];
+        let imb = norm([dp[0] - jx[0], dp[1] - jx[1], dp[2] - jx[2]]);
         // What neither the external loads nor the impulse still in flight between the nodes
         // (given by one side, not yet applied by the other: the coupling lag) explains.
         let resid = norm([
-            p[0] - jx[0] - ji[0],
-            p[1] - jx[1] - ji[1],
-            p[2] - jx[2] - ji[2],
+            dp[0] - jx[0] - ji[0],
+            dp[1] - jx[1] - ji[1],
+            dp[2] - jx[2] - ji[2],
         ]);
         worst_p = worst_p.max(imb);
         worst_resid = worst_resid.max(resid);
+        let e_resid = e - e0 - wext;
+        if e_resid.abs() > worst_e_resid.abs() {
+            worst_e_resid = e_resid;
+        }
+        energy_scale = energy_scale.max(e.abs()).max(e0.abs()).max(wext.abs());
         worst_iface_p = worst_iface_p.max(norm(ji));
         momentum_scale = momentum_scale.max(c.nodes.iter().map(|n| n.report.momentum_gross).sum());
         for n in &c.nodes {
@@ -937,7 +955,7 @@ fn drive(
             "momentum_imbalance": imb, "interface_impulse_sum": norm(ji),
             "momentum_residual": resid,
             "energy": e, "external_work": wext, "interface_work_sum": wif,
-            "energy_residual": e - e0 - wext,
+            "energy_residual": e_resid,
         });
         let _ = c
             .rec
@@ -1084,6 +1102,15 @@ fn drive(
             // largest gross momentum of the run.
             "max_momentum_residual_relative": if impulse_scale.max(momentum_scale) > 0.0 {
                 worst_resid / impulse_scale.max(momentum_scale)
+            } else {
+                0.0
+            },
+            // Signed: negative is energy the numerical methods (and couplings) dissipated,
+            // positive energy they created.
+            "max_energy_residual": worst_e_resid,
+            "energy_scale": energy_scale,
+            "max_energy_residual_relative": if energy_scale > 0.0 {
+                worst_e_resid / energy_scale
             } else {
                 0.0
             },

@@ -45,6 +45,9 @@ pub struct Fluid {
     pub steps: u64,
     /// Impulse of the domain boundaries on the gas since the start (N s).
     pub boundary_impulse: [f64; 3],
+    /// Work of the domain boundaries on the gas since the start (J): the energy carried in
+    /// and out through inflow and outflow faces (walls and symmetry planes carry none).
+    pub boundary_work: f64,
     pub probes: Vec<Probe>,
     pub immersed: Option<Immersed>,
     pub max_steps_per_window: u64,

@@ -421,6 +421,7 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
         time: 0.0,
         steps: 0,
         boundary_impulse: [0.0; 3],
+        boundary_work: 0.0,
         probes: Vec::new(),
         immersed: None,
         max_steps_per_window: p.max_steps_per_window.unwrap_or(10_000_000),

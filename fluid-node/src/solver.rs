@@ -206,6 +206,17 @@ impl Solver for EulerSolver {
         }
     }
 
+    fn initial_report(&mut self) -> SolverResult<StepReport> {
+        let d = diagnostics::totals(&mut self.fluid)?;
+        Ok(StepReport {
+            kinetic_energy: d.kinetic,
+            internal_energy: d.internal,
+            momentum: d.momentum,
+            momentum_gross: d.momentum_gross,
+            ..Default::default()
+        })
+    }
+
     fn advance(&mut self, w: &Window, inbox: &Inbox, out: &mut Outbox) -> SolverResult<StepReport> {
         let start = Instant::now();
         if (self.fluid.time - w.t0).abs() > 1e-9 * w.t1.abs().max(1e-300) {
@@ -250,6 +261,7 @@ impl Solver for EulerSolver {
             momentum: d.momentum,
             momentum_gross: d.momentum_gross,
             external_impulse: self.fluid.boundary_impulse,
+            external_work: self.fluid.boundary_work,
             interface_work: self.interface_work,
             substeps,
             wall_s: start.elapsed().as_secs_f64(),
@@ -346,6 +358,7 @@ impl EulerSolver {
             momentum: d.momentum,
             momentum_gross: d.momentum_gross,
             external_impulse: g.boundary_impulse(),
+            external_work: g.boundary_work(),
             substeps,
             ..Default::default()
         };

@@ -879,7 +879,7 @@ fn face_line<const NM: usize, const D: usize>(
 /// row before) go into row-local scratch and the row is updated at once, so no flux array
 /// is written or read back (the memory traffic of the stage halves). Only the domain
 /// boundary faces are stored in `fxb`/`fyb` (the block's rows of `flux[0]`, `flux[1]`),
-/// for [`boundary_impulse`]. Every value is that of `fluxes` + `update`.
+/// for [`boundary_flux`]. Every value is that of `fluxes` + `update`.
 #[inline(always)]
 fn fused_block_body<const NM: usize>(
     ph: &[Phase; NM],
@@ -1184,18 +1184,21 @@ fn update_var<const ND: usize, const ALPHA: bool>(
     }
 }
 
-/// Impulse on the gas of the fluxes through the domain boundary faces over `dt_w`.
-fn boundary_impulse(f: &Fluid, dt_w: f64) -> [f64; 3] {
+/// Impulse (entries 0–2) and work (entry 3) on the gas of the fluxes through the domain
+/// boundary faces over `dt_w`: the momentum and total-energy fluxes, which follow each
+/// other in the variable order (`vel0() .. vel0() + 3`, then `ip()`).
+fn boundary_flux(f: &Fluid, dt_w: f64) -> [f64; 4] {
     let grid = &f.grid;
     let nm = f.nmat();
     let nf = f.nf();
     let mx = grid.mx();
     let g = grid.g;
     let n = grid.n;
-    let mut imp = [0.0; 3];
+    debug_assert_eq!(f.ip(), nm + 3);
+    let mut imp = [0.0; 4];
     for d in 0..grid.nd {
         let area = grid.face_area(d);
-        for c in 0..3 {
+        for c in 0..4 {
             let v = nm + c;
             let mut lo = 0.0;
             let mut hi = 0.0;
@@ -1303,12 +1306,13 @@ fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
             fill_ghosts(&f.grid, &mut f.prim, f.nv, vel0, &f.bc);
             if fused {
                 // fluxes and update fused per block of rows; only the domain boundary
-                // faces are stored, which is all `boundary_impulse` reads
+                // faces are stored, which is all `boundary_flux` reads
                 fused_stage_2d::<NM>(f, &ph, a, b, dt, s == 0);
-                let bi = boundary_impulse(f, RK3_FLUX_WEIGHT[s] * dt);
+                let bi = boundary_flux(f, RK3_FLUX_WEIGHT[s] * dt);
                 for c in 0..3 {
                     f.boundary_impulse[c] += bi[c];
                 }
+                f.boundary_work += bi[3];
             } else {
                 for d in 0..f.grid.nd {
                     fluxes::<NM>(f, &ph, d);
@@ -1316,10 +1320,11 @@ fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
                 if let Some(im) = ib.as_mut() {
                     immersed::wall_fluxes::<NM>(f, &ph, im, RK3_FLUX_WEIGHT[s] * dt);
                 }
-                let bi = boundary_impulse(f, RK3_FLUX_WEIGHT[s] * dt);
+                let bi = boundary_flux(f, RK3_FLUX_WEIGHT[s] * dt);
                 for c in 0..3 {
                     f.boundary_impulse[c] += bi[c];
                 }
+                f.boundary_work += bi[3];
                 update::<NM>(f, a, b, dt);
             }
             if let Some(im) = ib.as_mut() {

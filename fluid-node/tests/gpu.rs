@@ -5,7 +5,7 @@
 //! time, the same boundary impulse and the same window diagnostics (totals read as per-row
 //! sums, a probe cell's state). The CPU path itself is verified against exact
 //! solutions by sod_shock_tube.rs and sedov_cylindrical.rs. Without an adapter the tests print
-//! why they were skipped and pass.
+//! why they were skipped and pass outside CI, and fail under `CI=true`.
 
 use fluid_node::diagnostics::{self, Totals};
 use fluid_node::gpu::{GpuEuler, GpuSetupError};
@@ -22,7 +22,7 @@ fn context(test: &str, req: PrecisionRequest) -> Option<Arc<GpuContext>> {
             Some(Arc::new(c))
         }
         Err(e) => {
-            println!("{test}: skipped: {e}");
+            mechanics::gpu::skip_or_fail(test, &e.to_string());
             None
         }
     }
@@ -120,9 +120,12 @@ fn check_f64(name: &str, text: &str, t1: f64) {
         return;
     };
     if ctx.precision != Precision::F64 {
-        println!(
-            "{name}: skipped: the 1e-10 agreement needs f64 kernels ({})",
-            ctx.warning.clone().unwrap_or_default()
+        mechanics::gpu::skip_or_fail(
+            name,
+            &format!(
+                "the 1e-10 agreement needs f64 kernels ({})",
+                ctx.warning.clone().unwrap_or_default()
+            ),
         );
         return;
     }
@@ -157,6 +160,11 @@ fn check_f64(name: &str, text: &str, t1: f64) {
             "{name}: boundary impulse {c}: GPU {a:e}, CPU {b:e}"
         );
     }
+    let (a, b) = (gpu.boundary_work, cpu.boundary_work);
+    assert!(
+        (a - b).abs() <= 1e-10 * b.abs().max(e),
+        "{name}: boundary work: GPU {a:e}, CPU {b:e}"
+    );
 }
 
 fn sod(n: usize, limiter: &str) -> String {

@@ -493,6 +493,17 @@ impl Solver for SpgSolver {
         Ok(())
     }
 
+    fn initial_report(&mut self) -> SolverResult<StepReport> {
+        let m = &self.model;
+        Ok(StepReport {
+            kinetic_energy: m.kinetic_energy(),
+            internal_energy: m.internal_energy(),
+            momentum: m.momentum(),
+            momentum_gross: m.momentum_gross(),
+            ..Default::default()
+        })
+    }
+
     fn stable_dt(&self) -> f64 {
         self.model.stable_dt()
     }

@@ -702,10 +702,8 @@ fn node_loop(
                 w.send_data(&c, &Message::Fields(f))?;
             }
             set_up = true;
-            let report = StepReport {
-                wall_s: t0.elapsed().as_secs_f64(),
-                ..Default::default()
-            };
+            let mut report = engine.solver.initial_report()?;
+            report.wall_s = t0.elapsed().as_secs_f64();
             let describe_after = Message::Describe(Describe {
                 model: engine.solver.describe().model,
                 interfaces: vec![],

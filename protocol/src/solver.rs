@@ -199,6 +199,13 @@ pub trait Solver: Send {
     /// The solver's stable time step now (after set-up).
     fn stable_dt(&self) -> f64;
 
+    /// The energies and momenta of the state after set-up (impulses and work zero): the
+    /// start against which the coordinator's audit balances every later window. The default,
+    /// all zero, is right only for a solver that starts at rest and unstressed.
+    fn initial_report(&mut self) -> SolverResult<StepReport> {
+        Ok(StepReport::default())
+    }
+
     /// Advance from `w.t0` to exactly `w.t1`, sub-cycling at the solver's own stable step.
     fn advance(&mut self, w: &Window, inbox: &Inbox, out: &mut Outbox) -> SolverResult<StepReport>;
 

@@ -53,7 +53,7 @@ fn inflow(d: u32, s: u32, v: u32) -> real { return pr[14u + (d * 2u + s) * NV + 
 fn cell_volume() -> real { return pr[44]; }
 
 // control slots: red[0] time, red[1] t_end (or dt cap), red[2] dt, red[3] rate,
-// red[4..7] boundary impulse; st[0] active, st[1] steps, st[2] substeps, st[3] error,
+// red[4..7] boundary impulse, red[7] boundary work; st[0] active, st[1] steps, st[2] substeps, st[3] error,
 // st[4] first bad cell, st[5] stage of the error, st[6] mode, st[7] step target
 fn running() -> bool {
     return atomicLoad(&st[0]) == 1u && atomicLoad(&st[3]) == 0u;
@@ -506,10 +506,11 @@ fn row_sum(fo: u32, r: u32, v: u32) -> real {
     return s;
 }
 
-// step.rs boundary_impulse(): per momentum component c, the same summation order
+// step.rs boundary_flux(): per momentum component c (0..3) and the total energy (c = 3,
+// the variable after the momentum), the same summation order
 @compute @workgroup_size(4)
 fn impulse(@builtin(local_invocation_index) c: u32) {
-    if c >= 3u || !running() {
+    if c >= 4u || !running() {
         return;
     }
     let v = 1u + c;

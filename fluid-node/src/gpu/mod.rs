@@ -203,6 +203,8 @@ pub struct GpuEuler {
     time: f64,
     steps: u64,
     impulse: [f64; 3],
+    /// `Fluid::boundary_work` (control slot 7).
+    work: f64,
     last_dt: f64,
     /// Steps allowed per `advance_to` before giving up (the CPU's max_steps_per_window).
     max_steps: u64,
@@ -483,6 +485,7 @@ impl GpuEuler {
             time: f.time,
             steps: f.steps,
             impulse: f.boundary_impulse,
+            work: f.boundary_work,
             last_dt: 0.0,
             max_steps: f.max_steps_per_window,
             im: match (im_parts, &f.immersed) {
@@ -527,6 +530,11 @@ impl GpuEuler {
     /// `Fluid::boundary_impulse`.
     pub fn boundary_impulse(&self) -> [f64; 3] {
         self.impulse
+    }
+    /// Work of the domain boundaries on the gas since the start (J), as the CPU's
+    /// `Fluid::boundary_work`.
+    pub fn boundary_work(&self) -> f64 {
+        self.work
     }
 
     /// Start a window of the immersed coupling with new particle data: what
@@ -582,6 +590,7 @@ impl GpuEuler {
         self.time = f.time;
         self.steps = f.steps;
         self.impulse = f.boundary_impulse;
+        self.work = f.boundary_work;
         Ok(())
     }
 
@@ -604,6 +613,7 @@ impl GpuEuler {
         f.time = self.time;
         f.steps = self.steps;
         f.boundary_impulse = self.impulse;
+        f.boundary_work = self.work;
         f.prim_valid = false;
         Ok(())
     }
@@ -633,6 +643,7 @@ impl GpuEuler {
         ctrl[0] = self.time;
         ctrl[1] = f64::INFINITY;
         ctrl[4..7].copy_from_slice(&self.impulse);
+        ctrl[7] = self.work;
         let mut st = [0u32; NST];
         st[0] = 1;
         st[4] = u32::MAX;
@@ -747,6 +758,7 @@ impl GpuEuler {
         ctrl[0] = self.time;
         ctrl[1] = t_or_cap;
         ctrl[4..7].copy_from_slice(&self.impulse);
+        ctrl[7] = self.work;
         let mut st = [0u32; NST];
         st[0] = 1;
         st[1] = 0;
@@ -775,6 +787,7 @@ impl GpuEuler {
             let dt_prev = self.time;
             self.time = ctrl[0];
             self.impulse = [ctrl[4], ctrl[5], ctrl[6]];
+            self.work = ctrl[7];
             self.steps = steps0 + sub;
             if sub > done {
                 self.last_dt = (self.time - dt_prev) / (sub - done) as f64;

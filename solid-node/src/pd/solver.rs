@@ -1323,6 +1323,17 @@ impl Solver for PdSolver {
         })
     }
 
+    /// The body at set-up: its particles may start moving (a launched block); it starts
+    /// unstressed, so its internal energy is zero.
+    fn initial_report(&mut self) -> SolverResult<StepReport> {
+        Ok(StepReport {
+            kinetic_energy: self.body.kinetic_energy(),
+            momentum: self.body.momentum(),
+            momentum_gross: self.body.momentum_gross(),
+            ..Default::default()
+        })
+    }
+
     /// Seed 000 §4 decoupling: an immersed coupling ends and the body goes on alone. The
     /// force the gas sent before the end (in flight across the one-window lag) is still
     /// applied when it arrives; nothing more is sent there. A kinematic coupling holds
