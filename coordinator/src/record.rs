@@ -14,7 +14,7 @@ use std::path::Path;
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
 /// The Rust definition of the recorded messages, stored as the schema of every bincode channel.
-pub const ENVELOPE_SCHEMA: &str = include_str!("../../protocol/src/message.rs");
+pub const ENVELOPE_SCHEMA: &str = include_str!("../../wire/src/message.rs");
 pub const ENVELOPE_SCHEMA_NAME: &str = "cosim.Envelope";
 pub const BINCODE_ENCODING: &str = "bincode";
 

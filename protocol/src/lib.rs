@@ -2,13 +2,14 @@
 //! that carry them (iceoryx2 shared memory, zenoh, in-process), the `Solver` trait every node
 //! implements, the participant runtime that runs a `Solver` as a node, and interface mapping.
 
-pub mod codec;
 pub mod mapping;
-pub mod message;
 pub mod participant;
 pub mod solver;
 pub mod transport;
 
-pub use codec::{CodecError, Envelope, PROTOCOL_VERSION, decode, encode};
-pub use message::*;
+// The wire types live in their own crate (`wire`, PROTOCOL.md); every path through
+// `protocol` keeps working.
 pub use solver::*;
+pub use wire::message::*;
+pub use wire::{self, codec, message};
+pub use wire::{CodecError, Envelope, PROTOCOL_VERSION, decode, encode};

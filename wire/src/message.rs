@@ -1,5 +1,6 @@
-//! The messages of ARCHITECTURE §4. Every one travels inside an [`crate::Envelope`]; the
-//! recorder stores the exact bytes, so these types are also the recording's schema.
+//! The messages of the protocol (PROTOCOL.md). Every one travels inside an
+//! [`crate::Envelope`]; the recorder stores the exact bytes, so these types are also the
+//! recording's schema.
 
 use serde::{Deserialize, Serialize};
 
@@ -185,18 +186,24 @@ pub struct Advance {
 pub struct Field {
     pub name: String,
     pub components: u32,
-    /// Encoded as one block of little-endian bytes, so a large field costs about a memcpy
-    /// each way instead of a per-value encode.
+    /// Encoded as one block of little-endian bytes in binary formats, so a large field costs
+    /// about a memcpy each way instead of a per-value encode; a plain list of numbers in
+    /// human-readable ones (JSON).
     #[serde(with = "f64_bytes")]
     pub values: Vec<f64>,
 }
 
-/// Serde adapter: a `Vec<f64>` as one byte string of little-endian values.
+/// Serde adapter: a `Vec<f64>` as one byte string of little-endian values for binary formats
+/// (bincode: the length in bytes, then the bytes), as a sequence of numbers for
+/// human-readable ones (`is_human_readable`), so the golden vectors' JSON shows the values.
 pub mod f64_bytes {
     use serde::de::{Error, Visitor};
-    use serde::{Deserializer, Serializer};
+    use serde::{Deserialize, Deserializer, Serializer};
 
     pub fn serialize<S: Serializer>(v: &[f64], s: S) -> Result<S::Ok, S::Error> {
+        if s.is_human_readable() {
+            return s.collect_seq(v);
+        }
         #[cfg(target_endian = "little")]
         {
             // SAFETY: f64 has no padding and every byte of it is initialised; the slice
@@ -240,6 +247,9 @@ pub mod f64_bytes {
     }
 
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
+        if d.is_human_readable() {
+            return Vec::<f64>::deserialize(d);
+        }
         d.deserialize_bytes(V)
     }
 }
@@ -401,7 +411,7 @@ pub fn kind_name(kind: u8) -> &'static str {
     }
 }
 
-/// Topic names of ARCHITECTURE §4.
+/// Topic names (PROTOCOL.md §3).
 pub mod topic {
     /// Control topic of a node, node → coordinator.
     pub fn up(run: &str, node: &str) -> String {
@@ -414,5 +424,54 @@ pub mod topic {
     /// Data topic of one coupling, written by `from`.
     pub fn data(run: &str, coupling: &str, from: &str) -> String {
         format!("cosim/{run}/{coupling}/{from}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bits(v: &[f64]) -> Vec<u64> {
+        v.iter().map(|x| x.to_bits()).collect()
+    }
+
+    #[test]
+    fn field_values_are_numbers_in_json_and_one_byte_string_in_bincode() {
+        let values = vec![1.5, -0.0, 0.1 + 0.2, 5e-324, f64::MAX];
+        let f = Field {
+            name: "v".into(),
+            components: 1,
+            values: values.clone(),
+        };
+        let json = serde_json::to_string(&f).unwrap();
+        assert_eq!(
+            json,
+            r#"{"name":"v","components":1,"values":[1.5,-0.0,0.30000000000000004,5e-324,1.7976931348623157e+308]}"#
+        );
+        let back: Field = serde_json::from_str(&json).unwrap();
+        assert_eq!(bits(&back.values), bits(&values));
+
+        let bytes = bincode::serde::encode_to_vec(&f, bincode::config::standard()).unwrap();
+        // name (length 1, "v"), components 1, then the byte string: 40 bytes of f64 LE.
+        let mut want = vec![1, b'v', 1, 40];
+        for x in &values {
+            want.extend_from_slice(&x.to_le_bytes());
+        }
+        assert_eq!(bytes, want);
+        let (back, used): (Field, usize) =
+            bincode::serde::decode_from_slice(&bytes, bincode::config::standard()).unwrap();
+        assert_eq!(used, bytes.len());
+        assert_eq!(bits(&back.values), bits(&values));
+    }
+
+    #[test]
+    fn json_field_values_must_be_numbers() {
+        for bad in [r#""AAAAAAAA8D8=""#, r#"[1.0, "2"]"#, "null"] {
+            let text = format!(r#"{{"name":"v","components":1,"values":{bad}}}"#);
+            assert!(
+                serde_json::from_str::<Field>(&text).is_err(),
+                "accepted {text}"
+            );
+        }
     }
 }

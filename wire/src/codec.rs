@@ -1,6 +1,6 @@
-//! Versioned envelope and codec (ARCHITECTURE §4): a fixed 20-byte header (magic, protocol
-//! version, message kind, body length, sequence number) followed by the bincode 2 body
-//! (`config::standard()`) of sender, run and message. Decoding checks every header field and
+//! Versioned envelope and codec (PROTOCOL.md, "Bytes"): a fixed 20-byte header (magic,
+//! protocol version, message kind, body length, sequence number) followed by the bincode 2
+//! body (`config::standard()`) of run, sender and message. Decoding checks every header field and
 //! the exact body length before bincode sees a byte, and caps allocations, so no input panics.
 
 use crate::message::Message;
