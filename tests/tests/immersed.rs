@@ -117,3 +117,14 @@ fn the_recording_passes_the_official_reader_and_plots_are_written() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(dir.join("gas_point1_pressure.png").is_file());
 }
+
+#[test]
+fn both_nodes_of_the_chamber_replay_bit_identically() {
+    let mcap = chamber().join("run.mcap");
+    for node in ["gas", "bar"] {
+        assert_eq!(
+            assert_replays_bit_identically(&mcap, node, "rp-chamber"),
+            80
+        );
+    }
+}
