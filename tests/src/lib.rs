@@ -312,7 +312,7 @@ pub fn replay_node(
     )
 }
 
-/// Nothing of replay run `id` is left: no process, no shared memory.
+/// Nothing of run `id` is left: no live process on its command line, no shared memory.
 pub fn nothing_left(id: &str) {
     let alive: Vec<u32> = processes_with(&format!("--run {id}"))
         .into_iter()

@@ -121,6 +121,31 @@ fn a_truncated_recording_is_reported_incomplete() {
 }
 
 #[test]
+fn a_decimated_recording_is_replayed_only_where_it_holds_every_input() {
+    // `record_every = 2` keeps the coupling fields of even windows only: window 1's input is
+    // not in the recording, so the replay stops there and says so.
+    let (dir, id) = scratch("rp-decim");
+    let case = split_bar_case(&dir, 100, 300, 0.5, "shm", 0.5);
+    let out = dir.join("out");
+    let o = run_case(&case, &out, &id, &["--set", "run.record_every=2"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mcap = out.join("run.mcap");
+    let (_, rid) = scratch("rp-decim-r");
+    let (ok, stdout, err) = replay_node(&mcap, "right", &rid, &[]);
+    println!("{stdout}{err}");
+    assert!(!ok);
+    assert!(!stdout.contains("bit-identical"), "{stdout}");
+    let (compared, recorded_n, ..) = replay_counts(&stdout);
+    assert_eq!(recorded_n, recorded_windows(&mcap, "right"));
+    assert!(compared < recorded_n);
+    assert!(
+        err.contains("lacks the peer fields 'mid' of window 1"),
+        "{err}"
+    );
+    nothing_left(&rid);
+}
+
+#[test]
 fn a_bad_node_solver_or_model_is_refused() {
     let (_, id) = scratch("rp-bad");
     let (ok, _, err) = replay_node(recorded(), "middle", &id, &[]);
@@ -145,19 +170,28 @@ fn a_bad_node_solver_or_model_is_refused() {
     nothing_left(&id);
 }
 
-#[test]
-fn a_replayed_node_killed_mid_replay_ends_it_with_an_error() {
-    // Long enough to be interrupted: 8 periods of the bar.
-    let (dir, rec_id) = scratch("rp-long");
-    let case = split_bar_case(&dir, 100, 300, 0.5, "shm", 8.0);
-    let out = dir.join("out");
-    let o = run_case(&case, &out, &rec_id, &[]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let (_, id) = scratch("rp-kill");
+/// A recording long enough for a replay to be interrupted: 4 periods of the bar, 6400 windows.
+fn long_recording() -> &'static PathBuf {
+    static OUT: OnceLock<PathBuf> = OnceLock::new();
+    OUT.get_or_init(|| {
+        let (dir, id) = scratch("rp-long");
+        let case = split_bar_case(&dir, 100, 300, 0.5, "shm", 4.0);
+        let out = dir.join("out");
+        let o = run_case(&case, &out, &id, &[]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        out.join("run.mcap")
+    })
+}
+
+/// Replay `right` of the long recording, stop its node (SIGSTOP) once it is under way, do
+/// `act` to it, and return the replay's exit status, stdout and stderr, and the seconds from
+/// the stop to its exit; checks that nothing of the replay is left.
+fn interrupted(tag: &str, act: impl FnOnce(i32)) -> (bool, String, String, f64) {
+    let (_, id) = scratch(tag);
     let mut child = Command::new(bin("cosim"))
         .args([
             "replay",
-            out.join("run.mcap").to_str().unwrap(),
+            long_recording().to_str().unwrap(),
             "--node",
             "right",
             "--run-id",
@@ -171,35 +205,65 @@ fn a_replayed_node_killed_mid_replay_ends_it_with_an_error() {
     let start = Instant::now();
     let pid = loop {
         if let Some(&p) = processes_with(&format!("--run {id} --node right")).first() {
-            break p;
+            break p as i32;
         }
         assert!(
             start.elapsed() < Duration::from_secs(20),
             "node never started"
         );
-        std::thread::sleep(Duration::from_millis(10));
+        std::thread::sleep(Duration::from_millis(5));
     };
-    // Let it replay some windows, then kill it.
-    std::thread::sleep(Duration::from_millis(300));
-    // SAFETY: kill(2) on a pid this test found for the replay's own node process.
-    unsafe { libc::kill(pid as i32, libc::SIGKILL) };
-    let t_kill = Instant::now();
+    // Some windows in (a full replay takes about half a second unloaded), then freeze it so
+    // the replay cannot finish first.
+    std::thread::sleep(Duration::from_millis(150));
+    // SAFETY: kill(2) on the pid of the replay's own node process, found above.
+    unsafe { libc::kill(pid, libc::SIGSTOP) };
+    let stopped = Instant::now();
+    act(pid);
     let status = loop {
         if let Some(s) = child.try_wait().unwrap() {
             break s;
         }
-        if t_kill.elapsed() > Duration::from_secs(5) {
+        if stopped.elapsed() > Duration::from_secs(15) {
             let _ = child.kill();
-            panic!("cosim replay still running 5 s after its node was killed");
+            // SAFETY: as above.
+            unsafe { libc::kill(pid, libc::SIGKILL) };
+            panic!("cosim replay still running 15 s after its node was stopped");
         }
         std::thread::sleep(Duration::from_millis(10));
     };
+    let secs = stopped.elapsed().as_secs_f64();
     let o = child.wait_with_output().unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    println!("{stdout}{err}");
-    assert!(!status.success());
-    assert!(!stdout.contains("bit-identical"), "{stdout}");
-    assert!(err.contains("right") && err.contains("SIGKILL"), "{err}");
+    let out = String::from_utf8_lossy(&o.stdout).to_string();
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    println!("{tag}: {status} after {secs:.2} s: {out}{err}");
     nothing_left(&id);
+    (status.success(), out, err, secs)
+}
+
+#[test]
+fn a_replayed_node_killed_mid_replay_ends_it_with_an_error() {
+    let (ok, out, err, secs) = interrupted("rp-kill", |pid| {
+        // SAFETY: kill(2) on the replay's own node process.
+        unsafe { libc::kill(pid, libc::SIGKILL) };
+    });
+    assert!(!ok);
+    assert!(!out.contains("bit-identical"), "{out}");
+    assert!(
+        err.contains("node 'right'") && err.contains("SIGKILL"),
+        "{err}"
+    );
+    assert!(secs < 5.0, "{secs} s");
+}
+
+#[test]
+fn a_hung_replayed_node_ends_it_with_an_error() {
+    // Stopped and left so: no heartbeat for the recorded timeout (3 s).
+    let (ok, out, err, _) = interrupted("rp-hang", |_| {});
+    assert!(!ok);
+    assert!(!out.contains("bit-identical"), "{out}");
+    assert!(
+        err.contains("node 'right'") && err.contains("no heartbeat"),
+        "{err}"
+    );
 }
