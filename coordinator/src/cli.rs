@@ -50,7 +50,8 @@ pub enum Cmd {
     },
     /// Summarise a recording.
     Info { recording: PathBuf },
-    /// Re-run one node alone against its recorded inputs and compare with its recorded outputs.
+    /// Launch one node's executable alone, feed it its recorded inputs window by window, and
+    /// compare what it sends with what the recording holds (exit 1 when incomplete).
     Replay {
         recording: PathBuf,
         #[arg(long)]
@@ -58,6 +59,15 @@ pub enum Cmd {
         /// Override a parameter of the node (KEY=VALUE, or model=NAME), repeatable.
         #[arg(long = "set")]
         sets: Vec<String>,
+        /// Launch this executable instead of the recorded one (a path, or a name beside cosim).
+        #[arg(long)]
+        solver: Option<PathBuf>,
+        /// Run id of the replay (namespaces its shared memory; default: a fresh one).
+        #[arg(long)]
+        run_id: Option<String>,
+        /// Directory for the node's log and output (default: replay-NODE beside the recording).
+        #[arg(long, short)]
+        output: Option<PathBuf>,
         /// Relative drift of the interface motion that triggers a warning.
         #[arg(long, default_value_t = 1e-6)]
         tolerance: f64,
@@ -396,28 +406,40 @@ pub fn main_with(cli: Cli) -> i32 {
             recording,
             node,
             sets,
+            solver,
+            run_id,
+            output,
             tolerance,
             report,
             plot,
-        } => match replay::replay(&recording, &node, &sets, tolerance) {
-            Ok(r) => {
-                print_replay(&r, &node, &sets, report.as_deref());
-                if let Some(dir) = plot {
-                    match replay::plot(&r, &node, &dir) {
-                        Ok(files) => println!("{} charts in {}", files.len(), dir.display()),
-                        Err(e) => {
-                            eprintln!("cosim replay: plots: {e:#}");
-                            return 1;
+        } => {
+            let opts = replay::ReplayOptions {
+                sets,
+                solver,
+                tolerance,
+                run_id,
+                output,
+            };
+            match replay::replay(&recording, &node, &opts) {
+                Ok(r) => {
+                    print_replay(&r, &node, &opts.sets, report.as_deref());
+                    if let Some(dir) = plot {
+                        match replay::plot(&r, &node, &dir) {
+                            Ok(files) => println!("{} charts in {}", files.len(), dir.display()),
+                            Err(e) => {
+                                eprintln!("cosim replay: plots: {e:#}");
+                                return 1;
+                            }
                         }
                     }
+                    if r.incomplete.is_empty() { 0 } else { 1 }
                 }
-                0
+                Err(e) => {
+                    eprintln!("cosim replay: {e:#}");
+                    1
+                }
             }
-            Err(e) => {
-                eprintln!("cosim replay: {e:#}");
-                1
-            }
-        },
+        }
         Cmd::Bench {
             what:
                 Some(BenchCmd::Transport {
@@ -440,18 +462,36 @@ fn print_replay(
 ) {
     use std::fmt::Write;
     println!(
-        "replayed node '{node}' over {} windows ({} field comparisons){}",
-        r.windows,
-        r.fields_compared,
+        "replayed node '{node}' ({}, model {}){}: {} of {} recorded windows compared, {} fields ({} values) and {} report values",
+        r.exe.display(),
+        r.model,
         if sets.is_empty() {
             String::new()
         } else {
             format!(" with {}", sets.join(", "))
-        }
+        },
+        r.windows,
+        r.recorded_windows,
+        r.fields_compared,
+        r.values_compared,
+        r.report_values_compared,
     );
-    if r.bit_identical {
+    if r.bit_identical() {
         println!("outputs are bit-identical to the recording");
+    } else if r.all_equal {
+        println!("every compared value is equal, but the comparison is incomplete");
     } else {
+        let differ = r.rows.iter().filter(|row| !row.3.identical).count();
+        let sdiffer = r
+            .scalars
+            .iter()
+            .filter(|s| s.2.to_bits() != s.3.to_bits())
+            .count();
+        println!(
+            "outputs differ: {differ} of {} fields, {sdiffer} of {} report values",
+            r.rows.len(),
+            r.scalars.len()
+        );
         // Per-window difference report: the largest difference over all fields of a window.
         let mut per: std::collections::BTreeMap<u64, (f64, f64)> = Default::default();
         for (k, _, _, d) in &r.rows {
@@ -499,6 +539,16 @@ fn print_replay(
         }
         if let Err(e) = std::fs::write(p, s) {
             eprintln!("cosim replay: cannot write {}: {e}", p.display());
+        }
+    }
+    if !r.incomplete.is_empty() {
+        eprintln!("cosim replay: INCOMPLETE, not every recorded output could be compared:");
+        // The first few say why; the rest are counted.
+        for why in r.incomplete.iter().take(10) {
+            eprintln!("  {why}");
+        }
+        if r.incomplete.len() > 10 {
+            eprintln!("  ... and {} more", r.incomplete.len() - 10);
         }
     }
 }

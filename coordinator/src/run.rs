@@ -91,7 +91,7 @@ struct Coord<'a> {
     history: crate::plot::Histories,
 }
 
-fn pick_run_id(name: &str) -> String {
+pub(crate) fn pick_run_id(name: &str) -> String {
     let t = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_millis() % 1_000_000)
@@ -120,7 +120,32 @@ fn die_with_parent(cmd: &mut Command) {
     }
 }
 
-fn describe_status(s: std::process::ExitStatus) -> String {
+/// Start node `name` of run `run` from its executable, as `cosim run` and `cosim replay` do:
+/// its stdout and stderr go to `log`, and it dies with this process. `connect` is the zenoh
+/// endpoint to join, where the transport needs one.
+pub(crate) fn spawn_node(
+    exe: &Path,
+    run: &str,
+    name: &str,
+    kind: TransportKind,
+    connect: Option<&str>,
+    log: &Path,
+) -> Result<Child, String> {
+    let out = std::fs::File::create(log).map_err(|e| format!("cannot create its log: {e}"))?;
+    let err = out.try_clone().map_err(|e| e.to_string())?;
+    let mut cmd = Command::new(exe);
+    cmd.args(["--run", run, "--node", name, "--transport", kind.as_str()]);
+    if let Some(endpoint) = connect {
+        cmd.args(["--connect", endpoint]);
+    }
+    cmd.stdin(Stdio::null()).stdout(out).stderr(err);
+    die_with_parent(&mut cmd);
+    cmd.spawn()
+        .map_err(|e| format!("cannot start {}: {e}", exe.display()))
+}
+
+/// How a node process ended, in words.
+pub(crate) fn describe_status(s: std::process::ExitStatus) -> String {
     use std::os::unix::process::ExitStatusExt;
     match (s.code(), s.signal()) {
         (Some(c), _) => format!("exited with status {c}"),
@@ -727,26 +752,10 @@ fn drive(
             continue;
         }
         let Some(exe) = &n.exe else { continue };
-        let log = std::fs::File::create(out.join(format!("{}.log", n.name)))
-            .map_err(|e| fault(&n.name, format!("cannot create its log: {e}")))?;
-        let log2 = log.try_clone().map_err(|e| fault(&n.name, e.to_string()))?;
-        let mut cmd = Command::new(exe);
-        cmd.args([
-            "--run",
-            &c.run,
-            "--node",
-            &n.name,
-            "--transport",
-            case.run.transport.as_str(),
-        ]);
-        if case.run.transport == TransportKind::Zenoh {
-            cmd.args(["--connect", listen]);
-        }
-        cmd.stdin(Stdio::null()).stdout(log).stderr(log2);
-        die_with_parent(&mut cmd);
-        let child = cmd
-            .spawn()
-            .map_err(|e| fault(&n.name, format!("cannot start {}: {e}", exe.display())))?;
+        let connect = (case.run.transport == TransportKind::Zenoh).then_some(listen);
+        let log = out.join(format!("{}.log", n.name));
+        let child = spawn_node(exe, &c.run, &n.name, case.run.transport, connect, &log)
+            .map_err(|e| fault(&n.name, e))?;
         c.nodes[i].child = Some(child);
         c.nodes[i].last_seen = Instant::now();
     }

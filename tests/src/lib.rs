@@ -270,3 +270,87 @@ pub fn processes_with(needle: &str) -> Vec<u32> {
     }
     v
 }
+
+/// The counts of the report's first line: (compared windows, recorded windows, fields,
+/// values, report values).
+pub fn replay_counts(stdout: &str) -> (u64, u64, u64, u64, u64) {
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("replayed node"))
+        .unwrap_or_else(|| panic!("no report line in: {stdout}"));
+    let tail = line.rsplit_once(": ").map_or(line, |t| t.1);
+    let nums: Vec<u64> = tail
+        .split(|c: char| !c.is_ascii_digit())
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse().unwrap())
+        .collect();
+    assert_eq!(nums.len(), 5, "{line}");
+    (nums[0], nums[1], nums[2], nums[3], nums[4])
+}
+
+/// Windows of `node` in a recording, counted from its per-window report channel.
+pub fn recorded_windows(mcap: &Path, node: &str) -> u64 {
+    node_series(mcap, node, "kinetic_energy").len() as u64
+}
+
+pub fn replay_node(
+    mcap: &Path,
+    node: &str,
+    run_id: &str,
+    extra: &[&str],
+) -> (bool, String, String) {
+    let mut args = vec![
+        "replay",
+        mcap.to_str().unwrap(),
+        "--node",
+        node,
+        "--run-id",
+        run_id,
+    ];
+    args.extend_from_slice(extra);
+    let o = cosim(&args);
+    (
+        o.status.success(),
+        String::from_utf8_lossy(&o.stdout).to_string(),
+        String::from_utf8_lossy(&o.stderr).to_string(),
+    )
+}
+
+/// Nothing of run `id` is left: no live process on its command line, no shared memory.
+pub fn nothing_left(id: &str) {
+    let alive: Vec<u32> = processes_with(&format!("--run {id}"))
+        .into_iter()
+        .filter(|pid| {
+            std::fs::read_to_string(format!("/proc/{pid}/stat"))
+                .map(|s| !s.contains(") Z"))
+                .unwrap_or(false)
+        })
+        .collect();
+    assert!(alive.is_empty(), "surviving node processes: {alive:?}");
+    assert!(
+        shm_files(id).is_empty(),
+        "left in /dev/shm: {:?}",
+        shm_files(id)
+    );
+}
+
+/// `cosim replay`: replay `node` of `mcap` with its recorded executable and require bit-identity over every
+/// recorded window; returns the window count.
+pub fn assert_replays_bit_identically(mcap: &Path, node: &str, tag: &str) -> u64 {
+    let (_, id) = scratch(tag);
+    let (ok, out, err) = replay_node(mcap, node, &id, &[]);
+    println!("{node}: {out}{err}");
+    assert!(ok, "{node}: {err}");
+    assert!(out.contains("bit-identical"), "{node}: {out}");
+    let (compared, recorded, fields, values, report) = replay_counts(&out);
+    let expected = recorded_windows(mcap, node);
+    assert!(expected > 0, "{node}: no window in the recording");
+    assert_eq!(recorded, expected, "{node}: recorded windows");
+    assert_eq!(compared, expected, "{node}: compared windows");
+    assert!(
+        fields >= compared && values >= fields && report >= compared,
+        "{out}"
+    );
+    nothing_left(&id);
+    compared
+}

@@ -117,3 +117,26 @@ fn the_recording_passes_the_official_reader_and_plots_are_written() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(dir.join("gas_point1_pressure.png").is_file());
 }
+
+#[test]
+fn both_nodes_of_the_chamber_replay_bit_identically() {
+    let mcap = chamber().join("run.mcap");
+    for node in ["gas", "bar"] {
+        assert_eq!(
+            assert_replays_bit_identically(&mcap, node, "rp-chamber"),
+            80
+        );
+    }
+    // Another solid model against the recorded blast: compared over every window, and it
+    // differs.
+    let (_, id) = scratch("rp-chamber-rk");
+    let (ok, out, err) = replay_node(&mcap, "bar", &id, &["--set", "model=pd-rk-ba"]);
+    println!("{out}{err}");
+    assert!(ok, "{err}");
+    assert!(!out.contains("bit-identical"), "{out}");
+    assert!(out.contains("outputs differ"), "{out}");
+    let (compared, recorded, fields, ..) = replay_counts(&out);
+    assert_eq!((compared, recorded), (80, 80));
+    assert!(fields >= 80, "{out}");
+    nothing_left(&id);
+}

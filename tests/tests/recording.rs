@@ -1,4 +1,5 @@
-//! Recording, `cosim info` and `cosim replay` on a real split-bar run (ARCHITECTURE §7).
+//! Recording and `cosim info` on a real split-bar run (ARCHITECTURE §7); replay is in
+//! `replay.rs`.
 
 use cosim_tests::*;
 use std::sync::OnceLock;
@@ -41,59 +42,6 @@ fn info_summarises_the_run() {
     ] {
         assert!(s.contains(needle), "info lacks '{needle}'");
     }
-}
-
-#[test]
-fn replay_with_the_same_solver_is_bit_identical() {
-    for node in ["right", "left"] {
-        let o = cosim(&["replay", recorded().to_str().unwrap(), "--node", node]);
-        let s = String::from_utf8_lossy(&o.stdout);
-        println!("{node}: {s}");
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        assert!(s.contains("bit-identical"), "{node}: {s}");
-    }
-}
-
-#[test]
-fn replay_with_a_changed_parameter_reports_differences_and_drift() {
-    let (dir, _) = scratch("replay");
-    let csv = dir.join("report.csv");
-    let o = cosim(&[
-        "replay",
-        recorded().to_str().unwrap(),
-        "--node",
-        "right",
-        "--set",
-        "young=210e9",
-        "--report",
-        csv.to_str().unwrap(),
-        "--plot",
-        dir.join("plots").to_str().unwrap(),
-    ]);
-    let s = String::from_utf8_lossy(&o.stdout);
-    println!("{s}");
-    assert!(o.status.success());
-    assert!(!s.contains("bit-identical"));
-    assert!(s.contains("max rel diff"));
-    let rows = std::fs::read_to_string(&csv).unwrap();
-    assert!(rows.lines().count() > 10);
-    // Recorded against replayed tip displacement, one chart.
-    let png = dir.join("plots/replay_right_tip_displacement.png");
-    let len = std::fs::metadata(&png).map(|m| m.len()).unwrap_or(0);
-    assert!(len > 1000, "{}: {len} bytes", png.display());
-    // The driver's motion is what the recorded responder saw: changing the driver drifts it.
-    let o = cosim(&[
-        "replay",
-        recorded().to_str().unwrap(),
-        "--node",
-        "left",
-        "--set",
-        "young=210e9",
-    ]);
-    let e = String::from_utf8_lossy(&o.stderr);
-    println!("{e}");
-    assert!(o.status.success());
-    assert!(e.contains("drifted"), "no drift warning: {e}");
 }
 
 #[test]

@@ -1,0 +1,269 @@
+//! `cosim replay` (ARCHITECTURE §7): the node's executable is launched as a real process and fed
+//! its recorded inputs. Same executable → bit-identical over every recorded window (counted
+//! from the recording independently of the replay); a changed parameter → a difference report;
+//! a cut recording or a node killed mid-replay → an error, with nothing left behind.
+
+use cosim_tests::*;
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+/// One recorded split-bar run shared by the tests of this file.
+fn recorded() -> &'static PathBuf {
+    static OUT: OnceLock<PathBuf> = OnceLock::new();
+    OUT.get_or_init(|| {
+        let (dir, id) = scratch("replay-rec");
+        let case = split_bar_case(&dir, 100, 300, 0.5, "shm", 0.5);
+        let out = dir.join("out");
+        let o = run_case(&case, &out, &id, &[]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        out.join("run.mcap")
+    })
+}
+
+#[test]
+fn each_node_of_the_split_bar_replays_bit_identically_over_every_window() {
+    for node in ["left", "right"] {
+        assert_replays_bit_identically(recorded(), node, "rp-same");
+    }
+}
+
+#[test]
+fn any_executable_replays_the_node() {
+    // The node's executable under another name and place, named with --solver.
+    let (dir, id) = scratch("rp-solver");
+    let exe = dir.join("my-bar-solver");
+    std::fs::copy(bin("solid-node"), &exe).unwrap();
+    let (ok, out, err) = replay_node(
+        recorded(),
+        "right",
+        &id,
+        &["--solver", exe.to_str().unwrap()],
+    );
+    println!("{out}{err}");
+    assert!(ok, "{err}");
+    assert!(out.contains("my-bar-solver"), "{out}");
+    assert!(out.contains("bit-identical"), "{out}");
+    let (compared, recorded_n, ..) = replay_counts(&out);
+    assert_eq!(compared, recorded_windows(recorded(), "right"));
+    assert_eq!(compared, recorded_n);
+    nothing_left(&id);
+}
+
+#[test]
+fn a_changed_parameter_reports_differences_and_drift() {
+    let (dir, id) = scratch("rp-young");
+    let csv = dir.join("report.csv");
+    let (ok, out, err) = replay_node(
+        recorded(),
+        "right",
+        &id,
+        &[
+            "--set",
+            "young=210e9",
+            "--report",
+            csv.to_str().unwrap(),
+            "--plot",
+            dir.join("plots").to_str().unwrap(),
+        ],
+    );
+    println!("{out}{err}");
+    assert!(ok, "a complete comparison with differences succeeds: {err}");
+    assert!(!out.contains("bit-identical"), "{out}");
+    assert!(out.contains("outputs differ"), "{out}");
+    let (compared, recorded_n, fields, ..) = replay_counts(&out);
+    assert_eq!(compared, recorded_n);
+    assert_eq!(compared, recorded_windows(recorded(), "right"));
+    // Every compared field and report value has a CSV row; some differ by a real amount.
+    let rows = std::fs::read_to_string(&csv).unwrap();
+    let field_rows: Vec<&str> = rows
+        .lines()
+        .skip(1)
+        .filter(|l| !l.contains(",scalar,"))
+        .collect();
+    assert_eq!(field_rows.len() as u64, fields);
+    let worst = rows
+        .lines()
+        .skip(1)
+        .filter(|l| l.contains(",scalar,tip_displacement,"))
+        .map(|l| l.split(',').nth(4).unwrap().parse::<f64>().unwrap())
+        .fold(0.0f64, f64::max);
+    // E 200 → 210 GPa: the wave speed changes by 2.4 %, the tip history by far more than
+    // round-off by the end of half a period.
+    assert!(worst > 1e-3, "largest relative tip difference {worst:e}");
+    let png = dir.join("plots/replay_right_tip_displacement.png");
+    let len = std::fs::metadata(&png).map(|m| m.len()).unwrap_or(0);
+    assert!(len > 1000, "{}: {len} bytes", png.display());
+    nothing_left(&id);
+    // The driver's motion is what the recorded responder saw: changing the driver drifts it.
+    let (_, id) = scratch("rp-drift");
+    let (ok, out, err) = replay_node(recorded(), "left", &id, &["--set", "young=210e9"]);
+    println!("{out}{err}");
+    assert!(ok, "{err}");
+    assert!(err.contains("drifted"), "no drift warning: {err}");
+}
+
+#[test]
+fn a_truncated_recording_is_reported_incomplete() {
+    let (dir, id) = scratch("rp-cut");
+    let bytes = std::fs::read(recorded()).unwrap();
+    let cut = dir.join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    for node in ["left", "right"] {
+        let (ok, out, err) = replay_node(&cut, node, &id, &[]);
+        println!("{node}: {out}{err}");
+        assert!(!ok, "{node}: a cut recording replayed as complete: {out}");
+        assert!(!out.contains("bit-identical"), "{out}");
+        assert!(err.contains("incomplete"), "{node}: {err}");
+        nothing_left(&id);
+    }
+}
+
+#[test]
+fn a_decimated_recording_is_replayed_only_where_it_holds_every_input() {
+    // `record_every = 2` keeps the coupling fields of even windows only: window 1's input is
+    // not in the recording, so the replay stops there and says so.
+    let (dir, id) = scratch("rp-decim");
+    let case = split_bar_case(&dir, 100, 300, 0.5, "shm", 0.5);
+    let out = dir.join("out");
+    let o = run_case(&case, &out, &id, &["--set", "run.record_every=2"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mcap = out.join("run.mcap");
+    let (_, rid) = scratch("rp-decim-r");
+    let (ok, stdout, err) = replay_node(&mcap, "right", &rid, &[]);
+    println!("{stdout}{err}");
+    assert!(!ok);
+    assert!(!stdout.contains("bit-identical"), "{stdout}");
+    let (compared, recorded_n, ..) = replay_counts(&stdout);
+    assert_eq!(recorded_n, recorded_windows(&mcap, "right"));
+    assert!(compared < recorded_n);
+    assert!(
+        err.contains("lacks the peer fields 'mid' of window 1"),
+        "{err}"
+    );
+    nothing_left(&rid);
+}
+
+#[test]
+fn a_bad_node_solver_or_model_is_refused() {
+    let (_, id) = scratch("rp-bad");
+    let (ok, _, err) = replay_node(recorded(), "middle", &id, &[]);
+    assert!(!ok);
+    assert!(
+        err.contains("'middle' is not in the recorded case"),
+        "{err}"
+    );
+    let (ok, _, err) = replay_node(
+        recorded(),
+        "right",
+        &id,
+        &["--solver", "/nonexistent/solver"],
+    );
+    assert!(!ok);
+    assert!(err.contains("/nonexistent/solver"), "{err}");
+    // A model the executable does not have: its own refusal, with the key.
+    let (ok, _, err) = replay_node(recorded(), "right", &id, &["--set", "model=no-such-model"]);
+    println!("{err}");
+    assert!(!ok);
+    assert!(err.contains("no-such-model"), "{err}");
+    nothing_left(&id);
+}
+
+/// A recording long enough for a replay to be interrupted: 4 periods of the bar, 6400 windows.
+fn long_recording() -> &'static PathBuf {
+    static OUT: OnceLock<PathBuf> = OnceLock::new();
+    OUT.get_or_init(|| {
+        let (dir, id) = scratch("rp-long");
+        let case = split_bar_case(&dir, 100, 300, 0.5, "shm", 4.0);
+        let out = dir.join("out");
+        let o = run_case(&case, &out, &id, &[]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        out.join("run.mcap")
+    })
+}
+
+/// Replay `right` of the long recording, stop its node (SIGSTOP) once it is under way, do
+/// `act` to it, and return the replay's exit status, stdout and stderr, and the seconds from
+/// the stop to its exit; checks that nothing of the replay is left.
+fn interrupted(tag: &str, act: impl FnOnce(i32)) -> (bool, String, String, f64) {
+    let (_, id) = scratch(tag);
+    let mut child = Command::new(bin("cosim"))
+        .args([
+            "replay",
+            long_recording().to_str().unwrap(),
+            "--node",
+            "right",
+            "--run-id",
+            &id,
+        ])
+        .env("COSIM_LOG", "warn")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    let pid = loop {
+        if let Some(&p) = processes_with(&format!("--run {id} --node right")).first() {
+            break p as i32;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "node never started"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    // Some windows in (a full replay takes about half a second unloaded), then freeze it so
+    // the replay cannot finish first.
+    std::thread::sleep(Duration::from_millis(150));
+    // SAFETY: kill(2) on the pid of the replay's own node process, found above.
+    unsafe { libc::kill(pid, libc::SIGSTOP) };
+    let stopped = Instant::now();
+    act(pid);
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if stopped.elapsed() > Duration::from_secs(15) {
+            let _ = child.kill();
+            // SAFETY: as above.
+            unsafe { libc::kill(pid, libc::SIGKILL) };
+            panic!("cosim replay still running 15 s after its node was stopped");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    let secs = stopped.elapsed().as_secs_f64();
+    let o = child.wait_with_output().unwrap();
+    let out = String::from_utf8_lossy(&o.stdout).to_string();
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    println!("{tag}: {status} after {secs:.2} s: {out}{err}");
+    nothing_left(&id);
+    (status.success(), out, err, secs)
+}
+
+#[test]
+fn a_replayed_node_killed_mid_replay_ends_it_with_an_error() {
+    let (ok, out, err, secs) = interrupted("rp-kill", |pid| {
+        // SAFETY: kill(2) on the replay's own node process.
+        unsafe { libc::kill(pid, libc::SIGKILL) };
+    });
+    assert!(!ok);
+    assert!(!out.contains("bit-identical"), "{out}");
+    assert!(
+        err.contains("node 'right'") && err.contains("SIGKILL"),
+        "{err}"
+    );
+    assert!(secs < 5.0, "{secs} s");
+}
+
+#[test]
+fn a_hung_replayed_node_ends_it_with_an_error() {
+    // Stopped and left so: no heartbeat for the recorded timeout (3 s).
+    let (ok, out, err, _) = interrupted("rp-hang", |_| {});
+    assert!(!ok);
+    assert!(!out.contains("bit-identical"), "{out}");
+    assert!(
+        err.contains("node 'right'") && err.contains("no heartbeat"),
+        "{err}"
+    );
+}
