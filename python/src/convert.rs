@@ -54,6 +54,10 @@ pub fn py_error(py: Python<'_>, e: PyErr, what: &str) -> SolverError {
     if kind("InterfaceError") {
         return SolverError::interface(attr("interface"), attr("reason"));
     }
+    // The traceback lives in the error, not yet on the exception object.
+    if let Some(tb) = e.traceback(py) {
+        let _ = e.value(py).setattr("__traceback__", tb);
+    }
     let tb = py
         .import("traceback")
         .and_then(|t| t.call_method1("format_exception", (e.value(py),)))
