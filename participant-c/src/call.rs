@@ -52,6 +52,25 @@ pub struct CosimCall {
 }
 
 impl CosimCall {
+    /// A call handle for `what` with nothing to read or write: what a callback gets that its
+    /// kind of call does not allow (for tests of careless callers).
+    pub fn bare(what: &'static str) -> Self {
+        Self::new(what)
+    }
+
+    /// Lend `outbox` to the call, as `advance` does (for tests).
+    ///
+    /// # Safety
+    /// `outbox` must outlive every use of the call.
+    pub unsafe fn lend_outbox(&mut self, outbox: *mut FieldSet) {
+        self.outbox = Some(outbox);
+    }
+
+    /// The call's outcome for a callback that returned `code` (for tests).
+    pub fn outcome(&mut self, code: c_int) -> Result<(), SolverError> {
+        self.finish(code)
+    }
+
     pub(crate) fn new(what: &'static str) -> Self {
         CosimCall {
             what,
@@ -127,7 +146,7 @@ impl CosimCall {
 }
 
 /// Text of a caught panic.
-pub(crate) fn panic_text(p: &Box<dyn std::any::Any + Send>) -> String {
+pub(crate) fn panic_text(p: &(dyn std::any::Any + Send)) -> String {
     p.downcast_ref::<&str>()
         .map(|s| s.to_string())
         .or_else(|| p.downcast_ref::<String>().cloned())
@@ -161,7 +180,7 @@ fn with_call<R: Copy>(
         Err(p) => {
             c.fail(SolverError::Other(format!(
                 "{name}: internal error: {}",
-                panic_text(&p)
+                panic_text(&*p)
             )));
             fail
         }

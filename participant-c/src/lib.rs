@@ -14,8 +14,6 @@
 mod call;
 mod params;
 mod solver;
-#[cfg(test)]
-mod tests;
 
 pub use call::*;
 
@@ -237,10 +235,23 @@ pub unsafe extern "C" fn cosim_node_main(
     match run {
         Ok(code) => code,
         Err(p) => {
-            eprintln!("cosim_node_main: internal error: {}", call::panic_text(&p));
+            eprintln!("cosim_node_main: internal error: {}", call::panic_text(&*p));
             1
         }
     }
+}
+
+/// The solver behind `vtable` and `user` as the runtime sees it, without a run: what
+/// `cosim_node_main` builds after the coordinator's `Welcome`. For Rust hosts and tests that
+/// drive a C solver in-process (as replay does with built-in solvers).
+pub fn solver_from_vtable(
+    vtable: CosimSolverVTable,
+    user: *mut c_void,
+    model: &str,
+    params: &toml::Table,
+) -> protocol::SolverResult<Box<dyn protocol::Solver>> {
+    solver::check_vtable(&vtable).map_err(protocol::SolverError::Other)?;
+    CSolver::create(vtable, UserPtr(user), model, params)
 }
 
 /// The C command line as OS strings (program name first).

@@ -3,8 +3,7 @@
 //! and calls a careless C caller makes (NULL, bad UTF-8, the wrong callback) that must give
 //! an error, never a panic.
 
-use super::*;
-use crate::solver::{CSolver, UserPtr};
+use cosim_participant::*;
 use protocol::{Binding, CouplingKind, FieldSet, Role, Solver, Window};
 use std::ffi::{CStr, c_char, c_int, c_void};
 
@@ -149,12 +148,7 @@ fn params(s: &str) -> toml::Table {
 }
 
 fn build(st: &mut State, p: &str) -> protocol::SolverResult<Box<dyn Solver>> {
-    CSolver::create(
-        vtable(),
-        UserPtr(st as *mut State as *mut c_void),
-        "toy",
-        &params(p),
-    )
+    solver_from_vtable(vtable(), st as *mut State as *mut c_void, "toy", &params(p))
 }
 
 #[test]
@@ -177,6 +171,7 @@ fn a_c_solver_reads_params_describes_and_exchanges_fields_without_copies() {
         peer_interface: "b".into(),
         sends: vec!["force".into()],
         receives: vec!["velocity".into()],
+        input_lag: 0,
     };
     let mut inbox = FieldSet::new();
     let mut out = FieldSet::new();
@@ -279,7 +274,7 @@ fn careless_calls_give_errors_not_panics() {
         );
         assert_eq!(cosim_binding_count(std::ptr::null_mut()), 0);
         // A handle, but NULL or invalid strings, NULL out pointers, absurd sizes.
-        let c = Box::into_raw(Box::new(CosimCall::new("advance")));
+        let c = Box::into_raw(Box::new(CosimCall::bare("advance")));
         assert!(
             cosim_inbox_get(
                 c,
@@ -291,24 +286,29 @@ fn careless_calls_give_errors_not_panics() {
             .is_null()
         );
         assert_eq!(
-            (*c).finish(0).unwrap_err().to_string(),
+            (*c).outcome(0).unwrap_err().to_string(),
             "advance: interface is NULL"
         );
         let bad = [0xffu8, 0xfe, 0];
         assert!(cosim_outbox_put(c, bad.as_ptr().cast(), c"f".as_ptr(), 1, 1).is_null());
         assert_eq!(
-            (*c).finish(0).unwrap_err().to_string(),
+            (*c).outcome(0).unwrap_err().to_string(),
             "advance: interface is not UTF-8"
         );
         let mut out = FieldSet::new();
-        (*c).outbox = Some(&mut out as *mut FieldSet);
+        (*c).lend_outbox(&mut out as *mut FieldSet);
         assert!(cosim_outbox_put(c, c"a".as_ptr(), c"f".as_ptr(), 1, usize::MAX).is_null());
-        assert!((*c).finish(0).unwrap_err().to_string().contains("too many"));
+        assert!(
+            (*c).outcome(0)
+                .unwrap_err()
+                .to_string()
+                .contains("too many")
+        );
         assert!(cosim_outbox_put(c, c"a".as_ptr(), c"f".as_ptr(), 0, 1).is_null());
-        assert!((*c).finish(0).is_err());
+        assert!((*c).outcome(0).is_err());
         assert_eq!(cosim_mesh_points(c, std::ptr::null(), 3), COSIM_ERROR);
         assert_eq!(
-            (*c).finish(0).unwrap_err().to_string(),
+            (*c).outcome(0).unwrap_err().to_string(),
             "advance: xyz is NULL"
         );
         assert_eq!(cosim_binding_get(c, 0, std::ptr::null_mut()), COSIM_MISSING);
@@ -317,26 +317,28 @@ fn careless_calls_give_errors_not_panics() {
             COSIM_ERROR
         );
         assert_eq!(
-            (*c).finish(0).unwrap_err().to_string(),
+            (*c).outcome(0).unwrap_err().to_string(),
             "advance: parameters are read in create only"
         );
         // The first error of a call is the one reported.
         cosim_set_error(c, CosimErrorKind::Config, c"k".as_ptr(), c"first".as_ptr());
         cosim_set_error(c, CosimErrorKind::Config, c"k".as_ptr(), c"second".as_ptr());
-        assert_eq!((*c).finish(1).unwrap_err().to_string(), "k: first");
+        assert_eq!((*c).outcome(1).unwrap_err().to_string(), "k: first");
         drop(Box::from_raw(c));
     }
     // A vtable of another ABI version or missing a required callback is refused.
     let mut vt = vtable();
     vt.abi_version = 99;
-    assert!(
-        solver::check_vtable(&vt)
-            .unwrap_err()
-            .contains("ABI version 99")
-    );
+    let e = solver_from_vtable(vt, std::ptr::null_mut(), "toy", &params(""))
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("ABI version 99"), "{e}");
     let mut vt = vtable();
     vt.advance = None;
-    assert!(solver::check_vtable(&vt).unwrap_err().contains("advance"));
+    let e = solver_from_vtable(vt, std::ptr::null_mut(), "toy", &params(""))
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("advance"), "{e}");
 }
 
 #[test]
