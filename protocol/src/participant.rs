@@ -10,9 +10,10 @@
 use crate::codec::{self, encode_into};
 use crate::mapping::Mapping;
 use crate::message::*;
-use crate::solver::{FieldSet, Solver, SolverError, SolverFactory, Window};
+use crate::solver::{FieldSet, Solver, SolverError, SolverFactory, SolverResult, Window};
 use crate::transport::{self, Publisher, Transport, TransportKind, TransportSpec};
 use std::collections::VecDeque;
+use std::ffi::OsString;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -420,11 +421,25 @@ fn recv_one(w: &mut Wire, timeout: Duration) -> anyhow::Result<Option<Incoming>>
     Ok(got)
 }
 
+/// A solver factory that owns what it needs: the C participant library's callback table, a
+/// Python object. Called once, after the coordinator's `Welcome`.
+pub type BoxedFactory = Box<dyn FnOnce(&str, &toml::Table) -> SolverResult<Box<dyn Solver>>>;
+
 /// Entry point of every node binary; returns the process exit code
 /// (0 finished, 1 failed, 2 bad invocation, 3 aborted by the coordinator).
 pub fn node_main(binary: &str, factory: SolverFactory) -> i32 {
+    node_main_with(binary, std::env::args_os(), Box::new(factory))
+}
+
+/// [`node_main`] for a node that is not a Rust binary of its own: the command line comes as
+/// `args` (program name first, like `argv`), the solver from a boxed factory.
+pub fn node_main_with(
+    binary: &str,
+    args: impl IntoIterator<Item = impl Into<OsString> + Clone>,
+    factory: BoxedFactory,
+) -> i32 {
     use clap::Parser;
-    let args = match NodeArgs::try_parse() {
+    let args = match NodeArgs::try_parse_from(args) {
         Ok(a) => a,
         Err(e) => {
             let code = if e.use_stderr() { 2 } else { 0 };
@@ -467,7 +482,7 @@ pub fn init_logging() {
         .try_init();
 }
 
-fn run_node(binary: &str, factory: SolverFactory, args: &NodeArgs) -> anyhow::Result<i32> {
+fn run_node(binary: &str, factory: BoxedFactory, args: &NodeArgs) -> anyhow::Result<i32> {
     let kind: TransportKind = args
         .transport
         .parse()
@@ -578,7 +593,7 @@ fn run_node(binary: &str, factory: SolverFactory, args: &NodeArgs) -> anyhow::Re
 /// to the coordinator by the caller.
 fn build_and_run(
     w: &mut Wire,
-    factory: SolverFactory,
+    factory: BoxedFactory,
     welcome: &Welcome,
     args: &NodeArgs,
     progress: &Progress,

@@ -1,0 +1,105 @@
+//! Benchmark helper: a node whose solver only passes data through (model `echo`), the Rust
+//! baseline of `tools/bench_participant.py`. Interface `port` has `points` points (param,
+//! default 128); a responder answers each window's `velocity` with the same values as
+//! `force`, a driver sends `velocity` (its window index) and takes `force`. With one value
+//! per point, 128 points are 1 KiB each way.
+
+use protocol::{
+    Binding, Inbox, InterfaceInfo, InterfaceMesh, NodeDescription, Outbox, Role, Solver,
+    SolverError, SolverResult, StepReport, Window,
+};
+
+const PORT: &str = "port";
+
+struct Echo {
+    points: usize,
+    role: Option<Role>,
+}
+
+fn factory(model: &str, params: &toml::Table) -> SolverResult<Box<dyn Solver>> {
+    if model != "echo" {
+        return Err(SolverError::config(
+            "model",
+            format!("only \"echo\", got \"{model}\""),
+        ));
+    }
+    let mut points = 128;
+    for (k, v) in params {
+        match (k.as_str(), v.as_integer()) {
+            ("points", Some(n)) if n > 0 => points = n as usize,
+            ("points", _) => return Err(SolverError::config("points", "must be an integer > 0")),
+            _ => {
+                return Err(SolverError::config(
+                    k,
+                    "unknown parameter (echo reads: points)",
+                ));
+            }
+        }
+    }
+    Ok(Box::new(Echo { points, role: None }))
+}
+
+impl Solver for Echo {
+    fn describe(&self) -> NodeDescription {
+        let f = vec!["velocity".to_string(), "force".to_string()];
+        NodeDescription {
+            model: "echo".into(),
+            interfaces: vec![InterfaceInfo {
+                name: PORT.into(),
+                points: self.points,
+                provides: f.clone(),
+                accepts: f,
+            }],
+            units: "SI".into(),
+        }
+    }
+
+    fn interface(&self, name: &str) -> SolverResult<InterfaceMesh> {
+        if name != PORT {
+            return Err(SolverError::interface(
+                name,
+                "echo has one interface, 'port'",
+            ));
+        }
+        Ok(InterfaceMesh::points(
+            (0..self.points).map(|i| [i as f64, 0.0, 0.0]).collect(),
+        ))
+    }
+
+    fn setup(
+        &mut self,
+        bindings: &[Binding],
+        _inbox: &Inbox,
+        _out: &mut Outbox,
+    ) -> SolverResult<()> {
+        self.role = bindings.first().map(|b| b.role);
+        Ok(())
+    }
+
+    fn stable_dt(&self) -> f64 {
+        1.0
+    }
+
+    fn advance(&mut self, w: &Window, inbox: &Inbox, out: &mut Outbox) -> SolverResult<StepReport> {
+        match self.role {
+            Some(Role::Responder) => {
+                let v = inbox.require(PORT, "velocity", self.points)?;
+                let f = out.put(PORT, "force", 1, self.points);
+                f.copy_from_slice(v);
+            }
+            Some(Role::Driver) => {
+                out.put(PORT, "velocity", 1, self.points)
+                    .fill(w.index as f64);
+            }
+            None => {}
+        }
+        Ok(StepReport {
+            substeps: 1,
+            ..Default::default()
+        })
+    }
+}
+
+fn main() {
+    std::process::exit(protocol::participant::node_main("cosim-echo-node", factory));
+}

@@ -1,0 +1,393 @@
+//! Solvers of our users' own, through the participant libraries (ARCHITECTURE §1: the node is
+//! the unit of extension): the 1-D bar written in Python (`examples/external/bar.py`, package
+//! `cosim` from `python/`) and in C (`examples/external/bar.c` on `participant-c`) runs as the
+//! right half of the split bar exactly as the built-in `bar-1d` does — the tip follows the
+//! exact triangle wave, the momentum residual is round-off, and summary and recording have the
+//! built-in run's shape — and a Python node killed mid-run ends the run cleanly.
+//!
+//! These need the Python package installed (`pip install ./python`) and a C compiler: under
+//! `CI=true` a missing one is a failure, elsewhere the test is skipped with a message.
+
+use cosim_tests::*;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn in_ci() -> bool {
+    std::env::var("CI").is_ok_and(|v| v == "true")
+}
+
+/// Whether `what` is available; outside CI a missing one skips the test with `hint`.
+fn need(ok: bool, what: &str, hint: &str) -> bool {
+    if ok {
+        return true;
+    }
+    assert!(!in_ci(), "{what} is missing under CI: {hint}");
+    eprintln!("skipped: {what} is missing ({hint})");
+    false
+}
+
+fn python_package() -> bool {
+    let ok = Command::new("python3")
+        .args(["-c", "import cosim, numpy"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    need(
+        ok,
+        "the Python package `cosim` (with numpy)",
+        "python3 -m pip install ./python",
+    )
+}
+
+/// Build `examples/external/bar-c` from `bar.c` against the library in target/release, as
+/// its Makefile does.
+fn c_bar() -> Option<PathBuf> {
+    let lib = bin_dir();
+    if !need(
+        lib.join("libcosim_participant.so").is_file(),
+        "target/release/libcosim_participant.so",
+        "cargo build --release --workspace",
+    ) {
+        return None;
+    }
+    let root = workspace_root();
+    let exe = root.join("examples/external/bar-c");
+    let status = Command::new("cc")
+        .args(["-O2", "-Wall", "-Wextra", "-Werror", "-I"])
+        .arg(root.join("participant-c/include"))
+        .arg("-o")
+        .arg(&exe)
+        .arg(root.join("examples/external/bar.c"))
+        .arg("-L")
+        .arg(&lib)
+        .arg("-lcosim_participant")
+        .arg(format!("-Wl,-rpath,{}", lib.display()))
+        .arg("-lm")
+        .status();
+    if !need(status.is_ok(), "a C compiler (cc)", "apt-get install gcc") {
+        return None;
+    }
+    assert!(status.is_ok_and(|s| s.success()), "bar.c does not compile");
+    Some(exe)
+}
+
+fn split_bar() -> PathBuf {
+    workspace_root().join("examples/split_bar.toml")
+}
+
+/// `cosim run examples/split_bar.toml [--variant V]` into a scratch directory.
+fn run_variant(tag: &str, variant: Option<&str>) -> (PathBuf, Value, String) {
+    let (dir, id) = scratch(tag);
+    let out = dir.join("out");
+    let extra: Vec<&str> = variant.map(|v| vec!["--variant", v]).unwrap_or_default();
+    let o = run_case(&split_bar(), &out, &id, &extra);
+    assert!(
+        o.status.success(),
+        "cosim run {variant:?} failed: {}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(
+        shm_files(&id).is_empty(),
+        "left in /dev/shm: {:?}",
+        shm_files(&id)
+    );
+    let s = summary(&out);
+    (out, s, id)
+}
+
+/// The shape of a JSON value: its keys and types, with every leaf replaced by its type.
+fn shape(v: &Value) -> Value {
+    match v {
+        Value::Object(m) => Value::Object(m.iter().map(|(k, v)| (k.clone(), shape(v))).collect()),
+        Value::Array(a) => Value::Array(a.iter().map(shape).collect()),
+        Value::Number(_) => Value::String("number".into()),
+        Value::String(_) => Value::String("string".into()),
+        Value::Bool(_) => Value::String("bool".into()),
+        Value::Null => Value::Null,
+    }
+}
+
+/// Topic (with the run id taken out), message type and count of everything recorded, but
+/// heartbeats (their number follows the wall clock).
+fn channels(mcap: &Path, id: &str) -> Vec<(String, String, usize)> {
+    let (msgs, _) = coordinator::record::read_all(mcap).expect("readable recording");
+    let mut v: std::collections::BTreeMap<(String, String), usize> = Default::default();
+    for m in &msgs {
+        let kind = if m.json {
+            "json"
+        } else {
+            protocol::decode(&m.data)
+                .expect("a recorded envelope decodes")
+                .message
+                .type_name()
+        };
+        if kind == "cosim.Heartbeat" {
+            continue;
+        }
+        *v.entry((m.topic.replace(id, "RUN"), kind.to_string()))
+            .or_default() += 1;
+    }
+    v.into_iter().map(|((t, k), n)| (t, k, n)).collect()
+}
+
+/// The external right half against the built-in one: exact wave, round-off momentum
+/// residual, the same summary shape and recorded channels, the same tip history.
+fn compare_with_builtin(variant: &str) {
+    let (out, s, id) = run_variant(&format!("ext-{variant}"), Some(variant));
+    let (out0, s0, id0) = run_variant(&format!("ext-{variant}-rs"), None);
+    let mcap = out.join("run.mcap");
+    let tip = node_series(&mcap, "right", "tip_displacement");
+    let windows = s["windows"].as_u64().expect("windows");
+    assert_eq!(tip.len() as u64, windows, "one tip value per window");
+    assert_eq!(s0["windows"].as_u64(), Some(windows));
+    let err = tip_error(&tip);
+    let resid = s["balance"]["max_momentum_residual_relative"]
+        .as_f64()
+        .expect("momentum residual");
+    let resid0 = s0["balance"]["max_momentum_residual_relative"]
+        .as_f64()
+        .expect("momentum residual");
+    println!(
+        "{variant}: {windows} windows, largest tip error {err:.4e} of the amplitude, momentum \
+         residual {resid:.3e} (built-in {resid0:.3e})"
+    );
+    assert!(err <= 0.02, "tip error {err} > 2 % of the amplitude");
+    assert!(resid <= 1e-12, "momentum residual {resid} is not round-off");
+    // The same discretisation as the built-in bar: the same tip, window by window.
+    let tip0 = node_series(&out0.join("run.mcap"), "right", "tip_displacement");
+    assert_eq!(tip0.len(), tip.len());
+    let worst = tip
+        .iter()
+        .zip(&tip0)
+        .map(|((t, u), (t0, u0))| {
+            assert_eq!(t, t0);
+            (u - u0).abs() / amplitude()
+        })
+        .fold(0.0, f64::max);
+    println!(
+        "{variant}: largest tip difference from the built-in run {worst:.3e} of the amplitude"
+    );
+    assert!(
+        worst <= 1e-12,
+        "tip differs from the built-in bar by {worst}"
+    );
+    // summary.json and the recording look like a built-in run's.
+    assert_eq!(shape(&s), shape(&s0), "summary.json shapes differ");
+    assert_eq!(channels(&mcap, &id), channels(&out0.join("run.mcap"), &id0));
+    let (ok, text) = check_mcap(&mcap, "--require-json");
+    assert!(ok, "check_mcap: {text}");
+}
+
+#[test]
+fn python_right_half_follows_the_exact_wave_like_the_builtin_bar() {
+    if !python_package() {
+        return;
+    }
+    compare_with_builtin("python");
+}
+
+#[test]
+fn c_right_half_follows_the_exact_wave_like_the_builtin_bar() {
+    if c_bar().is_none() {
+        return;
+    }
+    compare_with_builtin("c");
+}
+
+#[test]
+fn a_killed_python_node_ends_the_run_cleanly() {
+    if !python_package() {
+        return;
+    }
+    let (dir, id) = scratch("ext-kill");
+    let out = dir.join("out");
+    // Two hundred periods: long enough to be killed mid-run.
+    let mut child = Command::new(bin("cosim"))
+        .args(["run"])
+        .arg(split_bar())
+        .args([
+            "--variant",
+            "python",
+            "--set",
+            "run.end_time=0.3",
+            "--output",
+        ])
+        .arg(&out)
+        .args(["--run-id", &id, "--quiet"])
+        .env("COSIM_LOG", "warn")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("cosim starts");
+    let node = format!("--run {id} --node right");
+    let start = Instant::now();
+    // Python may take seconds to start on a loaded machine: give it time to get going.
+    let pid = loop {
+        if let Some(&p) = processes_with(&node).first()
+            && start.elapsed() > Duration::from_secs(6)
+        {
+            break p;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "the Python node never started"
+        );
+        assert!(
+            child.try_wait().expect("cosim status").is_none(),
+            "cosim ended before the kill"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let killed = Instant::now();
+    // SAFETY: plain kill(2) of the node process this test found.
+    assert_eq!(unsafe { libc::kill(pid as i32, libc::SIGKILL) }, 0);
+    let status = loop {
+        if let Some(s) = child.try_wait().expect("cosim status") {
+            break s;
+        }
+        if killed.elapsed() > Duration::from_secs(2) {
+            let _ = child.kill();
+            panic!("cosim still running 2 s after the Python node was killed");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    let took = killed.elapsed();
+    let o = child.wait_with_output().expect("cosim output");
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    println!("killed the Python node: cosim exited {status} after {took:?}: {stderr}");
+    assert!(!status.success());
+    assert!(
+        stderr.contains("right"),
+        "the message does not name the node: {stderr}"
+    );
+    // No process of the run survives, no shared memory of it is left.
+    std::thread::sleep(Duration::from_millis(100));
+    let alive: Vec<u32> = processes_with(&format!("--run {id}"))
+        .into_iter()
+        .filter(|pid| {
+            std::fs::read_to_string(format!("/proc/{pid}/stat"))
+                .map(|s| !s.contains(") Z"))
+                .unwrap_or(false)
+        })
+        .collect();
+    assert!(alive.is_empty(), "surviving node processes: {alive:?}");
+    assert!(
+        shm_files(&id).is_empty(),
+        "left in /dev/shm: {:?}",
+        shm_files(&id)
+    );
+    // The recording is readable and holds the windows completed before the kill, in order.
+    let mcap = out.join("run.mcap");
+    let (ok, text) = check_mcap(&mcap, "--recover");
+    assert!(ok, "check_mcap --recover: {text}");
+    let (msgs, _) = coordinator::record::read_all(&mcap).expect("readable recording");
+    let windows: Vec<u64> = msgs
+        .iter()
+        .filter(|m| m.topic == "/cosim/balance")
+        .filter_map(|m| serde_json::from_slice::<Value>(&m.data).ok()?["window"].as_u64())
+        .collect();
+    println!("{} windows recorded before the kill", windows.len());
+    assert!(!windows.is_empty(), "no window recorded before the kill");
+    assert!(
+        windows.iter().enumerate().all(|(i, &w)| w == i as u64 + 1),
+        "windows not contiguous"
+    );
+    assert_eq!(summary(&out)["status"], "failed");
+}
+
+/// A split bar whose right half is the Python bar with `body` replacing its `advance`
+/// (Python source, indented for a method); returns cosim's exit and stderr.
+fn run_patched_python_bar(
+    tag: &str,
+    body: &str,
+) -> (std::process::ExitStatus, String, PathBuf, String) {
+    let (dir, id) = scratch(tag);
+    let script = dir.join("patched_bar.py");
+    let text = format!(
+        "#!/usr/bin/env python3\nimport sys\nsys.path.insert(0, {:?})\nimport bar\nimport cosim\n\n\
+         class Patched(bar.Bar):\n{body}\n\nraise SystemExit(cosim.run_node(Patched))\n",
+        workspace_root()
+            .join("examples/external")
+            .display()
+            .to_string()
+    );
+    std::fs::write(&script, text).expect("write the script");
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).expect("chmod");
+    let case = split_bar_case(&dir, 100, 300, 0.5, "shm", 0.2);
+    // As in the case's python variant: Python may start slowly on a loaded machine.
+    let text = std::fs::read_to_string(&case)
+        .expect("case")
+        .replace(
+            "[nodes.right]\nsolver = \"solid-node\"",
+            &format!("[nodes.right]\nsolver = {:?}", script.display().to_string()),
+        )
+        .replace(
+            "output = \"out\"",
+            "output = \"out\"\nheartbeat_timeout = 20.0",
+        );
+    std::fs::write(&case, text).expect("case");
+    let out = dir.join("out");
+    let o = run_case(&case, &out, &id, &[]);
+    (
+        o.status,
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+        out,
+        id,
+    )
+}
+
+#[test]
+fn a_python_exception_or_a_kept_view_ends_the_run_with_the_reason() {
+    if !python_package() {
+        return;
+    }
+    let raising = "    def advance(self, window, inbox, outbox):\n        \
+                   if window.index == 5:\n            return self.explode(window)\n        \
+                   return super().advance(window, inbox, outbox)\n\n    \
+                   def explode(self, window):\n        \
+                   raise ZeroDivisionError(f'broken in window {window.index}')\n";
+    let keeping = "    def advance(self, window, inbox, outbox):\n        \
+                   self.kept = inbox['root', 'velocity'][0]\n        \
+                   return super().advance(window, inbox, outbox)\n";
+    for (tag, body, expect) in [
+        (
+            "ext-raise",
+            raising,
+            &[
+                "right",
+                "ZeroDivisionError: broken in window 5",
+                "in explode",
+            ][..],
+        ),
+        (
+            "ext-keep",
+            keeping,
+            &["right", "kept a numpy view of inbox['root', 'velocity']"][..],
+        ),
+    ] {
+        let (status, stderr, out, id) = run_patched_python_bar(tag, body);
+        println!("{tag}: exit {status}: {stderr}");
+        assert!(!status.success(), "{tag}: the run succeeded");
+        for e in expect {
+            assert!(
+                stderr.contains(e),
+                "{tag}: '{stderr}' does not mention '{e}'"
+            );
+        }
+        assert!(
+            !stderr.contains("panicked"),
+            "{tag}: a panic is not a failure message: {stderr}"
+        );
+        assert_eq!(summary(&out)["status"], "failed");
+        assert!(
+            shm_files(&id).is_empty(),
+            "left in /dev/shm: {:?}",
+            shm_files(&id)
+        );
+    }
+}
