@@ -3,8 +3,10 @@
 //! implements, the participant runtime that runs a `Solver` as a node, and interface mapping.
 
 pub mod codec;
+pub mod describe;
 pub mod mapping;
 pub mod message;
+pub mod params;
 pub mod participant;
 pub mod solver;
 pub mod transport;
