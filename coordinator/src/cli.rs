@@ -1,4 +1,5 @@
-//! The `cosim` command line: run, validate, info, replay, bench.
+//! The `cosim` command line: run, validate, info, replay, plot, and bench (which runs the
+//! `cosim-bench` executable).
 
 use crate::{config, replay, run};
 use clap::{Parser, Subcommand};
@@ -98,34 +99,14 @@ pub enum Cmd {
         #[arg(long)]
         x: Option<String>,
     },
-    /// Benchmarks: without a subcommand, every kernel of the project (transport, fluid,
-    /// pd-bond, pd-correspondence, shell, joint; CPU at 1 and 2 threads, GPU where an adapter
-    /// exists) at 4 sizes each, written to DIR/bench.json and DIR/bench.md.
-    #[command(args_conflicts_with_subcommands = true)]
+    /// Benchmarks (the `cosim-bench` executable beside `cosim`, with these arguments):
+    /// without a subcommand, every kernel of the project at 4 sizes, written to
+    /// DIR/bench.json and DIR/bench.md; `cosim bench transport`: window round trips per
+    /// transport. `cosim bench --help` lists the options.
+    #[command(disable_help_flag = true)]
     Bench {
-        #[command(subcommand)]
-        what: Option<BenchCmd>,
-        #[command(flatten)]
-        suite: crate::bench::SuiteArgs,
-    },
-    /// Internal: the echo side of `cosim bench transport` (configured by its environment).
-    #[command(hide = true)]
-    BenchEcho,
-}
-
-#[derive(Debug, Subcommand)]
-pub enum BenchCmd {
-    /// Round trip of one window exchange (Advance → Fields → Done) per transport and size.
-    Transport {
-        /// Rounds per size (medians are taken over them, after a warm-up).
-        #[arg(long, default_value_t = 300)]
-        rounds: usize,
-        /// shm | zenoh | local | all
-        #[arg(long, default_value = "all")]
-        transport: String,
-        /// Payload sizes in bytes, comma-separated.
-        #[arg(long, value_delimiter = ',', default_values_t = protocol::transport::bench::DEFAULT_SIZES.to_vec())]
-        sizes: Vec<usize>,
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
     },
 }
 
@@ -298,6 +279,25 @@ pub fn main_with(cli: Cli) -> i32 {
                     ((c.run.end_time / c.run.window) - 1e-9).ceil(),
                     order
                 );
+                for n in &c.nodes {
+                    match &n.interfaces {
+                        Some(i) => println!(
+                            "  node {}: {} {} described by its executable — interfaces {}",
+                            n.name,
+                            n.solver,
+                            n.model,
+                            if i.is_empty() {
+                                "none".to_string()
+                            } else {
+                                i.join(", ")
+                            }
+                        ),
+                        None => println!(
+                            "  node {}: remote, '{}' is not on this host — its parameters are checked when it joins",
+                            n.name, n.solver
+                        ),
+                    }
+                }
                 // Every variant must build too.
                 let others = if variant.is_none() && sets.is_empty() {
                     c.variants.clone()
@@ -440,17 +440,28 @@ pub fn main_with(cli: Cli) -> i32 {
                 }
             }
         }
-        Cmd::Bench {
-            what:
-                Some(BenchCmd::Transport {
-                    rounds,
-                    transport,
-                    sizes,
-                }),
-            ..
-        } => crate::bench::bench_transport(rounds, &transport, &sizes),
-        Cmd::Bench { what: None, suite } => crate::bench::suite(&suite),
-        Cmd::BenchEcho => crate::bench::bench_echo(),
+        Cmd::Bench { args } => bench(&args),
+    }
+}
+
+/// `cosim bench ARGS`: run `cosim-bench ARGS` beside `cosim` and pass its exit code on.
+fn bench(args: &[String]) -> i32 {
+    let exe = std::env::current_exe()
+        .ok()
+        .and_then(|e| e.parent().map(|d| d.join("cosim-bench")))
+        .filter(|e| e.is_file());
+    let Some(exe) = exe else {
+        eprintln!(
+            "cosim bench: no cosim-bench executable beside cosim (build it: cargo build --release -p cosim-bench)"
+        );
+        return 2;
+    };
+    match std::process::Command::new(&exe).args(args).status() {
+        Ok(s) => s.code().unwrap_or(1),
+        Err(e) => {
+            eprintln!("cosim bench: cannot run {}: {e}", exe.display());
+            1
+        }
     }
 }
 

@@ -2,8 +2,8 @@
 //! any process starts. Every error names the key path and the reason, e.g.
 //! `run.window: must be > 0 and ≤ run.end_time (0.001), got 0`.
 
+use protocol::CouplingKind;
 use protocol::transport::TransportKind;
-use protocol::{CouplingKind, Solver, SolverError};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -61,7 +61,8 @@ pub struct NodeConfig {
     pub model: String,
     pub params: toml::Table,
     pub remote: bool,
-    /// Interfaces the solver offers, when the coordinator could ask it (built-in solvers).
+    /// Interfaces the solver offers, from its executable's `--describe` (None: a remote
+    /// node not on this host, checked when it joins).
     pub interfaces: Option<Vec<String>>,
 }
 
@@ -104,19 +105,6 @@ pub struct Case {
     pub couplings: Vec<CouplingConfig>,
     /// Names of the `[variants.NAME]` of the case (`cosim run --variant NAME`).
     pub variants: Vec<String>,
-}
-
-/// Built-in node binaries whose solvers the coordinator can build in-process, to validate
-/// parameters and interfaces before launching, and to replay.
-pub fn builtin_factory(solver: &str) -> Option<protocol::SolverFactory> {
-    let name = Path::new(solver).file_name()?.to_str()?;
-    match name {
-        "solid-node" => Some(solid_node::factory),
-        "fluid-node" => Some(fluid_node::factory),
-        "macro-shell-node" => Some(macro_shell_node::factory),
-        "meso-joint-node" => Some(meso_joint_node::factory),
-        _ => None,
-    }
 }
 
 const RUN_KEYS: &[&str] = &[
@@ -601,31 +589,20 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
     Ok(case)
 }
 
-/// Build each built-in solver in-process: its own validation names the bad parameter, and
-/// its interfaces let us check the couplings before anything is launched.
+/// Ask every node executable found on this host to describe itself (in parallel): its own
+/// validation names a bad parameter, and its interfaces let us check the couplings before
+/// anything is launched. A remote node not on this host is checked when it joins.
 fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
-    for n in &mut case.nodes {
-        let Some(factory) = builtin_factory(&n.solver) else {
-            continue;
-        };
-        match factory(&n.model, &n.params) {
-            Ok(s) => {
-                let s: Box<dyn Solver> = s;
-                n.interfaces = Some(
-                    s.describe()
-                        .interfaces
-                        .into_iter()
-                        .map(|i| i.name)
-                        .collect(),
-                );
-            }
-            Err(SolverError::Config { key, reason }) if key == "model" => {
-                return Err(err(format!("nodes.{}.model", n.name), reason));
-            }
-            Err(SolverError::Config { key, reason }) => {
-                return Err(err(format!("nodes.{}.params.{key}", n.name), reason));
-            }
-            Err(e) => return Err(err(format!("nodes.{}", n.name), e.to_string())),
+    let case_dir = case
+        .path
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_default();
+    let checked =
+        crate::describe::describe_nodes(&case.nodes, &case_dir, crate::describe::DESCRIBE_TIMEOUT)?;
+    for (n, c) in case.nodes.iter_mut().zip(checked) {
+        if let crate::describe::Checked::Described(d) = c {
+            n.interfaces = Some(d.interfaces.into_iter().map(|i| i.name).collect());
         }
     }
     for (i, c) in case.couplings.iter().enumerate() {

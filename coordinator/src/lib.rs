@@ -2,9 +2,9 @@
 //! scheduler, MCAP recorder, replay and the `cosim` command line. It owns the clock, the
 //! schedule, the recording and the failure handling; it never does physics.
 
-pub mod bench;
 pub mod cli;
 pub mod config;
+pub mod describe;
 pub mod plot;
 pub mod record;
 pub mod replay;

@@ -35,13 +35,22 @@ pub mod step;
 
 pub use solver::EulerSolver;
 
-use protocol::{Solver, SolverError, SolverResult};
+use protocol::{BuildOptions, Solver, SolverError, SolverResult};
 
-/// Builds the solver named `model` from its parameter table (the node's registry: one line
-/// per model).
+/// Builds the solver named `model` from its parameter table, for a run.
 pub fn factory(model: &str, params: &toml::Table) -> SolverResult<Box<dyn Solver>> {
+    build(model, params, &BuildOptions::RUN)
+}
+
+/// Builds the solver named `model` from its parameter table as `opts` asks (the node's
+/// registry: one line per model; describe-only opens no GPU).
+pub fn build(
+    model: &str,
+    params: &toml::Table,
+    opts: &BuildOptions,
+) -> SolverResult<Box<dyn Solver>> {
     match model {
-        "euler" => Ok(Box::new(EulerSolver::new(params)?)),
+        "euler" => Ok(Box::new(EulerSolver::build(params, opts)?)),
         other => Err(SolverError::config(
             "model",
             format!("unknown model '{other}' (this node has: euler)"),

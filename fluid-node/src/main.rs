@@ -3,6 +3,6 @@
 fn main() {
     std::process::exit(protocol::participant::node_main(
         "fluid-node",
-        fluid_node::factory,
+        fluid_node::build,
     ));
 }

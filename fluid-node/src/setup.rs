@@ -11,18 +11,16 @@ use crate::limiter::Limiter;
 use crate::mixture::{self, Phase};
 use crate::model::{Fluid, Probe};
 use crate::riemann::MAXF;
+use protocol::params::refuse_inapplicable;
 use protocol::{SolverError, SolverResult};
 
 fn cfg(key: impl Into<String>, reason: impl Into<String>) -> SolverError {
     SolverError::config(key, reason)
 }
 
-/// Parse a params table (serde errors carry the offending key).
+/// Parse a params table (errors name the full key path).
 pub fn parse(params: &toml::Table) -> SolverResult<Params> {
-    params
-        .clone()
-        .try_into::<Params>()
-        .map_err(|e| cfg("params", e.to_string().trim().replace('\n', " ")))
+    protocol::params::decode(params)
 }
 
 fn positive(key: &str, v: Option<f64>) -> SolverResult<f64> {
@@ -35,6 +33,36 @@ fn positive(key: &str, v: Option<f64>) -> SolverResult<f64> {
 
 fn material(name: &str, m: &MaterialSpec) -> SolverResult<Material> {
     let key = |f: &str| format!("materials.{name}.{f}");
+    let given = [
+        ("gamma", m.gamma.is_some()),
+        ("p_inf", m.p_inf.is_some()),
+        ("gas_constant", m.gas_constant.is_some()),
+        ("rho0", m.rho0.is_some()),
+        ("a", m.a.is_some()),
+        ("b", m.b.is_some()),
+        ("r1", m.r1.is_some()),
+        ("r2", m.r2.is_some()),
+        ("omega", m.omega.is_some()),
+        ("e0", m.e0.is_some()),
+    ];
+    let applies: &[&str] = match m.eos.as_str() {
+        "ideal" => &["gamma", "gas_constant"],
+        "stiffened" => &["gamma", "p_inf", "gas_constant"],
+        "jwl" => &["rho0", "a", "b", "r1", "r2", "omega", "e0"],
+        _ => &[
+            "gamma",
+            "p_inf",
+            "gas_constant",
+            "rho0",
+            "a",
+            "b",
+            "r1",
+            "r2",
+            "omega",
+            "e0",
+        ],
+    };
+    refuse_inapplicable(&key(""), &format!("eos = \"{}\"", m.eos), &given, applies)?;
     let gamma = |m: &MaterialSpec| -> SolverResult<f64> {
         match m.gamma {
             Some(g) if g > 1.0 && g.is_finite() => Ok(g),
@@ -193,6 +221,27 @@ fn shape(key: &str, r: &RegionSpec) -> SolverResult<Shape> {
             )
         })
     };
+    let given = [
+        ("lower", r.lower.is_some()),
+        ("upper", r.upper.is_some()),
+        ("center", r.center.is_some()),
+        ("radius", r.radius.is_some()),
+        ("point", r.point.is_some()),
+        ("normal", r.normal.is_some()),
+    ];
+    let applies: &[&str] = match r.shape.as_str() {
+        "all" => &[],
+        "box" => &["lower", "upper"],
+        "sphere" | "circle" => &["center", "radius"],
+        "half_space" => &["point", "normal"],
+        _ => &["lower", "upper", "center", "radius", "point", "normal"],
+    };
+    refuse_inapplicable(
+        &format!("{key}."),
+        &format!("shape = \"{}\"", r.shape),
+        &given,
+        applies,
+    )?;
     match r.shape.as_str() {
         "all" => Ok(Shape::All),
         "box" => {
@@ -256,6 +305,20 @@ fn boundary(
         },
         Some(BoundaryEntry::Full(s)) => s.clone(),
     };
+    if spec.kind != "inflow" {
+        refuse_inapplicable(
+            &format!("{key}."),
+            &format!("kind = \"{}\" (only an inflow takes a state)", spec.kind),
+            &[
+                ("material", spec.material.is_some()),
+                ("density", spec.density.is_some()),
+                ("temperature", spec.temperature.is_some()),
+                ("pressure", spec.pressure.is_some()),
+                ("velocity", spec.velocity.is_some()),
+            ],
+            &[],
+        )?;
+    }
     match spec.kind.as_str() {
         "wall" | "reflective" => Ok(Boundary::Wall),
         "symmetry" => Ok(Boundary::Symmetry),

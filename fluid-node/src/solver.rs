@@ -3,14 +3,15 @@
 //! (inputs `position`, `velocity`, `volume`; output window-averaged `force`), reports
 //! energies, momentum and impulses, writes VTK and probe histories.
 
-use crate::gpu::GpuEuler;
+use crate::gpu::{GpuEuler, GpuSetupError};
 use crate::immersed::Immersed;
 use crate::model::Fluid;
 use crate::{diagnostics, output, setup, step};
 use mechanics::gpu::PrecisionRequest;
 use protocol::message::{InterfaceMesh, StepReport};
 use protocol::{
-    Inbox, InterfaceInfo, NodeDescription, Outbox, Solver, SolverError, SolverResult, Window,
+    BuildOptions, Inbox, InterfaceInfo, NodeDescription, Outbox, Solver, SolverError, SolverResult,
+    Window,
 };
 use std::path::Path;
 use std::time::Instant;
@@ -29,6 +30,12 @@ pub struct EulerSolver {
 
 impl EulerSolver {
     pub fn new(params: &toml::Table) -> SolverResult<Self> {
+        Self::build(params, &BuildOptions::RUN)
+    }
+
+    /// As `new`, as `opts` asks: describe-only checks `device = "gpu"` against what the
+    /// device kernels support but opens no GPU (the state stays on the host).
+    pub fn build(params: &toml::Table, opts: &BuildOptions) -> SolverResult<Self> {
         let p = setup::parse(params)?;
         let fluid = setup::build(&p)?;
         let request = match (p.precision.as_deref(), p.device.as_deref()) {
@@ -49,6 +56,11 @@ impl EulerSolver {
         };
         let gpu = match p.device.as_deref() {
             None | Some("cpu") => None,
+            Some("gpu") if opts.describe_only => {
+                crate::gpu::supports(&fluid)
+                    .map_err(|s| SolverError::from(GpuSetupError::Unsupported(s)))?;
+                None
+            }
             Some("gpu") => {
                 let g = GpuEuler::with_precision(&fluid, request)?;
                 tracing::info!("fluid step on the GPU: {}", g.context().describe());

@@ -23,11 +23,20 @@ pub mod step;
 
 pub use solver::ShellSolver;
 
-use protocol::{Solver, SolverError, SolverResult};
+use protocol::{BuildOptions, Solver, SolverError, SolverResult};
+
+/// Builds the solver named `model` from its parameter table, for a run.
+pub fn factory(model: &str, params: &toml::Table) -> SolverResult<Box<dyn Solver>> {
+    build(model, params, &BuildOptions::RUN)
+}
 
 /// Builds the solver named `model` from its parameter table (the node's registry: one line
-/// per model).
-pub fn factory(model: &str, params: &toml::Table) -> SolverResult<Box<dyn Solver>> {
+/// per model). This node opens no device, so describe-only builds the same solver.
+pub fn build(
+    model: &str,
+    params: &toml::Table,
+    _opts: &BuildOptions,
+) -> SolverResult<Box<dyn Solver>> {
     match model {
         solver::MODEL => Ok(Box::new(ShellSolver::from_params(params)?)),
         other => Err(SolverError::config(

@@ -3,6 +3,6 @@
 fn main() {
     std::process::exit(protocol::participant::node_main(
         "macro-shell-node",
-        macro_shell_node::factory,
+        macro_shell_node::build,
     ));
 }

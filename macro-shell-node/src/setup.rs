@@ -241,18 +241,14 @@ pub struct OutputConfig {
 
 /// Parse and validate a parameter table.
 pub fn parse(params: &toml::Table) -> SolverResult<ShellConfig> {
-    let text = toml::to_string(params)
-        .map_err(|e| SolverError::config("params", format!("cannot re-encode: {e}")))?;
-    parse_str(&text)
+    protocol::params::decode(params)
 }
 
 /// Parse TOML text (a `[nodes.X.params]` table body).
 pub fn parse_str(text: &str) -> SolverResult<ShellConfig> {
-    toml::from_str(text).map_err(|e| {
-        let msg = e.message().to_string();
-        // serde names the offending field in the message; the span gives the line.
-        SolverError::config("params", msg)
-    })
+    let t: toml::Table = toml::from_str(text)
+        .map_err(|e| SolverError::config("params", format!("not valid TOML: {}", e.message())))?;
+    parse(&t)
 }
 
 fn positive(key: &str, v: f64) -> SolverResult<f64> {

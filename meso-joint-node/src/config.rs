@@ -265,10 +265,7 @@ fn positive(key: &str, v: f64) -> SolverResult<()> {
 impl Params {
     /// Parse a TOML table (unknown keys refused) and validate.
     pub fn from_table(t: &toml::Table) -> SolverResult<Self> {
-        let p: Params = t
-            .clone()
-            .try_into()
-            .map_err(|e: toml::de::Error| SolverError::config("params", e.to_string()))?;
+        let p: Params = protocol::params::decode(t)?;
         p.validate()?;
         Ok(p)
     }

@@ -3,6 +3,6 @@
 fn main() {
     std::process::exit(protocol::participant::node_main(
         "meso-joint-node",
-        meso_joint_node::factory,
+        meso_joint_node::build,
     ));
 }

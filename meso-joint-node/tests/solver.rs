@@ -59,7 +59,7 @@ fn bad_input_is_refused_with_the_key_named() {
     assert_eq!(key_of(factory("mc-spg", &t)), "coupling.regions");
     let mut t = base();
     t.insert("horizon".into(), toml::Value::Float(1.0));
-    assert_eq!(key_of(factory("mc-spg", &t)), "params");
+    assert_eq!(key_of(factory("mc-spg", &t)), "horizon");
     assert_eq!(key_of(factory("nope", &base())), "model");
     assert!(factory("mc-spg", &base()).is_ok());
 }

@@ -227,9 +227,11 @@ pub unsafe extern "C" fn cosim_node_main(
         node_main_with(
             &binary,
             args,
-            Box::new(move |model: &str, params: &toml::Table| {
-                CSolver::create(vt, user, model, params)
-            }),
+            Box::new(
+                move |model: &str, params: &toml::Table, _: &protocol::BuildOptions| {
+                    CSolver::create(vt, user, model, params)
+                },
+            ),
         )
     });
     match run {

@@ -2,7 +2,9 @@
 //! that carry them (iceoryx2 shared memory, zenoh, in-process), the `Solver` trait every node
 //! implements, the participant runtime that runs a `Solver` as a node, and interface mapping.
 
+pub mod describe;
 pub mod mapping;
+pub mod params;
 pub mod participant;
 pub mod solver;
 pub mod transport;

@@ -10,7 +10,9 @@
 use crate::codec::{self, encode_into};
 use crate::mapping::Mapping;
 use crate::message::*;
-use crate::solver::{FieldSet, Solver, SolverError, SolverFactory, SolverResult, Window};
+use crate::solver::{
+    BuildOptions, FieldSet, Solver, SolverError, SolverFactory, SolverResult, Window,
+};
 use crate::transport::{self, Publisher, Transport, TransportKind, TransportSpec};
 use std::collections::VecDeque;
 use std::ffi::OsString;
@@ -350,14 +352,38 @@ impl NodeEngine {
 
 /// Command line of every node binary.
 #[derive(Debug, clap::Parser)]
-#[command(about = "A cosim node: launched by `cosim run`, or joining a run from another host")]
+#[command(
+    about = "A cosim node: launched by `cosim run`, joining a run from another host, or describing itself (--describe)"
+)]
 pub struct NodeArgs {
     /// Run id to join (printed by `cosim run` for remote nodes).
-    #[arg(long, alias = "join")]
+    #[arg(
+        long,
+        alias = "join",
+        required_unless_present = "describe",
+        default_value = "",
+        hide_default_value = true
+    )]
     pub run: String,
-    /// This node's name in the case file.
-    #[arg(long)]
+    /// This node's name in the case file (with --describe: only names it in messages).
+    #[arg(
+        long,
+        required_unless_present = "describe",
+        default_value = "",
+        hide_default_value = true
+    )]
     pub node: String,
+    /// Describe the node instead of running it: read its params, print its description (or
+    /// the bad parameter's key and why) as JSON on stdout; exit 0, or 2 for a bad parameter.
+    /// Opens no device and no transport.
+    #[arg(long, requires = "model")]
+    pub describe: bool,
+    /// The model to describe (with --describe).
+    #[arg(long, requires = "describe")]
+    pub model: Option<String>,
+    /// Params file (TOML) to describe with; `-` or none: standard input.
+    #[arg(long, requires = "describe")]
+    pub params: Option<PathBuf>,
     /// shm | zenoh
     #[arg(long, default_value = "shm")]
     pub transport: String,
@@ -422,11 +448,14 @@ fn recv_one(w: &mut Wire, timeout: Duration) -> anyhow::Result<Option<Incoming>>
 }
 
 /// A solver factory that owns what it needs: the C participant library's callback table, a
-/// Python object. Called once, after the coordinator's `Welcome`.
-pub type BoxedFactory = Box<dyn FnOnce(&str, &toml::Table) -> SolverResult<Box<dyn Solver>>>;
+/// Python object. Called once, after the coordinator's `Welcome` (or for `--describe`, with
+/// [`BuildOptions::DESCRIBE`]).
+pub type BoxedFactory =
+    Box<dyn FnOnce(&str, &toml::Table, &BuildOptions) -> SolverResult<Box<dyn Solver>>>;
 
 /// Entry point of every node binary; returns the process exit code
-/// (0 finished, 1 failed, 2 bad invocation, 3 aborted by the coordinator).
+/// (0 finished, 1 failed, 2 bad invocation or, with `--describe`, a bad parameter, 3 aborted
+/// by the coordinator).
 pub fn node_main(binary: &str, factory: SolverFactory) -> i32 {
     node_main_with(binary, std::env::args_os(), Box::new(factory))
 }
@@ -448,6 +477,17 @@ pub fn node_main_with(
         }
     };
     init_logging();
+    if args.describe {
+        let model = args.model.as_deref().unwrap_or_default();
+        let node = (!args.node.is_empty()).then_some(args.node.as_str());
+        return crate::describe::describe_main(
+            binary,
+            factory,
+            model,
+            args.params.as_deref(),
+            node,
+        );
+    }
     tune_allocator();
     match run_node(binary, factory, &args) {
         Ok(code) => code,
@@ -602,10 +642,11 @@ fn build_and_run(
         Ok(p) => p,
         Err(e) => return Ok(Err(format!("params: {}", e.message()))),
     };
-    let solver = match factory(&welcome.model, &params) {
+    let solver = match factory(&welcome.model, &params, &BuildOptions::RUN) {
         Ok(s) => s,
         Err(SolverError::Config { key, reason }) => {
-            return Ok(Err(format!("nodes.{}.params.{key}: {reason}", args.node)));
+            let key = crate::describe::node_key(&key);
+            return Ok(Err(format!("nodes.{}.{key}: {reason}", args.node)));
         }
         Err(e) => return Ok(Err(e.to_string())),
     };

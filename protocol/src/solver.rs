@@ -240,5 +240,26 @@ pub trait Solver: Send {
     }
 }
 
+/// How a factory builds its solver.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct BuildOptions {
+    /// Build only to describe the node (`NODE --describe`): check every parameter, the
+    /// device-related ones included, and build what the description needs (interfaces, stable
+    /// step), but open no device (no GPU instance or adapter) and start nothing.
+    pub describe_only: bool,
+}
+
+impl BuildOptions {
+    /// For a run: everything, devices included.
+    pub const RUN: BuildOptions = BuildOptions {
+        describe_only: false,
+    };
+    /// For `NODE --describe`.
+    pub const DESCRIBE: BuildOptions = BuildOptions {
+        describe_only: true,
+    };
+}
+
 /// Builds a solver from its model name and TOML parameter table; each node binary has one.
-pub type SolverFactory = fn(model: &str, params: &toml::Table) -> SolverResult<Box<dyn Solver>>;
+pub type SolverFactory =
+    fn(model: &str, params: &toml::Table, opts: &BuildOptions) -> SolverResult<Box<dyn Solver>>;

@@ -28,9 +28,11 @@ fn run_node(py: Python<'_>, factory: Py<PyAny>, argv: Vec<String>) -> i32 {
             protocol::participant::node_main_with(
                 &binary,
                 argv,
-                Box::new(move |model: &str, params: &toml::Table| {
-                    PySolver::create(factory, model, params)
-                }),
+                Box::new(
+                    move |model: &str, params: &toml::Table, _: &protocol::BuildOptions| {
+                        PySolver::create(factory, model, params)
+                    },
+                ),
             )
         }));
         run.unwrap_or_else(|p| {

@@ -129,10 +129,7 @@ pub struct Bar {
 
 impl Bar {
     pub fn from_params(params: &toml::Table) -> SolverResult<Self> {
-        let p: BarParams = toml::Value::Table(params.clone())
-            .try_into()
-            .map_err(|e: toml::de::Error| SolverError::config("params", e.message().to_string()))?;
-        Self::new(p)
+        Self::new(protocol::params::decode(params)?)
     }
 
     pub fn new(p: BarParams) -> SolverResult<Self> {

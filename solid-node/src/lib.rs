@@ -4,14 +4,24 @@
 pub mod bar;
 pub mod pd;
 
-use protocol::{Solver, SolverError, SolverResult};
+use protocol::{BuildOptions, Solver, SolverError, SolverResult};
 
-/// Builds the solver named `model` from its parameter table.
+/// Builds the solver named `model` from its parameter table, for a run.
 pub fn factory(model: &str, params: &toml::Table) -> SolverResult<Box<dyn Solver>> {
+    build(model, params, &BuildOptions::RUN)
+}
+
+/// Builds the solver named `model` from its parameter table as `opts` asks (the node
+/// binary's `SolverFactory`: describe-only opens no GPU).
+pub fn build(
+    model: &str,
+    params: &toml::Table,
+    opts: &BuildOptions,
+) -> SolverResult<Box<dyn Solver>> {
     if model == "bar-1d" {
         return Ok(Box::new(bar::Bar::from_params(params)?));
     }
-    if let Some(s) = pd::factory(model, params) {
+    if let Some(s) = pd::build(model, params, opts) {
         return s;
     }
     Err(SolverError::config(

@@ -3,6 +3,6 @@
 fn main() {
     std::process::exit(protocol::participant::node_main(
         "solid-node",
-        solid_node::factory,
+        solid_node::build,
     ));
 }

@@ -97,7 +97,7 @@ fn bad_input_is_refused_with_the_key() {
     // Unknown keys are refused.
     let mut t = base();
     t.insert("horizn".into(), toml::Value::Float(1.0));
-    assert_eq!(key_of("pd-bond", &t), "params");
+    assert_eq!(key_of("pd-bond", &t), "horizn");
 }
 
 fn binding(kind: CouplingKind, role: Role, iface: &str) -> Binding {

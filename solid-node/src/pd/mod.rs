@@ -25,13 +25,25 @@ pub mod output;
 pub mod rk_ba;
 pub mod solver;
 
-use protocol::{Solver, SolverResult};
+use protocol::{BuildOptions, Solver, SolverResult};
 
-/// The peridynamic models of this node by config name; `None` when `model` is not one.
+/// The peridynamic models of this node by config name, for a run; `None` when `model` is
+/// not one.
 pub fn factory(model: &str, params: &toml::Table) -> Option<SolverResult<Box<dyn Solver>>> {
+    build(model, params, &BuildOptions::RUN)
+}
+
+/// As `factory`, as `opts` asks (describe-only opens no GPU).
+pub fn build(
+    model: &str,
+    params: &toml::Table,
+    opts: &BuildOptions,
+) -> Option<SolverResult<Box<dyn Solver>>> {
     match model {
         "pd-bond" | "pd-correspondence" | "pd-rk-ba" => Some(
-            solver::PdSolver::from_table(model, params).map(|s| Box::new(s) as Box<dyn Solver>),
+            protocol::params::decode(params)
+                .and_then(|p| solver::PdSolver::build(model, p, opts))
+                .map(|s| Box::new(s) as Box<dyn Solver>),
         ),
         _ => None,
     }

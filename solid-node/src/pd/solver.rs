@@ -31,7 +31,7 @@ use protocol::{
     Binding, CouplingKind, InterfaceInfo, InterfaceMesh, NodeDescription, Role, Solver,
     SolverError, SolverResult, StepReport, Window,
 };
-use protocol::{Inbox, Outbox};
+use protocol::{BuildOptions, Inbox, Outbox};
 use serde::Deserialize;
 use std::path::Path;
 use std::sync::Arc;
@@ -258,14 +258,16 @@ fn cfg<T>(key: &str, reason: impl Into<String>) -> SolverResult<T> {
 impl PdSolver {
     /// Builds the solver for `model` ("pd-bond" or "pd-correspondence") from its table.
     pub fn from_table(model: &str, table: &toml::Table) -> SolverResult<Self> {
-        let params: PdParams = table
-            .clone()
-            .try_into()
-            .map_err(|e: toml::de::Error| SolverError::config("params", e.to_string()))?;
-        Self::new(model, params)
+        Self::new(model, protocol::params::decode(table)?)
     }
 
     pub fn new(model: &str, p: PdParams) -> SolverResult<Self> {
+        Self::build(model, p, &BuildOptions::RUN)
+    }
+
+    /// As `new`, as `opts` asks: describe-only checks `device = "gpu"` against the device
+    /// kernels but opens no GPU (the body stays on the host).
+    pub fn build(model: &str, p: PdParams, opts: &BuildOptions) -> SolverResult<Self> {
         let model_name = model.to_string();
         let dim = match p.dimension.as_str() {
             "3d" => Dim::Three,
@@ -648,7 +650,7 @@ impl PdSolver {
             }
             interfaces.push((ip.name.clone(), pts));
         }
-        let device = if on_gpu {
+        let device = if on_gpu && !opts.describe_only {
             // the particles whose state crosses to the host every window: the interfaces
             // and the supports
             let mut gather: Vec<usize> = interfaces

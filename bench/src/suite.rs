@@ -882,7 +882,7 @@ fn transport(cx: &mut Ctx, errors: &mut Vec<String>) -> Option<String> {
         TransportKind::Zenoh,
     ] {
         let mut cmd = std::process::Command::new(&exe);
-        cmd.arg("bench-echo");
+        cmd.arg("echo");
         match bench_transport(kind, &sizes, cx.plan.transport_rounds, &mut cmd) {
             Ok(rows) => {
                 for r in &rows {
@@ -1560,7 +1560,7 @@ pub fn bench_transport(rounds: usize, which: &str, sizes: &[usize]) -> i32 {
     let mut rows = Vec::new();
     for kind in kinds {
         let mut cmd = std::process::Command::new(&exe);
-        cmd.arg("bench-echo");
+        cmd.arg("echo");
         match bench(kind, sizes, rounds.max(1), &mut cmd) {
             Ok(r) => rows.extend(r),
             Err(e) => {
@@ -1573,13 +1573,13 @@ pub fn bench_transport(rounds: usize, which: &str, sizes: &[usize]) -> i32 {
     0
 }
 
-/// The hidden `cosim bench-echo`: the echo side of a transport benchmark.
+/// The hidden `cosim-bench echo`: the echo side of a transport benchmark.
 pub fn bench_echo() -> i32 {
     use protocol::transport::bench::{echo_main, echo_spec_from_env};
     match echo_spec_from_env().and_then(|s| echo_main(&s)) {
         Ok(()) => 0,
         Err(e) => {
-            eprintln!("cosim bench-echo: {e}");
+            eprintln!("cosim-bench echo: {e}");
             1
         }
     }
