@@ -6,6 +6,7 @@ pub mod codec;
 pub mod mapping;
 pub mod message;
 pub mod participant;
+pub mod scheme;
 pub mod solver;
 pub mod transport;
 
