@@ -167,7 +167,7 @@ fn every_design_is_second_order_in_u_v_and_a() {
     for (name, coef) in designs() {
         let mut errors = Vec::new();
         for level in 0..4 {
-            let steps = 80usize << level;
+            let steps = 160usize << level;
             let dt = t_end / steps as f64;
             let states = run(coef, omega, dt, steps);
             let stride = 1 << level;
