@@ -10,4 +10,3 @@ pub mod j2_plane_stress;
 pub mod kernel;
 pub mod neighbour;
 pub mod simd;
-pub mod time;
