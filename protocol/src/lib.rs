@@ -7,7 +7,9 @@ pub mod mapping;
 pub mod message;
 pub mod participant;
 pub mod solver;
+pub mod stop;
 pub mod transport;
+pub mod watchdog;
 
 pub use codec::{CodecError, Envelope, PROTOCOL_VERSION, decode, encode};
 pub use message::*;
