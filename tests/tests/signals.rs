@@ -30,6 +30,27 @@ fn signal(child: &Child, sig: i32) {
     assert_eq!(rc, 0, "kill failed");
 }
 
+/// SIGKILL the nodes of run `id`, then `cosim`, so that nobody can clean up (the OOM killer,
+/// `kill -9` of the whole group): what they leave in shared memory is for `cosim clean` or
+/// the next `cosim run` to remove.
+fn kill_everything(child: &mut Child, id: &str) {
+    for pid in live_processes(id) {
+        // SAFETY: kill with a pid read from /proc and a valid signal number.
+        unsafe { libc::kill(pid as i32, libc::SIGKILL) };
+    }
+    signal(child, libc::SIGKILL);
+    let _ = child.wait();
+    let t = Instant::now();
+    while !live_processes(id).is_empty() && t.elapsed() < Duration::from_secs(5) {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    assert!(live_processes(id).is_empty());
+    assert!(
+        !shm_files(id).is_empty(),
+        "nothing left to clean: the scenario is void"
+    );
+}
+
 /// Signal `cosim` mid-run and check that it stops as the README says.
 fn stopped_by(tag: &str, sig: i32, name: &str, code: i32) {
     let (mut child, out, id) = start(tag, "shm", Duration::from_millis(1500));
@@ -141,9 +162,12 @@ fn a_killed_cosim_leaves_no_node_and_no_shared_memory() {
     }
     println!("{self_cleaned} of {KILLS} killed runs left no shared memory even before a cleanup");
     assert_eq!(killed.len(), KILLS);
-    // `cosim clean` removes what the dead runs left, while a live run keeps all its files.
-    let (mut live, _, live_id) = start("live", "shm", Duration::from_millis(1000));
-    let before = shm_files(&live_id);
+    // A run killed with all its nodes cannot clean up after itself.
+    let (mut child, _, id) = start("kill9-all", "shm", Duration::from_millis(1200));
+    kill_everything(&mut child, &id);
+    println!("killed with its nodes: {} files left", shm_files(&id).len());
+    killed.push(id);
+    // `cosim clean` removes what the dead runs left ...
     let o = cosim(&["clean"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     println!("{}", String::from_utf8_lossy(&o.stdout));
@@ -154,6 +178,11 @@ fn a_killed_cosim_leaves_no_node_and_no_shared_memory() {
             shm_files(id)
         );
     }
+    // ... while a live run keeps all its files.
+    let (mut live, _, live_id) = start("live", "shm", Duration::from_millis(1000));
+    let before = shm_files(&live_id);
+    let o = cosim(&["clean"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let after: Vec<String> = shm_files(&live_id);
     assert!(!before.is_empty());
     assert!(
@@ -169,13 +198,7 @@ fn a_killed_cosim_leaves_no_node_and_no_shared_memory() {
 #[test]
 fn the_next_run_removes_what_a_killed_cosim_left() {
     let (mut child, _, id) = start("kill9-next", "shm", Duration::from_millis(1500));
-    signal(&child, libc::SIGKILL);
-    let _ = child.wait();
-    let t = Instant::now();
-    while !live_processes(&id).is_empty() && t.elapsed() < Duration::from_secs(2) {
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    assert!(live_processes(&id).is_empty(), "nodes alive 2 s later");
+    kill_everything(&mut child, &id);
     // A short run of another case.
     let (dir, id2) = scratch("next");
     let case = split_bar_case(&dir, 10, 30, 0.5, "shm", 0.5);

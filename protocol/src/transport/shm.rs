@@ -582,37 +582,49 @@ pub fn cleanup_stale_runs() -> Swept {
     let service_dir = std::path::PathBuf::from(defaults.global.service_dir().to_string());
     our_files(&node_dir, &mut files);
     our_files(&service_dir, &mut files);
+    // Every run a file may belong to, judged (and its dead nodes cleaned by iceoryx2) first.
+    let names: Vec<String> = files
+        .iter()
+        .map(|p| {
+            p.file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        })
+        .collect();
     let mut alive: HashMap<String, usize> = HashMap::new();
+    for r in names.iter().flat_map(|n| run_candidates(n)) {
+        if !alive.contains_key(&r) {
+            let n = live_nodes_after_cleanup(&r);
+            alive.insert(r, n);
+        }
+    }
     let mut swept = Swept::default();
     let mut runs = std::collections::BTreeSet::new();
-    for path in &files {
-        let name = path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let candidates = run_candidates(&name);
+    for (path, name) in files.iter().zip(&names) {
+        let candidates = run_candidates(name);
         // A file made in the last second may belong to a run that is starting right now
         // (its first node not yet listed as alive): leave it for the next sweep.
-        let fresh = std::fs::metadata(path)
-            .and_then(|m| m.modified())
-            .ok()
-            .and_then(|t| t.elapsed().ok())
-            .is_none_or(|age| age < Duration::from_secs(1));
+        let fresh = match std::fs::metadata(path) {
+            Err(_) => false, // already removed by iceoryx2's cleanup of its dead node
+            Ok(m) => m
+                .modified()
+                .ok()
+                .and_then(|t| t.elapsed().ok())
+                .is_none_or(|age| age < Duration::from_secs(1)),
+        };
         if candidates.is_empty() || fresh {
             continue;
         }
-        let mut live = false;
-        for r in &candidates {
-            let n = *alive
-                .entry(r.clone())
-                .or_insert_with(|| live_nodes_after_cleanup(r));
-            live |= n > 0;
-        }
-        if live {
+        if candidates
+            .iter()
+            .any(|r| alive.get(r).is_none_or(|&n| n > 0))
+        {
             continue;
         }
         // iceoryx2's dead-node cleanup may have removed it already.
-        if path.exists() {
+        if !path.exists() {
+            swept.files += 1;
+        } else {
             match std::fs::remove_file(path) {
                 Ok(()) => swept.files += 1,
                 Err(e) => tracing::warn!("removing {}: {e}", path.display()),
