@@ -1,5 +1,5 @@
-//! The `cosim` command line: run, validate, info, replay, plot, and bench (which runs the
-//! `cosim-bench` executable).
+//! The `cosim` command line: run, validate, info, clean, replay, plot, and bench (which runs
+//! the `cosim-bench` executable).
 
 use crate::{config, replay, run};
 use clap::{Parser, Subcommand};
@@ -51,6 +51,9 @@ pub enum Cmd {
     },
     /// Summarise a recording.
     Info { recording: PathBuf },
+    /// Remove the shared memory left by runs whose processes are all gone (a killed cosim);
+    /// a run still running is never touched.
+    Clean,
     /// Launch one node's executable alone, feed it its recorded inputs window by window, and
     /// compare what it sends with what the recording holds (exit 1 when incomplete).
     Replay {
@@ -354,7 +357,24 @@ pub fn main_with(cli: Cli) -> i32 {
                 output,
                 quiet,
             };
+            // Ctrl-C and SIGTERM stop the run at the next window boundary (a second Ctrl-C at
+            // once), with the recording finalised and shared memory removed.
+            if let Err(e) = protocol::stop::install(&[libc::SIGINT, libc::SIGTERM]) {
+                eprintln!("cosim: cannot handle stop signals: {e}");
+            }
             match run::run(&c, &opts) {
+                Ok(Ok(o)) if o.interrupted.is_some() => {
+                    let sig = o.interrupted.unwrap_or(libc::SIGINT);
+                    eprintln!(
+                        "cosim: {} interrupted by {} after window {} of {}; output in {}",
+                        c.run.name,
+                        protocol::stop::name(sig),
+                        o.summary["window_reached"],
+                        ((c.run.end_time / c.run.window) - 1e-9).ceil().max(1.0),
+                        o.output.display()
+                    );
+                    protocol::stop::exit_code(sig)
+                }
                 Ok(Ok(o)) => {
                     let b = &o.summary["balance"];
                     let f = |k: &str| b[k].as_f64().unwrap_or(0.0);
@@ -391,6 +411,14 @@ pub fn main_with(cli: Cli) -> i32 {
                     1
                 }
             }
+        }
+        Cmd::Clean => {
+            let r = protocol::transport::shm::cleanup_stale_runs();
+            println!(
+                "cosim clean: removed {} shared-memory files of {} ended runs; {} running runs left alone",
+                r.files, r.runs, r.live
+            );
+            0
         }
         Cmd::Info { recording } => match replay::info(&recording) {
             Ok(s) => {

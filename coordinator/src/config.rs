@@ -47,6 +47,8 @@ pub struct RunConfig {
     pub stall_timeout: f64,
     /// zenoh endpoint the coordinator listens on (several hosts: a routable address).
     pub listen: String,
+    /// How long the coordinator waits for its remote nodes to join, s.
+    pub join_timeout: f64,
     /// Record `Fields` messages of every `record_every`-th window only (1 = all).
     pub record_every: u64,
 }
@@ -119,6 +121,7 @@ const RUN_KEYS: &[&str] = &[
     "heartbeat_timeout",
     "stall_timeout",
     "listen",
+    "join_timeout",
     "record_every",
 ];
 const NODE_KEYS: &[&str] = &["solver", "model", "params", "remote"];
@@ -371,6 +374,13 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
         ));
     }
     let listen = get_str(&run_t, p, "listen")?.unwrap_or_else(|| "tcp/127.0.0.1:0".into());
+    let join_timeout = get_f64(&run_t, p, "join_timeout")?.unwrap_or(300.0);
+    if !(join_timeout.is_finite() && join_timeout > 0.0) {
+        return Err(err(
+            "run.join_timeout",
+            format!("must be > 0 s, got {join_timeout}"),
+        ));
+    }
     let record_every = get_u64(&run_t, p, "record_every")?.unwrap_or(1).max(1);
 
     // Nodes.
@@ -579,6 +589,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             heartbeat_timeout,
             stall_timeout,
             listen,
+            join_timeout,
             record_every,
         },
         nodes,

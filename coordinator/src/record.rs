@@ -157,6 +157,15 @@ impl Recorder {
         Ok(())
     }
 
+    /// Close the current chunk if the last flush is older than `age` (called at window
+    /// boundaries: a killed coordinator loses at most the windows of that last stretch).
+    pub fn flush_if_older(&mut self, age: std::time::Duration) -> anyhow::Result<()> {
+        if self.last_flush.elapsed() >= age {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
     /// Write summary and footer.
     pub fn finish(mut self) -> anyhow::Result<()> {
         self.w.finish()?;

@@ -10,6 +10,7 @@ use crate::config::{self, Case};
 use crate::record::{self, Recorder};
 use anyhow::Context;
 use protocol::codec::{self, encode_into};
+use protocol::stop;
 use protocol::transport::{self, Publisher, TopicId, Transport, TransportKind, TransportSpec};
 use protocol::*;
 use serde_json::json;
@@ -41,6 +42,8 @@ pub struct RunOptions {
 pub struct Outcome {
     pub output: PathBuf,
     pub summary: serde_json::Value,
+    /// The stop signal that ended the run early (summary status "interrupted").
+    pub interrupted: Option<i32>,
 }
 
 enum Topic {
@@ -89,6 +92,12 @@ struct Coord<'a> {
     faults: Vec<Fault>,
     /// Every node's reported quantities per window, for the plots written at the end.
     history: crate::plot::Histories,
+    /// The last window completed by every node.
+    completed: u64,
+    /// In the window loop: a first stop signal waits for the window boundary there.
+    in_windows: bool,
+    /// The stop signal that ends the run, once acted on.
+    interrupted: Option<i32>,
 }
 
 pub(crate) fn pick_run_id(name: &str) -> String {
@@ -139,6 +148,9 @@ pub(crate) fn spawn_node(
         cmd.args(["--connect", endpoint]);
     }
     cmd.stdin(Stdio::null()).stdout(out).stderr(err);
+    // A node built on the participant runtime turns this into SIGTERM for itself, so it can
+    // remove its shared memory; another executable is killed with us.
+    cmd.env(protocol::watchdog::PARENT_ENV, std::process::id().to_string());
     die_with_parent(&mut cmd);
     cmd.spawn()
         .map_err(|e| format!("cannot start {}: {e}", exe.display()))
@@ -166,6 +178,25 @@ pub(crate) fn describe_status(s: std::process::ExitStatus) -> String {
 impl<'a> Coord<'a> {
     fn node_idx(&self, name: &str) -> Option<usize> {
         self.nodes.iter().position(|n| n.name == name)
+    }
+
+    /// Stop now on a stop signal received during set-up (there is no window boundary to wait
+    /// for) or on the second one (a second Ctrl-C); the cleanup still runs.
+    fn stop_now(&mut self) -> Result<(), Fault> {
+        if let Some(sig) = stop::requested()
+            && (!self.in_windows || stop::count() >= 2)
+        {
+            self.interrupted = Some(sig);
+            return Err(Fault {
+                node: "coordinator".into(),
+                reason: format!(
+                    "interrupted by {} after window {}",
+                    stop::name(sig),
+                    self.completed
+                ),
+            });
+        }
+        Ok(())
     }
 
     fn send(&mut self, i: usize, m: &Message) -> Result<(), Fault> {
@@ -413,6 +444,7 @@ impl<'a> Coord<'a> {
             if pending.is_empty() {
                 return Ok(());
             }
+            self.stop_now()?;
             self.check_health(&pending)?;
             if let Some(l) = limit
                 && start.elapsed() > l
@@ -449,6 +481,54 @@ impl<'a> Coord<'a> {
                         _ => std::thread::sleep(Duration::from_millis(10)),
                     }
                 }
+            }
+        }
+    }
+}
+
+/// Wait for the remote nodes to join (ARCHITECTURE §6): as long as a person needs, up to
+/// `run.join_timeout`, naming who is still missing every few seconds. The local nodes wait
+/// meanwhile (they are alive; only their exit or lost connection is a fault).
+fn wait_for_joins(c: &mut Coord, remote: &[usize]) -> Result<(), Fault> {
+    const NOTE_EVERY: Duration = Duration::from_secs(5);
+    let limit = c.case.run.join_timeout;
+    let start = Instant::now();
+    let mut next_note = start + NOTE_EVERY;
+    loop {
+        let missing: Vec<usize> = remote
+            .iter()
+            .copied()
+            .filter(|&i| !c.nodes[i].hello)
+            .collect();
+        let Some(&first) = missing.first() else {
+            return Ok(());
+        };
+        let names = missing
+            .iter()
+            .map(|&i| format!("'{}'", c.nodes[i].name))
+            .collect::<Vec<_>>()
+            .join(", ");
+        c.stop_now()?;
+        c.check_health(&[])?;
+        let waited = start.elapsed().as_secs_f64();
+        if waited > limit {
+            return Err(Fault {
+                node: c.nodes[first].name.clone(),
+                reason: format!(
+                    "remote node(s) {names} did not join within run.join_timeout = {limit} s"
+                ),
+            });
+        }
+        if Instant::now() >= next_note {
+            eprintln!(
+                "cosim: still waiting for remote node(s) {names}: {waited:.0} s of run.join_timeout = {limit} s"
+            );
+            next_note += NOTE_EVERY;
+        }
+        c.pump_one(Duration::from_millis(50))?;
+        for &i in &missing {
+            if c.nodes[i].hello {
+                eprintln!("cosim: remote node '{}' joined", c.nodes[i].name);
             }
         }
     }
@@ -578,6 +658,15 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
     )?;
     let kind = case.run.transport;
     transport::cleanup(kind, &run_id);
+    // What earlier runs whose processes are all gone left in shared memory (a killed cosim).
+    let swept = transport::shm::cleanup_stale_runs();
+    if swept.files > 0 {
+        tracing::info!(
+            "removed {} shared-memory files of {} ended runs",
+            swept.files,
+            swept.runs
+        );
+    }
     let mut listen = case.run.listen.clone();
     if kind == TransportKind::Zenoh && listen.ends_with(":0") {
         listen = format!("{}{}", &listen[..listen.len() - 1], free_port()?);
@@ -594,6 +683,8 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         connect: vec![],
     };
     let mut t = transport::open(&spec).context("cannot open the transport")?;
+    // Nodes that joined from elsewhere watch this token: it goes when cosim dies.
+    t.declare_alive()?;
     let mut topics = Vec::new();
     let order = config::window_order(case).map_err(|e| anyhow::anyhow!("{e}"))?;
     let idx = |n: &str| case.nodes.iter().position(|x| x.name == n).unwrap_or(0);
@@ -658,6 +749,9 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         window: 0,
         faults: Vec::new(),
         history: Default::default(),
+        completed: 0,
+        in_windows: false,
+        interrupted: None,
     };
     let started = Instant::now();
     let result = drive(&mut c, &out, &order, &listen, opts);
@@ -680,6 +774,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         }
     }
     let wall = started.elapsed().as_secs_f64();
+    let (interrupted, completed) = (c.interrupted, c.completed);
     let Coord {
         rec,
         t,
@@ -711,6 +806,26 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             Ok(Ok(Outcome {
                 output: out,
                 summary,
+                interrupted,
+            }))
+        }
+        Err(f) if interrupted.is_some() => {
+            // Stopped at once (during set-up, or a second Ctrl-C): no window-boundary summary.
+            let summary = json!({
+                "run": run_id, "status": "interrupted",
+                "signal": interrupted.map(stop::name),
+                "window_reached": completed,
+                "reason": f.reason, "wall_s": wall,
+                "recording": { "path": out.join("run.mcap"), "messages": messages, "bytes": bytes },
+            });
+            std::fs::write(
+                out.join("summary.json"),
+                serde_json::to_string_pretty(&summary)?,
+            )?;
+            Ok(Ok(Outcome {
+                output: out,
+                summary,
+                interrupted,
             }))
         }
         Err(f) => {
@@ -771,20 +886,11 @@ fn drive(
         .filter(|&i| case.nodes[i].remote)
         .collect();
     c.wait_all(&local, "Hello", Some(Duration::from_secs(30)), |n| n.hello)?;
-    if !remote.is_empty() {
-        // Remote nodes take as long as their user needs; they are not yet expected to beat.
-        loop {
-            if remote.iter().all(|&i| c.nodes[i].hello) {
-                break;
-            }
-            c.check_health(&[])?;
-            c.pump_one(Duration::from_millis(50))?;
-            for &i in &remote {
-                if !c.nodes[i].hello {
-                    c.nodes[i].last_seen = Instant::now();
-                }
-            }
-        }
+    wait_for_joins(c, &remote)?;
+    // Every node's silence so far was spent waiting for the others: the heartbeat clock
+    // starts with the Welcome (nodes beat from then on).
+    for n in &mut c.nodes {
+        n.last_seen = Instant::now();
     }
     for (i, n) in case.nodes.iter().enumerate() {
         let w = Message::Welcome(Welcome {
@@ -878,6 +984,7 @@ fn drive(
     let mut decoupled: Vec<Option<(u64, f64, String)>> = vec![None; case.couplings.len()];
     let mut active: Vec<usize> = all.clone();
     let loop_start = Instant::now();
+    c.in_windows = true;
     for k in 1..=windows {
         let t0 = (k - 1) as f64 * case.run.window;
         let t1 = if k == windows {
@@ -996,6 +1103,14 @@ fn drive(
         balance_rows.push(row);
         bar.set_message(format!("{t1:.4e} s"));
         bar.inc(1);
+        c.completed = k;
+        // Completed windows reach the disk (a killed cosim leaves them recoverable).
+        let _ = c.rec.flush_if_older(Duration::from_millis(20));
+        // A stop signal ends the run here, at the window boundary.
+        if let Some(sig) = stop::requested() {
+            c.interrupted = Some(sig);
+            break;
+        }
     }
     bar.finish_and_clear();
     let loop_s = loop_start.elapsed().as_secs_f64();
@@ -1010,11 +1125,19 @@ fn drive(
             Err(f) => return Err(f),
         }
     }
+    let end_reason = match c.interrupted {
+        Some(sig) => format!(
+            "interrupted by {} after window {}",
+            stop::name(sig),
+            c.completed
+        ),
+        None => "end time reached".into(),
+    };
     for i in active.clone() {
         c.send(
             i,
             &Message::Finish(Finish {
-                reason: "end time reached".into(),
+                reason: end_reason.clone(),
             }),
         )?;
     }
@@ -1074,9 +1197,16 @@ fn drive(
             v
         })
         .collect();
+    let reached_t = balance_rows
+        .last()
+        .and_then(|r| r["time"].as_f64())
+        .unwrap_or(0.0);
     Ok(json!({
         "run": c.run,
-        "status": "finished",
+        "status": if c.interrupted.is_some() { "interrupted" } else { "finished" },
+        "signal": c.interrupted.map(stop::name),
+        "window_reached": c.completed,
+        "time_reached": reached_t,
         "case": case.path.display().to_string(),
         "transport": case.run.transport.as_str(),
         "schedule": match case.run.schedule { config::Schedule::Serial => "serial", config::Schedule::Parallel => "parallel" },

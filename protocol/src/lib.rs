@@ -7,7 +7,9 @@ pub mod mapping;
 pub mod params;
 pub mod participant;
 pub mod solver;
+pub mod stop;
 pub mod transport;
+pub mod watchdog;
 
 // The wire types live in their own crate (`wire`, PROTOCOL.md); every path through
 // `protocol` keeps working.

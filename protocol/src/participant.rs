@@ -14,6 +14,7 @@ use crate::solver::{
     BuildOptions, FieldSet, Solver, SolverError, SolverFactory, SolverResult, Window,
 };
 use crate::transport::{self, Publisher, Transport, TransportKind, TransportSpec};
+use crate::{stop, watchdog};
 use std::collections::VecDeque;
 use std::ffi::OsString;
 use std::path::PathBuf;
@@ -434,17 +435,30 @@ enum Incoming {
     Bad(String),
 }
 
+/// Wait up to `timeout` for the next message, in slices of at most 100 ms so that a stop
+/// raised by the watchdog (a stop signal, a dead coordinator) is seen promptly.
 fn recv_one(w: &mut Wire, timeout: Duration) -> anyhow::Result<Option<Incoming>> {
-    let mut got = None;
+    let deadline = Instant::now() + timeout;
     let cmd = w.cmd_topic;
-    w.t.recv(timeout, &mut |topic, bytes| {
-        got = Some(match codec::decode(bytes) {
-            Ok(env) if topic == cmd => Incoming::Cmd(env.message),
-            Ok(env) => Incoming::Data(env.message),
-            Err(e) => Incoming::Bad(e.to_string()),
-        });
-    })?;
-    Ok(got)
+    loop {
+        if let Some(s) = watchdog::stop() {
+            anyhow::bail!("{}", s.reason());
+        }
+        let slice = deadline
+            .saturating_duration_since(Instant::now())
+            .min(Duration::from_millis(100));
+        let mut got = None;
+        w.t.recv(slice, &mut |topic, bytes| {
+            got = Some(match codec::decode(bytes) {
+                Ok(env) if topic == cmd => Incoming::Cmd(env.message),
+                Ok(env) => Incoming::Data(env.message),
+                Err(e) => Incoming::Bad(e.to_string()),
+            });
+        })?;
+        if got.is_some() || Instant::now() >= deadline {
+            return Ok(got);
+        }
+    }
 }
 
 /// A solver factory that owns what it needs: the C participant library's callback table, a
@@ -454,8 +468,8 @@ pub type BoxedFactory =
     Box<dyn FnOnce(&str, &toml::Table, &BuildOptions) -> SolverResult<Box<dyn Solver>>>;
 
 /// Entry point of every node binary; returns the process exit code
-/// (0 finished, 1 failed, 2 bad invocation or, with `--describe`, a bad parameter, 3 aborted
-/// by the coordinator).
+/// (0 finished, 1 failed or its coordinator gone, 2 bad invocation or, with `--describe`, a
+/// bad parameter, 3 aborted by the coordinator, 128 + N stopped by signal N).
 pub fn node_main(binary: &str, factory: SolverFactory) -> i32 {
     node_main_with(binary, std::env::args_os(), Box::new(factory))
 }
@@ -489,13 +503,41 @@ pub fn node_main_with(
         );
     }
     tune_allocator();
-    match run_node(binary, factory, &args) {
+    // Launched by cosim: die with it. Started by hand: watch it through the transport.
+    let parent = match watchdog::arm_parent_death() {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("{binary} {}: {e}", args.node);
+            return 1;
+        }
+    };
+    // SIGTERM (and, when started by hand, Ctrl-C) stops the node cleanly; under cosim,
+    // Ctrl-C is the coordinator's to act on (the terminal sends it to both).
+    let signals = if parent.is_some() {
+        if let Err(e) = stop::ignore(libc::SIGINT) {
+            tracing::warn!("cannot ignore SIGINT: {e}");
+        }
+        &[libc::SIGTERM][..]
+    } else {
+        &[libc::SIGINT, libc::SIGTERM][..]
+    };
+    if let Err(e) = stop::install(signals) {
+        tracing::warn!("cannot handle stop signals: {e}");
+    }
+    let code = match run_node(binary, factory, &args, parent) {
         Ok(code) => code,
         Err(e) => {
             eprintln!("{binary} {}: {e:#}", args.node);
-            1
+            watchdog::stop().map_or(1, |s| s.exit_code())
         }
+    };
+    // The transport is closed: if this was the run's last process (its coordinator died),
+    // sweep what the run left in shared memory.
+    if let Ok(kind) = args.transport.parse::<TransportKind>() {
+        transport::cleanup(kind, &args.run);
     }
+    watchdog::finished();
+    code
 }
 
 /// Keep freed message buffers in the heap: coupling messages of the same size come every
@@ -522,7 +564,12 @@ pub fn init_logging() {
         .try_init();
 }
 
-fn run_node(binary: &str, factory: BoxedFactory, args: &NodeArgs) -> anyhow::Result<i32> {
+fn run_node(
+    binary: &str,
+    factory: BoxedFactory,
+    args: &NodeArgs,
+    parent: Option<u32>,
+) -> anyhow::Result<i32> {
     let kind: TransportKind = args
         .transport
         .parse()
@@ -536,6 +583,12 @@ fn run_node(binary: &str, factory: BoxedFactory, args: &NodeArgs) -> anyhow::Res
     };
     let mut t = transport::open(&spec)?;
     t.declare_alive()?;
+    let peer = if parent.is_none() {
+        t.watch("coordinator")?
+    } else {
+        None
+    };
+    watchdog::start(parent, peer);
     let cmd_topic = t.subscribe(&topic::down(&args.run, &args.node))?;
     let up_topic = topic::up(&args.run, &args.node);
     let coordinator = vec!["coordinator".to_string()];
@@ -567,7 +620,8 @@ fn run_node(binary: &str, factory: BoxedFactory, args: &NodeArgs) -> anyhow::Res
         capabilities: vec![binary.to_string()],
         token: args.token.clone(),
     }))?;
-    // Welcome.
+    // Welcome: as long as the coordinator lives (it may wait minutes for remote nodes to
+    // join); the watchdog ends the wait if it dies.
     let welcome = loop {
         match recv_one(&mut w, Duration::from_secs(60))? {
             Some(Incoming::Cmd(Message::Welcome(wl))) => break wl,
@@ -579,14 +633,19 @@ fn run_node(binary: &str, factory: BoxedFactory, args: &NodeArgs) -> anyhow::Res
                 tracing::info!("aborted before start: {}", a.reason);
                 return Ok(3);
             }
-            Some(_) => continue,
-            None => anyhow::bail!("no Welcome from the coordinator within 60 s"),
+            Some(_) | None => continue,
         }
     };
     let fail = |w: &mut Wire, reason: String| -> anyhow::Result<i32> {
         tracing::error!("{reason}");
-        w.send_up(&Message::Failed(Failed { reason }))?;
-        Ok(1)
+        match watchdog::stop() {
+            // Nobody to tell.
+            Some(s @ watchdog::Stop::CoordinatorGone(_)) => Ok(s.exit_code()),
+            s => {
+                w.send_up(&Message::Failed(Failed { reason }))?;
+                Ok(s.map_or(1, |s| s.exit_code()))
+            }
+        }
     };
     // Heartbeats from a thread, from now on: building the solver (a GPU node compiles its
     // shaders) or a long window must not look like a hang.
@@ -607,6 +666,9 @@ fn run_node(binary: &str, factory: BoxedFactory, args: &NodeArgs) -> anyhow::Res
                     continue;
                 }
                 last = Instant::now();
+                if watchdog::stop().is_some() {
+                    continue; // leaving: the coordinator may be gone
+                }
                 let s = seq.fetch_add(1, Ordering::Relaxed);
                 let m = Message::Heartbeat(Heartbeat {
                     window: progress.window.load(Ordering::Relaxed),

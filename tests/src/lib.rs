@@ -318,14 +318,7 @@ pub fn replay_node(
 
 /// Nothing of run `id` is left: no live process on its command line, no shared memory.
 pub fn nothing_left(id: &str) {
-    let alive: Vec<u32> = processes_with(&format!("--run {id}"))
-        .into_iter()
-        .filter(|pid| {
-            std::fs::read_to_string(format!("/proc/{pid}/stat"))
-                .map(|s| !s.contains(") Z"))
-                .unwrap_or(false)
-        })
-        .collect();
+    let alive = live_processes(id);
     assert!(alive.is_empty(), "surviving node processes: {alive:?}");
     assert!(
         shm_files(id).is_empty(),
@@ -353,4 +346,84 @@ pub fn assert_replays_bit_identically(mcap: &Path, node: &str, tag: &str) -> u64
     );
     nothing_left(&id);
     compared
+}
+
+/// A split bar long enough to be interrupted (many short windows), with a short heartbeat
+/// timeout; returns (case file, output directory, run id).
+pub fn long_split_bar(tag: &str, transport: &str) -> (PathBuf, PathBuf, String) {
+    let (dir, id) = scratch(tag);
+    let case = split_bar_case(&dir, 100, 300, 0.5, transport, 400.0);
+    let text = std::fs::read_to_string(&case).expect("case").replace(
+        "output = \"out\"",
+        "output = \"out\"\nheartbeat_ms = 100\nheartbeat_timeout = 1.0",
+    );
+    std::fs::write(&case, text).expect("write case");
+    (case, dir.join("out"), id)
+}
+
+/// `cosim run` in the background, stdout and stderr piped.
+pub fn spawn_cosim(case: &Path, out: &Path, run_id: &str) -> std::process::Child {
+    Command::new(bin("cosim"))
+        .args([
+            "run",
+            case.to_str().expect("utf-8 path"),
+            "--output",
+            out.to_str().expect("utf-8 path"),
+            "--run-id",
+            run_id,
+            "--quiet",
+        ])
+        .env("COSIM_LOG", "warn")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("cosim starts")
+}
+
+/// The pid of node `node` of run `id`, if it runs.
+pub fn node_pid(id: &str, node: &str) -> Option<u32> {
+    processes_with(&format!("--run {id} --node {node}"))
+        .first()
+        .copied()
+}
+
+/// Processes of run `id` that are alive (a zombie waiting to be reaped is not).
+pub fn live_processes(id: &str) -> Vec<u32> {
+    processes_with(&format!("--run {id}"))
+        .into_iter()
+        .filter(|pid| {
+            std::fs::read_to_string(format!("/proc/{pid}/stat"))
+                .map(|s| !s.contains(") Z"))
+                .unwrap_or(false)
+        })
+        .collect()
+}
+
+/// Wait up to `limit` for `child` to exit.
+pub fn wait_exit(
+    child: &mut std::process::Child,
+    limit: std::time::Duration,
+) -> Option<std::process::ExitStatus> {
+    let start = std::time::Instant::now();
+    loop {
+        if let Ok(Some(s)) = child.try_wait() {
+            return Some(s);
+        }
+        if start.elapsed() > limit {
+            return None;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+}
+
+/// The windows of a recording's `/cosim/balance` channel, in file order (a damaged file: those
+/// of its complete chunks).
+pub fn balance_windows(mcap: &Path) -> Vec<u64> {
+    let (msgs, _) = coordinator::record::read_json(mcap).expect("readable recording");
+    msgs.iter()
+        .filter(|m| m.topic == "/cosim/balance")
+        .filter_map(|m| {
+            serde_json::from_slice::<serde_json::Value>(&m.data).ok()?["window"].as_u64()
+        })
+        .collect()
 }

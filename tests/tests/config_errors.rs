@@ -274,3 +274,17 @@ remove = ["nodes.right"]
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("(variant "), "{err}");
 }
+
+#[test]
+fn join_timeout_not_positive() {
+    refused(
+        "join0",
+        |s| s.replace("window = 1e-6", "window = 1e-6\njoin_timeout = 0"),
+        "run.join_timeout",
+    );
+    refused(
+        "joinstr",
+        |s| s.replace("window = 1e-6", "window = 1e-6\njoin_timeout = \"long\""),
+        "run.join_timeout",
+    );
+}

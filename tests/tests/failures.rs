@@ -4,46 +4,13 @@
 //! recording holding every window completed before the fault.
 
 use cosim_tests::*;
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
-
-/// A split bar long enough to be interrupted (many periods).
-fn long_case(tag: &str, transport: &str) -> (std::path::PathBuf, std::path::PathBuf, String) {
-    let (dir, id) = scratch(tag);
-    let case = split_bar_case(&dir, 100, 300, 0.5, transport, 400.0);
-    // A short heartbeat timeout keeps the hang test quick.
-    let text = std::fs::read_to_string(&case).unwrap().replace(
-        "output = \"out\"",
-        "output = \"out\"\nheartbeat_ms = 100\nheartbeat_timeout = 1.0",
-    );
-    std::fs::write(&case, text).unwrap();
-    (case, dir.join("out"), id)
-}
-
-fn node_pid(id: &str, node: &str) -> Option<u32> {
-    processes_with(&format!("--run {id} --node {node}"))
-        .first()
-        .copied()
-}
 
 /// Start cosim, wait until the run is under way, do `act`, and check the aftermath.
 fn fault_scenario(tag: &str, transport: &str, act: impl FnOnce(&str), expect: &[&str]) {
-    let (case, out, id) = long_case(tag, transport);
-    let mut child = Command::new(bin("cosim"))
-        .args([
-            "run",
-            case.to_str().unwrap(),
-            "--output",
-            out.to_str().unwrap(),
-            "--run-id",
-            &id,
-            "--quiet",
-        ])
-        .env("COSIM_LOG", "warn")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let (case, out, id) = long_split_bar(tag, transport);
+    let mut child = spawn_cosim(&case, &out, &id);
     // Wait for both nodes and some windows.
     let start = Instant::now();
     while node_pid(&id, "right").is_none() || start.elapsed() < Duration::from_millis(1500) {
@@ -87,16 +54,7 @@ fn fault_scenario(tag: &str, transport: &str, act: impl FnOnce(&str), expect: &[
     let mcap = out.join("run.mcap");
     let (ok, text) = check_mcap(&mcap, "--recover");
     assert!(ok, "check_mcap --recover: {text}");
-    let (msgs, _) = coordinator::record::read_all(&mcap).unwrap();
-    let windows: Vec<u64> = msgs
-        .iter()
-        .filter(|m| m.topic == "/cosim/balance")
-        .map(|m| {
-            serde_json::from_slice::<serde_json::Value>(&m.data).unwrap()["window"]
-                .as_u64()
-                .unwrap()
-        })
-        .collect();
+    let windows = balance_windows(&mcap);
     assert!(!windows.is_empty(), "no window recorded before the fault");
     assert!(
         windows.iter().enumerate().all(|(i, &w)| w == i as u64 + 1),

@@ -5,6 +5,7 @@
 use cosim_tests::*;
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
+use std::time::Duration;
 
 fn remote_case(tag: &str) -> (std::path::PathBuf, std::path::PathBuf, String) {
     let (dir, id) = scratch(tag);
@@ -111,4 +112,59 @@ fn a_remote_node_joins_with_the_printed_command_and_token() {
             .zip(&local)
             .all(|(a, b)| a.1.to_bits() == b.1.to_bits())
     );
+}
+
+/// The README's several-hosts flow with the remote node started well after the heartbeat
+/// timeout (3 s): the local node waits, `cosim` names who it waits for, the run completes.
+#[test]
+fn a_remote_node_may_join_after_the_heartbeat_timeout() {
+    const DELAY: Duration = Duration::from_secs(7);
+    let (case, out, id) = remote_case("late");
+    let text = std::fs::read_to_string(&case).unwrap().replace(
+        "output = \"out\"",
+        "output = \"out\"\nheartbeat_timeout = 3.0",
+    );
+    std::fs::write(&case, text).unwrap();
+    let mut cosim = spawn_cosim(&case, &out, &id);
+    let mut err = BufReader::new(cosim.stderr.take().unwrap());
+    let mut line = String::new();
+    err.read_line(&mut line).unwrap();
+    assert!(line.contains("waiting for remote node 'right'"), "{line}");
+    let cmd: Vec<String> = line
+        .split(": ")
+        .last()
+        .unwrap()
+        .split_whitespace()
+        .map(str::to_string)
+        .collect();
+    std::thread::sleep(DELAY);
+    // The local node is still there, waiting.
+    assert!(
+        node_pid(&id, "left").is_some(),
+        "the local node did not wait"
+    );
+    let node = Command::new(bin("solid-node"))
+        .args(&cmd[1..])
+        .env("COSIM_LOG", "error")
+        .output()
+        .unwrap();
+    let status = cosim.wait().unwrap();
+    let mut rest = String::new();
+    let _ = std::io::Read::read_to_string(&mut err, &mut rest);
+    println!("{rest}");
+    assert!(
+        node.status.success(),
+        "node {:?}: {}; cosim: {rest}",
+        node.status,
+        String::from_utf8_lossy(&node.stderr)
+    );
+    assert!(status.success(), "cosim: {rest}");
+    assert!(
+        rest.contains("still waiting for remote node(s) 'right'"),
+        "no progress line naming 'right': {rest}"
+    );
+    assert!(rest.contains("remote node 'right' joined"), "{rest}");
+    let s = summary(&out);
+    assert_eq!(s["status"], "finished");
+    assert!(!node_series(&out.join("run.mcap"), "right", "tip_displacement").is_empty());
 }

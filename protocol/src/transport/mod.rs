@@ -9,6 +9,8 @@ pub mod shm;
 pub mod zenoh;
 
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU8, Ordering};
 use std::time::Duration;
 use thiserror::Error;
 
@@ -114,6 +116,68 @@ pub trait Transport {
     fn lost_endpoints(&mut self) -> Vec<String> {
         Vec::new()
     }
+
+    /// Watch whether `endpoint` (a node watches its `coordinator`) is alive, from another
+    /// thread; `None` where the transport cannot tell.
+    fn watch(&mut self, endpoint: &str) -> Result<Option<PeerWatch>, TransportError> {
+        let _ = endpoint;
+        Ok(None)
+    }
+}
+
+/// What is known of a watched endpoint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PeerState {
+    /// Not seen yet.
+    Unknown,
+    Alive,
+    /// Seen alive, then gone (its process died or its connection closed).
+    Lost,
+}
+
+/// Liveness of another endpoint, updated by the transport and read from any thread.
+#[derive(Debug, Clone, Default)]
+pub struct PeerWatch(Arc<AtomicU8>);
+
+impl PeerWatch {
+    pub fn state(&self) -> PeerState {
+        match self.0.load(Ordering::SeqCst) {
+            0 => PeerState::Unknown,
+            1 => PeerState::Alive,
+            _ => PeerState::Lost,
+        }
+    }
+
+    pub(crate) fn seen_alive(&self) {
+        let _ = self
+            .0
+            .compare_exchange(0, 1, Ordering::SeqCst, Ordering::SeqCst);
+    }
+
+    /// Gone: only once it was seen alive (a token withdrawn before we looked is not news).
+    pub(crate) fn seen_gone(&self) {
+        let _ = self
+            .0
+            .compare_exchange(1, 2, Ordering::SeqCst, Ordering::SeqCst);
+    }
+
+    /// Whether anyone but the transport's watcher still holds this watch.
+    pub(crate) fn watched(&self) -> bool {
+        Arc::strong_count(&self.0) > 1
+    }
+}
+
+static ABANDON: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Make every send that waits for a reader fail at once from now on (the process is leaving
+/// because its coordinator died: a dead reader's full queue would hold it for the send timeout).
+pub fn abandon_sends() {
+    ABANDON.store(true, Ordering::SeqCst);
+}
+
+/// Whether [`abandon_sends`] was called.
+pub fn sends_abandoned() -> bool {
+    ABANDON.load(Ordering::SeqCst)
 }
 
 /// Open an endpoint of the given kind. `local` needs a hub: use [`local::LocalHub::endpoint`].

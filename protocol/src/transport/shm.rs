@@ -6,7 +6,7 @@
 //! Every file a run creates carries the prefix `cx_<run>_` (see [`prefix`]), which is what
 //! [`cleanup_run`] sweeps after a crash.
 
-use super::{Publisher, TopicId, Transport, TransportError, TransportSpec};
+use super::{PeerWatch, Publisher, TopicId, Transport, TransportError, TransportSpec};
 use iceoryx2::node::NodeView;
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::notifier::Notifier;
@@ -236,6 +236,9 @@ impl ShmPublisher {
             match self.publisher.loan_slice_uninit(FRAME_HEADER + bytes.len()) {
                 Ok(s) => break s,
                 Err(LoanError::OutOfMemory) | Err(LoanError::ExceedsMaxLoans) => {
+                    if super::sends_abandoned() {
+                        return Err(self.err("abandoned: the process is leaving".into()));
+                    }
                     if start.elapsed() > SEND_TIMEOUT {
                         return Err(self.err(format!(
                             "no free sample for {SEND_TIMEOUT:?}: a reader stopped reading"
@@ -280,7 +283,9 @@ impl Publisher for ShmPublisher {
             // publisher (it connects on its next receive) once that subscriber's buffer is
             // full. Detect it and send again after the bell has woken the reader; readers
             // that already took this sequence number drop the copy.
-            if delivered >= self.service.dynamic_config().number_of_subscribers() {
+            if delivered >= self.service.dynamic_config().number_of_subscribers()
+                || super::sends_abandoned()
+            {
                 return Ok(());
             }
             if start.elapsed() > SEND_TIMEOUT {
@@ -313,7 +318,7 @@ impl Transport for ShmTransport {
             .override_sample_preallocation(|_| SUBSCRIBER_BUFFER + SUBSCRIBER_BORROWED + 1)
             .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
             .set_backpressure_handler(|info: &BackpressureInfo| {
-                if info.elapsed_time > SEND_TIMEOUT {
+                if info.elapsed_time > SEND_TIMEOUT || super::sends_abandoned() {
                     BackpressureAction::DiscardDataAndFail
                 } else {
                     BackpressureAction::Retry
@@ -394,6 +399,40 @@ impl Transport for ShmTransport {
                 Err(e) => return Err(TransportError::Recv(format!("waiting on the bell: {e:?}"))),
             }
         }
+    }
+
+    fn watch(&mut self, endpoint: &str) -> Result<Option<PeerWatch>, TransportError> {
+        let config = run_config(&self.run)?;
+        let watch = PeerWatch::default();
+        let w = watch.clone();
+        let name = endpoint.to_string();
+        // iceoryx2 knows whether a node's process lives (its monitoring token): look at the
+        // run's node list a few times a second, for as long as anyone holds the watch.
+        std::thread::Builder::new()
+            .name("cosim-shm-watch".into())
+            .spawn(move || {
+                while w.watched() {
+                    let mut alive = false;
+                    let _ = Node::<Svc>::list(&config, |state| {
+                        if let NodeState::Alive(v) = &state
+                            && v.details()
+                                .as_ref()
+                                .is_some_and(|d| d.name().as_str() == name)
+                        {
+                            alive = true;
+                        }
+                        CallbackProgression::Continue
+                    });
+                    if alive {
+                        w.seen_alive();
+                    } else {
+                        w.seen_gone();
+                    }
+                    std::thread::sleep(Duration::from_millis(100));
+                }
+            })
+            .map_err(|e| TransportError::Setup(format!("watch thread: {e}")))?;
+        Ok(Some(watch))
     }
 
     fn readers(&self, topic: &str) -> Option<usize> {
@@ -486,4 +525,146 @@ fn sweep_dir(dir: &std::path::Path, prefix: &str) {
             let _ = std::fs::remove_file(&path);
         }
     }
+}
+
+/// What [`cleanup_stale_runs`] did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Swept {
+    /// Ended runs whose files were removed.
+    pub runs: usize,
+    /// Files removed (in /dev/shm and iceoryx2's directories).
+    pub files: usize,
+    /// Runs left alone because a process of theirs is alive.
+    pub live: usize,
+}
+
+/// Run ids that a file name `cx_<run>_<rest>` may belong to (a run id may hold `_`).
+fn run_candidates(name: &str) -> Vec<String> {
+    let Some(rest) = name.strip_prefix("cx_") else {
+        return Vec::new();
+    };
+    rest.char_indices()
+        .filter(|&(i, c)| c == '_' && (1..=32).contains(&i))
+        .map(|(i, _)| rest[..i].to_string())
+        .take_while(|r| {
+            r.chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+        })
+        .collect()
+}
+
+/// Every file (recursively) under `dir` whose name starts with `cx_`.
+fn our_files(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.filter_map(|e| e.ok()) {
+        let path = e.path();
+        if path.is_dir() {
+            our_files(&path, out);
+        } else if e.file_name().to_string_lossy().starts_with("cx_") {
+            out.push(path);
+        }
+    }
+}
+
+/// Remove what runs whose processes are all gone left in shared memory (a killed `cosim`, a
+/// node killed with it): first iceoryx2's own cleanup of every dead node, then every remaining
+/// file of ours (`cx_<run>_*` in /dev/shm and in iceoryx2's node and service directories) of a
+/// run with no live process. A file is kept while any run it may belong to has a live node,
+/// or when it is less than a second old, so a running or starting run is never touched.
+pub fn cleanup_stale_runs() -> Swept {
+    quiet_logs();
+    let mut files = Vec::new();
+    our_files(std::path::Path::new("/dev/shm"), &mut files);
+    let defaults = Config::default();
+    let node_dir = std::path::PathBuf::from(defaults.global.node_dir().to_string());
+    let service_dir = std::path::PathBuf::from(defaults.global.service_dir().to_string());
+    our_files(&node_dir, &mut files);
+    our_files(&service_dir, &mut files);
+    // Every run a file may belong to, judged (and its dead nodes cleaned by iceoryx2) first.
+    let names: Vec<String> = files
+        .iter()
+        .map(|p| {
+            p.file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        })
+        .collect();
+    let mut alive: HashMap<String, usize> = HashMap::new();
+    for r in names.iter().flat_map(|n| run_candidates(n)) {
+        if !alive.contains_key(&r) {
+            let n = live_nodes_after_cleanup(&r);
+            alive.insert(r, n);
+        }
+    }
+    let mut swept = Swept::default();
+    let mut runs = std::collections::BTreeSet::new();
+    for (path, name) in files.iter().zip(&names) {
+        let candidates = run_candidates(name);
+        // A file made in the last second may belong to a run that is starting right now
+        // (its first node not yet listed as alive): leave it for the next sweep.
+        let fresh = match std::fs::metadata(path) {
+            Err(_) => false, // already removed by iceoryx2's cleanup of its dead node
+            Ok(m) => m
+                .modified()
+                .ok()
+                .and_then(|t| t.elapsed().ok())
+                .is_none_or(|age| age < Duration::from_secs(1)),
+        };
+        if candidates.is_empty() || fresh {
+            continue;
+        }
+        if candidates
+            .iter()
+            .any(|r| alive.get(r).is_none_or(|&n| n > 0))
+        {
+            continue;
+        }
+        // iceoryx2's dead-node cleanup may have removed it already.
+        if !path.exists() {
+            swept.files += 1;
+        } else {
+            match std::fs::remove_file(path) {
+                Ok(()) => swept.files += 1,
+                Err(e) => tracing::warn!("removing {}: {e}", path.display()),
+            }
+        }
+        if let Some(dir) = path.parent()
+            && dir != std::path::Path::new("/dev/shm")
+            && dir != node_dir
+            && dir != service_dir
+        {
+            // A dead node's own directory; removal fails (as meant) while anything is left.
+            let _ = std::fs::remove_dir(dir);
+        }
+        runs.insert(candidates[0].clone());
+    }
+    swept.runs = runs.len();
+    swept.live = alive.values().filter(|&&n| n > 0).count();
+    swept
+}
+
+/// iceoryx2's cleanup of the dead nodes of `run`; returns how many of its nodes are alive
+/// (or cannot be judged: counted as alive).
+fn live_nodes_after_cleanup(run: &str) -> usize {
+    let Ok(config) = run_config(run) else {
+        return 1;
+    };
+    let mut alive = 0;
+    let listed = Node::<Svc>::list(&config, |state| {
+        match state {
+            NodeState::Dead(d) => {
+                let _ = d.try_remove_stale_resources();
+            }
+            NodeState::Alive(_) | NodeState::Inaccessible(_) | NodeState::Undefined(_) => {
+                alive += 1
+            }
+        }
+        CallbackProgression::Continue
+    });
+    if listed.is_err() {
+        return 1;
+    }
+    alive
 }

@@ -4,7 +4,7 @@
 //! waits on all topics at once; liveliness tokens under `cosim/<run>/alive/<endpoint>` let the
 //! coordinator see a node die (its socket closes) within milliseconds.
 
-use super::{Publisher, TopicId, Transport, TransportError, TransportSpec};
+use super::{PeerWatch, Publisher, TopicId, Transport, TransportError, TransportSpec};
 use std::collections::BTreeSet;
 use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, TryRecvError, channel};
 use std::sync::{Arc, Mutex};
@@ -101,6 +101,8 @@ pub struct ZenohTransport {
     token: Option<LivelinessToken>,
     liveliness: Arc<Mutex<Liveliness>>,
     _alive_sub: Option<Subscriber<()>>,
+    /// Liveliness subscribers behind [`Transport::watch`].
+    watches: Vec<Subscriber<()>>,
     /// Reused when a payload arrives in several fragments and must be made contiguous.
     scratch: Vec<u8>,
     /// How long `recv` polls before it blocks.
@@ -165,6 +167,7 @@ impl ZenohTransport {
             token: None,
             liveliness,
             _alive_sub: alive_sub,
+            watches: Vec::new(),
             scratch: Vec::new(),
             spin: spin_time(),
             session,
@@ -220,6 +223,7 @@ impl Drop for ZenohTransport {
     fn drop(&mut self) {
         self.token = None;
         self.subs.clear();
+        self.watches.clear();
         if let Err(e) = self.session.close().wait() {
             tracing::warn!("closing the zenoh session of '{}': {e}", self.endpoint);
         }
@@ -325,6 +329,27 @@ impl Transport for ZenohTransport {
             self.token = Some(token);
         }
         Ok(())
+    }
+
+    fn watch(&mut self, endpoint: &str) -> Result<Option<PeerWatch>, TransportError> {
+        let watch = PeerWatch::default();
+        let w = watch.clone();
+        let key = format!("{}/**", alive_key(&self.run, endpoint));
+        // The endpoint's token goes when its process dies or its connection (to this
+        // client's router, which is the coordinator itself) closes.
+        let sub = self
+            .session
+            .liveliness()
+            .declare_subscriber(key.clone())
+            .history(true)
+            .callback(move |sample| match sample.kind() {
+                SampleKind::Put => w.seen_alive(),
+                SampleKind::Delete => w.seen_gone(),
+            })
+            .wait()
+            .map_err(|e| TransportError::Setup(format!("liveliness subscriber '{key}': {e}")))?;
+        self.watches.push(sub);
+        Ok(Some(watch))
     }
 
     fn lost_endpoints(&mut self) -> Vec<String> {
