@@ -593,10 +593,9 @@ pub fn cleanup_stale_runs() -> Swept {
         .collect();
     let mut alive: HashMap<String, usize> = HashMap::new();
     for r in names.iter().flat_map(|n| run_candidates(n)) {
-        if !alive.contains_key(&r) {
-            let n = live_nodes_after_cleanup(&r);
-            alive.insert(r, n);
-        }
+        alive
+            .entry(r)
+            .or_insert_with_key(|r| live_nodes_after_cleanup(r));
     }
     let mut swept = Swept::default();
     let mut runs = std::collections::BTreeSet::new();
