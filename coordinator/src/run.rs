@@ -150,7 +150,10 @@ pub(crate) fn spawn_node(
     cmd.stdin(Stdio::null()).stdout(out).stderr(err);
     // A node built on the participant runtime turns this into SIGTERM for itself, so it can
     // remove its shared memory; another executable is killed with us.
-    cmd.env(protocol::watchdog::PARENT_ENV, std::process::id().to_string());
+    cmd.env(
+        protocol::watchdog::PARENT_ENV,
+        std::process::id().to_string(),
+    );
     die_with_parent(&mut cmd);
     cmd.spawn()
         .map_err(|e| format!("cannot start {}: {e}", exe.display()))

@@ -16,7 +16,11 @@ struct Echo {
     role: Option<Role>,
 }
 
-fn factory(model: &str, params: &toml::Table) -> SolverResult<Box<dyn Solver>> {
+fn factory(
+    model: &str,
+    params: &toml::Table,
+    _: &protocol::BuildOptions,
+) -> SolverResult<Box<dyn Solver>> {
     if model != "echo" {
         return Err(SolverError::config(
             "model",
