@@ -391,3 +391,54 @@ fn a_python_exception_or_a_kept_view_ends_the_run_with_the_reason() {
         );
     }
 }
+
+/// `cosim validate` asks the external node itself (`bar.py --describe`, `bar-c --describe`):
+/// a misspelt and a mistyped parameter are refused with exit 2 and the full key, as for a
+/// built-in node, before anything of a run starts.
+#[test]
+fn validate_names_the_bad_key_of_an_external_node() {
+    let mut variants = Vec::new();
+    if python_package() {
+        variants.push("python");
+    }
+    if c_bar().is_some() {
+        variants.push("c");
+    }
+    let case = split_bar();
+    let mut checked = 0;
+    for variant in &variants {
+        for (set, key) in [
+            ("right.youngg=1e9", "nodes.right.params.youngg"),
+            ("right.young=\"abc\"", "nodes.right.params.young"),
+        ] {
+            let o = cosim(&[
+                "validate",
+                case.to_str().expect("utf-8 path"),
+                "--variant",
+                variant,
+                "--set",
+                set,
+            ]);
+            let err = String::from_utf8_lossy(&o.stderr);
+            println!("{variant} --set {set}: exit {:?}: {err}", o.status.code());
+            assert_eq!(o.status.code(), Some(2), "{variant} --set {set}: {err}");
+            assert!(err.contains(&format!("{key}: ")), "{variant}: {err}");
+            checked += 1;
+        }
+        // and the same case without the bad key validates
+        let o = cosim(&[
+            "validate",
+            case.to_str().expect("utf-8 path"),
+            "--variant",
+            variant,
+        ]);
+        assert!(
+            o.status.success(),
+            "{variant}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    if !variants.is_empty() {
+        assert_eq!(checked, 2 * variants.len());
+    }
+}
