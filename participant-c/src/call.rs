@@ -259,10 +259,7 @@ pub unsafe extern "C" fn cosim_warn(call: *mut CosimCall, message: *const c_char
     })
 }
 
-fn params<'a>(
-    c: &'a mut CosimCall,
-    key: *const c_char,
-) -> Result<(&'a mut Params, String), SolverError> {
+fn params(c: &mut CosimCall, key: *const c_char) -> Result<(&mut Params, String), SolverError> {
     let k = text(c, key, "key")?.to_string();
     let what = c.what;
     match c.params.as_mut() {

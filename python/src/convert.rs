@@ -152,7 +152,7 @@ fn triples(py: Python<'_>, v: &Bound<'_, PyAny>, what: &str) -> Result<Vec<[f64;
         .and_then(|a| a.call_method0("tolist"))
         .and_then(|l| l.extract())
         .map_err(|e| format!("{what}: {e}"))?;
-    if flat.len() % 3 != 0 {
+    if !flat.len().is_multiple_of(3) {
         return Err(format!(
             "{what}: {} values is not a list of 3-D points",
             flat.len()
