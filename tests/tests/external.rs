@@ -14,18 +14,13 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-fn in_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true")
-}
-
-/// Whether `what` is available; outside CI a missing one skips the test with `hint`.
+/// Whether `what` is available; if not, the shared policy applies: a skip with `hint`
+/// outside CI, a failure under `CI=true`.
 fn need(ok: bool, what: &str, hint: &str) -> bool {
-    if ok {
-        return true;
+    if !ok {
+        skip_or_fail(what, &format!("missing ({hint})"));
     }
-    assert!(!in_ci(), "{what} is missing under CI: {hint}");
-    eprintln!("skipped: {what} is missing ({hint})");
-    false
+    ok
 }
 
 fn python_package() -> bool {
