@@ -345,7 +345,11 @@ fn no_adapter_is_a_config_error() {
             "--nocapture",
             "--test-threads=1",
         ])
+        // VK_DRIVER_FILES overrides VK_ICD_FILENAMES in current loaders (the NVIDIA driver is
+        // often named through it), so both point nowhere and no driver is added.
         .env("VK_ICD_FILENAMES", "/nonexistent/icd.json")
+        .env("VK_DRIVER_FILES", "/nonexistent/icd.json")
+        .env_remove("VK_ADD_DRIVER_FILES")
         .env("WGPU_BACKEND", "vulkan")
         .output()
         .expect("the test binary runs");

@@ -542,6 +542,7 @@ fn solid_node_describes_a_bar_or_names_the_bad_key() {
 fn a_gpu_case_validates_without_any_gpu() {
     let hidden = [
         ("VK_ICD_FILENAMES", "/nonexistent.json"),
+        ("VK_DRIVER_FILES", "/nonexistent.json"),
         ("WGPU_BACKEND", "vulkan"),
     ];
     let gpu = GAS.replacen("cfl = 0.5", "cfl = 0.5\ndevice = \"gpu\"", 1);
