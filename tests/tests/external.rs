@@ -175,6 +175,35 @@ fn compare_with_builtin(variant: &str) {
     assert_eq!(channels(&mcap, &id), channels(&out0.join("run.mcap"), &id0));
     let (ok, text) = check_mcap(&mcap, "--require-json");
     assert!(ok, "check_mcap: {text}");
+    // The external node replays from the recording like a built-in one: its recorded
+    // executable is launched, fed every recorded input, and matches bit for bit over every
+    // window; a recording cut in half is reported incomplete, never identical.
+    let replayed = assert_replays_bit_identically(&mcap, "right", &format!("ext-{variant}-rp"));
+    assert_eq!(replayed, windows, "replayed windows");
+    let (dir, rid) = scratch(&format!("ext-{variant}-cut"));
+    let bytes = std::fs::read(&mcap).expect("the recording");
+    let cut = dir.join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).expect("write the cut recording");
+    let (ok, out, err) = replay_node(&cut, "right", &rid, &[]);
+    println!("{variant}, cut recording: {out}{err}");
+    assert!(!ok, "a cut recording replayed as complete: {out}");
+    assert!(!out.contains("bit-identical"), "{out}");
+    assert!(err.contains("incomplete"), "{err}");
+    nothing_left(&rid);
+    if variant == "python" {
+        // A replayed Python node that stops early (a clean exit half-way) is an error.
+        let (dir, rid) = scratch("ext-py-short");
+        let quitting = "    def advance(self, window, inbox, outbox):\n        \
+                        if window.index == 1000:\n            os._exit(0)\n        \
+                        return super().advance(window, inbox, outbox)\n";
+        let script = patched_python_bar(&dir, quitting);
+        let solver = script.display().to_string();
+        let (ok, out, err) = replay_node(&mcap, "right", &rid, &["--solver", &solver]);
+        println!("python, node stopping at window 1000: {out}{err}");
+        assert!(!ok, "a node that stopped early replayed as complete: {out}");
+        assert!(!out.contains("bit-identical"), "{out}");
+        nothing_left(&rid);
+    }
 }
 
 #[test]
@@ -294,16 +323,12 @@ fn a_killed_python_node_ends_the_run_cleanly() {
     assert_eq!(summary(&out)["status"], "failed");
 }
 
-/// A split bar whose right half is the Python bar with `body` replacing its `advance`
-/// (Python source, indented for a method); returns cosim's exit and stderr.
-fn run_patched_python_bar(
-    tag: &str,
-    body: &str,
-) -> (std::process::ExitStatus, String, PathBuf, String) {
-    let (dir, id) = scratch(tag);
+/// `dir/patched_bar.py`: the Python bar with `body` (Python source, indented for a method)
+/// overriding its methods, executable.
+fn patched_python_bar(dir: &Path, body: &str) -> PathBuf {
     let script = dir.join("patched_bar.py");
     let text = format!(
-        "#!/usr/bin/env python3\nimport sys\nsys.path.insert(0, {:?})\nimport bar\nimport cosim\n\n\
+        "#!/usr/bin/env python3\nimport os\nimport sys\nsys.path.insert(0, {:?})\nimport bar\nimport cosim\n\n\
          class Patched(bar.Bar):\n{body}\n\nraise SystemExit(cosim.run_node(Patched))\n",
         workspace_root()
             .join("examples/external")
@@ -313,6 +338,17 @@ fn run_patched_python_bar(
     std::fs::write(&script, text).expect("write the script");
     use std::os::unix::fs::PermissionsExt;
     std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).expect("chmod");
+    script
+}
+
+/// A split bar whose right half is the Python bar with `body` replacing its `advance`
+/// (Python source, indented for a method); returns cosim's exit and stderr.
+fn run_patched_python_bar(
+    tag: &str,
+    body: &str,
+) -> (std::process::ExitStatus, String, PathBuf, String) {
+    let (dir, id) = scratch(tag);
+    let script = patched_python_bar(&dir, body);
     let case = split_bar_case(&dir, 100, 300, 0.5, "shm", 0.2);
     // As in the case's python variant: Python may start slowly on a loaded machine.
     let text = std::fs::read_to_string(&case)
