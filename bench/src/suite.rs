@@ -34,8 +34,10 @@ use std::time::Instant;
 /// Options of the whole suite (`cosim bench [--only ...] [--quick] [-o DIR]`).
 #[derive(Debug, Clone, Args)]
 pub struct SuiteArgs {
-    /// Kernels to run, comma-separated: transport, fluid, solid (= pd-bond and
-    /// pd-correspondence), pd-bond, pd-correspondence, shell, joint. Default: all.
+    /// Kernels to run, comma-separated: transport, window (whole coupled windows through
+    /// `cosim run`: participant round trip in Rust, Python and C; the split bar per transport),
+    /// fluid, solid (= pd-bond and pd-correspondence), pd-bond, pd-correspondence, shell,
+    /// joint. Default: all.
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
     /// Tiny problems (2 sizes per kernel) and few repetitions: a smoke run for tests.
@@ -50,8 +52,9 @@ pub struct SuiteArgs {
 }
 
 /// All kernels, in run order.
-pub const KERNELS: [&str; 6] = [
+pub const KERNELS: [&str; 7] = [
     "transport",
+    "window",
     "fluid",
     "pd-bond",
     "pd-correspondence",
@@ -390,6 +393,10 @@ pub struct Report {
     pub errors: Vec<String>,
     /// The transport table in its own format (`cosim bench transport`).
     pub transport_table: Option<String>,
+    /// Whole windows through `cosim run` (kernel `window`).
+    pub windows: Vec<crate::window::WindowRow>,
+    /// Their tables.
+    pub window_table: Option<String>,
 }
 
 // ---------------------------------------------------------------- machine description
@@ -1368,6 +1375,9 @@ pub fn markdown(rep: &Report) -> String {
             "\nTransport round trips (`cosim bench transport` format):\n\n{t}"
         );
     }
+    if let Some(t) = &rep.window_table {
+        let _ = writeln!(s, "\n{t}");
+    }
     s
 }
 
@@ -1453,9 +1463,39 @@ pub fn suite(args: &SuiteArgs) -> i32 {
     }
     let mut errors = Vec::new();
     let mut transport_table = None;
+    let mut windows = Vec::new();
+    let mut window_table = None;
     for &k in &kernels {
         if k == "transport" {
             transport_table = transport(&mut cx, &mut errors);
+            continue;
+        }
+        if k == "window" {
+            println!("            window  whole coupled windows through `cosim run` ...");
+            match crate::window::run(args.quick) {
+                Ok((rows, missing)) => {
+                    let rt: Vec<(String, f64)> = cx
+                        .rows
+                        .iter()
+                        .filter(|r| r.kernel == "transport" && r.size == 1024)
+                        .map(|r| (r.device.clone(), r.median_step_s * 1e6))
+                        .collect();
+                    for m in &missing {
+                        cx.skipped.push(Skipped {
+                            kernel: "window".into(),
+                            device: m.what.clone(),
+                            reason: m.reason.clone(),
+                        });
+                    }
+                    window_table = Some(crate::window::table(&rows, &missing, &rt));
+                    windows = rows;
+                }
+                Err(e) => {
+                    let msg = format!("window: {e:#}");
+                    eprintln!("cosim bench: {msg}");
+                    errors.push(msg);
+                }
+            }
             continue;
         }
         // Set every size up first, then measure them in turn.
@@ -1500,6 +1540,8 @@ pub fn suite(args: &SuiteArgs) -> i32 {
         skipped: cx.skipped,
         errors,
         transport_table,
+        windows,
+        window_table,
     };
     match write(&report, &args.output) {
         Ok(md) => {

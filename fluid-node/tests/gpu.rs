@@ -433,7 +433,9 @@ fn divergence_is_an_error_on_both_paths() {
 /// `"cell … m: pressure = -6.78e-1 (RK stage 2)"` → (text before the value, the value, text
 /// after it).
 fn split_value(reason: &str) -> (String, f64, String) {
-    let (head, rest) = reason.rsplit_once(" = ").expect("a divergence names its value");
+    let (head, rest) = reason
+        .rsplit_once(" = ")
+        .expect("a divergence names its value");
     let (value, tail) = rest.split_once(' ').unwrap_or((rest, ""));
     let v = value.parse().expect("the value is a number");
     (head.to_string(), v, tail.to_string())

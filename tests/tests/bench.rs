@@ -211,3 +211,65 @@ fn transport_subcommand_still_prints_its_table() {
         "{s}"
     );
 }
+
+/// The `window` kernel: whole coupled windows through `cosim run`. The participant round
+/// trip has a row per responder (Rust always; Python and C where this machine has the
+/// `cosim` package and a C compiler — required under `CI=true`, whose `.ci/run` installs
+/// both), the split bar a row per transport with its compute/beyond-compute split; each row
+/// counts the windows it measured (quick: 200 windows per run, 199 spacings, the first tenth
+/// left out as warm-up = 180).
+#[test]
+fn window_kernel_times_participants_and_the_split_bar() {
+    let (j, md) = run_suite("transport,window");
+    assert!(j["errors"].as_array().expect("errors").is_empty(), "{j:#}");
+    let rows = j["windows"].as_array().expect("windows");
+    let skipped = j["skipped"].as_array().expect("skipped");
+    for (case, node, transport) in [
+        ("participant", "rust", "shm"),
+        ("participant", "python", "shm"),
+        ("participant", "c", "shm"),
+        ("split-bar", "rust", "shm"),
+        ("split-bar", "rust", "zenoh"),
+    ] {
+        let Some(r) = rows
+            .iter()
+            .find(|r| r["case"] == case && r["node"] == node && r["transport"] == transport)
+        else {
+            let why = skipped
+                .iter()
+                .find(|s| s["kernel"] == "window" && s["device"] == node)
+                .map(|s| s["reason"].to_string());
+            assert!(
+                case == "participant" && node != "rust" && why.is_some(),
+                "{case} {node} {transport}: neither a row nor a reason"
+            );
+            cosim_tests::skip_or_fail(
+                &format!("the {node} participant window row"),
+                &why.unwrap_or_default(),
+            );
+            continue;
+        };
+        let f = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
+        assert_eq!(r["runs"].as_u64(), Some(1), "{r}");
+        assert_eq!(r["windows"].as_u64(), Some(180), "{r}");
+        assert!(
+            f("p10_us") > 0.0 && f("p10_us") <= f("median_us") && f("median_us") <= f("p90_us"),
+            "{r}"
+        );
+        if case == "participant" {
+            let base = rows
+                .iter()
+                .find(|q| q["case"] == "participant" && q["node"] == "rust")
+                .expect("the Rust row");
+            let want = f("median_us") / base["median_us"].as_f64().expect("median");
+            assert!(rel(f("ratio_to_rust"), want) < 1e-12, "{r}");
+            assert_eq!(r["bytes"].as_u64(), Some(1024));
+        } else {
+            assert!(f("compute_us") > 0.0, "{r}");
+            assert!(f("beyond_compute_us").is_finite(), "{r}");
+        }
+        assert!(md.contains(&format!("| {node} |")) || md.contains(&format!("| {transport} |")));
+    }
+    assert!(md.contains("Participant window round trip"), "{md}");
+    assert!(md.contains("Split bar window"), "{md}");
+}

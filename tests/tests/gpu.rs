@@ -158,9 +158,7 @@ fn chamber_with_the_gas_on_the_gpu_sends_the_same_coupling_traffic() {
     );
     let (o, _) = run(&case, &dir.join("ulp"), &format!("{id}u"), &[&one_ulp]);
     ok(&o, "perturbed CPU run");
-    println!(
-        "wall time of the run: gas on the CPU {t_cpu:.2} s, on the GPU {t_gpu:.2} s"
-    );
+    println!("wall time of the run: gas on the CPU {t_cpu:.2} s, on the GPU {t_gpu:.2} s");
     let cpu = traffic(&dir.join("cpu/run.mcap"));
     let gpu = compare(&cpu, &traffic(&gmcap));
     let ulp = compare(&cpu, &traffic(&dir.join("ulp/run.mcap")));

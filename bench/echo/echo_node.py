@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Benchmark helper: the `echo` node of target/release/cosim-echo-node written in Python on
-the `cosim` package, for tools/bench_participant.py. Interface `port` with `points` points; a
+the `cosim` package, for the participant window benchmark (`cosim bench --only window`, which
+carries this file inside the binary). Interface `port` with `points` points; a
 responder answers each window's `velocity` with the same values as `force`, a driver sends
 `velocity` and takes `force` (one value per point: 128 points are 1 KiB each way)."""
 

@@ -1,6 +1,7 @@
 /* Benchmark helper: the `echo` node of target/release/cosim-echo-node written in C on the
- * participant library, for tools/bench_participant.py. Build:
- *   cc -O2 -I participant-c/include -o tools/echo-node-c tools/echo_node.c \
+ * participant library, for the participant window benchmark (`cosim bench --only window`,
+ * which carries this file inside the binary and compiles it with `cc` when one exists). By hand:
+ *   cc -O2 -I participant-c/include -o echo-node-c bench/echo/echo_node.c \
  *      -L target/release -lcosim_participant -Wl,-rpath,$PWD/target/release
  */
 #include <string.h>

@@ -1,5 +1,5 @@
 //! Benchmark helper: a node whose solver only passes data through (model `echo`), the Rust
-//! baseline of `tools/bench_participant.py`. Interface `port` has `points` points (param,
+//! baseline of the participant window benchmark (`cosim bench --only window`). Interface `port` has `points` points (param,
 //! default 128); a responder answers each window's `velocity` with the same values as
 //! `force`, a driver sends `velocity` (its window index) and takes `force`. With one value
 //! per point, 128 points are 1 KiB each way.

@@ -1,0 +1,488 @@
+//! Whole coupling windows through `cosim run` (the `window` kernel of `cosim bench`): what a
+//! window costs a user end to end, with the coordinator, both nodes and the recorder in the
+//! loop. Two tables: the participant round trip (the Rust `echo` node drives, the responder is
+//! the same node in Rust, in Python on the `cosim` package, or in C on the participant
+//! library; 1 KiB each way) and the split bar's window on each transport, split into the
+//! nodes' compute and everything beyond it.
+//!
+//! A window's time is the wall-clock spacing of consecutive `/cosim/balance` records in the
+//! recording (the coordinator writes one when every node has reported the window done); the
+//! first tenth of each run is left out as warm-up.
+
+use anyhow::{Context, anyhow, bail};
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+/// The Python echo participant and the C one, carried inside the binary so that the benchmark
+/// needs no checkout.
+const ECHO_PY: &str = include_str!("../echo/echo_node.py");
+const ECHO_C: &str = include_str!("../echo/echo_node.c");
+const HEADER: &str = include_str!("../../participant-c/include/cosim_participant.h");
+/// The split bar as the README runs it.
+const SPLIT_BAR: &str = include_str!("../../examples/split_bar.toml");
+
+/// The participant round trip moves this many bytes each way (128 points, one f64 each).
+const ECHO_BYTES: usize = 1024;
+
+/// One responder's (or one transport's) window times.
+#[derive(Debug, Clone, Serialize)]
+pub struct WindowRow {
+    /// `participant` (echo pair) or `split-bar`.
+    pub case: String,
+    pub transport: String,
+    /// The responder's language (participant rows) or `rust` (the split bar's built-in nodes).
+    pub node: String,
+    /// Bytes each way per window through the coupling (participant rows).
+    pub bytes: Option<usize>,
+    /// `cosim run`s measured (alternating with the other rows of the table).
+    pub runs: usize,
+    /// Windows whose time entered the statistics (all runs, warm-up left out).
+    pub windows: usize,
+    pub median_us: f64,
+    pub p10_us: f64,
+    pub p90_us: f64,
+    /// Median time over the Rust responder's (participant rows).
+    pub ratio_to_rust: Option<f64>,
+    /// Both nodes' compute per window (`summary.json`: Σ compute_s / windows, mean over runs).
+    pub compute_us: Option<f64>,
+    /// Window-loop time per window beyond both nodes' compute (`window_loop_s / windows` −
+    /// compute; the serial schedule runs the nodes one after the other).
+    pub beyond_compute_us: Option<f64>,
+}
+
+/// A row that could not be measured here, and why.
+pub struct Missing {
+    pub what: String,
+    pub reason: String,
+}
+
+/// How many windows and runs.
+struct Size {
+    echo_windows: usize,
+    split_bar_windows: usize,
+    runs: usize,
+}
+
+/// Run both tables. `rows` gets every measured row; `missing` the responders this machine
+/// cannot run (no Python package, no C compiler); an `Err` is a failure of the benchmark.
+pub fn run(quick: bool) -> anyhow::Result<(Vec<WindowRow>, Vec<Missing>)> {
+    let size = if quick {
+        Size {
+            echo_windows: 200,
+            split_bar_windows: 200,
+            runs: 1,
+        }
+    } else {
+        Size {
+            echo_windows: 5000,
+            split_bar_windows: 3200,
+            runs: 3,
+        }
+    };
+    let exe = std::env::current_exe().context("the benchmark's own path")?;
+    let bin = exe
+        .parent()
+        .ok_or_else(|| anyhow!("{} has no directory", exe.display()))?
+        .to_path_buf();
+    let cosim = bin.join("cosim");
+    if !cosim.is_file() {
+        bail!(
+            "{} not found: build the workspace (cargo build --release --workspace)",
+            cosim.display()
+        );
+    }
+    let dir = std::env::temp_dir().join(format!("cosim-bench-window-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let out = measure(&cosim, &bin, &dir, &size);
+    let _ = std::fs::remove_dir_all(&dir);
+    out
+}
+
+fn measure(
+    cosim: &Path,
+    bin: &Path,
+    dir: &Path,
+    size: &Size,
+) -> anyhow::Result<(Vec<WindowRow>, Vec<Missing>)> {
+    let mut missing = Vec::new();
+    let rust = bin.join("cosim-echo-node");
+    if !rust.is_file() {
+        bail!(
+            "{} not found: build the workspace (cargo build --release --workspace)",
+            rust.display()
+        );
+    }
+    let mut responders: Vec<(&str, PathBuf)> = vec![("rust", rust.clone())];
+    match python_echo(dir) {
+        Ok(p) => responders.push(("python", p)),
+        Err(e) => missing.push(Missing {
+            what: "python".into(),
+            reason: format!("{e:#}"),
+        }),
+    }
+    match c_echo(dir, bin) {
+        Ok(p) => responders.push(("c", p)),
+        Err(e) => missing.push(Missing {
+            what: "c".into(),
+            reason: format!("{e:#}"),
+        }),
+    }
+    // Runs alternate between the responders so that a burst of load hits them all.
+    let mut times: Vec<Vec<f64>> = vec![Vec::new(); responders.len()];
+    for r in 0..size.runs {
+        for (i, (name, exe)) in responders.iter().enumerate() {
+            let case = dir.join(format!("echo-{name}-{r}.toml"));
+            std::fs::write(&case, echo_case(&rust, exe, size.echo_windows))?;
+            let out = dir.join(format!("out-echo-{name}-{r}"));
+            let (dts, _) = run_case(cosim, &case, &out, &[], size.echo_windows)
+                .with_context(|| format!("participant window, {name} responder"))?;
+            times[i].extend(dts);
+        }
+    }
+    let mut rows = Vec::new();
+    for ((name, _), dts) in responders.iter().zip(&mut times) {
+        let (median, p10, p90) = quantiles(dts);
+        rows.push(WindowRow {
+            case: "participant".into(),
+            transport: "shm".into(),
+            node: name.to_string(),
+            bytes: Some(ECHO_BYTES),
+            runs: size.runs,
+            windows: dts.len(),
+            median_us: median * 1e6,
+            p10_us: p10 * 1e6,
+            p90_us: p90 * 1e6,
+            ratio_to_rust: None,
+            compute_us: None,
+            beyond_compute_us: None,
+        });
+    }
+    let base = rows[0].median_us;
+    for r in &mut rows {
+        r.ratio_to_rust = Some(r.median_us / base);
+    }
+    // The split bar on each transport, shortened in quick mode.
+    let split = dir.join("split_bar.toml");
+    std::fs::write(&split, SPLIT_BAR)?;
+    let window = split_bar_window()?;
+    let end = format!("run.end_time={:e}", window * size.split_bar_windows as f64);
+    let transports = ["shm", "zenoh"];
+    let mut times: Vec<Vec<f64>> = vec![Vec::new(); transports.len()];
+    let mut compute = vec![0.0; transports.len()];
+    let mut beyond = vec![0.0; transports.len()];
+    for r in 0..size.runs {
+        for (i, t) in transports.iter().enumerate() {
+            let out = dir.join(format!("out-split-{t}-{r}"));
+            let tr = format!("run.transport=\"{t}\"");
+            let (dts, summary) = run_case(
+                cosim,
+                &split,
+                &out,
+                &["--set", &end, "--set", &tr],
+                size.split_bar_windows,
+            )
+            .with_context(|| format!("split bar on {t}"))?;
+            times[i].extend(dts);
+            let (c, b) = compute_split(&summary)?;
+            compute[i] += c / size.runs as f64;
+            beyond[i] += b / size.runs as f64;
+        }
+    }
+    for (i, t) in transports.iter().enumerate() {
+        let (median, p10, p90) = quantiles(&mut times[i]);
+        rows.push(WindowRow {
+            case: "split-bar".into(),
+            transport: t.to_string(),
+            node: "rust".into(),
+            bytes: None,
+            runs: size.runs,
+            windows: times[i].len(),
+            median_us: median * 1e6,
+            p10_us: p10 * 1e6,
+            p90_us: p90 * 1e6,
+            ratio_to_rust: None,
+            compute_us: Some(compute[i] * 1e6),
+            beyond_compute_us: Some(beyond[i] * 1e6),
+        });
+    }
+    Ok((rows, missing))
+}
+
+/// The window of the embedded split bar (`run.window`).
+fn split_bar_window() -> anyhow::Result<f64> {
+    let t: toml::Table = toml::from_str(SPLIT_BAR).context("the embedded split bar")?;
+    t.get("run")
+        .and_then(|r| r.get("window"))
+        .and_then(|w| w.as_float())
+        .ok_or_else(|| anyhow!("the embedded split bar has no run.window"))
+}
+
+/// The two-node echo case: the Rust node drives, `responder` answers.
+fn echo_case(rust: &Path, responder: &Path, windows: usize) -> String {
+    format!(
+        r#"[run]
+name = "bench-participant"
+end_time = {end:e}
+window = 1e-3
+transport = "shm"
+output = "out"
+
+[nodes.a]
+solver = {rust:?}
+model = "echo"
+[nodes.a.params]
+points = {points}
+
+[nodes.b]
+solver = {responder:?}
+model = "echo"
+[nodes.b.params]
+points = {points}
+
+[[couplings]]
+name = "echo"
+kind = "kinematic"
+driver = "a.port"
+responder = "b.port"
+driver_fields = ["velocity"]
+responder_fields = ["force"]
+"#,
+        end = windows as f64 * 1e-3,
+        rust = rust.display().to_string(),
+        responder = responder.display().to_string(),
+        points = ECHO_BYTES / 8,
+    )
+}
+
+/// The Python echo node, if `python3` imports the `cosim` package here.
+fn python_echo(dir: &Path) -> anyhow::Result<PathBuf> {
+    let ok = Command::new("python3")
+        .args(["-c", "import cosim"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !ok {
+        bail!("python3 cannot import the `cosim` package (python3 -m pip install ./python)");
+    }
+    let p = dir.join("echo_node.py");
+    std::fs::write(&p, ECHO_PY)?;
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o755))?;
+    Ok(p)
+}
+
+/// The C echo node, compiled here with `cc` against the participant library beside `cosim`.
+fn c_echo(dir: &Path, bin: &Path) -> anyhow::Result<PathBuf> {
+    if !bin.join("libcosim_participant.so").is_file() {
+        bail!(
+            "{} not built (cargo build --release --workspace)",
+            bin.join("libcosim_participant.so").display()
+        );
+    }
+    let inc = dir.join("include");
+    std::fs::create_dir_all(&inc)?;
+    std::fs::write(inc.join("cosim_participant.h"), HEADER)?;
+    let src = dir.join("echo_node.c");
+    std::fs::write(&src, ECHO_C)?;
+    let exe = dir.join("echo-node-c");
+    let o = Command::new("cc")
+        .args(["-O2", "-I"])
+        .arg(&inc)
+        .arg("-o")
+        .arg(&exe)
+        .arg(&src)
+        .arg("-L")
+        .arg(bin)
+        .arg("-lcosim_participant")
+        .arg(format!("-Wl,-rpath,{}", bin.display()))
+        .output()
+        .map_err(|e| anyhow!("no C compiler (cc): {e}"))?;
+    if !o.status.success() {
+        bail!(
+            "cc could not build the C echo node: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    Ok(exe)
+}
+
+/// `cosim run CASE --output OUT --quiet [extra]`: the window times (warm-up left out) and the
+/// run's `summary.json`; exactly `windows` windows must have been recorded.
+fn run_case(
+    cosim: &Path,
+    case: &Path,
+    out: &Path,
+    extra: &[&str],
+    windows: usize,
+) -> anyhow::Result<(Vec<f64>, serde_json::Value)> {
+    let o = Command::new(cosim)
+        .arg("run")
+        .arg(case)
+        .arg("--output")
+        .arg(out)
+        .arg("--quiet")
+        .args(extra)
+        .env("COSIM_LOG", "warn")
+        .stdout(Stdio::null())
+        .output()
+        .with_context(|| format!("starting {}", cosim.display()))?;
+    if !o.status.success() {
+        bail!(
+            "cosim run {} failed ({}): {}",
+            case.display(),
+            o.status,
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    let mut t = balance_times(&out.join("run.mcap"))?;
+    if t.len() != windows {
+        bail!(
+            "{} windows recorded, expected {windows}",
+            t.len(),
+            windows = windows
+        );
+    }
+    t.sort_unstable();
+    let dts: Vec<f64> = t.windows(2).map(|w| (w[1] - w[0]) as f64 * 1e-9).collect();
+    let skip = dts.len() / 10;
+    let summary = std::fs::read(out.join("summary.json"))
+        .ok()
+        .and_then(|b| serde_json::from_slice(&b).ok())
+        .ok_or_else(|| anyhow!("{}: no readable summary.json", out.display()))?;
+    Ok((dts[skip..].to_vec(), summary))
+}
+
+/// The log times (ns, wall clock) of the recording's `/cosim/balance` records.
+fn balance_times(mcap: &Path) -> anyhow::Result<Vec<u64>> {
+    let buf = std::fs::read(mcap).with_context(|| format!("reading {}", mcap.display()))?;
+    let mut t = Vec::new();
+    for m in mcap::MessageStream::new(&buf).context("not an MCAP file")? {
+        let m = m.with_context(|| format!("{}: unreadable message", mcap.display()))?;
+        if m.channel.topic == "/cosim/balance" {
+            t.push(m.log_time);
+        }
+    }
+    Ok(t)
+}
+
+/// (Both nodes' compute per window, window-loop time per window beyond it), in seconds.
+fn compute_split(summary: &serde_json::Value) -> anyhow::Result<(f64, f64)> {
+    let windows = summary["windows"]
+        .as_f64()
+        .ok_or_else(|| anyhow!("summary.json has no windows"))?;
+    let lp = summary["window_loop_s"]
+        .as_f64()
+        .ok_or_else(|| anyhow!("summary.json has no window_loop_s"))?;
+    let nodes = summary["nodes"]
+        .as_object()
+        .ok_or_else(|| anyhow!("summary.json has no nodes"))?;
+    let mut c = 0.0;
+    for (name, n) in nodes {
+        c += n["compute_s"]
+            .as_f64()
+            .ok_or_else(|| anyhow!("summary.json: nodes.{name} has no compute_s"))?;
+    }
+    Ok((c / windows, (lp - c) / windows))
+}
+
+/// (median, p10, p90) of `x` (sorted in place); NaN when empty.
+fn quantiles(x: &mut [f64]) -> (f64, f64, f64) {
+    if x.is_empty() {
+        return (f64::NAN, f64::NAN, f64::NAN);
+    }
+    x.sort_unstable_by(f64::total_cmp);
+    let q = |p: f64| x[((x.len() - 1) as f64 * p).round() as usize];
+    (q(0.5), q(0.1), q(0.9))
+}
+
+/// The two tables in Markdown; `round_trip_1k` is the raw transport round trip at 1 KiB per
+/// transport from the same `cosim bench` run, when it ran.
+pub fn table(rows: &[WindowRow], missing: &[Missing], round_trip_1k: &[(String, f64)]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "Participant window round trip through `cosim run` (the Rust echo node drives; {ECHO_BYTES} B each way on shm; recording on):\n\n\
+         | responder | runs | windows | median µs | p10 µs | p90 µs | ratio to Rust |\n|---|---:|---:|---:|---:|---:|---:|"
+    );
+    for r in rows.iter().filter(|r| r.case == "participant") {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.2} |",
+            r.node,
+            r.runs,
+            r.windows,
+            r.median_us,
+            r.p10_us,
+            r.p90_us,
+            r.ratio_to_rust.unwrap_or(f64::NAN)
+        );
+    }
+    for m in missing {
+        let _ = writeln!(
+            s,
+            "| {} | – | – | – | – | – | not run: {} |",
+            m.what, m.reason
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nSplit bar window (examples/split_bar.toml, both nodes, serial, recording on):\n\n\
+         | transport | runs | windows | median µs | p10 µs | p90 µs | compute µs/window | beyond compute µs/window | raw round trip 1 KiB µs | beyond / (2 round trips) |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    );
+    for r in rows.iter().filter(|r| r.case == "split-bar") {
+        let rt = round_trip_1k
+            .iter()
+            .find(|(t, _)| *t == r.transport)
+            .map(|(_, us)| *us);
+        let beyond = r.beyond_compute_us.unwrap_or(f64::NAN);
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} |",
+            r.transport,
+            r.runs,
+            r.windows,
+            r.median_us,
+            r.p10_us,
+            r.p90_us,
+            r.compute_us.unwrap_or(f64::NAN),
+            beyond,
+            rt.map_or("–".into(), |v| format!("{v:.1}")),
+            rt.map_or("–".into(), |v| format!("{:.2}", beyond / (2.0 * v))),
+        );
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantiles_of_a_known_sample() {
+        let mut x: Vec<f64> = (0..=100).rev().map(f64::from).collect();
+        assert_eq!(quantiles(&mut x), (50.0, 10.0, 90.0));
+        assert!(quantiles(&mut []).0.is_nan());
+    }
+
+    #[test]
+    fn the_embedded_split_bar_has_its_window() {
+        let w = split_bar_window().expect("window");
+        assert!((w - 4.956056900399753e-7).abs() < 1e-20, "{w}");
+    }
+
+    #[test]
+    fn compute_split_reads_the_summary() {
+        let s: serde_json::Value = serde_json::from_str(
+            r#"{"windows": 4, "window_loop_s": 1.0,
+                "nodes": {"a": {"compute_s": 0.25}, "b": {"compute_s": 0.5}}}"#,
+        )
+        .expect("json");
+        assert_eq!(compute_split(&s).expect("split"), (0.1875, 0.0625));
+        let bad: serde_json::Value = serde_json::from_str(r#"{"windows": 4}"#).expect("json");
+        assert!(compute_split(&bad).is_err());
+    }
+}
