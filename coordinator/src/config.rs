@@ -49,6 +49,10 @@ pub struct RunConfig {
     pub listen: String,
     /// How long the coordinator waits for its remote nodes to join, s.
     pub join_timeout: f64,
+    /// How long a launched node may take from its launch to its `Hello`, s (an interpreter
+    /// importing its libraries on a busy machine can take seconds; no heartbeat is expected
+    /// before it).
+    pub start_timeout: f64,
     /// Record `Fields` messages of every `record_every`-th window only (1 = all).
     pub record_every: u64,
 }
@@ -122,6 +126,7 @@ const RUN_KEYS: &[&str] = &[
     "stall_timeout",
     "listen",
     "join_timeout",
+    "start_timeout",
     "record_every",
 ];
 const NODE_KEYS: &[&str] = &["solver", "model", "params", "remote"];
@@ -381,6 +386,13 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             format!("must be > 0 s, got {join_timeout}"),
         ));
     }
+    let start_timeout = get_f64(&run_t, p, "start_timeout")?.unwrap_or(60.0);
+    if !(start_timeout.is_finite() && start_timeout > 0.0) {
+        return Err(err(
+            "run.start_timeout",
+            format!("must be > 0 s, got {start_timeout}"),
+        ));
+    }
     let record_every = get_u64(&run_t, p, "record_every")?.unwrap_or(1).max(1);
 
     // Nodes.
@@ -590,6 +602,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             stall_timeout,
             listen,
             join_timeout,
+            start_timeout,
             record_every,
         },
         nodes,

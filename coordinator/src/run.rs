@@ -430,14 +430,18 @@ impl<'a> Coord<'a> {
     }
 
     /// Pump until `pred` holds for every node in `who`.
+    /// Wait until `pred` holds for every node of `who`, checking their health meanwhile;
+    /// `limit` is the longest wait and the reason given when it passes.
     fn wait_all(
         &mut self,
         who: &[usize],
         what: &str,
-        limit: Option<Duration>,
+        limit: Option<(Duration, &str)>,
         pred: impl Fn(&NodeRt) -> bool,
     ) -> Result<(), Fault> {
         let start = Instant::now();
+        // Nodes beat from the Welcome on: before it only an exit is a fault.
+        let beating = what != "Hello";
         loop {
             let pending: Vec<usize> = who
                 .iter()
@@ -448,13 +452,13 @@ impl<'a> Coord<'a> {
                 return Ok(());
             }
             self.stop_now()?;
-            self.check_health(&pending)?;
-            if let Some(l) = limit
+            self.check_health(if beating { &pending } else { &[] })?;
+            if let Some((l, why)) = limit
                 && start.elapsed() > l
             {
                 return Err(Fault {
                     node: self.nodes[pending[0]].name.clone(),
-                    reason: format!("no {what} within {} s", l.as_secs()),
+                    reason: format!("no {what} within {} s: {why}", l.as_secs_f64()),
                 });
             }
             self.pump_one(Duration::from_millis(20))?;
@@ -888,7 +892,16 @@ fn drive(
         .copied()
         .filter(|&i| case.nodes[i].remote)
         .collect();
-    c.wait_all(&local, "Hello", Some(Duration::from_secs(30)), |n| n.hello)?;
+    let start = Duration::from_secs_f64(case.run.start_timeout);
+    c.wait_all(
+        &local,
+        "Hello",
+        Some((
+            start,
+            "the node is running but has not joined (a slow start? raise run.start_timeout)",
+        )),
+        |n| n.hello,
+    )?;
     wait_for_joins(c, &remote)?;
     // Every node's silence so far was spent waiting for the others: the heartbeat clock
     // starts with the Welcome (nodes beat from then on).
@@ -906,9 +919,15 @@ fn drive(
         });
         c.send(i, &w)?;
     }
-    c.wait_all(&all, "Describe", Some(Duration::from_secs(60)), |n| {
-        n.described >= 1
-    })?;
+    c.wait_all(
+        &all,
+        "Describe",
+        Some((
+            Duration::from_secs(60),
+            "the node did not finish building its solver",
+        )),
+        |n| n.described >= 1,
+    )?;
     // Set-up (window 0).
     for i in 0..c.nodes.len() {
         c.send(

@@ -288,3 +288,17 @@ fn join_timeout_not_positive() {
         "run.join_timeout",
     );
 }
+
+#[test]
+fn start_timeout_not_positive() {
+    refused(
+        "start0",
+        |s| s.replace("window = 1e-6", "window = 1e-6\nstart_timeout = -1.0"),
+        "run.start_timeout",
+    );
+    refused(
+        "startstr",
+        |s| s.replace("window = 1e-6", "window = 1e-6\nstart_timeout = \"soon\""),
+        "run.start_timeout",
+    );
+}

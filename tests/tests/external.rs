@@ -350,17 +350,10 @@ fn run_patched_python_bar(
     let (dir, id) = scratch(tag);
     let script = patched_python_bar(&dir, body);
     let case = split_bar_case(&dir, 100, 300, 0.5, "shm", 0.2);
-    // As in the case's python variant: Python may start slowly on a loaded machine.
-    let text = std::fs::read_to_string(&case)
-        .expect("case")
-        .replace(
-            "[nodes.right]\nsolver = \"solid-node\"",
-            &format!("[nodes.right]\nsolver = {:?}", script.display().to_string()),
-        )
-        .replace(
-            "output = \"out\"",
-            "output = \"out\"\nheartbeat_timeout = 20.0",
-        );
+    let text = std::fs::read_to_string(&case).expect("case").replace(
+        "[nodes.right]\nsolver = \"solid-node\"",
+        &format!("[nodes.right]\nsolver = {:?}", script.display().to_string()),
+    );
     std::fs::write(&case, text).expect("case");
     let out = dir.join("out");
     let o = run_case(&case, &out, &id, &[]);

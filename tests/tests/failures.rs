@@ -131,3 +131,79 @@ fn a_killed_node_ends_a_zenoh_run_cleanly() {
         &["left"],
     );
 }
+
+/// The split bar with its right half launched through `wrapper` (a shell script given the
+/// node's arguments), run with `extra` `--set`s; returns (exit, stderr, seconds, run id).
+fn run_wrapped_right_half(
+    tag: &str,
+    wrapper: &str,
+    extra: &[&str],
+) -> (std::process::ExitStatus, String, f64, String) {
+    let (dir, id) = scratch(tag);
+    let script = dir.join("wrapped-node");
+    std::fs::write(&script, wrapper).expect("write the wrapper");
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).expect("chmod");
+    let case = split_bar_case(&dir, 20, 60, 0.5, "shm", 0.5);
+    let text = std::fs::read_to_string(&case).expect("case").replace(
+        "[nodes.right]\nsolver = \"solid-node\"",
+        &format!("[nodes.right]\nsolver = {:?}", script.display().to_string()),
+    );
+    std::fs::write(&case, text).expect("case");
+    let mut args = Vec::new();
+    for s in extra {
+        args.extend_from_slice(&["--set", s]);
+    }
+    let t = Instant::now();
+    let o = run_case(&case, &dir.join("out"), &id, &args);
+    (
+        o.status,
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+        t.elapsed().as_secs_f64(),
+        id,
+    )
+}
+
+/// A node that takes longer than the heartbeat timeout to say Hello (an interpreter
+/// importing its libraries on a busy machine) is not declared hung: before its Hello only
+/// `run.start_timeout` applies.
+#[test]
+fn a_slow_starting_node_joins_within_the_start_timeout() {
+    let exe = bin("solid-node");
+    let wrapper = format!(
+        "#!/bin/sh\ncase \"$*\" in *--describe*) ;; *) sleep 4.5 ;; esac\nexec {:?} \"$@\"\n",
+        exe.display().to_string()
+    );
+    let (status, stderr, took, id) =
+        run_wrapped_right_half("slow-start", &wrapper, &["run.heartbeat_timeout=2"]);
+    println!("slow start: exit {status} after {took:.1} s: {stderr}");
+    assert!(status.success(), "{stderr}");
+    assert!(took >= 4.5, "the node did not start late ({took} s)");
+    nothing_left(&id);
+}
+
+/// A launched node that never says Hello ends the run at `run.start_timeout`, naming the node
+/// and the key to raise, and is killed (no process outlives the run).
+#[test]
+fn a_node_that_never_joins_ends_the_run_at_the_start_timeout() {
+    let exe = bin("solid-node");
+    let wrapper = format!(
+        "#!/bin/sh\ncase \"$*\" in *--describe*) exec {:?} \"$@\" ;; esac\nexec sleep 61.25\n",
+        exe.display().to_string()
+    );
+    let (status, stderr, took, id) =
+        run_wrapped_right_half("never-joins", &wrapper, &["run.start_timeout=2"]);
+    println!("never joins: exit {status} after {took:.1} s: {stderr}");
+    assert!(!status.success());
+    assert!(
+        stderr.contains("right") && stderr.contains("run.start_timeout"),
+        "{stderr}"
+    );
+    assert!(took < 15.0, "the run took {took} s to give up");
+    std::thread::sleep(Duration::from_millis(200));
+    assert!(
+        processes_with("61.25").is_empty(),
+        "the node that never joined outlived the run"
+    );
+    nothing_left(&id);
+}

@@ -89,10 +89,9 @@ fn compare(a: &Traffic, b: &Traffic) -> Vec<(FieldKey, f64, f64)> {
 }
 
 fn run(case: &Path, out: &Path, id: &str, sets: &[&str]) -> (std::process::Output, f64) {
-    // The node builds its solver (on the GPU path: compiles the WGSL pipelines, several
-    // seconds on lavapipe under load) before its heartbeat thread starts, so the default
-    // 3 s heartbeat timeout can end a run on a busy machine; every run here gets 20 s (below the 30 s stall timeout).
-    let mut args = vec!["--variant", "small", "--set", "run.heartbeat_timeout=20"];
+    // The default timeouts: a node beats from its Welcome on, while it builds its solver
+    // (on the GPU path it compiles the WGSL pipelines, seconds on lavapipe under load).
+    let mut args = vec!["--variant", "small"];
     for s in sets {
         args.extend_from_slice(&["--set", s]);
     }
