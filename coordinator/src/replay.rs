@@ -9,7 +9,7 @@
 //! recording, a node that stops early, a missing field) is reported as incomplete.
 
 use crate::record::{self, Recorded};
-use crate::run::{describe_status, pick_run_id, spawn_node};
+use crate::run::{describe_status, log_note, pick_run_id, spawn_node};
 use anyhow::{Context, bail};
 use protocol::codec::{self, encode_into};
 use protocol::participant::is_motion;
@@ -383,11 +383,13 @@ impl Session {
             while Instant::now() < until {
                 self.pump(Duration::from_millis(10))?;
             }
-            return Err(self.fault(format!(
-                "{} during window {}",
+            return Err(anyhow::anyhow!(
+                "node '{}': {} during window {}{}",
+                self.node,
                 describe_status(st),
-                self.window
-            )));
+                self.window,
+                log_note(&self.log)
+            ));
         }
         // Heartbeats start with the Welcome; before it the Hello has its own limit.
         if self.beating && self.last_seen.elapsed() > self.heartbeat_timeout {

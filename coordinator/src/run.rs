@@ -71,6 +71,8 @@ struct NodeRt {
     wall_s: f64,
     wait_s: f64,
     exited: Option<String>,
+    /// Where its stdout and stderr go (launched nodes).
+    log: Option<PathBuf>,
     /// Finished before the end (its couplings ended, seed 000 §4): the window after which.
     finished: Option<u64>,
     /// What the node warned of in its descriptions (each once).
@@ -159,6 +161,33 @@ pub(crate) fn spawn_node(
         .map_err(|e| format!("cannot start {}: {e}", exe.display()))
 }
 
+/// What the log of a node that exited says last: its path and its last lines (at most 12,
+/// from its last 8 KiB), indented, for the fault message.
+pub(crate) fn log_note(log: &Path) -> String {
+    use std::io::{Read, Seek, SeekFrom};
+    let mut text = String::new();
+    if let Ok(mut f) = std::fs::File::open(log) {
+        let len = f.metadata().map(|m| m.len()).unwrap_or(0);
+        let mut buf = Vec::new();
+        if f.seek(SeekFrom::Start(len.saturating_sub(8192))).is_ok()
+            && f.read_to_end(&mut buf).is_ok()
+        {
+            text = String::from_utf8_lossy(&buf).into_owned();
+        }
+    }
+    let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
+    if lines.is_empty() {
+        return format!(" (its log, {}, is empty)", log.display());
+    }
+    let tail = &lines[lines.len().saturating_sub(12)..];
+    let mut s = format!("; its log, {}, ends:", log.display());
+    for l in tail {
+        s.push_str("\n    ");
+        s.push_str(l);
+    }
+    s
+}
+
 /// How a node process ended, in words.
 pub(crate) fn describe_status(s: std::process::ExitStatus) -> String {
     use std::os::unix::process::ExitStatusExt;
@@ -233,6 +262,7 @@ impl<'a> Coord<'a> {
             if let Some(why) = n.exited.clone() {
                 // Give a dying node's last words (a Failed message) a moment to arrive.
                 let name = n.name.clone();
+                let log = n.log.as_deref().map(log_note).unwrap_or_default();
                 let deadline = Instant::now() + Duration::from_millis(100);
                 while Instant::now() < deadline {
                     match self.pump_one(Duration::from_millis(10)) {
@@ -242,7 +272,7 @@ impl<'a> Coord<'a> {
                 }
                 return Err(Fault {
                     node: name,
-                    reason: format!("{why} during window {}", self.window),
+                    reason: format!("{why} during window {}{log}", self.window),
                 });
             }
         }
@@ -413,9 +443,14 @@ impl<'a> Coord<'a> {
                 }
             }
             Message::Failed(f) => {
+                let log = n
+                    .log
+                    .as_deref()
+                    .map(|l| format!(" (its log: {})", l.display()))
+                    .unwrap_or_default();
                 return Err(Fault {
                     node: n.name.clone(),
-                    reason: f.reason,
+                    reason: format!("{}{log}", f.reason),
                 });
             }
             Message::Mesh(_) | Message::Fields(_) => {}
@@ -739,6 +774,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             wall_s: 0.0,
             wait_s: 0.0,
             exited: None,
+            log: None,
             finished: None,
         });
     }
@@ -879,6 +915,7 @@ fn drive(
         let child = spawn_node(exe, &c.run, &n.name, case.run.transport, connect, &log)
             .map_err(|e| fault(&n.name, e))?;
         c.nodes[i].child = Some(child);
+        c.nodes[i].log = Some(log);
         c.nodes[i].last_seen = Instant::now();
     }
     let all: Vec<usize> = (0..c.nodes.len()).collect();

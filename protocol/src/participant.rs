@@ -681,13 +681,52 @@ fn run_node(
             }
         })
     };
-    let result = build_and_run(&mut w, factory, &welcome, args, &progress);
+    // A panic in the solver (or in the runtime under it) is a failure like any other: the
+    // coordinator gets its message and place instead of a bare exit status.
+    record_panics();
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        build_and_run(&mut w, factory, &welcome, args, &progress)
+    }))
+    .unwrap_or_else(|_| Err(last_panic()));
     alive.store(false, Ordering::Relaxed);
     let _ = hb.join();
     match result {
         Ok(Ok(code)) => Ok(code),
         Ok(Err(reason)) | Err(reason) => fail(&mut w, reason),
     }
+}
+
+/// The message and place of the last panic in this process, as [`record_panics`] kept it.
+static LAST_PANIC: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
+
+/// Keep each panic's message and place for the failure report (the default hook still
+/// prints it to stderr, i.e. to the node's log).
+fn record_panics() {
+    let previous = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let message = info.payload_as_str().unwrap_or("(no message)");
+        let place = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
+        let thread = std::thread::current()
+            .name()
+            .map(|n| format!(" (thread '{n}')"))
+            .unwrap_or_default();
+        if let Ok(mut last) = LAST_PANIC.lock() {
+            *last = Some(format!("panicked{thread}: {message}{place}"));
+        }
+        previous(info);
+    }));
+}
+
+/// The failure reason of a caught panic.
+fn last_panic() -> String {
+    LAST_PANIC
+        .lock()
+        .ok()
+        .and_then(|mut l| l.take())
+        .unwrap_or_else(|| "panicked (no message)".into())
 }
 
 /// Build the solver from the Welcome, wire its couplings and run the window loop. `Ok(Err)`

@@ -207,3 +207,84 @@ fn a_node_that_never_joins_ends_the_run_at_the_start_timeout() {
     );
     nothing_left(&id);
 }
+
+/// A node that prints its error and exits at set-up: cosim's message carries the node's
+/// last log lines and the log's path, not only the exit status.
+#[test]
+fn a_node_failing_at_setup_shows_its_last_log_lines() {
+    let exe = bin("solid-node");
+    let wrapper = format!(
+        "#!/bin/sh\ncase \"$*\" in *--describe*) exec {:?} \"$@\" ;; esac\n\
+         echo 'starting the right half' >&2\n\
+         echo 'licence server unreachable: connection refused' >&2\nexit 3\n",
+        exe.display().to_string()
+    );
+    let (status, stderr, _, id) = run_wrapped_right_half("setup-dies", &wrapper, &[]);
+    println!("{stderr}");
+    assert_eq!(status.code(), Some(1), "{stderr}");
+    for want in [
+        "node 'right'",
+        "exited with status 3",
+        "right.log",
+        "licence server unreachable: connection refused",
+        "starting the right half",
+    ] {
+        assert!(stderr.contains(want), "'{want}' missing from: {stderr}");
+    }
+    nothing_left(&id);
+}
+
+/// A Rust node that panics mid-run is reported as a panic with its message and place (the
+/// participant runtime catches it and tells the coordinator) and the log's path.
+#[test]
+fn a_panicking_node_is_reported_as_a_panic_with_its_place() {
+    let (dir, id) = scratch("panics");
+    let echo = bin("cosim-echo-node").display().to_string();
+    let case = dir.join("case.toml");
+    std::fs::write(
+        &case,
+        format!(
+            r#"[run]
+name = "panics"
+end_time = 0.02
+window = 1e-3
+output = "out"
+
+[nodes.a]
+solver = {echo:?}
+model = "echo"
+
+[nodes.b]
+solver = {echo:?}
+model = "echo"
+[nodes.b.params]
+panic_at_window = 5
+
+[[couplings]]
+name = "echo"
+kind = "kinematic"
+driver = "a.port"
+responder = "b.port"
+driver_fields = ["velocity"]
+responder_fields = ["force"]
+"#
+        ),
+    )
+    .expect("case");
+    let out = dir.join("out");
+    let o = run_case(&case, &out, &id, &[]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    println!("{stderr}");
+    assert!(!o.status.success());
+    for want in [
+        "node 'b'",
+        "panicked",
+        "index out of bounds",
+        "cosim-echo-node.rs:",
+        "b.log",
+    ] {
+        assert!(stderr.contains(want), "'{want}' missing from: {stderr}");
+    }
+    assert_eq!(summary(&out)["status"], "failed");
+    nothing_left(&id);
+}

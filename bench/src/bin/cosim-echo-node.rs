@@ -2,7 +2,8 @@
 //! baseline of the participant window benchmark (`cosim bench --only window`). Interface `port` has `points` points (param,
 //! default 128); a responder answers each window's `velocity` with the same values as
 //! `force`, a driver sends `velocity` (its window index) and takes `force`. With one value
-//! per point, 128 points are 1 KiB each way.
+//! per point, 128 points are 1 KiB each way. `panic_at_window = N` makes it panic in window N
+//! (the failure tests' panicking node).
 
 use protocol::{
     Binding, Inbox, InterfaceInfo, InterfaceMesh, NodeDescription, Outbox, Role, Solver,
@@ -14,6 +15,7 @@ const PORT: &str = "port";
 struct Echo {
     points: usize,
     role: Option<Role>,
+    panic_at: Option<u64>,
 }
 
 fn factory(
@@ -28,19 +30,31 @@ fn factory(
         ));
     }
     let mut points = 128;
+    let mut panic_at = None;
     for (k, v) in params {
         match (k.as_str(), v.as_integer()) {
             ("points", Some(n)) if n > 0 => points = n as usize,
             ("points", _) => return Err(SolverError::config("points", "must be an integer > 0")),
+            ("panic_at_window", Some(n)) if n > 0 => panic_at = Some(n as u64),
+            ("panic_at_window", _) => {
+                return Err(SolverError::config(
+                    "panic_at_window",
+                    "must be an integer > 0",
+                ));
+            }
             _ => {
                 return Err(SolverError::config(
                     k,
-                    "unknown parameter (echo reads: points)",
+                    "unknown parameter (echo reads: points, panic_at_window)",
                 ));
             }
         }
     }
-    Ok(Box::new(Echo { points, role: None }))
+    Ok(Box::new(Echo {
+        points,
+        role: None,
+        panic_at,
+    }))
 }
 
 impl Solver for Echo {
@@ -85,6 +99,11 @@ impl Solver for Echo {
     }
 
     fn advance(&mut self, w: &Window, inbox: &Inbox, out: &mut Outbox) -> SolverResult<StepReport> {
+        if self.panic_at == Some(w.index) {
+            let empty: Vec<f64> = Vec::new();
+            // An out-of-bounds index: the kind of bug a solver has.
+            let _ = empty[w.index as usize];
+        }
         match self.role {
             Some(Role::Responder) => {
                 let v = inbox.require(PORT, "velocity", self.points)?;
