@@ -27,8 +27,10 @@ pub enum Cmd {
         /// Run id (namespaces shared memory and topics; default: name-pid-time).
         #[arg(long)]
         run_id: Option<String>,
-        /// Override a node parameter: NODE.KEY=VALUE, a run setting: run.KEY=VALUE, or a
-        /// coupling's: couplings.NAME.KEY=VALUE (repeatable; applied after the variant's).
+        /// Override a node parameter: NODE.KEY=VALUE (NODE.params.KEY for a parameter named
+        /// model, solver or remote); swap a node's model or executable: NODE.model=NAME,
+        /// NODE.solver=EXE; a run setting: run.KEY=VALUE; a coupling's:
+        /// couplings.NAME.KEY=VALUE (repeatable; applied after the variant's).
         #[arg(long = "set")]
         sets: Vec<String>,
         /// Run a named variant of the case (its `[variants.NAME]` settings); the output goes
@@ -38,6 +40,11 @@ pub enum Cmd {
         /// No progress bar.
         #[arg(long, short)]
         quiet: bool,
+        /// Replace the results of an earlier run in the output directory (they are deleted
+        /// first; the folders of other variants inside it are kept). Without it, an output
+        /// directory holding anything but such folders is refused.
+        #[arg(long)]
+        overwrite: bool,
     },
     /// Check a case file (and every variant) without starting anything.
     Validate {
@@ -161,6 +168,66 @@ fn set_coupling(doc: &mut toml::Table, s: &str, rest: &str) -> Result<(), config
     )))
 }
 
+/// `model=NAME`, `solver=EXE` or `remote=BOOL` on a node's own table. A solver path that
+/// exists from the working directory is made absolute (the case file's own paths are
+/// relative to the case file).
+fn set_node_key(node: &mut toml::Table, kv: &str) -> Result<(), config::ConfigError> {
+    let (k, v) = kv.split_once('=').unwrap_or((kv, ""));
+    let (k, v) = (k.trim(), v.trim());
+    let v = v.trim_matches('"');
+    let value = match k {
+        "remote" => toml::Value::Boolean(match v {
+            "true" => true,
+            "false" => false,
+            _ => {
+                return Err(config::ConfigError {
+                    key: format!("--set {kv}"),
+                    reason: "remote must be true or false".into(),
+                });
+            }
+        }),
+        "solver" if v.contains('/') && std::path::Path::new(v).exists() => {
+            let abs = std::path::absolute(v).map_err(|e| config::ConfigError {
+                key: format!("--set {kv}"),
+                reason: e.to_string(),
+            })?;
+            toml::Value::String(abs.display().to_string())
+        }
+        _ if v.is_empty() => {
+            return Err(config::ConfigError {
+                key: format!("--set {kv}"),
+                reason: format!("{k} needs a value"),
+            });
+        }
+        _ => toml::Value::String(v.to_string()),
+    };
+    node.insert(k.to_string(), value);
+    Ok(())
+}
+
+/// A node's `params = "FILE"` read into the table it names (relative to the case file), so
+/// that `--set` can change it.
+fn inline_params_file(
+    params: &mut toml::Value,
+    node: &str,
+    case_dir: &std::path::Path,
+) -> Result<(), config::ConfigError> {
+    let Some(file) = params.as_str() else {
+        return Ok(());
+    };
+    let fp = case_dir.join(file);
+    let bad = |reason: String| config::ConfigError {
+        key: format!("nodes.{node}.params"),
+        reason,
+    };
+    let text = std::fs::read_to_string(&fp)
+        .map_err(|e| bad(format!("cannot read {}: {e}", fp.display())))?;
+    let t: toml::Table =
+        toml::from_str(&text).map_err(|e| bad(format!("{}: {}", fp.display(), e.message())))?;
+    *params = toml::Value::Table(t);
+    Ok(())
+}
+
 /// Load a case, apply the settings of variant `variant` (if any), then `sets`.
 pub fn load_variant(
     path: &std::path::Path,
@@ -201,7 +268,7 @@ pub fn load_variant(
     for s in &all {
         let (node, rest) = s.split_once('.').ok_or_else(|| config::ConfigError {
             key: format!("--set {s}"),
-            reason: "must be NODE.KEY=VALUE or run.KEY=VALUE".into(),
+            reason: "must be NODE.KEY=VALUE, NODE.model=NAME, NODE.solver=EXE, run.KEY=VALUE or couplings.NAME.KEY=VALUE".into(),
         })?;
         if node == "run" && doc.get("nodes").is_none_or(|n| n.get("run").is_none()) {
             let t = doc
@@ -222,19 +289,31 @@ pub fn load_variant(
             set_coupling(&mut doc, s, rest)?;
             continue;
         }
-        let params = doc
+        let table = doc
             .get_mut("nodes")
             .and_then(|n| n.get_mut(node))
             .and_then(|n| n.as_table_mut())
             .ok_or_else(|| config::ConfigError {
                 key: format!("--set {s}"),
                 reason: format!("unknown node '{node}'"),
-            })?
+            })?;
+        let key = rest.split_once('=').map_or(rest, |(k, _)| k).trim();
+        if matches!(key, "model" | "solver" | "remote") {
+            // The node itself: swap its model or its executable (a path as typed on the
+            // command line, from the working directory, when it exists there).
+            set_node_key(table, rest)?;
+            continue;
+        }
+        // `NODE.params.KEY` reaches a parameter named like a node key; `NODE.KEY` any other.
+        let rest = rest.strip_prefix("params.").unwrap_or(rest);
+        let case_dir = path.parent().unwrap_or(std::path::Path::new("."));
+        let params = table
             .entry("params")
             .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        inline_params_file(params, node, case_dir)?;
         let t = params.as_table_mut().ok_or_else(|| config::ConfigError {
             key: format!("nodes.{node}.params"),
-            reason: "--set needs inline params".into(),
+            reason: "must be a table or a file name".into(),
         })?;
         config::apply_sets(t, &[rest.to_string()])?;
     }
@@ -243,6 +322,51 @@ pub fn load_variant(
         reason: e.to_string(),
     })?;
     config::parse(&text, path)
+}
+
+/// Whether `dir` holds a run of its own (a variant's output inside the base case's).
+fn holds_a_run(dir: &std::path::Path) -> bool {
+    dir.join("summary.json").exists() || dir.join("run.mcap").exists()
+}
+
+/// Make `out` ready for a new run: absent or empty is fine; with `overwrite`, whatever an
+/// earlier run left there is deleted (folders holding runs of their own — other variants —
+/// are kept); without it, anything there but such folders is refused, so that two runs'
+/// results (VTK series, logs, plots) never mix.
+fn prepare_output(out: &std::path::Path, overwrite: bool) -> Result<(), String> {
+    let Ok(entries) = std::fs::read_dir(out) else {
+        return Ok(());
+    };
+    let mut stale = Vec::new();
+    for e in entries.flatten() {
+        let p = e.path();
+        if !(p.is_dir() && holds_a_run(&p)) {
+            stale.push(p);
+        }
+    }
+    if stale.is_empty() {
+        return Ok(());
+    }
+    if !overwrite {
+        return Err(format!(
+            "{} already holds results ({} entries, e.g. {}): add --overwrite to replace them, or --output DIR for a new folder",
+            out.display(),
+            stale.len(),
+            stale[0]
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        ));
+    }
+    for p in stale {
+        let r = if p.is_dir() && !p.is_symlink() {
+            std::fs::remove_dir_all(&p)
+        } else {
+            std::fs::remove_file(&p)
+        };
+        r.map_err(|e| format!("--overwrite: cannot remove {}: {e}", p.display()))?;
+    }
+    Ok(())
 }
 
 /// Run the command line; returns the exit code.
@@ -334,6 +458,7 @@ pub fn main_with(cli: Cli) -> i32 {
             sets,
             variant,
             quiet,
+            overwrite,
         } => {
             let c = match load_variant(&case, variant.as_deref(), &sets) {
                 Ok(c) => c,
@@ -342,6 +467,11 @@ pub fn main_with(cli: Cli) -> i32 {
                     return 2;
                 }
             };
+            let out = output.clone().unwrap_or_else(|| c.run.output.clone());
+            if let Err(e) = prepare_output(&out, overwrite) {
+                eprintln!("cosim: {e}");
+                return 2;
+            }
             if let Some(id) = &run_id
                 && (id.is_empty()
                     || id.len() > 32

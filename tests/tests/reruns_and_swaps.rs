@@ -1,0 +1,149 @@
+//! The command line as our users drive it (issue 21): a rerun into the same output folder is
+//! refused unless `--overwrite`, which clears what the earlier run left (so the `.pvd` series
+//! list exactly the new run's frames) and keeps the folders of other variants; `--set
+//! NODE.model=` and `--set NODE.solver=` swap a node's model or executable; `--set` reaches a
+//! node whose `params` is a file of its own.
+
+use cosim_tests::*;
+use std::path::Path;
+
+/// The `DataSet` entries of a ParaView series file.
+fn frames(pvd: &Path) -> usize {
+    std::fs::read_to_string(pvd)
+        .unwrap_or_else(|e| panic!("{}: {e}", pvd.display()))
+        .matches("<DataSet")
+        .count()
+}
+
+fn vtu_files(dir: &Path) -> usize {
+    std::fs::read_dir(dir)
+        .expect("node output folder")
+        .flatten()
+        .filter(|e| e.path().extension().is_some_and(|x| x == "vtu"))
+        .count()
+}
+
+#[test]
+fn a_rerun_needs_overwrite_and_then_lists_only_its_own_frames() {
+    let (dir, id) = scratch("rerun");
+    // 80 windows (a quarter period of the 20 + 60 element split bar), a frame every 20.
+    let case = split_bar_case(&dir, 20, 60, 0.5, "shm", 0.25);
+    let out = dir.join("out");
+    let every = ["--set", "run.output_every=20"];
+    let o = run_case(&case, &out, &id, &every);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(summary(&out)["windows"], 80);
+    let pvd = out.join("right/bar.pvd");
+    assert_eq!(frames(&pvd), 4, "windows 20, 40, 60, 80");
+    // Another run's results beside it, as a variant writes them: kept by --overwrite.
+    std::fs::create_dir_all(out.join("fine")).expect("variant folder");
+    std::fs::write(out.join("fine/summary.json"), "{}").expect("variant summary");
+    let before = std::fs::read(out.join("summary.json")).expect("summary");
+
+    let o = run_case(&case, &out, &id, &every);
+    let err = String::from_utf8_lossy(&o.stderr);
+    println!("rerun without --overwrite: {err}");
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--overwrite") && err.contains("already holds results"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(out.join("summary.json")).expect("summary"),
+        before,
+        "the refused rerun changed the earlier results"
+    );
+
+    // Half as long: 40 windows, frames at 20 and 40 only.
+    let half = format!(
+        "run.end_time={:e}",
+        0.125 * 4.0 / (200e9f64 / 7860.0).sqrt()
+    );
+    let o = run_case(
+        &case,
+        &out,
+        &id,
+        &[
+            "--overwrite",
+            "--set",
+            "run.output_every=20",
+            "--set",
+            &half,
+        ],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(summary(&out)["windows"], 40);
+    for node in ["left", "right"] {
+        let node_dir = out.join(node);
+        assert_eq!(frames(&node_dir.join("bar.pvd")), 2, "{node}: frames");
+        assert_eq!(vtu_files(&node_dir), 2, "{node}: VTK files");
+    }
+    assert!(
+        out.join("fine/summary.json").exists(),
+        "--overwrite removed another variant's results"
+    );
+    nothing_left(&id);
+}
+
+/// Issue 21 must-show 6: the chamber's bar swapped to `pd-rk-ba` from the command line.
+#[test]
+fn set_swaps_a_node_model_and_executable() {
+    let (dir, id) = scratch("swap-model");
+    let case = workspace_root().join("examples/chamber_detonation.toml");
+    let out = dir.join("out");
+    let o = run_case(
+        &case,
+        &out,
+        &id,
+        &["--variant", "small", "--set", "bar.model=pd-rk-ba"],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s = summary(&out);
+    assert_eq!(s["nodes"]["bar"]["model"], "pd-rk-ba", "{}", s["nodes"]);
+    assert_eq!(s["status"], "finished");
+
+    // The right half's executable, named by an absolute path.
+    let (dir, id) = scratch("swap-exe");
+    let case = split_bar_case(&dir, 20, 60, 0.5, "shm", 0.25);
+    let exe = bin("solid-node").display().to_string();
+    let out = dir.join("out");
+    let o = run_case(&case, &out, &id, &["--set", &format!("right.solver={exe}")]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(summary(&out)["nodes"]["right"]["solver"], exe.as_str());
+    // A model the executable does not have is refused before anything starts.
+    let o = cosim(&[
+        "validate",
+        case.to_str().expect("utf-8"),
+        "--set",
+        "right.model=bar-2d",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("nodes.right.model"), "{err}");
+}
+
+/// `params = "right.toml"`: `--set` edits the file's table; a bad value is still named with
+/// its full key.
+#[test]
+fn set_reaches_a_params_file() {
+    let (dir, _) = scratch("set-file");
+    let case = split_bar_case(&dir, 20, 60, 0.5, "shm", 0.25);
+    let text = std::fs::read_to_string(&case).expect("case");
+    let start = text.find("[nodes.right.params]").expect("right params");
+    let end = text[start..].find("[[couplings]]").expect("couplings") + start;
+    let params = text[start + "[nodes.right.params]".len()..end].to_string();
+    std::fs::write(dir.join("right.toml"), params).expect("params file");
+    let text = format!(
+        "{}params = \"right.toml\"\n\n{}",
+        &text[..start],
+        &text[end..]
+    );
+    std::fs::write(&case, text).expect("case");
+    let validate = |set: &str| cosim(&["validate", case.to_str().expect("utf-8"), "--set", set]);
+    let o = validate("right.elements=90");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = validate("right.young=\"abc\"");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("nodes.right.params.young"), "{err}");
+}
