@@ -14,6 +14,25 @@ use std::path::PathBuf;
 pub struct Cli {
     #[command(subcommand)]
     pub cmd: Cmd,
+    /// More log output, from cosim and the nodes it launches: -v debug, -vv trace
+    /// (the environment's COSIM_LOG or RUST_LOG filter otherwise; default info).
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    pub verbose: u8,
+    /// Warnings and errors only, and no progress bar or lines.
+    #[arg(short, long, global = true)]
+    pub quiet: bool,
+}
+
+impl Cli {
+    /// The log filter the flags ask for, if they ask for one.
+    pub fn log_filter(&self) -> Option<&'static str> {
+        match (self.quiet, self.verbose) {
+            (true, _) => Some("warn"),
+            (false, 0) => None,
+            (false, 1) => Some("debug,zenoh=info,iceoryx2=info"),
+            (false, _) => Some("trace"),
+        }
+    }
 }
 
 #[derive(Debug, Subcommand)]
@@ -37,9 +56,6 @@ pub enum Cmd {
         /// to `<run.output>/<NAME>` unless the variant sets `run.output`.
         #[arg(long)]
         variant: Option<String>,
-        /// No progress bar.
-        #[arg(long, short)]
-        quiet: bool,
         /// Replace the results of an earlier run in the output directory (they are deleted
         /// first; the folders of other variants inside it are kept). Without it, an output
         /// directory holding anything but such folders is refused.
@@ -457,7 +473,6 @@ pub fn main_with(cli: Cli) -> i32 {
             run_id,
             sets,
             variant,
-            quiet,
             overwrite,
         } => {
             let c = match load_variant(&case, variant.as_deref(), &sets) {
@@ -485,7 +500,7 @@ pub fn main_with(cli: Cli) -> i32 {
             let opts = run::RunOptions {
                 run_id,
                 output,
-                quiet,
+                quiet: cli.quiet,
             };
             // Ctrl-C and SIGTERM stop the run at the next window boundary (a second Ctrl-C at
             // once), with the recording finalised and shared memory removed.

@@ -6,6 +6,7 @@ pub mod cli;
 pub mod config;
 pub mod describe;
 pub mod plot;
+pub mod progress;
 pub mod record;
 pub mod replay;
 pub mod run;

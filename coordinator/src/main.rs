@@ -3,8 +3,13 @@
 use clap::Parser;
 
 fn main() {
+    let cli = coordinator::cli::Cli::parse();
+    if let Some(filter) = cli.log_filter() {
+        // SAFETY: the process has one thread here (nothing has started yet); the nodes
+        // launched later inherit the filter.
+        unsafe { std::env::set_var("COSIM_LOG", filter) };
+    }
     protocol::participant::init_logging();
     protocol::participant::tune_allocator();
-    let cli = coordinator::cli::Cli::parse();
     std::process::exit(coordinator::cli::main_with(cli));
 }

@@ -7,6 +7,7 @@
 //! their inputs, so the same loop serves the serial and the parallel schedules.
 
 use crate::config::{self, Case};
+use crate::progress::Progress;
 use crate::record::{self, Recorder};
 use anyhow::Context;
 use protocol::codec::{self, encode_into};
@@ -100,6 +101,8 @@ struct Coord<'a> {
     in_windows: bool,
     /// The stop signal that ends the run, once acted on.
     interrupted: Option<i32>,
+    /// The bar or progress lines of the window loop; messages go through it.
+    progress: Progress,
 }
 
 pub(crate) fn pick_run_id(name: &str) -> String {
@@ -625,10 +628,10 @@ fn decouple_due(
             }
         }
         let Some(why) = why else { continue };
-        eprintln!(
+        c.progress.note(&format!(
             "cosim: coupling '{}' ends before window {k} ({why}); '{}' goes on alone",
             cp.name, cp.driver.0
-        );
+        ));
         for node in [&cp.driver.0, &cp.responder.0] {
             if let Some(i) = c.node_idx(node)
                 && c.nodes[i].finished.is_none()
@@ -671,7 +674,11 @@ fn decouple_due(
                 }),
             )?;
             c.nodes[i].finished = Some(k - 1);
-            eprintln!("cosim: node '{}' finished after window {}", n.name, k - 1);
+            c.progress.note(&format!(
+                "cosim: node '{}' finished after window {}",
+                n.name,
+                k - 1
+            ));
             finished = true;
         }
     }
@@ -795,6 +802,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         completed: 0,
         in_windows: false,
         interrupted: None,
+        progress: Progress::quiet(),
     };
     let started = Instant::now();
     let result = drive(&mut c, &out, &order, &listen, opts);
@@ -898,7 +906,7 @@ fn drive(
     for (i, n) in case.nodes.iter().enumerate() {
         if n.remote {
             eprintln!(
-                "cosim: waiting for remote node '{}': {} --join {} --node {} --transport {} --connect {} --token {}",
+                "cosim: waiting for remote node '{}': {} --run {} --node {} --transport {} --connect {} --token {}",
                 n.name,
                 n.solver,
                 c.run,
@@ -983,18 +991,7 @@ fn drive(
         .ceil()
         .max(1.0) as u64;
     let order_idx: Vec<usize> = order.iter().filter_map(|n| c.node_idx(n)).collect();
-    let bar = if opts.quiet {
-        indicatif::ProgressBar::hidden()
-    } else {
-        let b = indicatif::ProgressBar::new(windows);
-        b.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{spinner} t = {msg} [{bar:30}] {pos}/{len} windows, {per_sec}, ETA {eta}",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-        );
-        b
-    };
+    c.progress = Progress::new(windows, case.run.end_time, opts.quiet);
     let mut balance_rows = Vec::new();
     let mut worst_p: f64 = 0.0;
     let mut worst_resid: f64 = 0.0;
@@ -1160,8 +1157,7 @@ fn drive(
             crate::plot::add_report(&mut c.history, &n.name, &v);
         }
         balance_rows.push(row);
-        bar.set_message(format!("{t1:.4e} s"));
-        bar.inc(1);
+        c.progress.window(k, t1);
         c.completed = k;
         // Completed windows reach the disk (a killed cosim leaves them recoverable).
         let _ = c.rec.flush_if_older(Duration::from_millis(20));
@@ -1171,7 +1167,7 @@ fn drive(
             break;
         }
     }
-    bar.finish_and_clear();
+    c.progress.finish();
     let loop_s = loop_start.elapsed().as_secs_f64();
     // A node publishes its last window's data before its Done, but on another topic: that
     // data may still be queued here. Record it before the nodes go (a quiet 50 ms, at most

@@ -552,9 +552,11 @@ pub fn tune_allocator() {
     }
 }
 
-/// Logs to stderr (the coordinator keeps each node's stderr in `<out>/<node>.log`).
+/// Logs to stderr (the coordinator keeps each node's stderr in `<out>/<node>.log`), filtered by
+/// `COSIM_LOG`, else `RUST_LOG` (tracing's `EnvFilter` syntax), else `info`.
 pub fn init_logging() {
     let filter = tracing_subscriber::EnvFilter::try_from_env("COSIM_LOG")
+        .or_else(|_| tracing_subscriber::EnvFilter::try_from_default_env())
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,zenoh=warn,iceoryx2=warn"));
     use std::io::IsTerminal;
     let _ = tracing_subscriber::fmt()

@@ -46,11 +46,11 @@ fn a_remote_node_joins_with_the_printed_command_and_token() {
         .split_whitespace()
         .collect();
     let arg = |k: &str| cmd[cmd.iter().position(|a| *a == k).unwrap() + 1].to_string();
-    assert_eq!(arg("--join"), id);
+    assert_eq!(arg("--run"), id);
     // A node with a wrong token is turned away ...
     let bad = Command::new(bin("solid-node"))
         .args([
-            "--join",
+            "--run",
             &id,
             "--node",
             "right",
@@ -74,7 +74,7 @@ fn a_remote_node_joins_with_the_printed_command_and_token() {
     // ... the one with the printed token is let in and the run completes.
     let node = Command::new(bin("solid-node"))
         .args([
-            "--join",
+            "--run",
             &id,
             "--node",
             "right",

@@ -147,3 +147,62 @@ fn set_reaches_a_params_file() {
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("nodes.right.params.young"), "{err}");
 }
+
+/// `cosim run … 2>log` (stderr not a terminal, as in a batch job) writes progress lines in
+/// plain numbers; `-q` writes none.
+#[test]
+fn progress_lines_when_stderr_is_not_a_terminal() {
+    let (dir, id) = scratch("progress");
+    // 3200 windows: a second or two.
+    let case = split_bar_case(&dir, 100, 300, 0.5, "shm", 2.0);
+    let run = |out: &str, quiet: bool| {
+        let mut cmd = std::process::Command::new(bin("cosim"));
+        cmd.arg("run")
+            .arg(&case)
+            .arg("--output")
+            .arg(dir.join(out))
+            .args(["--run-id", &id])
+            .env("COSIM_LOG", "warn")
+            .env("COSIM_PROGRESS_EVERY", "0.05");
+        if quiet {
+            cmd.arg("-q");
+        }
+        let o = cmd.output().expect("cosim runs");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let err = run("out", false);
+    let lines: Vec<&str> = err
+        .lines()
+        .filter(|l| l.starts_with("cosim: t = "))
+        .collect();
+    println!("{} progress lines, e.g. {:?}", lines.len(), lines.first());
+    assert!(lines.len() >= 2, "fewer than two progress lines: {err}");
+    let mut last = 0;
+    for l in &lines {
+        let k: u64 = l
+            .split("window ")
+            .nth(1)
+            .and_then(|r| r.split(' ').next())
+            .and_then(|k| k.parse().ok())
+            .unwrap_or_else(|| panic!("no window in '{l}'"));
+        assert!(k > last && k <= 3200, "window {k} after {last}: '{l}'");
+        last = k;
+        assert!(l.contains(" of 3200, "), "{l}");
+        let rate = l
+            .split(" windows/s")
+            .next()
+            .and_then(|h| h.rsplit(' ').next())
+            .unwrap_or("");
+        assert!(
+            rate.parse::<f64>().is_ok(),
+            "rate '{rate}' is not a plain number: '{l}'"
+        );
+        assert!(l.contains("elapsed") && l.contains("ETA"), "{l}");
+    }
+    let quiet = run("out-quiet", true);
+    assert!(
+        !quiet.contains("cosim: t = "),
+        "-q printed progress: {quiet}"
+    );
+}

@@ -167,8 +167,8 @@ fn gas_on_another_host_gives_the_one_host_result_bit_for_bit() {
         .args(["netns", "exec", &net.b])
         .arg(bin("fluid-node"))
         .args([
-            "--join",
-            &arg("--join"),
+            "--run",
+            &arg("--run"),
             "--node",
             "gas",
             "--transport",
