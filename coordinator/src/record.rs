@@ -241,6 +241,17 @@ fn json_window(m: &Recorded) -> Option<u64> {
         .as_u64()
 }
 
+/// The window of a recorded `Fields` message (None for anything else).
+fn fields_window(m: &Recorded) -> Option<u64> {
+    if m.json {
+        return None;
+    }
+    match protocol::decode(&m.data).ok()?.message {
+        protocol::Message::Fields(f) => Some(f.window),
+        _ => None,
+    }
+}
+
 /// Drop from `msgs` what came after the checkpoint of window `k` (the windows a restart runs
 /// again), keeping the coupling data of windows up to `k` that arrived late.
 fn cut_after_checkpoint(msgs: &mut Vec<Recorded>, k: u64) {
@@ -259,11 +270,10 @@ fn cut_after_checkpoint(msgs: &mut Vec<Recorded>, k: u64) {
     });
     let Some(at) = at else { return };
     let tail = msgs.split_off(at);
-    msgs.extend(tail.into_iter().filter(|m| {
-        !m.json
-            && matches!(protocol::decode(&m.data),
-                Ok(e) if matches!(&e.message, protocol::Message::Fields(f) if f.window <= k))
-    }));
+    msgs.extend(
+        tail.into_iter()
+            .filter(|m| fields_window(m).is_some_and(|w| w <= k)),
+    );
 }
 
 fn read_where(path: &Path, json_only: bool) -> anyhow::Result<(Vec<Recorded>, bool)> {
@@ -284,7 +294,15 @@ fn read_where(path: &Path, json_only: bool) -> anyhow::Result<(Vec<Recorded>, bo
             anyhow::bail!("{}: its resume mark names no window", s.display());
         };
         cut_after_checkpoint(&mut out, k);
-        out.extend(msgs.into_iter().skip(i + 1));
+        // The restore sends the `Fields` of window k again, and they may be recorded after
+        // the mark: keep them only where the earlier segment lost its own.
+        let have: std::collections::HashSet<(String, u64)> = out
+            .iter()
+            .filter_map(|m| Some((m.topic.clone(), fields_window(m)?)))
+            .collect();
+        out.extend(msgs.into_iter().skip(i + 1).filter(|m| {
+            fields_window(m).is_none_or(|w| w > k || !have.contains(&(m.topic.clone(), w)))
+        }));
         complete = c;
     }
     if json_only {

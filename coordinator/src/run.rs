@@ -1176,11 +1176,13 @@ fn drive(
     };
     let e0: f64 = c.nodes.iter().map(|n| n.initial_energy).sum();
     let every = case.run.checkpoint_every;
+    // A stop was requested: checkpoint the next window and stop there.
+    let mut stop_after = false;
     let loop_start = Instant::now();
     c.in_windows = true;
     for k in first..=windows {
         // The last window needs no checkpoint: the run ends there.
-        let checkpoint = every > 0 && k.is_multiple_of(every) && k < windows;
+        let checkpoint = every > 0 && (k.is_multiple_of(every) || stop_after) && k < windows;
         let t0 = (k - 1) as f64 * case.run.window;
         let t1 = if k == windows {
             case.run.end_time
@@ -1318,8 +1320,13 @@ fn drive(
         }
         // Completed windows reach the disk (a killed cosim leaves them recoverable).
         let _ = c.rec.flush_if_older(Duration::from_millis(20));
-        // A stop signal ends the run here, at the window boundary.
+        // A stop signal ends the run here, at the window boundary; with checkpoints, after
+        // one more window that checkpoints, so that a restart continues from where it stopped.
         if let Some(sig) = stop::requested() {
+            if every > 0 && !checkpoint && !stop_after {
+                stop_after = true;
+                continue;
+            }
             c.interrupted = Some(sig);
             break;
         }
