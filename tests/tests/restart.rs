@@ -2,7 +2,9 @@
 //! with `run.checkpoint_every` whose `cosim` is SIGKILLed mid-run, then `cosim restart`, ends
 //! bit-identical to an uninterrupted run — the final state (every node's last VTK frame), the
 //! balance in summary.json, every node report and every coupling message after the restart
-//! point — and the recording reads as one run. A case with other parameters is refused.
+//! point — and the recording reads as one run. Split bar (bar-1d), small chamber (fluid and
+//! pd-correspondence, on the CPU and on the GPU), single joint (shell and MC-SPG joint); a
+//! case with other parameters is refused; Ctrl-C checkpoints where it stops.
 
 use cosim_tests::*;
 use protocol::{Message, StepReport};
@@ -351,4 +353,49 @@ fn ctrl_c_checkpoints_where_it_stops_and_the_restart_continues() {
             "final values of {name}"
         );
     }
+}
+
+#[test]
+fn shell_and_joint_killed_and_restarted_are_bit_identical() {
+    let (dir, id) = scratch("restart-joint");
+    let case = workspace_root().join("examples/single_joint.toml");
+    let k = kill_and_restart(
+        &case,
+        &dir,
+        &id,
+        &["--variant", "small", "--set", "run.end_time=0.03"],
+        "joint.geometry.bolt_radius=1.4e-3",
+        20,
+        40,
+    );
+    assert!(k >= 40);
+}
+
+/// The device paths: the gas and the bar on the GPU keep their state on the device; the
+/// checkpoint reads it back and the restore uploads it.
+#[test]
+fn chamber_small_on_the_gpu_killed_and_restarted_is_bit_identical() {
+    let test = "chamber_small_on_the_gpu_killed_and_restarted_is_bit_identical";
+    if mechanics::gpu::f64_context_or_skip(test).is_none() {
+        return;
+    }
+    let (dir, id) = scratch("restart-gpu");
+    let case = workspace_root().join("examples/chamber_detonation.toml");
+    let k = kill_and_restart(
+        &case,
+        &dir,
+        &id,
+        &[
+            "--variant",
+            "small",
+            "--set",
+            "gas.device=\"gpu\"",
+            "--set",
+            "bar.device=\"gpu\"",
+        ],
+        "bar.yield_stress=3.0e8",
+        10,
+        20,
+    );
+    assert!(k >= 20);
 }
