@@ -246,6 +246,14 @@ fn kill_and_restart(
     for (f, bytes) in &fa {
         assert!(bytes == &fb[f], "final frame {f} differs");
     }
+    let o = cosim(&["info", out.join("run.mcap").to_str().unwrap()]);
+    let info = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{info}");
+    assert!(info.contains("run.mcap + run.1.mcap"), "{info}");
+    assert!(
+        info.contains(&format!("windows    {windows} completed")),
+        "{info}"
+    );
     println!(
         "restarted from window {k} of {windows}: {compared} reports, {messages} coupling messages and {} final frames identical",
         fa.len()
