@@ -59,9 +59,17 @@ pub enum Cmd {
         /// Replace the results of an earlier run in the output directory (they are deleted
         /// first; the folders of other variants inside it are kept). Without it, an output
         /// directory holding anything but such folders is refused.
-        #[arg(long)]
+        #[arg(long, conflicts_with = "restart")]
         overwrite: bool,
+        /// Continue the run in this directory from its last checkpoint complete on every
+        /// node (written with run.checkpoint_every); the case must match the run's nodes,
+        /// parameters, window and couplings (its end time may grow).
+        #[arg(long, value_name = "RUN_DIR")]
+        restart: Option<PathBuf>,
     },
+    /// Continue the run in RUN_DIR from its last checkpoint complete on every node, with the
+    /// case exactly as it ran (`cosim run CASE --restart RUN_DIR` to change its end time).
+    Restart { run_dir: PathBuf },
     /// Check a case file (and every variant) without starting anything.
     Validate {
         case: PathBuf,
@@ -474,6 +482,7 @@ pub fn main_with(cli: Cli) -> i32 {
             sets,
             variant,
             overwrite,
+            restart,
         } => {
             let c = match load_variant(&case, variant.as_deref(), &sets) {
                 Ok(c) => c,
@@ -482,11 +491,23 @@ pub fn main_with(cli: Cli) -> i32 {
                     return 2;
                 }
             };
-            let out = output.clone().unwrap_or_else(|| c.run.output.clone());
-            if let Err(e) = prepare_output(&out, overwrite) {
-                eprintln!("cosim: {e}");
-                return 2;
-            }
+            let (restart, output) = match restart {
+                None => {
+                    let out = output.clone().unwrap_or_else(|| c.run.output.clone());
+                    if let Err(e) = prepare_output(&out, overwrite) {
+                        eprintln!("cosim: {e}");
+                        return 2;
+                    }
+                    (None, output)
+                }
+                Some(dir) => match restart_state(&c, &dir) {
+                    Ok(st) => (Some(st), Some(dir)),
+                    Err(e) => {
+                        eprintln!("cosim: --restart {}: {e:#}", dir.display());
+                        return 2;
+                    }
+                },
+            };
             if let Some(id) = &run_id
                 && (id.is_empty()
                     || id.len() > 32
@@ -501,61 +522,39 @@ pub fn main_with(cli: Cli) -> i32 {
                 run_id,
                 output,
                 quiet: cli.quiet,
+                restart,
             };
-            // Ctrl-C and SIGTERM stop the run at the next window boundary (a second Ctrl-C at
-            // once), with the recording finalised and shared memory removed.
-            if let Err(e) = protocol::stop::install(&[libc::SIGINT, libc::SIGTERM]) {
-                eprintln!("cosim: cannot handle stop signals: {e}");
-            }
-            match run::run(&c, &opts) {
-                Ok(Ok(o)) if o.interrupted.is_some() => {
-                    let sig = o.interrupted.unwrap_or(libc::SIGINT);
-                    eprintln!(
-                        "cosim: {} interrupted by {} after window {} of {}; output in {}",
-                        c.run.name,
-                        protocol::stop::name(sig),
-                        o.summary["window_reached"],
-                        ((c.run.end_time / c.run.window) - 1e-9).ceil().max(1.0),
-                        o.output.display()
-                    );
-                    protocol::stop::exit_code(sig)
-                }
-                Ok(Ok(o)) => {
-                    let b = &o.summary["balance"];
-                    let f = |k: &str| b[k].as_f64().unwrap_or(0.0);
-                    let balance = if f("applied_impulse") > 0.0 {
-                        format!(
-                            "largest momentum imbalance {:.3e} of the applied impulse",
-                            f("max_momentum_imbalance_relative")
-                        )
-                    } else {
-                        format!(
-                            "largest momentum residual {:.3e} of the largest impulse or gross momentum",
-                            f("max_momentum_residual_relative")
-                        )
-                    };
-                    let energy = format!(
-                        "largest energy residual {:+.3e} of the largest energy or work",
-                        f("max_energy_residual_relative")
-                    );
-                    println!(
-                        "cosim: {} finished: {} windows in {:.2} s; {balance}; {energy}; output in {}",
-                        c.run.name,
-                        o.summary["windows"],
-                        o.summary["wall_s"].as_f64().unwrap_or(0.0),
-                        o.output.display()
-                    );
-                    0
-                }
-                Ok(Err(f)) => {
-                    eprintln!("cosim: {f}");
-                    1
-                }
+            run_case(&c, &opts)
+        }
+        Cmd::Restart { run_dir } => {
+            let (st, skipped) = match crate::checkpoint::latest(&run_dir) {
+                Ok(x) => x,
                 Err(e) => {
-                    eprintln!("cosim: {e:#}");
-                    1
+                    eprintln!("cosim restart: {e:#}");
+                    return 2;
                 }
+            };
+            for s in skipped {
+                eprintln!("cosim restart: skipped the checkpoint of {s}");
             }
+            let c = match config::parse(&st.case_text, std::path::Path::new(&st.case_path)) {
+                Ok(c) => c,
+                Err(e) => {
+                    eprintln!("cosim restart: the run's case ({}): {e}", st.case_path);
+                    return 2;
+                }
+            };
+            if let Err(e) = crate::checkpoint::check_compatible(&c, &st) {
+                eprintln!("cosim restart: {e}");
+                return 2;
+            }
+            let opts = run::RunOptions {
+                run_id: None,
+                output: Some(run_dir),
+                quiet: cli.quiet,
+                restart: Some(st),
+            };
+            run_case(&c, &opts)
         }
         Cmd::Clean => {
             let r = protocol::transport::shm::cleanup_stale_runs();
@@ -614,6 +613,78 @@ pub fn main_with(cli: Cli) -> i32 {
             }
         }
         Cmd::Bench { args } => bench(&args),
+    }
+}
+
+/// The state to continue the run in `dir` from with case `c`: its last complete checkpoint,
+/// if the case may continue it.
+fn restart_state(
+    c: &config::Case,
+    dir: &std::path::Path,
+) -> anyhow::Result<crate::checkpoint::CoordState> {
+    let (st, skipped) = crate::checkpoint::latest(dir)?;
+    for s in skipped {
+        eprintln!("cosim: skipped the checkpoint of {s}");
+    }
+    crate::checkpoint::check_compatible(c, &st).map_err(|e| anyhow::anyhow!(e))?;
+    Ok(st)
+}
+
+/// Run (or continue) a case with stop signals handled; returns the exit code.
+fn run_case(c: &config::Case, opts: &run::RunOptions) -> i32 {
+    // Ctrl-C and SIGTERM stop the run at the next window boundary (a second Ctrl-C at
+    // once), with the recording finalised and shared memory removed.
+    if let Err(e) = protocol::stop::install(&[libc::SIGINT, libc::SIGTERM]) {
+        eprintln!("cosim: cannot handle stop signals: {e}");
+    }
+    match run::run(c, opts) {
+        Ok(Ok(o)) if o.interrupted.is_some() => {
+            let sig = o.interrupted.unwrap_or(libc::SIGINT);
+            eprintln!(
+                "cosim: {} interrupted by {} after window {} of {}; output in {}",
+                c.run.name,
+                protocol::stop::name(sig),
+                o.summary["window_reached"],
+                ((c.run.end_time / c.run.window) - 1e-9).ceil().max(1.0),
+                o.output.display()
+            );
+            protocol::stop::exit_code(sig)
+        }
+        Ok(Ok(o)) => {
+            let b = &o.summary["balance"];
+            let f = |k: &str| b[k].as_f64().unwrap_or(0.0);
+            let balance = if f("applied_impulse") > 0.0 {
+                format!(
+                    "largest momentum imbalance {:.3e} of the applied impulse",
+                    f("max_momentum_imbalance_relative")
+                )
+            } else {
+                format!(
+                    "largest momentum residual {:.3e} of the largest impulse or gross momentum",
+                    f("max_momentum_residual_relative")
+                )
+            };
+            let energy = format!(
+                "largest energy residual {:+.3e} of the largest energy or work",
+                f("max_energy_residual_relative")
+            );
+            println!(
+                "cosim: {} finished: {} windows in {:.2} s; {balance}; {energy}; output in {}",
+                c.run.name,
+                o.summary["windows"],
+                o.summary["wall_s"].as_f64().unwrap_or(0.0),
+                o.output.display()
+            );
+            0
+        }
+        Ok(Err(f)) => {
+            eprintln!("cosim: {f}");
+            1
+        }
+        Err(e) => {
+            eprintln!("cosim: {e:#}");
+            1
+        }
     }
 }
 

@@ -55,6 +55,9 @@ pub struct RunConfig {
     pub start_timeout: f64,
     /// Record `Fields` messages of every `record_every`-th window only (1 = all).
     pub record_every: u64,
+    /// Checkpoint every node (and the coordinator) at the end of every this many windows;
+    /// 0 = never.
+    pub checkpoint_every: u64,
 }
 
 #[derive(Debug, Clone)]
@@ -128,6 +131,7 @@ const RUN_KEYS: &[&str] = &[
     "join_timeout",
     "start_timeout",
     "record_every",
+    "checkpoint_every",
 ];
 const NODE_KEYS: &[&str] = &["solver", "model", "params", "remote"];
 const COUPLING_KEYS: &[&str] = &[
@@ -394,6 +398,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
         ));
     }
     let record_every = get_u64(&run_t, p, "record_every")?.unwrap_or(1).max(1);
+    let checkpoint_every = get_u64(&run_t, p, "checkpoint_every")?.unwrap_or(0);
 
     // Nodes.
     let nodes_t = match doc.get("nodes") {
@@ -604,6 +609,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             join_timeout,
             start_timeout,
             record_every,
+            checkpoint_every,
         },
         nodes,
         couplings,

@@ -2,6 +2,7 @@
 //! scheduler, MCAP recorder, replay and the `cosim` command line. It owns the clock, the
 //! schedule, the recording and the failure handling; it never does physics.
 
+pub mod checkpoint;
 pub mod cli;
 pub mod config;
 pub mod describe;

@@ -17,6 +17,8 @@ enum Shown {
 
 pub struct Progress {
     shown: Shown,
+    /// Windows done before this process started them (a restart): not in the rate.
+    before: u64,
     windows: u64,
     end_time: f64,
     start: Instant,
@@ -27,6 +29,7 @@ impl Progress {
     pub fn quiet() -> Progress {
         Progress {
             shown: Shown::Quiet,
+            before: 0,
             windows: 0,
             end_time: 0.0,
             start: Instant::now(),
@@ -61,24 +64,40 @@ impl Progress {
         };
         Progress {
             shown,
+            before: 0,
             windows,
             end_time,
             start: Instant::now(),
         }
     }
 
+    /// A restarted run continues after window `k`.
+    pub fn resume_after(&mut self, k: u64) {
+        self.before = k;
+        self.start = Instant::now();
+        if let Shown::Bar(b) = &self.shown {
+            b.set_position(k);
+            b.reset_eta();
+        }
+    }
+
     /// Window `k` (1-based) has ended at simulated time `t`.
     pub fn window(&mut self, k: u64, t: f64) {
         let elapsed = self.start.elapsed().as_secs_f64();
+        let done = k.saturating_sub(self.before);
         match &mut self.shown {
             Shown::Bar(b) => {
-                b.set_message(format!("t = {t:.4e} s, {}", rate(k, elapsed)));
+                b.set_message(format!("t = {t:.4e} s, {}", rate(done, elapsed)));
                 b.set_position(k);
             }
             Shown::Lines { every, next } => {
                 if Instant::now() >= *next {
                     *next += *every;
-                    eprintln!("{}", line(k, self.windows, t, self.end_time, elapsed));
+                    let left = self.windows.saturating_sub(k);
+                    eprintln!(
+                        "{}",
+                        line(k, self.windows, t, self.end_time, done, left, elapsed)
+                    );
                 }
             }
             Shown::Quiet => {}
@@ -114,21 +133,22 @@ fn rate(k: u64, elapsed: f64) -> String {
     }
 }
 
-/// One progress line: simulated time and share of the run, window, rate, elapsed, ETA.
-fn line(k: u64, windows: u64, t: f64, end_time: f64, elapsed: f64) -> String {
+/// One progress line: simulated time and share of the run, window `k` of `windows`, the rate
+/// over the `done` windows of this process, elapsed time, and the ETA of the `left` ones.
+fn line(k: u64, windows: u64, t: f64, end_time: f64, done: u64, left: u64, elapsed: f64) -> String {
     let share = if end_time > 0.0 {
         100.0 * t / end_time
     } else {
         0.0
     };
-    let eta = if k > 0 && windows > k {
-        format!("{:.0} s", elapsed * (windows - k) as f64 / k as f64)
+    let eta = if done > 0 && left > 0 {
+        format!("{:.0} s", elapsed * left as f64 / done as f64)
     } else {
         "–".into()
     };
     format!(
         "cosim: t = {t:.4e} s of {end_time:.4e} s ({share:.1} %), window {k} of {windows}, {}, elapsed {elapsed:.0} s, ETA {eta}",
-        rate(k, elapsed)
+        rate(done, elapsed)
     )
 }
 
@@ -138,12 +158,14 @@ mod tests {
 
     #[test]
     fn a_line_says_where_the_run_is_in_plain_numbers() {
-        let l = line(2500, 10000, 2.5e-3, 1e-2, 2.0);
+        let l = line(2500, 10000, 2.5e-3, 1e-2, 2500, 7500, 2.0);
         assert_eq!(
             l,
             "cosim: t = 2.5000e-3 s of 1.0000e-2 s (25.0 %), window 2500 of 10000, 1250 windows/s, elapsed 2 s, ETA 6 s"
         );
         assert_eq!(rate(3, 2.0), "1.50 windows/s");
-        assert!(line(0, 10, 0.0, 1.0, 0.0).ends_with("ETA –"));
+        assert!(line(0, 10, 0.0, 1.0, 0, 10, 0.0).ends_with("ETA –"));
+        // A restart from window 2000: the rate counts this process's 500 windows only.
+        assert!(line(2500, 10000, 2.5e-3, 1e-2, 500, 7500, 2.0).contains("250 windows/s"));
     }
 }

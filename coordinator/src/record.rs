@@ -200,12 +200,118 @@ pub fn read_json(path: &Path) -> anyhow::Result<(Vec<Recorded>, bool)> {
 }
 
 /// Read every message of a recording in file order; `complete` is false when the file ended
-/// early (a killed writer): the messages of its completed chunks are still returned.
+/// early (a killed writer): the messages of its completed chunks are still returned. A
+/// restarted run's segments are read as one run (see [`segments`]).
 pub fn read_all(path: &Path) -> anyhow::Result<(Vec<Recorded>, bool)> {
     read_where(path, false)
 }
 
+/// JSON channel of the checkpoint marks: `{window, time, dir}` once every node and the
+/// coordinator have written their state at the end of `window`.
+pub const CHECKPOINT_TOPIC: &str = "/cosim/checkpoint";
+/// JSON channel marking where a restarted segment's windows begin: `{window}` of the
+/// checkpoint it continues from. What precedes it in the segment (the new handshake, set-up
+/// and restore) is not part of the run's history.
+pub const RESUMED_TOPIC: &str = "/cosim/resumed";
+
+/// The segments of a recording: `run.mcap`, then the `run.1.mcap`, `run.2.mcap`, ... that
+/// restarts wrote beside it, in order.
+pub fn segments(path: &Path) -> Vec<std::path::PathBuf> {
+    let mut v = vec![path.to_path_buf()];
+    if let (Some(dir), Some(stem), Some("mcap")) = (
+        path.parent(),
+        path.file_stem().and_then(|s| s.to_str()),
+        path.extension().and_then(|e| e.to_str()),
+    ) {
+        for i in 1.. {
+            let p = dir.join(format!("{stem}.{i}.mcap"));
+            if !p.exists() {
+                break;
+            }
+            v.push(p);
+        }
+    }
+    v
+}
+
+fn json_window(m: &Recorded) -> Option<u64> {
+    serde_json::from_slice::<serde_json::Value>(&m.data)
+        .ok()?
+        .get("window")?
+        .as_u64()
+}
+
+/// The window of a recorded `Fields` message (None for anything else).
+fn fields_window(m: &Recorded) -> Option<u64> {
+    if m.json {
+        return None;
+    }
+    match protocol::decode(&m.data).ok()?.message {
+        protocol::Message::Fields(f) => Some(f.window),
+        _ => None,
+    }
+}
+
+/// Drop from `msgs` what came after the checkpoint of window `k` (the windows a restart runs
+/// again), keeping the coupling data of windows up to `k` that arrived late.
+fn cut_after_checkpoint(msgs: &mut Vec<Recorded>, k: u64) {
+    let mark = msgs
+        .iter()
+        .rposition(|m| m.topic == CHECKPOINT_TOPIC && json_window(m) == Some(k))
+        .map(|j| j + 1);
+    // Without its mark (not expected: it is flushed before the coordinator's state is
+    // written), the first Advance past k bounds the windows up to k.
+    let at = mark.or_else(|| {
+        msgs.iter().position(|m| {
+            !m.json
+                && matches!(protocol::decode(&m.data),
+                    Ok(e) if matches!(e.message, protocol::Message::Advance(a) if a.window > k))
+        })
+    });
+    let Some(at) = at else { return };
+    let tail = msgs.split_off(at);
+    msgs.extend(
+        tail.into_iter()
+            .filter(|m| fields_window(m).is_some_and(|w| w <= k)),
+    );
+}
+
 fn read_where(path: &Path, json_only: bool) -> anyhow::Result<(Vec<Recorded>, bool)> {
+    let segs = segments(path);
+    if segs.len() == 1 {
+        return read_segment(path, json_only);
+    }
+    // A restarted run: each later segment continues from a checkpoint of what precedes it.
+    let (mut out, mut complete) = read_segment(&segs[0], false)?;
+    for s in &segs[1..] {
+        let (msgs, c) = read_segment(s, false)?;
+        let Some(i) = msgs.iter().position(|m| m.topic == RESUMED_TOPIC) else {
+            // a restart that ended before it resumed adds nothing
+            complete = false;
+            continue;
+        };
+        let Some(k) = json_window(&msgs[i]) else {
+            anyhow::bail!("{}: its resume mark names no window", s.display());
+        };
+        cut_after_checkpoint(&mut out, k);
+        // The restore sends the `Fields` of window k again, and they may be recorded after
+        // the mark: keep them only where the earlier segment lost its own.
+        let have: std::collections::HashSet<(String, u64)> = out
+            .iter()
+            .filter_map(|m| Some((m.topic.clone(), fields_window(m)?)))
+            .collect();
+        out.extend(msgs.into_iter().skip(i + 1).filter(|m| {
+            fields_window(m).is_none_or(|w| w > k || !have.contains(&(m.topic.clone(), w)))
+        }));
+        complete = c;
+    }
+    if json_only {
+        out.retain(|m| m.json);
+    }
+    Ok((out, complete))
+}
+
+fn read_segment(path: &Path, json_only: bool) -> anyhow::Result<(Vec<Recorded>, bool)> {
     let buf = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
     let mut out = Vec::new();
     let mut complete = true;

@@ -892,6 +892,19 @@ pub fn info(path: &Path) -> anyhow::Result<String> {
             "INCOMPLETE: writer stopped early"
         }
     )?;
+    let segs = record::segments(path);
+    if segs.len() > 1 {
+        let names: Vec<String> = segs
+            .iter()
+            .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .collect();
+        writeln!(
+            s,
+            "segments   {} (restarted {} times, read as one run)",
+            names.join(" + "),
+            segs.len() - 1
+        )?;
+    }
     let dec = decode_all(&msgs);
     if let Ok((case, _)) = case_of(&msgs)
         && let Some(run) = case.get("run").and_then(|r| r.as_table())

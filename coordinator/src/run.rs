@@ -36,6 +36,16 @@ pub struct RunOptions {
     pub output: Option<PathBuf>,
     /// Hide the progress bar.
     pub quiet: bool,
+    /// Continue a run from this checkpoint state (`cosim run --restart`, `cosim restart`):
+    /// the output directory is the run's, the recording goes on in a new segment.
+    pub restart: Option<crate::checkpoint::CoordState>,
+}
+
+/// Number of windows of a case (the last one may be shorter).
+pub fn window_count(case: &Case) -> u64 {
+    ((case.run.end_time / case.run.window) - 1e-9)
+        .ceil()
+        .max(1.0) as u64
 }
 
 /// What a finished run reports.
@@ -688,22 +698,46 @@ fn decouple_due(
 /// Run a case to the end. On a fault the nodes are stopped, the recording is closed and the
 /// fault returned; the caller prints it and exits non-zero.
 pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fault>> {
+    let restart = opts.restart.as_ref();
     let run_id = opts
         .run_id
         .clone()
+        .or_else(|| restart.map(|st| st.run_id.clone()))
         .unwrap_or_else(|| pick_run_id(&case.run.name));
     let out = opts
         .output
         .clone()
         .unwrap_or_else(|| case.run.output.clone());
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
-    let mut rec = Recorder::create(&out.join("run.mcap"))?;
+    let segment = match restart {
+        // A restart continues the recording in the next segment (read as one run).
+        Some(_) => crate::checkpoint::next_segment(&out),
+        None => {
+            // A new run: what an earlier run in this directory left for restarts goes.
+            for p in record::segments(&out.join("run.mcap")).iter().skip(1) {
+                std::fs::remove_file(p)
+                    .with_context(|| format!("cannot remove {}", p.display()))?;
+            }
+            let ck = out.join("checkpoints");
+            if ck.exists() {
+                std::fs::remove_dir_all(&ck)
+                    .with_context(|| format!("cannot remove {}", ck.display()))?;
+            }
+            out.join("run.mcap")
+        }
+    };
+    let mut rec = Recorder::create(&segment)?;
+    let mut case_doc =
+        json!({ "run": run_id, "case": case.path.display().to_string(), "toml": case.text });
+    if let Some(st) = restart {
+        case_doc["restart_from_window"] = json!(st.window);
+    }
     rec.json(
         "/cosim/case",
         "cosim.Case",
         &record::object_schema("cosim.Case", &[]),
         0.0,
-        &json!({ "run": run_id, "case": case.path.display().to_string(), "toml": case.text }),
+        &case_doc,
     )?;
     let kind = case.run.transport;
     transport::cleanup(kind, &run_id);
@@ -843,8 +877,13 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
     match outcome {
         Ok(mut summary) => {
             summary["wall_s"] = json!(wall);
-            summary["recording"] =
-                json!({ "path": out.join("run.mcap"), "messages": messages, "bytes": bytes });
+            summary["recording"] = json!({
+                "path": out.join("run.mcap"), "segment": segment,
+                "messages": messages, "bytes": bytes,
+            });
+            if let Some(st) = restart {
+                summary["restarted_from_window"] = json!(st.window);
+            }
             // Plots are a convenience: a failure to draw them is reported, not fatal.
             match crate::plot::run_plots(&history, &out) {
                 Ok(files) => summary["plots"] = json!(files),
@@ -888,6 +927,158 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             Ok(Err(f))
         }
     }
+}
+
+/// Restore every node from its checkpoint of window `st.window` (after set-up), then the
+/// coordinator's own state; tell the nodes of the decouplings that had happened, finish those
+/// that had finished, and mark the recording where the continued windows begin.
+fn resume(c: &mut Coord, st: &crate::checkpoint::CoordState, all: &[usize]) -> Result<(), Fault> {
+    let case = c.case;
+    let k = st.window;
+    c.window = k;
+    c.sim_t = st.time;
+    for &i in all {
+        c.send(
+            i,
+            &Message::Advance(Advance {
+                window: k,
+                t0: st.time,
+                t1: st.time,
+                write_output: false,
+                checkpoint: true,
+            }),
+        )?;
+    }
+    c.wait_all(all, "restore", None, |n| n.done == Some(k))?;
+    for ns in &st.nodes {
+        let Some(i) = c.node_idx(&ns.name) else {
+            return Err(Fault {
+                node: ns.name.clone(),
+                reason: "in the checkpoint but not in the case".into(),
+            });
+        };
+        let n = &mut c.nodes[i];
+        n.stable_dt = ns.stable_dt;
+        n.substeps = ns.substeps;
+        n.wall_s = ns.wall_s;
+        n.wait_s = ns.wait_s;
+        n.idle_s = ns.idle_s;
+        n.report = ns.report.clone();
+        n.initial_energy = ns.initial_energy;
+        n.initial_momentum = ns.initial_momentum;
+        n.warnings = ns.warnings.clone();
+    }
+    for (ci, d) in st.decoupled.iter().enumerate() {
+        let (Some((w, _, why)), Some(cp)) = (d, case.couplings.get(ci)) else {
+            continue;
+        };
+        for node in [&cp.driver.0, &cp.responder.0] {
+            if let Some(i) = c.node_idx(node) {
+                c.send(
+                    i,
+                    &Message::Decouple(Decouple {
+                        coupling: cp.name.clone(),
+                        window: *w,
+                        reason: why.clone(),
+                    }),
+                )?;
+            }
+        }
+    }
+    for ns in &st.nodes {
+        if let (Some(w), Some(i)) = (ns.finished, c.node_idx(&ns.name)) {
+            c.send(
+                i,
+                &Message::Finish(Finish {
+                    reason: "decoupled: the solid goes on alone".into(),
+                }),
+            )?;
+            c.nodes[i].finished = Some(w);
+        }
+    }
+    c.history = st.history.clone();
+    c.completed = k;
+    c.rec
+        .json(
+            record::RESUMED_TOPIC,
+            "cosim.Resumed",
+            &record::object_schema("cosim.Resumed", &["window", "time"]),
+            st.time,
+            &json!({ "window": k, "time": st.time }),
+        )
+        .map_err(|e| Fault {
+            node: "coordinator".into(),
+            reason: format!("recording: {e:#}"),
+        })?;
+    eprintln!(
+        "cosim: restarted from the checkpoint of window {k} (t = {:e} s)",
+        st.time
+    );
+    Ok(())
+}
+
+/// Every node has written its state at the end of window `k` (its `Done` acknowledged it):
+/// mark the point in the recording, push it to disk, then write the coordinator's own state,
+/// which makes the checkpoint complete.
+fn save_checkpoint(
+    c: &mut Coord,
+    out: &Path,
+    a: &crate::checkpoint::Audit,
+    decoupled: &[Option<(u64, f64, String)>],
+    k: u64,
+    t1: f64,
+    loop_s: f64,
+) -> Result<(), Fault> {
+    use crate::checkpoint as ck;
+    let case = c.case;
+    let fault = |e: anyhow::Error| Fault {
+        node: "coordinator".into(),
+        reason: format!("checkpoint of window {k}: {e:#}"),
+    };
+    let st = ck::CoordState {
+        run_id: c.run.clone(),
+        case_path: case.path.display().to_string(),
+        case_text: case.text.clone(),
+        signature: ck::compat_signature(case),
+        window: k,
+        time: t1,
+        nodes: c
+            .nodes
+            .iter()
+            .zip(&case.nodes)
+            .map(|(n, cfg)| ck::NodeState {
+                name: n.name.clone(),
+                model: cfg.model.clone(),
+                params_hash: protocol::checkpoint::params_hash(&ck::params_toml(cfg)),
+                stable_dt: n.stable_dt,
+                substeps: n.substeps,
+                wall_s: n.wall_s,
+                wait_s: n.wait_s,
+                idle_s: n.idle_s,
+                report: n.report.clone(),
+                initial_energy: n.initial_energy,
+                initial_momentum: n.initial_momentum,
+                finished: n.finished,
+                warnings: n.warnings.clone(),
+            })
+            .collect(),
+        audit: a.clone(),
+        decoupled: decoupled.to_vec(),
+        history: c.history.clone(),
+        loop_s,
+    };
+    let dir = protocol::checkpoint::dir(out, k);
+    c.rec
+        .json(
+            record::CHECKPOINT_TOPIC,
+            "cosim.Checkpoint",
+            &record::object_schema("cosim.Checkpoint", &["window", "time"]),
+            t1,
+            &json!({ "window": k, "time": t1, "dir": dir }),
+        )
+        .map_err(fault)?;
+    c.rec.flush().map_err(fault)?;
+    ck::save(out, &st).map_err(fault)
 }
 
 fn drive(
@@ -987,25 +1178,10 @@ fn drive(
         )?;
     }
     c.wait_all(&all, "set-up", None, |n| n.done == Some(0))?;
-    let windows = ((case.run.end_time / case.run.window) - 1e-9)
-        .ceil()
-        .max(1.0) as u64;
+    let windows = window_count(case);
     let order_idx: Vec<usize> = order.iter().filter_map(|n| c.node_idx(n)).collect();
-    c.progress = Progress::new(windows, case.run.end_time, opts.quiet);
-    let mut balance_rows = Vec::new();
-    let mut worst_p: f64 = 0.0;
-    let mut worst_resid: f64 = 0.0;
-    // Energy not explained by the work done on the system since the start, and its scale
-    // (the largest energy of the run or work done on it).
-    let mut worst_e_resid: f64 = 0.0;
-    let mut energy_scale: f64 = 0.0;
-    // Largest impulse any node saw (applied, supports and walls, coupling): the scale of the
-    // residual when no load is prescribed (a blast).
-    let mut impulse_scale: f64 = 0.0;
-    // Largest gross momentum (Σ m|v| over the nodes): the scale when the impulses cancel
-    // themselves (a symmetric blast gives the ring a net momentum of round-off).
-    let mut momentum_scale: f64 = 0.0;
-    let mut worst_iface_p: f64 = 0.0;
+    // The audit (ARCHITECTURE §5) so far: restored from the checkpoint on a restart.
+    let mut a = crate::checkpoint::Audit::default();
     let metric_schema = record::object_schema(
         "cosim.Balance",
         &[
@@ -1035,13 +1211,32 @@ fn drive(
             "coupling_wait_s",
         ],
     );
-    let e0: f64 = c.nodes.iter().map(|n| n.initial_energy).sum();
     // Decouplings (seed 000 §4): (window, time, reason) per coupling once it happened.
     let mut decoupled: Vec<Option<(u64, f64, String)>> = vec![None; case.couplings.len()];
     let mut active: Vec<usize> = all.clone();
+    // A restart continues after its checkpoint's window, from the state the nodes and the
+    // coordinator saved there.
+    let (first, loop_before) = match &opts.restart {
+        Some(st) => {
+            resume(c, st, &all)?;
+            a = st.audit.clone();
+            decoupled = st.decoupled.clone();
+            active.retain(|&i| c.nodes[i].finished.is_none());
+            (st.window + 1, st.loop_s)
+        }
+        None => (1, 0.0),
+    };
+    let e0: f64 = c.nodes.iter().map(|n| n.initial_energy).sum();
+    let every = case.run.checkpoint_every;
+    // A stop was requested: checkpoint the next window and stop there.
+    let mut stop_after = false;
+    c.progress = Progress::new(windows, case.run.end_time, opts.quiet);
+    c.progress.resume_after(first - 1);
     let loop_start = Instant::now();
     c.in_windows = true;
-    for k in 1..=windows {
+    for k in first..=windows {
+        // The last window needs no checkpoint: the run ends there.
+        let checkpoint = every > 0 && (k.is_multiple_of(every) || stop_after) && k < windows;
         let t0 = (k - 1) as f64 * case.run.window;
         let t1 = if k == windows {
             case.run.end_time
@@ -1069,7 +1264,7 @@ fn drive(
                     t0,
                     t1,
                     write_output,
-                    checkpoint: false,
+                    checkpoint,
                 }),
             )?;
         }
@@ -1105,33 +1300,46 @@ fn drive(
             dp[1] - jx[1] - ji[1],
             dp[2] - jx[2] - ji[2],
         ]);
-        worst_p = worst_p.max(imb);
-        worst_resid = worst_resid.max(resid);
+        a.worst_p = a.worst_p.max(imb);
+        a.worst_resid = a.worst_resid.max(resid);
         let e_resid = e - e0 - wext;
-        if e_resid.abs() > worst_e_resid.abs() {
-            worst_e_resid = e_resid;
+        if e_resid.abs() > a.worst_e_resid.abs() {
+            a.worst_e_resid = e_resid;
         }
-        energy_scale = energy_scale.max(e.abs()).max(e0.abs()).max(wext.abs());
-        worst_iface_p = worst_iface_p.max(norm(ji));
-        momentum_scale = momentum_scale.max(c.nodes.iter().map(|n| n.report.momentum_gross).sum());
+        a.energy_scale = a.energy_scale.max(e.abs()).max(e0.abs()).max(wext.abs());
+        a.worst_iface_p = a.worst_iface_p.max(norm(ji));
+        a.momentum_scale = a
+            .momentum_scale
+            .max(c.nodes.iter().map(|n| n.report.momentum_gross).sum());
         for n in &c.nodes {
             let r = &n.report;
-            impulse_scale = impulse_scale
+            a.impulse_scale = a
+                .impulse_scale
                 .max(r.applied_impulse)
                 .max(norm(r.external_impulse))
                 .max(norm(r.interface_impulse));
         }
-        let row = json!({
-            "window": k, "time": t1,
-            "momentum": norm(p), "external_impulse": norm(jx), "applied_impulse": applied,
-            "momentum_imbalance": imb, "interface_impulse_sum": norm(ji),
-            "momentum_residual": resid,
-            "energy": e, "external_work": wext, "interface_work_sum": wif,
-            "energy_residual": e_resid,
-        });
-        let _ = c
-            .rec
-            .json("/cosim/balance", "cosim.Balance", &metric_schema, t1, &row);
+        let row = crate::checkpoint::BalanceRow {
+            window: k,
+            time: t1,
+            momentum: norm(p),
+            external_impulse: norm(jx),
+            applied_impulse: applied,
+            momentum_imbalance: imb,
+            interface_impulse_sum: norm(ji),
+            momentum_residual: resid,
+            energy: e,
+            external_work: wext,
+            interface_work_sum: wif,
+            energy_residual: e_resid,
+        };
+        let _ = c.rec.json(
+            "/cosim/balance",
+            "cosim.Balance",
+            &metric_schema,
+            t1,
+            &json!(row),
+        );
         for n in c.nodes.iter().filter(|n| n.finished.is_none()) {
             let r = &n.report;
             let mut v = json!({
@@ -1156,19 +1364,28 @@ fn drive(
             );
             crate::plot::add_report(&mut c.history, &n.name, &v);
         }
-        balance_rows.push(row);
+        a.rows.push(row);
         c.progress.window(k, t1);
         c.completed = k;
+        if checkpoint {
+            let loop_s = loop_before + loop_start.elapsed().as_secs_f64();
+            save_checkpoint(c, out, &a, &decoupled, k, t1, loop_s)?;
+        }
         // Completed windows reach the disk (a killed cosim leaves them recoverable).
         let _ = c.rec.flush_if_older(Duration::from_millis(20));
-        // A stop signal ends the run here, at the window boundary.
+        // A stop signal ends the run here, at the window boundary; with checkpoints, after
+        // one more window that checkpoints, so that a restart continues from where it stopped.
         if let Some(sig) = stop::requested() {
+            if every > 0 && !checkpoint && !stop_after {
+                stop_after = true;
+                continue;
+            }
             c.interrupted = Some(sig);
             break;
         }
     }
     c.progress.finish();
-    let loop_s = loop_start.elapsed().as_secs_f64();
+    let loop_s = loop_before + loop_start.elapsed().as_secs_f64();
     // A node publishes its last window's data before its Done, but on another topic: that
     // data may still be queued here. Record it before the nodes go (a quiet 50 ms, at most
     // 2 s), so the recording holds every message of every window.
@@ -1208,10 +1425,7 @@ fn drive(
             }
         }
     }
-    let applied_final = balance_rows
-        .last()
-        .and_then(|r| r["applied_impulse"].as_f64())
-        .unwrap_or(0.0);
+    let applied_final = a.rows.last().map_or(0.0, |r| r.applied_impulse);
     let mut nodes_json = BTreeMap::new();
     for (i, n) in c.nodes.iter().enumerate() {
         let cfg = &case.nodes[i];
@@ -1252,10 +1466,7 @@ fn drive(
             v
         })
         .collect();
-    let reached_t = balance_rows
-        .last()
-        .and_then(|r| r["time"].as_f64())
-        .unwrap_or(0.0);
+    let reached_t = a.rows.last().map_or(0.0, |r| r.time);
     Ok(json!({
         "run": c.run,
         "status": if c.interrupted.is_some() { "interrupted" } else { "finished" },
@@ -1286,29 +1497,29 @@ fn drive(
         },
         "balance": {
             "applied_impulse": applied_final,
-            "max_momentum_imbalance": worst_p,
-            "max_momentum_imbalance_relative": if applied_final > 0.0 { worst_p / applied_final } else { 0.0 },
-            "max_interface_impulse_sum": worst_iface_p,
-            "impulse_scale": impulse_scale,
-            "momentum_scale": momentum_scale,
-            "max_momentum_residual": worst_resid,
+            "max_momentum_imbalance": a.worst_p,
+            "max_momentum_imbalance_relative": if applied_final > 0.0 { a.worst_p / applied_final } else { 0.0 },
+            "max_interface_impulse_sum": a.worst_iface_p,
+            "impulse_scale": a.impulse_scale,
+            "momentum_scale": a.momentum_scale,
+            "max_momentum_residual": a.worst_resid,
             // Against the larger of the two scales: the largest impulse any node saw, and the
             // largest gross momentum of the run.
-            "max_momentum_residual_relative": if impulse_scale.max(momentum_scale) > 0.0 {
-                worst_resid / impulse_scale.max(momentum_scale)
+            "max_momentum_residual_relative": if a.impulse_scale.max(a.momentum_scale) > 0.0 {
+                a.worst_resid / a.impulse_scale.max(a.momentum_scale)
             } else {
                 0.0
             },
             // Signed: negative is energy the numerical methods (and couplings) dissipated,
             // positive energy they created.
-            "max_energy_residual": worst_e_resid,
-            "energy_scale": energy_scale,
-            "max_energy_residual_relative": if energy_scale > 0.0 {
-                worst_e_resid / energy_scale
+            "max_energy_residual": a.worst_e_resid,
+            "energy_scale": a.energy_scale,
+            "max_energy_residual_relative": if a.energy_scale > 0.0 {
+                a.worst_e_resid / a.energy_scale
             } else {
                 0.0
             },
-            "per_window": balance_rows,
+            "per_window": a.rows,
         },
     }))
 }

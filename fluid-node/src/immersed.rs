@@ -21,7 +21,7 @@ pub const INTERFACE: u8 = 1;
 pub const SOLID: u8 = 2;
 const NONE: usize = usize::MAX;
 
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct WallFace {
     pub d: usize,
     /// Flat index (row·mx + i) of the cell below the face along d (the flux slot).
@@ -31,7 +31,8 @@ pub struct WallFace {
     pub gas_left: bool,
 }
 
-#[derive(Debug, Clone)]
+/// Everything here is state a restart needs (serde: the checkpoint payload).
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Immersed {
     pub interface: String,
     /// Number of particles (0 until known).

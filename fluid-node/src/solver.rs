@@ -313,42 +313,83 @@ impl Solver for EulerSolver {
 
     fn save_state(&self) -> SolverResult<Vec<u8>> {
         let f = self.host_state()?;
-        let mut b = Vec::with_capacity(8 * (f.cons.len() + 2));
-        b.extend_from_slice(&f.time.to_le_bytes());
-        b.extend_from_slice(&(f.cons.len() as u64).to_le_bytes());
-        for x in &f.cons {
-            b.extend_from_slice(&x.to_le_bytes());
-        }
-        Ok(b)
+        // the device path keeps the window's particle impulses on the device: read them
+        let im = match (&self.gpu, &f.immersed) {
+            (Some(g), Some(im)) => {
+                let mut im = im.clone();
+                g.read_impulses(&mut im)?;
+                Some(std::borrow::Cow::Owned(im))
+            }
+            (_, im) => im.as_ref().map(std::borrow::Cow::Borrowed),
+        };
+        protocol::checkpoint::encode_state(&FluidStateRef {
+            time: f.time,
+            steps: f.steps,
+            cons: &f.cons,
+            boundary_impulse: f.boundary_impulse,
+            boundary_work: f.boundary_work,
+            interface_work: self.interface_work,
+            probe_history: &self.probe_history,
+            immersed: im.as_deref(),
+        })
     }
 
     fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
-        let n = self.fluid.cons.len();
-        if bytes.len() != 8 * (n + 2) {
-            return Err(SolverError::Other(format!(
-                "checkpoint has {} bytes, expected {}",
-                bytes.len(),
-                8 * (n + 2)
-            )));
+        use protocol::checkpoint::check_len;
+        let s: FluidState = protocol::checkpoint::decode_state(bytes)?;
+        check_len("cons", s.cons.len(), self.fluid.cons.len())?;
+        match (&self.fluid.immersed, &s.immersed) {
+            (None, None) => {}
+            (Some(a), Some(b)) if a.interface == b.interface && a.kind.len() == b.kind.len() => {}
+            _ => {
+                return Err(SolverError::Other(
+                    "load_state: the checkpoint's immersed interface is not this node's".into(),
+                ));
+            }
         }
-        let word = |i: usize| {
-            let mut w = [0u8; 8];
-            w.copy_from_slice(&bytes[8 * i..8 * i + 8]);
-            w
-        };
-        if u64::from_le_bytes(word(1)) as usize != n {
-            return Err(SolverError::Other("checkpoint is for another grid".into()));
-        }
-        self.fluid.time = f64::from_le_bytes(word(0));
-        for (i, x) in self.fluid.cons.iter_mut().enumerate() {
-            *x = f64::from_le_bytes(word(i + 2));
-        }
-        self.fluid.prim_valid = false;
+        let f = &mut self.fluid;
+        f.time = s.time;
+        f.steps = s.steps;
+        f.cons = s.cons;
+        f.boundary_impulse = s.boundary_impulse;
+        f.boundary_work = s.boundary_work;
+        f.immersed = s.immersed;
+        f.prim_valid = false;
+        self.interface_work = s.interface_work;
+        self.probe_history = s.probe_history;
         if let Some(g) = self.gpu.as_mut() {
             g.upload(&self.fluid)?;
         }
         Ok(())
     }
+}
+
+/// What `save_state` writes: everything `advance` depends on (conserved state, clocks, the
+/// boundary and interface accumulators, the immersed classification and totals, the probe
+/// history the output files list).
+#[derive(serde::Serialize)]
+struct FluidStateRef<'a> {
+    time: f64,
+    steps: u64,
+    cons: &'a [f64],
+    boundary_impulse: [f64; 3],
+    boundary_work: f64,
+    interface_work: f64,
+    probe_history: &'a [(f64, Vec<[f64; 5]>)],
+    immersed: Option<&'a Immersed>,
+}
+
+/// [`FluidStateRef`] read back (the same bincode layout, owned).
+#[derive(serde::Deserialize)]
+struct FluidState {
+    time: f64,
+    steps: u64,
+    cons: Vec<f64>,
+    boundary_impulse: [f64; 3],
+    boundary_work: f64,
+    interface_work: f64,
+    probe_history: Vec<(f64, Vec<[f64; 5]>)>,
+    immersed: Option<Immersed>,
 }
 
 impl EulerSolver {

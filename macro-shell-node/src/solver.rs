@@ -273,4 +273,104 @@ impl Solver for ShellSolver {
         }
         Ok(())
     }
+
+    fn save_state(&self) -> SolverResult<Vec<u8>> {
+        let m = &self.model;
+        protocol::checkpoint::encode_state(&ShellState {
+            x: m.x.clone(),
+            v: m.v.clone(),
+            w: m.w.clone(),
+            q: m.q.clone(),
+            mass: m.mass.clone(),
+            inertia: m.inertia.clone(),
+            f_c: m.f_c.clone(),
+            m_c: m.m_c.clone(),
+            reaction: m.reaction.clone(),
+            stress: m.stress.clone(),
+            plastic: m.plastic.clone(),
+            res: m.res.clone(),
+            fe: m.fe.clone(),
+            pressure: m.pressure.clone(),
+            clocks: (m.time, m.dt_prev, m.steps),
+            work: [m.external_work, m.support_work, m.interface_work],
+            impulses: [
+                m.external_impulse,
+                m.interface_impulse,
+                m.load_impulse,
+                m.interface_angular_impulse,
+            ],
+            added: [m.added_mass, m.added_inertia],
+            interfaces: self
+                .interfaces
+                .iter()
+                .map(|i| (i.force.clone(), i.moment.clone(), i.x_start.clone()))
+                .collect(),
+            history: self.history.rows.clone(),
+            last: (self.last_span, self.last_substeps),
+        })
+    }
+
+    fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
+        use protocol::checkpoint::check_len;
+        let s: ShellState = protocol::checkpoint::decode_state(bytes)?;
+        let m = &mut self.model;
+        check_len("nodes", s.x.len(), m.x.len())?;
+        check_len("stresses", s.stress.len(), m.stress.len())?;
+        check_len("interfaces", s.interfaces.len(), self.interfaces.len())?;
+        for (itf, (f, mo, xs)) in self.interfaces.iter_mut().zip(s.interfaces) {
+            check_len(
+                &format!("interface {} force", itf.name),
+                f.len(),
+                itf.force.len(),
+            )?;
+            (itf.force, itf.moment, itf.x_start) = (f, mo, xs);
+        }
+        (m.x, m.v, m.w, m.q) = (s.x, s.v, s.w, s.q);
+        (m.mass, m.inertia, m.f_c, m.m_c) = (s.mass, s.inertia, s.f_c, s.m_c);
+        (m.reaction, m.stress, m.plastic) = (s.reaction, s.stress, s.plastic);
+        (m.res, m.fe, m.pressure) = (s.res, s.fe, s.pressure);
+        (m.time, m.dt_prev, m.steps) = s.clocks;
+        [m.external_work, m.support_work, m.interface_work] = s.work;
+        [
+            m.external_impulse,
+            m.interface_impulse,
+            m.load_impulse,
+            m.interface_angular_impulse,
+        ] = s.impulses;
+        [m.added_mass, m.added_inertia] = s.added;
+        self.history.rows = s.history;
+        (self.last_span, self.last_substeps) = s.last;
+        Ok(())
+    }
 }
+
+/// What the shell's `save_state` writes: the nodal motion, the element stresses and plastic
+/// state, the coupling loads held over the window, clocks, accumulators, the reaction history
+/// and the sub-step plan (everything `advance` reads that changes during a run).
+#[derive(serde::Serialize, serde::Deserialize)]
+struct ShellState {
+    x: Vec<[f64; 3]>,
+    v: Vec<[f64; 3]>,
+    w: Vec<[f64; 3]>,
+    q: Vec<[f64; 4]>,
+    mass: Vec<f64>,
+    inertia: Vec<f64>,
+    f_c: Vec<[f64; 3]>,
+    m_c: Vec<[f64; 3]>,
+    reaction: Vec<[f64; 6]>,
+    stress: Vec<f64>,
+    plastic: Vec<f64>,
+    res: Vec<[f64; element::RES]>,
+    fe: Vec<[[f64; 6]; 4]>,
+    pressure: Vec<f64>,
+    clocks: (f64, f64, u64),
+    work: [f64; 3],
+    impulses: [[f64; 3]; 4],
+    added: [f64; 2],
+    /// Per interface: force, moment, window-start positions.
+    interfaces: Vec<InterfaceState>,
+    history: Vec<Vec<f64>>,
+    last: (f64, u64),
+}
+
+type InterfaceState = (Vec<f64>, Vec<f64>, Vec<[f64; 3]>);

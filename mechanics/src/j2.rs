@@ -39,7 +39,7 @@ pub struct J2Material {
 }
 
 /// Stress, back stress and accumulated equivalent plastic strain of one material point.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct J2State {
     pub stress: Sym,
     pub back_stress: Sym,

@@ -41,7 +41,7 @@ use mechanics::j2::{J2Material, J2State, jaumann_rotate};
 use rayon::prelude::*;
 
 /// What drives a particle's velocity.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[repr(u8)]
 pub enum Kind {
     Free = 0,
@@ -54,7 +54,7 @@ pub enum Kind {
 }
 
 /// A rigid body (bolt, screw) made of particles (seed 004 §4.2).
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct RigidBody {
     pub particles: Vec<u32>,
     pub mass: f64,

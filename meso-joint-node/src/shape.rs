@@ -21,7 +21,7 @@ use rayon::prelude::*;
 pub type M3 = [[f64; 3]; 3];
 
 /// Supports in compressed rows, with per-entry shape data.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Rows {
     pub offsets: Vec<usize>,
     pub cols: Vec<u32>,
@@ -40,13 +40,26 @@ pub struct Rows {
     /// `grad_t[p] = grad[mirror[p]] = ∇φ_I(X_J)`.
     pub psi_t: Vec<f64>,
     pub grad_t: Vec<[f64; 3]>,
-    /// Scratch of the shape computation (offsets, kernel values, volumes), reused.
+    /// Scratch of the shape computation (offsets, kernel values, volumes), reused; not
+    /// part of a checkpoint.
+    #[serde(skip)]
     d: Vec<[f64; 3]>,
+    #[serde(skip)]
     w: Vec<f64>,
+    #[serde(skip)]
     vw: Vec<f64>,
 }
 
 impl Rows {
+    /// Take the rows, bond states and shape values of `saved` (read from a checkpoint, which
+    /// holds no scratch), keeping this one's scratch buffers.
+    pub fn restore(&mut self, saved: Rows) {
+        let d = std::mem::take(&mut self.d);
+        let w = std::mem::take(&mut self.w);
+        let vw = std::mem::take(&mut self.vw);
+        *self = Rows { d, w, vw, ..saved };
+    }
+
     pub fn len(&self) -> usize {
         self.offsets.len().saturating_sub(1)
     }

@@ -19,8 +19,9 @@
 use crate::config::{Geometry, Params};
 use crate::coupling;
 use crate::geometry;
-use crate::model::{Kind, Model, ModelParams};
-use crate::shape::{cross, dot, norm};
+use crate::model::{Kind, Model, ModelParams, RigidBody};
+use crate::shape::{M3, Rows, cross, dot, norm};
+use mechanics::j2::J2State;
 use protocol::{
     Binding, Inbox, InterfaceInfo, InterfaceMesh, NodeDescription, Outbox, Solver, SolverError,
     SolverResult, StepReport, Window,
@@ -29,7 +30,7 @@ use std::io::Write;
 use std::path::Path;
 
 /// Runtime state of the responder coupling (one entry per coupling particle).
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 struct CouplingRt {
     interface: String,
     particles: Vec<u32>,
@@ -610,6 +611,119 @@ impl Solver for SpgSolver {
         })
     }
 
+    fn save_state(&self) -> SolverResult<Vec<u8>> {
+        let m = &self.model;
+        protocol::checkpoint::encode_state(&JointState {
+            model: ModelState {
+                xa: m.xa.clone(),
+                x: m.x.clone(),
+                xh: m.xh.clone(),
+                u: m.u.clone(),
+                vh: m.vh.clone(),
+                v: m.v.clone(),
+                f: m.f.clone(),
+                acc: m.acc.clone(),
+                mass: m.mass.clone(),
+                mh: m.mh.clone(),
+                ms: m.ms.clone(),
+                rho: m.rho.clone(),
+                vol: m.vol.clone(),
+                vol_a: m.vol_a.clone(),
+                fhat: m.fhat.clone(),
+                ftot_a: m.ftot_a.clone(),
+                finv_a: m.finv_a.clone(),
+                mat: m.mat.clone(),
+                bmat: m.bmat.clone(),
+                eint: m.eint.clone(),
+                kind: m.kind.clone(),
+                presc: m.presc.clone(),
+                rows: m.rows.clone(),
+                dirty: m.dirty.clone(),
+                rigid: m.rigid.clone(),
+                steps: m.steps,
+                time: m.time,
+                broken_bonds: m.broken_bonds,
+                detached: m.detached,
+                damaged: m.damaged.clone(),
+                bc_work: m.bc_work,
+                bc_impulse: m.bc_impulse,
+                coupling_work: m.coupling_work,
+                coupling_impulse: m.coupling_impulse,
+                max_eps: m.max_eps,
+                contact_pairs: m.contact_pairs.clone(),
+                contact_energy: m.contact_energy,
+            },
+            added_mass: self.added_mass,
+            coupling: self.coupling.clone(),
+            history: self.history.clone(),
+        })
+    }
+
+    fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
+        use protocol::checkpoint::check_len;
+        let JointState {
+            model: s,
+            added_mass,
+            coupling,
+            history,
+        } = protocol::checkpoint::decode_state(bytes)?;
+        let m = &mut self.model;
+        check_len("particles", s.x.len(), m.x.len())?;
+        check_len("bonds", s.rows.len(), m.rows.len())?;
+        check_len("rigid bodies", s.rigid.len(), m.rigid.len())?;
+        if coupling.as_ref().map(|c| (&c.interface, c.particles.len()))
+            != self
+                .coupling
+                .as_ref()
+                .map(|c| (&c.interface, c.particles.len()))
+        {
+            return Err(SolverError::Other(
+                "load_state: the checkpoint's coupling is not this node's".into(),
+            ));
+        }
+        m.xa = s.xa;
+        m.x = s.x;
+        m.xh = s.xh;
+        m.u = s.u;
+        m.vh = s.vh;
+        m.v = s.v;
+        m.f = s.f;
+        m.acc = s.acc;
+        m.mass = s.mass;
+        m.mh = s.mh;
+        m.ms = s.ms;
+        m.rho = s.rho;
+        m.vol = s.vol;
+        m.vol_a = s.vol_a;
+        m.fhat = s.fhat;
+        m.ftot_a = s.ftot_a;
+        m.finv_a = s.finv_a;
+        m.mat = s.mat;
+        m.bmat = s.bmat;
+        m.eint = s.eint;
+        m.kind = s.kind;
+        m.presc = s.presc;
+        m.rows.restore(s.rows);
+        m.dirty = s.dirty;
+        m.rigid = s.rigid;
+        m.steps = s.steps;
+        m.time = s.time;
+        m.broken_bonds = s.broken_bonds;
+        m.detached = s.detached;
+        m.damaged = s.damaged;
+        m.bc_work = s.bc_work;
+        m.bc_impulse = s.bc_impulse;
+        m.coupling_work = s.coupling_work;
+        m.coupling_impulse = s.coupling_impulse;
+        m.max_eps = s.max_eps;
+        m.contact_pairs = s.contact_pairs;
+        m.contact_energy = s.contact_energy;
+        self.added_mass = added_mass;
+        self.coupling = coupling;
+        self.history = history;
+        Ok(())
+    }
+
     fn write_output(&self, t: f64, window: u64, dir: &Path) -> SolverResult<()> {
         std::fs::create_dir_all(dir)?;
         crate::output::write_vtu(&self.model, &dir.join(format!("joint_{window:06}.vtu")), t)?;
@@ -638,4 +752,57 @@ impl Solver for SpgSolver {
         }
         Ok(())
     }
+}
+
+/// What the joint's `save_state` writes: every particle array `step` changes (motion,
+/// deformation gradients, J2 states, kernel rows and bond states, rigid bodies, damage,
+/// contact pairs), clocks and accumulators; the parameters and the set-up-only data are
+/// rebuilt from the case.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct JointState {
+    model: ModelState,
+    added_mass: f64,
+    coupling: Option<CouplingRt>,
+    history: Vec<HistoryRow>,
+}
+
+#[derive(serde::Serialize, serde::Deserialize)]
+struct ModelState {
+    xa: Vec<[f64; 3]>,
+    x: Vec<[f64; 3]>,
+    xh: Vec<[f64; 3]>,
+    u: Vec<[f64; 3]>,
+    vh: Vec<[f64; 3]>,
+    v: Vec<[f64; 3]>,
+    f: Vec<[f64; 3]>,
+    acc: Vec<[f64; 3]>,
+    mass: Vec<f64>,
+    mh: Vec<f64>,
+    ms: Vec<f64>,
+    rho: Vec<f64>,
+    vol: Vec<f64>,
+    vol_a: Vec<f64>,
+    fhat: Vec<M3>,
+    ftot_a: Vec<M3>,
+    finv_a: Vec<M3>,
+    mat: Vec<J2State>,
+    bmat: Vec<M3>,
+    eint: Vec<f64>,
+    kind: Vec<Kind>,
+    presc: Vec<[f64; 3]>,
+    rows: Rows,
+    dirty: Vec<bool>,
+    rigid: Vec<RigidBody>,
+    steps: u64,
+    time: f64,
+    broken_bonds: usize,
+    detached: usize,
+    damaged: Vec<bool>,
+    bc_work: f64,
+    bc_impulse: [f64; 3],
+    coupling_work: f64,
+    coupling_impulse: [f64; 3],
+    max_eps: f64,
+    contact_pairs: Vec<(u32, u32)>,
+    contact_energy: f64,
 }

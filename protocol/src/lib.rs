@@ -2,6 +2,7 @@
 //! that carry them (iceoryx2 shared memory, zenoh, in-process), the `Solver` trait every node
 //! implements, the participant runtime that runs a `Solver` as a node, and interface mapping.
 
+pub mod checkpoint;
 pub mod describe;
 pub mod mapping;
 pub mod params;

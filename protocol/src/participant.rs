@@ -14,7 +14,7 @@ use crate::solver::{
     BuildOptions, FieldSet, Solver, SolverError, SolverFactory, SolverResult, Window,
 };
 use crate::transport::{self, Publisher, Transport, TransportKind, TransportSpec};
-use crate::{stop, watchdog};
+use crate::{checkpoint, stop, watchdog};
 use std::collections::VecDeque;
 use std::ffi::OsString;
 use std::path::PathBuf;
@@ -772,6 +772,84 @@ fn build_and_run(
         .map_err(|e| format!("{e:#}"))
 }
 
+/// A restore command: an `Advance` of zero length with `checkpoint` set, for a window after
+/// set-up (PROTOCOL.md §7). No window to run is ever empty.
+fn is_restore(a: &Advance) -> bool {
+    a.window > 0 && a.checkpoint && a.t0 == a.t1
+}
+
+/// The run directory: the parent of the node's output directory (`<run>/<node>`).
+fn run_dir(welcome: &Welcome) -> PathBuf {
+    PathBuf::from(&welcome.output_dir)
+        .parent()
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("."))
+}
+
+/// Write the solver's state at the end of window `a.window` into its container; the `Done`
+/// that follows acknowledges it.
+fn save_checkpoint(
+    engine: &NodeEngine,
+    welcome: &Welcome,
+    me: &str,
+    a: &Advance,
+    sent: Vec<Fields>,
+) -> anyhow::Result<()> {
+    let payload = engine
+        .solver
+        .save_state()
+        .map_err(|e| anyhow::anyhow!("checkpoint of window {}: {e}", a.window))?;
+    let c = checkpoint::Checkpoint {
+        node: me.to_string(),
+        model: welcome.model.clone(),
+        window: a.window,
+        time: a.t1,
+        params_hash: checkpoint::params_hash(&welcome.params_toml),
+        sent,
+        payload,
+    };
+    c.write(&checkpoint::file(&run_dir(welcome), a.window, me))?;
+    Ok(())
+}
+
+/// Load this node's checkpoint of window `a.window` into the solver, after checking that it is
+/// this node's, of this model and parameters, at this time; returns what to send again.
+fn restore(
+    engine: &mut NodeEngine,
+    welcome: &Welcome,
+    me: &str,
+    a: &Advance,
+) -> anyhow::Result<Vec<Fields>> {
+    let path = checkpoint::file(&run_dir(welcome), a.window, me);
+    let c = checkpoint::Checkpoint::read(&path)?;
+    let p = path.display();
+    if c.node != me || c.model != welcome.model {
+        anyhow::bail!(
+            "{p}: checkpoint of node '{}' ({}), this is '{me}' ({})",
+            c.node,
+            c.model,
+            welcome.model
+        );
+    }
+    if c.window != a.window || c.time.to_bits() != a.t1.to_bits() {
+        anyhow::bail!(
+            "{p}: checkpoint of window {} at t = {:e}, asked for window {} at t = {:e}",
+            c.window,
+            c.time,
+            a.window,
+            a.t1
+        );
+    }
+    if c.params_hash != checkpoint::params_hash(&welcome.params_toml) {
+        anyhow::bail!("{p}: written with other parameters than this node's");
+    }
+    engine
+        .solver
+        .load_state(&c.payload)
+        .map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
+    Ok(c.sent)
+}
+
 /// What the heartbeat thread reports of the main loop.
 #[derive(Default)]
 struct Progress {
@@ -873,6 +951,28 @@ fn node_loop(
             w.send_up(&describe_after)?;
             w.send_up(&Message::Done(Done { window: 0, report }))?;
         }
+        if set_up
+            && let Some(Message::Advance(a)) = pending_cmd.front()
+            && is_restore(a)
+        {
+            // Restart (PROTOCOL.md §7): the state at the end of window `a.window` comes from
+            // its checkpoint; what the node sent then goes out again for peers that use it in
+            // the next window.
+            let a = *a;
+            pending_cmd.pop_front();
+            for f in restore(engine, welcome, me, &a)? {
+                let c = f.coupling.clone();
+                w.send_data(&c, &Message::Fields(f))?;
+            }
+            tracing::info!("restored the checkpoint of window {}", a.window);
+            (window, last_t1, written) = (a.window, a.t1, true);
+            progress.window.store(window, Ordering::Relaxed);
+            w.send_up(&Message::Done(Done {
+                window,
+                report: StepReport::default(),
+            }))?;
+            continue;
+        }
         if set_up && let Some(Message::Advance(a)) = pending_cmd.front() {
             let a = *a;
             if engine.ready(a.window) {
@@ -885,6 +985,7 @@ fn node_loop(
                     write_output: a.write_output,
                 };
                 let (mut report, msgs) = engine.advance(&win)?;
+                let sent = a.checkpoint.then(|| msgs.clone());
                 for f in msgs {
                     let c = f.coupling.clone();
                     w.send_data(&c, &Message::Fields(f))?;
@@ -892,6 +993,9 @@ fn node_loop(
                 if a.write_output {
                     let dir = PathBuf::from(&welcome.output_dir);
                     engine.solver.write_output(a.t1, a.window, &dir)?;
+                }
+                if let Some(sent) = sent {
+                    save_checkpoint(engine, welcome, me, &a, sent)?;
                 }
                 written = a.write_output;
                 last_t1 = a.t1;

@@ -529,17 +529,15 @@ impl Solver for Bar {
     fn save_state(&self) -> SolverResult<Vec<u8>> {
         let mut s = self.s.clone();
         s.coupling_force = self.coupled.iter().map(|c| c.force).collect();
-        serde_json::to_vec(&s).map_err(|e| SolverError::Other(e.to_string()))
+        protocol::checkpoint::encode_state(&s)
     }
 
     fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
-        let s: BarState =
-            serde_json::from_slice(bytes).map_err(|e| SolverError::Other(e.to_string()))?;
-        if s.u.len() != self.s.u.len() || s.v.len() != self.s.v.len() {
-            return Err(SolverError::Other(
-                "state has another number of nodes".into(),
-            ));
-        }
+        use protocol::checkpoint::check_len;
+        let s: BarState = protocol::checkpoint::decode_state(bytes)?;
+        check_len("u", s.u.len(), self.s.u.len())?;
+        check_len("v", s.v.len(), self.s.v.len())?;
+        check_len("coupling_force", s.coupling_force.len(), self.coupled.len())?;
         for (c, f) in self.coupled.iter_mut().zip(&s.coupling_force) {
             c.force = *f;
         }

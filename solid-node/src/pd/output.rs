@@ -60,7 +60,13 @@ pub fn write_vtu(
         .map_err(|e| std::io::Error::other(format!("writing {file}: {e}")))?;
     // Time series: keep a small index file of (time, file) lines next to the .pvd.
     let index = dir.join(format!("{stem}.pvd.index"));
-    let mut idx = std::fs::read_to_string(&index).unwrap_or_default();
+    let old = std::fs::read_to_string(&index).unwrap_or_default();
+    // A restarted run writes again the frames after its checkpoint: one line per file.
+    let mut idx: String = old
+        .lines()
+        .filter(|l| l.split_once(' ').is_none_or(|(_, f)| f != file))
+        .map(|l| format!("{l}\n"))
+        .collect();
     let _ = writeln!(idx, "{time:e} {file}");
     std::fs::write(&index, &idx)?;
     let mut pvd = String::from(

@@ -1,0 +1,409 @@
+//! Checkpoint and restart of a whole run (ARCHITECTURE §9, README "Restart a run"): a run
+//! with `run.checkpoint_every` whose `cosim` is SIGKILLed mid-run, then `cosim restart`, ends
+//! bit-identical to an uninterrupted run — the final state (every node's last VTK frame), the
+//! balance in summary.json, every node report and every coupling message after the restart
+//! point — and the recording reads as one run. Split bar (bar-1d), small chamber (fluid and
+//! pd-correspondence, on the CPU and on the GPU), single joint (shell and MC-SPG joint); a
+//! case with other parameters is refused; Ctrl-C checkpoints where it stops.
+
+use cosim_tests::*;
+use protocol::{Message, StepReport};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// Node reports per (node, window), timings zeroed (wall-clock, not physics).
+fn reports(mcap: &Path) -> BTreeMap<(String, u64), StepReport> {
+    let (msgs, complete) = coordinator::record::read_all(mcap).expect("readable recording");
+    assert!(complete, "{} is not complete", mcap.display());
+    let mut out = BTreeMap::new();
+    for m in msgs.iter().filter(|m| !m.json) {
+        let Ok(env) = protocol::decode(&m.data) else {
+            continue;
+        };
+        if let Message::Done(d) = env.message {
+            let mut r = d.report;
+            (r.wall_s, r.coupling_wait_s, r.idle_s) = (0.0, 0.0, 0.0);
+            let old = out.insert((env.sender.clone(), d.window), r);
+            assert!(
+                old.is_none(),
+                "two reports of {} window {}",
+                env.sender,
+                d.window
+            );
+        }
+    }
+    out
+}
+
+/// Coupling data per (coupling/sender topic without the run id, window): the exact values.
+fn traffic(mcap: &Path) -> BTreeMap<(String, u64), Vec<u64>> {
+    let (msgs, _) = coordinator::record::read_all(mcap).expect("readable recording");
+    let mut out = BTreeMap::new();
+    for m in msgs.iter().filter(|m| !m.json) {
+        let Ok(env) = protocol::decode(&m.data) else {
+            continue;
+        };
+        if let Message::Fields(f) = env.message {
+            let bits: Vec<u64> = f
+                .fields
+                .iter()
+                .flat_map(|x| x.values.iter().map(|v| v.to_bits()))
+                .collect();
+            let key = format!("{}/{}", f.coupling, env.sender);
+            let old = out.insert((key.clone(), f.window), bits);
+            assert!(old.is_none(), "two messages of {key} window {}", f.window);
+        }
+    }
+    out
+}
+
+/// The VTK frame of the highest window under `dir` (recursively), by file name.
+fn last_frames(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    for node in std::fs::read_dir(dir).expect("output dir").flatten() {
+        if !node.path().is_dir() || node.file_name() == "checkpoints" {
+            continue;
+        }
+        let mut frames: Vec<PathBuf> = std::fs::read_dir(node.path())
+            .expect("node dir")
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.extension().is_some_and(|e| e == "vtu" || e == "vtk"))
+            .collect();
+        frames.sort();
+        if let Some(last) = frames.last() {
+            out.insert(
+                format!(
+                    "{}/{}",
+                    node.file_name().to_string_lossy(),
+                    last.file_name().unwrap().to_string_lossy()
+                ),
+                std::fs::read(last).expect("frame"),
+            );
+        }
+    }
+    out
+}
+
+/// Run `case` uninterrupted, then again with checkpoints every `every` windows, SIGKILL its
+/// `cosim` once the checkpoint of window `kill_after` is complete, restart, and compare.
+/// Returns the window the restart continued from.
+/// `extra`: further `cosim run` arguments (a variant, settings); `changed`: a `--set` that
+/// changes a node parameter, which a restart must refuse.
+fn kill_and_restart(
+    case: &Path,
+    dir: &Path,
+    id: &str,
+    extra: &[&str],
+    changed: &str,
+    every: u64,
+    kill_after: u64,
+) -> u64 {
+    let reference = dir.join("reference");
+    let o = run_case(case, &reference, &format!("{id}r"), extra);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+
+    let out = dir.join("restarted");
+    let every_s = format!("run.checkpoint_every={every}");
+    let mut args = vec![
+        "run",
+        case.to_str().unwrap(),
+        "--output",
+        out.to_str().unwrap(),
+        "--run-id",
+        id,
+        "--quiet",
+        "--set",
+        &every_s,
+    ];
+    args.extend_from_slice(extra);
+    let mut child = std::process::Command::new(bin("cosim"))
+        .args(&args)
+        .env("COSIM_LOG", "warn")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("cosim starts");
+    let mark = protocol::checkpoint::file(&out, kill_after, "coordinator");
+    let t = Instant::now();
+    while !mark.exists() {
+        assert!(
+            t.elapsed() < Duration::from_secs(120),
+            "no checkpoint of window {kill_after} within 120 s"
+        );
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "cosim ended before the kill"
+        );
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    // SAFETY: kill with the pid of our own child and a valid signal number.
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGKILL) }, 0);
+    let status = child.wait().unwrap();
+    assert!(status.code().is_none(), "cosim was not killed: {status:?}");
+    assert!(
+        !out.join("summary.json").exists(),
+        "the run finished before the kill: the scenario is void"
+    );
+    let t = Instant::now();
+    while !live_processes(id).is_empty() && t.elapsed() < Duration::from_secs(5) {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    assert!(
+        live_processes(id).is_empty(),
+        "nodes outlived their coordinator"
+    );
+
+    // A case with another parameter may not continue the run.
+    let mut bad = vec![
+        "run",
+        case.to_str().unwrap(),
+        "--quiet",
+        "--restart",
+        out.to_str().unwrap(),
+        "--set",
+        changed,
+    ];
+    bad.extend_from_slice(extra);
+    let o = cosim(&bad);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("params changed"), "{stderr}");
+
+    let o = cosim(&["restart", out.to_str().unwrap(), "--quiet"]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "restart failed: {stderr}");
+    let k: u64 = stderr
+        .split("restarted from the checkpoint of window ")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no restart line in: {stderr}"));
+    assert!(
+        k >= kill_after && k.is_multiple_of(every),
+        "restarted from window {k}"
+    );
+
+    // summary.json: the whole run's balance, every node's final values and step counts.
+    let (a, b) = (summary(&reference), summary(&out));
+    assert_eq!(b["status"], "finished");
+    assert_eq!(b["restarted_from_window"], k);
+    assert_eq!(a["window_reached"], b["window_reached"]);
+    let (rows_a, rows_b) = (
+        a["balance"]["per_window"].as_array().unwrap(),
+        b["balance"]["per_window"].as_array().unwrap(),
+    );
+    assert_eq!(rows_a.len(), rows_b.len(), "balance rows");
+    if let Some((ra, rb)) = rows_a.iter().zip(rows_b).find(|(x, y)| x != y) {
+        panic!("first balance row that differs:\n uninterrupted {ra}\n restarted     {rb}");
+    }
+    assert_eq!(a["balance"], b["balance"], "balance differs");
+    let windows = a["windows"].as_u64().unwrap();
+    assert_eq!(
+        a["balance"]["per_window"].as_array().unwrap().len() as u64,
+        windows
+    );
+    for (name, n) in a["nodes"].as_object().unwrap() {
+        assert_eq!(
+            n["final"], b["nodes"][name]["final"],
+            "final values of {name}"
+        );
+        assert_eq!(
+            n["substeps"], b["nodes"][name]["substeps"],
+            "substeps of {name}"
+        );
+    }
+    // Every report and every coupling message after the restart point, bit for bit; the
+    // recording (two segments) reads as one run with every window once.
+    let (ra, rb) = (
+        reports(&reference.join("run.mcap")),
+        reports(&out.join("run.mcap")),
+    );
+    assert_eq!(ra.len(), rb.len(), "reports in the recordings");
+    let mut compared = 0;
+    for (key, r) in ra.iter().filter(|(k2, _)| k2.1 > k) {
+        assert_eq!(Some(r), rb.get(key), "report of {key:?}");
+        compared += 1;
+    }
+    let nodes = a["nodes"].as_object().unwrap().len() as u64;
+    assert_eq!(compared, nodes * (windows - k), "reports compared");
+    let (ta, tb) = (
+        traffic(&reference.join("run.mcap")),
+        traffic(&out.join("run.mcap")),
+    );
+    assert_eq!(ta.len(), tb.len(), "coupling messages in the recordings");
+    let mut messages = 0;
+    for (key, v) in ta.iter().filter(|(k2, _)| k2.1 > k) {
+        assert!(Some(v) == tb.get(key), "coupling data of {key:?}");
+        messages += 1;
+    }
+    assert!(messages > 0 || ta.is_empty());
+    // The final state: every node's last frame, byte for byte.
+    let (fa, fb) = (last_frames(&reference), last_frames(&out));
+    assert!(!fa.is_empty(), "no frames written");
+    assert_eq!(fa.keys().collect::<Vec<_>>(), fb.keys().collect::<Vec<_>>());
+    for (f, bytes) in &fa {
+        assert!(bytes == &fb[f], "final frame {f} differs");
+    }
+    let o = cosim(&["info", out.join("run.mcap").to_str().unwrap()]);
+    let info = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{info}");
+    assert!(info.contains("run.mcap + run.1.mcap"), "{info}");
+    assert!(
+        info.contains(&format!("windows    {windows} completed")),
+        "{info}"
+    );
+    println!(
+        "restarted from window {k} of {windows}: {compared} reports, {messages} coupling messages and {} final frames identical",
+        fa.len()
+    );
+    k
+}
+
+#[test]
+fn split_bar_killed_and_restarted_is_bit_identical() {
+    let (dir, id) = scratch("restart-bar");
+    let case = split_bar_case(&dir, 100, 300, 0.5, "shm", 8.0);
+    let k = kill_and_restart(&case, &dir, &id, &[], "right.tip_force=2000.0", 1000, 2000);
+    assert!(k >= 2000);
+    // Replay reads the two segments as one run: every window of the node, bit for bit.
+    let windows =
+        assert_replays_bit_identically(&dir.join("restarted/run.mcap"), "right", "restart-replay");
+    assert_eq!(
+        windows,
+        summary(&dir.join("reference"))["windows"].as_u64().unwrap()
+    );
+}
+
+#[test]
+fn chamber_small_killed_and_restarted_is_bit_identical() {
+    let (dir, id) = scratch("restart-chamber");
+    let case = workspace_root().join("examples/chamber_detonation.toml");
+    let k = kill_and_restart(
+        &case,
+        &dir,
+        &id,
+        &["--variant", "small"],
+        "bar.yield_stress=3.0e8",
+        10,
+        20,
+    );
+    assert!(k >= 20);
+}
+
+/// Ctrl-C with checkpoints on: the run checkpoints the next window and stops there (exit
+/// 130, status "interrupted"), and a restart continues from that window to the same end as
+/// an uninterrupted run.
+#[test]
+fn ctrl_c_checkpoints_where_it_stops_and_the_restart_continues() {
+    let (dir, id) = scratch("restart-sigint");
+    let case = split_bar_case(&dir, 100, 300, 0.5, "shm", 8.0);
+    let reference = dir.join("reference");
+    let o = run_case(&case, &reference, &format!("{id}r"), &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = dir.join("stopped");
+    // checkpoints far apart: the one the restart uses is the one the stop wrote
+    let mut child = std::process::Command::new(bin("cosim"))
+        .args([
+            "run",
+            case.to_str().unwrap(),
+            "--output",
+            out.to_str().unwrap(),
+            "--run-id",
+            &id,
+            "--quiet",
+            "--set",
+            "run.checkpoint_every=1000000",
+        ])
+        .env("COSIM_LOG", "warn")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("cosim starts");
+    let t = Instant::now();
+    while node_pid(&id, "right").is_none() {
+        assert!(t.elapsed() < Duration::from_secs(20), "nodes never started");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    std::thread::sleep(Duration::from_millis(700));
+    // SAFETY: kill with the pid of our own child and a valid signal number.
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
+    let status = wait_exit(&mut child, Duration::from_secs(5)).expect("cosim stops");
+    assert_eq!(status.code(), Some(130));
+    let s = summary(&out);
+    assert_eq!(s["status"], "interrupted");
+    let reached = s["window_reached"].as_u64().unwrap();
+    let windows = summary(&reference)["windows"].as_u64().unwrap();
+    assert!(
+        reached > 0 && reached < windows,
+        "stopped after window {reached} of {windows}"
+    );
+    assert!(
+        protocol::checkpoint::file(&out, reached, "coordinator").exists(),
+        "no checkpoint of window {reached}, where the run stopped"
+    );
+    let o = cosim(&["restart", out.to_str().unwrap(), "--quiet"]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "restart failed: {stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "restarted from the checkpoint of window {reached} "
+        )),
+        "{stderr}"
+    );
+    let (a, b) = (summary(&reference), summary(&out));
+    assert_eq!(b["status"], "finished");
+    assert_eq!(a["balance"], b["balance"], "balance differs");
+    for (name, n) in a["nodes"].as_object().unwrap() {
+        assert_eq!(
+            n["final"], b["nodes"][name]["final"],
+            "final values of {name}"
+        );
+    }
+}
+
+#[test]
+fn shell_and_joint_killed_and_restarted_are_bit_identical() {
+    let (dir, id) = scratch("restart-joint");
+    let case = workspace_root().join("examples/single_joint.toml");
+    let k = kill_and_restart(
+        &case,
+        &dir,
+        &id,
+        &["--variant", "small", "--set", "run.end_time=0.03"],
+        "joint.geometry.bolt_radius=1.4e-3",
+        20,
+        40,
+    );
+    assert!(k >= 40);
+}
+
+/// The device paths: the gas and the bar on the GPU keep their state on the device; the
+/// checkpoint reads it back and the restore uploads it.
+#[test]
+fn chamber_small_on_the_gpu_killed_and_restarted_is_bit_identical() {
+    let test = "chamber_small_on_the_gpu_killed_and_restarted_is_bit_identical";
+    if mechanics::gpu::f64_context_or_skip(test).is_none() {
+        return;
+    }
+    let (dir, id) = scratch("restart-gpu");
+    let case = workspace_root().join("examples/chamber_detonation.toml");
+    let k = kill_and_restart(
+        &case,
+        &dir,
+        &id,
+        &[
+            "--variant",
+            "small",
+            "--set",
+            "gas.device=\"gpu\"",
+            "--set",
+            "bar.device=\"gpu\"",
+        ],
+        "bar.yield_stress=3.0e8",
+        10,
+        20,
+    );
+    assert!(k >= 20);
+}
