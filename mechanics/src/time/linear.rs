@@ -125,7 +125,7 @@ enum Effective {
     Diagonal(Vec<f64>),
     /// Implicit member: sparse LLᵀ of the symmetric positive definite effective matrix.
     Cholesky {
-        symbolic: SymbolicCholesky<usize>,
+        symbolic: Box<SymbolicCholesky<usize>>,
         values: Vec<f64>,
         scratch: MemBuffer,
     },
@@ -208,7 +208,7 @@ impl Stepper {
                 .map_err(|e| solver_error(format!("not positive definite ({e:?})")))?;
             let scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
             Effective::Cholesky {
-                symbolic,
+                symbolic: Box::new(symbolic),
                 values,
                 scratch,
             }
@@ -232,14 +232,14 @@ impl Stepper {
             self.tmp[i] = s.u[i] + c.l1w1 * dt * s.v[i] + c.l2w2 * dt * dt * s.a[i];
         }
         sys.stiffness.mul(&self.tmp, &mut self.rhs);
-        for i in 0..n {
+        for (i, (r, f)) in self.rhs.iter_mut().zip(f_tilde).enumerate() {
             let v0 = s.v[i] + c.l4w1 * dt * s.a[i];
-            self.rhs[i] = f_tilde[i] - sys.mass[i] * s.a[i] - sys.damping[i] * v0 - self.rhs[i];
+            *r = f - sys.mass[i] * s.a[i] - sys.damping[i] * v0 - *r;
         }
         match &mut self.effective {
             Effective::Diagonal(inv) => {
-                for i in 0..n {
-                    self.rhs[i] *= inv[i];
+                for (r, d) in self.rhs.iter_mut().zip(inv.iter()) {
+                    *r *= d;
                 }
             }
             Effective::Cholesky {

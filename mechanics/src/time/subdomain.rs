@@ -302,8 +302,8 @@ impl Subdomain {
     pub fn correct(&mut self, lambda: &[f64]) {
         let n = self.sys.len();
         let nl = self.iface.len();
-        for k in 0..nl {
-            self.x[k] = lambda[k] - self.lambda_start[k];
+        for ((x, l), l0) in self.x.iter_mut().zip(lambda).zip(&self.lambda_start) {
+            *x = l - l0;
         }
         for k in 0..nl {
             let xk = self.x[k];

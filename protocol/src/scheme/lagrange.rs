@@ -15,6 +15,7 @@
 //!   rᵢ + 1)/rᵢ between its start and its (linked) end,
 //!   `(Σᵢ θᵢ Pᵢᵀ Bᵢ Hᵢ Pᵢ) λ_j = −Σᵢ Pᵢᵀ ((1 − θᵢ) Bᵢ v_start,ᵢ + θᵢ Bᵢ v_free,ᵢ)`,
 //!   and the sides whose step ends at j correct with λ_j.
+//!
 //! The interface matrices depend on the steps only, so they are factorised once (dense LU
 //! with partial pivoting: interfaces are small).
 
@@ -89,7 +90,7 @@ impl DenseLu {
                 .max_by(|&i, &j| a[i * n + k].abs().total_cmp(&a[j * n + k].abs()))
                 .unwrap_or(k);
             let pivot = a[p * n + k];
-            if !(pivot.abs() > 1e-14 * scale) {
+            if pivot.abs().partial_cmp(&(1e-14 * scale)) != Some(std::cmp::Ordering::Greater) {
                 return Err(LagrangeError::Singular { row: k, pivot });
             }
             if p != k {
@@ -113,18 +114,14 @@ impl DenseLu {
     pub fn solve(&self, b: &[f64], x: &mut [f64]) {
         let n = self.n;
         for i in 0..n {
-            let mut s = b[self.piv[i]];
-            for c in 0..i {
-                s -= self.lu[i * n + c] * x[c];
-            }
-            x[i] = s;
+            let row = &self.lu[i * n..i * n + i];
+            let s: f64 = row.iter().zip(&x[..i]).map(|(l, xc)| l * xc).sum();
+            x[i] = b[self.piv[i]] - s;
         }
         for i in (0..n).rev() {
-            let mut s = x[i];
-            for c in i + 1..n {
-                s -= self.lu[i * n + c] * x[c];
-            }
-            x[i] = s / self.lu[i * n + i];
+            let row = &self.lu[i * n + i + 1..(i + 1) * n];
+            let s: f64 = row.iter().zip(&x[i + 1..n]).map(|(u, xc)| u * xc).sum();
+            x[i] = (x[i] - s) / self.lu[i * n + i];
         }
     }
 }
