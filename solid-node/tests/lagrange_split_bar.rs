@@ -32,16 +32,22 @@ fn reference() -> &'static Histories {
 }
 
 /// Errors at ΔT₀, ΔT₀/2, ΔT₀/4, ΔT₀/8 and the samples compared at each.
-fn study(method: Method, left: Half, right: Half) -> Vec<([f64; 7], usize)> {
+/// Also returns, per level, the energy the interface dissipated by the end (−Σᵢ Wᵢ, J).
+type Study = (Vec<([f64; 7], usize)>, Vec<f64>);
+
+fn study(method: Method, left: Half, right: Half) -> Study {
     (0..4)
         .map(|level| {
             let dt = split_bar::left_transit() / (1 << level) as f64;
             match split_bar::split(Ramp::Septic, method, left, right, dt, steps0() << level) {
-                Ok(h) => split_bar::errors(&h, reference()),
+                Ok(h) => (
+                    split_bar::errors(&h, reference()),
+                    -h.interface_work.last().copied().unwrap_or(f64::NAN),
+                ),
                 Err(e) => panic!("{method:?}: {e}"),
             }
         })
-        .collect()
+        .unzip()
 }
 
 fn orders(e: &[([f64; 7], usize)]) -> Vec<[f64; 7]> {
@@ -130,7 +136,7 @@ fn pairs() -> Vec<(&'static str, Half, Half)> {
 fn gs4_is_second_order_for_step_ratios_2_3_4_8() {
     let mut measured = 0;
     for (name, left, right) in pairs() {
-        let e = study(Method::Gs4, left, right);
+        let (e, _) = study(Method::Gs4, left, right);
         for (level, (_, count)) in e.iter().enumerate() {
             assert_eq!(*count, (steps0() << level) + 1, "{name}: samples compared");
         }
@@ -157,8 +163,25 @@ fn gc_is_first_order_where_gs4_is_second() {
     // ten times closer to the reference in every quantity.
     let mut measured = 0;
     for (name, left, right) in pairs() {
-        let gc = study(Method::Gc, left, right);
-        let gs4 = study(Method::Gs4, left, right);
+        let (gc, gc_energy) = study(Method::Gc, left, right);
+        let (gs4, gs4_energy) = study(Method::Gs4, left, right);
+        // The interface energy (issue 18 must-show 4): gc dissipates (ΔE_Γ > 0 at every
+        // step) and halves it with the step; gs4's shrinks four times per halving.
+        println!("{name}: ΔE_Γ gc {gc_energy:?}, gs4 {gs4_energy:?}");
+        assert!(
+            gc_energy.iter().all(|&e| e > 0.0),
+            "{name}: gc ΔE_Γ {gc_energy:?}"
+        );
+        let gc_ratio = gc_energy[2] / gc_energy[3];
+        let gs4_ratio = gs4_energy[2] / gs4_energy[3];
+        assert!(
+            (1.6..=2.4).contains(&gc_ratio),
+            "{name}: gc ΔE_Γ ratio {gc_ratio}"
+        );
+        assert!(
+            (3.2..=4.8).contains(&gs4_ratio),
+            "{name}: gs4 ΔE_Γ ratio {gs4_ratio}"
+        );
         let last = orders(&gc)[2];
         for k in [0, 1, 3, 4, 6] {
             println!("gc {name}: {} order {:.3}", NAMES[k], last[k]);
