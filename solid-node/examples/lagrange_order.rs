@@ -108,18 +108,8 @@ fn main() {
         let reference = if ramp == Ramp::Sin2 { &sin2 } else { &septic };
         println!("\n{name} (left | right); orders over halvings 1→2, 2→4, 4→8 of ΔT₀");
         println!(
-            "{:>4} {:>2} | {:^17} | {:^17} | {:^17} | {:^17} | {:^17} | {:^17} | {:^17} | {:>9} | {}",
-            "meth",
-            "m",
-            "u_Γ",
-            "v_Γ",
-            "a_Γ",
-            "u_tip",
-            "v_tip",
-            "a_tip",
-            "λ",
-            "err u_tip",
-            "ΔE_Γ (J) dissipated at the interface by t_end, ΔT₀ … ΔT₀/8"
+            "{:>4} {:>2} | {:^17} | {:^17} | {:^17} | {:^17} | {:^17} | {:^17} | {:^17} | {:>9} | ΔE_Γ (J) dissipated at the interface by t_end, ΔT₀ … ΔT₀/8",
+            "meth", "m", "u_Γ", "v_Γ", "a_Γ", "u_tip", "v_tip", "a_tip", "λ", "err u_tip"
         );
         for method in [Method::Gs4, Method::Gc, Method::Ph] {
             for &m in ratios {
