@@ -10,3 +10,4 @@ pub mod j2_plane_stress;
 pub mod kernel;
 pub mod neighbour;
 pub mod simd;
+pub mod time;

@@ -7,6 +7,7 @@ pub mod describe;
 pub mod mapping;
 pub mod params;
 pub mod participant;
+pub mod scheme;
 pub mod solver;
 pub mod stop;
 pub mod transport;

@@ -7,6 +7,7 @@
 //! `a_n = M⁻¹ (f_int(u_n) + f_ext + f_coupling)`, `v_{n+1/2} = v_{n-1/2} + Δt a_n`,
 //! `u_{n+1} = u_n + Δt v_{n+1/2}`.
 
+use mechanics::time::{Gs4, Gs4Error, IntegratorSpec, LinearSystem, State, Stepper};
 use protocol::{
     Binding, InterfaceMesh, Role, Solver, SolverError, SolverResult, StepReport, Window,
 };
@@ -45,6 +46,12 @@ pub struct BarParams {
     /// Interface names → end ("left" | "right").
     #[serde(default)]
     pub interfaces: BTreeMap<String, String>,
+    /// Time integrator. Absent: central differences with half-step velocities (above).
+    /// `{ scheme = "gs4", design = "U0(1,1,0)", rho_inf = 1.0, implicit = false }`: a GS4-II
+    /// member (seed 003 §4; `mechanics::time::gs4`) over the chain's linear system, for bars
+    /// without kinematic couplings.
+    #[serde(default)]
+    pub integrator: Option<IntegratorSpec>,
 }
 
 fn default_fixed() -> String {
@@ -111,6 +118,20 @@ struct BarState {
     applied_impulse: f64,
     interface_impulse: f64,
     coupling_force: Vec<f64>,
+    /// Nodal accelerations of a GS4-II integrator (absent for central differences).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    a: Vec<f64>,
+}
+
+/// A bar advanced by a GS4-II member: its linear system over the free nodes and the stepper,
+/// refactorised only when the step changes.
+struct Gs4Path {
+    coef: Gs4,
+    sys: LinearSystem,
+    dof: Vec<Option<usize>>,
+    state: State,
+    stepper: Option<Stepper>,
+    f: Vec<f64>,
 }
 
 pub struct Bar {
@@ -125,6 +146,7 @@ pub struct Bar {
     f: Vec<f64>,
     s: BarState,
     coupled: Vec<Coupled>,
+    gs4: Option<Gs4Path>,
 }
 
 impl Bar {
@@ -154,6 +176,13 @@ impl Bar {
         for (name, end) in &p.interfaces {
             parse_end(&format!("interfaces.{name}"), end, false)?;
         }
+        let coef = match &p.integrator {
+            Some(spec) => Some(
+                Gs4::from_spec("integrator", spec)
+                    .map_err(|Gs4Error::Config { key, reason }| SolverError::config(key, reason))?,
+            ),
+            None => None,
+        };
         let n = p.elements + 1;
         let h = p.length / p.elements as f64;
         let k = p.young * p.area / h;
@@ -161,7 +190,7 @@ impl Bar {
         let mut m = vec![me; n];
         m[0] = me / 2.0;
         m[n - 1] = me / 2.0;
-        Ok(Bar {
+        let mut bar = Bar {
             fixed,
             load,
             h,
@@ -178,10 +207,26 @@ impl Bar {
                 applied_impulse: 0.0,
                 interface_impulse: 0.0,
                 coupling_force: Vec::new(),
+                a: Vec::new(),
             },
             coupled: Vec::new(),
+            gs4: None,
             p,
-        })
+        };
+        if let Some(coef) = coef {
+            let (sys, dof) = bar.linear_system();
+            let n = sys.len();
+            bar.s.a = vec![0.0; bar.s.u.len()];
+            bar.gs4 = Some(Gs4Path {
+                coef,
+                state: State::zeros(n),
+                f: vec![0.0; n],
+                sys,
+                dof,
+                stepper: None,
+            });
+        }
+        Ok(bar)
     }
 
     fn node(&self, end: End) -> usize {
@@ -307,6 +352,13 @@ impl Solver for Bar {
 
     fn setup(&mut self, bindings: &[Binding], inbox: &Inbox, out: &mut Outbox) -> SolverResult<()> {
         self.coupled.clear();
+        if self.gs4.is_some() && !bindings.is_empty() {
+            return Err(SolverError::config(
+                "integrator",
+                "the GS4-II integrators do not drive kinematic couplings; remove `integrator` \
+                 or the coupling (the lagrange coupling of issue 18 will take them)",
+            ));
+        }
         for b in bindings {
             let end = self.end_of(&b.interface)?;
             if self.fixed == Some(end) {
@@ -399,7 +451,13 @@ impl Solver for Bar {
         }
         let fixed = self.fixed.map(|e| self.node(e));
         let load = self.load.map(|e| (self.node(e), self.p.tip_force));
-        for step in 0..nsub {
+        let central_steps = if self.gs4.is_some() {
+            self.step_gs4(nsub, dt)?;
+            0
+        } else {
+            nsub
+        };
+        for step in 0..central_steps {
             self.internal_force();
             if let Some(i) = fixed {
                 // Support reaction holds the node: its impulse enters the balance.
@@ -541,7 +599,127 @@ impl Solver for Bar {
         for (c, f) in self.coupled.iter_mut().zip(&s.coupling_force) {
             c.force = *f;
         }
+        if let Some(g) = self.gs4.as_mut() {
+            if s.a.len() != s.u.len() {
+                return Err(SolverError::Other(
+                    "state has no accelerations for the GS4-II integrator".into(),
+                ));
+            }
+            for (i, d) in g.dof.iter().enumerate() {
+                if let Some(d) = *d {
+                    (g.state.u[d], g.state.v[d], g.state.a[d]) = (s.u[i], s.v[i], s.a[i]);
+                }
+            }
+        }
         self.s = s;
         Ok(())
+    }
+}
+
+/// The bar's discretisation (the spring chain above: k = EA/h per element, lumped mass
+/// ρAh/2 per element end) as a linear system M ü + K u = f over the nodes not in `fixed`,
+/// for the GS4-II integrators (`mechanics::time`). `x` are the node positions (m), strictly
+/// increasing. Returns the system and each node's degree of freedom (None where fixed).
+pub fn chain_system(
+    x: &[f64],
+    young: f64,
+    density: f64,
+    area: f64,
+    fixed: &[usize],
+) -> (mechanics::time::LinearSystem, Vec<Option<usize>>) {
+    let n = x.len();
+    let mut dof = vec![None; n];
+    let mut count = 0;
+    for (i, d) in dof.iter_mut().enumerate() {
+        if !fixed.contains(&i) {
+            *d = Some(count);
+            count += 1;
+        }
+    }
+    let mut mass = vec![0.0; count];
+    let mut t = Vec::with_capacity(4 * n);
+    for e in 0..n.saturating_sub(1) {
+        let h = x[e + 1] - x[e];
+        let k = young * area / h;
+        let me = density * area * h;
+        let (a, b) = (dof[e], dof[e + 1]);
+        for (i, j, s) in [(a, a, k), (b, b, k), (a, b, -k), (b, a, -k)] {
+            if let (Some(i), Some(j)) = (i, j) {
+                t.push((i, j, s));
+            }
+        }
+        for d in [a, b].into_iter().flatten() {
+            mass[d] += 0.5 * me;
+        }
+    }
+    let sys = mechanics::time::LinearSystem {
+        damping: vec![0.0; count],
+        stiffness: mechanics::time::Csr::from_triplets(count, t),
+        mass,
+    };
+    (sys, dof)
+}
+
+impl Bar {
+    /// `nsub` steps of `dt` with the GS4-II member (constant end load), then the node arrays
+    /// from the free degrees of freedom.
+    fn step_gs4(&mut self, nsub: u64, dt: f64) -> SolverResult<()> {
+        let load = self.load.map(|e| (self.node(e), self.p.tip_force));
+        let fixed = self.fixed.map(|e| self.node(e));
+        let Bar { gs4, s, k, .. } = self;
+        let Some(g) = gs4.as_mut() else {
+            return Ok(());
+        };
+        let load_dof = load.and_then(|(i, f)| g.dof[i].map(|d| (d, f)));
+        g.f.fill(0.0);
+        if let Some((d, f)) = load_dof {
+            g.f[d] = f;
+        }
+        if g.stepper.is_none() {
+            // First step: the acceleration in equilibrium with the load at t = 0.
+            let st = &mut g.state;
+            g.sys.acceleration(&st.u, &st.v, &g.f, &mut st.a);
+        }
+        if g.stepper.as_ref().is_none_or(|st| st.dt != dt) {
+            g.stepper = Some(
+                Stepper::new(g.coef, dt, &g.sys)
+                    .map_err(|e| SolverError::config("integrator", e.to_string()))?,
+            );
+        }
+        let Some(st) = g.stepper.as_mut() else {
+            return Ok(());
+        };
+        // The node next to the support, whose spring carries the reaction.
+        let beside = fixed.map(|i| if i == 0 { 1 } else { i - 1 });
+        for _ in 0..nsub {
+            if let Some(d) = beside.and_then(|j| g.dof[j]) {
+                // The support's reaction is −k u of the neighbour, at either end.
+                s.external_impulse += -*k * g.state.u[d] * dt;
+            }
+            let before = load_dof.map(|(d, _)| g.state.u[d]);
+            st.step(&g.sys, &mut g.state, &g.f);
+            if let (Some((d, f)), Some(u0)) = (load_dof, before) {
+                s.external_work += f * (g.state.u[d] - u0);
+                s.external_impulse += f * dt;
+                s.applied_impulse += f.abs() * dt;
+            }
+        }
+        for (i, d) in g.dof.iter().enumerate() {
+            let (u, v, a) = match *d {
+                Some(d) => (g.state.u[d], g.state.v[d], g.state.a[d]),
+                None => (0.0, 0.0, 0.0),
+            };
+            (s.u[i], s.v[i], s.a[i]) = (u, v, a);
+        }
+        Ok(())
+    }
+
+    /// This bar as a linear system over its free nodes (see [`chain_system`]).
+    pub fn linear_system(&self) -> (mechanics::time::LinearSystem, Vec<Option<usize>>) {
+        let x: Vec<f64> = (0..=self.p.elements)
+            .map(|i| self.p.x0 + i as f64 * self.h)
+            .collect();
+        let fixed: Vec<usize> = self.fixed.map(|e| self.node(e)).into_iter().collect();
+        chain_system(&x, self.p.young, self.p.density, self.p.area, &fixed)
     }
 }

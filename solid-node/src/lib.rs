@@ -2,6 +2,7 @@
 //! Models are chosen by name in the case config; each lives in its own module.
 
 pub mod bar;
+pub mod lagrange;
 pub mod pd;
 
 use protocol::{BuildOptions, Solver, SolverError, SolverResult};

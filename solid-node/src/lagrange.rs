@@ -1,0 +1,304 @@
+//! The solid node's side of the Lagrange-multiplier coupling: a linear subdomain
+//! (`mechanics::time::Subdomain`, seed 003 §4) presented to the scheme
+//! (`protocol::scheme::lagrange`), which solves the interface problem.
+
+use mechanics::time::Subdomain;
+use protocol::scheme::lagrange::LagrangeSide;
+
+/// A subdomain as one side of a `lagrange` coupling.
+#[derive(Debug)]
+pub struct SubdomainSide(pub Subdomain);
+
+impl LagrangeSide for SubdomainSide {
+    fn multiplier_ids(&self) -> &[usize] {
+        self.0.multiplier_ids()
+    }
+    fn coupling_steps(&self) -> usize {
+        self.0.coupling_steps()
+    }
+    fn operator(&self) -> &[f64] {
+        self.0.operator()
+    }
+    fn initial(&mut self, free: &mut [f64], op: &mut [f64]) {
+        self.0.initial(free, op)
+    }
+    fn set_initial(&mut self, lambda0: &[f64]) {
+        self.0.set_initial(lambda0)
+    }
+    fn free_step(&mut self, v_start: &mut [f64], v_free: &mut [f64]) {
+        self.0.free_step(v_start, v_free)
+    }
+    fn correct(&mut self, lambda: &[f64]) {
+        self.0.correct(lambda)
+    }
+    fn interface_work(&self) -> f64 {
+        self.0.interface_work
+    }
+}
+
+/// The split bar of `examples/split_bar.toml` (L = 1 m cut at 0.5 m, 100 elements left,
+/// 300 right, E 200 GPa, ρ 7860 kg/m³, A 1e-4 m², fixed at x = 0) under a tip load ramped
+/// smoothly from 0 to F₀ over T, then held: the verification case of the scheme.
+///
+/// Why the ramp must be C³ ([`Ramp::Septic`]) for second order to show in a on a fixed mesh:
+/// a jump J in the k-th derivative of the load gives every mode ω of the mesh an acceleration
+/// of order J/ω^k. A step Δt misses the phase of the modes with ωΔt ≳ 1 (up to the mesh's
+/// ω_max), and their sum, ∫ dω/ω^k from 1/Δt, is an error of order Δt^(k−1) in a; the
+/// resolved modes add Δt² ∫ ω^(2−k) dω. `sin²` jumps in F'' (k = 2): a is then first order
+/// even on one domain. The septic ramp jumps in F'''' (k = 4): second order.
+pub mod split_bar {
+    use super::SubdomainSide;
+    use crate::bar::chain_system;
+    use mechanics::time::{
+        CouplingMethod, Gs4, InterfaceDof, LinearSystem, State, Stepper, Subdomain,
+    };
+    use protocol::scheme::lagrange::{LagrangeScheme, LagrangeSide, Method};
+
+    pub const YOUNG: f64 = 200e9;
+    pub const DENSITY: f64 = 7860.0;
+    pub const AREA: f64 = 1e-4;
+    pub const LEFT_ELEMENTS: usize = 100;
+    pub const RIGHT_ELEMENTS: usize = 300;
+    pub const F0: f64 = 1000.0;
+
+    /// Wave speed (m/s).
+    pub fn wave_speed() -> f64 {
+        (YOUNG / DENSITY).sqrt()
+    }
+    /// Left element transit time h/c: the left half's critical step (s).
+    pub fn left_transit() -> f64 {
+        0.5 / LEFT_ELEMENTS as f64 / wave_speed()
+    }
+    /// Load ramp time T: three transits of the whole bar (s).
+    pub fn ramp_time() -> f64 {
+        3.0 / wave_speed()
+    }
+    /// The load ramp over [0, T].
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum Ramp {
+        /// F₀ sin²(πt/2T): continuous F', jumps in F'' at 0 and T.
+        Sin2,
+        /// F₀ (35x⁴ − 84x⁵ + 70x⁶ − 20x⁷), x = t/T: F' … F''' vanish at both ends.
+        Septic,
+    }
+
+    /// F(t): the ramp for t < T, then F₀.
+    pub fn load(ramp: Ramp, t: f64) -> f64 {
+        let x = (t / ramp_time()).clamp(0.0, 1.0);
+        F0 * match ramp {
+            Ramp::Sin2 => (std::f64::consts::FRAC_PI_2 * x).sin().powi(2),
+            Ramp::Septic => x.powi(4) * (35.0 + x * (-84.0 + x * (70.0 - 20.0 * x))),
+        }
+    }
+
+    fn positions(from: f64, to: f64, elements: usize) -> Vec<f64> {
+        (0..=elements)
+            .map(|i| from + (to - from) * i as f64 / elements as f64)
+            .collect()
+    }
+
+    /// Histories sampled at every system step: u, v, a at the interface (left side) and at
+    /// the tip, and the multiplier (the force on the left half at the cut, N).
+    #[derive(Debug, Clone, Default)]
+    pub struct Histories {
+        pub dt: f64,
+        pub interface: [Vec<f64>; 3],
+        pub tip: [Vec<f64>; 3],
+        pub lambda: Vec<f64>,
+        /// Net interface work Σᵢ Wᵢ at each sample (J); −ΔE_Γ.
+        pub interface_work: Vec<f64>,
+    }
+
+    impl Histories {
+        fn push(&mut self, iface: [f64; 3], tip: [f64; 3], lambda: f64, work: f64) {
+            for k in 0..3 {
+                self.interface[k].push(iface[k]);
+                self.tip[k].push(tip[k]);
+            }
+            self.lambda.push(lambda);
+            self.interface_work.push(work);
+        }
+    }
+
+    /// One half: its integrator and its steps per system step.
+    #[derive(Debug, Clone, Copy)]
+    pub struct Half {
+        pub coef: Gs4,
+        pub substeps: usize,
+    }
+
+    /// The whole bar on one mesh with one integrator at step `dt`, sampled every `every`
+    /// steps up to `steps` steps: the reference.
+    pub fn single(ramp: Ramp, coef: Gs4, dt: f64, steps: usize, every: usize) -> Histories {
+        let mut x = positions(0.0, 0.5, LEFT_ELEMENTS);
+        x.extend(positions(0.5, 1.0, RIGHT_ELEMENTS).into_iter().skip(1));
+        let (sys, dof) = chain_system(&x, YOUNG, DENSITY, AREA, &[0]);
+        let (gi, tip) = (LEFT_ELEMENTS - 1, sys.len() - 1);
+        let h = 0.5 / LEFT_ELEMENTS as f64;
+        let (k_left, m_left) = (YOUNG * AREA / h, 0.5 * DENSITY * AREA * h);
+        debug_assert_eq!(dof[LEFT_ELEMENTS], Some(gi));
+        let mut stepper = match Stepper::new(coef, dt, &sys) {
+            Ok(s) => s,
+            Err(e) => panic!("reference stepper: {e}"),
+        };
+        let mut s = State::zeros(sys.len());
+        let mut f = vec![0.0; sys.len()];
+        let mut out = Histories {
+            dt: dt * every as f64,
+            ..Default::default()
+        };
+        let sample = |s: &State, out: &mut Histories| {
+            // The force the right half exerts on the left one at the cut.
+            let lam = m_left * s.a[gi] + k_left * (s.u[gi] - s.u[gi - 1]);
+            out.push(
+                [s.u[gi], s.v[gi], s.a[gi]],
+                [s.u[tip], s.v[tip], s.a[tip]],
+                lam,
+                0.0,
+            );
+        };
+        sample(&s, &mut out);
+        for n in 0..steps {
+            let t0 = n as f64 * dt;
+            f[tip] = (1.0 - coef.w1) * load(ramp, t0) + coef.w1 * load(ramp, t0 + dt);
+            stepper.step(&sys, &mut s, &f);
+            if (n + 1) % every == 0 {
+                sample(&s, &mut out);
+            }
+        }
+        out
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn half(
+        ramp: Ramp,
+        x: &[f64],
+        fixed: &[usize],
+        spec: Half,
+        dt_system: f64,
+        method: CouplingMethod,
+        iface: InterfaceDof,
+        tip: Option<usize>,
+    ) -> Result<(Subdomain, LinearSystem), String> {
+        let (sys, _) = chain_system(x, YOUNG, DENSITY, AREA, fixed);
+        let mut shape = vec![0.0; sys.len()];
+        if let Some(t) = tip {
+            shape[t] = 1.0;
+        }
+        let sub = Subdomain::new(
+            sys.clone(),
+            spec.coef,
+            dt_system,
+            spec.substeps,
+            method,
+            vec![iface],
+            shape,
+            Box::new(move |t| load(ramp, t)),
+        )
+        .map_err(|e| e.to_string())?;
+        Ok((sub, sys))
+    }
+
+    /// The split bar coupled by `method`, `steps` system steps of `dt_system`.
+    pub fn split(
+        ramp: Ramp,
+        method: Method,
+        left: Half,
+        right: Half,
+        dt_system: f64,
+        steps: usize,
+    ) -> Result<Histories, String> {
+        let cm = match method {
+            Method::Gs4 => CouplingMethod::Gs4,
+            Method::Gc => CouplingMethod::Gc,
+            Method::Ph => CouplingMethod::Ph,
+        };
+        let gl = LEFT_ELEMENTS - 1;
+        let (l, _) = half(
+            ramp,
+            &positions(0.0, 0.5, LEFT_ELEMENTS),
+            &[0],
+            left,
+            dt_system,
+            cm,
+            InterfaceDof {
+                dof: gl,
+                sign: 1.0,
+                lambda: 0,
+            },
+            None,
+        )?;
+        let (r, _) = half(
+            ramp,
+            &positions(0.5, 1.0, RIGHT_ELEMENTS),
+            &[],
+            right,
+            dt_system,
+            cm,
+            InterfaceDof {
+                dof: 0,
+                sign: -1.0,
+                lambda: 0,
+            },
+            Some(RIGHT_ELEMENTS),
+        )?;
+        let (mut l, mut r) = (SubdomainSide(l), SubdomainSide(r));
+        let mut scheme = {
+            let mut sides: [&mut dyn LagrangeSide; 2] = [&mut l, &mut r];
+            LagrangeScheme::new(method, 1, &mut sides).map_err(|e| e.to_string())?
+        };
+        let mut out = Histories {
+            dt: dt_system,
+            ..Default::default()
+        };
+        let tip = RIGHT_ELEMENTS;
+        let sample = |l: &SubdomainSide, r: &SubdomainSide, lam: f64, out: &mut Histories| {
+            let (a, b) = (&l.0.state, &r.0.state);
+            out.push(
+                [a.u[gl], a.v[gl], a.a[gl]],
+                [b.u[tip], b.v[tip], b.a[tip]],
+                lam,
+                l.interface_work() + r.interface_work(),
+            );
+        };
+        sample(&l, &r, scheme.lambda()[0], &mut out);
+        for _ in 0..steps {
+            let mut sides: [&mut dyn LagrangeSide; 2] = [&mut l, &mut r];
+            scheme.step(&mut sides).map_err(|e| e.to_string())?;
+            sample(&l, &r, scheme.lambda()[0], &mut out);
+        }
+        Ok(out)
+    }
+
+    /// Largest difference over the samples of `a` that coincide with samples of `reference`
+    /// (a's sample interval is a whole multiple of the reference's), per quantity:
+    /// [u, v, a at the interface, u, v, a at the tip, λ], each divided by the reference's
+    /// largest magnitude. Also returns the number of samples compared.
+    pub fn errors(a: &Histories, reference: &Histories) -> ([f64; 7], usize) {
+        let ratio = (a.dt / reference.dt).round() as usize;
+        let series = |h: &Histories| -> [Vec<f64>; 7] {
+            [
+                h.interface[0].clone(),
+                h.interface[1].clone(),
+                h.interface[2].clone(),
+                h.tip[0].clone(),
+                h.tip[1].clone(),
+                h.tip[2].clone(),
+                h.lambda.clone(),
+            ]
+        };
+        let (sa, sr) = (series(a), series(reference));
+        let mut e = [0.0f64; 7];
+        let mut count = 0;
+        for k in 0..7 {
+            let scale = sr[k].iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            count = 0;
+            for (n, x) in sa[k].iter().enumerate() {
+                let Some(y) = sr[k].get(n * ratio) else { break };
+                e[k] = e[k].max((x - y).abs() / scale);
+                count += 1;
+            }
+        }
+        (e, count)
+    }
+}
