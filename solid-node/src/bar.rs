@@ -118,8 +118,8 @@ struct BarState {
     applied_impulse: f64,
     interface_impulse: f64,
     coupling_force: Vec<f64>,
-    /// Nodal accelerations of a GS4-II integrator (absent for central differences).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    /// Nodal accelerations of a GS4-II integrator (empty for central differences; the
+    /// checkpoint encoding is bincode, which writes every field, so none may be skipped).
     a: Vec<f64>,
 }
 
