@@ -249,7 +249,7 @@ pub struct PdSolver {
 }
 
 /// First bytes of a checkpoint of this node.
-const CHECKPOINT_MAGIC: &[u8] = b"cosim-pd-state-v3";
+const CHECKPOINT_MAGIC: &[u8] = b"cosim-pd-state-v4";
 
 fn cfg<T>(key: &str, reason: impl Into<String>) -> SolverResult<T> {
     Err(SolverError::config(key, reason))
@@ -811,6 +811,32 @@ impl PdSolver {
             .map_or(0.0, |pp| pp.at(t))
     }
 
+    /// The body's energies now (J): elastic strain energy of the force state, plastic work
+    /// and energy released by broken bonds since the start (the last two dissipated; the
+    /// coordinator's balance counts all three, see `wire::DISSIPATED_SCALARS`).
+    /// On the device path the host body is not up to date between windows (only the
+    /// interface and support particles come back), so nothing is reported there (zeros;
+    /// see [`Solver::warnings`]).
+    pub fn energies(&mut self) -> (f64, f64, f64) {
+        if self.device.is_some() {
+            return (0.0, 0.0, 0.0);
+        }
+        let b = &mut self.body;
+        let k = super::model::Kinematics {
+            x0: &b.x0,
+            pos: &b.pos,
+            disp: &b.disp,
+            vel: &b.vel,
+            vol: &b.vol,
+        };
+        let strain = b.model.strain_energy(&k, &b.bonds);
+        (
+            strain,
+            b.model.plastic_work(&b.vol),
+            b.model.fracture_energy(),
+        )
+    }
+
     /// Stable step with the safety factor.
     pub fn dt(&self) -> f64 {
         self.params.cfl * self.body.stable_dt()
@@ -981,8 +1007,14 @@ pub fn von_mises(s: &[f64; 6]) -> f64 {
 
 impl Solver for PdSolver {
     fn warnings(&self) -> Vec<String> {
-        let w = self.device.as_ref().and_then(|d| d.warning());
-        w.map(|w| vec![w.to_string()]).unwrap_or_default()
+        let Some(dev) = &self.device else {
+            return Vec::new();
+        };
+        let mut w: Vec<String> = dev.warning().map(|w| w.to_string()).into_iter().collect();
+        w.push(
+            "device = \"gpu\" reports no strain energy, plastic work or fracture energy (the device path has no energy kernel): this node's energy balance reads its strain energy as lost; use device = \"cpu\" for an energy audit".into(),
+        );
+        w
     }
 
     fn describe(&self) -> NodeDescription {
@@ -1273,12 +1305,13 @@ impl Solver for PdSolver {
                 }
             }
         }
+        let (strain, plastic, released) = self.energies();
         Ok(StepReport {
             kinetic_energy: match &dev_report {
                 Some(r) => r.kinetic_energy,
                 None => self.body.kinetic_energy(),
             },
-            internal_energy: 0.0,
+            internal_energy: strain,
             external_work: self.external_work,
             interface_work: self.interface_work,
             momentum: match &dev_report {
@@ -1315,6 +1348,8 @@ impl Solver for PdSolver {
                     ));
                 }
                 v.extend(fracture);
+                v.push(("plastic_work".into(), plastic));
+                v.push(("fracture_energy".into(), released));
                 if let Some(dev) = &self.device {
                     // precision of the device arithmetic (64, or 32 with a warning in the log)
                     let bits = if dev.warning().is_some() { 32.0 } else { 64.0 };
@@ -1326,12 +1361,19 @@ impl Solver for PdSolver {
     }
 
     /// The body at set-up: its particles may start moving (a launched block); it starts
-    /// unstressed, so its internal energy is zero.
+    /// in its reference configuration, unstressed, so its strain energy is zero (computed,
+    /// not assumed).
     fn initial_report(&mut self) -> SolverResult<StepReport> {
+        let (strain, plastic, fracture) = self.energies();
         Ok(StepReport {
             kinetic_energy: self.body.kinetic_energy(),
+            internal_energy: strain,
             momentum: self.body.momentum(),
             momentum_gross: self.body.momentum_gross(),
+            scalars: vec![
+                ("plastic_work".into(), plastic),
+                ("fracture_energy".into(), fracture),
+            ],
             ..Default::default()
         })
     }
@@ -1406,7 +1448,11 @@ impl Solver for PdSolver {
         w.f64s(fd.into_iter());
         match snap.as_ref().and_then(|s| s.states.as_ref()) {
             // pd-correspondence on the device: its J2 states, in the model's own format
-            Some(states) => super::checkpoint::put_j2(&mut w, states),
+            Some(states) => {
+                super::checkpoint::put_j2(&mut w, states);
+                // the plastic work the model's format carries next (not tracked on the device)
+                w.f64s(std::iter::repeat_n(0.0, states.len()));
+            }
             None => b.model.save_state(&mut w),
         }
         Ok(w.buf)
