@@ -248,6 +248,9 @@ pub struct PdSolver {
     device: Option<DeviceBody>,
 }
 
+/// Most lattice points a body's bounding box may hold (the largest runs here are ~10⁷).
+pub const MAX_LATTICE_POINTS: f64 = 2e8;
+
 /// First bytes of a checkpoint of this node.
 const CHECKPOINT_MAGIC: &[u8] = b"cosim-pd-state-v4";
 
@@ -373,6 +376,24 @@ impl PdSolver {
         };
         if let Err((k, r)) = damage.validate() {
             return cfg(&format!("damage.{k}"), r);
+        }
+        // the lattice points each body's bounding box holds: refuse a body that would not
+        // fit in memory before generating it (an input must not exhaust the host)
+        for (n, s) in p.bodies.iter().enumerate() {
+            let (lo, hi) = s.bounds();
+            let dims = if three_d { 3 } else { 2 };
+            let points: f64 = (0..dims)
+                .map(|d| ((hi[d] - lo[d]) / p.spacing).floor() + 1.0)
+                .product();
+            if !(points <= MAX_LATTICE_POINTS) {
+                return cfg(
+                    &format!("bodies[{n}]"),
+                    format!(
+                        "holds about {points:.3e} lattice points at spacing {}: more than the {MAX_LATTICE_POINTS:.0e} a node takes",
+                        p.spacing
+                    ),
+                );
+            }
         }
         let x0 = lattice(&p.bodies, &p.holes, p.spacing, three_d);
         if x0.is_empty() {
