@@ -189,22 +189,24 @@ fn elastic_block_conserves_kinetic_plus_strain_energy_to_second_order() {
 #[test]
 fn plastic_work_and_strain_energy_add_up_to_the_work_of_the_forces() {
     // A block drawn uniformly past yield in 60 increments of an isochoric stretch to 0.6 %
-    // (pure kinematics, no inertia; yield at about 0.13 %): the work the internal forces absorb, −Σ ½(f_n + f_n+1)·Δu V
-    // (trapezoidal, from the force kernels), equals the strain energy plus the plastic work.
+    // (pure kinematics, no inertia; yield at about 0.13 %): the work the internal forces
+    // absorb, −Σ ½(f_n + f_n+1)·Δu V (trapezoidal, from the force kernels), equals the
+    // strain energy plus the plastic work.
     for model in ["pd-correspondence", "pd-rk-ba"] {
         let mut s = solver(model, "yield_stress = 300e6\niso_hardening = 2e9");
         let (steps, eps_end, tau) = (60, 6e-3, 1e-6);
         let mut work = 0.0;
-        for n in 0..steps {
+        for _ in 0..steps {
             let b = &mut s.body;
             let f_before = b.force.clone();
             let de = eps_end / steps as f64;
-            let mut du = vec![[0.0; 3]; b.len()];
-            for i in 0..b.len() {
-                let x = b.x0[i];
-                du[i] = [de * x[0], -0.5 * de * x[1], -0.5 * de * x[2]];
-                b.vel[i] = std::array::from_fn(|d| du[i][d] / tau);
-                let u = std::array::from_fn(|d| b.disp[i][d] + du[i][d]);
+            let du: Vec<[f64; 3]> =
+                b.x0.iter()
+                    .map(|x| [de * x[0], -0.5 * de * x[1], -0.5 * de * x[2]])
+                    .collect();
+            for (i, dui) in du.iter().enumerate() {
+                b.vel[i] = std::array::from_fn(|d| dui[d] / tau);
+                let u = std::array::from_fn(|d| b.disp[i][d] + dui[d]);
                 b.set_disp(i, u);
             }
             b.eval_forces(tau);
@@ -213,7 +215,6 @@ fn plastic_work_and_strain_energy_add_up_to_the_work_of_the_forces() {
                     work -= 0.5 * b.vol[i] * (f_before[i][d] + b.force[i][d]) * du[i][d];
                 }
             }
-            let _ = n;
         }
         let (u, wp, wf) = s.energies();
         let rel = ((u + wp) - work).abs() / work;
