@@ -273,7 +273,7 @@ mod tests {
             ("damage.critical_stretch", "missing")
         );
         let (k, _) = tagged_err(
-            "damage = { kind = \"none\" }\nbodies = [{ kind = \"none\" }, { kind = \"none\", x = 1 }]",
+            "damage = { kind = \"none\" }\nbodies = [{ kind = \"none\" }, { kind = \"critical_stretch\", critical_stretch = 1.0, x = 1 }]",
         );
         assert_eq!(k, "bodies[1].x");
     }

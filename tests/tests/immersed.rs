@@ -64,9 +64,9 @@ fn the_impulse_the_gas_gives_is_what_the_bar_receives_every_window() {
     assert!(r <= 1e-12, "momentum residual {r:e}");
 }
 
-/// The energy line of the coupled run (issue 20 must-show 1): the bar now reports its strain
-/// energy, so the residual is what the schemes and the coupling dissipate, bounded, not the
-/// bar's whole strain energy.
+/// The energy line of the coupled run (issue 20 must-show 1): the bar reports its strain
+/// energy and the gas books the gas its cells lose to the solid, so the residual is what the
+/// schemes and the coupling dissipate, bounded.
 #[test]
 fn the_energy_residual_is_the_dissipation_of_the_schemes_and_bounded() {
     let out = chamber();
@@ -89,8 +89,11 @@ fn the_energy_residual_is_the_dissipation_of_the_schemes_and_bounded() {
         .as_f64()
         .expect("energy residual in summary.json");
     println!("largest energy residual {r:e} of the largest energy or work");
+    // measured -1.6e-5: the projection of the interface cells onto the particle velocity
+    // (seed 002 eq. 31) is inelastic; the gas the bar covers at the start is booked out as
+    // external work (reclassification), not counted as lost
     assert!(
-        r < 0.0 && r > -0.1,
+        r < 0.0 && r > -1e-3,
         "energy residual {r:e}: dissipation, bounded"
     );
 }

@@ -446,6 +446,13 @@ fn every_bad_parameter_is_refused_naming_its_full_key() {
             "nodes.plate.params.damage.critical_stretch",
         ),
         (
+            "pd-key-on-no-damage",
+            BLOCK,
+            "poisson = 0.25",
+            "poisson = 0.25\ndamage = { kind = \"none\", critical_stretch = 0.01 }",
+            "nodes.plate.params.damage.critical_stretch",
+        ),
+        (
             "pd-body-misspelt",
             BLOCK,
             "max = [0.006",

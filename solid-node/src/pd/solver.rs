@@ -137,7 +137,9 @@ pub struct FirstDamage {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum DamageParams {
-    None,
+    /// No damage (a struct variant, so that a key given with it is refused: serde ignores
+    /// extra keys on a unit variant of an internally tagged enum).
+    None {},
     CriticalStretch {
         critical_stretch: f64,
     },
@@ -359,7 +361,7 @@ impl PdSolver {
             }
         }
         let damage: Box<dyn DamageModel> = match &p.damage {
-            None | Some(DamageParams::None) => Box::new(NoDamage),
+            None | Some(DamageParams::None {}) => Box::new(NoDamage),
             Some(DamageParams::CriticalStretch { critical_stretch }) => Box::new(CriticalStretch {
                 critical_stretch: *critical_stretch,
             }),
@@ -433,7 +435,7 @@ impl PdSolver {
                     );
                 }
                 let s0 = match &p.damage {
-                    None | Some(DamageParams::None) => None,
+                    None | Some(DamageParams::None {}) => None,
                     Some(DamageParams::CriticalStretch { critical_stretch }) => {
                         Some(*critical_stretch)
                     }
@@ -457,7 +459,7 @@ impl PdSolver {
             "pd-correspondence" => {
                 let mk = |d| -> Box<dyn PdModel> {
                     match d {
-                        DamageParams::None => Box::new(Correspondence::new(
+                        DamageParams::None {} => Box::new(Correspondence::new(
                             dim,
                             material,
                             p.stabilization,
@@ -509,7 +511,7 @@ impl PdSolver {
                         )),
                     }
                 };
-                mk(p.damage.clone().unwrap_or(DamageParams::None))
+                mk(p.damage.clone().unwrap_or(DamageParams::None {}))
             }
             "pd-rk-ba" => {
                 if dim == Dim::PlaneStress {
@@ -519,8 +521,8 @@ impl PdSolver {
                     return cfg("rk_order", format!("must be 1 or 2, got {}", p.rk_order));
                 }
                 let (order, h) = (p.rk_order, p.horizon);
-                let m: Box<dyn PdModel> = match p.damage.clone().unwrap_or(DamageParams::None) {
-                    DamageParams::None => {
+                let m: Box<dyn PdModel> = match p.damage.clone().unwrap_or(DamageParams::None {}) {
+                    DamageParams::None {} => {
                         Box::new(RkBa::new(dim, order, h, material, NoDamage, &bonds))
                     }
                     DamageParams::CriticalStretch { critical_stretch } => Box::new(RkBa::new(
@@ -775,7 +777,7 @@ impl PdSolver {
             let m = ep.iter().cloned().fold(0.0, f64::max);
             v.push(("max_plastic_strain".into(), m));
         }
-        if matches!(self.params.damage, None | Some(DamageParams::None)) {
+        if matches!(self.params.damage, None | Some(DamageParams::None {})) {
             return v;
         }
         let damaged = damage.iter().filter(|&&d| d >= DAMAGED_INDEX).count();
@@ -878,7 +880,7 @@ fn gpu_supports(model: &str, dim: Dim, p: &PdParams) -> Result<(), String> {
         }
     }
     let kind = match &p.damage {
-        None | Some(DamageParams::None) => None,
+        None | Some(DamageParams::None {}) => None,
         Some(DamageParams::CriticalStretch { .. }) => Some("critical_stretch"),
         Some(DamageParams::VonMises { .. }) => Some("von_mises"),
         Some(DamageParams::PlasticStrain { .. }) => Some("plastic_strain"),
