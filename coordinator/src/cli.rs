@@ -265,7 +265,21 @@ pub fn load_variant(
         key: path.display().to_string(),
         reason: format!("cannot read: {e}"),
     })?;
-    let mut doc: toml::Table = toml::from_str(&text).map_err(|e| config::ConfigError {
+    load_variant_text(&text, path, variant, sets)
+}
+
+/// As [`load_variant`], with the case file's text in hand (`path` names it in errors and
+/// locates what the case refers to).
+pub fn load_variant_text(
+    text: &str,
+    path: &std::path::Path,
+    variant: Option<&str>,
+    sets: &[String],
+) -> Result<config::Case, config::ConfigError> {
+    if sets.is_empty() && variant.is_none() {
+        return config::parse(text, path);
+    }
+    let mut doc: toml::Table = toml::from_str(text).map_err(|e| config::ConfigError {
         key: path.display().to_string(),
         reason: e.message().to_string(),
     })?;

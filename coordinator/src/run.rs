@@ -443,7 +443,8 @@ impl<'a> Coord<'a> {
                 n.wall_s += d.report.wall_s;
                 n.wait_s += d.report.coupling_wait_s;
                 if d.window == 0 {
-                    n.initial_energy = d.report.kinetic_energy + d.report.internal_energy;
+                    n.initial_energy =
+                        d.report.kinetic_energy + d.report.internal_energy + d.report.dissipated();
                     n.initial_momentum = d.report.momentum;
                 }
                 n.report = d.report;
@@ -1285,7 +1286,9 @@ fn drive(
                 jx[d] += r.external_impulse[d];
                 ji[d] += r.interface_impulse[d];
             }
-            e += r.kinetic_energy + r.internal_energy;
+            // dissipated energy (plastic work, broken bonds) left the elastic store but not
+            // the body: it counts on the energy side of the balance
+            e += r.kinetic_energy + r.internal_energy + r.dissipated();
             wext += r.external_work;
             wif += r.interface_work;
             applied += r.applied_impulse;

@@ -61,6 +61,10 @@ pub struct Immersed {
     /// Gas mass created (+) by refilled cells and removed (-) by cells turning solid since
     /// the start (kg).
     pub reclass_mass: f64,
+    /// Gas energy ρE V created (+) by refilled cells and removed (-) by cells turning solid
+    /// since the start (J): the gas a solid covers leaves the gas's books (the first
+    /// classification removes what the initial condition put where the solid is).
+    pub reclass_energy: f64,
     /// Gas mass that entered the gas (+) through the moving wall faces since the start (kg).
     pub wall_mass: f64,
 }
@@ -86,6 +90,7 @@ impl Immersed {
             total_impulse: [0.0; 3],
             reclass_momentum: [0.0; 3],
             reclass_mass: 0.0,
+            reclass_energy: 0.0,
             wall_mass: 0.0,
         }
     }
@@ -192,10 +197,11 @@ impl Immersed {
         // interface cells take the particle velocity now (eq. 31) keeping ρ and ρe
         for (ci, &c) in self.cells.iter().enumerate() {
             if self.cell_kind[ci] == INTERFACE {
-                let r = project_cell(f, c, self.cell_vel[ci]);
+                let (r, de) = project_cell(f, c, self.cell_vel[ci]);
                 for d in 0..3 {
                     self.reclass_momentum[d] -= r[d];
                 }
+                self.reclass_energy += de;
             }
         }
         f.prim_valid = false;
@@ -239,6 +245,7 @@ impl Immersed {
                     for k in 0..nm {
                         self.reclass_mass += vol * f.cons[(r * nv + k) * mx + i];
                     }
+                    self.reclass_energy += vol * f.cons[(r * nv + nm + 3) * mx + i];
                 } else if was != SOLID && now == SOLID {
                     for d in 0..3 {
                         self.reclass_momentum[d] -= vol * f.cons[(r * nv + nm + d) * mx + i];
@@ -246,6 +253,7 @@ impl Immersed {
                     for k in 0..nm {
                         self.reclass_mass -= vol * f.cons[(r * nv + k) * mx + i];
                     }
+                    self.reclass_energy -= vol * f.cons[(r * nv + nm + 3) * mx + i];
                 }
             }
         }
@@ -282,8 +290,8 @@ fn neighbours(f: &Fluid, c: usize) -> impl Iterator<Item = (usize, usize, bool)>
 }
 
 /// Reset the momentum of gas cell c to ρ v keeping ρe; returns the momentum removed
-/// (V (m_before - m_after)).
-fn project_cell(f: &mut Fluid, c: usize, v: [f64; 3]) -> [f64; 3] {
+/// (V (m_before - m_after)) and the energy added (V (½ρv² − ½|m|²/ρ)).
+fn project_cell(f: &mut Fluid, c: usize, v: [f64; 3]) -> ([f64; 3], f64) {
     let mx = f.grid.mx();
     let nv = f.nv;
     let nm = f.nmat();
@@ -304,7 +312,7 @@ fn project_cell(f: &mut Fluid, c: usize, v: [f64; 3]) -> [f64; 3] {
         f.cons[at(nm + d)] = mn;
     }
     f.cons[at(nm + 3)] += ke_new - ke_old;
-    removed
+    (removed, vol * (ke_new - ke_old))
 }
 
 /// Primitive state of solid cells bordering the gas: neighbour averages of the gas cells
@@ -423,7 +431,7 @@ pub fn project(f: &mut Fluid, im: &mut Immersed, w: f64) {
             }
             continue;
         }
-        let removed = project_cell(f, c, im.cell_vel[ci]);
+        let (removed, _) = project_cell(f, c, im.cell_vel[ci]);
         let ps = &im.parts[im.off[ci]..im.off[ci + 1]];
         let share = w / ps.len() as f64;
         for &p in ps {

@@ -287,6 +287,11 @@ impl Solver for EulerSolver {
                 // coordinator's audit counts it with the external impulse.
                 report.external_impulse[c] += im.reclass_momentum[c];
             }
+            // and the energy of the gas those cells add or remove, with the external work
+            report.external_work += im.reclass_energy;
+            report
+                .scalars
+                .push(("reclassification_energy".into(), im.reclass_energy));
             for (c, axis) in ["x", "y", "z"].iter().enumerate().take(self.fluid.grid.nd) {
                 report.scalars.push((
                     format!("reclassification_momentum_{axis}"),

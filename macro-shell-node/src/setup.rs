@@ -275,6 +275,43 @@ fn count(key: &str, v: Option<usize>) -> SolverResult<usize> {
 }
 
 fn build_mesh(c: &MeshConfig) -> SolverResult<Mesh> {
+    // a key another mesh kind takes is refused by name, not ignored
+    let given = [
+        ("length", c.length.is_some()),
+        ("width", c.width.is_some()),
+        ("side", c.side.is_some()),
+        ("nx", c.nx.is_some()),
+        ("ny", c.ny.is_some()),
+        ("n_side", c.n_side.is_some()),
+        ("n_length", c.n_length.is_some()),
+        ("overlap", c.overlap.is_some()),
+        ("gap", c.gap.is_some()),
+        ("origin", c.origin.is_some()),
+        ("nodes", c.nodes.is_some()),
+        ("elements", c.elements.is_some()),
+        ("plates", c.plates.is_some()),
+        ("seams", c.seams.is_some()),
+    ];
+    let applies: &[&str] = match c.kind.as_str() {
+        "plate" => &["length", "width", "nx", "ny", "origin"],
+        "plates" => &["plates"],
+        "lap_joint" => &["length", "width", "overlap", "gap", "nx", "ny"],
+        "tube" => &[
+            "side", "length", "n_side", "n_length", "overlap", "gap", "seams",
+        ],
+        "explicit" => &["nodes", "elements"],
+        // an unknown kind is refused below, by `mesh.kind`
+        _ => &[
+            "length", "width", "side", "nx", "ny", "n_side", "n_length", "overlap", "gap",
+            "origin", "nodes", "elements", "plates", "seams",
+        ],
+    };
+    protocol::params::refuse_inapplicable(
+        "mesh.",
+        &format!("mesh kind = \"{}\"", c.kind),
+        &given,
+        applies,
+    )?;
     let m =
         match c.kind.as_str() {
             "plate" => mesh::plate(

@@ -102,6 +102,15 @@ impl J2Material {
         self.young / (3.0 * (1.0 - 2.0 * self.poisson))
     }
 
+    /// Elastic strain energy density ½ σ : C⁻¹ : σ = p²/(2K) + s:s/(4μ) of a stress (J/m³;
+    /// p = tr σ/3, s = dev σ): the energy the elastic part of the strain stores (the
+    /// isotropic Hooke law of [`J2Material::elastic_increment`]).
+    pub fn elastic_energy(&self, stress: &Sym) -> f64 {
+        let p = trace(stress) / 3.0;
+        let s = deviator(stress);
+        p * p / (2.0 * self.bulk_modulus()) + ddot(&s, &s) / (4.0 * self.shear_modulus())
+    }
+
     /// Checks the parameters; on error returns (key, reason).
     pub fn validate(&self) -> Result<(), (String, String)> {
         let bad = |k: &str, r: String| Err((k.to_string(), r));
@@ -237,6 +246,27 @@ impl J2Material {
         state.eq_plastic_strain += dp;
         dp
     }
+}
+
+/// Plastic work density σ : Δεᵖ of a return that gave `deqp` = Δε̄ᵖ (J/m³), from the
+/// returned `state`: Δεᵖ = Δγ n with Δγ = √(3/2) Δε̄ᵖ and n = (dev σ − α)/‖dev σ − α‖, the
+/// flow direction of the radial return (Simo–Hughes Box 3.2; n is the same before and after
+/// the return). Includes the work stored by kinematic hardening (α : Δεᵖ).
+#[inline]
+pub fn plastic_work(state: &J2State, deqp: f64) -> f64 {
+    if !(deqp > 0.0) {
+        return 0.0;
+    }
+    let s = deviator(&state.stress);
+    let mut xi = [0.0; 6];
+    for k in 0..6 {
+        xi[k] = s[k] - state.back_stress[k];
+    }
+    let norm = ddot(&xi, &xi).sqrt();
+    if !(norm > 0.0) {
+        return 0.0;
+    }
+    (1.5f64).sqrt() * deqp * ddot(&s, &xi) / norm
 }
 
 /// Same update as [`jaumann_rotate`] for a skew `spin`, in fewer operations (W σ − σ W =

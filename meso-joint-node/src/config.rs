@@ -254,6 +254,9 @@ fn default_cfl() -> f64 {
     0.4
 }
 
+/// Most particles a joint node's geometry may hold.
+pub const MAX_PARTICLES: f64 = 2e8;
+
 fn positive(key: &str, v: f64) -> SolverResult<()> {
     if v > 0.0 && v.is_finite() {
         Ok(())
@@ -358,6 +361,26 @@ impl Params {
                     ));
                 }
             }
+        }
+        // the particles the geometry asks for must fit in memory: refuse before generating
+        let volume = match &self.geometry {
+            Geometry::Block { size, .. } => size[0] * size[1] * size[2],
+            Geometry::BoltedPlates {
+                thickness,
+                width,
+                length,
+                ..
+            } => 2.0 * thickness * width * length,
+        };
+        let particles = volume / self.spacing.powi(3);
+        if !(particles <= MAX_PARTICLES) {
+            return Err(SolverError::config(
+                "geometry",
+                format!(
+                    "holds about {particles:.3e} particles at spacing {}: more than the {MAX_PARTICLES:.0e} a node takes",
+                    self.spacing
+                ),
+            ));
         }
         Ok(())
     }

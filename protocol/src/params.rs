@@ -8,9 +8,97 @@ use serde::de::DeserializeOwned;
 /// Decode `params` into `T`; an error names the key path inside `params` and the reason.
 pub fn decode<T: DeserializeOwned>(params: &toml::Table) -> SolverResult<T> {
     serde_path_to_error::deserialize(params.clone()).map_err(|e| {
-        let path = e.path().to_string();
-        let (key, reason) = explain(&path, e.inner().message());
+        let mut path = e.path().to_string();
+        let message = e.inner().message().to_string();
+        if let Some(inner) = inside_tagged(params, &path, &message) {
+            path = inner;
+        }
+        let (key, reason) = explain(&path, &message);
         SolverError::config(key, reason)
+    })
+}
+
+/// Inside an internally tagged enum (`#[serde(tag = "kind")]`: `damage = { kind = ...,
+/// critical_stretch = ... }`) serde reads the table as buffered content, and the error's
+/// path stops at the table. The key is found again from the message: an unknown key names
+/// itself; a mistyped one is the only key of that table whose value is what serde calls the
+/// unexpected value (`invalid type: string "a", expected f64`). `None` when the path already
+/// ends at the key, or the key cannot be told.
+fn inside_tagged(params: &toml::Table, path: &str, message: &str) -> Option<String> {
+    let table = match lookup(params, path)? {
+        toml::Value::Table(t) => t,
+        _ => return None,
+    };
+    let join = |k: &str| {
+        if path == "." || path.is_empty() {
+            k.to_string()
+        } else {
+            format!("{path}.{k}")
+        }
+    };
+    if let Some(field) = message
+        .strip_prefix("unknown field `")
+        .and_then(|r| r.split_once('`'))
+        .map(|(f, _)| f)
+    {
+        return table.contains_key(field).then(|| join(field));
+    }
+    let unexpected = message
+        .strip_prefix("invalid type: ")
+        .or_else(|| message.strip_prefix("invalid value: "))?
+        .split_once(", expected ")?
+        .0;
+    let mut hits = table
+        .iter()
+        .filter(|(_, v)| described(v).is_some_and(|d| d == unexpected));
+    let (k, _) = hits.next()?;
+    hits.next().is_none().then(|| join(k))
+}
+
+/// The value at a serde path (`a.b[2].c`) inside `params`.
+fn lookup<'a>(params: &'a toml::Table, path: &str) -> Option<&'a toml::Value> {
+    if path == "." || path.is_empty() {
+        return None;
+    }
+    let mut cur: Option<&toml::Value> = None;
+    for part in path.split('.') {
+        let (name, idx) = match part.split_once('[') {
+            Some((n, rest)) => (n, Some(rest)),
+            None => (part, None),
+        };
+        cur = Some(match cur {
+            None => params.get(name)?,
+            Some(toml::Value::Table(t)) => t.get(name)?,
+            Some(_) => return None,
+        });
+        if let Some(rest) = idx {
+            for i in rest.split('[') {
+                let i: usize = i.trim_end_matches(']').parse().ok()?;
+                cur = match cur {
+                    Some(toml::Value::Array(a)) => a.get(i),
+                    _ => None,
+                };
+            }
+        }
+    }
+    cur
+}
+
+/// How serde's `Unexpected` describes a TOML scalar (`string "a"`, `integer `3``, ...).
+fn described(v: &toml::Value) -> Option<String> {
+    Some(match v {
+        toml::Value::String(s) => format!("string {s:?}"),
+        toml::Value::Integer(i) => format!("integer `{i}`"),
+        toml::Value::Float(f) => {
+            // serde writes a float with a decimal point (`1000000000.0`)
+            let t = f.to_string();
+            let point = t.contains(['.', 'e', 'E']) || !f.is_finite();
+            format!("floating point `{t}{}`", if point { "" } else { ".0" })
+        }
+        toml::Value::Boolean(b) => format!("boolean `{b}`"),
+        toml::Value::Array(_) => "sequence".to_string(),
+        toml::Value::Table(_) => "map".to_string(),
+        toml::Value::Datetime(_) => return None,
     })
 }
 
@@ -136,5 +224,57 @@ mod tests {
         );
         let (k, r) = err_of("");
         assert_eq!((k.as_str(), r.as_str()), ("young", "missing"));
+    }
+
+    #[derive(Debug, Deserialize)]
+    #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+    #[allow(dead_code)]
+    enum Damage {
+        None,
+        CriticalStretch {
+            critical_stretch: f64,
+            scale: Option<u32>,
+        },
+    }
+
+    #[derive(Debug, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct Tagged {
+        damage: Damage,
+        #[serde(default)]
+        bodies: Vec<Damage>,
+    }
+
+    fn tagged_err(text: &str) -> (String, String) {
+        let t: toml::Table = toml::from_str(text).unwrap_or_default();
+        match decode::<Tagged>(&t) {
+            Err(SolverError::Config { key, reason }) => (key, reason),
+            other => panic!("expected a config error for {text:?}, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn keys_inside_tagged_enums_are_named_in_full() {
+        let d = "damage = { kind = \"critical_stretch\", ";
+        let (k, r) = tagged_err(&format!("{d}critical_strech = 0.01 }}"));
+        assert_eq!(k, "damage.critical_strech");
+        assert!(r.starts_with("unknown key"), "{r}");
+        let (k, r) = tagged_err(&format!("{d}critical_stretch = \"a\" }}"));
+        assert_eq!(k, "damage.critical_stretch");
+        assert!(r.contains("invalid type"), "{r}");
+        let (k, _) = tagged_err(&format!("{d}critical_stretch = 1e9, scale = 2.0 }}"));
+        assert_eq!(k, "damage.scale");
+        let (k, _) = tagged_err(&format!("{d}critical_stretch = 1, scale = true }}"));
+        assert_eq!(k, "damage.scale");
+        let (k, r) = tagged_err(&format!("{d}scale = 1 }}"));
+        assert_eq!(
+            (k.as_str(), r.as_str()),
+            ("damage.critical_stretch", "missing")
+        );
+        let (k, _) = tagged_err(
+            "damage = { kind = \"none\" }\nbodies = [{ kind = \"none\" }, { kind = \"critical_stretch\", critical_stretch = 1.0, x = 1 }]",
+        );
+        assert_eq!(k, "bodies[1].x");
     }
 }

@@ -54,6 +54,9 @@ pub struct BarParams {
     pub integrator: Option<IntegratorSpec>,
 }
 
+/// Most elements a bar takes (its arrays must fit in memory).
+pub const MAX_ELEMENTS: usize = 100_000_000;
+
 fn default_fixed() -> String {
     "left".into()
 }
@@ -159,8 +162,11 @@ impl Bar {
         check_positive("young", p.young)?;
         check_positive("density", p.density)?;
         check_positive("area", p.area)?;
-        if p.elements == 0 {
-            return Err(SolverError::config("elements", "must be ≥ 1, got 0"));
+        if p.elements == 0 || p.elements > MAX_ELEMENTS {
+            return Err(SolverError::config(
+                "elements",
+                format!("must be in 1..={MAX_ELEMENTS}, got {}", p.elements),
+            ));
         }
         if !(p.courant > 0.0 && p.courant <= 1.0) {
             return Err(SolverError::config(
@@ -173,6 +179,12 @@ impl Bar {
         }
         let fixed = parse_end("fixed", &p.fixed, true)?;
         let load = parse_end("load_end", &p.load_end, true)?;
+        if load.is_none() && p.tip_force != 0.0 {
+            return Err(SolverError::config(
+                "tip_force",
+                "does not apply with load_end = \"none\" (no end carries it)",
+            ));
+        }
         for (name, end) in &p.interfaces {
             parse_end(&format!("interfaces.{name}"), end, false)?;
         }

@@ -64,6 +64,40 @@ fn the_impulse_the_gas_gives_is_what_the_bar_receives_every_window() {
     assert!(r <= 1e-12, "momentum residual {r:e}");
 }
 
+/// The energy line of the coupled run (issue 20 must-show 1): the bar reports its strain
+/// energy and the gas books the gas its cells lose to the solid, so the residual is what the
+/// schemes and the coupling dissipate, bounded.
+#[test]
+fn the_energy_residual_is_the_dissipation_of_the_schemes_and_bounded() {
+    let out = chamber();
+    let mcap = out.join("run.mcap");
+    let strain = node_series(&mcap, "bar", "internal_energy");
+    let kinetic = node_series(&mcap, "bar", "kinetic_energy");
+    assert!(strain.len() >= 80, "{} windows of the bar", strain.len());
+    let (s_max, k_max) = (
+        strain.iter().map(|p| p.1).fold(0.0f64, f64::max),
+        kinetic.iter().map(|p| p.1).fold(0.0f64, f64::max),
+    );
+    println!("bar: largest strain energy {s_max:e} J, kinetic {k_max:e} J");
+    // the blast loads the bar: it stores strain energy of the order of its kinetic energy
+    assert!(
+        s_max > 0.1 * k_max && k_max > 0.0,
+        "strain {s_max:e} J, kinetic {k_max:e} J"
+    );
+    let s = summary(out);
+    let r = s["balance"]["max_energy_residual_relative"]
+        .as_f64()
+        .expect("energy residual in summary.json");
+    println!("largest energy residual {r:e} of the largest energy or work");
+    // measured -1.6e-5: the projection of the interface cells onto the particle velocity
+    // (seed 002 eq. 31) is inelastic; the gas the bar covers at the start is booked out as
+    // external work (reclassification), not counted as lost
+    assert!(
+        r < 0.0 && r > -1e-3,
+        "energy residual {r:e}: dissipation, bounded"
+    );
+}
+
 #[test]
 fn the_blast_pushes_the_bar_right() {
     let out = chamber();

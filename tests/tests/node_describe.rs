@@ -106,6 +106,22 @@ origin = [0.0, 0.0, 0.0]
 size = [3e-3, 2e-3, 2e-3]
 "#;
 
+/// One shell plate.
+const SHELL: &str = r#"
+[run]
+end_time = 1e-6
+window = 1e-7
+[nodes.sheet]
+solver = "macro-shell-node"
+model = "blt-shell"
+[nodes.sheet.params]
+mesh = { kind = "plate", length = 4e-3, width = 3e-3, nx = 4, ny = 3 }
+material = { model = "j2", density = 7850.0, youngs_modulus = 210e9, poisson_ratio = 0.3, yield_stress = 1e9, tangent_modulus = 1e9 }
+section = { thickness = 1e-3, integration_points = 3 }
+node_sets = [{ name = "left", box = [-1.0, -1.0, -1.0, 1.0e-4, 1.0, 1.0] }]
+fixed = [{ node_set = "left", dofs = ["all"] }]
+"#;
+
 /// Write `text` as a case file in a fresh scratch directory and validate it.
 fn validate(tag: &str, text: &str, env: &[(&str, &str)]) -> std::process::Output {
     let (dir, _) = scratch(tag);
@@ -126,6 +142,7 @@ fn the_base_cases_validate() {
         ("ok-gas", GAS),
         ("ok-block", BLOCK),
         ("ok-joint", JOINT),
+        ("ok-shell", SHELL),
     ] {
         let o = validate(tag, base, &[]);
         let out = String::from_utf8_lossy(&o.stdout);
@@ -411,6 +428,113 @@ fn every_bad_parameter_is_refused_naming_its_full_key() {
             "model = \"pd-bond\"\n[nodes.plate.params]",
             "model = \"pd-rk-ba\"\n[nodes.plate.params]\ndevice = \"gpu\"",
             "nodes.plate.params.device",
+        ),
+        // keys inside tagged tables (`kind = ...`, `shape = ...`) and keys that do not
+        // apply to the chosen model
+        (
+            "pd-damage-misspelt",
+            BLOCK,
+            "poisson = 0.25",
+            "poisson = 0.25\ndamage = { kind = \"critical_stretch\", critical_strech = 0.01 }",
+            "nodes.plate.params.damage.critical_strech",
+        ),
+        (
+            "pd-damage-mistyped",
+            BLOCK,
+            "poisson = 0.25",
+            "poisson = 0.25\ndamage = { kind = \"critical_stretch\", critical_stretch = \"a\" }",
+            "nodes.plate.params.damage.critical_stretch",
+        ),
+        (
+            "pd-key-on-no-damage",
+            BLOCK,
+            "poisson = 0.25",
+            "poisson = 0.25\ndamage = { kind = \"none\", critical_stretch = 0.01 }",
+            "nodes.plate.params.damage.critical_stretch",
+        ),
+        (
+            "pd-body-misspelt",
+            BLOCK,
+            "max = [0.006",
+            "maxx = [0.006",
+            "nodes.plate.params.bodies[0].maxx",
+        ),
+        (
+            "pd-body-mistyped",
+            BLOCK,
+            "max = [0.006, 0.004, 0.004]",
+            "max = \"big\"",
+            "nodes.plate.params.bodies[0].max",
+        ),
+        (
+            "pd-stabilization-on-bond",
+            BLOCK,
+            "poisson = 0.25",
+            "poisson = 0.25\nstabilization = 0.3",
+            "nodes.plate.params.stabilization",
+        ),
+        (
+            "pd-rk-order-on-correspondence",
+            BLOCK,
+            "model = \"pd-bond\"\n[nodes.plate.params]",
+            "model = \"pd-correspondence\"\n[nodes.plate.params]\nrk_order = 1",
+            "nodes.plate.params.rk_order",
+        ),
+        (
+            "pd-hardening-elastic",
+            BLOCK,
+            "model = \"pd-bond\"\n[nodes.plate.params]",
+            "model = \"pd-rk-ba\"\n[nodes.plate.params]\niso_hardening = 1e9",
+            "nodes.plate.params.iso_hardening",
+        ),
+        (
+            "pd-thickness-3d",
+            BLOCK,
+            "poisson = 0.25",
+            "poisson = 0.25\nthickness = 1e-3",
+            "nodes.plate.params.thickness",
+        ),
+        (
+            "bar-force-no-end",
+            BARS,
+            "fixed = \"none\"",
+            "fixed = \"none\"\ntip_force = 1e3\nload_end = \"none\"",
+            "nodes.right.params.tip_force",
+        ),
+        (
+            "shell-mesh-key-of-tube",
+            SHELL,
+            "nx = 4, ny = 3",
+            "nx = 4, ny = 3, side = 1e-3",
+            "nodes.sheet.params.mesh.side",
+        ),
+        (
+            "shell-yield-on-elastic",
+            SHELL,
+            "model = \"j2\"",
+            "model = \"elastic\"",
+            "nodes.sheet.params.material.yield_stress",
+        ),
+        (
+            "shell-section-mistyped",
+            SHELL,
+            "integration_points = 3",
+            "integration_points = \"three\"",
+            "nodes.sheet.params.section.integration_points",
+        ),
+        (
+            "joint-geometry-misspelt",
+            JOINT,
+            "size = [3e-3",
+            "sise = [3e-3",
+            "nodes.joint.params.geometry.sise",
+        ),
+        (
+            "joint-geometry-mistyped",
+            JOINT,
+            "size = [3e-3, 2e-3, 2e-3]",
+            "size = \"big\"",
+            "nodes.joint.params.geometry.size",
         ),
         // joints
         (

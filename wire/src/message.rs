@@ -304,6 +304,32 @@ pub struct StepReport {
     pub scalars: Vec<(String, f64)>,
 }
 
+/// Names of the `StepReport.scalars` that carry energy a node has dissipated (J, summed
+/// from the start of the run, ≥ 0): the work of plastic flow and the energy released by
+/// broken bonds. Reported beside the elastic `internal_energy` rather than inside it, and
+/// counted by the coordinator's energy balance (as scalars, they change no byte of a message:
+/// a node that does not dissipate, or does not separate it, simply leaves them out).
+pub const DISSIPATED_SCALARS: [&str; 2] = ["plastic_work", "fracture_energy"];
+
+impl StepReport {
+    /// The energy the node reports as dissipated (J): the sum of its [`DISSIPATED_SCALARS`].
+    pub fn dissipated(&self) -> f64 {
+        self.scalars
+            .iter()
+            .filter(|(n, _)| DISSIPATED_SCALARS.contains(&n.as_str()))
+            .map(|(_, v)| *v)
+            .sum()
+    }
+
+    /// A named scalar, when the node reported it.
+    pub fn scalar(&self, name: &str) -> Option<f64> {
+        self.scalars
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| *v)
+    }
+}
+
 /// Node → coordinator: the window is finished.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Done {

@@ -132,6 +132,10 @@ pub fn immersed_outputs(
         report.interface_impulse[c] = -im.total_impulse[c];
         report.external_impulse[c] += im.reclass_momentum[c];
     }
+    report.external_work += im.reclass_energy;
+    report
+        .scalars
+        .push(("reclassification_energy".into(), im.reclass_energy));
     for (c, axis) in ["x", "y", "z"].iter().enumerate().take(nd) {
         report.scalars.push((
             format!("reclassification_momentum_{axis}"),

@@ -15,10 +15,11 @@
     clippy::too_many_arguments
 )]
 
-use super::family::{Bonds, par_row_blocks};
+use super::family::{Bonds, par_points, par_row_blocks, par_rows, sub};
 use super::model::{Dim, Kinematics, PdModel};
 use mechanics::simd::Simd;
 use std::f64::consts::PI;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 #[cfg(target_arch = "x86_64")]
 mod avx512;
@@ -35,6 +36,15 @@ pub struct BondModel {
     /// Instruction set of the force kernel (the widest the CPU has; every choice gives the
     /// same bits).
     pub simd: Simd,
+    /// Surface correction factors g_i (per axis), kept to rebuild a broken bond's c·G_b.
+    factors: Vec<[f64; 3]>,
+    horizon: f64,
+    dims: usize,
+    /// Energy released by the bonds of each particle's row that broke (J; each bond's two
+    /// rows carry half of it each).
+    released: Vec<f64>,
+    /// Per-particle scratch of the strain-energy sum (J).
+    energy: Vec<f64>,
     /// X and u per particle in one cache line, packed each step for the AVX-512 kernel.
     #[cfg(target_arch = "x86_64")]
     records: Vec<crate::pd::avx512::Record>,
@@ -76,16 +86,18 @@ impl BondModel {
         let mut coef = vec![0.0; bonds.len()];
         for i in 0..n {
             for b in bonds.offsets[i]..bonds.offsets[i + 1] {
-                let j = bonds.nbr[b] as usize;
-                let il = bonds.inv_len[b];
-                let mut q = 0.0;
-                for d in 0..dims {
-                    let nd = bonds.xi[b][d] * il;
-                    let gd = 0.5 * (g[i][d] + g[j][d]);
-                    q += (nd / gd).powi(2);
-                }
-                let om = influence(1.0 / il, horizon);
-                coef[b] = c * om * k.vol[j] / q.sqrt() * bonds.intact[b];
+                let ij = (i, bonds.nbr[b] as usize);
+                let cb = bond_coef(
+                    c,
+                    horizon,
+                    dims,
+                    &g,
+                    ij,
+                    &bonds.xi[b],
+                    bonds.inv_len[b],
+                    k.vol,
+                );
+                coef[b] = cb * bonds.intact[b];
             }
         }
         BondModel {
@@ -93,6 +105,11 @@ impl BondModel {
             critical: critical_stretch.map_or(f64::INFINITY, |s0| (1.0 + s0) * (1.0 + s0)),
             micromodulus: c,
             simd: Simd::detect(),
+            factors: g,
+            horizon,
+            dims,
+            released: vec![0.0; n],
+            energy: vec![0.0; n],
             #[cfg(target_arch = "x86_64")]
             records: Vec::new(),
         }
@@ -116,6 +133,36 @@ impl BondModel {
         }
         s
     }
+}
+
+/// c·G_b·V_j of bond `b` of row `i` while intact: the micromodulus times the influence ω and
+/// the surface correction of the bond's direction (the mean of its ends' factors).
+fn bond_coef(
+    c: f64,
+    horizon: f64,
+    dims: usize,
+    g: &[[f64; 3]],
+    (i, j): (usize, usize),
+    xi: &[f64; 3],
+    il: f64,
+    vol: &[f64],
+) -> f64 {
+    let mut q = 0.0;
+    for d in 0..dims {
+        let nd = xi[d] * il;
+        let gd = 0.5 * (g[i][d] + g[j][d]);
+        q += (nd / gd).powi(2);
+    }
+    c * influence(1.0 / il, horizon) * vol[j] / q.sqrt()
+}
+
+/// The share of row `i`'s copy of a bond in the bond's micro-potential (J): the pair of
+/// particles (i, j) stores w = ½ c_b s² |ξ| V_i V_j (Silling 2000: the micro-potential whose
+/// derivative in |y| is the pair force c_b s V_i V_j), with `coef` = c_b V_j; each of the two
+/// rows holding the bond carries half, ¼ coef s² |ξ| V_i.
+#[inline]
+pub fn bond_energy_share(coef: f64, s: f64, inv_len: f64, vol_i: f64) -> f64 {
+    0.25 * coef * s * s / inv_len * vol_i
 }
 
 /// Bond influence ω(r) = 1 − r/δ.
@@ -252,10 +299,11 @@ fn row_force_body<const C: usize>(
     inv_len: &[f64],
     coef: &mut [f64],
     critical: f64,
-) -> [f64; 3] {
+) -> ([f64; 3], u32) {
     // `critical` = (1 + s0)²
     let (ui, xi) = (disp[i], x0[i]);
     let mut lanes = [[0.0; LANES]; 3];
+    let mut row_breaks = 0u32;
     let len = nbr.len().min(inv_len.len()).min(coef.len());
     let mut start = 0;
     while start < len {
@@ -307,6 +355,7 @@ fn row_force_body<const C: usize>(
             }
         }
         if breaks > 0 {
+            row_breaks += breaks;
             for k in 0..n {
                 if sc.q[k] * il[k] * il[k] > critical {
                     cf[k] = 0.0;
@@ -328,11 +377,14 @@ fn row_force_body<const C: usize>(
         }
         start += n;
     }
-    [
-        lane_tree(&lanes[0]),
-        lane_tree(&lanes[1]),
-        lane_tree(&lanes[2]),
-    ]
+    (
+        [
+            lane_tree(&lanes[0]),
+            lane_tree(&lanes[1]),
+            lane_tree(&lanes[2]),
+        ],
+        row_breaks,
+    )
 }
 
 /// Structure-of-arrays scratch of one chunk: gathered X_j and u_j, the bond terms, |y|².
@@ -344,7 +396,7 @@ struct Scratch<const C: usize> {
 }
 
 /// The force densities of the block of particles `lo..lo + f.len()` (the bond slices of
-/// those rows in `coef`), with one scratch for the block.
+/// those rows in `coef`), with one scratch for the block; returns how many bonds broke.
 #[inline(always)]
 fn block_force_body<const C: usize>(
     lo: usize,
@@ -356,7 +408,7 @@ fn block_force_body<const C: usize>(
     nbr: &[u32],
     inv_len: &[f64],
     critical: f64,
-) {
+) -> u32 {
     let mut sc = Scratch::<C> {
         gx: [[0.0; C]; 3],
         gu: [[0.0; C]; 3],
@@ -364,11 +416,12 @@ fn block_force_body<const C: usize>(
         q: [0.0; C],
     };
     let base = offsets[lo];
+    let mut breaks = 0;
     for (k, fi) in f.iter_mut().enumerate() {
         let i = lo + k;
         let r = offsets[i]..offsets[i + 1];
         let row = &mut coef[r.start - base..r.end - base];
-        *fi = row_force_body::<C>(
+        let (fr, nb) = row_force_body::<C>(
             &mut sc,
             i,
             x0,
@@ -378,7 +431,10 @@ fn block_force_body<const C: usize>(
             row,
             critical,
         );
+        *fi = fr;
+        breaks += nb;
     }
+    breaks
 }
 
 mechanics::simd::multiversion! {
@@ -392,7 +448,7 @@ mechanics::simd::multiversion! {
         nbr: &[u32],
         inv_len: &[f64],
         critical: f64,
-    ) = block_force_body;
+    ) -> u32 = block_force_body;
 }
 
 /// The one-pass scalar loop the chunked kernel replaced, kept as the reference it is tested
@@ -442,6 +498,40 @@ fn row_force_scalar(
     ]
 }
 
+impl BondModel {
+    /// Books the bonds that broke in the last force evaluation (coefficient now 0, still
+    /// intact in `bonds.intact`): each releases its micro-potential at the stretch it broke
+    /// at (the displacements the evaluation read, unchanged since), and is marked broken.
+    /// Runs only on an evaluation that broke a bond.
+    fn release(&mut self, k: &Kinematics, bonds: &mut Bonds) {
+        let (c, h, dims, g) = (self.micromodulus, self.horizon, self.dims, &self.factors);
+        let coef = &self.coef;
+        let (disp, vol) = (k.disp, k.vol);
+        let (offsets, nbr, inv_len) = (&bonds.offsets, &bonds.nbr, &bonds.inv_len);
+        let xi_all = &bonds.xi;
+        par_rows(
+            offsets,
+            &mut self.released,
+            &mut bonds.intact,
+            &|i, rel: &mut f64, intact: &mut [f64]| {
+                let r0 = offsets[i];
+                for (m, w) in intact.iter_mut().enumerate() {
+                    let b = r0 + m;
+                    if !(coef[b] == 0.0 && *w != 0.0) {
+                        continue;
+                    }
+                    let j = nbr[b] as usize;
+                    let eta = sub(&disp[j], &disp[i]);
+                    let s = stretch_over_len(&xi_all[b], &eta, inv_len[b]).0;
+                    let cb = bond_coef(c, h, dims, g, (i, j), &xi_all[b], inv_len[b], vol);
+                    *rel += bond_energy_share(cb, s, inv_len[b], vol[i]);
+                    *w = 0.0;
+                }
+            },
+        );
+    }
+}
+
 impl PdModel for BondModel {
     fn name(&self) -> &'static str {
         "pd-bond"
@@ -453,20 +543,62 @@ impl PdModel for BondModel {
         let nbr = &bonds.nbr;
         let inv_len = &bonds.inv_len;
         let (s0, simd) = (self.critical, self.simd);
+        // bonds broken in this evaluation (counted per block, so no contention)
+        let breaks = AtomicU64::new(0);
+        let count = |n: u32| {
+            if n > 0 {
+                breaks.fetch_add(u64::from(n), Ordering::Relaxed);
+            }
+        };
         #[cfg(target_arch = "x86_64")]
-        if simd == Simd::Avx512 && mechanics::simd::has_avx512() {
+        let done = if simd == Simd::Avx512 && mechanics::simd::has_avx512() {
             avx512::pack(x0, disp, &mut self.records);
             let rec = &self.records;
             par_row_blocks(offsets, f, &mut self.coef, &|lo, fb, cb| {
                 // SAFETY: the CPU has AVX-512 F/DQ/VL and AVX2 (checked above), all that
                 // calling the target-feature kernel requires.
-                unsafe { avx512::block_force(lo, fb, cb, offsets, rec, nbr, inv_len, s0) };
+                count(unsafe { avx512::block_force(lo, fb, cb, offsets, rec, nbr, inv_len, s0) });
             });
-            return;
+            true
+        } else {
+            false
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let done = false;
+        if !done {
+            par_row_blocks(offsets, f, &mut self.coef, &|lo, fb, cb| {
+                count(block_force::<CHUNK>(
+                    simd, lo, fb, cb, offsets, x0, disp, nbr, inv_len, s0,
+                ));
+            });
         }
-        par_row_blocks(offsets, f, &mut self.coef, &|lo, fb, cb| {
-            block_force::<CHUNK>(simd, lo, fb, cb, offsets, x0, disp, nbr, inv_len, s0);
+        if breaks.into_inner() > 0 {
+            self.release(k, bonds);
+        }
+    }
+
+    fn strain_energy(&mut self, k: &Kinematics, bonds: &Bonds) -> f64 {
+        let coef = &self.coef;
+        let (x0, disp, vol) = (k.x0, k.disp, k.vol);
+        par_points(&mut self.energy, &|i, e: &mut f64| {
+            let mut sum = 0.0;
+            for b in bonds.offsets[i]..bonds.offsets[i + 1] {
+                if coef[b] == 0.0 {
+                    continue;
+                }
+                let j = bonds.nbr[b] as usize;
+                let xi = sub(&x0[j], &x0[i]);
+                let eta = sub(&disp[j], &disp[i]);
+                let s = stretch_over_len(&xi, &eta, bonds.inv_len[b]).0;
+                sum += bond_energy_share(coef[b], s, bonds.inv_len[b], vol[i]);
+            }
+            *e = sum;
         });
+        self.energy.iter().sum()
+    }
+
+    fn fracture_energy(&self) -> f64 {
+        self.released.iter().sum()
     }
 
     fn stable_dt(&self, k: &Kinematics, bonds: &Bonds, density: f64) -> f64 {
@@ -494,10 +626,12 @@ impl PdModel for BondModel {
 
     fn save_state(&self, w: &mut super::checkpoint::Writer) {
         w.f64s(self.coef.iter().copied());
+        w.f64s(self.released.iter().copied());
     }
 
     fn load_state(&mut self, r: &mut super::checkpoint::Reader) -> Result<(), String> {
         self.coef = r.f64s(self.coef.len(), "bond coefficients")?;
+        self.released = r.f64s(self.released.len(), "released bond energy")?;
         Ok(())
     }
 

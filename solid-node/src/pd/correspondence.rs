@@ -124,6 +124,10 @@ pub struct Correspondence<D: DamageModel> {
     pub damage: D,
     pub horizon: f64,
     pub state: Vec<J2State>,
+    /// Plastic work density per particle since the start (J/m³).
+    pub plastic_work: Vec<f64>,
+    /// Per-particle scratch of the strain-energy sum (J).
+    energy: Vec<f64>,
     pub kin: Vec<PointKin>,
     pub side: Vec<BondSide>,
     /// det K of the intact family (to detect a family too damaged for a gradient).
@@ -177,6 +181,8 @@ impl<D: DamageModel> Correspondence<D> {
             damage,
             horizon,
             state: vec![J2State::default(); n],
+            plastic_work: vec![0.0; n],
+            energy: vec![0.0; n],
             kin: vec![
                 PointKin {
                     wsum: f64::NAN,
@@ -214,11 +220,12 @@ impl<D: DamageModel> Correspondence<D> {
         let packed = &self.packed;
         self.state
             .par_iter_mut()
+            .zip(self.plastic_work.par_iter_mut())
             .zip(self.kin.par_iter_mut())
             .zip(self.side.par_iter_mut())
             .with_min_len(256)
             .enumerate()
-            .for_each(|(i, ((st, pk), sd))| {
+            .for_each(|(i, (((st, wp), pk), sd))| {
                 let r = offsets[i]..offsets[i + 1];
                 let (ui, vi, xp) = (k.disp[i], k.vel[i], k.x0[i]);
                 // nn = Σ ω V_j η⊗ξ with η = u_j − u_i, so H = nn K⁻¹ is the displacement
@@ -288,11 +295,12 @@ impl<D: DamageModel> Correspondence<D> {
                     // seed 000 eq. (B.2)–(B.4): Jaumann rate, then radial return.
                     jaumann_rotate(&mut st.stress, &spin, dt);
                     jaumann_rotate(&mut st.back_stress, &spin, dt);
-                    if dim == Dim::PlaneStress {
-                        mat.update_plane_stress(st, &de);
+                    let deqp = if dim == Dim::PlaneStress {
+                        mat.update_plane_stress(st, &de).0
                     } else {
-                        mat.update(st, &de);
-                    }
+                        mat.update(st, &de)
+                    };
+                    *wp += mechanics::j2::plastic_work(st, deqp);
                 }
                 let s = mechanics::j2::to_matrix(&st.stress);
                 // P = J σ F⁻ᵀ, A = P K⁻¹
@@ -622,6 +630,56 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
         lmin / c
     }
 
+    /// Σ_i V_i [w_e(σ_i) + ψ_i]: the elastic strain energy density ½ σ : C⁻¹ : σ of each
+    /// particle's stress (seed 000 eq. 14 and 19: the internal energy whose rate is the
+    /// stress power σ : L, less the plastic work), plus the energy of the zero-energy-mode
+    /// stabilization, ψ_i = ½ (κ_i/δ) Σ_j ω V_j |z_ij|² with z = η − Hξ (eq. 184): the
+    /// potential whose derivative is the stabilization force state ω κ z/δ of eq. (186)
+    /// (the variation through H vanishes, since H is the least-squares fit of η). A particle
+    /// that carries no gradient (fully broken) stores nothing.
+    fn strain_energy(&mut self, k: &Kinematics, bonds: &Bonds) -> f64 {
+        let (mat, inv_h) = (self.material, 1.0 / self.horizon);
+        let (state, kin, side) = (&self.state, &self.kin, &self.side);
+        super::family::par_points(&mut self.energy, &|i, e: &mut f64| {
+            let pk = &kin[i];
+            if !pk.active {
+                *e = 0.0;
+                return;
+            }
+            let mut psi = 0.0;
+            let kappa = side[i].kappa;
+            if kappa != 0.0 {
+                let ui = k.disp[i];
+                for b in bonds.offsets[i]..bonds.offsets[i + 1] {
+                    let w = bonds.intact[b];
+                    if w == 0.0 {
+                        continue;
+                    }
+                    let j = bonds.nbr[b] as usize;
+                    let x = bonds.xi[b];
+                    let uj = k.disp[j];
+                    let mut z2 = 0.0;
+                    for a in 0..3 {
+                        // z = η − Hξ, H = F − I
+                        let hx = (pk.f[a][0] - f64::from(a == 0)) * x[0]
+                            + (pk.f[a][1] - f64::from(a == 1)) * x[1]
+                            + (pk.f[a][2] - f64::from(a == 2)) * x[2];
+                        let z = (uj[a] - ui[a]) - hx;
+                        z2 += z * z;
+                    }
+                    psi += w * k.vol[j] * z2;
+                }
+                psi *= 0.5 * kappa * inv_h;
+            }
+            *e = k.vol[i] * (mat.elastic_energy(&state[i].stress) + psi);
+        });
+        self.energy.iter().sum()
+    }
+
+    fn plastic_work(&self, vol: &[f64]) -> f64 {
+        self.plastic_work.iter().zip(vol).map(|(w, v)| w * v).sum()
+    }
+
     fn stress(&self) -> Option<Vec<Sym>> {
         Some(self.state.iter().map(|s| s.stress).collect())
     }
@@ -632,10 +690,12 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
 
     fn save_state(&self, w: &mut super::checkpoint::Writer) {
         super::checkpoint::put_j2(w, &self.state);
+        w.f64s(self.plastic_work.iter().copied());
     }
 
     fn load_state(&mut self, r: &mut super::checkpoint::Reader) -> Result<(), String> {
         super::checkpoint::get_j2(r, &mut self.state, "particle J2 states")?;
+        self.plastic_work = r.f64s(self.plastic_work.len(), "plastic work")?;
         // K⁻¹ is rebuilt from the restored bond damage on the next step.
         for k in self.kin.iter_mut() {
             k.wsum = f64::NAN;

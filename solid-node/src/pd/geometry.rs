@@ -120,6 +120,19 @@ impl Shape {
                 Err(format!("{what} must be > 0, got {v}"))
             }
         };
+        let finite = |v: &[f64; 3], what: &str| {
+            if v.iter().all(|x| x.is_finite()) {
+                Ok(())
+            } else {
+                Err(format!("{what} must be finite, got {v:?}"))
+            }
+        };
+        match self {
+            Shape::Box { min, max } => finite(min, "min").and(finite(max, "max"))?,
+            Shape::Disc { center, .. }
+            | Shape::HollowCylinder { center, .. }
+            | Shape::HollowSquare { center, .. } => finite(center, "center")?,
+        }
         match self {
             Shape::Box { min, max } => {
                 let dims = if three_d { 3 } else { 2 };

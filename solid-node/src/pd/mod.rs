@@ -42,9 +42,73 @@ pub fn build(
     match model {
         "pd-bond" | "pd-correspondence" | "pd-rk-ba" => Some(
             protocol::params::decode(params)
-                .and_then(|p| solver::PdSolver::build(model, p, opts))
+                .and_then(|p| {
+                    refuse_inapplicable(model, params)?;
+                    solver::PdSolver::build(model, p, opts)
+                })
                 .map(|s| Box::new(s) as Box<dyn Solver>),
         ),
         _ => None,
     }
+}
+
+/// Keys of the parameter table that the chosen model or dimension ignores are refused by
+/// name, so a key meant for another model is not silently dropped: the J2 keys and
+/// `stabilization` (pd-correspondence's zero-energy control) on the elastic bond model,
+/// `rk_order` outside pd-rk-ba, `stabilization` on pd-rk-ba (its bond-associative
+/// stabilization has no constant), hardening without `yield_stress`, `thickness` in 3-D.
+fn refuse_inapplicable(model: &str, params: &toml::Table) -> protocol::SolverResult<()> {
+    use protocol::SolverError;
+    let has = |k: &str| params.contains_key(k);
+    let only = |key: &str, why: &str| Err(SolverError::config(key, why.to_string()));
+    let per_model: &[(&str, &str)] = match model {
+        "pd-bond" => &[
+            (
+                "stabilization",
+                "does not apply to pd-bond (the bond-based model has no zero-energy modes; it is pd-correspondence's)",
+            ),
+            (
+                "rk_order",
+                "does not apply to pd-bond (only pd-rk-ba has an RK gradient order)",
+            ),
+            (
+                "iso_hardening",
+                "does not apply to pd-bond (elastic-brittle; use pd-correspondence or pd-rk-ba for plasticity)",
+            ),
+            (
+                "kin_hardening",
+                "does not apply to pd-bond (elastic-brittle; use pd-correspondence or pd-rk-ba for plasticity)",
+            ),
+        ],
+        "pd-correspondence" => &[(
+            "rk_order",
+            "does not apply to pd-correspondence (only pd-rk-ba has an RK gradient order)",
+        )],
+        _ => &[(
+            "stabilization",
+            "does not apply to pd-rk-ba (its bond-associative stabilization takes no constant; G is pd-correspondence's)",
+        )],
+    };
+    for (k, why) in per_model {
+        if has(k) {
+            return only(k, why);
+        }
+    }
+    if !has("yield_stress") && model != "pd-bond" {
+        for k in ["iso_hardening", "kin_hardening"] {
+            if has(k) {
+                return only(
+                    k,
+                    "applies only with yield_stress (without it the material is elastic)",
+                );
+            }
+        }
+    }
+    if has("thickness") && params.get("dimension").and_then(|d| d.as_str()) == Some("3d") {
+        return only(
+            "thickness",
+            "applies to 2-D dimensions only (\"plane_stress\", \"plane_strain\")",
+        );
+    }
+    Ok(())
 }

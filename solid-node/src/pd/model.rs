@@ -56,6 +56,22 @@ pub trait PdModel: Send + Sync {
     /// Largest stable time step (s), before any safety factor.
     fn stable_dt(&self, k: &Kinematics, bonds: &Bonds, density: f64) -> f64;
 
+    /// Elastic energy stored in the force state at the current deformation (J): what the
+    /// internal forces give back on unloading (bond micro-potentials for pd-bond, the strain
+    /// energy density of the stress for the correspondence models).
+    fn strain_energy(&mut self, k: &Kinematics, bonds: &Bonds) -> f64;
+
+    /// Work of plastic flow since the start (J, ≥ 0); 0 for an elastic model.
+    fn plastic_work(&self, vol: &[f64]) -> f64 {
+        let _ = vol;
+        0.0
+    }
+
+    /// Energy released by bonds that broke since the start (J, ≥ 0).
+    fn fracture_energy(&self) -> f64 {
+        0.0
+    }
+
     /// Copies model-held bond state into `bonds.intact` (for output); default: nothing to do.
     fn sync_bonds(&self, bonds: &mut Bonds) {
         let _ = bonds;

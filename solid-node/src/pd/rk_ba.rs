@@ -360,6 +360,9 @@ pub struct BondHistory {
     pub state: J2State,
     pub wd: f64,
     pub om: f64,
+    /// Plastic work done through this row's copy of the bond since the start (J):
+    /// Σ V_i α V_j σ_b : Δεᵖ_b with α = ω/ω̄_i (seed 000 eq. 15–19).
+    pub plastic_work: f64,
 }
 
 /// The pd-rk-ba model, generic over its damage law.
@@ -421,6 +424,7 @@ impl<D: DamageModel> RkBa<D> {
                     state: J2State::default(),
                     wd: w,
                     om: 0.0,
+                    plastic_work: 0.0,
                 })
                 .collect(),
             rev,
@@ -542,7 +546,13 @@ impl<D: DamageModel> PdModel for RkBa<D> {
                     if mat.kin_hardening != 0.0 {
                         jaumann_rotate_skew(&mut h.state.back_stress, &spin, dt);
                     }
-                    mat.update(&mut h.state, &de);
+                    let deqp = mat.update(&mut h.state, &de);
+                    if deqp > 0.0 {
+                        // weighted with this step's α = ω/ω̄_i (ω before this step's damage)
+                        h.plastic_work += k.vol[i] * om0 / pi.wbar
+                            * k.vol[j]
+                            * mechanics::j2::plastic_work(&h.state, deqp);
+                    }
                 }
                 let input = BondInput {
                     stretch: x2.sqrt() * il - 1.0,
@@ -619,6 +629,35 @@ impl<D: DamageModel> PdModel for RkBa<D> {
         }
     }
 
+    /// Σ_i V_i Σ_j α_ij V_j w_e(σ_b): the bond-level elastic strain energy density
+    /// ½ σ_b : C⁻¹ : σ_b averaged over each family with the normalised weight α = ω/ω̄_i
+    /// of seed 000 eq. (15)–(18) (Σ_j α V_j = 1), the internal energy whose rate is the
+    /// bond-associated stress power α σ_b : L_b of eq. (19), less the plastic work.
+    fn strain_energy(&mut self, k: &Kinematics, bonds: &Bonds) -> f64 {
+        let (mat, hist, point) = (self.material, &self.hist, &self.point);
+        let mut e = 0.0;
+        for i in 0..bonds.particles() {
+            let wbar = point[i].wbar;
+            if !(point[i].active && wbar > 0.0) {
+                continue;
+            }
+            let mut s = 0.0;
+            for b in bonds.offsets[i]..bonds.offsets[i + 1] {
+                let h = &hist[b];
+                if h.om != 0.0 {
+                    s += h.om * k.vol[bonds.nbr[b] as usize] * mat.elastic_energy(&h.state.stress);
+                }
+            }
+            e += k.vol[i] * s / wbar;
+        }
+        e
+    }
+
+    fn plastic_work(&self, vol: &[f64]) -> f64 {
+        let _ = vol;
+        self.hist.iter().map(|h| h.plastic_work).sum()
+    }
+
     fn stress(&self) -> Option<Vec<Sym>> {
         Some(self.point_average(|h| h.state.stress))
     }
@@ -636,15 +675,18 @@ impl<D: DamageModel> PdModel for RkBa<D> {
         let st: Vec<J2State> = self.hist.iter().map(|h| h.state).collect();
         super::checkpoint::put_j2(w, &st);
         w.f64s(self.hist.iter().map(|h| h.wd));
+        w.f64s(self.hist.iter().map(|h| h.plastic_work));
     }
 
     fn load_state(&mut self, r: &mut super::checkpoint::Reader) -> Result<(), String> {
         let mut st = vec![J2State::default(); self.hist.len()];
         super::checkpoint::get_j2(r, &mut st, "bond J2 states")?;
         let wd = r.f64s(self.hist.len(), "bond damage")?;
-        for ((h, s), d) in self.hist.iter_mut().zip(st).zip(wd) {
+        let wp = r.f64s(self.hist.len(), "bond plastic work")?;
+        for (((h, s), d), p) in self.hist.iter_mut().zip(st).zip(wd).zip(wp) {
             h.state = s;
             h.wd = d;
+            h.plastic_work = p;
         }
         Ok(())
     }

@@ -137,7 +137,9 @@ pub struct FirstDamage {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum DamageParams {
-    None,
+    /// No damage (a struct variant, so that a key given with it is refused: serde ignores
+    /// extra keys on a unit variant of an internally tagged enum).
+    None {},
     CriticalStretch {
         critical_stretch: f64,
     },
@@ -248,8 +250,11 @@ pub struct PdSolver {
     device: Option<DeviceBody>,
 }
 
+/// Most lattice points a body's bounding box may hold (the largest runs here are ~10⁷).
+pub const MAX_LATTICE_POINTS: f64 = 2e8;
+
 /// First bytes of a checkpoint of this node.
-const CHECKPOINT_MAGIC: &[u8] = b"cosim-pd-state-v3";
+const CHECKPOINT_MAGIC: &[u8] = b"cosim-pd-state-v4";
 
 fn cfg<T>(key: &str, reason: impl Into<String>) -> SolverResult<T> {
     Err(SolverError::config(key, reason))
@@ -356,7 +361,7 @@ impl PdSolver {
             }
         }
         let damage: Box<dyn DamageModel> = match &p.damage {
-            None | Some(DamageParams::None) => Box::new(NoDamage),
+            None | Some(DamageParams::None {}) => Box::new(NoDamage),
             Some(DamageParams::CriticalStretch { critical_stretch }) => Box::new(CriticalStretch {
                 critical_stretch: *critical_stretch,
             }),
@@ -373,6 +378,24 @@ impl PdSolver {
         };
         if let Err((k, r)) = damage.validate() {
             return cfg(&format!("damage.{k}"), r);
+        }
+        // the lattice points each body's bounding box holds: refuse a body that would not
+        // fit in memory before generating it (an input must not exhaust the host)
+        for (n, s) in p.bodies.iter().enumerate() {
+            let (lo, hi) = s.bounds();
+            let dims = if three_d { 3 } else { 2 };
+            let points: f64 = (0..dims)
+                .map(|d| ((hi[d] - lo[d]) / p.spacing).floor() + 1.0)
+                .product();
+            if !(points <= MAX_LATTICE_POINTS) {
+                return cfg(
+                    &format!("bodies[{n}]"),
+                    format!(
+                        "holds about {points:.3e} lattice points at spacing {}: more than the {MAX_LATTICE_POINTS:.0e} a node takes",
+                        p.spacing
+                    ),
+                );
+            }
         }
         let x0 = lattice(&p.bodies, &p.holes, p.spacing, three_d);
         if x0.is_empty() {
@@ -412,7 +435,7 @@ impl PdSolver {
                     );
                 }
                 let s0 = match &p.damage {
-                    None | Some(DamageParams::None) => None,
+                    None | Some(DamageParams::None {}) => None,
                     Some(DamageParams::CriticalStretch { critical_stretch }) => {
                         Some(*critical_stretch)
                     }
@@ -436,7 +459,7 @@ impl PdSolver {
             "pd-correspondence" => {
                 let mk = |d| -> Box<dyn PdModel> {
                     match d {
-                        DamageParams::None => Box::new(Correspondence::new(
+                        DamageParams::None {} => Box::new(Correspondence::new(
                             dim,
                             material,
                             p.stabilization,
@@ -488,7 +511,7 @@ impl PdSolver {
                         )),
                     }
                 };
-                mk(p.damage.clone().unwrap_or(DamageParams::None))
+                mk(p.damage.clone().unwrap_or(DamageParams::None {}))
             }
             "pd-rk-ba" => {
                 if dim == Dim::PlaneStress {
@@ -498,8 +521,8 @@ impl PdSolver {
                     return cfg("rk_order", format!("must be 1 or 2, got {}", p.rk_order));
                 }
                 let (order, h) = (p.rk_order, p.horizon);
-                let m: Box<dyn PdModel> = match p.damage.clone().unwrap_or(DamageParams::None) {
-                    DamageParams::None => {
+                let m: Box<dyn PdModel> = match p.damage.clone().unwrap_or(DamageParams::None {}) {
+                    DamageParams::None {} => {
                         Box::new(RkBa::new(dim, order, h, material, NoDamage, &bonds))
                     }
                     DamageParams::CriticalStretch { critical_stretch } => Box::new(RkBa::new(
@@ -754,7 +777,7 @@ impl PdSolver {
             let m = ep.iter().cloned().fold(0.0, f64::max);
             v.push(("max_plastic_strain".into(), m));
         }
-        if matches!(self.params.damage, None | Some(DamageParams::None)) {
+        if matches!(self.params.damage, None | Some(DamageParams::None {})) {
             return v;
         }
         let damaged = damage.iter().filter(|&&d| d >= DAMAGED_INDEX).count();
@@ -811,6 +834,32 @@ impl PdSolver {
             .map_or(0.0, |pp| pp.at(t))
     }
 
+    /// The body's energies now (J): elastic strain energy of the force state, plastic work
+    /// and energy released by broken bonds since the start (the last two dissipated; the
+    /// coordinator's balance counts all three, see `wire::DISSIPATED_SCALARS`).
+    /// On the device path the host body is not up to date between windows (only the
+    /// interface and support particles come back), so nothing is reported there (zeros;
+    /// see [`Solver::warnings`]).
+    pub fn energies(&mut self) -> (f64, f64, f64) {
+        if self.device.is_some() {
+            return (0.0, 0.0, 0.0);
+        }
+        let b = &mut self.body;
+        let k = super::model::Kinematics {
+            x0: &b.x0,
+            pos: &b.pos,
+            disp: &b.disp,
+            vel: &b.vel,
+            vol: &b.vol,
+        };
+        let strain = b.model.strain_energy(&k, &b.bonds);
+        (
+            strain,
+            b.model.plastic_work(&b.vol),
+            b.model.fracture_energy(),
+        )
+    }
+
     /// Stable step with the safety factor.
     pub fn dt(&self) -> f64 {
         self.params.cfl * self.body.stable_dt()
@@ -831,7 +880,7 @@ fn gpu_supports(model: &str, dim: Dim, p: &PdParams) -> Result<(), String> {
         }
     }
     let kind = match &p.damage {
-        None | Some(DamageParams::None) => None,
+        None | Some(DamageParams::None {}) => None,
         Some(DamageParams::CriticalStretch { .. }) => Some("critical_stretch"),
         Some(DamageParams::VonMises { .. }) => Some("von_mises"),
         Some(DamageParams::PlasticStrain { .. }) => Some("plastic_strain"),
@@ -981,8 +1030,14 @@ pub fn von_mises(s: &[f64; 6]) -> f64 {
 
 impl Solver for PdSolver {
     fn warnings(&self) -> Vec<String> {
-        let w = self.device.as_ref().and_then(|d| d.warning());
-        w.map(|w| vec![w.to_string()]).unwrap_or_default()
+        let Some(dev) = &self.device else {
+            return Vec::new();
+        };
+        let mut w: Vec<String> = dev.warning().map(|w| w.to_string()).into_iter().collect();
+        w.push(
+            "device = \"gpu\" reports no strain energy, plastic work or fracture energy (the device path has no energy kernel): this node's energy balance reads its strain energy as lost; use device = \"cpu\" for an energy audit".into(),
+        );
+        w
     }
 
     fn describe(&self) -> NodeDescription {
@@ -1273,12 +1328,13 @@ impl Solver for PdSolver {
                 }
             }
         }
+        let (strain, plastic, released) = self.energies();
         Ok(StepReport {
             kinetic_energy: match &dev_report {
                 Some(r) => r.kinetic_energy,
                 None => self.body.kinetic_energy(),
             },
-            internal_energy: 0.0,
+            internal_energy: strain,
             external_work: self.external_work,
             interface_work: self.interface_work,
             momentum: match &dev_report {
@@ -1315,6 +1371,8 @@ impl Solver for PdSolver {
                     ));
                 }
                 v.extend(fracture);
+                v.push(("plastic_work".into(), plastic));
+                v.push(("fracture_energy".into(), released));
                 if let Some(dev) = &self.device {
                     // precision of the device arithmetic (64, or 32 with a warning in the log)
                     let bits = if dev.warning().is_some() { 32.0 } else { 64.0 };
@@ -1326,12 +1384,19 @@ impl Solver for PdSolver {
     }
 
     /// The body at set-up: its particles may start moving (a launched block); it starts
-    /// unstressed, so its internal energy is zero.
+    /// in its reference configuration, unstressed, so its strain energy is zero (computed,
+    /// not assumed).
     fn initial_report(&mut self) -> SolverResult<StepReport> {
+        let (strain, plastic, fracture) = self.energies();
         Ok(StepReport {
             kinetic_energy: self.body.kinetic_energy(),
+            internal_energy: strain,
             momentum: self.body.momentum(),
             momentum_gross: self.body.momentum_gross(),
+            scalars: vec![
+                ("plastic_work".into(), plastic),
+                ("fracture_energy".into(), fracture),
+            ],
             ..Default::default()
         })
     }
@@ -1406,7 +1471,11 @@ impl Solver for PdSolver {
         w.f64s(fd.into_iter());
         match snap.as_ref().and_then(|s| s.states.as_ref()) {
             // pd-correspondence on the device: its J2 states, in the model's own format
-            Some(states) => super::checkpoint::put_j2(&mut w, states),
+            Some(states) => {
+                super::checkpoint::put_j2(&mut w, states);
+                // the plastic work the model's format carries next (not tracked on the device)
+                w.f64s(std::iter::repeat_n(0.0, states.len()));
+            }
             None => b.model.save_state(&mut w),
         }
         Ok(w.buf)

@@ -34,7 +34,7 @@ fn row_force(
     inv_len: &[f64],
     coef: &mut [f64],
     critical: f64,
-) -> [f64; 3] {
+) -> ([f64; 3], u32) {
     let ri = rec[i].0;
     let [bx0, bx1, bx2] = splat3(ri[0], ri[1], ri[2]);
     let [bu0, bu1, bu2] = splat3(ri[3], ri[4], ri[5]);
@@ -45,6 +45,7 @@ fn row_force(
     let len = nbr.len().min(inv_len.len()).min(coef.len());
     // lane l sums bonds l, l + 8, l + 16, … of the row ([`super::lane_tree`])
     let (mut ax, mut ay, mut az) = (zero, zero, zero);
+    let mut breaks = 0u32;
     let mut start = 0;
     while start < len {
         let n = (len - start).min(8);
@@ -88,7 +89,9 @@ fn row_force(
         let ly = _mm512_sqrt_pd(q);
         let t = _mm512_mul_pd(_mm512_mul_pd(num, il), il);
         let m = _mm512_div_pd(_mm512_mul_pd(cb, t), _mm512_add_pd(qil, ly));
-        let live = _mm512_cmp_pd_mask::<_CMP_NEQ_UQ>(cb, zero) & !broken & lanes;
+        let intact = _mm512_cmp_pd_mask::<_CMP_NEQ_UQ>(cb, zero);
+        let live = intact & !broken & lanes;
+        breaks += (intact & broken).count_ones();
         if broken != 0 {
             // SAFETY: only lanes set in `broken` ⊆ the first n are written, and
             // coef[start..start + n] is in bounds (n ≤ len − start).
@@ -100,11 +103,11 @@ fn row_force(
         az = _mm512_add_pd(az, _mm512_mask_mul_pd(neg_zero, live, m, yz));
         start += n;
     }
-    [reduce(ax), reduce(ay), reduce(az)]
+    ([reduce(ax), reduce(ay), reduce(az)], breaks)
 }
 
 /// The force densities of the block of particles `lo..lo + f.len()`; `coef` holds those
-/// rows' bonds. Call only on a CPU with AVX-512 F/DQ/VL.
+/// rows' bonds; returns how many bonds broke. Call only on a CPU with AVX-512 F/DQ/VL.
 #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,avx")]
 pub fn block_force(
     lo: usize,
@@ -115,12 +118,13 @@ pub fn block_force(
     nbr: &[u32],
     inv_len: &[f64],
     critical: f64,
-) {
+) -> u32 {
     let base = offsets[lo];
+    let mut breaks = 0;
     for (k, fi) in f.iter_mut().enumerate() {
         let i = lo + k;
         let r = offsets[i]..offsets[i + 1];
-        *fi = row_force(
+        let (fr, nb) = row_force(
             i,
             rec,
             &nbr[r.clone()],
@@ -128,5 +132,8 @@ pub fn block_force(
             &mut coef[r.start - base..r.end - base],
             critical,
         );
+        *fi = fr;
+        breaks += nb;
     }
+    breaks
 }
