@@ -80,7 +80,7 @@ pub enum Cmd {
         #[arg(long)]
         variant: Option<String>,
     },
-    /// Summarise a recording.
+    /// Summarise a recording (RUN.mcap, or the run's output folder).
     Info { recording: PathBuf },
     /// Remove the shared memory left by runs whose processes are all gone (a killed cosim);
     /// a run still running is never touched.
@@ -88,6 +88,7 @@ pub enum Cmd {
     /// Launch one node's executable alone, feed it its recorded inputs window by window, and
     /// compare what it sends with what the recording holds (exit 1 when incomplete).
     Replay {
+        /// RUN.mcap, or the run's output folder.
         recording: PathBuf,
         #[arg(long)]
         node: String,
@@ -407,6 +408,16 @@ fn prepare_output(out: &std::path::Path, overwrite: bool) -> Result<(), String> 
     Ok(())
 }
 
+/// A run folder stands for its recording (`cosim plot` takes either, so do `info` and
+/// `replay`).
+fn recording_of(path: &std::path::Path) -> PathBuf {
+    if path.is_dir() {
+        path.join("run.mcap")
+    } else {
+        path.to_path_buf()
+    }
+}
+
 /// Run the command line; returns the exit code.
 pub fn main_with(cli: Cli) -> i32 {
     match cli.cmd {
@@ -578,7 +589,7 @@ pub fn main_with(cli: Cli) -> i32 {
             );
             0
         }
-        Cmd::Info { recording } => match replay::info(&recording) {
+        Cmd::Info { recording } => match replay::info(&recording_of(&recording)) {
             Ok(s) => {
                 print!("{s}");
                 0
@@ -606,7 +617,7 @@ pub fn main_with(cli: Cli) -> i32 {
                 run_id,
                 output,
             };
-            match replay::replay(&recording, &node, &opts) {
+            match replay::replay(&recording_of(&recording), &node, &opts) {
                 Ok(r) => {
                     print_replay(&r, &node, &opts.sets, report.as_deref());
                     if let Some(dir) = plot {

@@ -267,3 +267,19 @@ fn a_hung_replayed_node_ends_it_with_an_error() {
         "{err}"
     );
 }
+
+/// `cosim info` and `cosim replay` take the run's output folder, as `cosim plot` does.
+#[test]
+fn a_run_folder_stands_for_its_recording() {
+    let folder = recorded().parent().expect("the run folder");
+    let o = cosim(&["info", folder.to_str().expect("utf-8")]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(text.contains("run.mcap"), "{text}");
+    let (dir, id) = scratch("rp-folder");
+    let out = dir.join("replay");
+    let (ok, text, err) = replay_node(folder, "left", &id, &["-o", out.to_str().expect("utf-8")]);
+    assert!(ok, "{err}");
+    assert!(text.contains("bit-identical"), "{text}");
+    nothing_left(&id);
+}
