@@ -196,12 +196,17 @@ mod tests {
         interfaces: Vec<Iface>,
     }
 
-    fn err_of(text: &str) -> (String, String) {
+    /// The key and reason of the config error `text` must give when decoded as `T`.
+    fn refusal<T: serde::de::DeserializeOwned + std::fmt::Debug>(text: &str) -> (String, String) {
         let t: toml::Table = toml::from_str(text).unwrap_or_default();
-        match decode::<Params>(&t) {
+        match decode::<T>(&t) {
             Err(SolverError::Config { key, reason }) => (key, reason),
             other => panic!("expected a config error for {text:?}, got {other:?}"),
         }
+    }
+
+    fn err_of(text: &str) -> (String, String) {
+        refusal::<Params>(text)
     }
 
     #[test]
@@ -247,11 +252,7 @@ mod tests {
     }
 
     fn tagged_err(text: &str) -> (String, String) {
-        let t: toml::Table = toml::from_str(text).unwrap_or_default();
-        match decode::<Tagged>(&t) {
-            Err(SolverError::Config { key, reason }) => (key, reason),
-            other => panic!("expected a config error for {text:?}, got {other:?}"),
-        }
+        refusal::<Tagged>(text)
     }
 
     #[test]

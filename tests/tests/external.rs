@@ -202,6 +202,10 @@ fn compare_with_builtin(variant: &str) {
         println!("python, node stopping at window 1000: {out}{err}");
         assert!(!ok, "a node that stopped early replayed as complete: {out}");
         assert!(!out.contains("bit-identical"), "{out}");
+        assert!(
+            err.contains("node 'right'") && err.contains("during window 1000"),
+            "the error does not say which node stopped when: {err}"
+        );
         nothing_left(&rid);
     }
 }

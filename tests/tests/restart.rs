@@ -238,7 +238,11 @@ fn kill_and_restart(
         assert!(Some(v) == tb.get(key), "coupling data of {key:?}");
         messages += 1;
     }
-    assert!(messages > 0 || ta.is_empty());
+    // Every case here is coupled: coupling traffic after the restart point must exist.
+    assert!(
+        messages > 0,
+        "no coupling message after window {k} was compared"
+    );
     // The final state: every node's last frame, byte for byte.
     let (fa, fb) = (last_frames(&reference), last_frames(&out));
     assert!(!fa.is_empty(), "no frames written");
