@@ -356,14 +356,14 @@ fn run_case(
     Ok((dts[skip..].to_vec(), summary))
 }
 
-/// The log times (ns, wall clock) of the recording's `/cosim/balance` records.
+/// The publish times (ns, wall clock) of the recording's `/cosim/balance` records.
 fn balance_times(mcap: &Path) -> anyhow::Result<Vec<u64>> {
     let buf = std::fs::read(mcap).with_context(|| format!("reading {}", mcap.display()))?;
     let mut t = Vec::new();
     for m in mcap::MessageStream::new(&buf).context("not an MCAP file")? {
         let m = m.with_context(|| format!("{}: unreadable message", mcap.display()))?;
         if m.channel.topic == "/cosim/balance" {
-            t.push(m.log_time);
+            t.push(m.publish_time);
         }
     }
     Ok(t)

@@ -1,8 +1,10 @@
 //! MCAP recorder (ARCHITECTURE §7): one channel per topic carrying the exact envelope bytes
 //! (message encoding `bincode`, schema `cosim.Envelope` whose data is the Rust source of the
-//! message types), plus JSON channels (schema encoding `jsonschema`) with per-window metrics
-//! for Foxglove. Chunked and zstd-compressed; chunks are flushed regularly so a killed
-//! coordinator leaves a file whose completed chunks are readable.
+//! message types), plus JSON channels (schema encoding `jsonschema`, listing every key their
+//! messages carry) with per-window metrics for Foxglove. A message's log time is the
+//! simulated time (Foxglove's timeline), its publish time the wall clock. Chunked and
+//! zstd-compressed; chunks are flushed regularly so a killed coordinator leaves a file whose
+//! completed chunks are readable.
 
 use anyhow::Context;
 use mcap::records::MessageHeader;
@@ -13,16 +15,25 @@ use std::io::BufWriter;
 use std::path::Path;
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
-/// The Rust definition of the recorded messages, stored as the schema of every bincode channel.
-pub const ENVELOPE_SCHEMA: &str = include_str!("../../wire/src/message.rs");
+/// The definition of the recorded bytes, stored as the schema of every bincode channel: the
+/// header, the body and the Rust source of every message type (`wire/src/message.rs`).
+pub const ENVELOPE_SCHEMA: &str = concat!(
+    "// A cosim envelope: a 20-byte little-endian header (magic \"CSIM\", u16 protocol version,\n",
+    "// u8 message kind, u8 reserved, u32 body length, u64 sequence number), then the body in\n",
+    "// bincode 2 (serde, config::standard(): varint integers, little-endian floats):\n",
+    "//     struct Body { run: String, sender: String, message: Message }\n",
+    "// with Message and every type it holds defined below. The recording's metadata record\n",
+    "// \"cosim\" names the protocol version.\n\n",
+    include_str!("../../wire/src/message.rs")
+);
 pub const ENVELOPE_SCHEMA_NAME: &str = "cosim.Envelope";
 pub const BINCODE_ENCODING: &str = "bincode";
 
 pub struct Recorder {
     w: Writer<BufWriter<File>>,
     bincode_schema: u16,
-    channels: HashMap<String, (u16, u32)>,
-    json_schemas: HashMap<String, u16>,
+    /// Topic → (channel id, sequence, the keys its schema lists: JSON channels only).
+    channels: HashMap<String, (u16, u32, BTreeMap<String, &'static str>)>,
     last_flush: Instant,
     pub messages: u64,
     pub bytes: u64,
@@ -35,7 +46,7 @@ fn now_ns() -> u64 {
         .unwrap_or(0)
 }
 
-/// Simulation time in ns for MCAP's publish time.
+/// Simulation time in ns for MCAP's log time.
 pub fn sim_ns(t: f64) -> u64 {
     if t.is_finite() && t > 0.0 {
         (t * 1e9).round() as u64
@@ -54,6 +65,22 @@ impl Recorder {
                 .chunk_size(Some(1 << 20))
                 .profile("cosim"),
         )?;
+        w.write_metadata(&mcap::records::Metadata {
+            name: "cosim".into(),
+            metadata: BTreeMap::from([
+                ("version".into(), env!("CARGO_PKG_VERSION").into()),
+                (
+                    "wire_version".into(),
+                    protocol::PROTOCOL_VERSION.to_string(),
+                ),
+                ("started_unix_ns".into(), now_ns().to_string()),
+                (
+                    "timeline".into(),
+                    "log_time = simulated time (ns), publish_time = wall clock (ns since 1970)"
+                        .into(),
+                ),
+            ]),
+        })?;
         let bincode_schema = w.add_schema(
             ENVELOPE_SCHEMA_NAME,
             "rust-serde-bincode",
@@ -63,44 +90,61 @@ impl Recorder {
             w,
             bincode_schema,
             channels: HashMap::new(),
-            json_schemas: HashMap::new(),
             last_flush: Instant::now(),
             messages: 0,
             bytes: 0,
         })
     }
 
-    fn channel(&mut self, topic: &str, json_schema: Option<(&str, &str)>) -> anyhow::Result<u16> {
-        if let Some(&(id, _)) = self.channels.get(topic) {
-            return Ok(id);
+    /// The channel of `topic`; for a JSON document, one whose schema lists all of `doc`'s
+    /// keys (a document with a key its channel's schema lacks opens a new channel on the same
+    /// topic, with the union of both).
+    fn channel(
+        &mut self,
+        topic: &str,
+        json: Option<(&str, &serde_json::Value)>,
+    ) -> anyhow::Result<u16> {
+        let keys = json.map(|(_, doc)| keys_of(doc));
+        if let Some((id, _, have)) = self.channels.get(topic)
+            && keys
+                .as_ref()
+                .is_none_or(|k| k.keys().all(|key| have.contains_key(key)))
+        {
+            return Ok(*id);
         }
-        let id = match json_schema {
-            None => self.w.add_channel(
-                self.bincode_schema,
-                topic,
-                BINCODE_ENCODING,
-                &BTreeMap::new(),
-            )?,
-            Some((name, schema)) => {
-                let sid = match self.json_schemas.get(name) {
-                    Some(&s) => s,
-                    None => {
-                        let s = self.w.add_schema(name, "jsonschema", schema.as_bytes())?;
-                        self.json_schemas.insert(name.to_string(), s);
-                        s
+        let (id, keys) = match (json, keys) {
+            (Some((name, _)), Some(mut keys)) => {
+                if let Some((_, _, have)) = self.channels.get(topic) {
+                    for (k, t) in have {
+                        keys.entry(k.clone()).or_insert(t);
                     }
-                };
-                self.w.add_channel(sid, topic, "json", &BTreeMap::new())?
+                }
+                let schema = object_schema(name, &keys);
+                let sid = self.w.add_schema(name, "jsonschema", schema.as_bytes())?;
+                (
+                    self.w.add_channel(sid, topic, "json", &BTreeMap::new())?,
+                    keys,
+                )
             }
+            _ => (
+                self.w.add_channel(
+                    self.bincode_schema,
+                    topic,
+                    BINCODE_ENCODING,
+                    &BTreeMap::new(),
+                )?,
+                BTreeMap::new(),
+            ),
         };
-        self.channels.insert(topic.to_string(), (id, 0));
+        let seq = self.channels.get(topic).map_or(0, |c| c.1);
+        self.channels.insert(topic.to_string(), (id, seq, keys));
         Ok(id)
     }
 
     fn write(
         &mut self,
         topic: &str,
-        json: Option<(&str, &str)>,
+        json: Option<(&str, &serde_json::Value)>,
         sim_t: f64,
         data: &[u8],
     ) -> anyhow::Result<()> {
@@ -119,8 +163,8 @@ impl Recorder {
             &MessageHeader {
                 channel_id: id,
                 sequence: seq,
-                log_time: now_ns(),
-                publish_time: sim_ns(sim_t),
+                log_time: sim_ns(sim_t),
+                publish_time: now_ns(),
             },
             data,
         )?;
@@ -137,17 +181,16 @@ impl Recorder {
         self.write(topic, None, sim_t, bytes)
     }
 
-    /// Record a JSON document on a metrics channel.
+    /// Record a JSON object on a metrics channel whose schema (`schema_name`) lists its keys.
     pub fn json(
         &mut self,
         topic: &str,
         schema_name: &str,
-        schema: &str,
         sim_t: f64,
         v: &serde_json::Value,
     ) -> anyhow::Result<()> {
         let data = serde_json::to_vec(v)?;
-        self.write(topic, Some((schema_name, schema)), sim_t, &data)
+        self.write(topic, Some((schema_name, v)), sim_t, &data)
     }
 
     /// Close the current chunk and push it to disk.
@@ -173,22 +216,58 @@ impl Recorder {
     }
 }
 
-/// A permissive JSON schema: an object of numbers and strings (Foxglove plots the numbers).
-pub fn object_schema(title: &str, numeric: &[&str]) -> String {
-    let props: Vec<String> = numeric
+/// The JSON Schema type of each key of an object (empty for anything else).
+fn keys_of(doc: &serde_json::Value) -> BTreeMap<String, &'static str> {
+    use serde_json::Value;
+    let Value::Object(m) = doc else {
+        return BTreeMap::new();
+    };
+    m.iter()
+        .map(|(k, v)| {
+            let ty = match v {
+                // serde_json writes a NaN or infinite f64 as null
+                Value::Null | Value::Number(_) => "number",
+                Value::Bool(_) => "boolean",
+                Value::String(_) => "string",
+                Value::Array(_) => "array",
+                Value::Object(_) => "object",
+            };
+            (k.clone(), ty)
+        })
+        .collect()
+}
+
+/// A JSON Schema (draft 2020-12) of an object with these keys and types; a number may be
+/// null (a NaN or infinite value), arrays hold numbers (Foxglove plots the numbers).
+pub fn object_schema(title: &str, keys: &BTreeMap<String, &'static str>) -> String {
+    let props: serde_json::Map<String, serde_json::Value> = keys
         .iter()
-        .map(|k| format!("\"{k}\":{{\"type\":\"number\"}}"))
+        .map(|(k, ty)| {
+            let v = match *ty {
+                "number" => serde_json::json!({ "type": ["number", "null"] }),
+                "array" => serde_json::json!({
+                    "type": "array",
+                    "items": { "type": ["number", "null"] }
+                }),
+                t => serde_json::json!({ "type": t }),
+            };
+            (k.clone(), v)
+        })
         .collect();
-    format!(
-        "{{\"$schema\":\"https://json-schema.org/draft/2020-12/schema\",\"title\":\"{title}\",\"type\":\"object\",\"properties\":{{{}}}}}",
-        props.join(",")
-    )
+    serde_json::json!({
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": title,
+        "type": "object",
+        "properties": props,
+    })
+    .to_string()
 }
 
 /// One recorded message, as read back.
 pub struct Recorded {
     pub topic: String,
-    pub publish_time: u64,
+    /// Simulated time (ns).
+    pub log_time: u64,
     pub data: Vec<u8>,
     pub json: bool,
 }
@@ -323,7 +402,7 @@ fn read_segment(path: &Path, json_only: bool) -> anyhow::Result<(Vec<Recorded>, 
                 if json || !json_only {
                     out.push(Recorded {
                         topic: m.channel.topic.clone(),
-                        publish_time: m.publish_time,
+                        log_time: m.log_time,
                         data: m.data.into_owned(),
                         json,
                     });

@@ -733,13 +733,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
     if let Some(st) = restart {
         case_doc["restart_from_window"] = json!(st.window);
     }
-    rec.json(
-        "/cosim/case",
-        "cosim.Case",
-        &record::object_schema("cosim.Case", &[]),
-        0.0,
-        &case_doc,
-    )?;
+    rec.json("/cosim/case", "cosim.Case", 0.0, &case_doc)?;
     let kind = case.run.transport;
     transport::cleanup(kind, &run_id);
     // What earlier runs whose processes are all gone left in shared memory (a killed cosim).
@@ -1003,7 +997,6 @@ fn resume(c: &mut Coord, st: &crate::checkpoint::CoordState, all: &[usize]) -> R
         .json(
             record::RESUMED_TOPIC,
             "cosim.Resumed",
-            &record::object_schema("cosim.Resumed", &["window", "time"]),
             st.time,
             &json!({ "window": k, "time": st.time }),
         )
@@ -1073,7 +1066,6 @@ fn save_checkpoint(
         .json(
             record::CHECKPOINT_TOPIC,
             "cosim.Checkpoint",
-            &record::object_schema("cosim.Checkpoint", &["window", "time"]),
             t1,
             &json!({ "window": k, "time": t1, "dir": dir }),
         )
@@ -1183,35 +1175,6 @@ fn drive(
     let order_idx: Vec<usize> = order.iter().filter_map(|n| c.node_idx(n)).collect();
     // The audit (ARCHITECTURE §5) so far: restored from the checkpoint on a restart.
     let mut a = crate::checkpoint::Audit::default();
-    let metric_schema = record::object_schema(
-        "cosim.Balance",
-        &[
-            "window",
-            "time",
-            "momentum",
-            "external_impulse",
-            "momentum_imbalance",
-            "interface_impulse_sum",
-            "momentum_residual",
-            "energy",
-            "external_work",
-            "interface_work_sum",
-            "energy_residual",
-        ],
-    );
-    let node_schema = record::object_schema(
-        "cosim.NodeReport",
-        &[
-            "kinetic_energy",
-            "internal_energy",
-            "external_work",
-            "interface_work",
-            "momentum_gross",
-            "substeps",
-            "wall_s",
-            "coupling_wait_s",
-        ],
-    );
     // Decouplings (seed 000 §4): (window, time, reason) per coupling once it happened.
     let mut decoupled: Vec<Option<(u64, f64, String)>> = vec![None; case.couplings.len()];
     let mut active: Vec<usize> = all.clone();
@@ -1336,13 +1299,9 @@ fn drive(
             interface_work_sum: wif,
             energy_residual: e_resid,
         };
-        let _ = c.rec.json(
-            "/cosim/balance",
-            "cosim.Balance",
-            &metric_schema,
-            t1,
-            &json!(row),
-        );
+        let _ = c
+            .rec
+            .json("/cosim/balance", "cosim.Balance", t1, &json!(row));
         for n in c.nodes.iter().filter(|n| n.finished.is_none()) {
             let r = &n.report;
             let mut v = json!({
@@ -1361,7 +1320,6 @@ fn drive(
             let _ = c.rec.json(
                 &format!("/cosim/node/{}", n.name),
                 "cosim.NodeReport",
-                &node_schema,
                 t1,
                 &v,
             );
