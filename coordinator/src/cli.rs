@@ -81,7 +81,37 @@ pub enum Cmd {
         variant: Option<String>,
     },
     /// Summarise a recording (RUN.mcap, or the run's output folder).
-    Info { recording: PathBuf },
+    Info {
+        recording: PathBuf,
+        /// Print the summary as one JSON document (nodes, couplings, windows, channels, the
+        /// last balance row).
+        #[arg(long)]
+        json: bool,
+    },
+    /// Draw the run's fields at one time into a PNG (every node's VTK frame nearest it): the
+    /// gas pressure with the solids over it, or the solids' deformed surfaces coloured by
+    /// plastic strain. `cosim run` draws the last frames into RUN/fields.png.
+    Render {
+        /// The run's output folder.
+        run: PathBuf,
+        /// Simulated time (s) to draw (default: the last frames).
+        #[arg(long)]
+        time: Option<f64>,
+        /// The PNG file (default: RUN/fields.png, or RUN/fields_<time>.png with --time).
+        #[arg(long, short)]
+        output: Option<PathBuf>,
+    },
+    /// Write a run's per-window histories (every node's report and the balance) as arrays:
+    /// `npz` (numpy: `np.load(F)["gas/probe1.pressure"]`) or `csv` (one file per node).
+    Export {
+        /// The run's output folder or its recording.
+        run: PathBuf,
+        #[arg(long, default_value = "npz", value_parser = ["npz", "csv"])]
+        format: String,
+        /// Output file (npz) or directory (csv); default: RUN/history.npz or RUN/history/.
+        #[arg(long, short)]
+        output: Option<PathBuf>,
+    },
     /// Remove the shared memory left by runs whose processes are all gone (a killed cosim);
     /// a run still running is never touched.
     Clean,
@@ -421,6 +451,55 @@ fn recording_of(path: &std::path::Path) -> PathBuf {
 /// Run the command line; returns the exit code.
 pub fn main_with(cli: Cli) -> i32 {
     match cli.cmd {
+        Cmd::Render { run, time, output } => {
+            let png = output.unwrap_or_else(|| match time {
+                Some(t) => run.join(format!("fields_{t:e}.png")),
+                None => run.join("fields.png"),
+            });
+            match crate::fields::render(&run, time, &png) {
+                Ok(t) => {
+                    println!("{} (t = {t:e} s)", png.display());
+                    0
+                }
+                Err(e) => {
+                    eprintln!("cosim render: {e:#}");
+                    1
+                }
+            }
+        }
+        Cmd::Export {
+            run,
+            format,
+            output,
+        } => {
+            let rec = recording_of(&run);
+            let base = if run.is_dir() {
+                run.clone()
+            } else {
+                run.parent().map(PathBuf::from).unwrap_or_default()
+            };
+            let done = crate::export::tables(&rec).and_then(|t| {
+                if format == "csv" {
+                    let dir = output.unwrap_or_else(|| base.join("history"));
+                    let files = crate::export::write_csv(&t, &dir)?;
+                    Ok(format!("{} tables in {}", files.len(), dir.display()))
+                } else {
+                    let f = output.unwrap_or_else(|| base.join("history.npz"));
+                    let n = crate::export::write_npz(&t, &f)?;
+                    Ok(format!("{n} arrays in {}", f.display()))
+                }
+            });
+            match done {
+                Ok(s) => {
+                    println!("{s}");
+                    0
+                }
+                Err(e) => {
+                    eprintln!("cosim export: {e:#}");
+                    1
+                }
+            }
+        }
         Cmd::Plot {
             runs,
             series,
@@ -589,7 +668,12 @@ pub fn main_with(cli: Cli) -> i32 {
             );
             0
         }
-        Cmd::Info { recording } => match replay::info(&recording_of(&recording)) {
+        Cmd::Info { recording, json } => match if json {
+            replay::run_info(&recording_of(&recording))
+                .and_then(|i| Ok(serde_json::to_string_pretty(&i)? + "\n"))
+        } else {
+            replay::info(&recording_of(&recording))
+        } {
             Ok(s) => {
                 print!("{s}");
                 0

@@ -6,6 +6,8 @@ pub mod checkpoint;
 pub mod cli;
 pub mod config;
 pub mod describe;
+pub mod export;
+pub mod fields;
 pub mod plot;
 pub mod progress;
 pub mod record;

@@ -28,7 +28,7 @@ const FONT_PATHS: [&str; 4] = [
 ];
 
 /// Registers a font under "sans-serif" once; false when none was found.
-fn font_ready() -> bool {
+pub(crate) fn font_ready() -> bool {
     static READY: OnceLock<bool> = OnceLock::new();
     *READY.get_or_init(|| {
         let env = std::env::var("COSIM_FONT").ok();

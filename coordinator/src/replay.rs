@@ -875,89 +875,105 @@ pub fn plot(rep: &ReplayReport, node: &str, dir: &Path) -> anyhow::Result<Vec<Pa
     Ok(files)
 }
 
-/// `cosim info`: nodes, couplings, windows, message counts and the energy balance.
-pub fn info(path: &Path) -> anyhow::Result<String> {
-    use std::fmt::Write;
+/// What `cosim info` reports on a recording (also its `--json` document).
+#[derive(Debug, serde::Serialize)]
+pub struct RunInfo {
+    pub recording: String,
+    pub bytes: u64,
+    /// False when the writer stopped early (a killed coordinator).
+    pub complete: bool,
+    pub segments: Vec<String>,
+    pub run: String,
+    pub end_time: Option<f64>,
+    pub window: Option<f64>,
+    pub schedule: String,
+    pub transport: String,
+    pub nodes: Vec<NodeInfo>,
+    pub couplings: Vec<CouplingInfo>,
+    pub windows_completed: u64,
+    pub messages: u64,
+    pub channels: Vec<ChannelInfo>,
+    /// The last `/cosim/balance` row as recorded, with the run's largest imbalance and
+    /// residual beside it.
+    pub balance: Option<serde_json::Value>,
+    pub largest_momentum_imbalance: Option<f64>,
+    pub largest_momentum_residual: Option<f64>,
+}
+
+#[derive(Debug, serde::Serialize)]
+pub struct NodeInfo {
+    pub name: String,
+    pub model: String,
+    pub couplings: usize,
+}
+
+#[derive(Debug, serde::Serialize)]
+pub struct CouplingInfo {
+    pub name: String,
+    pub kind: String,
+    pub from: String,
+    pub to: String,
+}
+
+#[derive(Debug, serde::Serialize)]
+pub struct ChannelInfo {
+    pub topic: String,
+    pub messages: u64,
+    pub bytes: u64,
+}
+
+/// Everything `cosim info` says about a recording (and the segments restarts added to it).
+pub fn run_info(path: &Path) -> anyhow::Result<RunInfo> {
     let (msgs, complete) = record::read_all(path)?;
-    let mut s = String::new();
-    let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
-    writeln!(
-        s,
-        "recording  {} ({:.1} kB, {})",
-        path.display(),
-        size as f64 / 1e3,
-        if complete {
-            "complete"
-        } else {
-            "INCOMPLETE: writer stopped early"
-        }
-    )?;
-    let segs = record::segments(path);
-    if segs.len() > 1 {
-        let names: Vec<String> = segs
-            .iter()
-            .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
-            .collect();
-        writeln!(
-            s,
-            "segments   {} (restarted {} times, read as one run)",
-            names.join(" + "),
-            segs.len() - 1
-        )?;
-    }
+    let bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+    let segments = record::segments(path)
+        .iter()
+        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .collect();
     let dec = decode_all(&msgs);
+    let (mut end_time, mut window) = (None, None);
+    let (mut schedule, mut transport) = ("serial".to_string(), "shm".to_string());
     if let Ok((case, _)) = case_of(&msgs)
         && let Some(run) = case.get("run").and_then(|r| r.as_table())
     {
-        writeln!(
-            s,
-            "case       end_time {} s, window {} s, schedule {}, transport {}",
-            run.get("end_time")
-                .map(|v| v.to_string())
-                .unwrap_or_default(),
-            run.get("window").map(|v| v.to_string()).unwrap_or_default(),
-            run.get("schedule")
-                .and_then(|v| v.as_str())
-                .unwrap_or("serial"),
-            run.get("transport")
-                .and_then(|v| v.as_str())
-                .unwrap_or("shm"),
-        )?;
+        let num = |k: &str| {
+            run.get(k)
+                .and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+        };
+        end_time = num("end_time");
+        window = num("window");
+        if let Some(v) = run.get("schedule").and_then(|v| v.as_str()) {
+            schedule = v.to_string();
+        }
+        if let Some(v) = run.get("transport").and_then(|v| v.as_str()) {
+            transport = v.to_string();
+        }
     }
     let run = dec.first().map(|d| d.env.run.clone()).unwrap_or_default();
-    writeln!(s, "run        {run}")?;
-    writeln!(s, "nodes")?;
+    let mut nodes = Vec::new();
     let mut couplings = BTreeMap::new();
     for d in &dec {
         if let Message::Welcome(w) = &d.env.message {
-            let node = d.topic.rsplit('/').nth(1).unwrap_or("?");
-            writeln!(
-                s,
-                "  {node:<12} model {:<20} couplings {}",
-                w.model,
-                w.bindings.len()
-            )?;
-            for b in &w.bindings {
-                if b.role == Role::Driver {
-                    couplings.insert(
-                        b.coupling.clone(),
-                        format!(
-                            "{} {node}.{} → {}.{}",
-                            b.kind.as_str(),
-                            b.interface,
-                            b.peer,
-                            b.peer_interface
-                        ),
-                    );
-                }
+            let node = d.topic.rsplit('/').nth(1).unwrap_or("?").to_string();
+            for b in w.bindings.iter().filter(|b| b.role == Role::Driver) {
+                couplings.insert(
+                    b.coupling.clone(),
+                    CouplingInfo {
+                        name: b.coupling.clone(),
+                        kind: b.kind.as_str().to_string(),
+                        from: format!("{node}.{}", b.interface),
+                        to: format!("{}.{}", b.peer, b.peer_interface),
+                    },
+                );
             }
+            nodes.push(NodeInfo {
+                name: node,
+                model: w.model.clone(),
+                couplings: w.bindings.len(),
+            });
         }
     }
-    writeln!(s, "couplings")?;
-    for (name, c) in &couplings {
-        writeln!(s, "  {name:<12} {c}")?;
-    }
-    let windows = dec
+    let windows_completed = dec
         .iter()
         .filter_map(|d| match &d.env.message {
             Message::Done(dn) => Some(dn.window),
@@ -965,42 +981,128 @@ pub fn info(path: &Path) -> anyhow::Result<String> {
         })
         .max()
         .unwrap_or(0);
-    writeln!(s, "windows    {windows} completed")?;
     let mut counts: BTreeMap<&str, (u64, u64)> = BTreeMap::new();
     for m in &msgs {
         let e = counts.entry(m.topic.as_str()).or_default();
         e.0 += 1;
         e.1 += m.data.len() as u64;
     }
-    writeln!(s, "messages   {} in {} channels", msgs.len(), counts.len())?;
-    for (t, (n, b)) in &counts {
-        writeln!(s, "  {t:<48} {n:>8} msgs {:>12.1} kB", *b as f64 / 1e3)?;
+    let rows: Vec<serde_json::Value> = msgs
+        .iter()
+        .filter(|m| m.topic == "/cosim/balance")
+        .filter_map(|m| serde_json::from_slice(&m.data).ok())
+        .collect();
+    let largest = |key: &str| rows.iter().filter_map(|v| v[key].as_f64()).reduce(f64::max);
+    Ok(RunInfo {
+        recording: path.display().to_string(),
+        bytes,
+        complete,
+        segments,
+        run,
+        end_time,
+        window,
+        schedule,
+        transport,
+        nodes,
+        couplings: couplings.into_values().collect(),
+        windows_completed,
+        messages: msgs.len() as u64,
+        channels: counts
+            .into_iter()
+            .map(|(t, (n, b))| ChannelInfo {
+                topic: t.to_string(),
+                messages: n,
+                bytes: b,
+            })
+            .collect(),
+        largest_momentum_imbalance: largest("momentum_imbalance"),
+        largest_momentum_residual: largest("momentum_residual"),
+        balance: rows.last().cloned(),
+    })
+}
+
+/// `cosim info`: [`run_info`] as text.
+pub fn info(path: &Path) -> anyhow::Result<String> {
+    use std::fmt::Write;
+    let i = run_info(path)?;
+    let mut s = String::new();
+    writeln!(
+        s,
+        "recording  {} ({:.1} kB, {})",
+        i.recording,
+        i.bytes as f64 / 1e3,
+        if i.complete {
+            "complete"
+        } else {
+            "INCOMPLETE: writer stopped early"
+        }
+    )?;
+    if i.segments.len() > 1 {
+        writeln!(
+            s,
+            "segments   {} (restarted {} times, read as one run)",
+            i.segments.join(" + "),
+            i.segments.len() - 1
+        )?;
     }
-    if let Some(last) = msgs.iter().rev().find(|m| m.topic == "/cosim/balance") {
-        let v: serde_json::Value = serde_json::from_slice(&last.data)?;
+    let opt = |x: Option<f64>| x.map(|v| v.to_string()).unwrap_or_default();
+    writeln!(
+        s,
+        "case       end_time {} s, window {} s, schedule {}, transport {}",
+        opt(i.end_time),
+        opt(i.window),
+        i.schedule,
+        i.transport
+    )?;
+    writeln!(s, "run        {}", i.run)?;
+    writeln!(s, "nodes")?;
+    for n in &i.nodes {
+        writeln!(
+            s,
+            "  {:<12} model {:<20} couplings {}",
+            n.name, n.model, n.couplings
+        )?;
+    }
+    writeln!(s, "couplings")?;
+    for c in &i.couplings {
+        writeln!(s, "  {:<12} {} {} → {}", c.name, c.kind, c.from, c.to)?;
+    }
+    writeln!(s, "windows    {} completed", i.windows_completed)?;
+    writeln!(
+        s,
+        "messages   {} in {} channels",
+        i.messages,
+        i.channels.len()
+    )?;
+    for c in &i.channels {
+        writeln!(
+            s,
+            "  {:<48} {:>8} msgs {:>12.1} kB",
+            c.topic,
+            c.messages,
+            c.bytes as f64 / 1e3
+        )?;
+    }
+    if let Some(v) = &i.balance {
+        let f = |k: &str| v[k].as_f64().unwrap_or(0.0);
         writeln!(s, "balance at window {} (t = {} s)", v["window"], v["time"])?;
         writeln!(
             s,
             "  energy {:.6e} J, external work {:.6e} J, residual {:.3e} J, interface work sum {:.3e} J",
-            v["energy"].as_f64().unwrap_or(0.0),
-            v["external_work"].as_f64().unwrap_or(0.0),
-            v["energy_residual"].as_f64().unwrap_or(0.0),
-            v["interface_work_sum"].as_f64().unwrap_or(0.0)
+            f("energy"),
+            f("external_work"),
+            f("energy_residual"),
+            f("interface_work_sum")
         )?;
         writeln!(
             s,
             "  momentum {:.6e}, external impulse {:.6e}, imbalance {:.3e} N s",
-            v["momentum"].as_f64().unwrap_or(0.0),
-            v["external_impulse"].as_f64().unwrap_or(0.0),
-            v["momentum_imbalance"].as_f64().unwrap_or(0.0)
+            f("momentum"),
+            f("external_impulse"),
+            f("momentum_imbalance")
         )?;
-        let worst = msgs
-            .iter()
-            .filter(|m| m.topic == "/cosim/balance")
-            .filter_map(|m| serde_json::from_slice::<serde_json::Value>(&m.data).ok())
-            .filter_map(|v| v["momentum_imbalance"].as_f64())
-            .fold(0.0f64, f64::max);
-        let applied = v["applied_impulse"].as_f64().unwrap_or(0.0);
+        let applied = f("applied_impulse");
+        let worst = i.largest_momentum_imbalance.unwrap_or(0.0);
         if applied > 0.0 {
             writeln!(
                 s,
@@ -1010,15 +1112,10 @@ pub fn info(path: &Path) -> anyhow::Result<String> {
                 applied
             )?;
         }
-        let resid = msgs
-            .iter()
-            .filter(|m| m.topic == "/cosim/balance")
-            .filter_map(|m| serde_json::from_slice::<serde_json::Value>(&m.data).ok())
-            .filter_map(|v| v["momentum_residual"].as_f64())
-            .fold(0.0f64, f64::max);
         writeln!(
             s,
-            "  largest momentum residual (external and in-flight coupling impulse accounted) {resid:.3e} N s"
+            "  largest momentum residual (external and in-flight coupling impulse accounted) {:.3e} N s",
+            i.largest_momentum_residual.unwrap_or(0.0)
         )?;
     }
     Ok(s)

@@ -884,6 +884,13 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
                 Ok(files) => summary["plots"] = json!(files),
                 Err(e) => tracing::warn!("plots of {}: {e:#}", out.display()),
             }
+            if crate::fields::has_series(&out) {
+                let png = out.join("fields.png");
+                match crate::fields::render(&out, None, &png) {
+                    Ok(_) => summary["fields"] = json!(png),
+                    Err(e) => tracing::warn!("fields picture of {}: {e:#}", out.display()),
+                }
+            }
             std::fs::write(
                 out.join("summary.json"),
                 serde_json::to_string_pretty(&summary)?,

@@ -427,3 +427,12 @@ pub fn balance_windows(mcap: &Path) -> Vec<u64> {
         })
         .collect()
 }
+
+/// A PNG's size and RGB pixels, row by row (read with the `image` crate).
+pub fn png_pixels(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
+    let img = image::open(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .to_rgb8();
+    let (w, h) = img.dimensions();
+    (w, h, img.pixels().map(|p| p.0).collect())
+}

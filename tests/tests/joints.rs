@@ -263,4 +263,38 @@ fn crash_tube_screws_at_joint_3_peak_higher_than_bolts() {
     let (_, j3_i, j3_ii) = rows.iter().find(|r| r.0 == "j3").cloned().expect("j3");
     assert!(j3_i > 10.0, "joint 3 carries no load in case I ({j3_i} N)");
     assert!(j3_ii > 1.5 * j3_i, "case II {j3_ii} N vs case I {j3_i} N");
+    tube_picture(&case1);
+}
+
+/// `fields.png` of a crash-tube run: the tube drawn across the picture (its longest axis
+/// spans the 1000 px plot area's width), solid, shaded and coloured by plastic strain.
+fn tube_picture(out: &Path) {
+    let png = out.join("fields.png");
+    assert_eq!(
+        summary(out)["fields"].as_str(),
+        Some(png.to_str().unwrap()),
+        "summary.json names the picture"
+    );
+    let (w, h, px) = png_pixels(&png);
+    assert_eq!((w, h), (1200, 800));
+    let (mut drawn, mut x_min, mut x_max) = (0usize, u32::MAX, 0);
+    let mut colours = std::collections::HashSet::new();
+    for (k, p) in px.iter().enumerate() {
+        let (x, y) = (k as u32 % w, k as u32 / w);
+        if !(40..1040).contains(&x) || !(60..760).contains(&y) || *p == [255, 255, 255] {
+            continue;
+        }
+        drawn += 1;
+        x_min = x_min.min(x);
+        x_max = x_max.max(x);
+        colours.insert(*p);
+    }
+    println!(
+        "{}: {drawn} pixels drawn, x {x_min}..{x_max}, {} colours",
+        png.display(),
+        colours.len()
+    );
+    assert!(x_max - x_min >= 950, "the tube spans {x_min}..{x_max}");
+    assert!(drawn >= 150_000, "{drawn} pixels");
+    assert!(colours.len() >= 50, "{} colours", colours.len());
 }

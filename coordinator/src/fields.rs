@@ -1,0 +1,513 @@
+//! Field pictures (`fields.png`, `cosim render`): every node's VTK frame nearest a time, read
+//! back from the run's `.pvd` series and drawn on one PNG — a gas grid as a colour map of its
+//! pressure with the solids' particles over it (a plane view), or, without a grid, the solids'
+//! deformed surfaces in an oblique view, shaded and coloured by plastic strain or stress.
+//! Reads what the nodes wrote (vtkio), so it works for any node that writes VTK.
+
+use anyhow::{Context, bail};
+use plotters::prelude::*;
+use std::path::{Path, PathBuf};
+use vtkio::model::{Attribute, CellType, DataSet, IOBuffer, Piece, VertexNumbers, Vtk};
+
+/// A named array: components per entry and the values.
+#[derive(Debug, Clone)]
+struct Array {
+    name: String,
+    comps: usize,
+    values: Vec<f64>,
+}
+
+/// One node's frame, reduced to what is drawn.
+#[derive(Debug, Default)]
+struct Frame {
+    node: String,
+    /// Rectilinear grid: cell edges per axis and cell arrays (x fastest).
+    grid: Option<[Vec<f64>; 3]>,
+    points: Vec<[f64; 3]>,
+    /// Cells of 3 or more points (polygons); vertex cells are particles.
+    polygons: Vec<Vec<usize>>,
+    point_data: Vec<Array>,
+    cell_data: Vec<Array>,
+}
+
+fn f64s(b: IOBuffer) -> Vec<f64> {
+    b.cast_into::<f64>().unwrap_or_default()
+}
+
+fn arrays(attrs: Vec<Attribute>) -> Vec<Array> {
+    attrs
+        .into_iter()
+        .filter_map(|a| match a {
+            Attribute::DataArray(d) => Some(Array {
+                comps: d.num_comp().max(1),
+                name: d.name,
+                values: f64s(d.data),
+            }),
+            Attribute::Field { .. } => None,
+        })
+        .collect()
+}
+
+fn inline<P>(pieces: Vec<Piece<P>>, file: &Path) -> anyhow::Result<P> {
+    match pieces.into_iter().next() {
+        Some(Piece::Inline(p)) => Ok(*p),
+        _ => bail!("{}: no inline piece", file.display()),
+    }
+}
+
+fn load(file: &Path, node: &str) -> anyhow::Result<Frame> {
+    let vtk = Vtk::import(file).with_context(|| format!("cannot read {}", file.display()))?;
+    let mut f = Frame {
+        node: node.to_string(),
+        ..Frame::default()
+    };
+    match vtk.data {
+        DataSet::RectilinearGrid { pieces, .. } => {
+            let p = inline(pieces, file)?;
+            f.grid = Some([f64s(p.coords.x), f64s(p.coords.y), f64s(p.coords.z)]);
+            f.cell_data = arrays(p.data.cell);
+            f.point_data = arrays(p.data.point);
+        }
+        DataSet::UnstructuredGrid { pieces, .. } => {
+            let p = inline(pieces, file)?;
+            f.points = f64s(p.points)
+                .chunks_exact(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect();
+            let (conn, offsets) = match p.cells.cell_verts {
+                v @ VertexNumbers::Legacy { .. } => v.into_xml(),
+                VertexNumbers::XML {
+                    connectivity,
+                    offsets,
+                } => (connectivity, offsets),
+            };
+            let mut start = 0usize;
+            for (k, &end) in offsets.iter().enumerate() {
+                let end = end as usize;
+                let ids: Vec<usize> = conn
+                    .get(start..end)
+                    .unwrap_or_default()
+                    .iter()
+                    .map(|&i| i as usize)
+                    .filter(|&i| i < f.points.len())
+                    .collect();
+                let kind = p.cells.types.get(k).copied();
+                if ids.len() >= 3 && kind != Some(CellType::PolyVertex) {
+                    f.polygons.push(ids);
+                }
+                start = end;
+            }
+            f.cell_data = arrays(p.data.cell);
+            f.point_data = arrays(p.data.point);
+        }
+        _ => bail!("{}: not a rectilinear or unstructured grid", file.display()),
+    }
+    Ok(f)
+}
+
+/// The `(time, file)` entries of a `.pvd` series.
+fn series(pvd: &Path) -> anyhow::Result<Vec<(f64, PathBuf)>> {
+    let text =
+        std::fs::read_to_string(pvd).with_context(|| format!("cannot read {}", pvd.display()))?;
+    let attr = |line: &str, key: &str| -> Option<String> {
+        let at = line.find(&format!("{key}=\""))? + key.len() + 2;
+        Some(line[at..].split('"').next()?.to_string())
+    };
+    let dir = pvd.parent().unwrap_or(Path::new("."));
+    Ok(text
+        .split("<DataSet")
+        .skip(1)
+        .filter_map(|e| {
+            let t = attr(e, "timestep")?.parse().ok()?;
+            Some((t, dir.join(attr(e, "file")?)))
+        })
+        .collect())
+}
+
+/// Every `.pvd` series of the run: `(node folder, series)`, in name order.
+fn all_series(run: &Path) -> Vec<(String, PathBuf)> {
+    let mut out = Vec::new();
+    let Ok(rd) = std::fs::read_dir(run) else {
+        return out;
+    };
+    let mut dirs: Vec<PathBuf> = rd
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.is_dir())
+        .collect();
+    dirs.sort();
+    for d in dirs {
+        let Ok(rd) = std::fs::read_dir(&d) else {
+            continue;
+        };
+        let mut pvds: Vec<PathBuf> = rd
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.extension().is_some_and(|e| e == "pvd"))
+            .collect();
+        pvds.sort();
+        let node = d
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        out.extend(pvds.into_iter().map(|p| (node.clone(), p)));
+    }
+    out
+}
+
+/// Whether any node of the run wrote a VTK series.
+pub fn has_series(run: &Path) -> bool {
+    !all_series(run).is_empty()
+}
+
+/// A colour map from dark blue through green to yellow (viridis, 6 stops).
+fn colour(s: f64) -> RGBColor {
+    const STOPS: [(f64, f64, f64); 6] = [
+        (68.0, 1.0, 84.0),
+        (65.0, 68.0, 135.0),
+        (42.0, 120.0, 142.0),
+        (34.0, 168.0, 132.0),
+        (122.0, 209.0, 81.0),
+        (253.0, 231.0, 37.0),
+    ];
+    let s = if s.is_finite() {
+        s.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let x = s * (STOPS.len() - 1) as f64;
+    let i = (x.floor() as usize).min(STOPS.len() - 2);
+    let w = x - i as f64;
+    let (a, b) = (STOPS[i], STOPS[i + 1]);
+    let mix = |p: f64, q: f64| (p + w * (q - p)).round() as u8;
+    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+}
+
+fn shade(c: RGBColor, k: f64) -> RGBColor {
+    let f = |v: u8| (v as f64 * k).round().clamp(0.0, 255.0) as u8;
+    RGBColor(f(c.0), f(c.1), f(c.2))
+}
+
+/// The entry's magnitude (the value itself for one component).
+fn magnitude(a: &Array, i: usize) -> f64 {
+    let v = &a.values[i * a.comps..(i + 1) * a.comps];
+    if a.comps == 1 {
+        v[0]
+    } else {
+        v.iter().map(|x| x * x).sum::<f64>().sqrt()
+    }
+}
+
+/// The first of `names` that `list` holds with `n` entries and some non-zero value.
+fn pick<'a>(list: &'a [Array], names: &[&str], n: usize) -> Option<&'a Array> {
+    names.iter().find_map(|want| {
+        list.iter().find(|a| {
+            a.name == *want && a.values.len() == a.comps * n && a.values.iter().any(|v| *v != 0.0)
+        })
+    })
+}
+
+fn range(v: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = v
+        .filter(|x| x.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+            (a.min(x), b.max(x))
+        });
+    if lo.is_finite() && hi > lo {
+        (lo, hi)
+    } else if lo.is_finite() {
+        (lo, lo + 1.0)
+    } else {
+        (0.0, 1.0)
+    }
+}
+
+/// A linear map from a box of the model onto the picture, keeping the aspect ratio.
+struct View {
+    lo: [f64; 2],
+    scale: f64,
+    origin: (i32, i32),
+    height: i32,
+}
+
+impl View {
+    fn fit(lo: [f64; 2], hi: [f64; 2], area: (i32, i32, i32, i32)) -> View {
+        let (x0, y0, w, h) = area;
+        let sx = w as f64 / (hi[0] - lo[0]).max(1e-300);
+        let sy = h as f64 / (hi[1] - lo[1]).max(1e-300);
+        let scale = sx.min(sy);
+        let used = ((hi[0] - lo[0]) * scale, (hi[1] - lo[1]) * scale);
+        View {
+            lo,
+            scale,
+            origin: (
+                x0 + ((w as f64 - used.0) / 2.0) as i32,
+                y0 + ((h as f64 - used.1) / 2.0) as i32,
+            ),
+            height: used.1.round() as i32,
+        }
+    }
+    fn px(&self, x: f64, y: f64) -> (i32, i32) {
+        (
+            self.origin.0 + ((x - self.lo[0]) * self.scale).round() as i32,
+            self.origin.1 + self.height - ((y - self.lo[1]) * self.scale).round() as i32,
+        )
+    }
+}
+
+const SIZE: (u32, u32) = (1200, 800);
+const PLOT: (i32, i32, i32, i32) = (40, 60, 1000, 700);
+
+/// Draws the frames nearest `time` (the last ones when None) of the run in `run_dir` into
+/// `png`; returns the time drawn (the latest of the frames used).
+pub fn render(run_dir: &Path, time: Option<f64>, png: &Path) -> anyhow::Result<f64> {
+    let mut frames = Vec::new();
+    let mut t_drawn = f64::NEG_INFINITY;
+    for (node, pvd) in all_series(run_dir) {
+        let s = series(&pvd)?;
+        let pick = match time {
+            None => s.last(),
+            Some(t) => s
+                .iter()
+                .min_by(|a, b| (a.0 - t).abs().total_cmp(&(b.0 - t).abs())),
+        };
+        if let Some((t, file)) = pick {
+            frames.push(load(file, &node)?);
+            t_drawn = t_drawn.max(*t);
+        }
+    }
+    if frames.is_empty() {
+        bail!(
+            "{}: no VTK series (.pvd) in its node folders",
+            run_dir.display()
+        );
+    }
+    let text = crate::plot::font_ready();
+    let root = BitMapBackend::new(png, SIZE).into_drawing_area();
+    root.fill(&WHITE)?;
+    let bar = if frames.iter().any(|f| f.grid.is_some()) {
+        plane_view(&root, &frames)?
+    } else {
+        oblique_view(&root, &frames)?
+    };
+    if let Some((label, lo, hi)) = bar {
+        colour_bar(&root, &label, lo, hi, text)?;
+    }
+    if text {
+        let names: Vec<&str> = frames.iter().map(|f| f.node.as_str()).collect();
+        root.draw(&Text::new(
+            format!("t = {t_drawn:.4e} s   nodes: {}", names.join(", ")),
+            (40, 20),
+            ("sans-serif", 22).into_font(),
+        ))?;
+    }
+    root.present()
+        .with_context(|| format!("cannot write {}", png.display()))?;
+    Ok(t_drawn)
+}
+
+type Bar = Option<(String, f64, f64)>;
+
+/// The gas grid's x–y plane (its middle z layer) coloured by pressure, the solids' particles
+/// and surfaces projected on it.
+fn plane_view(
+    root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    frames: &[Frame],
+) -> anyhow::Result<Bar> {
+    let mut lo = [f64::INFINITY; 2];
+    let mut hi = [f64::NEG_INFINITY; 2];
+    for f in frames {
+        if let Some(g) = &f.grid {
+            for d in 0..2 {
+                lo[d] = lo[d].min(g[d][0]);
+                hi[d] = hi[d].max(*g[d].last().unwrap_or(&g[d][0]));
+            }
+        }
+    }
+    let view = View::fit(lo, hi, PLOT);
+    let mut bar = None;
+    for f in frames {
+        let Some(g) = &f.grid else { continue };
+        let n = [g[0].len() - 1, g[1].len() - 1, g[2].len().max(2) - 1];
+        let cells = n[0] * n[1] * n[2];
+        let Some(a) = pick(&f.cell_data, &["pressure", "density"], cells) else {
+            continue;
+        };
+        let k = n[2] / 2;
+        let layer = |i: usize, j: usize| magnitude(a, i + n[0] * (j + n[1] * k));
+        let (vmin, vmax) = range(
+            (0..n[1])
+                .flat_map(|j| (0..n[0]).map(move |i| (i, j)))
+                .map(|(i, j)| layer(i, j)),
+        );
+        for j in 0..n[1] {
+            for i in 0..n[0] {
+                let c = colour((layer(i, j) - vmin) / (vmax - vmin));
+                let (x0, y1) = view.px(g[0][i], g[1][j]);
+                let (x1, y0) = view.px(g[0][i + 1], g[1][j + 1]);
+                root.draw(&Rectangle::new([(x0, y0), (x1, y1)], c.filled()))?;
+            }
+        }
+        bar = Some((format!("{}: {} (Pa)", f.node, a.name), vmin, vmax));
+    }
+    for f in frames.iter().filter(|f| f.grid.is_none()) {
+        if f.polygons.is_empty() {
+            let r = if f.points.len() > 20_000 { 1 } else { 2 };
+            let damage = pick(&f.point_data, &["damage"], f.points.len());
+            for (i, p) in f.points.iter().enumerate() {
+                let d = damage.map_or(0.0, |a| magnitude(a, i)).clamp(0.0, 1.0);
+                let c = RGBColor(235, (235.0 * (1.0 - d)) as u8, (235.0 * (1.0 - d)) as u8);
+                root.draw(&Circle::new(view.px(p[0], p[1]), r, c.filled()))?;
+            }
+        } else {
+            for poly in &f.polygons {
+                let pts: Vec<(i32, i32)> = poly
+                    .iter()
+                    .map(|&i| view.px(f.points[i][0], f.points[i][1]))
+                    .collect();
+                root.draw(&Polygon::new(pts, RGBColor(90, 90, 90).filled()))?;
+            }
+        }
+    }
+    Ok(bar)
+}
+
+/// The solids' surfaces in an oblique view (longest axis across, second longest up, turned
+/// 30° and tilted 20°), shaded by their facing and coloured by plastic strain, else stress,
+/// else displacement; particles as dots.
+fn oblique_view(
+    root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    frames: &[Frame],
+) -> anyhow::Result<Bar> {
+    let all = || frames.iter().flat_map(|f| f.points.iter());
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in all() {
+        for d in 0..3 {
+            lo[d] = lo[d].min(p[d]);
+            hi[d] = hi[d].max(p[d]);
+        }
+    }
+    let mut axes = [0usize, 1, 2];
+    axes.sort_by(|&a, &b| (hi[b] - lo[b]).total_cmp(&(hi[a] - lo[a])));
+    let centre: [f64; 3] = std::array::from_fn(|d| 0.5 * (lo[d] + hi[d]));
+    let (yaw, pitch) = (30f64.to_radians(), 20f64.to_radians());
+    let project = |p: &[f64; 3]| -> [f64; 3] {
+        let (a, b, c) = (
+            p[axes[0]] - centre[axes[0]],
+            p[axes[1]] - centre[axes[1]],
+            p[axes[2]] - centre[axes[2]],
+        );
+        let x = a * yaw.cos() + c * yaw.sin();
+        let z1 = -a * yaw.sin() + c * yaw.cos();
+        let y = b * pitch.cos() - z1 * pitch.sin();
+        let depth = b * pitch.sin() + z1 * pitch.cos();
+        [x, y, depth]
+    };
+    let mut plo = [f64::INFINITY; 2];
+    let mut phi = [f64::NEG_INFINITY; 2];
+    for p in all() {
+        let q = project(p);
+        for d in 0..2 {
+            plo[d] = plo[d].min(q[d]);
+            phi[d] = phi[d].max(q[d]);
+        }
+    }
+    let view = View::fit(plo, phi, PLOT);
+    // Every polygon of every frame with its colour value, drawn far to near.
+    let mut faces: Vec<(f64, Vec<[f64; 3]>, f64, usize)> = Vec::new();
+    let mut bar_name = None;
+    for (fi, f) in frames.iter().enumerate() {
+        let ne = f.polygons.len();
+        let cell = pick(
+            &f.cell_data,
+            &["plastic_strain", "mises_top", "von_mises", "damage"],
+            ne,
+        );
+        let point = pick(&f.point_data, &["displacement"], f.points.len());
+        for (e, poly) in f.polygons.iter().enumerate() {
+            let q: Vec<[f64; 3]> = poly.iter().map(|&i| project(&f.points[i])).collect();
+            let depth = q.iter().map(|p| p[2]).sum::<f64>() / q.len() as f64;
+            let v = match (cell, point) {
+                (Some(a), _) => magnitude(a, e),
+                (None, Some(a)) => {
+                    poly.iter().map(|&i| magnitude(a, i)).sum::<f64>() / poly.len() as f64
+                }
+                _ => 0.0,
+            };
+            faces.push((depth, q, v, fi));
+        }
+        if bar_name.is_none() && ne > 0 {
+            bar_name = cell.or(point).map(|a| format!("{}: {}", f.node, a.name));
+        }
+    }
+    let (vmin, vmax) = range(faces.iter().map(|f| f.2));
+    faces.sort_by(|a, b| b.0.total_cmp(&a.0));
+    for (_, q, v, _) in &faces {
+        let n = normal(q);
+        let light = 0.35 + 0.65 * n[2].abs();
+        let c = shade(colour((v - vmin) / (vmax - vmin)), light);
+        let pts: Vec<(i32, i32)> = q.iter().map(|p| view.px(p[0], p[1])).collect();
+        root.draw(&Polygon::new(pts, c.filled()))?;
+    }
+    for f in frames.iter().filter(|f| f.polygons.is_empty()) {
+        for p in &f.points {
+            let q = project(p);
+            root.draw(&Circle::new(
+                view.px(q[0], q[1]),
+                1,
+                RGBColor(200, 40, 40).filled(),
+            ))?;
+        }
+    }
+    Ok(bar_name.map(|n| (n, vmin, vmax)))
+}
+
+/// Unit normal of a planar polygon (Newell's method).
+fn normal(q: &[[f64; 3]]) -> [f64; 3] {
+    let mut n = [0.0; 3];
+    for i in 0..q.len() {
+        let (a, b) = (q[i], q[(i + 1) % q.len()]);
+        n[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        n[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        n[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    if l > 0.0 {
+        [n[0] / l, n[1] / l, n[2] / l]
+    } else {
+        [0.0, 0.0, 1.0]
+    }
+}
+
+fn colour_bar(
+    root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    label: &str,
+    lo: f64,
+    hi: f64,
+    text: bool,
+) -> anyhow::Result<()> {
+    let (x0, y0, h) = (1080, 120, 560);
+    for k in 0..h {
+        let s = 1.0 - k as f64 / (h - 1) as f64;
+        root.draw(&Rectangle::new(
+            [(x0, y0 + k), (x0 + 30, y0 + k + 1)],
+            colour(s).filled(),
+        ))?;
+    }
+    if text {
+        let font = ("sans-serif", 16).into_font();
+        root.draw(&Text::new(
+            format!("{hi:.3e}"),
+            (x0 - 20, y0 - 22),
+            font.clone(),
+        ))?;
+        root.draw(&Text::new(
+            format!("{lo:.3e}"),
+            (x0 - 20, y0 + h + 6),
+            font.clone(),
+        ))?;
+        root.draw(&Text::new(label.to_string(), (760, 40), font))?;
+    }
+    Ok(())
+}
