@@ -79,6 +79,11 @@ pub enum Cmd {
         /// Check only this variant.
         #[arg(long)]
         variant: Option<String>,
+        /// Print the result as one JSON document on stdout: `{"ok": true, "nodes": [...],
+        /// "variants": [...]}` or `{"ok": false, "key": "nodes.gas.params...", "reason": ...}`
+        /// (the exit codes are the same).
+        #[arg(long)]
+        json: bool,
     },
     /// Summarise a recording (RUN.mcap, or the run's output folder).
     Info {
@@ -163,6 +168,12 @@ pub enum Cmd {
         /// force–displacement curve).
         #[arg(long)]
         x: Option<String>,
+    },
+    /// Print a shell completion script: `cosim completions bash > ~/.local/share/bash-completion/completions/cosim`
+    /// (also zsh, fish, elvish, powershell).
+    Completions {
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
     },
     /// Benchmarks (the `cosim-bench` executable beside `cosim`, with these arguments):
     /// without a subcommand, every kernel of the project at 4 sizes, written to
@@ -448,9 +459,109 @@ fn recording_of(path: &std::path::Path) -> PathBuf {
     }
 }
 
+/// `cosim validate`: the case (and every variant when neither a variant nor overrides are
+/// given) checked without starting anything; exit 2 naming the key of the first error.
+fn validate(case: &std::path::Path, variant: Option<&str>, sets: &[String], json: bool) -> i32 {
+    use serde_json::json;
+    let refuse = |e: &config::ConfigError, variant: Option<&str>| {
+        if json {
+            println!(
+                "{}",
+                json!({ "ok": false, "case": case, "variant": variant, "key": e.key, "reason": e.reason })
+            );
+        } else {
+            match variant {
+                Some(v) => eprintln!("cosim: {} (variant {v}): {e}", case.display()),
+                None => eprintln!("cosim: {}: {e}", case.display()),
+            }
+        }
+        2
+    };
+    let c = match load_variant(case, variant, sets) {
+        Ok(c) => c,
+        Err(e) => return refuse(&e, variant),
+    };
+    let windows = |c: &config::Case| ((c.run.end_time / c.run.window) - 1e-9).ceil();
+    let order = config::window_order(&c).unwrap_or_default();
+    let mut doc = json!({
+        "ok": true, "case": case, "variant": variant, "nodes": [], "variants": [],
+        "couplings": c.couplings.len(), "windows": windows(&c), "order": order,
+    });
+    if !json {
+        println!(
+            "{}: ok — {} nodes, {} couplings, {} windows, order {}",
+            case.display(),
+            c.nodes.len(),
+            c.couplings.len(),
+            windows(&c),
+            order.join(" → ")
+        );
+    }
+    for n in &c.nodes {
+        doc["nodes"].as_array_mut().map(|a| {
+            a.push(json!({
+                "name": n.name, "solver": n.solver, "model": n.model,
+                "remote": n.interfaces.is_none(), "interfaces": n.interfaces,
+            }))
+        });
+        if json {
+            continue;
+        }
+        match &n.interfaces {
+            Some(i) => println!(
+                "  node {}: {} {} described by its executable — interfaces {}",
+                n.name,
+                n.solver,
+                n.model,
+                if i.is_empty() {
+                    "none".to_string()
+                } else {
+                    i.join(", ")
+                }
+            ),
+            None => println!(
+                "  node {}: remote, '{}' is not on this host — its parameters are checked when it joins",
+                n.name, n.solver
+            ),
+        }
+    }
+    // Every variant must build too.
+    let others = if variant.is_none() && sets.is_empty() {
+        c.variants.clone()
+    } else {
+        Vec::new()
+    };
+    for v in &others {
+        match load_variant(case, Some(v), &[]) {
+            Ok(cv) => {
+                if let Some(a) = doc["variants"].as_array_mut() {
+                    a.push(json!({ "name": v, "windows": windows(&cv), "output": cv.run.output }));
+                }
+                if !json {
+                    println!(
+                        "  variant {v}: ok — {} windows, output {}",
+                        windows(&cv),
+                        cv.run.output.display()
+                    );
+                }
+            }
+            Err(e) => return refuse(&e, Some(v)),
+        }
+    }
+    if json {
+        println!("{doc}");
+    }
+    0
+}
+
 /// Run the command line; returns the exit code.
 pub fn main_with(cli: Cli) -> i32 {
     match cli.cmd {
+        Cmd::Completions { shell } => {
+            use clap::CommandFactory;
+            clap_complete::generate(shell, &mut Cli::command(), "cosim", &mut std::io::stdout());
+            0
+        }
         Cmd::Render { run, time, output } => {
             let png = output.unwrap_or_else(|| match time {
                 Some(t) => run.join(format!("fields_{t:e}.png")),
@@ -521,64 +632,8 @@ pub fn main_with(cli: Cli) -> i32 {
             case,
             sets,
             variant,
-        } => match load_variant(&case, variant.as_deref(), &sets) {
-            Ok(c) => {
-                let order = config::window_order(&c)
-                    .map(|o| o.join(" → "))
-                    .unwrap_or_default();
-                println!(
-                    "{}: ok — {} nodes, {} couplings, {} windows, order {}",
-                    case.display(),
-                    c.nodes.len(),
-                    c.couplings.len(),
-                    ((c.run.end_time / c.run.window) - 1e-9).ceil(),
-                    order
-                );
-                for n in &c.nodes {
-                    match &n.interfaces {
-                        Some(i) => println!(
-                            "  node {}: {} {} described by its executable — interfaces {}",
-                            n.name,
-                            n.solver,
-                            n.model,
-                            if i.is_empty() {
-                                "none".to_string()
-                            } else {
-                                i.join(", ")
-                            }
-                        ),
-                        None => println!(
-                            "  node {}: remote, '{}' is not on this host — its parameters are checked when it joins",
-                            n.name, n.solver
-                        ),
-                    }
-                }
-                // Every variant must build too.
-                let others = if variant.is_none() && sets.is_empty() {
-                    c.variants.clone()
-                } else {
-                    Vec::new()
-                };
-                for v in &others {
-                    match load_variant(&case, Some(v), &[]) {
-                        Ok(cv) => println!(
-                            "  variant {v}: ok — {} windows, output {}",
-                            ((cv.run.end_time / cv.run.window) - 1e-9).ceil(),
-                            cv.run.output.display()
-                        ),
-                        Err(e) => {
-                            eprintln!("cosim: {} (variant {v}): {e}", case.display());
-                            return 2;
-                        }
-                    }
-                }
-                0
-            }
-            Err(e) => {
-                eprintln!("cosim: {}: {e}", case.display());
-                2
-            }
-        },
+            json,
+        } => validate(&case, variant.as_deref(), &sets, json),
         Cmd::Run {
             case,
             output,

@@ -113,15 +113,12 @@ pub fn write_npz(tables: &BTreeMap<String, Table>, path: &Path) -> anyhow::Resul
 /// Writes `DIR/NODE.csv` per table (vectors as KEY_x, KEY_y, KEY_z; empty where missing);
 /// returns the files written.
 pub fn write_csv(tables: &BTreeMap<String, Table>, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    use std::io::Write;
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let mut files = Vec::new();
     for (node, t) in tables {
         let path = dir.join(format!("{node}.csv"));
-        let mut w = std::io::BufWriter::new(
-            std::fs::File::create(&path)
-                .with_context(|| format!("cannot create {}", path.display()))?,
-        );
+        let mut w = csv::Writer::from_path(&path)
+            .with_context(|| format!("cannot create {}", path.display()))?;
         let mut head = Vec::new();
         let mut cols = Vec::new();
         for (key, width) in &t.columns {
@@ -132,9 +129,10 @@ pub fn write_csv(tables: &BTreeMap<String, Table>, dir: &Path) -> anyhow::Result
             }
             cols.push((t.column(key, *width), *width));
         }
-        writeln!(w, "{}", head.join(","))?;
+        w.write_record(&head)?;
+        let mut line = Vec::with_capacity(head.len());
         for r in 0..t.rows.len() {
-            let mut line = Vec::with_capacity(head.len());
+            line.clear();
             for (c, width) in &cols {
                 for v in &c[r * width..(r + 1) * width] {
                     line.push(if v.is_nan() {
@@ -146,9 +144,10 @@ pub fn write_csv(tables: &BTreeMap<String, Table>, dir: &Path) -> anyhow::Result
                     });
                 }
             }
-            writeln!(w, "{}", line.join(","))?;
+            w.write_record(&line)?;
         }
-        w.flush()?;
+        w.flush()
+            .with_context(|| format!("cannot write {}", path.display()))?;
         files.push(path);
     }
     Ok(files)

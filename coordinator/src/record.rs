@@ -69,6 +69,7 @@ impl Recorder {
             name: "cosim".into(),
             metadata: BTreeMap::from([
                 ("version".into(), env!("CARGO_PKG_VERSION").into()),
+                ("git_commit".into(), env!("COSIM_GIT_COMMIT").into()),
                 (
                     "wire_version".into(),
                     protocol::PROTOCOL_VERSION.to_string(),

@@ -188,3 +188,44 @@ fn the_field_picture_shows_the_pressure_and_the_bar_where_it_is() {
         assert!(colours.len() >= 20, "{} colours", colours.len());
     }
 }
+
+/// `cosim validate --json`: one JSON document either way, the same exit codes (0, or 2 with
+/// the full key path of the bad value).
+#[test]
+fn validate_json_names_the_key_or_lists_the_case() {
+    let case = workspace_root().join("examples/split_bar.toml");
+    let o = cosim(&["validate", case.to_str().unwrap(), "--json"]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON document");
+    assert_eq!(v["ok"], true);
+    assert_eq!(v["nodes"].as_array().unwrap().len(), 2);
+    assert_eq!(v["nodes"][1]["interfaces"][0], "root");
+    let variants: Vec<&str> = v["variants"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x["name"].as_str().unwrap())
+        .collect();
+    assert!(
+        variants.contains(&"python") && variants.contains(&"c"),
+        "{variants:?}"
+    );
+
+    let o = cosim(&[
+        "validate",
+        case.to_str().unwrap(),
+        "--json",
+        "--set",
+        "left.young=abc",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON document");
+    assert_eq!(v["ok"], false);
+    assert_eq!(v["key"], "nodes.left.params.young");
+    assert!(v["reason"].as_str().unwrap().contains("abc"), "{v}");
+}
