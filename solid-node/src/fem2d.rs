@@ -135,6 +135,9 @@ struct Fem2dState {
     a: Vec<f64>,
     time: f64,
     started: bool,
+    /// The step the integrator was factorised for (s; 0 before the first): a restart takes
+    /// the same one, so that it continues bit-identically.
+    dt: f64,
     external_work: f64,
     external_impulse: [f64; 2],
     applied_impulse: f64,
@@ -356,6 +359,7 @@ impl Fem2d {
                 a: Vec::new(),
                 time: 0.0,
                 started: false,
+                dt: 0.0,
                 external_work: 0.0,
                 external_impulse: [0.0; 2],
                 applied_impulse: 0.0,
@@ -418,16 +422,17 @@ impl Fem2d {
         std::array::from_fn(|c| self.reaction[c].iter().zip(u).map(|(r, x)| r * x).sum())
     }
 
-    fn ensure_stepper(&mut self, dt: f64) -> SolverResult<()> {
-        // Windows of equal length give steps equal to round-off: keep the factorisation.
-        if self
-            .stepper
-            .as_ref()
-            .is_none_or(|s| (s.dt - dt).abs() > 1e-12 * dt)
-        {
-            self.stepper = Some(Stepper::new(self.coef, dt, &self.sys).map_err(gs4_error)?);
+    /// The stepper for steps of `dt`, refactorised only when the step changes: windows of
+    /// equal length give steps equal to round-off, which keep the step already factorised
+    /// (also across a restart). Returns the step to take.
+    fn ensure_stepper(&mut self, dt: f64) -> SolverResult<f64> {
+        let same = |a: f64| (a - dt).abs() <= 1e-12 * dt;
+        if self.stepper.as_ref().is_none_or(|s| !same(s.dt)) {
+            let step = if same(self.s.dt) { self.s.dt } else { dt };
+            self.stepper = Some(Stepper::new(self.coef, step, &self.sys).map_err(gs4_error)?);
+            self.s.dt = step;
         }
-        Ok(())
+        Ok(self.s.dt)
     }
 
     /// `nsub` steps of `dt` from `t0`.
@@ -439,7 +444,7 @@ impl Fem2d {
             self.sys.acceleration(&st.u, &st.v, &self.f, &mut st.a);
             self.s.started = true;
         }
-        self.ensure_stepper(dt)?;
+        let dt = self.ensure_stepper(dt)?;
         let w1 = self.coef.w1;
         for k in 0..nsub {
             let ta = t0 + k as f64 * dt;

@@ -5,6 +5,8 @@
 //! order in u, v, a at the cut and at the loaded end and in the cut's multiplier, against a
 //! monolithic run with a 128 times smaller step. The load is the C³ ramp over three transits
 //! (`History::Ramp`), so that the solution is smooth enough for second order to show.
+// Index loops over the seven sampled quantities pair them with their names.
+#![allow(clippy::needless_range_loop)]
 
 use mechanics::time::{CouplingMethod, Subdomain};
 use protocol::scheme::lagrange::{LagrangeScheme, LagrangeSide, Method};

@@ -1,6 +1,6 @@
 //! Seed 003 §5.1 and §5.2 as monolithic `fem-2d` runs through `cosim run` (the small variants
 //! of `examples/seed003_wave.toml` and `examples/seed003_cantilever.toml`), against closed
-//! forms: the compressive wave reaches mid-length at 5 m / c and the points behind the front
+//! forms: the compressive wave reaches mid-length at 5 m / c (within a fifth of a step) and the points behind the front
 //! move at v = p / (ρ c h) (1-D long-wave theory); the loaded end peaks at 2 p L / (E h) when
 //! the reflection returns; the slowly loaded cantilever settles at Timoshenko's static end
 //! deflection within the bilinear mesh's bending error.
@@ -78,7 +78,7 @@ fn wave_reaches_mid_length_at_the_bar_speed() {
     assert!(n >= 15, "{n} samples");
     assert!((slope - v).abs() < 0.03 * v, "slope {slope} vs {v}");
     assert!(
-        (t0 - 5.0 / c).abs() < 3.0 * dt,
+        (t0 - 5.0 / c).abs() < 0.2 * dt,
         "arrival {t0} vs {}",
         5.0 / c
     );
@@ -88,7 +88,7 @@ fn wave_reaches_mid_length_at_the_bar_speed() {
     println!("B: slope {slope:e}, start {t0:e} s, {n} samples");
     assert!(n >= 30, "{n} samples");
     assert!((slope - v).abs() < 0.03 * v, "slope {slope} vs {v}");
-    assert!(t0.abs() < 3.0 * dt, "start {t0}");
+    assert!(t0.abs() < 0.2 * dt, "start {t0}");
     let peak = b.iter().map(|&(_, u)| u).fold(f64::NEG_INFINITY, f64::max);
     let exact = 2.0 * p * l / YOUNG;
     println!("B: peak {peak:e}, 2pL/(Eh) = {exact:e}");
@@ -111,7 +111,8 @@ fn slowly_loaded_cantilever_settles_at_the_static_deflection() {
     let exact = p * l.powi(3) / (3.0 * YOUNG / 12.0) + p * l / (5.0 / 6.0 * g);
     // After the ramp (t ≥ 0.5 s) the end rests at the static deflection; the ramp leaves a
     // vibration of order 840 / (ω₁T)⁴ ≈ 1e-3 of it. The 40 × 4 mesh of bilinear quads is
-    // stiffer in bending than the beam by 2 % (the library test measures the h² error).
+    // stiffer in bending than the beam by about 3 % (`mechanics::fem2d`'s cantilever test
+    // measures this h² error against the same closed form: 3.2 % at 40 × 4).
     let late: Vec<f64> = b
         .iter()
         .filter(|&&(t, _)| t >= 0.5)
