@@ -1,9 +1,11 @@
 //! What several solvers share (ARCHITECTURE §2): constitutive updates (J2 plasticity with
 //! isotropic and kinematic hardening, in 3-D and plane stress), damage laws, meshfree
-//! kernels, neighbour search in compressed rows, and explicit time-step helpers.
+//! kernels, neighbour search in compressed rows, explicit time-step helpers, 2-D bilinear
+//! finite elements and the GS4-II time integrators.
 //! One concern per file.
 
 pub mod damage;
+pub mod fem2d;
 pub mod gpu;
 pub mod j2;
 pub mod j2_plane_stress;

@@ -1,7 +1,9 @@
-//! Peridynamic solid node (and the 1-D elastic bar of the spine).
+//! Peridynamic solid node (and the 1-D elastic bar of the spine, and the 2-D elastic
+//! finite elements `fem-2d`).
 //! Models are chosen by name in the case config; each lives in its own module.
 
 pub mod bar;
+pub mod fem2d;
 pub mod lagrange;
 pub mod pd;
 
@@ -21,6 +23,9 @@ pub fn build(
 ) -> SolverResult<Box<dyn Solver>> {
     if model == "bar-1d" {
         return Ok(Box::new(bar::Bar::from_params(params)?));
+    }
+    if model == "fem-2d" {
+        return Ok(Box::new(fem2d::Fem2d::from_params(params)?));
     }
     if let Some(s) = pd::build(model, params, opts) {
         return s;

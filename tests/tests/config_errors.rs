@@ -302,3 +302,96 @@ fn start_timeout_not_positive() {
         "run.start_timeout",
     );
 }
+
+/// A single `fem-2d` node (seed 003 §5.1 bar): its bad keys are named with their full path.
+const FEM: &str = r#"
+[run]
+name = "f"
+end_time = 1e-4
+window = 1e-5
+output = "OUT"
+
+[nodes.beam]
+solver = "solid-node"
+model = "fem-2d"
+[nodes.beam.params]
+length = 10.0
+height = 1.0
+nx = 10
+ny = 2
+young = 72e9
+poisson = 0.3
+density = 2700.0
+plane = "stress"
+fixed = ["left"]
+loads = [{ edge = "right", traction = [-1e4, 0.0], history = "step" }]
+points = { A = [5.0, 0.5] }
+"#;
+
+#[test]
+fn bad_fem_2d_parameters_are_named() {
+    let (dir, _) = scratch("fem-good");
+    let case = dir.join("case.toml");
+    std::fs::write(&case, FEM.replace("OUT", dir.join("out").to_str().unwrap())).unwrap();
+    let v = cosim(&["validate", case.to_str().unwrap()]);
+    assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stderr));
+    for (tag, from, to, key) in [
+        (
+            "fem-plane",
+            "plane = \"stress\"",
+            "plane = \"shell\"",
+            "nodes.beam.params.plane",
+        ),
+        ("fem-nx", "nx = 10", "nx = 0", "nodes.beam.params.nx"),
+        (
+            "fem-nu",
+            "poisson = 0.3",
+            "poisson = 1.2",
+            "nodes.beam.params.poisson",
+        ),
+        (
+            "fem-fixed",
+            "[\"left\"]",
+            "[\"left.z\"]",
+            "nodes.beam.params.fixed[0]",
+        ),
+        (
+            "fem-edge",
+            "edge = \"right\"",
+            "edge = \"east\"",
+            "nodes.beam.params.loads[0].edge",
+        ),
+        (
+            "fem-ramp",
+            "history = \"step\"",
+            "history = \"ramp\"",
+            "nodes.beam.params.loads[0].ramp_time",
+        ),
+        (
+            "fem-point",
+            "A = [5.0, 0.5]",
+            "A = [50.0, 0.5]",
+            "nodes.beam.params.points.A",
+        ),
+        (
+            "fem-unknown",
+            "ny = 2",
+            "ny = 2\nnz = 2",
+            "nodes.beam.params.nz",
+        ),
+        (
+            "fem-integrator",
+            "ny = 2",
+            "ny = 2\nintegrator = { scheme = \"gs4\", design = \"wbz\", implicit = true }",
+            "nodes.beam.params.integrator.rho_inf",
+        ),
+        (
+            "fem-dt",
+            "ny = 2",
+            "ny = 2\ndt = 1.0",
+            "nodes.beam.params.dt",
+        ),
+    ] {
+        refused(tag, |_| FEM.replacen(from, to, 1), key);
+    }
+}

@@ -90,6 +90,41 @@ impl LinearSystem {
         }
     }
 
+    /// The static solution of K u = f (K must be positive definite: the system needs enough
+    /// supports to hold it), factorised for this one solve.
+    pub fn solve_static(&self, f: &[f64]) -> Result<Vec<f64>, Gs4Error> {
+        let k = &self.stiffness;
+        let mut t = Vec::with_capacity(k.vals.len());
+        for i in 0..k.n {
+            for p in k.offsets[i]..k.offsets[i + 1] {
+                t.push(Triplet::new(i, k.cols[p], k.vals[p]));
+            }
+        }
+        let mut u = f.to_vec();
+        SparseLlt::new(k.n, &t)?.solve_in_place(&mut u);
+        Ok(u)
+    }
+
+    /// A step at or below the undamped central-difference limit 2/ω_max: ω_max² is bounded
+    /// by the largest Gershgorin row sum of M⁻¹K, maxᵢ Σⱼ |Kᵢⱼ| / mᵢ (infinite without
+    /// stiffness).
+    pub fn critical_step_bound(&self) -> f64 {
+        let k = &self.stiffness;
+        let mut w2: f64 = 0.0;
+        for i in 0..k.n {
+            let row: f64 = k.vals[k.offsets[i]..k.offsets[i + 1]]
+                .iter()
+                .map(|v| v.abs())
+                .sum();
+            w2 = w2.max(row / self.mass[i]);
+        }
+        if w2 > 0.0 {
+            2.0 / w2.sqrt()
+        } else {
+            f64::INFINITY
+        }
+    }
+
     /// Kinetic plus strain energy ½ vᵀMv + ½ uᵀKu; `scratch` has the system's length.
     pub fn energy(&self, u: &[f64], v: &[f64], scratch: &mut [f64]) -> f64 {
         self.stiffness.mul(u, scratch);
@@ -119,16 +154,68 @@ impl State {
     }
 }
 
+/// A sparse LLᵀ factorisation of a symmetric positive definite matrix (faer, AMD ordering),
+/// with its solve scratch: factorised once, then each solve allocates nothing.
+pub struct SparseLlt {
+    symbolic: Box<SymbolicCholesky<usize>>,
+    values: Vec<f64>,
+    scratch: MemBuffer,
+}
+
+impl SparseLlt {
+    /// Factorises the n × n matrix given as (row, col, value) triplets (duplicates summed;
+    /// both triangles present).
+    pub fn new(n: usize, t: &[Triplet<usize, usize, f64>]) -> Result<Self, Gs4Error> {
+        let a = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, t)
+            .map_err(|e| solver_error(format!("{e:?}")))?;
+        let symbolic = factorize_symbolic_cholesky(
+            a.symbolic(),
+            Side::Lower,
+            SymmetricOrdering::Amd,
+            Default::default(),
+        )
+        .map_err(|e| solver_error(format!("{e:?}")))?;
+        let mut values = vec![0.0; symbolic.len_val()];
+        let mut fac_mem = MemBuffer::new(
+            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+        );
+        symbolic
+            .factorize_numeric_llt(
+                &mut values,
+                a.as_ref(),
+                Side::Lower,
+                Default::default(),
+                Par::Seq,
+                MemStack::new(&mut fac_mem),
+                Default::default(),
+            )
+            .map_err(|e| solver_error(format!("not positive definite ({e:?})")))?;
+        let scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
+        Ok(SparseLlt {
+            symbolic: Box::new(symbolic),
+            values,
+            scratch,
+        })
+    }
+
+    /// Overwrites `x` (the right-hand side) with the solution.
+    pub fn solve_in_place(&mut self, x: &mut [f64]) {
+        let n = x.len();
+        LltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(x, n, 1),
+            Par::Seq,
+            MemStack::new(&mut self.scratch),
+        );
+    }
+}
+
 /// The factorised effective matrix.
 enum Effective {
     /// Explicit member: the inverse of the diagonal Λ₆W₁ M + Λ₅W₂ Δt C.
     Diagonal(Vec<f64>),
     /// Implicit member: sparse LLᵀ of the symmetric positive definite effective matrix.
-    Cholesky {
-        symbolic: Box<SymbolicCholesky<usize>>,
-        values: Vec<f64>,
-        scratch: MemBuffer,
-    },
+    Cholesky(SparseLlt),
 }
 
 /// One GS4-II member at one step size over one linear system.
@@ -182,36 +269,7 @@ impl Stepper {
                     t.push(Triplet::new(i, k.cols[p], coef.l3w3 * dt * dt * k.vals[p]));
                 }
             }
-            let a = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &t)
-                .map_err(|e| solver_error(format!("{e:?}")))?;
-            let symbolic = factorize_symbolic_cholesky(
-                a.symbolic(),
-                Side::Lower,
-                SymmetricOrdering::Amd,
-                Default::default(),
-            )
-            .map_err(|e| solver_error(format!("{e:?}")))?;
-            let mut values = vec![0.0; symbolic.len_val()];
-            let mut fac_mem = MemBuffer::new(
-                symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-            );
-            symbolic
-                .factorize_numeric_llt(
-                    &mut values,
-                    a.as_ref(),
-                    Side::Lower,
-                    Default::default(),
-                    Par::Seq,
-                    MemStack::new(&mut fac_mem),
-                    Default::default(),
-                )
-                .map_err(|e| solver_error(format!("not positive definite ({e:?})")))?;
-            let scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
-            Effective::Cholesky {
-                symbolic: Box::new(symbolic),
-                values,
-                scratch,
-            }
+            Effective::Cholesky(SparseLlt::new(n, &t)?)
         };
         Ok(Stepper {
             coef,
@@ -242,18 +300,7 @@ impl Stepper {
                     *r *= d;
                 }
             }
-            Effective::Cholesky {
-                symbolic,
-                values,
-                scratch,
-            } => {
-                LltRef::new(symbolic, values).solve_in_place_with_conj(
-                    Conj::No,
-                    MatMut::from_column_major_slice_mut(&mut self.rhs, n, 1),
-                    Par::Seq,
-                    MemStack::new(scratch),
-                );
-            }
+            Effective::Cholesky(llt) => llt.solve_in_place(&mut self.rhs),
         }
         for i in 0..n {
             let da = self.rhs[i];

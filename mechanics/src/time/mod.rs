@@ -8,5 +8,5 @@ pub mod linear;
 pub mod subdomain;
 
 pub use gs4::{Design, Gs4, Gs4Error, IntegratorSpec};
-pub use linear::{Csr, LinearSystem, State, Stepper};
+pub use linear::{Csr, LinearSystem, SparseLlt, State, Stepper};
 pub use subdomain::{CouplingMethod, InterfaceDof, Subdomain};

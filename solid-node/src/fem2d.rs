@@ -1,0 +1,716 @@
+//! The 2-D elastic finite-element model (`fem-2d`, seed 003 §2.1 and §5): a rectangle of
+//! bilinear quads (`mechanics::fem2d`) in plane stress or strain, supported on named edges,
+//! loaded by line loads on edges with a step or C³ ramp history, advanced by a GS4-II member
+//! (`mechanics::time`, seed 003 §4: central differences by default, or an implicit design).
+//!
+//! Set-up (`from_params`) checks every key and builds the linear system; `advance` takes
+//! equal substeps through the window with the load weighted at each step's algorithmic time
+//! (seed 003 eq. 67); `write_output` writes the nodes with displacement, velocity and nodal
+//! stress. [`Fem2d::subdomain`] presents the same model as one side of a `lagrange` coupling.
+
+use mechanics::fem2d::{Edge, Fem2dError, Material, Mesh, Model, Plane};
+use mechanics::time::{
+    CouplingMethod, Gs4, Gs4Error, IntegratorSpec, InterfaceDof, LinearSystem, State, Stepper,
+    Subdomain,
+};
+use protocol::{Inbox, Outbox};
+use protocol::{
+    InterfaceInfo, InterfaceMesh, NodeDescription, Solver, SolverError, SolverResult, StepReport,
+    Window,
+};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// Parameters of `fem-2d`, as in the case file's `[nodes.<name>.params]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Fem2dParams {
+    /// Box length along x and height along y (m).
+    pub length: f64,
+    pub height: f64,
+    /// Lower-left corner (m).
+    #[serde(default)]
+    pub origin: [f64; 2],
+    /// Elements along x and y.
+    pub nx: usize,
+    pub ny: usize,
+    /// Young's modulus (Pa).
+    pub young: f64,
+    pub poisson: f64,
+    /// Density (kg/m³).
+    pub density: f64,
+    /// "stress" (σzz = 0) or "strain" (εzz = 0).
+    #[serde(default = "default_plane")]
+    pub plane: String,
+    /// Out-of-plane thickness (m).
+    #[serde(default = "default_thickness")]
+    pub thickness: f64,
+    /// Supported edges: "left" (both components held), or "left.x" / "left.y" (one).
+    #[serde(default)]
+    pub fixed: Vec<String>,
+    #[serde(default)]
+    pub loads: Vec<LoadParams>,
+    /// Named points whose displacement is reported every window (`<name>_ux`, `<name>_uy`):
+    /// the node nearest to [x, y], which must lie within one element of it.
+    #[serde(default)]
+    pub points: BTreeMap<String, [f64; 2]>,
+    /// Interface names → edge, for a `lagrange` coupling.
+    #[serde(default)]
+    pub interfaces: BTreeMap<String, String>,
+    /// Time integrator (as `bar-1d`'s). Absent: central differences, the explicit member of
+    /// U0(1,1,0).
+    #[serde(default)]
+    pub integrator: Option<IntegratorSpec>,
+    /// Fraction of the explicit critical step used when `dt` is absent (≤ 1).
+    #[serde(default = "default_courant")]
+    pub courant: f64,
+    /// Largest time step (s). An explicit integrator refuses one beyond its critical step.
+    #[serde(default)]
+    pub dt: Option<f64>,
+}
+
+/// A uniform line load on an edge.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LoadParams {
+    /// "left" | "right" | "bottom" | "top".
+    pub edge: String,
+    /// Force per metre of edge [qx, qy] (N/m), whatever the thickness.
+    pub traction: [f64; 2],
+    /// "step" (full load from t = 0) or "ramp" (the C³ ramp over `ramp_time`, then held).
+    #[serde(default = "default_history")]
+    pub history: String,
+    /// Ramp duration T (s), for `history = "ramp"`.
+    #[serde(default)]
+    pub ramp_time: Option<f64>,
+}
+
+fn default_plane() -> String {
+    "stress".into()
+}
+fn default_thickness() -> f64 {
+    1.0
+}
+fn default_courant() -> f64 {
+    0.9
+}
+fn default_history() -> String {
+    "step".into()
+}
+
+/// A load's time history g(t) ∈ [0, 1].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum History {
+    Step,
+    /// 35x⁴ − 84x⁵ + 70x⁶ − 20x⁷ with x = t/T for t < T, then 1: g', g'', g''' vanish at
+    /// both ends, so the response is smooth enough for second order in time to show.
+    Ramp(f64),
+}
+
+impl History {
+    pub fn at(self, t: f64) -> f64 {
+        match self {
+            History::Step => 1.0,
+            History::Ramp(period) => {
+                let x = (t / period).clamp(0.0, 1.0);
+                x.powi(4) * (35.0 + x * (-84.0 + x * (70.0 - 20.0 * x)))
+            }
+        }
+    }
+}
+
+fn fem_error(prefix: &str) -> impl Fn(Fem2dError) -> SolverError + '_ {
+    move |Fem2dError::Config { key, reason }| SolverError::config(format!("{prefix}{key}"), reason)
+}
+
+fn gs4_error(Gs4Error::Config { key, reason }: Gs4Error) -> SolverError {
+    SolverError::config(key, reason)
+}
+
+/// What `save_state` writes: the free-dof state and the running sums.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct Fem2dState {
+    u: Vec<f64>,
+    v: Vec<f64>,
+    a: Vec<f64>,
+    time: f64,
+    started: bool,
+    /// The step the integrator was factorised for (s; 0 before the first): a restart takes
+    /// the same one, so that it continues bit-identically.
+    dt: f64,
+    external_work: f64,
+    external_impulse: [f64; 2],
+    applied_impulse: f64,
+}
+
+pub struct Fem2d {
+    p: Fem2dParams,
+    model: Model,
+    sys: LinearSystem,
+    coef: Gs4,
+    /// Explicit critical step bound (s).
+    critical: f64,
+    /// Each load's free-dof shape (N) and history.
+    loads: Vec<(Vec<f64>, History)>,
+    /// Reported points: name and node.
+    points: Vec<(String, usize)>,
+    /// Σ over the supported x (y) dofs of their stiffness rows, over the free dofs: the
+    /// support reaction on the body is r · u.
+    reaction: [Vec<f64>; 2],
+    /// Direction (0 x, 1 y) of each free dof.
+    component: Vec<u8>,
+    state: State,
+    stepper: Option<Stepper>,
+    s: Fem2dState,
+    f: Vec<f64>,
+    f0: Vec<f64>,
+    u0: Vec<f64>,
+    scratch: Vec<f64>,
+    /// Names of the point scalars, built once.
+    scalar_names: Vec<(String, String)>,
+}
+
+impl std::fmt::Debug for Fem2d {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Fem2d")
+            .field("nodes", &self.model.mesh.nodes.len())
+            .field("free_dofs", &self.sys.len())
+            .field("coef", &self.coef)
+            .finish()
+    }
+}
+
+/// Parses "left" or "left.x" / "left.y": the edge and the components held.
+fn parse_support(key: &str, s: &str) -> SolverResult<(Edge, Vec<usize>)> {
+    let (edge, comps) = match s.split_once('.') {
+        None => (s, vec![0, 1]),
+        Some((e, "x")) => (e, vec![0]),
+        Some((e, "y")) => (e, vec![1]),
+        Some(_) => {
+            return Err(SolverError::config(
+                key,
+                format!("must be an edge, or an edge with \".x\" or \".y\", got \"{s}\""),
+            ));
+        }
+    };
+    Ok((Edge::parse(key, edge).map_err(fem_error(""))?, comps))
+}
+
+impl Fem2d {
+    pub fn from_params(params: &toml::Table) -> SolverResult<Self> {
+        Self::new(protocol::params::decode(params)?)
+    }
+
+    pub fn new(p: Fem2dParams) -> SolverResult<Self> {
+        let plane = match p.plane.as_str() {
+            "stress" => Plane::Stress,
+            "strain" => Plane::Strain,
+            other => {
+                return Err(SolverError::config(
+                    "plane",
+                    format!("must be \"stress\" or \"strain\", got \"{other}\""),
+                ));
+            }
+        };
+        let material = Material {
+            young: p.young,
+            poisson: p.poisson,
+            density: p.density,
+            thickness: p.thickness,
+            plane,
+        };
+        material.check().map_err(fem_error(""))?;
+        let mesh =
+            Mesh::rectangle(p.origin, p.length, p.height, p.nx, p.ny).map_err(fem_error(""))?;
+        let mut fixed = Vec::new();
+        for (k, s) in p.fixed.iter().enumerate() {
+            let (edge, comps) = parse_support(&format!("fixed[{k}]"), s)?;
+            for n in mesh.edge(edge) {
+                fixed.extend(comps.iter().map(|c| 2 * n + c));
+            }
+        }
+        if !(p.courant > 0.0 && p.courant <= 1.0) {
+            return Err(SolverError::config(
+                "courant",
+                format!("must be in (0, 1], got {}", p.courant),
+            ));
+        }
+        let coef = match &p.integrator {
+            Some(spec) => Gs4::from_spec("integrator", spec).map_err(gs4_error)?,
+            None => Gs4::central_difference(),
+        };
+        let model = Model::new(mesh, material, &fixed).map_err(fem_error(""))?;
+        if model.free_dofs() == 0 {
+            return Err(SolverError::config(
+                "fixed",
+                "holds every node: nothing moves",
+            ));
+        }
+        let sys = model.system();
+        let critical = sys.critical_step_bound();
+        if let Some(dt) = p.dt {
+            if !(dt.is_finite() && dt > 0.0) {
+                return Err(SolverError::config("dt", format!("must be > 0, got {dt}")));
+            }
+            if coef.explicit && dt > critical {
+                return Err(SolverError::config(
+                    "dt",
+                    format!(
+                        "{dt:e} s exceeds the explicit critical step bound {critical:e} s; \
+                         use a smaller step or an implicit integrator"
+                    ),
+                ));
+            }
+        }
+        let mut loads = Vec::with_capacity(p.loads.len());
+        for (k, l) in p.loads.iter().enumerate() {
+            let key = |s: &str| format!("loads[{k}].{s}");
+            let edge = Edge::parse(&key("edge"), &l.edge).map_err(fem_error(""))?;
+            if !l.traction.iter().all(|q| q.is_finite()) {
+                return Err(SolverError::config(key("traction"), "must be finite"));
+            }
+            let history = match (l.history.as_str(), l.ramp_time) {
+                ("step", None) => History::Step,
+                ("step", Some(_)) => {
+                    return Err(SolverError::config(
+                        key("ramp_time"),
+                        "only applies with history = \"ramp\"",
+                    ));
+                }
+                ("ramp", Some(t)) if t.is_finite() && t > 0.0 => History::Ramp(t),
+                ("ramp", t) => {
+                    return Err(SolverError::config(
+                        key("ramp_time"),
+                        format!("history = \"ramp\" needs ramp_time > 0 (s), got {t:?}"),
+                    ));
+                }
+                (other, _) => {
+                    return Err(SolverError::config(
+                        key("history"),
+                        format!("must be \"step\" or \"ramp\", got \"{other}\""),
+                    ));
+                }
+            };
+            let full = model.edge_load(&model.mesh.edge(edge), l.traction);
+            let mut shape = vec![0.0; sys.len()];
+            model.restrict(&full, &mut shape);
+            loads.push((shape, history));
+        }
+        let b = model.mesh.bounds();
+        let hx = p.length / p.nx as f64;
+        let hy = p.height / p.ny as f64;
+        let reach = (hx * hx + hy * hy).sqrt();
+        let mut points = Vec::with_capacity(p.points.len());
+        for (name, xy) in &p.points {
+            let key = format!("points.{name}");
+            let inside = xy[0] >= b[0] - hx
+                && xy[0] <= b[2] + hx
+                && xy[1] >= b[1] - hy
+                && xy[1] <= b[3] + hy;
+            match model.mesh.nearest(*xy) {
+                Some((node, d)) if inside && d <= reach => points.push((name.clone(), node)),
+                _ => {
+                    return Err(SolverError::config(
+                        key,
+                        format!(
+                            "{xy:?} is not on the mesh [{}, {}] × [{}, {}]",
+                            b[0], b[2], b[1], b[3]
+                        ),
+                    ));
+                }
+            }
+        }
+        for (name, edge) in &p.interfaces {
+            Edge::parse(&format!("interfaces.{name}"), edge).map_err(fem_error(""))?;
+        }
+        let mut reaction = [vec![0.0; sys.len()], vec![0.0; sys.len()]];
+        let k = &model.stiffness;
+        for (i, d) in model.dof.iter().enumerate() {
+            if d.is_some() {
+                continue;
+            }
+            for q in k.offsets[i]..k.offsets[i + 1] {
+                if let Some(j) = model.dof[k.cols[q]] {
+                    reaction[i % 2][j] += k.vals[q];
+                }
+            }
+        }
+        let mut component = vec![0u8; sys.len()];
+        for (i, d) in model.dof.iter().enumerate() {
+            if let Some(d) = *d {
+                component[d] = (i % 2) as u8;
+            }
+        }
+        let n = sys.len();
+        let scalar_names = points
+            .iter()
+            .map(|(name, _)| (format!("{name}_ux"), format!("{name}_uy")))
+            .collect();
+        Ok(Fem2d {
+            loads,
+            points,
+            reaction,
+            component,
+            state: State::zeros(n),
+            stepper: None,
+            s: Fem2dState {
+                u: Vec::new(),
+                v: Vec::new(),
+                a: Vec::new(),
+                time: 0.0,
+                started: false,
+                dt: 0.0,
+                external_work: 0.0,
+                external_impulse: [0.0; 2],
+                applied_impulse: 0.0,
+            },
+            f: vec![0.0; n],
+            f0: vec![0.0; n],
+            u0: vec![0.0; n],
+            scratch: vec![0.0; n],
+            scalar_names,
+            critical,
+            coef,
+            sys,
+            model,
+            p,
+        })
+    }
+
+    /// The step the node takes at most (s): `dt` when given, else `courant` × the explicit
+    /// critical step bound.
+    pub fn step_limit(&self) -> f64 {
+        self.p.dt.unwrap_or(self.p.courant * self.critical)
+    }
+
+    /// The explicit critical step bound of the mesh (s).
+    pub fn critical_step(&self) -> f64 {
+        self.critical
+    }
+
+    /// The mesh, material, supports and assembled operators.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// The node nearest to `xy`.
+    pub fn node_at(&self, xy: [f64; 2]) -> Option<usize> {
+        self.model.mesh.nearest(xy).map(|(n, _)| n)
+    }
+
+    /// Displacement, velocity and acceleration of component `c` of node `n` (0 where held).
+    pub fn node_motion(&self, n: usize, c: usize) -> [f64; 3] {
+        match self.model.dof.get(2 * n + c).copied().flatten() {
+            Some(d) => [self.state.u[d], self.state.v[d], self.state.a[d]],
+            None => [0.0; 3],
+        }
+    }
+
+    /// The load at time t over the free dofs, into `f`.
+    fn load_at(loads: &[(Vec<f64>, History)], t: f64, f: &mut [f64]) {
+        f.fill(0.0);
+        for (shape, h) in loads {
+            let g = h.at(t);
+            for (fi, s) in f.iter_mut().zip(shape) {
+                *fi += s * g;
+            }
+        }
+    }
+
+    /// The support reactions on the body [Rx, Ry] for the free-dof displacement `u`.
+    fn reactions(&self, u: &[f64]) -> [f64; 2] {
+        std::array::from_fn(|c| self.reaction[c].iter().zip(u).map(|(r, x)| r * x).sum())
+    }
+
+    /// The stepper for steps of `dt`, refactorised only when the step changes: windows of
+    /// equal length give steps equal to round-off, which keep the step already factorised
+    /// (also across a restart). Returns the step to take.
+    fn ensure_stepper(&mut self, dt: f64) -> SolverResult<f64> {
+        let same = |a: f64| (a - dt).abs() <= 1e-12 * dt;
+        if self.stepper.as_ref().is_none_or(|s| !same(s.dt)) {
+            let step = if same(self.s.dt) { self.s.dt } else { dt };
+            self.stepper = Some(Stepper::new(self.coef, step, &self.sys).map_err(gs4_error)?);
+            self.s.dt = step;
+        }
+        Ok(self.s.dt)
+    }
+
+    /// `nsub` steps of `dt` from `t0`.
+    fn step(&mut self, t0: f64, nsub: u64, dt: f64) -> SolverResult<()> {
+        if !self.s.started {
+            // The acceleration in equilibrium with the load at t = 0.
+            Self::load_at(&self.loads, t0, &mut self.f);
+            let st = &mut self.state;
+            self.sys.acceleration(&st.u, &st.v, &self.f, &mut st.a);
+            self.s.started = true;
+        }
+        let dt = self.ensure_stepper(dt)?;
+        let w1 = self.coef.w1;
+        for k in 0..nsub {
+            let ta = t0 + k as f64 * dt;
+            let tb = ta + dt;
+            // f̃ = (1 − W₁) f(t_n) + W₁ f(t_n+1) (seed 003 eq. 67); f0 keeps f(t_n).
+            Self::load_at(&self.loads, ta, &mut self.f0);
+            Self::load_at(&self.loads, tb, &mut self.scratch);
+            for ((f, a), b) in self.f.iter_mut().zip(&self.f0).zip(&self.scratch) {
+                *f = (1.0 - w1) * a + w1 * b;
+            }
+            self.u0.copy_from_slice(&self.state.u);
+            let r0 = self.reactions(&self.state.u);
+            let Some(stepper) = self.stepper.as_mut() else {
+                return Err(SolverError::Other("no stepper".into()));
+            };
+            stepper.step(&self.sys, &mut self.state, &self.f);
+            let r1 = self.reactions(&self.state.u);
+            // Trapezoidal work and impulse of the loads over the step; supports add their
+            // reaction's impulse.
+            let mut work = 0.0;
+            let mut impulse = [0.0; 2];
+            let mut applied = 0.0;
+            for i in 0..self.sys.len() {
+                let fm = 0.5 * (self.f0[i] + self.scratch[i]);
+                work += fm * (self.state.u[i] - self.u0[i]);
+                impulse[self.component[i] as usize] += fm * dt;
+                applied += fm.abs() * dt;
+            }
+            self.s.external_work += work;
+            self.s.applied_impulse += applied;
+            for c in 0..2 {
+                self.s.external_impulse[c] += impulse[c] + 0.5 * (r0[c] + r1[c]) * dt;
+            }
+        }
+        if let Some(i) = self.state.u.iter().position(|x| !x.is_finite()) {
+            return Err(SolverError::Diverged {
+                time: t0 + nsub as f64 * dt,
+                reason: format!("displacement of free dof {i} is not finite"),
+            });
+        }
+        Ok(())
+    }
+
+    /// The edge of an interface.
+    fn interface_edge(&self, name: &str) -> SolverResult<Edge> {
+        let s = self.p.interfaces.get(name).ok_or_else(|| {
+            SolverError::interface(
+                name,
+                "no such interface on this mesh (see params.interfaces)",
+            )
+        })?;
+        Edge::parse(&format!("interfaces.{name}"), s).map_err(fem_error(""))
+    }
+
+    /// This model as one subdomain of a `lagrange` coupling (seed 003 §4.1): the multipliers
+    /// tie both components of every node of interface `name`'s edge (ordered along it; the
+    /// node's x multiplier is `first_lambda + 2k`, its y one the next), with sign `sign` in
+    /// B (+1 on one side, −1 on the other). The loads must share one history.
+    pub fn subdomain(
+        &self,
+        name: &str,
+        sign: f64,
+        first_lambda: usize,
+        dt_system: f64,
+        substeps: usize,
+        method: CouplingMethod,
+    ) -> SolverResult<Subdomain> {
+        let edge = self.interface_edge(name)?;
+        let mut iface = Vec::new();
+        for (k, n) in self.model.mesh.edge(edge).into_iter().enumerate() {
+            for c in 0..2 {
+                let dof = self.model.dof[2 * n + c].ok_or_else(|| {
+                    SolverError::interface(name, format!("node {n} is held by a support"))
+                })?;
+                iface.push(InterfaceDof {
+                    dof,
+                    sign,
+                    lambda: first_lambda + 2 * k + c,
+                });
+            }
+        }
+        let mut shape = vec![0.0; self.sys.len()];
+        let mut history = History::Step;
+        for (k, (s, h)) in self.loads.iter().enumerate() {
+            if k > 0 && *h != history {
+                return Err(SolverError::config(
+                    format!("loads[{k}].history"),
+                    "a lagrange subdomain takes loads of one history",
+                ));
+            }
+            history = *h;
+            for (a, b) in shape.iter_mut().zip(s) {
+                *a += b;
+            }
+        }
+        Subdomain::new(
+            self.sys.clone(),
+            self.coef,
+            dt_system,
+            substeps,
+            method,
+            iface,
+            shape,
+            Box::new(move |t| history.at(t)),
+        )
+        .map_err(gs4_error)
+    }
+
+    fn full(&self, free: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; self.model.dof.len()];
+        self.model.expand(free, &mut out);
+        out
+    }
+}
+
+impl Solver for Fem2d {
+    fn describe(&self) -> NodeDescription {
+        NodeDescription {
+            model: "fem-2d".into(),
+            interfaces: self
+                .p
+                .interfaces
+                .iter()
+                .map(|(name, edge)| InterfaceInfo {
+                    name: name.clone(),
+                    points: Edge::parse("", edge)
+                        .map(|e| self.model.mesh.edge(e).len())
+                        .unwrap_or(0),
+                    provides: vec!["velocity".into()],
+                    accepts: vec!["force".into()],
+                })
+                .collect(),
+            units: "SI".into(),
+        }
+    }
+
+    fn interface(&self, name: &str) -> SolverResult<InterfaceMesh> {
+        let edge = self.interface_edge(name)?;
+        Ok(InterfaceMesh::points(
+            self.model
+                .mesh
+                .edge(edge)
+                .into_iter()
+                .map(|n| {
+                    let [x, y] = self.model.mesh.nodes[n];
+                    [x, y, 0.0]
+                })
+                .collect(),
+        ))
+    }
+
+    fn setup(
+        &mut self,
+        bindings: &[protocol::Binding],
+        _inbox: &Inbox,
+        _out: &mut Outbox,
+    ) -> SolverResult<()> {
+        if let Some(b) = bindings.first() {
+            return Err(SolverError::interface(
+                &b.interface,
+                "fem-2d takes part in lagrange couplings only (not kinematic or immersed)",
+            ));
+        }
+        Ok(())
+    }
+
+    fn stable_dt(&self) -> f64 {
+        self.step_limit()
+    }
+
+    fn advance(
+        &mut self,
+        w: &Window,
+        _inbox: &Inbox,
+        _out: &mut Outbox,
+    ) -> SolverResult<StepReport> {
+        let span = w.t1 - w.t0;
+        if span.is_nan() || span <= 0.0 {
+            return Err(SolverError::Other(format!(
+                "empty window [{}, {}]",
+                w.t0, w.t1
+            )));
+        }
+        let nsub = (span / self.step_limit() - 1e-9).ceil().max(1.0) as u64;
+        let dt = span / nsub as f64;
+        self.step(w.t0, nsub, dt)?;
+        self.s.time = w.t1;
+        let (u, v) = (&self.state.u, &self.state.v);
+        let mut ke = 0.0;
+        let mut p = [0.0; 2];
+        let mut gross = 0.0;
+        for i in 0..u.len() {
+            let m = self.sys.mass[i];
+            ke += 0.5 * m * v[i] * v[i];
+            p[self.component[i] as usize] += m * v[i];
+            gross += m * v[i].abs();
+        }
+        self.sys.stiffness.mul(u, &mut self.scratch);
+        let ie: f64 = 0.5 * u.iter().zip(&self.scratch).map(|(a, b)| a * b).sum::<f64>();
+        let mut scalars = Vec::with_capacity(2 * self.points.len());
+        for ((_, node), (nx, ny)) in self.points.iter().zip(&self.scalar_names) {
+            scalars.push((nx.clone(), self.node_motion(*node, 0)[0]));
+            scalars.push((ny.clone(), self.node_motion(*node, 1)[0]));
+        }
+        Ok(StepReport {
+            kinetic_energy: ke,
+            internal_energy: ie,
+            external_work: self.s.external_work,
+            momentum: [p[0], p[1], 0.0],
+            momentum_gross: gross,
+            external_impulse: [self.s.external_impulse[0], self.s.external_impulse[1], 0.0],
+            applied_impulse: self.s.applied_impulse,
+            substeps: nsub,
+            scalars,
+            ..Default::default()
+        })
+    }
+
+    fn write_output(&self, t: f64, window: u64, dir: &std::path::Path) -> SolverResult<()> {
+        // The nodes as VTK points (ParaView: `fem2d.pvd`) with displacement, velocity and the
+        // nodal mean of the element stresses [σxx, σyy, σxy].
+        let mesh = &self.model.mesh;
+        let points: Vec<[f64; 3]> = mesh.nodes.iter().map(|&[x, y]| [x, y, 0.0]).collect();
+        let vec3 = |full: Vec<f64>| {
+            full.chunks_exact(2)
+                .flat_map(|c| [c[0], c[1], 0.0])
+                .collect::<Vec<f64>>()
+        };
+        let u = self.full(&self.state.u);
+        let mut elem = vec![[0.0; 3]; mesh.quads.len()];
+        self.model.element_stress(&u, &mut elem);
+        let mut stress = vec![0.0; 3 * mesh.nodes.len()];
+        self.model.nodal_stress(&elem, &mut stress);
+        let data = vec![
+            ("displacement", 3, vec3(u)),
+            ("velocity", 3, vec3(self.full(&self.state.v))),
+            ("stress", 3, stress),
+        ];
+        crate::pd::output::write_vtu(dir, "fem2d", window, t, &points, data)?;
+        Ok(())
+    }
+
+    fn save_state(&self) -> SolverResult<Vec<u8>> {
+        let mut s = self.s.clone();
+        s.u = self.state.u.clone();
+        s.v = self.state.v.clone();
+        s.a = self.state.a.clone();
+        protocol::checkpoint::encode_state(&s)
+    }
+
+    fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
+        use protocol::checkpoint::check_len;
+        let s: Fem2dState = protocol::checkpoint::decode_state(bytes)?;
+        let n = self.sys.len();
+        check_len("u", s.u.len(), n)?;
+        check_len("v", s.v.len(), n)?;
+        check_len("a", s.a.len(), n)?;
+        self.state.u.copy_from_slice(&s.u);
+        self.state.v.copy_from_slice(&s.v);
+        self.state.a.copy_from_slice(&s.a);
+        self.s = Fem2dState {
+            u: Vec::new(),
+            v: Vec::new(),
+            a: Vec::new(),
+            ..s
+        };
+        Ok(())
+    }
+}
