@@ -740,6 +740,9 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         0.0,
         &case_doc,
     )?;
+    // On disk at once: a cosim killed before its first window leaves a recording that still
+    // names its case (a chunk closes only on a flush).
+    rec.flush()?;
     let kind = case.run.transport;
     transport::cleanup(kind, &run_id);
     // What earlier runs whose processes are all gone left in shared memory (a killed cosim).
@@ -1179,6 +1182,10 @@ fn drive(
         )?;
     }
     c.wait_all(&all, "set-up", None, |n| n.done == Some(0))?;
+    // The hand-shake and set-up reach the disk before the first window.
+    c.rec
+        .flush()
+        .map_err(|e| fault("coordinator", format!("recording: {e:#}")))?;
     let windows = window_count(case);
     let order_idx: Vec<usize> = order.iter().filter_map(|n| c.node_idx(n)).collect();
     // The audit (ARCHITECTURE §5) so far: restored from the checkpoint on a restart.

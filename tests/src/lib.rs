@@ -363,6 +363,17 @@ pub fn long_split_bar(tag: &str, transport: &str) -> (PathBuf, PathBuf, String) 
 
 /// `cosim run` in the background, stdout and stderr piped.
 pub fn spawn_cosim(case: &Path, out: &Path, run_id: &str) -> std::process::Child {
+    spawn_cosim_with(case, out, run_id, &[])
+}
+
+/// `cosim run` in the background with further arguments (`--variant`, `--set`), stdout and
+/// stderr piped.
+pub fn spawn_cosim_with(
+    case: &Path,
+    out: &Path,
+    run_id: &str,
+    extra: &[&str],
+) -> std::process::Child {
     Command::new(bin("cosim"))
         .args([
             "run",
@@ -373,6 +384,7 @@ pub fn spawn_cosim(case: &Path, out: &Path, run_id: &str) -> std::process::Child
             run_id,
             "--quiet",
         ])
+        .args(extra)
         .env("COSIM_LOG", "warn")
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
@@ -426,4 +438,32 @@ pub fn balance_windows(mcap: &Path) -> Vec<u64> {
             serde_json::from_slice::<serde_json::Value>(&m.data).ok()?["window"].as_u64()
         })
         .collect()
+}
+
+/// A small pseudo-random sequence (xorshift) for fault campaigns, seeded from the clock or
+/// from `COSIM_TEST_SEED`; tests print the seed so a failing draw can be repeated.
+pub struct Draw(pub u64);
+
+impl Draw {
+    /// Seeded from `COSIM_TEST_SEED` when set, else from the clock; never zero.
+    pub fn seeded() -> Draw {
+        let seed = std::env::var("COSIM_TEST_SEED")
+            .ok()
+            .and_then(|s| s.parse::<u64>().ok())
+            .unwrap_or_else(|| {
+                std::time::SystemTime::now()
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .map(|d| d.as_nanos() as u64)
+                    .unwrap_or(1)
+            });
+        Draw(seed | 1)
+    }
+
+    /// Uniform in [0, 1).
+    pub fn uniform(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
 }
