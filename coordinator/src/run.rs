@@ -888,10 +888,19 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             if let Some(st) = restart {
                 summary["restarted_from_window"] = json!(st.window);
             }
-            // Plots are a convenience: a failure to draw them is reported, not fatal.
-            match crate::plot::run_plots(&history, &out) {
-                Ok(files) => summary["plots"] = json!(files),
-                Err(e) => tracing::warn!("plots of {}: {e:#}", out.display()),
+            // Plots are a convenience: a failure to draw them is reported, not fatal. A run
+            // stopped on request exits within the 2 s a scheduler allows and draws none (a
+            // crash tube's 200 plots take longer); its restart draws them for the whole run.
+            if interrupted.is_some() {
+                summary["plots"] = json!([]);
+                summary["plots_skipped"] =
+                    json!("interrupted: the restart, or `cosim plot`, draws them");
+                tracing::info!("no plots drawn: the run was interrupted");
+            } else {
+                match crate::plot::run_plots(&history, &out) {
+                    Ok(files) => summary["plots"] = json!(files),
+                    Err(e) => tracing::warn!("plots of {}: {e:#}", out.display()),
+                }
             }
             std::fs::write(
                 out.join("summary.json"),
