@@ -312,67 +312,16 @@ fn ctrl_c_checkpoints_where_it_stops_and_the_restart_continues() {
     let (dir, id) = scratch("restart-sigint");
     let case = split_bar_case(&dir, 100, 300, 0.5, "shm", 8.0);
     let reference = dir.join("reference");
-    let o = run_case(&case, &reference, &format!("{id}r"), &[]);
+    let o = run_case(&case, &reference, &id, &[]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let out = dir.join("stopped");
-    // checkpoints far apart: the one the restart uses is the one the stop wrote
-    let mut child = std::process::Command::new(bin("cosim"))
-        .args([
-            "run",
-            case.to_str().unwrap(),
-            "--output",
-            out.to_str().unwrap(),
-            "--run-id",
-            &id,
-            "--quiet",
-            "--set",
-            "run.checkpoint_every=1000000",
-        ])
-        .env("COSIM_LOG", "warn")
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .expect("cosim starts");
-    let t = Instant::now();
-    while node_pid(&id, "right").is_none() {
-        assert!(t.elapsed() < Duration::from_secs(20), "nodes never started");
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    std::thread::sleep(Duration::from_millis(700));
-    // SAFETY: kill with the pid of our own child and a valid signal number.
-    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
-    let status = wait_exit(&mut child, Duration::from_secs(5)).expect("cosim stops");
-    assert_eq!(status.code(), Some(130));
-    let s = summary(&out);
-    assert_eq!(s["status"], "interrupted");
-    let reached = s["window_reached"].as_u64().unwrap();
-    let windows = summary(&reference)["windows"].as_u64().unwrap();
-    assert!(
-        reached > 0 && reached < windows,
-        "stopped after window {reached} of {windows}"
+    interrupt_and_restart(
+        &case,
+        &reference,
+        &[],
+        (libc::SIGINT, "SIGINT", 130),
+        Duration::from_millis(700),
+        "restart-sigint-s",
     );
-    assert!(
-        protocol::checkpoint::file(&out, reached, "coordinator").exists(),
-        "no checkpoint of window {reached}, where the run stopped"
-    );
-    let o = cosim(&["restart", out.to_str().unwrap(), "--quiet"]);
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "restart failed: {stderr}");
-    assert!(
-        stderr.contains(&format!(
-            "restarted from the checkpoint of window {reached} "
-        )),
-        "{stderr}"
-    );
-    let (a, b) = (summary(&reference), summary(&out));
-    assert_eq!(b["status"], "finished");
-    assert_eq!(a["balance"], b["balance"], "balance differs");
-    for (name, n) in a["nodes"].as_object().unwrap() {
-        assert_eq!(
-            n["final"], b["nodes"][name]["final"],
-            "final values of {name}"
-        );
-    }
 }
 
 #[test]
