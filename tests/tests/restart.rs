@@ -259,6 +259,10 @@ fn continues_identically(reference: &Path, out: &Path, k: u64) {
     for (f, bytes) in &fa {
         assert!(bytes == &fb[f], "final frame {f} differs");
     }
+    // Each node's series lists every frame once, from t = 0, though the frames after the
+    // checkpoint were written twice.
+    let (ok, text) = check_pvd(out, fa.len());
+    assert!(ok, "{text}");
     let o = cosim(&["info", out.join("run.mcap").to_str().unwrap()]);
     let info = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{info}");
