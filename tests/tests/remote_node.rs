@@ -64,13 +64,7 @@ fn a_remote_node_joins_with_the_printed_command_and_token() {
         .env("COSIM_LOG", "error")
         .output()
         .unwrap();
-    assert_eq!(
-        bad.status.code(),
-        Some(2),
-        "{}",
-        String::from_utf8_lossy(&bad.stderr)
-    );
-    assert!(String::from_utf8_lossy(&bad.stderr).contains("rejected"));
+    assert_rejected(&bad);
     // ... the one with the printed token is let in and the run completes.
     let node = Command::new(bin("solid-node"))
         .args([
@@ -112,6 +106,13 @@ fn a_remote_node_joins_with_the_printed_command_and_token() {
             .zip(&local)
             .all(|(a, b)| a.1.to_bits() == b.1.to_bits())
     );
+}
+
+/// A node turned away at the door: exit 2, saying it was rejected.
+fn assert_rejected(bad: &std::process::Output) {
+    let stderr = String::from_utf8_lossy(&bad.stderr);
+    assert_eq!(bad.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("rejected"), "{stderr}");
 }
 
 /// Runs `solid-node` as the remote node `right` with the printed command `cmd` (its first
@@ -161,13 +162,7 @@ fn a_remote_node_may_join_after_the_heartbeat_timeout() {
         "the local node did not wait"
     );
     let bad = join_with(&cmd, Some("0000"));
-    assert_eq!(
-        bad.status.code(),
-        Some(2),
-        "{}",
-        String::from_utf8_lossy(&bad.stderr)
-    );
-    assert!(String::from_utf8_lossy(&bad.stderr).contains("rejected"));
+    assert_rejected(&bad);
     let node = join_with(&cmd, None);
     let status = cosim.wait().unwrap();
     let mut rest = String::new();
