@@ -734,6 +734,9 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         case_doc["restart_from_window"] = json!(st.window);
     }
     rec.json("/cosim/case", "cosim.Case", 0.0, &case_doc)?;
+    // On disk at once: a cosim killed before its first window leaves a recording that still
+    // names its case (a chunk closes only on a flush).
+    rec.flush()?;
     let kind = case.run.transport;
     transport::cleanup(kind, &run_id);
     // What earlier runs whose processes are all gone left in shared memory (a killed cosim).
@@ -879,12 +882,21 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             if let Some(st) = restart {
                 summary["restarted_from_window"] = json!(st.window);
             }
-            // Plots are a convenience: a failure to draw them is reported, not fatal.
-            match crate::plot::run_plots(&history, &out) {
-                Ok(files) => summary["plots"] = json!(files),
-                Err(e) => tracing::warn!("plots of {}: {e:#}", out.display()),
+            // Plots are a convenience: a failure to draw them is reported, not fatal. A run
+            // stopped on request exits within the 2 s a scheduler allows and draws none (a
+            // crash tube's 200 plots take longer); its restart draws them for the whole run.
+            if interrupted.is_some() {
+                summary["plots"] = json!([]);
+                summary["plots_skipped"] =
+                    json!("interrupted: the restart, or `cosim plot`, draws them");
+                tracing::info!("no plots drawn: the run was interrupted");
+            } else {
+                match crate::plot::run_plots(&history, &out) {
+                    Ok(files) => summary["plots"] = json!(files),
+                    Err(e) => tracing::warn!("plots of {}: {e:#}", out.display()),
+                }
             }
-            if crate::fields::has_series(&out) {
+            if interrupted.is_none() && crate::fields::has_series(&out) {
                 let png = out.join("fields.png");
                 match crate::fields::render(&out, None, &png) {
                     Ok(_) => summary["fields"] = json!(png),
@@ -1178,6 +1190,10 @@ fn drive(
         )?;
     }
     c.wait_all(&all, "set-up", None, |n| n.done == Some(0))?;
+    // The hand-shake and set-up reach the disk before the first window.
+    c.rec
+        .flush()
+        .map_err(|e| fault("coordinator", format!("recording: {e:#}")))?;
     let windows = window_count(case);
     let order_idx: Vec<usize> = order.iter().filter_map(|n| c.node_idx(n)).collect();
     // The audit (ARCHITECTURE §5) so far: restored from the checkpoint on a restart.

@@ -11,12 +11,13 @@
 use crate::diagnostics::cell_prim;
 use crate::eos::Eos;
 use crate::model::Fluid;
+use node_kit::vtk::{self, Frame};
 use protocol::{SolverError, SolverResult};
 use std::fmt::Write as _;
 use std::path::Path;
 use vtkio::model::{
-    Attribute, Attributes, ByteOrder, Coordinates, DataArray, DataSet, ElementType, Extent,
-    RectilinearGridPiece, Version, Vtk,
+    Attribute, Attributes, Coordinates, DataArray, DataSet, ElementType, Extent,
+    RectilinearGridPiece,
 };
 
 /// File name of the VTK file of output window `window`.
@@ -83,9 +84,8 @@ pub fn cell_fields(f: &Fluid) -> Vec<(String, usize, Vec<f64>)> {
     out
 }
 
-/// Write `fluid_<window>.vtk` under `dir` and refresh `fluid.pvd`.
+/// Write `fluid_<window>.vtk` under `dir` and list it in `fluid.pvd` (the node kit's series).
 pub fn write_vtk(f: &Fluid, t: f64, window: u64, dir: &Path) -> SolverResult<()> {
-    std::fs::create_dir_all(dir)?;
     let g = &f.grid;
     let coords = |d: usize| -> Vec<f64> {
         (0..=g.n[d])
@@ -112,48 +112,26 @@ pub fn write_vtk(f: &Fluid, t: f64, window: u64, dir: &Path) -> SolverResult<()>
         .collect();
     let [nx, ny, nz] = [g.n[0] as i32, g.n[1] as i32, g.n[2] as i32];
     let extent = Extent::Ranges([0..=nx, 0..=ny, 0..=nz]);
-    let vtk = Vtk {
-        version: Version::new((4, 2)),
-        title: format!("fluid t = {t:e} s"),
-        byte_order: ByteOrder::BigEndian, // legacy binary VTK is big-endian
-        file_path: None,
-        data: DataSet::inline(RectilinearGridPiece {
-            extent,
-            coords: Coordinates {
-                x: coords(0).into(),
-                y: coords(1).into(),
-                z: coords(2).into(),
-            },
-            data: Attributes {
-                point: Vec::new(),
-                cell,
-            },
-        }),
+    let data = DataSet::inline(RectilinearGridPiece {
+        extent,
+        coords: Coordinates {
+            x: coords(0).into(),
+            y: coords(1).into(),
+            z: coords(2).into(),
+        },
+        data: Attributes {
+            point: Vec::new(),
+            cell,
+        },
+    });
+    let frame = Frame {
+        dir,
+        stem: "fluid",
+        window,
+        time: t,
     };
-    let name = vtk_file_name(window);
-    vtk.export(dir.join(&name))
-        .map_err(|e| SolverError::Other(format!("writing {name}: {e}")))?;
-    // time series: append to the list of written files
-    let pvd = dir.join("fluid.pvd");
-    let mut entries = match std::fs::read_to_string(&pvd) {
-        Ok(old) => old
-            .lines()
-            .filter(|l| l.contains("<DataSet"))
-            .filter(|l| !l.contains(&name))
-            .map(|l| l.to_string())
-            .collect::<Vec<_>>(),
-        Err(_) => Vec::new(),
-    };
-    entries.push(format!("<DataSet timestep=\"{t:e}\" file=\"{name}\"/>"));
-    let mut out = String::from(
-        "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n<Collection>\n",
-    );
-    for e in entries {
-        out.push_str(&e);
-        out.push('\n');
-    }
-    out.push_str("</Collection>\n</VTKFile>\n");
-    std::fs::write(pvd, out).map_err(SolverError::from)
+    vtk::write_legacy(&frame, data)?;
+    Ok(())
 }
 
 /// Probe histories as CSV: time, then ρ, p, u, v, w for each probe.

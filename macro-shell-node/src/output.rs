@@ -7,13 +7,10 @@
 use crate::element::{self, R_H};
 use crate::model::Model;
 use crate::step::quat_log;
-use protocol::{SolverError, SolverResult};
-use std::fmt::Write as _;
+use node_kit::vtk::{self, Frame};
+use protocol::SolverResult;
 use std::path::Path;
-use vtkio::model::{
-    Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version,
-    VertexNumbers, Vtk,
-};
+use vtkio::model::CellType;
 
 /// von Mises of a plane-stress state.
 fn mises(s: [f64; 3]) -> f64 {
@@ -54,12 +51,11 @@ pub fn membrane_stress(m: &Model, e: usize) -> [f64; 3] {
     s
 }
 
-/// Write `<dir>/<name>_<window>.vtu` and update `<dir>/<name>.pvd`.
+/// Write `<dir>/<name>_<window>.vtu` and list it in `<dir>/<name>.pvd` (the node kit's
+/// series).
 pub fn write_vtu(m: &Model, dir: &Path, name: &str, window: u64, t: f64) -> SolverResult<()> {
-    std::fs::create_dir_all(dir)?;
     let nn = m.num_nodes();
     let ne = m.num_elements();
-    let points: Vec<f64> = m.x.iter().flat_map(|p| p.iter().copied()).collect();
     let disp: Vec<f64> = (0..nn)
         .flat_map(|i| (0..3).map(move |d| (i, d)))
         .map(|(i, d)| m.x[i][d] - m.x0[i][d])
@@ -83,63 +79,36 @@ pub fn write_vtu(m: &Model, dir: &Path, name: &str, window: u64, t: f64) -> Solv
         });
         thick.push(m.res[e][R_H]);
     }
-    let piece = UnstructuredGridPiece {
-        points: points.into(),
-        cells: Cells {
-            cell_verts: VertexNumbers::XML {
-                connectivity: m
-                    .conn
-                    .iter()
-                    .flat_map(|c| c.iter().map(|&n| n as u64))
-                    .collect(),
-                offsets: (1..=ne as u64).map(|k| 4 * k).collect(),
-            },
-            types: vec![CellType::Quad; ne],
-        },
-        data: Attributes {
-            point: vec![
-                Attribute::generic("displacement", 3).with_data(disp),
-                Attribute::generic("velocity", 3).with_data(vel),
-                Attribute::generic("rotation", 3).with_data(rot),
-            ],
-            cell: vec![
-                Attribute::generic("stress_mid", 9).with_data(stress),
-                Attribute::generic("mises_top", 1).with_data(vm_top),
-                Attribute::generic("mises_bottom", 1).with_data(vm_bot),
-                Attribute::generic("plastic_strain", 1).with_data(eqps),
-                Attribute::generic("thickness", 1).with_data(thick),
-            ],
-        },
-    };
-    let vtk = Vtk {
-        version: Version::new((1, 0)),
-        title: format!("{name} t={t:e}"),
-        byte_order: ByteOrder::LittleEndian,
-        file_path: None,
-        data: DataSet::inline(piece),
-    };
-    let file = format!("{name}_{window:06}.vtu");
-    vtk.export(dir.join(&file))
-        .map_err(|e| SolverError::Other(format!("writing {file}: {e}")))?;
-    // Append to the .pvd series (rewritten whole; small).
-    let pvd = dir.join(format!("{name}.pvd"));
-    let mut entries = String::new();
-    if let Ok(old) = std::fs::read_to_string(&pvd) {
-        for line in old.lines().filter(|l| l.contains("<DataSet")) {
-            if !line.contains(&format!("file=\"{file}\"")) {
-                entries.push_str(line);
-                entries.push('\n');
-            }
-        }
-    }
-    let _ = writeln!(
-        entries,
-        "    <DataSet timestep=\"{t:e}\" group=\"\" part=\"0\" file=\"{file}\"/>"
+    let connectivity = m
+        .conn
+        .iter()
+        .flat_map(|c| c.iter().map(|&n| n as u64))
+        .collect();
+    let piece = vtk::grid(
+        &m.x,
+        CellType::Quad,
+        4,
+        connectivity,
+        vec![
+            ("displacement", 3, disp),
+            ("velocity", 3, vel),
+            ("rotation", 3, rot),
+        ],
+        vec![
+            ("stress_mid", 9, stress),
+            ("mises_top", 1, vm_top),
+            ("mises_bottom", 1, vm_bot),
+            ("plastic_strain", 1, eqps),
+            ("thickness", 1, thick),
+        ],
     );
-    let text = format!(
-        "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n{entries}  </Collection>\n</VTKFile>\n"
-    );
-    std::fs::write(pvd, text)?;
+    let frame = Frame {
+        dir,
+        stem: name,
+        window,
+        time: t,
+    };
+    vtk::write_vtu(&frame, piece)?;
     Ok(())
 }
 

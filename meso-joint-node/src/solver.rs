@@ -725,8 +725,7 @@ impl Solver for SpgSolver {
     }
 
     fn write_output(&self, t: f64, window: u64, dir: &Path) -> SolverResult<()> {
-        std::fs::create_dir_all(dir)?;
-        crate::output::write_vtu(&self.model, &dir.join(format!("joint_{window:06}.vtu")), t)?;
+        crate::output::write_vtu(&self.model, dir, window, t)?;
         let mut csv = std::io::BufWriter::new(std::fs::File::create(dir.join("joint_force.csv"))?);
         write!(csv, "time")?;
         for g in &self.model.bcs {

@@ -977,6 +977,12 @@ fn node_loop(
             let a = *a;
             if engine.ready(a.window) {
                 pending_cmd.pop_front();
+                if a.window == 1 {
+                    // The series opens with the state after set-up (window 0, t0); a restart
+                    // never runs window 1, so its series keeps the frame of the first run.
+                    let dir = PathBuf::from(&welcome.output_dir);
+                    engine.solver.write_output(a.t0, 0, &dir)?;
+                }
                 let started = Instant::now();
                 let win = Window {
                     index: a.window,

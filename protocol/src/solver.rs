@@ -209,7 +209,9 @@ pub trait Solver: Send {
     /// Advance from `w.t0` to exactly `w.t1`, sub-cycling at the solver's own stable step.
     fn advance(&mut self, w: &Window, inbox: &Inbox, out: &mut Outbox) -> SolverResult<StepReport>;
 
-    /// Write output for ParaView under `dir` (VTK), for the state at time `t` after `window`.
+    /// Write output for ParaView under `dir` (VTK), for the state at time `t` after `window`;
+    /// the runtime calls it with window 0 for the state after set-up (the series' t = 0
+    /// frame), then after every output window.
     fn write_output(&self, t: f64, window: u64, dir: &Path) -> SolverResult<()> {
         let _ = (t, window, dir);
         Ok(())

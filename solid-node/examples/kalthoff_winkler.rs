@@ -6,8 +6,8 @@
 //! least-squares line through the tip fitted to the damaged particles (φ ≥ 0.35) between 3δ
 //! and 40 mm from the tip (experiment ≈ 70°, target 65–72°), and writes VTK.
 //! `cargo run --release -p solid-node --example kalthoff_winkler [dx_mm] [end_us]`
+use node_kit::vtk::{Frame, point_cloud, write_vtu};
 use solid_node::pd::cases::KalthoffWinkler;
-use solid_node::pd::output::write_vtu;
 
 fn main() {
     let mut args = std::env::args().skip(1);
@@ -39,19 +39,19 @@ fn main() {
         .map(|(i, c)| b.pos[i][c] - b.x0[i][c])
         .collect();
     let vel: Vec<f64> = b.vel.iter().flat_map(|v| v.iter().copied()).collect();
-    match write_vtu(
-        &dir,
-        "kw",
-        1,
-        kw.end_time,
-        &b.pos,
-        vec![
-            ("displacement", 3, disp),
-            ("velocity", 3, vel),
-            ("damage", 1, d.clone()),
-        ],
-    ) {
-        Ok(()) => println!("VTK: {}", dir.display()),
+    let frame = Frame {
+        dir: &dir,
+        stem: "kw",
+        window: 1,
+        time: kw.end_time,
+    };
+    let data = vec![
+        ("displacement", 3, disp),
+        ("velocity", 3, vel),
+        ("damage", 1, d.clone()),
+    ];
+    match write_vtu(&frame, point_cloud(&b.pos, data)) {
+        Ok(_) => println!("VTK: {}", dir.display()),
         Err(err) => eprintln!("VTK output failed: {err}"),
     }
     for r_max in [0.02, 0.04] {

@@ -592,7 +592,13 @@ impl Solver for Bar {
             ("displacement", 3, vec3(&self.s.u)),
             ("velocity", 3, vec3(&self.s.v)),
         ];
-        crate::pd::output::write_vtu(dir, "bar", window, t, &points, data)?;
+        let frame = node_kit::vtk::Frame {
+            dir,
+            stem: "bar",
+            window,
+            time: t,
+        };
+        node_kit::vtk::write_vtu(&frame, node_kit::vtk::point_cloud(&points, data))?;
         Ok(())
     }
 

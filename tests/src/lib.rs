@@ -71,13 +71,12 @@ pub fn run_case(case: &Path, out: &Path, run_id: &str, extra: &[&str]) -> Output
     cosim(&args)
 }
 
-/// Run the independent MCAP check (`tools/check_mcap.py`, the official Python reader) with
-/// `flag` (`--require-json` or `--recover`); returns (passed, its stdout + stderr).
-pub fn check_mcap(mcap: &Path, flag: &str) -> (bool, String) {
+/// Run one of the independent checks in `tools/` (Python, the official readers) with
+/// `args`; returns (passed, its stdout + stderr).
+fn python_tool(script: &str, args: &[&std::ffi::OsStr]) -> (bool, String) {
     let o = Command::new("python3")
-        .arg(workspace_root().join("tools/check_mcap.py"))
-        .arg(mcap)
-        .arg(flag)
+        .arg(workspace_root().join("tools").join(script))
+        .args(args)
         .output()
         .expect("python3 runs");
     let text = format!(
@@ -88,22 +87,20 @@ pub fn check_mcap(mcap: &Path, flag: &str) -> (bool, String) {
     (o.status.success(), text)
 }
 
+/// Run the independent MCAP check (`tools/check_mcap.py`, the official Python reader) with
+/// `flag` (`--require-json` or `--recover`); returns (passed, its stdout + stderr).
+pub fn check_mcap(mcap: &Path, flag: &str) -> (bool, String) {
+    python_tool("check_mcap.py", &[mcap.as_os_str(), flag.as_ref()])
+}
+
 /// Open every VTK file (.vtu, .vtk) under `dir` with meshio, the independent reader
 /// (`tools/check_vtk.py`), requiring the named arrays in each; (passed, its output).
 pub fn check_vtk(dir: &Path, require: &[&str]) -> (bool, String) {
-    let mut cmd = Command::new("python3");
-    cmd.arg(workspace_root().join("tools/check_vtk.py"))
-        .arg(dir);
+    let mut args = vec![dir.as_os_str()];
     for r in require {
-        cmd.args(["--require", r]);
+        args.extend_from_slice(&["--require".as_ref(), r.as_ref()]);
     }
-    let o = cmd.output().expect("python3 runs");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    (o.status.success(), text)
+    python_tool("check_vtk.py", &args)
 }
 
 /// Per-window 3-vector `key` of a node's report (e.g. `interface_impulse`), from the
@@ -363,6 +360,17 @@ pub fn long_split_bar(tag: &str, transport: &str) -> (PathBuf, PathBuf, String) 
 
 /// `cosim run` in the background, stdout and stderr piped.
 pub fn spawn_cosim(case: &Path, out: &Path, run_id: &str) -> std::process::Child {
+    spawn_cosim_with(case, out, run_id, &[])
+}
+
+/// `cosim run` in the background with further arguments (`--variant`, `--set`), stdout and
+/// stderr piped.
+pub fn spawn_cosim_with(
+    case: &Path,
+    out: &Path,
+    run_id: &str,
+    extra: &[&str],
+) -> std::process::Child {
     Command::new(bin("cosim"))
         .args([
             "run",
@@ -373,6 +381,7 @@ pub fn spawn_cosim(case: &Path, out: &Path, run_id: &str) -> std::process::Child
             run_id,
             "--quiet",
         ])
+        .args(extra)
         .env("COSIM_LOG", "warn")
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
@@ -435,4 +444,49 @@ pub fn png_pixels(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
         .to_rgb8();
     let (w, h) = img.dimensions();
     (w, h, img.pixels().map(|p| p.0).collect())
+}
+
+/// A small pseudo-random sequence (xorshift) for fault campaigns, seeded from the clock or
+/// from `COSIM_TEST_SEED`; tests print the seed so a failing draw can be repeated.
+pub struct Draw(pub u64);
+
+impl Draw {
+    /// Seeded from `COSIM_TEST_SEED` when set, else from the clock; never zero.
+    pub fn seeded() -> Draw {
+        let seed = std::env::var("COSIM_TEST_SEED")
+            .ok()
+            .and_then(|s| s.parse::<u64>().ok())
+            .unwrap_or_else(|| {
+                std::time::SystemTime::now()
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .map(|d| d.as_nanos() as u64)
+                    .unwrap_or(1)
+            });
+        Draw(seed | 1)
+    }
+
+    /// Uniform in [0, 1).
+    pub fn uniform(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// Run the independent series check (`tools/check_pvd.py`: Python's XML parser and meshio)
+/// on every `.pvd` under `dir`, requiring `series` of them, each opening with a t = 0 frame,
+/// every frame once; `displacement` zero in each first frame. (passed, its output).
+pub fn check_pvd(dir: &Path, series: usize) -> (bool, String) {
+    let n = series.to_string();
+    python_tool(
+        "check_pvd.py",
+        &[
+            dir.as_os_str(),
+            "--series".as_ref(),
+            n.as_ref(),
+            "--zero-at-t0".as_ref(),
+            "displacement".as_ref(),
+        ],
+    )
 }

@@ -34,7 +34,7 @@ fn a_rerun_needs_overwrite_and_then_lists_only_its_own_frames() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(summary(&out)["windows"], 80);
     let pvd = out.join("right/bar.pvd");
-    assert_eq!(frames(&pvd), 4, "windows 20, 40, 60, 80");
+    assert_eq!(frames(&pvd), 5, "windows 0, 20, 40, 60, 80");
     // Another run's results beside it, as a variant writes them: kept by --overwrite.
     std::fs::create_dir_all(out.join("fine")).expect("variant folder");
     std::fs::write(out.join("fine/summary.json"), "{}").expect("variant summary");
@@ -54,7 +54,7 @@ fn a_rerun_needs_overwrite_and_then_lists_only_its_own_frames() {
         "the refused rerun changed the earlier results"
     );
 
-    // Half as long: 40 windows, frames at 20 and 40 only.
+    // Half as long: 40 windows, frames at 0, 20 and 40 only.
     let half = format!(
         "run.end_time={:e}",
         0.125 * 4.0 / (200e9f64 / 7860.0).sqrt()
@@ -75,8 +75,8 @@ fn a_rerun_needs_overwrite_and_then_lists_only_its_own_frames() {
     assert_eq!(summary(&out)["windows"], 40);
     for node in ["left", "right"] {
         let node_dir = out.join(node);
-        assert_eq!(frames(&node_dir.join("bar.pvd")), 2, "{node}: frames");
-        assert_eq!(vtu_files(&node_dir), 2, "{node}: VTK files");
+        assert_eq!(frames(&node_dir.join("bar.pvd")), 3, "{node}: frames");
+        assert_eq!(vtu_files(&node_dir), 3, "{node}: VTK files");
     }
     assert!(
         out.join("fine/summary.json").exists(),

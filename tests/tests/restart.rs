@@ -185,8 +185,17 @@ fn kill_and_restart(
         "restarted from window {k}"
     );
 
+    continues_identically(&reference, &out, k);
+    k
+}
+
+/// A run in `out` restarted from the checkpoint of window `k` ended as the uninterrupted run
+/// in `reference`: summary.json (balance, every node's final values and step counts), every
+/// node report and coupling message after window `k`, every node's last VTK frame; and the
+/// recording reads as one run.
+fn continues_identically(reference: &Path, out: &Path, k: u64) {
     // summary.json: the whole run's balance, every node's final values and step counts.
-    let (a, b) = (summary(&reference), summary(&out));
+    let (a, b) = (summary(reference), summary(out));
     assert_eq!(b["status"], "finished");
     assert_eq!(b["restarted_from_window"], k);
     assert_eq!(a["window_reached"], b["window_reached"]);
@@ -244,12 +253,16 @@ fn kill_and_restart(
         "no coupling message after window {k} was compared"
     );
     // The final state: every node's last frame, byte for byte.
-    let (fa, fb) = (last_frames(&reference), last_frames(&out));
+    let (fa, fb) = (last_frames(reference), last_frames(out));
     assert!(!fa.is_empty(), "no frames written");
     assert_eq!(fa.keys().collect::<Vec<_>>(), fb.keys().collect::<Vec<_>>());
     for (f, bytes) in &fa {
         assert!(bytes == &fb[f], "final frame {f} differs");
     }
+    // Each node's series lists every frame once, from t = 0, though the frames after the
+    // checkpoint were written twice.
+    let (ok, text) = check_pvd(out, fa.len());
+    assert!(ok, "{text}");
     let o = cosim(&["info", out.join("run.mcap").to_str().unwrap()]);
     let info = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{info}");
@@ -262,7 +275,6 @@ fn kill_and_restart(
         "restarted from window {k} of {windows}: {compared} reports, {messages} coupling messages and {} final frames identical",
         fa.len()
     );
-    k
 }
 
 #[test]
@@ -304,67 +316,16 @@ fn ctrl_c_checkpoints_where_it_stops_and_the_restart_continues() {
     let (dir, id) = scratch("restart-sigint");
     let case = split_bar_case(&dir, 100, 300, 0.5, "shm", 8.0);
     let reference = dir.join("reference");
-    let o = run_case(&case, &reference, &format!("{id}r"), &[]);
+    let o = run_case(&case, &reference, &id, &[]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let out = dir.join("stopped");
-    // checkpoints far apart: the one the restart uses is the one the stop wrote
-    let mut child = std::process::Command::new(bin("cosim"))
-        .args([
-            "run",
-            case.to_str().unwrap(),
-            "--output",
-            out.to_str().unwrap(),
-            "--run-id",
-            &id,
-            "--quiet",
-            "--set",
-            "run.checkpoint_every=1000000",
-        ])
-        .env("COSIM_LOG", "warn")
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .expect("cosim starts");
-    let t = Instant::now();
-    while node_pid(&id, "right").is_none() {
-        assert!(t.elapsed() < Duration::from_secs(20), "nodes never started");
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    std::thread::sleep(Duration::from_millis(700));
-    // SAFETY: kill with the pid of our own child and a valid signal number.
-    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
-    let status = wait_exit(&mut child, Duration::from_secs(5)).expect("cosim stops");
-    assert_eq!(status.code(), Some(130));
-    let s = summary(&out);
-    assert_eq!(s["status"], "interrupted");
-    let reached = s["window_reached"].as_u64().unwrap();
-    let windows = summary(&reference)["windows"].as_u64().unwrap();
-    assert!(
-        reached > 0 && reached < windows,
-        "stopped after window {reached} of {windows}"
+    interrupt_and_restart(
+        &case,
+        &reference,
+        &[],
+        (libc::SIGINT, "SIGINT", 130),
+        Duration::from_millis(700),
+        "restart-sigint-s",
     );
-    assert!(
-        protocol::checkpoint::file(&out, reached, "coordinator").exists(),
-        "no checkpoint of window {reached}, where the run stopped"
-    );
-    let o = cosim(&["restart", out.to_str().unwrap(), "--quiet"]);
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "restart failed: {stderr}");
-    assert!(
-        stderr.contains(&format!(
-            "restarted from the checkpoint of window {reached} "
-        )),
-        "{stderr}"
-    );
-    let (a, b) = (summary(&reference), summary(&out));
-    assert_eq!(b["status"], "finished");
-    assert_eq!(a["balance"], b["balance"], "balance differs");
-    for (name, n) in a["nodes"].as_object().unwrap() {
-        assert_eq!(
-            n["final"], b["nodes"][name]["final"],
-            "final values of {name}"
-        );
-    }
 }
 
 #[test]
@@ -410,4 +371,137 @@ fn chamber_small_on_the_gpu_killed_and_restarted_is_bit_identical() {
         20,
     );
     assert!(k >= 20);
+}
+
+/// Must-show 5: `sig` (SIGINT or SIGTERM, `name`, exit `code`) to `cosim` mid-run of `case`
+/// with checkpoints on (far apart: the one the restart uses is the one the stop wrote), once
+/// every node runs and `after` has passed: exit `code` within 2 s, status "interrupted", a
+/// recording the official reader opens without recovery holding windows 1..=reached, no
+/// process or shared memory left; then `cosim restart` continues to the end of the
+/// uninterrupted run in `reference`, bit-identically.
+fn interrupt_and_restart(
+    case: &Path,
+    reference: &Path,
+    extra: &[&str],
+    (sig, name, code): (i32, &str, i32),
+    after: Duration,
+    tag: &str,
+) {
+    let (dir, id) = scratch(tag);
+    let out = dir.join("stopped");
+    let mut args = extra.to_vec();
+    args.extend_from_slice(&["--set", "run.checkpoint_every=1000000"]);
+    let mut child = spawn_cosim_with(case, &out, &id, &args);
+    let nodes: Vec<String> = summary(reference)["nodes"]
+        .as_object()
+        .expect("nodes in summary.json")
+        .keys()
+        .cloned()
+        .collect();
+    let t = Instant::now();
+    while !nodes.iter().all(|n| node_pid(&id, n).is_some()) {
+        assert!(t.elapsed() < Duration::from_secs(60), "nodes never started");
+        assert!(child.try_wait().unwrap().is_none(), "cosim ended early");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    std::thread::sleep(after);
+    let t = Instant::now();
+    // SAFETY: kill with the pid of our own child and a valid signal number.
+    assert_eq!(unsafe { libc::kill(child.id() as i32, sig) }, 0);
+    let status = wait_exit(&mut child, Duration::from_secs(2));
+    let took = t.elapsed();
+    if status.is_none() {
+        let _ = child.kill();
+    }
+    let o = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let status = status.unwrap_or_else(|| panic!("cosim still running 2 s after {name}"));
+    println!("{tag}: {status} after {took:?}: {stderr}");
+    assert_eq!(status.code(), Some(code), "{stderr}");
+    assert!(
+        stderr.contains(&format!("interrupted by {name}")),
+        "{stderr}"
+    );
+    let s = summary(&out);
+    assert_eq!(s["status"], "interrupted");
+    assert_eq!(s["signal"], name);
+    let reached = s["window_reached"].as_u64().unwrap();
+    let windows = summary(reference)["windows"].as_u64().unwrap();
+    assert!(
+        reached > 0 && reached < windows,
+        "stopped after window {reached} of {windows}: the scenario is void"
+    );
+    let mcap = out.join("run.mcap");
+    let (ok, text) = check_mcap(&mcap, "--require-json");
+    assert!(ok, "check_mcap: {text}");
+    assert_eq!(
+        balance_windows(&mcap),
+        (1..=reached).collect::<Vec<_>>(),
+        "recorded windows are not 1..={reached}"
+    );
+    nothing_left(&id);
+    assert!(
+        protocol::checkpoint::file(&out, reached, "coordinator").exists(),
+        "no checkpoint of window {reached}, where the run stopped"
+    );
+    let o = cosim(&["restart", out.to_str().unwrap(), "--quiet"]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "restart failed: {stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "restarted from the checkpoint of window {reached} "
+        )),
+        "{stderr}"
+    );
+    continues_identically(reference, &out, reached);
+}
+
+/// Runs `case` uninterrupted, then stops it with SIGINT and with SIGTERM and restarts each.
+fn interrupted_both_ways(case: &Path, extra: &[&str], after: Duration, tag: &str) {
+    let (dir, id) = scratch(tag);
+    let reference = dir.join("reference");
+    let o = run_case(case, &reference, &id, extra);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for (sig, name, code) in [
+        (libc::SIGINT, "SIGINT", 130),
+        (libc::SIGTERM, "SIGTERM", 143),
+    ] {
+        interrupt_and_restart(
+            case,
+            &reference,
+            extra,
+            (sig, name, code),
+            after,
+            &format!("{tag}-{code}"),
+        );
+    }
+}
+
+/// The small chamber, run to 1.2 ms (240 windows) so that a signal lands mid-run.
+#[test]
+fn chamber_interrupted_by_sigint_and_sigterm_restarts_bit_identically() {
+    interrupted_both_ways(
+        &workspace_root().join("examples/chamber_detonation.toml"),
+        &["--variant", "small", "--set", "run.end_time=1.2e-3"],
+        Duration::from_millis(500),
+        "int-ch",
+    );
+}
+
+/// The small crash tube (11 processes), run to 20 ms (200 windows) with a VTK frame every 50.
+#[test]
+fn crash_tube_interrupted_by_sigint_and_sigterm_restarts_bit_identically() {
+    interrupted_both_ways(
+        &workspace_root().join("examples/crash_tube.toml"),
+        &[
+            "--variant",
+            "small",
+            "--set",
+            "run.end_time=0.02",
+            "--set",
+            "run.output_every=50",
+        ],
+        Duration::from_millis(2500),
+        "int-ct",
+    );
 }

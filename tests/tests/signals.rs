@@ -102,32 +102,15 @@ fn sigterm_stops_the_run_at_a_window_boundary() {
     stopped_by("sigterm", libc::SIGTERM, "SIGTERM", 143);
 }
 
-/// A small pseudo-random sequence (xorshift), seeded from the clock and printed, so a
-/// failing draw can be repeated by hand.
-struct Draw(u64);
-impl Draw {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 #[test]
 fn a_killed_cosim_leaves_no_node_and_no_shared_memory() {
     const KILLS: usize = 5;
-    let seed = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_nanos() as u64)
-        .unwrap_or(1)
-        | 1;
-    println!("seed {seed}");
-    let mut draw = Draw(seed);
+    let mut draw = Draw::seeded();
+    println!("seed {} (COSIM_TEST_SEED repeats it)", draw.0);
     let mut killed = Vec::new();
     let mut self_cleaned = 0;
     for k in 0..KILLS {
-        let after = Duration::from_millis(300 + (draw.next() * 2000.0) as u64);
+        let after = Duration::from_millis(300 + (draw.uniform() * 2000.0) as u64);
         let (mut child, out, id) = start(&format!("kill9-{k}"), "shm", after);
         signal(&child, libc::SIGKILL);
         let t = Instant::now();

@@ -21,7 +21,6 @@ pub mod geometry;
 pub mod gpu;
 pub mod integrate;
 pub mod model;
-pub mod output;
 pub mod rk_ba;
 pub mod solver;
 

@@ -20,13 +20,13 @@ use super::geometry::{Shape, lattice};
 use super::gpu::DeviceBody;
 use super::integrate::Body;
 use super::model::{Dim, PdModel};
-use super::output::{PointData, write_vtu};
 use super::rk_ba::RkBa;
 use mechanics::damage::{
     BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain, NoDamage,
 };
 use mechanics::gpu::{GpuContext, PrecisionRequest};
 use mechanics::j2::J2Material;
+use node_kit::vtk::{self, Arrays, Frame};
 use protocol::{
     Binding, CouplingKind, InterfaceInfo, InterfaceMesh, NodeDescription, Role, Solver,
     SolverError, SolverResult, StepReport, Window,
@@ -1564,7 +1564,7 @@ impl Solver for PdSolver {
                 .flat_map(|v| v.iter().copied())
                 .collect::<Vec<f64>>()
         };
-        let mut data: PointData = vec![
+        let mut data: Arrays = vec![
             ("displacement", 3, flat(disp_s)),
             ("velocity", 3, flat(vel_s)),
         ];
@@ -1590,7 +1590,13 @@ impl Solver for PdSolver {
         let mut d = vec![0.0; n];
         bonds.damage(&b.vol, &mut d);
         data.push(("damage", 1, d));
-        write_vtu(dir, "pd", window, t, &pos, data)?;
+        let frame = Frame {
+            dir,
+            stem: "pd",
+            window,
+            time: t,
+        };
+        vtk::write_vtu(&frame, vtk::point_cloud(&pos, data))?;
         Ok(())
     }
 }
