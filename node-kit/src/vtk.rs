@@ -7,8 +7,10 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+/// The cell kinds of [`grid`] (vtkio's), for nodes that do not depend on vtkio themselves.
+pub use vtkio::model::CellType;
 use vtkio::model::{
-    Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version,
+    Attribute, Attributes, ByteOrder, Cells, DataSet, UnstructuredGridPiece, Version,
     VertexNumbers, Vtk,
 };
 

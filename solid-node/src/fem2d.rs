@@ -683,7 +683,29 @@ impl Solver for Fem2d {
             ("velocity", 3, vec3(self.full(&self.state.v))),
             ("stress", 3, stress),
         ];
-        crate::pd::output::write_vtu(dir, "fem2d", window, t, &points, data)?;
+        let cells = vec![("element_stress", 3, elem.as_flattened().to_vec())];
+        let connectivity = mesh
+            .quads
+            .iter()
+            .flat_map(|q| q.iter().map(|&n| n as u64))
+            .collect();
+        let frame = node_kit::vtk::Frame {
+            dir,
+            stem: "fem2d",
+            window,
+            time: t,
+        };
+        node_kit::vtk::write_vtu(
+            &frame,
+            node_kit::vtk::grid(
+                &points,
+                node_kit::vtk::CellType::Quad,
+                4,
+                connectivity,
+                data,
+                cells,
+            ),
+        )?;
         Ok(())
     }
 
