@@ -6,6 +6,7 @@ pub mod checkpoint;
 pub mod cli;
 pub mod config;
 pub mod describe;
+pub mod lagrange;
 pub mod plot;
 pub mod progress;
 pub mod record;
