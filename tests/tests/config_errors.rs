@@ -443,8 +443,8 @@ fn a_field_the_scheme_needs_and_the_node_lacks_is_refused() {
         &[
             "couplings[0].responder_fields",
             "left-right",
-            "node 'right'",
-            "'heat'",
+            "node 'left'",
+            "accept field 'heat'",
         ],
     );
     // Immersed: the driver (a solid) must provide its particles' volumes; a bar has none.
