@@ -287,3 +287,73 @@ fn tie(
     }
     Ok((n, out, signs))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mesh(xs: &[f64]) -> Option<InterfaceMesh> {
+        Some(InterfaceMesh::points(
+            xs.iter().map(|&x| [x, 0.0, 0.0]).collect(),
+        ))
+    }
+
+    fn setup(dofs: usize) -> SideSetup {
+        SideSetup {
+            ids: Vec::new(),
+            signs: Vec::new(),
+            steps: 1,
+            operator: vec![0.0; dofs * dofs],
+            free0: vec![0.0; dofs],
+            mass0: vec![0.0; dofs * dofs],
+        }
+    }
+
+    #[test]
+    fn a_chain_of_three_ties_each_cut_once_with_opposite_signs() {
+        // a | b | c with b's interface holding both of its ends (x = 1 and x = 2), listed
+        // right end first: each cut gets one multiplier, + on the earlier side.
+        let names: Vec<String> = ["a", "b", "c"].iter().map(|s| s.to_string()).collect();
+        let meshes = [mesh(&[1.0]), mesh(&[2.0, 1.0]), mesh(&[2.0])];
+        let (n, ids, signs) = tie(&names, &meshes, &[setup(1), setup(2), setup(1)]).unwrap();
+        assert_eq!(n, 2);
+        assert_eq!(ids, vec![vec![0], vec![1, 0], vec![1]]);
+        assert_eq!(signs, vec![vec![1.0], vec![1.0, -1.0], vec![-1.0]]);
+    }
+
+    #[test]
+    fn two_components_per_point_tie_per_component() {
+        let names: Vec<String> = ["a", "b"].iter().map(|s| s.to_string()).collect();
+        let (n, ids, signs) = tie(
+            &names,
+            &[mesh(&[0.0, 1.0]), mesh(&[1.0, 0.0])],
+            &[setup(4), setup(4)],
+        )
+        .unwrap();
+        assert_eq!(n, 4);
+        assert_eq!(ids, vec![vec![2, 3, 0, 1], vec![0, 1, 2, 3]]);
+        assert_eq!(signs[1], vec![-1.0; 4]);
+    }
+
+    #[test]
+    fn an_untied_or_thrice_shared_point_is_refused_by_name() {
+        let names: Vec<String> = ["a", "b", "c"].iter().map(|s| s.to_string()).collect();
+        let e = tie(
+            &names[..2],
+            &[mesh(&[1.0]), mesh(&[1.5])],
+            &[setup(1), setup(1)],
+        )
+        .unwrap_err();
+        assert!(
+            e.contains("side 'a'") && e.contains("matches no point"),
+            "{e}"
+        );
+        let e = tie(
+            &names,
+            &[mesh(&[1.0]), mesh(&[1.0]), mesh(&[1.0])],
+            &[setup(1), setup(1), setup(1)],
+        )
+        .unwrap_err();
+        assert!(e.contains("more than two sides"), "{e}");
+    }
+}
