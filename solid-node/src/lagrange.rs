@@ -1,6 +1,16 @@
 //! The solid node's side of the Lagrange-multiplier coupling: a linear subdomain
 //! (`mechanics::time::Subdomain`, seed 003 §4) presented to the scheme
 //! (`protocol::scheme::lagrange`), which solves the interface problem.
+//!
+//! How a model takes part in `kind = "lagrange"` (as `bar-1d` does): in `Solver::setup`, for
+//! the binding of kind `Lagrange`, read the system step and method with
+//! `protocol::scheme::lagrange::wire::request(inbox, interface)`, build a `Subdomain` of its
+//! linear system (its own integrator, its `substeps` per system step, one `InterfaceDof` per
+//! interface unknown with sign +1 and local multiplier index 0, 1, ... in the order of its
+//! interface points, then per point its components), keep it as a [`SubdomainSide`], return
+//! it from `Solver::lagrange_side`, and list `lagrange_operator` among the fields the
+//! interface provides (`velocity` too, and `force` among those it accepts). The runtime does
+//! the rest; `advance` only reports the window from the subdomain's state.
 
 use mechanics::time::Subdomain;
 use protocol::scheme::lagrange::LagrangeSide;

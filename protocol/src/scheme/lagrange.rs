@@ -58,8 +58,9 @@ impl FromStr for Method {
     }
 }
 
-/// What a subdomain's node does for the scheme (all interface vectors signed, Bᵢ x, in the
-/// side's local multiplier order).
+/// What a subdomain's node does for the scheme, in the side's local multiplier order. In
+/// process ([`LagrangeScheme::new`]) the vectors are signed (Bᵢ x); through `cosim run` a
+/// side keeps every sign +1 and the coordinator applies the signs (see [`wire`]).
 pub trait LagrangeSide {
     /// Global multiplier index of each local multiplier.
     fn multiplier_ids(&self) -> &[usize];
