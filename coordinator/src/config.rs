@@ -73,6 +73,8 @@ pub struct NodeConfig {
     /// Interfaces the solver offers, from its executable's `--describe` (None: a remote
     /// node not on this host, checked when it joins).
     pub interfaces: Option<Vec<String>>,
+    /// Per interface (as `interfaces`), the fields it provides and accepts.
+    pub fields: Vec<(Vec<String>, Vec<String>)>,
 }
 
 #[derive(Debug, Clone)]
@@ -88,6 +90,22 @@ pub struct CouplingConfig {
     /// When the coupling ends (seed 000 §4): the driver (the solid) goes on alone, the
     /// responder (the fluid) is finished once none of its couplings is left.
     pub decouple: Decouple,
+    /// `kind = "lagrange"`: every subdomain (node, interface), N ≥ 2 (the first two are also
+    /// `driver` and `responder`), and the method; empty and None otherwise.
+    pub sides: Vec<(String, String)>,
+    pub method: Option<protocol::scheme::lagrange::Method>,
+}
+
+impl CouplingConfig {
+    /// Every (node, interface) of the coupling: the sides of a lagrange coupling, else the
+    /// driver and the responder.
+    pub fn members(&self) -> Vec<&(String, String)> {
+        if self.sides.is_empty() {
+            vec![&self.driver, &self.responder]
+        } else {
+            self.sides.iter().collect()
+        }
+    }
 }
 
 /// Decoupling rule of a coupling: at a time, or when a node's reported quantity reaches a
@@ -143,6 +161,8 @@ const COUPLING_KEYS: &[&str] = &[
     "responder_fields",
     "decouple_at",
     "decouple_when",
+    "sides",
+    "method",
 ];
 
 fn check_keys(t: &toml::Table, prefix: &str, allowed: &[&str]) -> Result<(), ConfigError> {
@@ -273,7 +293,10 @@ pub fn default_fields(kind: CouplingKind) -> (Vec<String>, Vec<String>) {
     match kind {
         CouplingKind::Kinematic => (v(&["position", "velocity"]), v(&["force"])),
         CouplingKind::Immersed => (v(&["position", "velocity", "volume"]), v(&["force"])),
-        CouplingKind::Lagrange => (v(&["velocity"]), v(&["force"])),
+        CouplingKind::Lagrange => (
+            v(protocol::scheme::lagrange::PROVIDES),
+            v(protocol::scheme::lagrange::ACCEPTS),
+        ),
     }
 }
 
@@ -472,6 +495,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             params,
             remote,
             interfaces: None,
+            fields: Vec::new(),
         });
     }
 
@@ -492,34 +516,43 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
         let kind = match need_str(t, &p, "kind")?.as_str() {
             "kinematic" => CouplingKind::Kinematic,
             "immersed" => CouplingKind::Immersed,
-            "lagrange" => {
-                return Err(err(
-                    format!("{p}kind"),
-                    "\"lagrange\" is not available yet (kinematic | immersed)",
-                ));
-            }
+            "lagrange" => CouplingKind::Lagrange,
             o => {
                 return Err(err(
                     format!("{p}kind"),
-                    format!("must be \"kinematic\" or \"immersed\", got \"{o}\""),
+                    format!("must be \"kinematic\", \"immersed\" or \"lagrange\", got \"{o}\""),
                 ));
             }
         };
-        let split = |key: &str| -> Result<(String, String), ConfigError> {
-            let s = need_str(t, &p, key)?;
-            let (n, i) = s.split_once('.').ok_or_else(|| {
-                err(
-                    format!("{p}{key}"),
-                    format!("must be \"node.interface\", got \"{s}\""),
-                )
-            })?;
+        let member = |key: &str, s: &str| -> Result<(String, String), ConfigError> {
+            let (n, i) = s
+                .split_once('.')
+                .ok_or_else(|| err(key, format!("must be \"node.interface\", got \"{s}\"")))?;
             if !nodes.iter().any(|x| x.name == n) {
-                return Err(err(format!("{p}{key}"), format!("unknown node '{n}'")));
+                return Err(err(key, format!("unknown node '{n}'")));
             }
             Ok((n.to_string(), i.to_string()))
         };
-        let driver = split("driver")?;
-        let responder = split("responder")?;
+        let split = |key: &str| -> Result<(String, String), ConfigError> {
+            member(&format!("{p}{key}"), &need_str(t, &p, key)?)
+        };
+        let (sides, method) = if kind == CouplingKind::Lagrange {
+            lagrange_sides(t, &p, &member)?
+        } else {
+            for k in ["sides", "method"] {
+                if t.contains_key(k) {
+                    return Err(err(
+                        format!("{p}{k}"),
+                        "only a lagrange coupling takes it (kind = \"lagrange\")",
+                    ));
+                }
+            }
+            (Vec::new(), None)
+        };
+        let (driver, responder) = match sides.as_slice() {
+            [a, b, ..] => (a.clone(), b.clone()),
+            _ => (split("driver")?, split("responder")?),
+        };
         if driver.0 == responder.0 {
             return Err(err(
                 format!("{p}responder"),
@@ -569,6 +602,8 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
         }
         let (df, rf) = default_fields(kind);
         couplings.push(CouplingConfig {
+            sides,
+            method,
             decouple,
             name,
             kind,
@@ -577,6 +612,33 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             driver_fields: get_strings(t, &p, "driver_fields")?.unwrap_or(df),
             responder_fields: get_strings(t, &p, "responder_fields")?.unwrap_or(rf),
         });
+    }
+    for (i, c) in couplings.iter().enumerate() {
+        if c.kind != CouplingKind::Lagrange {
+            continue;
+        }
+        // Every subdomain steps the system step exactly: the run is whole windows.
+        let w = end_time / window;
+        if (w - w.round()).abs() > 1e-9 * w.max(1.0) {
+            return Err(err(
+                "run.end_time",
+                format!(
+                    "must be a whole number of windows for the lagrange coupling couplings[{i}] (each window is a system step), got {w} windows"
+                ),
+            ));
+        }
+        for (k, (node, _)) in c.sides.iter().enumerate() {
+            if let Some(j) = couplings[..i].iter().position(|o| {
+                o.kind == CouplingKind::Lagrange && o.sides.iter().any(|s| &s.0 == node)
+            }) {
+                return Err(err(
+                    format!("couplings[{i}].sides[{k}]"),
+                    format!(
+                        "node '{node}' is already a side of the lagrange coupling couplings[{j}] (a node takes one)"
+                    ),
+                ));
+            }
+        }
     }
     if schedule == Schedule::Parallel
         && let Some((i, _)) = couplings
@@ -632,11 +694,21 @@ fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
         crate::describe::describe_nodes(&case.nodes, &case_dir, crate::describe::DESCRIBE_TIMEOUT)?;
     for (n, c) in case.nodes.iter_mut().zip(checked) {
         if let crate::describe::Checked::Described(d) = c {
+            n.fields = d
+                .interfaces
+                .iter()
+                .map(|i| (i.provides.clone(), i.accepts.clone()))
+                .collect();
             n.interfaces = Some(d.interfaces.into_iter().map(|i| i.name).collect());
         }
     }
     for (i, c) in case.couplings.iter().enumerate() {
-        for (key, (node, iface)) in [("driver", &c.driver), ("responder", &c.responder)] {
+        let keys: Vec<String> = if c.sides.is_empty() {
+            vec!["driver".into(), "responder".into()]
+        } else {
+            (0..c.sides.len()).map(|k| format!("sides[{k}]")).collect()
+        };
+        for (key, (node, iface)) in keys.iter().zip(c.members()) {
             let n = case.nodes.iter().find(|n| &n.name == node);
             if let Some(list) = n.and_then(|n| n.interfaces.as_ref())
                 && !list.iter().any(|x| x == iface)
@@ -649,6 +721,96 @@ fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
                             "none".to_string()
                         } else {
                             list.join(", ")
+                        }
+                    ),
+                ));
+            }
+        }
+    }
+    check_fields(case)
+}
+
+/// One field list a coupling member must offer (the scheme's declaration, ARCHITECTURE §5).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Need<'a> {
+    /// The key that sets the list (`driver_fields`, `sides[1]`, ...).
+    pub key: String,
+    pub member: &'a (String, String),
+    /// True: the member must provide the fields; false: accept them.
+    pub provide: bool,
+    pub fields: Vec<String>,
+}
+
+/// What each member of coupling `c` must provide and accept: a kinematic or immersed driver
+/// provides the driver fields and accepts the responder's, the responder the other way
+/// round; every side of a lagrange coupling provides and accepts what
+/// `protocol::scheme::lagrange` declares.
+pub fn required_fields(c: &CouplingConfig) -> Vec<Need<'_>> {
+    let need = |key: String, member, provide, fields: Vec<String>| Need {
+        key,
+        member,
+        provide,
+        fields,
+    };
+    if c.kind == CouplingKind::Lagrange {
+        use protocol::scheme::lagrange::{ACCEPTS, PROVIDES};
+        let own = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        return c
+            .sides
+            .iter()
+            .enumerate()
+            .flat_map(|(k, s)| {
+                [
+                    need(format!("sides[{k}]"), s, true, own(PROVIDES)),
+                    need(format!("sides[{k}]"), s, false, own(ACCEPTS)),
+                ]
+            })
+            .collect();
+    }
+    let (d, r) = ("driver_fields".to_string(), "responder_fields".to_string());
+    vec![
+        need(d.clone(), &c.driver, true, c.driver_fields.clone()),
+        need(r.clone(), &c.driver, false, c.responder_fields.clone()),
+        need(r, &c.responder, true, c.responder_fields.clone()),
+        need(d, &c.responder, false, c.driver_fields.clone()),
+    ]
+}
+
+/// Refuse a coupling whose node does not provide or accept a field its scheme needs, by the
+/// node's own description (issue 18 must-show 5): the key, the coupling, the node, the field.
+fn check_fields(case: &Case) -> Result<(), ConfigError> {
+    for (i, c) in case.couplings.iter().enumerate() {
+        for n in required_fields(c) {
+            let (node, iface) = n.member;
+            let Some(cfg) = case.nodes.iter().find(|x| &x.name == node) else {
+                continue;
+            };
+            let Some(pos) = cfg
+                .interfaces
+                .as_ref()
+                .and_then(|l| l.iter().position(|x| x == iface))
+            else {
+                continue; // a remote node, checked when it joins
+            };
+            let Some((provides, accepts)) = cfg.fields.get(pos) else {
+                continue;
+            };
+            let (have, verb) = if n.provide {
+                (provides, "provide")
+            } else {
+                (accepts, "accept")
+            };
+            if let Some(f) = n.fields.iter().find(|f| !have.contains(f)) {
+                return Err(err(
+                    format!("couplings[{i}].{}", n.key),
+                    format!(
+                        "the {} coupling '{}' needs node '{node}' (interface '{iface}') to {verb} field '{f}'; it {verb}s: {}",
+                        c.kind.as_str(),
+                        c.name,
+                        if have.is_empty() {
+                            "none".to_string()
+                        } else {
+                            have.join(", ")
                         }
                     ),
                 ));
@@ -911,10 +1073,86 @@ pub fn apply_variant_structure(doc: &mut toml::Table, name: &str) -> Result<(), 
     Ok(())
 }
 
+/// The sides and method of a lagrange coupling table at `p` (`couplings[i].`): N ≥ 2 sides
+/// "node.interface", each node once (one interface per node and coupling), and no
+/// driver/responder keys.
+#[allow(clippy::type_complexity)]
+fn lagrange_sides(
+    t: &toml::Table,
+    p: &str,
+    member: &dyn Fn(&str, &str) -> Result<(String, String), ConfigError>,
+) -> Result<
+    (
+        Vec<(String, String)>,
+        Option<protocol::scheme::lagrange::Method>,
+    ),
+    ConfigError,
+> {
+    for k in ["driver", "responder", "driver_fields", "responder_fields"] {
+        if t.contains_key(k) {
+            return Err(err(
+                format!("{p}{k}"),
+                "a lagrange coupling names its subdomains in `sides` (no driver or responder)",
+            ));
+        }
+    }
+    let list = get_strings(t, p, "sides")?.ok_or_else(|| {
+        err(
+            format!("{p}sides"),
+            "missing (e.g. [\"left.tip\", \"right.root\"])",
+        )
+    })?;
+    if list.len() < 2 {
+        return Err(err(
+            format!("{p}sides"),
+            format!("needs at least two subdomains, got {}", list.len()),
+        ));
+    }
+    let mut sides: Vec<(String, String)> = Vec::new();
+    for (k, s) in list.iter().enumerate() {
+        let side = member(&format!("{p}sides[{k}]"), s)?;
+        if sides.iter().any(|x| x.0 == side.0) {
+            return Err(err(
+                format!("{p}sides[{k}]"),
+                format!(
+                    "node '{}' is already a side of this coupling (one interface per node)",
+                    side.0
+                ),
+            ));
+        }
+        sides.push(side);
+    }
+    let method = match get_str(t, p, "method")? {
+        None => protocol::scheme::lagrange::Method::Gs4,
+        Some(m) => m
+            .parse()
+            .map_err(|e: String| err(format!("{p}method"), e))?,
+    };
+    Ok((sides, Some(method)))
+}
+
 /// Bindings of one node: its side of every coupling.
 pub fn bindings_of(case: &Case, node: &str) -> Vec<protocol::Binding> {
     let mut v = Vec::new();
     for c in &case.couplings {
+        if c.kind == CouplingKind::Lagrange {
+            // Every side exchanges with the coordinator, which solves the interface problem.
+            for (n, iface) in c.sides.iter().filter(|s| s.0 == node) {
+                let _ = n;
+                v.push(protocol::Binding {
+                    coupling: c.name.clone(),
+                    kind: c.kind,
+                    interface: iface.clone(),
+                    role: protocol::Role::Driver,
+                    peer: protocol::scheme::lagrange::wire::PEER.to_string(),
+                    peer_interface: String::new(),
+                    sends: c.driver_fields.clone(),
+                    receives: c.responder_fields.clone(),
+                    input_lag: 0,
+                });
+            }
+            continue;
+        }
         // Serial: the driver's motion feeds the responder in the same window; the responder's
         // force reaches the driver at the next sync time (lag 1). Parallel: both lag.
         let responder_lag = match case.run.schedule {
@@ -957,7 +1195,11 @@ pub fn window_order(case: &Case) -> Result<Vec<String>, ConfigError> {
     let names: Vec<String> = case.nodes.iter().map(|n| n.name.clone()).collect();
     let mut deps: BTreeMap<&str, Vec<&str>> = BTreeMap::new();
     if case.run.schedule == Schedule::Serial {
-        for c in &case.couplings {
+        for c in case
+            .couplings
+            .iter()
+            .filter(|c| c.kind != CouplingKind::Lagrange)
+        {
             deps.entry(c.responder.0.as_str())
                 .or_default()
                 .push(c.driver.0.as_str());

@@ -158,9 +158,18 @@ struct Plan {
     peer_fields: Vec<(usize, Fields)>,
     advances: Vec<Advance>,
     decouples: Vec<Decouple>,
-    /// The node's recorded outputs, by (window, coupling), and its reports by window.
-    outputs: BTreeMap<(u64, String), Fields>,
+    /// The node's recorded outputs, by [`OutKey`], and its reports by window.
+    outputs: BTreeMap<OutKey, Fields>,
     reports: BTreeMap<u64, StepReport>,
+}
+
+/// A node's output message: (window, coupling, step). The step is a lagrange side's coupling
+/// step within the window (it sends one message per step; PROTOCOL.md §4.6), else 0.
+type OutKey = (u64, String, usize);
+
+fn out_key(f: &Fields) -> OutKey {
+    let step = protocol::scheme::lagrange::wire::step_of(f).unwrap_or(0);
+    (f.window, f.coupling.clone(), step)
 }
 
 fn plan(msgs: &[Recorded], node: &str) -> anyhow::Result<Plan> {
@@ -234,7 +243,7 @@ fn plan(msgs: &[Recorded], node: &str) -> anyhow::Result<Plan> {
                 p.peer_fields.extend(input.map(|i| (i, f.clone())));
             }
             Message::Fields(f) if outputs.contains(&d.topic) => {
-                p.outputs.insert((f.window, f.coupling.clone()), f.clone());
+                p.outputs.insert(out_key(f), f.clone());
             }
             Message::Advance(a) if d.topic == down && a.window > 0 => p.advances.push(*a),
             Message::Decouple(x) if d.topic == down => p.decouples.push(x.clone()),
@@ -488,14 +497,14 @@ impl Drop for Session {
 
 /// Compares what the node sends with what the recording holds.
 struct Comparer<'a> {
-    recorded: &'a BTreeMap<(u64, String), Fields>,
-    seen: BTreeSet<(u64, String)>,
+    recorded: &'a BTreeMap<OutKey, Fields>,
+    seen: BTreeSet<OutKey>,
     tolerance: f64,
 }
 
 impl Comparer<'_> {
     fn fields(&mut self, rep: &mut ReplayReport, f: &Fields) {
-        let key = (f.window, f.coupling.clone());
+        let key = out_key(f);
         let Some(r) = self.recorded.get(&key) else {
             rep.incomplete.push(format!(
                 "window {} coupling '{}': the node sent fields the recording does not hold",
@@ -735,8 +744,8 @@ fn open_and_drive(
     }
     // Every recorded output of a replayed window must have been sent again.
     let last = rep.times.last().map_or(0, |t| t.0);
-    for (w, c) in p.outputs.keys() {
-        if *w <= last && !cmp.seen.contains(&(*w, c.clone())) {
+    for key @ (w, c, _) in p.outputs.keys() {
+        if *w <= last && !cmp.seen.contains(key) {
             rep.incomplete.push(format!(
                 "window {w} coupling '{c}': the recording holds the node's fields, the replayed node did not send them"
             ));

@@ -113,6 +113,14 @@ struct Coord<'a> {
     interrupted: Option<i32>,
     /// The bar or progress lines of the window loop; messages go through it.
     progress: Progress,
+    /// The lagrange couplings (the interface problems solved here) and their publishers.
+    hubs: Vec<(crate::lagrange::Hub, Box<dyn Publisher>)>,
+}
+
+/// What a lagrange hub takes from a side.
+enum LagIn {
+    Mesh(Mesh),
+    Fields(Fields),
 }
 
 pub(crate) fn pick_run_id(name: &str) -> String {
@@ -467,7 +475,14 @@ impl<'a> Coord<'a> {
                     reason: format!("{}{log}", f.reason),
                 });
             }
-            Message::Mesh(_) | Message::Fields(_) => {}
+            Message::Mesh(m) => {
+                let name = n.name.clone();
+                return self.lagrange_input(&name, LagIn::Mesh(m)).map(|_| true);
+            }
+            Message::Fields(f) => {
+                let name = n.name.clone();
+                return self.lagrange_input(&name, LagIn::Fields(f)).map(|_| true);
+            }
             other => {
                 return Err(Fault {
                     node: n.name.clone(),
@@ -476,6 +491,57 @@ impl<'a> Coord<'a> {
             }
         }
         Ok(true)
+    }
+
+    /// A side's mesh or fields on a lagrange coupling: to its hub, and what the hub answers
+    /// (the multipliers) to the sides, recorded like every message.
+    fn lagrange_input(&mut self, node: &str, input: LagIn) -> Result<(), Fault> {
+        let coupling = match &input {
+            LagIn::Mesh(m) => m.coupling.clone(),
+            LagIn::Fields(f) => f.coupling.clone(),
+        };
+        let Some(h) = self.hubs.iter().position(|(h, _)| h.coupling == coupling) else {
+            return Ok(());
+        };
+        let fault = |reason: String| Fault {
+            node: node.to_string(),
+            reason: format!("coupling {coupling}: {reason}"),
+        };
+        let hub = &mut self.hubs[h].0;
+        let out = match input {
+            LagIn::Mesh(m) => hub.on_mesh(node, m.mesh),
+            LagIn::Fields(f) => hub.on_fields(node, f),
+        }
+        .map_err(fault)?;
+        for f in out {
+            self.publish_lagrange(h, f)?;
+        }
+        Ok(())
+    }
+
+    /// Publish (and record) a coordinator message of lagrange hub `h`.
+    fn publish_lagrange(&mut self, h: usize, f: Fields) -> Result<(), Fault> {
+        self.seq += 1;
+        let name = self.hubs[h].0.coupling.clone();
+        let fault = |reason: String| Fault {
+            node: "coordinator".into(),
+            reason: format!("coupling {name}: {reason}"),
+        };
+        let time = f.time;
+        encode_into(
+            &mut self.buf,
+            &self.run,
+            "coordinator",
+            self.seq,
+            &Message::Fields(f),
+        )
+        .map_err(|e| fault(format!("cannot encode the multipliers: {e}")))?;
+        let tp = topic::data(&self.run, &name, protocol::scheme::lagrange::wire::PEER);
+        let _ = self.rec.message(&tp, time, &self.buf);
+        self.hubs[h]
+            .1
+            .send(&self.buf)
+            .map_err(|e| fault(format!("send failed: {e}")))
     }
 
     /// Pump until `pred` holds for every node in `who`.
@@ -774,8 +840,17 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         t.subscribe(&tp)?;
         topics.push((tp, Topic::Up(i)));
     }
+    let mut hubs = Vec::new();
     for c in &case.couplings {
-        for side in [&c.driver.0, &c.responder.0] {
+        if c.kind == CouplingKind::Lagrange {
+            let readers: Vec<String> = c.sides.iter().map(|s| s.0.clone()).collect();
+            let p = t.publisher(
+                &topic::data(&run_id, &c.name, protocol::scheme::lagrange::wire::PEER),
+                &readers,
+            )?;
+            hubs.push((crate::lagrange::Hub::new(c, case.run.window), p));
+        }
+        for (side, _) in c.members() {
             let tp = topic::data(&run_id, &c.name, side);
             t.subscribe(&tp)?;
             topics.push((tp, Topic::Data(idx(side))));
@@ -835,6 +910,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         in_windows: false,
         interrupted: None,
         progress: Progress::quiet(),
+        hubs,
     };
     let started = Instant::now();
     let result = drive(&mut c, &out, &order, &listen, opts);
@@ -863,6 +939,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         t,
         nodes,
         history,
+        hubs,
         ..
     } = c;
     let (messages, bytes) = (rec.messages, rec.bytes);
@@ -870,6 +947,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
     // Every port of this process goes before the sweep, which only runs once no participant
     // of the run is alive.
     drop(nodes);
+    drop(hubs);
     drop(t);
     transport::cleanup(kind, &run_id);
     match outcome {
@@ -1176,6 +1254,31 @@ fn drive(
         )),
         |n| n.described >= 1,
     )?;
+    // Lagrange couplings: every side subscribed before its Describe; once shared memory
+    // shows them connected, each gets the coupling's request (system step, method).
+    for h in 0..c.hubs.len() {
+        let tp = topic::data(
+            &c.run,
+            &c.hubs[h].0.coupling,
+            protocol::scheme::lagrange::wire::PEER,
+        );
+        let want = c.hubs[h].0.sides.len();
+        let since = Instant::now();
+        while c.t.readers(&tp).is_some_and(|r| r < want) {
+            if since.elapsed() > Duration::from_secs(60) {
+                return Err(fault(
+                    &c.hubs[h].0.sides[0],
+                    format!(
+                        "the sides of coupling {} never subscribed to {tp}",
+                        c.hubs[h].0.coupling
+                    ),
+                ));
+            }
+            c.pump_one(Duration::from_millis(5))?;
+        }
+        let req = c.hubs[h].0.request();
+        c.publish_lagrange(h, req)?;
+    }
     // Set-up (window 0).
     for i in 0..c.nodes.len() {
         c.send(
@@ -1348,6 +1451,24 @@ fn drive(
             );
             crate::plot::add_report(&mut c.history, &n.name, &v);
         }
+        for h in 0..c.hubs.len() {
+            let (name, sides) = (c.hubs[h].0.coupling.clone(), c.hubs[h].0.sides.clone());
+            // ΔE_Γ: the energy the interface took out of the sides, −Σᵢ Wᵢ (seed 003 §4).
+            let work: f64 = sides
+                .iter()
+                .filter_map(|s| c.node_idx(s))
+                .map(|i| c.nodes[i].report.interface_work)
+                .sum();
+            for (w, lambda) in c.hubs[h].0.take_finished() {
+                let _ = c.rec.json(
+                    &format!("/cosim/lagrange/{name}"),
+                    "cosim.Lagrange",
+                    t1,
+                    &json!({ "window": w, "time": t1, "lambda": lambda,
+                             "interface_work": work, "interface_energy": -work }),
+                );
+            }
+        }
         a.rows.push(row);
         c.progress.window(k, t1);
         c.completed = k;
@@ -1446,6 +1567,33 @@ fn drive(
                     "responder": format!("{}.{}", cp.responder.0, cp.responder.1) });
             if let Some((w, t, why)) = d {
                 v["decoupled"] = json!({ "before_window": w, "time": t, "reason": why });
+            }
+            if cp.kind == CouplingKind::Lagrange {
+                let by_side: BTreeMap<String, f64> = cp
+                    .sides
+                    .iter()
+                    .filter_map(|s| {
+                        let i = c.node_idx(&s.0)?;
+                        Some((format!("{}.{}", s.0, s.1), c.nodes[i].report.interface_work))
+                    })
+                    .collect();
+                let work: f64 = by_side.values().sum();
+                v["sides"] = json!(
+                    cp.sides
+                        .iter()
+                        .map(|s| format!("{}.{}", s.0, s.1))
+                        .collect::<Vec<_>>()
+                );
+                v["method"] = json!(
+                    format!(
+                        "{:?}",
+                        cp.method.unwrap_or(protocol::scheme::lagrange::Method::Gs4)
+                    )
+                    .to_lowercase()
+                );
+                // ΔE_Γ = −Σᵢ Wᵢ: ≥ 0 is energy the interface dissipated (J).
+                v["interface_work_by_side"] = json!(by_side);
+                v["interface_energy"] = json!(-work);
             }
             v
         })

@@ -4,14 +4,14 @@
 //! the responder side of the shell kinematic coupling (eq. 29–33).
 //!
 //! Layout: `config` (parameters and validation), `geometry` (particle sets), `shape`
-//! (supports and shape functions), `model` (state and the time step), `coupling` (shell
-//! responder), `output` (VTK, CSV), `solver` (the `Solver` implementation).
+//! (supports and shape functions), `model` (state and the time step), `output` (VTK, CSV),
+//! `solver` (the `Solver` implementation; its coupling particles follow the shell through the
+//! participant runtime's mapping).
 
 // Index loops mirror the tensor formulas; `!(x > 0.0)` is used on purpose to reject NaN.
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod config;
-pub mod coupling;
 pub mod geometry;
 pub mod model;
 pub mod output;

@@ -388,6 +388,19 @@ pub fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 #[inline]
+/// Rotate `v` by the rotation vector `theta` (Rodrigues).
+pub fn rotate(theta: &[f64; 3], v: &[f64; 3]) -> [f64; 3] {
+    let a = norm(theta);
+    if a < 1e-300 {
+        return *v;
+    }
+    let k = theta.map(|c| c / a);
+    let kv = cross(&k, v);
+    let kd = dot(&k, v);
+    let (s, c) = a.sin_cos();
+    std::array::from_fn(|d| v[d] * c + kv[d] * s + k[d] * kd * (1.0 - c))
+}
+
 pub fn mul_vec(m: &M3, v: &[f64; 3]) -> [f64; 3] {
     std::array::from_fn(|r| m[r][0] * v[0] + m[r][1] * v[1] + m[r][2] * v[2])
 }

@@ -17,10 +17,9 @@
 //! shell's footprint) is carried along unrotated.
 
 use crate::config::{Geometry, Params};
-use crate::coupling;
 use crate::geometry;
 use crate::model::{Kind, Model, ModelParams, RigidBody};
-use crate::shape::{M3, Rows, cross, dot, norm};
+use crate::shape::{M3, Rows, cross, dot, norm, rotate};
 use mechanics::j2::J2State;
 use protocol::{
     Binding, Inbox, InterfaceInfo, InterfaceMesh, NodeDescription, Outbox, Solver, SolverError,
@@ -383,7 +382,7 @@ impl SpgSolver {
                         let n0 = match rotation {
                             Some(r) => {
                                 let th = at(r, k);
-                                unit(coupling::rotate(&th.map(|v| -v), &nt))
+                                unit(rotate(&th.map(|v| -v), &nt))
                             }
                             None => nt,
                         };

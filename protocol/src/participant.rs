@@ -10,6 +10,7 @@
 use crate::codec::{self, encode_into};
 use crate::mapping::Mapping;
 use crate::message::*;
+use crate::scheme::lagrange;
 use crate::solver::{
     BuildOptions, FieldSet, Solver, SolverError, SolverFactory, SolverResult, Window,
 };
@@ -145,7 +146,7 @@ impl NodeEngine {
     pub fn meshes_complete(&self) -> bool {
         self.links
             .iter()
-            .all(|l| l.wire_points > 0 || l.b.kind == CouplingKind::Immersed)
+            .all(|l| l.wire_points > 0 || l.b.kind != CouplingKind::Kinematic)
     }
 
     /// Buffer fields that arrived from a peer.
@@ -165,6 +166,11 @@ impl NodeEngine {
 
     /// Label of the peer output window `window` consumes on link `l` (None: nothing needed).
     fn needed(l: &Link, window: u64) -> Option<u64> {
+        if l.b.kind == CouplingKind::Lagrange {
+            // Set-up waits for the coordinator's request; in a window the multipliers are
+            // exchanged inside it (`lagrange_*` below), not taken as an input.
+            return (window == 0).then_some(0);
+        }
         if window == 0 {
             // Set-up: the driver waits for its responder's set-up fields (the kinematic
             // coupling's mass and stiffness); the responder sets up at once, whatever the
@@ -295,6 +301,9 @@ impl NodeEngine {
             if l.until.is_some_and(|u| window >= u) {
                 continue; // decoupled: the peer has gone on without us
             }
+            if l.b.kind == CouplingKind::Lagrange && window > 0 {
+                continue; // sent during the window, step by step
+            }
             let mut fields = Vec::new();
             for f in self.outbox.fields_of(&l.b.interface) {
                 match (&l.map, l.b.role) {
@@ -339,6 +348,18 @@ impl NodeEngine {
         let bindings: Vec<Binding> = self.links.iter().map(|l| l.b.clone()).collect();
         self.solver
             .setup(&bindings, &self.inbox, &mut self.outbox)?;
+        for b in bindings.iter().filter(|b| b.kind == CouplingKind::Lagrange) {
+            let Some(side) = self.solver.lagrange_side(&b.interface) else {
+                return Err(EngineError::Coupling {
+                    coupling: b.coupling.clone(),
+                    reason: format!(
+                        "model '{}' takes no lagrange coupling",
+                        self.solver.describe().model
+                    ),
+                });
+            };
+            lagrange::wire::setup_fields(side, &b.interface, &mut self.outbox);
+        }
         self.drain_outbox(0, 0.0)
     }
 
@@ -348,6 +369,119 @@ impl NodeEngine {
         let report = self.solver.advance(w, &self.inbox, &mut self.outbox)?;
         let msgs = self.drain_outbox(w.index, w.t1)?;
         Ok((report, msgs))
+    }
+
+    /// The lagrange coupling of this node (one at most): its link index.
+    fn lagrange_link(&self) -> Option<usize> {
+        self.links
+            .iter()
+            .position(|l| l.b.kind == CouplingKind::Lagrange)
+    }
+
+    /// Coupling steps per window of this node's lagrange side (None: no lagrange coupling).
+    pub fn lagrange_steps(&mut self) -> Option<usize> {
+        let i = self.lagrange_link()?;
+        let iface = self.links[i].b.interface.clone();
+        self.solver
+            .lagrange_side(&iface)
+            .map(|s| s.coupling_steps())
+    }
+
+    /// Takes the next multipliers sent to node `me` for `window` (0: the initial ones) out
+    /// of the buffered coordinator messages, skipping those for other sides (and the set-up
+    /// request, used by then); None while they have not arrived.
+    fn lagrange_take(&mut self, me: &str, window: u64) -> Option<(usize, Vec<f64>)> {
+        let i = self.lagrange_link()?;
+        let l = &mut self.links[i];
+        while l.pending.front().is_some_and(|f| f.window <= window) {
+            let f = l.pending.pop_front()?;
+            if f.window < window || lagrange::wire::step_of(&f).is_none() {
+                continue;
+            }
+            if let Some(v) = f.fields.into_iter().find(|x| x.name == me) {
+                return Some((i, v.values));
+            }
+        }
+        None
+    }
+
+    /// Applies the multipliers of `window` sent to node `me` once they are here (window 0:
+    /// the initial ones, else the end of the side's current coupling step); false while
+    /// they have not arrived.
+    pub fn lagrange_correct(&mut self, me: &str, window: u64) -> Result<bool, EngineError> {
+        let Some((i, lambda)) = self.lagrange_take(me, window) else {
+            return Ok(false);
+        };
+        let (coupling, iface) = (
+            self.links[i].b.coupling.clone(),
+            self.links[i].b.interface.clone(),
+        );
+        let bad = |reason: String| EngineError::Coupling {
+            coupling: coupling.clone(),
+            reason,
+        };
+        let side = self
+            .solver
+            .lagrange_side(&iface)
+            .ok_or_else(|| bad("the side is gone".into()))?;
+        let nl = side.multiplier_ids().len();
+        if lambda.len() != nl || !lambda.iter().all(|x| x.is_finite()) {
+            return Err(bad(format!(
+                "multipliers of window {window}: {} values (finite expected) for {nl}",
+                lambda.len()
+            )));
+        }
+        if window == 0 {
+            side.set_initial(&lambda);
+        } else {
+            side.correct(&lambda);
+        }
+        Ok(true)
+    }
+
+    /// The free coupling step `c` of `window` on the lagrange side: the message with its
+    /// interface velocities at the step's start and end, sent at time `time`.
+    pub fn lagrange_free_step(
+        &mut self,
+        c: usize,
+        window: u64,
+        time: f64,
+    ) -> Result<Fields, EngineError> {
+        let Some(i) = self.lagrange_link() else {
+            return Err(EngineError::Coupling {
+                coupling: String::new(),
+                reason: "no lagrange coupling".into(),
+            });
+        };
+        let (coupling, iface) = (
+            self.links[i].b.coupling.clone(),
+            self.links[i].b.interface.clone(),
+        );
+        let Some(side) = self.solver.lagrange_side(&iface) else {
+            return Err(EngineError::Coupling {
+                coupling,
+                reason: "the side is gone".into(),
+            });
+        };
+        let nl = side.multiplier_ids().len();
+        let mut v_start = vec![0.0; nl];
+        let mut v_free = vec![0.0; nl];
+        side.free_step(&mut v_start, &mut v_free);
+        let vec = |name: &str, values: Vec<f64>| Field {
+            name: name.to_string(),
+            components: 1,
+            values,
+        };
+        Ok(Fields {
+            coupling,
+            window,
+            time,
+            fields: vec![
+                lagrange::wire::scalar(lagrange::wire::STEP, c as f64),
+                vec(lagrange::wire::V_START, v_start),
+                vec(lagrange::wire::V_FREE, v_free),
+            ],
+        })
     }
 }
 
@@ -757,7 +891,10 @@ fn build_and_run(
     let wire = |w: &mut Wire| -> anyhow::Result<()> {
         for b in &welcome.bindings {
             w.t.subscribe(&topic::data(&welcome.run, &b.coupling, &b.peer))?;
-            let readers = vec![b.peer.clone(), "coordinator".to_string()];
+            let mut readers = vec![b.peer.clone()];
+            if b.peer != "coordinator" {
+                readers.push("coordinator".to_string());
+            }
             let p = w.t.publisher(
                 &topic::data(&welcome.run, &b.coupling, &args.node),
                 &readers,
@@ -906,7 +1043,13 @@ fn node_loop(
     let start = Instant::now();
     for b in &welcome.bindings {
         let tp = topic::data(&welcome.run, &b.coupling, me);
-        while w.t.readers(&tp).is_some_and(|n| n < 2) {
+        // A lagrange side's only reader is the coordinator.
+        let want = if b.kind == CouplingKind::Lagrange {
+            1
+        } else {
+            2
+        };
+        while w.t.readers(&tp).is_some_and(|n| n < want) {
             if start.elapsed() > Duration::from_secs(60) {
                 anyhow::bail!("peer '{}' never subscribed to {tp}", b.peer);
             }
@@ -937,6 +1080,11 @@ fn node_loop(
             for f in msgs {
                 let c = f.coupling.clone();
                 w.send_data(&c, &Message::Fields(f))?;
+            }
+            if engine.lagrange_steps().is_some()
+                && let Some(code) = lagrange_wait(w, engine, me, 0, &mut pending_cmd, progress)?
+            {
+                return Ok(code);
             }
             set_up = true;
             let mut report = engine.solver.initial_report()?;
@@ -990,6 +1138,21 @@ fn node_loop(
                     t1: a.t1,
                     write_output: a.write_output,
                 };
+                if let Some(steps) = engine.lagrange_steps() {
+                    // seed 003 §4: each coupling step is a free step, the multipliers from
+                    // the coordinator, and the correction.
+                    for c in 0..steps {
+                        let t = a.t0 + (a.t1 - a.t0) * (c + 1) as f64 / steps as f64;
+                        let f = engine.lagrange_free_step(c, a.window, t)?;
+                        let coupling = f.coupling.clone();
+                        w.send_data(&coupling, &Message::Fields(f))?;
+                        if let Some(code) =
+                            lagrange_wait(w, engine, me, a.window, &mut pending_cmd, progress)?
+                        {
+                            return Ok(code);
+                        }
+                    }
+                }
                 let (mut report, msgs) = engine.advance(&win)?;
                 let sent = a.checkpoint.then(|| msgs.clone());
                 for f in msgs {
@@ -1072,4 +1235,40 @@ fn node_loop(
             }
         }
     }
+}
+
+/// Waits for the multipliers of `window` sent to node `me` and applies them; commands and
+/// other data arriving meanwhile are kept for the main loop. `Some(code)`: aborted.
+fn lagrange_wait(
+    w: &mut Wire,
+    engine: &mut NodeEngine,
+    me: &str,
+    window: u64,
+    pending_cmd: &mut VecDeque<Message>,
+    progress: &Progress,
+) -> anyhow::Result<Option<i32>> {
+    let start = Instant::now();
+    while !engine.lagrange_correct(me, window)? {
+        progress.waiting.store(true, Ordering::Relaxed);
+        let got = recv_one(w, Duration::from_millis(500))?;
+        progress.waiting.store(false, Ordering::Relaxed);
+        match got {
+            None if start.elapsed() > Duration::from_secs(3600) => {
+                anyhow::bail!("no lagrange multipliers for window {window} within an hour")
+            }
+            None => {}
+            Some(Incoming::Bad(e)) => anyhow::bail!("malformed message received: {e}"),
+            Some(Incoming::Cmd(Message::Abort(a))) => {
+                tracing::info!("aborted by the coordinator: {}", a.reason);
+                return Ok(Some(3));
+            }
+            Some(Incoming::Cmd(m)) => pending_cmd.push_back(m),
+            Some(Incoming::Data(Message::Fields(f))) => engine.receive(f)?,
+            Some(Incoming::Data(Message::Mesh(m))) => engine.peer_mesh(&m)?,
+            Some(Incoming::Data(other)) => {
+                anyhow::bail!("unexpected {} on a data topic", other.type_name());
+            }
+        }
+    }
+    Ok(None)
 }

@@ -234,6 +234,21 @@ pub trait Solver: Send {
         Ok(())
     }
 
+    /// The node's side of a `lagrange` coupling on `interface` (seed 003 §4,
+    /// [`crate::scheme::lagrange`]), built in `setup` from the coupling's request in the
+    /// set-up inbox ([`crate::scheme::lagrange::wire::request`]: the system step and the
+    /// method). The participant runtime does everything else — sends the side's condensed
+    /// operator, takes its free coupling steps, exchanges them for the multipliers and
+    /// corrects — before it calls `advance`, which then only reports the window. `None`:
+    /// the model takes no lagrange coupling.
+    fn lagrange_side(
+        &mut self,
+        interface: &str,
+    ) -> Option<&mut dyn crate::scheme::lagrange::LagrangeSide> {
+        let _ = interface;
+        None
+    }
+
     /// Conditions the user should know about that do not stop the run, e.g. a GPU adapter
     /// without f64 (the node runs in f32). Sent with the node's description after set-up;
     /// the coordinator logs them and lists them in `summary.json`.

@@ -7,11 +7,14 @@
 //! `a_n = M⁻¹ (f_int(u_n) + f_ext + f_coupling)`, `v_{n+1/2} = v_{n-1/2} + Δt a_n`,
 //! `u_{n+1} = u_n + Δt v_{n+1/2}`.
 
+use crate::lagrange::SubdomainSide;
+use mechanics::time::{CouplingMethod, InterfaceDof, Subdomain};
 use mechanics::time::{Gs4, Gs4Error, IntegratorSpec, LinearSystem, State, Stepper};
+use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
 use protocol::{
     Binding, InterfaceMesh, Role, Solver, SolverError, SolverResult, StepReport, Window,
 };
-use protocol::{Inbox, InterfaceInfo, NodeDescription, Outbox};
+use protocol::{CouplingKind, Inbox, InterfaceInfo, NodeDescription, Outbox};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -34,9 +37,22 @@ pub struct BarParams {
     /// Which end is fixed: "left", "right" or "none".
     #[serde(default = "default_fixed")]
     pub fixed: String,
-    /// Step force (N) applied from t = 0 at `load_end`.
+    /// End force (N) at `load_end`: from t = 0 (`ramp = "step"`), or reached over
+    /// `ramp_time` along a smooth ramp.
     #[serde(default)]
     pub tip_force: f64,
+    /// How the end force starts: "step" (at once), "sin2" (F sin²(πt/2T)) or "septic"
+    /// (F (35x⁴ − 84x⁵ + 70x⁶ − 20x⁷), x = t/T: C³, for second-order studies), over T =
+    /// `ramp_time`, then held.
+    #[serde(default)]
+    pub ramp: Ramp,
+    /// T of the ramp (s).
+    #[serde(default)]
+    pub ramp_time: f64,
+    /// Steps per window in a lagrange coupling (its ratio m to the system step). Absent:
+    /// as many as the stable step needs.
+    #[serde(default)]
+    pub substeps: Option<usize>,
     /// "left", "right" or "none".
     #[serde(default = "default_load_end")]
     pub load_end: String,
@@ -52,6 +68,31 @@ pub struct BarParams {
     /// without kinematic couplings.
     #[serde(default)]
     pub integrator: Option<IntegratorSpec>,
+}
+
+/// The start of the end force (see [`BarParams::ramp`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Ramp {
+    #[default]
+    Step,
+    Sin2,
+    Septic,
+}
+
+impl Ramp {
+    /// The load factor at time t ≥ 0 of a ramp over `time`.
+    pub fn factor(self, t: f64, time: f64) -> f64 {
+        let x = match self {
+            Ramp::Step => return 1.0,
+            _ => (t / time).clamp(0.0, 1.0),
+        };
+        match self {
+            Ramp::Step => 1.0,
+            Ramp::Sin2 => (std::f64::consts::FRAC_PI_2 * x).sin().powi(2),
+            Ramp::Septic => x.powi(4) * (35.0 + x * (-84.0 + x * (70.0 - 20.0 * x))),
+        }
+    }
 }
 
 /// Most elements a bar takes (its arrays must fit in memory).
@@ -150,6 +191,15 @@ pub struct Bar {
     s: BarState,
     coupled: Vec<Coupled>,
     gs4: Option<Gs4Path>,
+    lagrange: Option<LagrangeBar>,
+}
+
+/// The bar as one subdomain of a lagrange coupling: the runtime steps it.
+struct LagrangeBar {
+    interface: String,
+    end: End,
+    side: SubdomainSide,
+    dof: Vec<Option<usize>>,
 }
 
 impl Bar {
@@ -176,6 +226,12 @@ impl Bar {
         }
         if !p.tip_force.is_finite() {
             return Err(SolverError::config("tip_force", "must be finite"));
+        }
+        if p.ramp != Ramp::Step {
+            check_positive("ramp_time", p.ramp_time)?;
+        }
+        if p.substeps == Some(0) {
+            return Err(SolverError::config("substeps", "must be ≥ 1, got 0"));
         }
         let fixed = parse_end("fixed", &p.fixed, true)?;
         let load = parse_end("load_end", &p.load_end, true)?;
@@ -223,6 +279,7 @@ impl Bar {
             },
             coupled: Vec::new(),
             gs4: None,
+            lagrange: None,
             p,
         };
         if let Some(coef) = coef {
@@ -339,6 +396,8 @@ impl Solver for Bar {
                         "force".into(),
                         "mass".into(),
                         "stiffness".into(),
+                        // a lagrange side (seed 003 §4): its condensed interface operator
+                        "lagrange_operator".into(),
                     ],
                     accepts: vec![
                         "position".into(),
@@ -364,12 +423,25 @@ impl Solver for Bar {
 
     fn setup(&mut self, bindings: &[Binding], inbox: &Inbox, out: &mut Outbox) -> SolverResult<()> {
         self.coupled.clear();
+        let (lagrange, bindings): (Vec<&Binding>, Vec<&Binding>) = bindings
+            .iter()
+            .partition(|b| b.kind == CouplingKind::Lagrange);
         if self.gs4.is_some() && !bindings.is_empty() {
             return Err(SolverError::config(
                 "integrator",
                 "the GS4-II integrators do not drive kinematic couplings; remove `integrator` \
-                 or the coupling (the lagrange coupling of issue 18 will take them)",
+                 or couple with kind = \"lagrange\"",
             ));
+        }
+        match (lagrange.as_slice(), bindings.is_empty()) {
+            ([], _) => {}
+            ([b], true) => self.setup_lagrange(b, inbox)?,
+            _ => {
+                return Err(SolverError::interface(
+                    &lagrange[0].interface,
+                    "a bar in a lagrange coupling takes no other coupling",
+                ));
+            }
         }
         for b in bindings {
             let end = self.end_of(&b.interface)?;
@@ -427,6 +499,13 @@ impl Solver for Bar {
         self.p.courant * self.critical_dt()
     }
 
+    fn lagrange_side(&mut self, interface: &str) -> Option<&mut dyn LagrangeSide> {
+        match self.lagrange.as_mut() {
+            Some(l) if l.interface == interface => Some(&mut l.side),
+            _ => None,
+        }
+    }
+
     fn advance(&mut self, w: &Window, inbox: &Inbox, out: &mut Outbox) -> SolverResult<StepReport> {
         let span = w.t1 - w.t0;
         if span.is_nan() || span <= 0.0 {
@@ -434,6 +513,9 @@ impl Solver for Bar {
                 "empty window [{}, {}]",
                 w.t0, w.t1
             )));
+        }
+        if self.lagrange.is_some() {
+            return self.report_lagrange(w);
         }
         let nsub = (span / self.stable_dt() - 1e-9).ceil().max(1.0) as u64;
         let dt = span / nsub as f64;
@@ -463,8 +545,9 @@ impl Solver for Bar {
         }
         let fixed = self.fixed.map(|e| self.node(e));
         let load = self.load.map(|e| (self.node(e), self.p.tip_force));
+        let (ramp, ramp_time) = (self.p.ramp, self.p.ramp_time);
         let central_steps = if self.gs4.is_some() {
-            self.step_gs4(nsub, dt)?;
+            self.step_gs4(w.t0, nsub, dt)?;
             0
         } else {
             nsub
@@ -488,7 +571,8 @@ impl Solver for Bar {
                     }
                 }
             }
-            if let Some((i, fl)) = load {
+            if let Some((i, f0)) = load {
+                let fl = f0 * ramp.factor(w.t0 + step as f64 * dt, ramp_time);
                 self.f[i] += fl;
                 self.s.external_impulse += fl * dt;
                 self.s.applied_impulse += fl.abs() * dt;
@@ -513,7 +597,8 @@ impl Solver for Bar {
                     Role::Responder => self.s.interface_work += -self.f[i] * du,
                 }
             }
-            if let Some((i, fl)) = load {
+            if let Some((i, f0)) = load {
+                let fl = f0 * ramp.factor(w.t0 + step as f64 * dt, ramp_time);
                 self.s.external_work += fl * dt * self.s.v[i];
             }
             for i in 0..n {
@@ -603,6 +688,13 @@ impl Solver for Bar {
     }
 
     fn save_state(&self) -> SolverResult<Vec<u8>> {
+        if self.lagrange.is_some() {
+            return Err(SolverError::Other(
+                "a bar in a lagrange coupling cannot checkpoint yet (its subdomain's coupling \
+                 state is not saved)"
+                    .into(),
+            ));
+        }
         let mut s = self.s.clone();
         s.coupling_force = self.coupled.iter().map(|c| c.force).collect();
         protocol::checkpoint::encode_state(&s)
@@ -681,8 +773,9 @@ pub fn chain_system(
 impl Bar {
     /// `nsub` steps of `dt` with the GS4-II member (constant end load), then the node arrays
     /// from the free degrees of freedom.
-    fn step_gs4(&mut self, nsub: u64, dt: f64) -> SolverResult<()> {
+    fn step_gs4(&mut self, t0: f64, nsub: u64, dt: f64) -> SolverResult<()> {
         let load = self.load.map(|e| (self.node(e), self.p.tip_force));
+        let (ramp, ramp_time) = (self.p.ramp, self.p.ramp_time);
         let fixed = self.fixed.map(|e| self.node(e));
         let Bar { gs4, s, k, .. } = self;
         let Some(g) = gs4.as_mut() else {
@@ -691,7 +784,7 @@ impl Bar {
         let load_dof = load.and_then(|(i, f)| g.dof[i].map(|d| (d, f)));
         g.f.fill(0.0);
         if let Some((d, f)) = load_dof {
-            g.f[d] = f;
+            g.f[d] = f * ramp.factor(t0, ramp_time);
         }
         if g.stepper.is_none() {
             // First step: the acceleration in equilibrium with the load at t = 0.
@@ -709,14 +802,22 @@ impl Bar {
         };
         // The node next to the support, whose spring carries the reaction.
         let beside = fixed.map(|i| if i == 0 { 1 } else { i - 1 });
-        for _ in 0..nsub {
+        for n in 0..nsub {
+            // seed 003 §4: the load at the algorithmic time t_n + W₁Δt.
+            let t = t0 + n as f64 * dt;
+            let g_n = (1.0 - g.coef.w1) * ramp.factor(t, ramp_time)
+                + g.coef.w1 * ramp.factor(t + dt, ramp_time);
+            if let Some((d, f)) = load_dof {
+                g.f[d] = f * g_n;
+            }
             if let Some(d) = beside.and_then(|j| g.dof[j]) {
                 // The support's reaction is −k u of the neighbour, at either end.
                 s.external_impulse += -*k * g.state.u[d] * dt;
             }
             let before = load_dof.map(|(d, _)| g.state.u[d]);
             st.step(&g.sys, &mut g.state, &g.f);
-            if let (Some((d, f)), Some(u0)) = (load_dof, before) {
+            if let (Some((d, _)), Some(u0)) = (load_dof, before) {
+                let f = g.f[d];
                 s.external_work += f * (g.state.u[d] - u0);
                 s.external_impulse += f * dt;
                 s.applied_impulse += f.abs() * dt;
@@ -739,5 +840,113 @@ impl Bar {
             .collect();
         let fixed: Vec<usize> = self.fixed.map(|e| self.node(e)).into_iter().collect();
         chain_system(&x, self.p.young, self.p.density, self.p.area, &fixed)
+    }
+}
+
+impl Bar {
+    /// Builds the bar's subdomain for the lagrange coupling `b` (seed 003 §4): the system
+    /// step and method from the coordinator's request, this bar's own integrator (central
+    /// difference when none is given) and `substeps` per system step.
+    fn setup_lagrange(&mut self, b: &Binding, inbox: &Inbox) -> SolverResult<()> {
+        let (method, window) = lwire::request(inbox, &b.interface)?;
+        let end = self.end_of(&b.interface)?;
+        if self.fixed == Some(end) {
+            return Err(SolverError::interface(
+                &b.interface,
+                "is the fixed end and cannot be coupled",
+            ));
+        }
+        let coef = match self.gs4.as_ref() {
+            Some(g) => g.coef,
+            None => Gs4::central_difference(),
+        };
+        let substeps = match self.p.substeps {
+            Some(m) => m,
+            None => (window / self.stable_dt() - 1e-9).ceil().max(1.0) as usize,
+        };
+        let (sys, dof) = self.linear_system();
+        let Some(d) = dof[self.node(end)] else {
+            return Err(SolverError::interface(&b.interface, "is a fixed node"));
+        };
+        let mut shape = vec![0.0; sys.len()];
+        if let Some(dl) = self.load.and_then(|e| dof[self.node(e)]) {
+            shape[dl] = 1.0;
+        }
+        let (f0, ramp, time) = (self.p.tip_force, self.p.ramp, self.p.ramp_time);
+        let method = match method {
+            Method::Gs4 => CouplingMethod::Gs4,
+            Method::Gc => CouplingMethod::Gc,
+            Method::Ph => CouplingMethod::Ph,
+        };
+        let iface = vec![InterfaceDof {
+            dof: d,
+            sign: 1.0,
+            lambda: 0,
+        }];
+        let sub = Subdomain::new(
+            sys,
+            coef,
+            window,
+            substeps,
+            method,
+            iface,
+            shape,
+            Box::new(move |t| f0 * ramp.factor(t, time)),
+        )
+        .map_err(|e| SolverError::config("integrator", e.to_string()))?;
+        self.s.a = vec![0.0; self.s.u.len()];
+        self.lagrange = Some(LagrangeBar {
+            interface: b.interface.clone(),
+            end,
+            side: SubdomainSide(sub),
+            dof,
+        });
+        Ok(())
+    }
+
+    /// The report of a window the runtime has stepped through the lagrange side: the node
+    /// arrays from the subdomain, energies, the end and interface histories.
+    fn report_lagrange(&mut self, w: &Window) -> SolverResult<StepReport> {
+        let Some(l) = self.lagrange.as_ref() else {
+            return Err(SolverError::Other("no lagrange side".into()));
+        };
+        let sub = &l.side.0;
+        let load = self.load.map(|e| self.node(e));
+        let u_before = load.map(|i| self.s.u[i]);
+        for (i, d) in l.dof.iter().enumerate() {
+            (self.s.u[i], self.s.v[i], self.s.a[i]) = match *d {
+                Some(d) => (sub.state.u[d], sub.state.v[d], sub.state.a[d]),
+                None => (0.0, 0.0, 0.0),
+            };
+        }
+        if let (Some(i), Some(u0)) = (load, u_before) {
+            // Trapezoidal work of the end force over the window.
+            let f = |t: f64| self.p.tip_force * self.p.ramp.factor(t, self.p.ramp_time);
+            self.s.external_work += 0.5 * (f(w.t0) + f(w.t1)) * (self.s.u[i] - u0);
+        }
+        self.s.interface_work = sub.interface_work;
+        self.s.time = w.t1;
+        let substeps = sub.substeps() as u64;
+        let (ke, ie, p) = self.energies();
+        let mut scalars = Vec::new();
+        let mut push = |name: &str, i: usize, s: &BarState| {
+            scalars.push((format!("{name}_displacement"), s.u[i]));
+            scalars.push((format!("{name}_velocity"), s.v[i]));
+            scalars.push((format!("{name}_acceleration"), s.a[i]));
+        };
+        if let Some(i) = load {
+            push("tip", i, &self.s);
+        }
+        push(&l.interface, self.node(l.end), &self.s);
+        Ok(StepReport {
+            kinetic_energy: ke,
+            internal_energy: ie,
+            external_work: self.s.external_work,
+            interface_work: self.s.interface_work,
+            momentum: [p, 0.0, 0.0],
+            substeps,
+            scalars,
+            ..Default::default()
+        })
     }
 }

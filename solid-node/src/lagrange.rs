@@ -1,6 +1,16 @@
 //! The solid node's side of the Lagrange-multiplier coupling: a linear subdomain
 //! (`mechanics::time::Subdomain`, seed 003 §4) presented to the scheme
 //! (`protocol::scheme::lagrange`), which solves the interface problem.
+//!
+//! How a model takes part in `kind = "lagrange"` (as `bar-1d` does): in `Solver::setup`, for
+//! the binding of kind `Lagrange`, read the system step and method with
+//! `protocol::scheme::lagrange::wire::request(inbox, interface)`, build a `Subdomain` of its
+//! linear system (its own integrator, its `substeps` per system step, one `InterfaceDof` per
+//! interface unknown with sign +1 and local multiplier index 0, 1, ... in the order of its
+//! interface points, then per point its components), keep it as a [`SubdomainSide`], return
+//! it from `Solver::lagrange_side`, and list `lagrange_operator` among the fields the
+//! interface provides (`velocity` too, and `force` among those it accepts). The runtime does
+//! the rest; `advance` only reports the window from the subdomain's state.
 
 use mechanics::time::Subdomain;
 use protocol::scheme::lagrange::LagrangeSide;
@@ -84,17 +94,18 @@ pub mod split_bar {
 
     /// F(t): the ramp for t < T, then F₀.
     pub fn load(ramp: Ramp, t: f64) -> f64 {
-        let x = (t / ramp_time()).clamp(0.0, 1.0);
-        F0 * match ramp {
-            Ramp::Sin2 => (std::f64::consts::FRAC_PI_2 * x).sin().powi(2),
-            Ramp::Septic => x.powi(4) * (35.0 + x * (-84.0 + x * (70.0 - 20.0 * x))),
-        }
+        let r = match ramp {
+            Ramp::Sin2 => crate::bar::Ramp::Sin2,
+            Ramp::Septic => crate::bar::Ramp::Septic,
+        };
+        F0 * r.factor(t, ramp_time())
     }
 
+    /// Node positions as `bar-1d` places them (x₀ + i h), so that a run through `cosim run`
+    /// builds the same matrices to the bit.
     fn positions(from: f64, to: f64, elements: usize) -> Vec<f64> {
-        (0..=elements)
-            .map(|i| from + (to - from) * i as f64 / elements as f64)
-            .collect()
+        let h = (to - from) / elements as f64;
+        (0..=elements).map(|i| from + i as f64 * h).collect()
     }
 
     /// Histories sampled at every system step: u, v, a at the interface (left side) and at

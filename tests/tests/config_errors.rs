@@ -42,6 +42,12 @@ responder = "right.root"
 /// Run `cosim run` on a variant of the good case; check exit 2, one line, the key named,
 /// and that nothing was started or written.
 fn refused(tag: &str, edit: impl Fn(&str) -> String, key: &str) {
+    refused_naming(tag, edit, &[key]);
+}
+
+/// As [`refused`], the line naming every one of `parts` (the key first).
+fn refused_naming(tag: &str, edit: impl Fn(&str) -> String, parts: &[&str]) {
+    let key = parts[0];
     let (dir, id) = scratch(tag);
     let out = dir.join("out");
     let text = edit(GOOD).replace("OUT", out.to_str().unwrap());
@@ -58,6 +64,13 @@ fn refused(tag: &str, edit: impl Fn(&str) -> String, key: &str) {
         "{tag}: '{}' does not name {key}",
         lines[0]
     );
+    for p in &parts[1..] {
+        assert!(
+            lines[0].contains(p),
+            "{tag}: '{}' does not name {p}",
+            lines[0]
+        );
+    }
     assert!(!out.exists(), "{tag}: output was written before refusing");
     assert!(processes_with(&format!("--run {id}")).is_empty());
     // `validate` says the same.
@@ -394,4 +407,161 @@ fn bad_fem_2d_parameters_are_named() {
     ] {
         refused(tag, |_| FEM.replacen(from, to, 1), key);
     }
+/// The good case's coupling as a lagrange coupling (issue 18), the lines of `[[couplings]]`
+/// replaced by `coupling`.
+fn lagrange(text: &str, coupling: &str) -> String {
+    let head = text
+        .split("[[couplings]]")
+        .next()
+        .unwrap_or_default()
+        .to_string();
+    format!("{head}[[couplings]]\n{coupling}\n")
+}
+
+#[test]
+fn lagrange_coupling_keys_are_checked() {
+    refused(
+        "lag-driver",
+        |t| {
+            lagrange(
+                t,
+                "kind = \"lagrange\"\ndriver = \"left.tip\"\nsides = [\"left.tip\", \"right.root\"]",
+            )
+        },
+        "couplings[0].driver",
+    );
+    refused(
+        "lag-one-side",
+        |t| lagrange(t, "kind = \"lagrange\"\nsides = [\"left.tip\"]"),
+        "couplings[0].sides",
+    );
+    refused(
+        "lag-no-sides",
+        |t| lagrange(t, "kind = \"lagrange\""),
+        "couplings[0].sides",
+    );
+    refused_naming(
+        "lag-unknown-node",
+        |t| {
+            lagrange(
+                t,
+                "kind = \"lagrange\"\nsides = [\"left.tip\", \"middle.root\"]",
+            )
+        },
+        &["couplings[0].sides[1]", "middle"],
+    );
+    refused_naming(
+        "lag-same-node",
+        |t| {
+            lagrange(
+                t,
+                "kind = \"lagrange\"\nsides = [\"left.tip\", \"left.tip\"]",
+            )
+        },
+        &["couplings[0].sides[1]", "left"],
+    );
+    refused_naming(
+        "lag-method",
+        |t| {
+            lagrange(
+                t,
+                "kind = \"lagrange\"\nmethod = \"newmark\"\nsides = [\"left.tip\", \"right.root\"]",
+            )
+        },
+        &["couplings[0].method", "newmark"],
+    );
+    refused_naming(
+        "lag-interface",
+        |t| {
+            lagrange(
+                t,
+                "kind = \"lagrange\"\nsides = [\"left.tip\", \"right.side\"]",
+            )
+        },
+        &["couplings[0].sides[1]", "side"],
+    );
+    refused(
+        "lag-sides-kinematic",
+        |t| {
+            t.replace(
+                "kind = \"kinematic\"",
+                "kind = \"kinematic\"\nsides = [\"left.tip\", \"right.root\"]",
+            )
+        },
+        "couplings[0].sides",
+    );
+    // Every subdomain steps whole system steps: 100.5 windows are refused.
+    refused(
+        "lag-end-time",
+        |t| {
+            lagrange(
+                t,
+                "kind = \"lagrange\"\nsides = [\"left.tip\", \"right.root\"]",
+            )
+            .replace("end_time = 1e-4", "end_time = 1.005e-4")
+        },
+        "run.end_time",
+    );
+}
+
+/// Issue 18 must-show 5: a coupling whose node does not provide or accept a field its scheme
+/// needs is refused before anything starts, naming the coupling, the node and the field.
+#[test]
+fn a_field_the_scheme_needs_and_the_node_lacks_is_refused() {
+    refused_naming(
+        "fields-kinematic",
+        |t| {
+            t.replace(
+                "kind = \"kinematic\"",
+                "kind = \"kinematic\"\ndriver_fields = [\"position\", \"temperature\"]",
+            )
+        },
+        &[
+            "couplings[0].driver_fields",
+            "left-right",
+            "node 'left'",
+            "'temperature'",
+        ],
+    );
+    refused_naming(
+        "fields-kinematic-accept",
+        |t| {
+            t.replace(
+                "kind = \"kinematic\"",
+                "kind = \"kinematic\"\nresponder_fields = [\"force\", \"heat\"]",
+            )
+        },
+        &[
+            "couplings[0].responder_fields",
+            "left-right",
+            "node 'left'",
+            "accept field 'heat'",
+        ],
+    );
+    // Immersed: the driver (a solid) must provide its particles' volumes; a bar has none.
+    refused_naming(
+        "fields-immersed",
+        |t| t.replace("kind = \"kinematic\"", "kind = \"immersed\""),
+        &["couplings[0].driver_fields", "node 'left'", "'volume'"],
+    );
+    // Lagrange: a side must provide its condensed interface operator; the echo node has none.
+    refused_naming(
+        "fields-lagrange",
+        |t| {
+            let t = t.replace(
+                "[nodes.right]",
+                "[nodes.e]\nsolver = \"cosim-echo-node\"\nmodel = \"echo\"\n[nodes.e.params]\npoints = 1\n\n[nodes.right]",
+            );
+            lagrange(
+                &t,
+                "name = \"cut\"\nkind = \"lagrange\"\nsides = [\"left.tip\", \"e.port\"]",
+            )
+        },
+        &[
+            "couplings[0].sides[1]",
+            "'cut'",
+            "node 'e'",
+            "'lagrange_operator'",
+        ],
+    );
 }
