@@ -407,6 +407,8 @@ fn bad_fem_2d_parameters_are_named() {
     ] {
         refused(tag, |_| FEM.replacen(from, to, 1), key);
     }
+}
+
 /// The good case's coupling as a lagrange coupling (issue 18), the lines of `[[couplings]]`
 /// replaced by `coupling`.
 fn lagrange(text: &str, coupling: &str) -> String {
