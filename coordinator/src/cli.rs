@@ -498,12 +498,12 @@ fn validate(case: &std::path::Path, variant: Option<&str>, sets: &[String], json
         );
     }
     for n in &c.nodes {
-        doc["nodes"].as_array_mut().map(|a| {
+        if let Some(a) = doc["nodes"].as_array_mut() {
             a.push(json!({
                 "name": n.name, "solver": n.solver, "model": n.model,
                 "remote": n.interfaces.is_none(), "interfaces": n.interfaces,
-            }))
-        });
+            }));
+        }
         if json {
             continue;
         }
