@@ -105,22 +105,18 @@ fn load(file: &Path, node: &str) -> anyhow::Result<Frame> {
     Ok(f)
 }
 
-/// The `(time, file)` entries of a `.pvd` series.
+/// The `(time, file)` entries of a `.pvd` series (read by the nodes' own writer's reader).
 fn series(pvd: &Path) -> anyhow::Result<Vec<(f64, PathBuf)>> {
-    let text =
-        std::fs::read_to_string(pvd).with_context(|| format!("cannot read {}", pvd.display()))?;
-    let attr = |line: &str, key: &str| -> Option<String> {
-        let at = line.find(&format!("{key}=\""))? + key.len() + 2;
-        Some(line[at..].split('"').next()?.to_string())
-    };
     let dir = pvd.parent().unwrap_or(Path::new("."));
-    Ok(text
-        .split("<DataSet")
-        .skip(1)
-        .filter_map(|e| {
-            let t = attr(e, "timestep")?.parse().ok()?;
-            Some((t, dir.join(attr(e, "file")?)))
-        })
+    let stem = pvd
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .with_context(|| format!("{}: not a series name", pvd.display()))?;
+    let entries = node_kit::vtk::series(dir, stem)
+        .with_context(|| format!("cannot read {}", pvd.display()))?;
+    Ok(entries
+        .into_iter()
+        .map(|e| (e.time, dir.join(e.file)))
         .collect())
 }
 

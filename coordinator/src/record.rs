@@ -105,16 +105,20 @@ impl Recorder {
         topic: &str,
         json: Option<(&str, &serde_json::Value)>,
     ) -> anyhow::Result<u16> {
-        let keys = json.map(|(_, doc)| keys_of(doc));
-        if let Some((id, _, have)) = self.channels.get(topic)
-            && keys
-                .as_ref()
-                .is_none_or(|k| k.keys().all(|key| have.contains_key(key)))
-        {
-            return Ok(*id);
+        // Per window and node: the common case (a known channel, no new key) allocates nothing.
+        if let Some((id, _, have)) = self.channels.get(topic) {
+            let known = match json.map(|(_, doc)| doc) {
+                None => true,
+                Some(serde_json::Value::Object(m)) => m.keys().all(|k| have.contains_key(k)),
+                Some(_) => true,
+            };
+            if known {
+                return Ok(*id);
+            }
         }
-        let (id, keys) = match (json, keys) {
-            (Some((name, _)), Some(mut keys)) => {
+        let (id, keys) = match json {
+            Some((name, doc)) => {
+                let mut keys = keys_of(doc);
                 if let Some((_, _, have)) = self.channels.get(topic) {
                     for (k, t) in have {
                         keys.entry(k.clone()).or_insert(t);
@@ -127,7 +131,7 @@ impl Recorder {
                     keys,
                 )
             }
-            _ => (
+            None => (
                 self.w.add_channel(
                     self.bincode_schema,
                     topic,

@@ -109,6 +109,10 @@ fn schemas_name_every_field_and_log_time_is_simulated_time() {
         names(&v, &mut seen);
         binary += 1;
     }
+    println!(
+        "{binary} binary messages, {} field and variant names, all in the schema",
+        seen.len()
+    );
     // handshake, set-up, Advance, Done, Fields, Stop, ... of a two-node run
     assert!(binary > 2000, "{binary} binary messages");
     assert!(seen.len() >= 30, "only {} names: {seen:?}", seen.len());

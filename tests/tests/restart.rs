@@ -525,45 +525,27 @@ fn crash_tube_interrupted_by_sigint_and_sigterm_restarts_bit_identically() {
     );
 }
 
-/// Issue 19 must-show 1 at the issue's size (minutes: run by hand with `--ignored`): the
-/// medium chamber with checkpoints every 10 windows, cosim SIGKILLed about 5 windows after
-/// the checkpoint of window 30 (after window 35), restarted from window 30: bit-identical to
-/// the uninterrupted run.
-#[test]
-#[ignore = "the medium chamber: minutes; run with --ignored"]
-fn medium_chamber_killed_after_window_35_restarts_bit_identically() {
-    let (dir, id) = scratch("restart-medium");
-    let case = workspace_root().join("examples/chamber_detonation.toml");
-    let extra = ["--variant", "medium"];
-    let k = kill_later_and_restart(
-        &case,
-        &dir,
-        &id,
-        &extra,
-        "bar.yield_stress=3.0e8",
-        10,
-        30,
-        5.5,
-    );
+/// Issue 19 must-show 1 at the issue's size (minutes: run by hand with `--ignored`): `case`'s
+/// `variant` with checkpoints every 10 windows, cosim SIGKILLed about 5 windows after the
+/// checkpoint of window 30 (after window 35), restarted from window 30 (`changed`: a setting
+/// the restart must refuse): bit-identical to the uninterrupted run.
+fn killed_after_window_35(case: &str, variant: &str, changed: &str) {
+    let (dir, id) = scratch(&format!("restart35-{variant}"));
+    let case = workspace_root().join(format!("examples/{case}.toml"));
+    let extra = ["--variant", variant];
+    let k = kill_later_and_restart(&case, &dir, &id, &extra, changed, 10, 30, 5.5);
     assert_eq!(k, 30, "killed before window 40");
 }
 
-/// The same for the small crash tube (11 processes), killed after window 35.
+#[test]
+#[ignore = "the medium chamber: minutes; run with --ignored"]
+fn medium_chamber_killed_after_window_35_restarts_bit_identically() {
+    killed_after_window_35("chamber_detonation", "medium", "bar.yield_stress=3.0e8");
+}
+
+/// The same for the small crash tube (11 processes).
 #[test]
 #[ignore = "the crash tube: minutes; run with --ignored"]
 fn crash_tube_killed_after_window_35_restarts_bit_identically() {
-    let (dir, id) = scratch("restart-tube");
-    let case = workspace_root().join("examples/crash_tube.toml");
-    let extra = ["--variant", "small"];
-    let k = kill_later_and_restart(
-        &case,
-        &dir,
-        &id,
-        &extra,
-        "j1.yield_stress=3.0e8",
-        10,
-        30,
-        5.5,
-    );
-    assert_eq!(k, 30, "killed before window 40");
+    killed_after_window_35("crash_tube", "small", "j1.yield_stress=3.0e8");
 }
