@@ -22,20 +22,23 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// Parameters of `fem-2d`, as in the case file's `[nodes.<name>.params]`.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Fem2dParams {
     /// Box length along x and height along y (m).
     pub length: f64,
+    /// Box height along y (m).
     pub height: f64,
     /// Lower-left corner (m).
     #[serde(default)]
     pub origin: [f64; 2],
     /// Elements along x and y.
     pub nx: usize,
+    /// Elements along y.
     pub ny: usize,
     /// Young's modulus (Pa).
     pub young: f64,
+    /// Poisson's ratio (1).
     pub poisson: f64,
     /// Density (kg/m³).
     pub density: f64,
@@ -48,6 +51,7 @@ pub struct Fem2dParams {
     /// Supported edges: "left" (both components held), or "left.x" / "left.y" (one).
     #[serde(default)]
     pub fixed: Vec<String>,
+    /// Uniform line loads on edges.
     #[serde(default)]
     pub loads: Vec<LoadParams>,
     /// Named points whose displacement is reported every window (`<name>_ux`, `<name>_uy`):
@@ -70,7 +74,7 @@ pub struct Fem2dParams {
 }
 
 /// A uniform line load on an edge.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct LoadParams {
     /// "left" | "right" | "bottom" | "top".
@@ -128,7 +132,7 @@ fn gs4_error(Gs4Error::Config { key, reason }: Gs4Error) -> SolverError {
 }
 
 /// What `save_state` writes: the free-dof state and the running sums.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, schemars::JsonSchema)]
 struct Fem2dState {
     u: Vec<f64>,
     v: Vec<f64>,

@@ -50,7 +50,7 @@ fn default_rk_order() -> usize {
 }
 
 /// The parameter table of a peridynamic node (`[nodes.X.params]`).
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PdParams {
     /// "3d", "plane_stress" or "plane_strain".
@@ -64,13 +64,17 @@ pub struct PdParams {
     pub horizon: f64,
     /// Mass density ρ (kg/m³).
     pub density: f64,
+    /// Young's modulus E (Pa).
     pub young: f64,
+    /// Poisson's ratio ν (pd-bond: 1/4 in 3-D and plane strain, 1/3 in plane stress).
     pub poisson: f64,
-    /// Initial yield stress; absent = elastic.
+    /// Initial yield stress (Pa); absent = elastic.
     #[serde(default)]
     pub yield_stress: Option<f64>,
+    /// Linear isotropic hardening modulus H_iso (Pa) of the J2 plasticity.
     #[serde(default)]
     pub iso_hardening: f64,
+    /// Linear kinematic hardening modulus H_kin (Pa) of the J2 plasticity.
     #[serde(default)]
     pub kin_hardening: f64,
     /// G of seed 001 eq. (186).
@@ -82,17 +86,26 @@ pub struct PdParams {
     /// Safety factor on the stable step.
     #[serde(default = "default_cfl")]
     pub cfl: f64,
+    /// Bond breaking: `{ kind = "critical_stretch", critical_stretch = … }` and the others
+    /// below; absent: no damage.
     #[serde(default)]
     pub damage: Option<DamageParams>,
+    /// The shapes filled with particles on the lattice.
     pub bodies: Vec<Shape>,
+    /// Shapes cut out of the bodies.
     #[serde(default)]
     pub holes: Vec<Shape>,
+    /// Initial velocity (m/s) of the particles in a region.
     #[serde(default)]
     pub initial_velocity: Vec<RegionVelocity>,
+    /// Velocity (m/s) held by the particles in a region for the whole run (a support or a
+    /// driven grip).
     #[serde(default)]
     pub prescribed_velocity: Vec<RegionVelocity>,
+    /// A pressure pulse on the face of a round hole.
     #[serde(default)]
     pub pressure_pulse: Option<PressurePulse>,
+    /// Coupling interfaces: named sets of particles.
     #[serde(default)]
     pub interfaces: Vec<InterfaceParams>,
     /// Smallest connected component (particles) counted in the `fragments` report scalar;
@@ -134,28 +147,37 @@ pub struct FirstDamage {
     pub radius: [f64; 2],
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum DamageParams {
     /// No damage (a struct variant, so that a key given with it is refused: serde ignores
     /// extra keys on a unit variant of an internally tagged enum).
     None {},
+    /// A bond breaks when its stretch exceeds `critical_stretch`.
     CriticalStretch {
+        /// Critical bond stretch s₀ (1).
         critical_stretch: f64,
     },
+    /// Bonds of a particle break when its von Mises stress exceeds `critical_stress`.
     VonMises {
+        /// Critical von Mises stress (Pa).
         critical_stress: f64,
     },
+    /// Damage grows with the equivalent plastic strain between the two values.
     PlasticStrain {
+        /// Equivalent plastic strain at which damage starts (1).
         eps_threshold: f64,
+        /// Equivalent plastic strain at which bonds are fully broken (1).
         eps_critical: f64,
     },
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct RegionVelocity {
+    /// The particles inside this shape.
     pub region: Shape,
+    /// Velocity (m/s).
     pub velocity: [f64; 3],
 }
 
@@ -164,13 +186,15 @@ pub struct RegionVelocity {
 /// `peak` over `rise`, then falls linearly to 0 at `duration` (`rise` = 0: a step down-ramp).
 /// Applied as forces p·A·n on the particles of the first lattice layer outside the face,
 /// A = Δx·h (2-D) or Δx² (3-D) of face per particle, n the outward radial direction.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PressurePulse {
     /// Only "inner" (the face of the hole of radius `inner_radius`).
     #[serde(default = "default_surface")]
     pub surface: String,
+    /// A point of the hole's axis (m).
     pub center: [f64; 3],
+    /// Radius of the hole (m).
     pub inner_radius: f64,
     /// Peak pressure (Pa).
     pub peak: f64,
@@ -198,13 +222,15 @@ impl PressurePulse {
     }
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct InterfaceParams {
+    /// The interface's name (what a coupling's `driver`/`responder` names after the node).
     pub name: String,
     /// "all" or "surface"; restricted to `region` when given.
     #[serde(default = "default_select")]
     pub select: String,
+    /// Only the particles inside this shape.
     #[serde(default)]
     pub region: Option<Shape>,
 }
