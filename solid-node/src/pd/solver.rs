@@ -1471,11 +1471,12 @@ impl Solver for PdSolver {
             .as_ref()
             .and_then(|s| s.states.as_ref().zip(s.plastic_work.as_ref()))
         {
-            // pd-correspondence on the device: its J2 states and plastic work, in the model's
-            // own format
+            // pd-correspondence on the device: its J2 states, plastic work and released bond
+            // energy (none: no damage on the device), in the model's own format
             Some((states, plastic_work)) => {
                 super::checkpoint::put_j2(&mut w, states);
                 w.f64s(plastic_work.iter().copied());
+                w.f64s(std::iter::repeat_n(0.0, states.len()));
             }
             None => b.model.save_state(&mut w),
         }
