@@ -352,8 +352,8 @@ fn damage_releases_what_the_correspondence_models_stored() {
 
 /// A free block whose halves fly apart at ±`speed` (m/s) with a 1 % critical stretch, over
 /// `steps` Verlet steps at `cfl`: the largest |E − E₀|/E₀ of E = kinetic + strain + plastic
-/// + released energy, the same without the released energy, the released energy at the end
-/// / E₀, the broken bond copies and the samples taken.
+/// plus released energy, the same without the released energy, the released energy at the
+/// end over E₀, the broken bond copies and the samples taken.
 fn torn_block(model: &str, speed: f64, cfl: f64, steps: usize) -> ([f64; 3], usize, usize) {
     let mut s = solver(
         model,
