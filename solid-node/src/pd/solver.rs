@@ -864,11 +864,13 @@ impl PdSolver {
     /// and energy released by broken bonds since the start (the last two dissipated; the
     /// coordinator's balance counts all three, see `wire::DISSIPATED_SCALARS`).
     /// On the device path the host body is not up to date between windows (only the
-    /// interface and support particles come back), so nothing is reported there (zeros;
-    /// see [`Solver::warnings`]).
+    /// interface and support particles come back): the strain energy and plastic work are
+    /// reduced on the device with the window report (gpu.rs `energy` and `report`), and no
+    /// bond breaks there (damage is refused at set-up).
     pub fn energies(&mut self) -> (f64, f64, f64) {
-        if self.device.is_some() {
-            return (0.0, 0.0, 0.0);
+        if let Some(dev) = &self.device {
+            let r = dev.last_report();
+            return (r.strain_energy, r.plastic_work, 0.0);
         }
         let b = &mut self.body;
         let k = super::model::Kinematics {
@@ -1059,11 +1061,7 @@ impl Solver for PdSolver {
         let Some(dev) = &self.device else {
             return Vec::new();
         };
-        let mut w: Vec<String> = dev.warning().map(|w| w.to_string()).into_iter().collect();
-        w.push(
-            "device = \"gpu\" reports no strain energy, plastic work or fracture energy (the device path has no energy kernel): this node's energy balance reads its strain energy as lost; use device = \"cpu\" for an energy audit".into(),
-        );
-        w
+        dev.warning().map(|w| w.to_string()).into_iter().collect()
     }
 
     fn describe(&self) -> NodeDescription {
@@ -1495,11 +1493,15 @@ impl Solver for PdSolver {
             ],
         };
         w.f64s(fd.into_iter());
-        match snap.as_ref().and_then(|s| s.states.as_ref()) {
-            // pd-correspondence on the device: its J2 states, in the model's own format
-            Some(states) => {
+        match snap
+            .as_ref()
+            .and_then(|s| s.states.as_ref().zip(s.plastic_work.as_ref()))
+        {
+            // pd-correspondence on the device: its J2 states, plastic work and released bond
+            // energy (none: no damage on the device), in the model's own format
+            Some((states, plastic_work)) => {
                 super::checkpoint::put_j2(&mut w, states);
-                // the plastic work the model's format carries next (not tracked on the device)
+                w.f64s(plastic_work.iter().copied());
                 w.f64s(std::iter::repeat_n(0.0, states.len()));
             }
             None => b.model.save_state(&mut w),
