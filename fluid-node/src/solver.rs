@@ -7,7 +7,7 @@ use crate::gpu::{GpuEuler, GpuSetupError};
 use crate::immersed::Immersed;
 use crate::model::Fluid;
 use crate::{diagnostics, output, setup, step};
-use mechanics::gpu::PrecisionRequest;
+use node_kit::device::Device;
 use protocol::message::{InterfaceMesh, StepReport};
 use protocol::{
     BuildOptions, Inbox, InterfaceInfo, NodeDescription, Outbox, Solver, SolverError, SolverResult,
@@ -38,43 +38,19 @@ impl EulerSolver {
     pub fn build(params: &toml::Table, opts: &BuildOptions) -> SolverResult<Self> {
         let p = setup::parse(params)?;
         let fluid = setup::build(&p)?;
-        let request = match (p.precision.as_deref(), p.device.as_deref()) {
-            (None | Some("f64"), _) => PrecisionRequest::Best,
-            (Some("f32"), Some("gpu")) => PrecisionRequest::ForceF32,
-            (Some("f32"), _) => {
-                return Err(SolverError::config(
-                    "precision",
-                    "\"f32\" applies to device = \"gpu\" only (the CPU path is f64)",
-                ));
-            }
-            (Some(other), _) => {
-                return Err(SolverError::config(
-                    "precision",
-                    format!("must be \"f64\" or \"f32\", got \"{other}\""),
-                ));
-            }
-        };
-        let gpu = match p.device.as_deref() {
-            None | Some("cpu") => None,
-            Some("gpu") if opts.describe_only => {
-                crate::gpu::supports(&fluid)
-                    .map_err(|s| SolverError::from(GpuSetupError::Unsupported(s)))?;
-                None
-            }
-            Some("gpu") => {
-                let g = GpuEuler::with_precision(&fluid, request)?;
-                tracing::info!("fluid step on the GPU: {}", g.context().describe());
-                if let Some(w) = g.warning() {
-                    tracing::warn!("{w}");
-                }
-                Some(g)
-            }
-            Some(other) => {
-                return Err(SolverError::config(
-                    "device",
-                    format!("must be \"cpu\" or \"gpu\", got \"{other}\""),
-                ));
-            }
+        let device = Device::parse(p.device.as_deref(), p.precision.as_deref())?;
+        // What the device kernels cannot run is refused before any adapter is asked for;
+        // describe-only stops there (the state stays on the host).
+        if device.is_gpu() {
+            crate::gpu::supports(&fluid)
+                .map_err(|s| SolverError::from(GpuSetupError::Unsupported(s)))?;
+        }
+        let gpu = match opts.describe_only {
+            true => None,
+            false => match device.open("fluid step")? {
+                Some(ctx) => Some(GpuEuler::with_context(ctx, &fluid)?),
+                None => None,
+            },
         };
         Ok(EulerSolver {
             fluid,

@@ -7,6 +7,7 @@ use crate::element::{self, Material, PL, R_H, RES, Section};
 use crate::mesh::{self, Mesh};
 use crate::model::{DOF_ALL, Model, ReactionSet};
 use mechanics::j2_plane_stress::J2PlaneStress;
+use mechanics::tensor::vec3;
 use protocol::{SolverError, SolverResult};
 use serde::Deserialize;
 
@@ -965,7 +966,7 @@ pub fn assemble(mesh: &Mesh, material: Material, section: Section, density: f64,
     let n0 = nsum
         .iter()
         .map(|s| {
-            let l = element::norm(*s);
+            let l = vec3(s).norm();
             if l > 0.0 {
                 [s[0] / l, s[1] / l, s[2] / l]
             } else {

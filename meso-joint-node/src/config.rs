@@ -2,6 +2,7 @@
 //! `deny_unknown_fields` and a validation that names the offending key (the set-up stage of
 //! the node, OpenRadioss "starter" style). Units are SI (m, kg, s, Pa).
 
+use mechanics::tensor::Vector3;
 use protocol::{SolverError, SolverResult};
 use serde::Deserialize;
 
@@ -181,19 +182,19 @@ impl Placement {
     /// Rotation of the placement: its local x, y, z axes in global coordinates; None when
     /// the axes are zero or parallel.
     pub fn frame(&self) -> Option<[[f64; 3]; 3]> {
-        let unit = |a: [f64; 3]| {
-            let l = crate::shape::norm(&a);
+        let unit = |a: Vector3<f64>| {
+            let l = a.norm();
             (l > 0.0 && l.is_finite()).then(|| a.map(|c| c / l))
         };
-        let z = unit(self.z_axis)?;
-        let xd = unit(self.x_axis)?;
-        let d = crate::shape::dot(&xd, &z);
+        let z = unit(self.z_axis.into())?;
+        let xd = unit(self.x_axis.into())?;
+        let d = xd.dot(&z);
         if d.abs() > 1.0 - 1e-9 {
             return None;
         }
-        let x = unit([xd[0] - d * z[0], xd[1] - d * z[1], xd[2] - d * z[2]])?;
-        let y = crate::shape::cross(&z, &x);
-        Some([x, y, z])
+        let x = unit(xd - z.map(|c| d * c))?;
+        let y = z.cross(&x);
+        Some([x.into(), y.into(), z.into()])
     }
 
     /// Local → global.

@@ -29,62 +29,39 @@ use super::model::{Dim, Kinematics, PdModel};
 use mechanics::damage::{BondInput, DamageModel};
 use mechanics::j2::{J2Material, J2State, Sym, jaumann_rotate, von_mises};
 use mechanics::simd::Simd;
+use mechanics::tensor::{self, IDENTITY};
 use rayon::prelude::*;
 use std::f64::consts::PI;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-pub type M3 = [[f64; 3]; 3];
+/// A 3×3 matrix in the row-major flat storage of the per-particle arrays.
+pub type M3 = tensor::Rows3;
 
+/// `a b` (nalgebra, in flat storage).
 #[inline]
 pub fn matmul(a: &M3, b: &M3) -> M3 {
-    std::array::from_fn(|i| {
-        std::array::from_fn(|j| a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j])
-    })
+    tensor::rows(&(tensor::mat(a) * tensor::mat(b)))
 }
 
 #[inline]
 pub fn det(a: &M3) -> f64 {
-    a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
-        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
-        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
+    tensor::mat(a).determinant()
 }
 
-/// Inverse by the adjugate; `None` when |det| ≤ tiny.
+/// Inverse by the adjugate (`mechanics::tensor::inverse`); `None` when |det| ≤ tiny.
 #[inline]
 pub fn inverse(a: &M3, tiny: f64) -> Option<M3> {
-    let d = det(a);
-    if !(d.abs() > tiny) {
-        return None;
-    }
-    let id = 1.0 / d;
-    Some([
-        [
-            (a[1][1] * a[2][2] - a[1][2] * a[2][1]) * id,
-            (a[0][2] * a[2][1] - a[0][1] * a[2][2]) * id,
-            (a[0][1] * a[1][2] - a[0][2] * a[1][1]) * id,
-        ],
-        [
-            (a[1][2] * a[2][0] - a[1][0] * a[2][2]) * id,
-            (a[0][0] * a[2][2] - a[0][2] * a[2][0]) * id,
-            (a[0][2] * a[1][0] - a[0][0] * a[1][2]) * id,
-        ],
-        [
-            (a[1][0] * a[2][1] - a[1][1] * a[2][0]) * id,
-            (a[0][1] * a[2][0] - a[0][0] * a[2][1]) * id,
-            (a[0][0] * a[1][1] - a[0][1] * a[1][0]) * id,
-        ],
-    ])
+    tensor::inverse(&tensor::mat(a), tiny).map(|m| tensor::rows(&m))
 }
 
+/// `a v`.
 #[inline]
 pub fn mv(a: &M3, v: &[f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|i| a[i][0] * v[0] + a[i][1] * v[1] + a[i][2] * v[2])
+    (tensor::mat(a) * tensor::vec3(v)).into()
 }
 
 #[cfg(target_arch = "x86_64")]
 mod avx512;
-
-const IDENTITY: M3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
 /// Per-particle kinematic results of pass 1 (not gathered by neighbours).
 #[derive(Debug, Clone, Copy, Default)]

@@ -35,6 +35,7 @@ use super::family::{Bonds, par_rows};
 use super::model::{Dim, Kinematics, PdModel};
 use mechanics::damage::{BondInput, DamageModel};
 use mechanics::j2::{J2Material, J2State, Sym, jaumann_rotate_skew, von_mises};
+use mechanics::tensor::vec3;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Largest monomial basis: 3-D, order 2 (x, y, z, x², xy, xz, y², yz, z²).
@@ -255,11 +256,6 @@ fn phi_of(
     out
 }
 
-#[inline]
-fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
 /// Per-particle results of the gradient pass.
 #[derive(Debug, Clone, Copy)]
 pub struct RkPoint {
@@ -318,8 +314,15 @@ fn gradient_pass(
                 continue;
             }
             let j = j as usize;
-            *ph = phi_of(&pt.g, om, &sub(&pos[j], &p), dims, order, horizon);
-            let du = sub(&field[j], &u);
+            *ph = phi_of(
+                &pt.g,
+                om,
+                &(vec3(&pos[j]) - vec3(&p)).into(),
+                dims,
+                order,
+                horizon,
+            );
+            let du = vec3(&field[j]) - vec3(&u);
             let vj = vol[j];
             for a in 0..3 {
                 for c in 0..3 {
@@ -577,8 +580,8 @@ impl<D: DamageModel> PdModel for RkBa<D> {
                     changed = true;
                     continue;
                 }
-                let x = sub(&k.pos[j], &p);
-                let vv = sub(&k.vel[j], &v);
+                let x: [f64; 3] = (vec3(&k.pos[j]) - vec3(&p)).into();
+                let vv = vec3(&k.vel[j]) - vec3(&v);
                 let x2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
                 if dt > 0.0 {
                     // (A.11): L_b = L̄ + (v − L̄ x) xᵀ/|x|²
@@ -658,7 +661,7 @@ impl<D: DamageModel> PdModel for RkBa<D> {
                     continue;
                 }
                 let j = nbr[b] as usize;
-                let x = sub(&k.pos[j], &p);
+                let x: [f64; 3] = (vec3(&k.pos[j]) - vec3(&p)).into();
                 let x2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
                 let s = mechanics::j2::to_matrix(&h.state.stress);
                 let c = h.om * (1.0 / wi + 1.0 / point[j].wbar) / x2;

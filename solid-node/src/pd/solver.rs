@@ -24,8 +24,9 @@ use super::rk_ba::RkBa;
 use mechanics::damage::{
     BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain, NoDamage,
 };
-use mechanics::gpu::{GpuContext, PrecisionRequest};
+use mechanics::gpu::GpuContext;
 use mechanics::j2::J2Material;
+use node_kit::device::Device;
 use node_kit::vtk::{self, Arrays, Frame};
 use protocol::{
     Binding, CouplingKind, InterfaceInfo, InterfaceMesh, NodeDescription, Role, Solver,
@@ -314,34 +315,10 @@ impl PdSolver {
             }
         };
         let three_d = dim.three_d();
-        let on_gpu = match p.device.as_deref() {
-            None | Some("cpu") => false,
-            Some("gpu") => {
-                gpu_supports(model, dim, &p).map_err(|r| SolverError::config("device", r))?;
-                true
-            }
-            Some(other) => {
-                return cfg(
-                    "device",
-                    format!("must be \"cpu\" or \"gpu\", got \"{other}\""),
-                );
-            }
-        };
-        match p.precision.as_deref() {
-            None | Some("f64") => {}
-            Some("f32") if on_gpu => {}
-            Some("f32") => {
-                return cfg(
-                    "precision",
-                    "\"f32\" applies to device = \"gpu\" only (the CPU path is f64)",
-                );
-            }
-            Some(other) => {
-                return cfg(
-                    "precision",
-                    format!("must be \"f64\" or \"f32\", got \"{other}\""),
-                );
-            }
+        let target = Device::parse(p.device.as_deref(), p.precision.as_deref())?;
+        let on_gpu = target.is_gpu();
+        if on_gpu {
+            gpu_supports(model, dim, &p).map_err(|r| SolverError::config("device", r))?;
         }
         if !(p.spacing.is_finite() && p.spacing > 0.0) {
             return cfg("spacing", format!("must be > 0, got {}", p.spacing));
@@ -709,7 +686,18 @@ impl PdSolver {
                 .collect();
             gather.sort_unstable();
             gather.dedup();
-            Some(device_body(&model_name, dim, &p, material, &body, &gather)?)
+            match target.open(&format!("{model_name} body"))? {
+                Some(ctx) => Some(device_body(
+                    ctx,
+                    &model_name,
+                    dim,
+                    &p,
+                    material,
+                    &body,
+                    &gather,
+                )?),
+                None => None,
+            }
         } else {
             None
         };
@@ -931,8 +919,9 @@ fn gpu_supports(model: &str, dim: Dim, p: &PdParams) -> Result<(), String> {
     Ok(())
 }
 
-/// The device copy of a freshly built `body` (issue 8); no adapter is a config error.
+/// The device copy of a freshly built `body` on `ctx` (issue 8).
 fn device_body(
+    ctx: Arc<GpuContext>,
     model: &str,
     dim: Dim,
     p: &PdParams,
@@ -941,12 +930,6 @@ fn device_body(
     gather: &[usize],
 ) -> SolverResult<DeviceBody> {
     let bad = |e: String| SolverError::config("device", format!("device = \"gpu\": {e}"));
-    let req = match p.precision.as_deref() {
-        Some("f32") => PrecisionRequest::ForceF32,
-        _ => PrecisionRequest::Best,
-    };
-    let ctx = GpuContext::with_precision(req).map_err(|e| bad(e.to_string()))?;
-    let ctx = Arc::new(ctx);
     // the arguments the body's own model was built with (PdSolver::new)
     let rest = vec![[0.0; 3]; body.len()];
     let k = super::model::Kinematics {
@@ -977,16 +960,12 @@ fn device_body(
         other => return Err(bad(format!("no device kernels for {other}"))),
     }
     .map_err(|e| bad(e.to_string()))?;
-    tracing::info!("{model} body on the GPU: {}", dev.describe());
     let (now, before) = dev.window_bytes();
     tracing::info!(
         "{model} on the GPU: {now} bytes read back per window ({} particles, {} gathered; the full state would be {before} bytes)",
         body.len(),
         gather.len()
     );
-    if let Some(w) = dev.warning() {
-        tracing::warn!("{w}");
-    }
     Ok(dev)
 }
 
