@@ -75,6 +75,9 @@ pub struct Immersed {
     /// length is not that of `walls` (also after a restart, which does not store it).
     #[serde(skip)]
     pub wall_order: Vec<usize>,
+    /// Scratch of the classification's counting sort (one entry per cell).
+    #[serde(skip)]
+    sort_scratch: Vec<usize>,
 }
 
 impl Immersed {
@@ -102,6 +105,7 @@ impl Immersed {
             wall_mass: 0.0,
             wall_flux: Vec::new(),
             wall_order: Vec::new(),
+            sort_scratch: Vec::new(),
         }
     }
 
@@ -138,21 +142,36 @@ impl Immersed {
             };
             self.cell_of.push(c);
         }
-        // counting sort of particles by cell (deterministic: particle order within a cell)
-        let mut order: Vec<usize> = (0..self.n).filter(|&p| self.cell_of[p] != NONE).collect();
-        order.sort_by_key(|&p| (self.cell_of[p], p));
+        // counting sort of particles by cell (deterministic: particle order within a cell;
+        // O(cells + particles), no allocation once the buffers have grown)
+        let at = &mut self.sort_scratch;
+        at.clear();
+        at.resize(self.kind.len(), 0);
+        for &c in &self.cell_of {
+            if c != NONE {
+                at[c] += 1;
+            }
+        }
         self.cells.clear();
         self.off.clear();
-        self.parts.clear();
-        for &p in &order {
-            let c = self.cell_of[p];
-            if self.cells.last() != Some(&c) {
+        let mut total = 0;
+        for (c, k) in at.iter_mut().enumerate() {
+            if *k > 0 {
                 self.cells.push(c);
-                self.off.push(self.parts.len());
+                self.off.push(total);
+                // from here on: where the cell's next particle goes
+                (*k, total) = (total, total + *k);
             }
-            self.parts.push(p);
         }
-        self.off.push(self.parts.len());
+        self.off.push(total);
+        self.parts.clear();
+        self.parts.resize(total, 0);
+        for (p, &c) in self.cell_of.iter().enumerate() {
+            if c != NONE {
+                self.parts[at[c]] = p;
+                at[c] += 1;
+            }
+        }
         for &c in &self.cells {
             self.kind[c] = SOLID;
         }
