@@ -215,7 +215,9 @@ impl Solver for EulerSolver {
         }
         self.fluid.time = w.t0;
         if self.fluid.immersed.is_some() {
+            let t = Instant::now();
             self.read_particles(inbox)?;
+            self.fluid.timing.immersed_window_s += t.elapsed().as_secs_f64();
         }
         if let Some(g) = self.gpu.as_mut() {
             let mut report =
@@ -230,6 +232,7 @@ impl Solver for EulerSolver {
             return Ok(report);
         }
         let substeps = self.advance_to(w.t1)?;
+        let t_forces = Instant::now();
         if let Some(im) = &self.fluid.immersed {
             let n = im.n;
             let buf = out.put(&im.interface.clone(), "force", 3, n);
@@ -240,6 +243,7 @@ impl Solver for EulerSolver {
                 .zip(&im.velocities)
                 .map(|(j, v)| j[0] * v[0] + j[1] * v[1] + j[2] * v[2])
                 .sum::<f64>();
+            self.fluid.timing.immersed_window_s += t_forces.elapsed().as_secs_f64();
         }
         self.record_probes();
         let d = diagnostics::totals(&mut self.fluid)?;
@@ -277,6 +281,7 @@ impl Solver for EulerSolver {
         }
         report.scalars.push(("mass".into(), d.mass));
         report.scalars.push(("max_pressure".into(), d.max_pressure));
+        timing_scalars(&self.fluid, &mut report.scalars);
         if let Some((_, last)) = self.probe_history.last() {
             for (p, s) in self.fluid.probes.iter().zip(last) {
                 report.scalars.push((format!("{}.pressure", p.name), s[1]));
@@ -342,6 +347,29 @@ impl Solver for EulerSolver {
             g.upload(&self.fluid)?;
         }
         Ok(())
+    }
+}
+
+/// Where the fluid's time went since the node started (s; a restart starts the clocks
+/// again): its steps, split into the fluid kernels, the immersed work inside the steps and
+/// the ghost fills; the immersed work once per window (classification, refills, forces); and
+/// the steps' throughput (interior cells × steps per second of step).
+fn timing_scalars(f: &Fluid, out: &mut Vec<(String, f64)>) {
+    let t = &f.timing;
+    let rate = if t.steps_s > 0.0 {
+        t.cell_updates / t.steps_s
+    } else {
+        0.0
+    };
+    for (name, v) in [
+        ("time_steps_s", t.steps_s),
+        ("time_fluid_kernels_s", t.kernels_s),
+        ("time_immersed_s", t.immersed_s),
+        ("time_ghost_fills_s", t.ghosts_s),
+        ("time_immersed_window_s", t.immersed_window_s),
+        ("cell_updates_per_s", rate),
+    ] {
+        out.push((name.into(), v));
     }
 }
 
