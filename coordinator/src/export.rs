@@ -240,18 +240,17 @@ pub fn write_fields_npz(
         std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
     let mut npz = ndarray_npy::NpzWriter::new(std::io::BufWriter::new(file));
     for (name, s) in series {
-        let a = ndarray::Array3::from_shape_vec(
-            (s.window.len(), s.points, s.components),
-            s.values.clone(),
-        )?;
+        // views of the series' own storage: no copy of the (possibly large) values
+        let a =
+            ndarray::ArrayView3::from_shape((s.window.len(), s.points, s.components), &s.values)?;
         npz.add_array(name.as_str(), &a)?;
         npz.add_array(
             format!("{name}.window").as_str(),
-            &ndarray::Array1::from(s.window.clone()),
+            &ndarray::ArrayView1::from(&s.window),
         )?;
         npz.add_array(
             format!("{name}.time").as_str(),
-            &ndarray::Array1::from(s.time.clone()),
+            &ndarray::ArrayView1::from(&s.time),
         )?;
     }
     npz.finish()
