@@ -113,13 +113,15 @@ pub enum Cmd {
         output: Option<PathBuf>,
     },
     /// Write a run's per-window histories (every node's report and the balance) as arrays:
-    /// `npz` (numpy: `np.load(F)["gas/probe1.pressure"]`) or `csv` (one file per node).
+    /// `npz` (numpy: `np.load(F)["gas/probe1.pressure"]`), `csv` or `parquet` (one file per
+    /// node: `pandas.read_parquet("RUN/history/gas.parquet")`).
     Export {
         /// The run's output folder or its recording.
         run: PathBuf,
-        #[arg(long, default_value = "npz", value_parser = ["npz", "csv"])]
+        #[arg(long, default_value = "npz", value_parser = ["npz", "csv", "parquet"])]
         format: String,
-        /// Output file (npz) or directory (csv); default: RUN/history.npz or RUN/history/.
+        /// Output file (npz) or directory (csv, parquet); default: RUN/history.npz or
+        /// RUN/history/.
         #[arg(long, short)]
         output: Option<PathBuf>,
         /// Only these series: NODE/KEY with `*` as a wildcard, or NODE for all of its keys
@@ -700,9 +702,13 @@ pub fn main_with(cli: Cli) -> i32 {
                         );
                     }
                 }
-                if format == "csv" {
+                if format == "csv" || format == "parquet" {
                     let dir = output.unwrap_or_else(|| base.join("history"));
-                    let files = crate::export::write_csv(&t, &dir)?;
+                    let files = if format == "csv" {
+                        crate::export::write_csv(&t, &dir)?
+                    } else {
+                        crate::export::write_parquet(&t, &dir)?
+                    };
                     Ok(format!("{} tables in {}{note}", files.len(), dir.display()))
                 } else {
                     let f = output.unwrap_or_else(|| base.join("history.npz"));

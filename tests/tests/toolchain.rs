@@ -1,4 +1,4 @@
-//! The users' toolchain on a real run (issue 21): `cosim export` to numpy and CSV, checked
+//! The users' toolchain on a real run (issue 21): `cosim export` to numpy, CSV and Parquet, checked
 //! against the recording read with the official MCAP reader; `cosim info --json` through
 //! `python3 -m json.tool`; the field picture `cosim run` draws (`fields.png`) shows the
 //! chamber's pressure and the bar where the case puts it; the Python package's `open_run`
@@ -97,6 +97,79 @@ fn export_gives_numpy_arrays_equal_to_the_recording() {
         assert!(rows.iter().all(|r| r.len() == head.len()), "{node}");
         assert_eq!(rows[79][0], "80", "{node}");
     }
+}
+
+/// pyarrow (the Apache Arrow project's Python reader, independent of our writer) reads each
+/// node's `history/NODE.parquet`: every column equals the recording's JSON values (vectors as
+/// `_x/_y/_z`), a key a window lacks is null.
+const PARQUET_CHECK: &str = r#"
+import json, sys
+import numpy as np
+import pyarrow.parquet as pq
+from mcap.reader import make_reader
+hist, mcap = sys.argv[1], sys.argv[2]
+rec = {}
+with open(mcap, "rb") as f:
+    for _, ch, m in make_reader(f).iter_messages(topics=["/cosim/node/gas", "/cosim/node/bar", "/cosim/balance"]):
+        name = "balance" if ch.topic == "/cosim/balance" else ch.topic.rsplit("/", 1)[1]
+        rec.setdefault(name, []).append(json.loads(m.data))
+checked = 0
+for node, rows in sorted(rec.items()):
+    t = pq.read_table(f"{hist}/{node}.parquet")
+    assert t.num_rows == len(rows), (node, t.num_rows, len(rows))
+    keys = []
+    for r in rows:
+        keys += [k for k in r if k not in keys]
+    for k in keys:
+        width = max(len(r[k]) if isinstance(r.get(k), list) else 1 for r in rows)
+        names = [k] if width == 1 else [f"{k}_{a}" for a in "xyz"] if width == 3 else [f"{k}_{i}" for i in range(width)]
+        for i, name in enumerate(names):
+            col = t.column(name)
+            assert str(col.type) == "double", (node, name, col.type)
+            got = col.to_pylist()
+            want = [(r[k][i] if width > 1 else r[k]) if k in r else None for r in rows]
+            want = [float(w) if isinstance(w, (int, float)) and not isinstance(w, bool) else None for w in want]
+            assert got == want, (node, name, got[:3], want[:3])
+            checked += 1
+print(f"nodes {len(rec)}; windows {len(rec['gas'])}; columns {checked}")
+"#;
+
+#[test]
+fn parquet_tables_read_back_in_pyarrow_equal_to_the_recording() {
+    if !python("import pyarrow, mcap", &[]).0 {
+        skip_or_fail(
+            "pyarrow with mcap",
+            "missing (python3 -m pip install pyarrow mcap)",
+        );
+        return;
+    }
+    let out = chamber();
+    let hist = out.join("parquet-check");
+    let o = cosim(&[
+        "export",
+        out.to_str().unwrap(),
+        "--format",
+        "parquet",
+        "--output",
+        hist.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (ok, text) = python(
+        PARQUET_CHECK,
+        &[
+            hist.to_str().unwrap(),
+            out.join("run.mcap").to_str().unwrap(),
+        ],
+    );
+    println!("{text}");
+    assert!(ok, "{text}");
+    assert!(text.contains("nodes 3; windows 80;"), "{text}");
+    let columns: usize = text
+        .rsplit("columns ")
+        .next()
+        .and_then(|c| c.trim().parse().ok())
+        .unwrap_or(0);
+    assert!(columns > 40, "{text}");
 }
 
 /// `cosim.open_run`: the gas probe and the bar's displacement equal the official reader's
