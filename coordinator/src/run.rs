@@ -976,9 +976,14 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             }
             if interrupted.is_none() && crate::fields::has_series(&out) {
                 let png = out.join("fields.png");
-                match crate::fields::render(&out, None, &png, None) {
+                match crate::fields::render(&out, None, &png, None, None) {
                     Ok(_) => summary["fields"] = json!(png),
                     Err(e) => tracing::warn!("fields picture of {}: {e:#}", out.display()),
+                }
+                // and each node alone where there are several (fields_<node>.png)
+                match crate::fields::render_nodes(&out) {
+                    Ok(files) => summary["node_fields"] = json!(files),
+                    Err(e) => tracing::warn!("node pictures of {}: {e:#}", out.display()),
                 }
             }
             std::fs::write(

@@ -371,6 +371,68 @@ fn the_field_picture_shows_the_pressure_and_the_bar_where_it_is() {
     }
 }
 
+/// `cosim run` draws each node alone too (`fields_<node>.png`): the bar's particles face on,
+/// coloured by damage on the colour map, spread across the plot's width; the gas alone as its
+/// pressure map. `cosim render --per-node --gif` animates each node's series: one GIF per
+/// node, one frame per written time, each frame the picture's size.
+#[test]
+fn each_node_is_drawn_alone_and_its_series_animated() {
+    use image::AnimationDecoder;
+    let out = chamber();
+    let listed: Vec<String> = summary(out)["node_fields"]
+        .as_array()
+        .expect("summary.json lists node_fields")
+        .iter()
+        .filter_map(|p| p.as_str().map(String::from))
+        .collect();
+    assert_eq!(listed.len(), 2, "{listed:?}");
+    let (w, h, px) = png_pixels(&out.join("fields_bar.png"));
+    assert_eq!((w, h), (1200, 800));
+    let (mut dots, mut x_lo, mut x_hi) = (0, u32::MAX, 0);
+    let mut grey = 0;
+    for (k, p) in px.iter().enumerate() {
+        let (x, y) = (k as u32 % w, k as u32 / w);
+        if !(40..1040).contains(&x) || !(60..760).contains(&y) || *p == [255, 255, 255] {
+            continue;
+        }
+        dots += 1;
+        grey += usize::from(p[0] == p[1] && p[1] == p[2]);
+        x_lo = x_lo.min(x);
+        x_hi = x_hi.max(x);
+    }
+    println!("bar alone: {dots} particle pixels across x {x_lo}..{x_hi}, {grey} grey");
+    assert!(dots >= 31 * 16 * 5, "{dots}");
+    assert_eq!(grey, 0, "particles take the colour map, not grey");
+    assert!(x_lo < 100 && x_hi > 980, "{x_lo}..{x_hi}");
+    let (_, _, gas) = png_pixels(&out.join("fields_gas.png"));
+    let colours: std::collections::HashSet<_> = gas.iter().collect();
+    assert!(colours.len() >= 20, "{}", colours.len());
+
+    let o = cosim(&["render", out.to_str().unwrap(), "--per-node", "--gif"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for (node, series) in [("gas", "fluid.pvd"), ("bar", "pd.pvd")] {
+        let pvd = std::fs::read_to_string(out.join(node).join(series)).unwrap();
+        let written = pvd.matches("<DataSet").count();
+        let file = std::fs::File::open(out.join(format!("{node}.gif"))).unwrap();
+        let frames = image::codecs::gif::GifDecoder::new(std::io::BufReader::new(file))
+            .unwrap()
+            .into_frames()
+            .collect_frames()
+            .unwrap();
+        println!(
+            "{node}.gif: {} frames for {written} written times",
+            frames.len()
+        );
+        assert!(written >= 3, "{written}");
+        assert_eq!(frames.len(), written);
+        assert!(
+            frames
+                .iter()
+                .all(|f| f.buffer().dimensions() == (1200, 800))
+        );
+    }
+}
+
 /// `cosim validate --json`: one JSON document either way, the same exit codes (0, or 2 with
 /// the full key path of the bad value).
 /// `--field NODE.FIELD` colours that node by the field: the bar's particles, light grey by
