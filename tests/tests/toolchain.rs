@@ -433,6 +433,60 @@ fn each_node_is_drawn_alone_and_its_series_animated() {
     }
 }
 
+/// `run.pictures = "frames"` draws every written frame of each node alone after the run
+/// (`frames/<node>_<k>.png`, one per `.pvd` entry), "none" draws no picture, and any other
+/// value is refused before anything starts, naming the key.
+#[test]
+fn run_pictures_draws_every_frame_or_none() {
+    let (dir, id) = scratch("pictures");
+    let case = workspace_root().join("examples/chamber_detonation.toml");
+    let out = dir.join("frames");
+    let o = run_case(
+        &case,
+        &out,
+        &id,
+        &["--variant", "small", "--set", "run.pictures=\"frames\""],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for (node, series) in [("gas", "fluid.pvd"), ("bar", "pd.pvd")] {
+        let pvd = std::fs::read_to_string(out.join(node).join(series)).unwrap();
+        let written = pvd.matches("<DataSet").count();
+        let drawn = std::fs::read_dir(out.join("frames"))
+            .unwrap()
+            .flatten()
+            .filter(|e| {
+                e.file_name()
+                    .to_string_lossy()
+                    .starts_with(&format!("{node}_"))
+            })
+            .count();
+        println!("{node}: {drawn} pictures for {written} written frames");
+        assert!(written >= 3, "{written}");
+        assert_eq!(drawn, written);
+    }
+    assert_eq!(summary(&out)["frame_pictures"], 10);
+
+    let none = dir.join("none");
+    let o = run_case(
+        &case,
+        &none,
+        &format!("{id}n"),
+        &["--variant", "small", "--set", "run.pictures=\"none\""],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!none.join("fields.png").exists() && !none.join("fields_bar.png").exists());
+
+    let o = cosim(&[
+        "validate",
+        case.to_str().unwrap(),
+        "--set",
+        "run.pictures=\"all\"",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("run.pictures"), "{err}");
+}
+
 /// `cosim validate --json`: one JSON document either way, the same exit codes (0, or 2 with
 /// the full key path of the bad value).
 /// `--field NODE.FIELD` colours that node by the field: the bar's particles, light grey by
