@@ -59,6 +59,8 @@ pub struct NodeState {
     pub initial_momentum: [f64; 3],
     pub finished: Option<u64>,
     pub warnings: Vec<String>,
+    /// Joined from another host (`remote = true`): its checkpoint file is on that host.
+    pub remote: bool,
 }
 
 /// The coordinator's state at the end of a checkpointed window: with the nodes' checkpoints,
@@ -80,6 +82,8 @@ pub struct CoordState {
     pub history: crate::plot::Histories,
     /// Wall time of the window loop up to the checkpoint, s.
     pub loop_s: f64,
+    /// Each lagrange coupling's interface problem (its window and last multipliers).
+    pub lagrange: Vec<crate::lagrange::HubState>,
 }
 
 /// What must not change between a run and its restart: the nodes (names, models,
@@ -112,6 +116,10 @@ pub fn compat_signature(case: &Case) -> String {
             c.responder_fields,
             c.decouple
         ));
+        // A lagrange coupling's sides and method fix the checkpointed multipliers' meaning.
+        if c.kind == protocol::CouplingKind::Lagrange {
+            s.push_str(&format!(" {:?} {:?}", c.sides, c.method));
+        }
     }
     s
 }
@@ -146,6 +154,11 @@ fn complete(run_dir: &Path, window: u64) -> Result<CoordState, String> {
     }
     for n in &st.nodes {
         let p = ckpt::file(run_dir, window, &n.name);
+        // A remote node writes its checkpoint on its own host (PROTOCOL.md §4.5): its
+        // `Done` acknowledged it; it is checked here only where this host can see it.
+        if n.remote && !p.exists() {
+            continue;
+        }
         let nc = Checkpoint::read(&p).map_err(|e| e.to_string())?;
         if nc.node != n.name
             || nc.model != n.model

@@ -12,6 +12,17 @@ use protocol::{Fields, InterfaceMesh};
 /// extent (at least 1 m).
 const MATCH_TOLERANCE: f64 = 1e-9;
 
+/// A hub's state at a window end, for the coordinator's checkpoint: the window it is in and
+/// the multipliers of the last system step (global, and each side's). The meshes, set-ups and
+/// factorised interface matrices are built again by a restart's set-up.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct HubState {
+    pub coupling: String,
+    pub current: u64,
+    pub lambda: Vec<f64>,
+    pub sides: Vec<Vec<f64>>,
+}
+
 /// One lagrange coupling as the coordinator drives it.
 #[derive(Debug)]
 pub struct Hub {
@@ -122,6 +133,38 @@ impl Hub {
             }
         }
         Ok(out)
+    }
+
+    /// The state to checkpoint at a window end (None before the set-up is complete).
+    pub fn save(&self) -> Option<HubState> {
+        let scheme = self.scheme.as_ref()?;
+        Some(HubState {
+            coupling: self.coupling.clone(),
+            current: self.current,
+            lambda: scheme.lambda().to_vec(),
+            sides: (0..self.sides.len())
+                .map(|k| scheme.side_lambda(k).to_vec())
+                .collect(),
+        })
+    }
+
+    /// Continue from a checkpoint's `st`, once a restart's set-up has built the scheme again.
+    pub fn restore(&mut self, st: &HubState) -> Result<(), String> {
+        if st.coupling != self.coupling {
+            return Err(format!(
+                "checkpoint of coupling '{}', not '{}'",
+                st.coupling, self.coupling
+            ));
+        }
+        let Some(scheme) = self.scheme.as_mut() else {
+            return Err("restored before the set-up was complete".into());
+        };
+        scheme
+            .restore(&st.lambda, &st.sides)
+            .map_err(|e| e.to_string())?;
+        self.current = st.current;
+        self.finished.clear();
+        Ok(())
     }
 
     /// λ at the end of the windows finished since the last call.

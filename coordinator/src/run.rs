@@ -1049,6 +1049,23 @@ fn resume(c: &mut Coord, st: &crate::checkpoint::CoordState, all: &[usize]) -> R
     let k = st.window;
     c.window = k;
     c.sim_t = st.time;
+    // The interface problems continue from their checkpointed multipliers (set up again
+    // with the sides, before any side steps window k + 1).
+    for hs in &st.lagrange {
+        let Some((hub, _)) = c.hubs.iter_mut().find(|(h, _)| h.coupling == hs.coupling) else {
+            return Err(Fault {
+                node: "coordinator".into(),
+                reason: format!(
+                    "lagrange coupling '{}' in the checkpoint but not in the case",
+                    hs.coupling
+                ),
+            });
+        };
+        hub.restore(hs).map_err(|e| Fault {
+            node: "coordinator".into(),
+            reason: format!("coupling {}: {e}", hs.coupling),
+        })?;
+    }
     for &i in all {
         c.send(
             i,
@@ -1171,12 +1188,14 @@ fn save_checkpoint(
                 initial_momentum: n.initial_momentum,
                 finished: n.finished,
                 warnings: n.warnings.clone(),
+                remote: cfg.remote,
             })
             .collect(),
         audit: a.clone(),
         decoupled: decoupled.to_vec(),
         history: c.history.clone(),
         loop_s,
+        lagrange: c.hubs.iter().filter_map(|(h, _)| h.save()).collect(),
     };
     let dir = protocol::checkpoint::dir(out, k);
     c.rec
@@ -1216,6 +1235,12 @@ fn drive(
                 listen,
                 c.token
             );
+            if let Some(st) = &opts.restart {
+                eprintln!(
+                    "cosim: remote node '{}' resumes from its checkpoint of window {}, on its own host: start it there as before (with the same --output DIR if it had one)",
+                    n.name, st.window
+                );
+            }
             continue;
         }
         let Some(exe) = &n.exe else { continue };

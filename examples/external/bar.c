@@ -359,6 +359,62 @@ static int advance(void *user, const CosimWindow *w, CosimCall *call, CosimStepR
     return 0;
 }
 
+/* Checkpoints: a header (magic, format version, nodes, couplings), then u, v, the five work
+ * and impulse sums and each coupling's force, as doubles in the host's byte order (a restart
+ * runs on the host that wrote them). Masses, step and roles come again from setup(). */
+static const char STATE_MAGIC[8] = {'B', 'A', 'R', 'C', 'S', 'T', '0', '1'};
+enum { STATE_VERSION = 1 };
+typedef struct {
+    char magic[8];
+    uint32_t version, couplings;
+    uint64_t nodes;
+} StateHeader;
+
+static int save_state(void *user, CosimCall *call) {
+    Bar *b = user;
+    StateHeader h = {.version = STATE_VERSION, .couplings = (uint32_t)b->n_coupled, .nodes = b->n};
+    memcpy(h.magic, STATE_MAGIC, sizeof h.magic);
+    double sums[5] = {b->external_work, b->interface_work, b->external_impulse, b->applied_impulse,
+                      b->interface_impulse};
+    double forces[MAX_IFACES];
+    for (int j = 0; j < b->n_coupled; j++) forces[j] = b->coupled[j].force;
+    int rc = cosim_state_write(call, (const uint8_t *)&h, sizeof h);
+    rc = rc || cosim_state_write(call, (const uint8_t *)b->u, b->n * sizeof(double));
+    rc = rc || cosim_state_write(call, (const uint8_t *)b->v, b->n * sizeof(double));
+    rc = rc || cosim_state_write(call, (const uint8_t *)sums, sizeof sums);
+    rc = rc || cosim_state_write(call, (const uint8_t *)forces, (size_t)b->n_coupled * sizeof(double));
+    return rc != COSIM_OK;
+}
+
+/* Restore what save_state wrote, after setup: another format, version, mesh or coupling set is
+ * refused before anything is overwritten. */
+static int load_state(void *user, const uint8_t *bytes, size_t len, CosimCall *call) {
+    Bar *b = user;
+    StateHeader h;
+    if (len < sizeof h) return fail(call, COSIM_ERROR_KIND_OTHER, NULL, "bar state of %zu bytes is too short", len);
+    memcpy(&h, bytes, sizeof h);
+    if (memcmp(h.magic, STATE_MAGIC, sizeof h.magic) != 0)
+        return fail(call, COSIM_ERROR_KIND_OTHER, NULL, "not a state of this bar (bad magic)");
+    if (h.version != STATE_VERSION)
+        return fail(call, COSIM_ERROR_KIND_OTHER, NULL, "bar state version %u, this bar reads %d", h.version, STATE_VERSION);
+    if (h.nodes != b->n || h.couplings != (uint32_t)b->n_coupled)
+        return fail(call, COSIM_ERROR_KIND_OTHER, NULL, "state of %llu nodes and %u couplings, this bar has %zu and %d",
+                    (unsigned long long)h.nodes, h.couplings, b->n, b->n_coupled);
+    size_t count = 2 * b->n + 5 + (size_t)b->n_coupled;
+    if (len != sizeof h + count * sizeof(double))
+        return fail(call, COSIM_ERROR_KIND_OTHER, NULL, "bar state of %zu bytes, expected %zu", len, sizeof h + count * sizeof(double));
+    const uint8_t *p = bytes + sizeof h;
+    memcpy(b->u, p, b->n * sizeof(double)), p += b->n * sizeof(double);
+    memcpy(b->v, p, b->n * sizeof(double)), p += b->n * sizeof(double);
+    double sums[5];
+    memcpy(sums, p, sizeof sums), p += sizeof sums;
+    b->external_work = sums[0], b->interface_work = sums[1], b->external_impulse = sums[2];
+    b->applied_impulse = sums[3], b->interface_impulse = sums[4];
+    for (int j = 0; j < b->n_coupled; j++, p += sizeof(double)) memcpy(&b->coupled[j].force, p, sizeof(double));
+    internal_force(b);
+    return 0;
+}
+
 static void destroy(void *user) {
     Bar *b = user;
     free(b->m), free(b->u), free(b->v), free(b->f);
@@ -374,6 +430,8 @@ int main(int argc, char **argv) {
         .setup = setup,
         .stable_dt = stable_dt,
         .advance = advance,
+        .save_state = save_state,
+        .load_state = load_state,
         .destroy = destroy,
     };
     return cosim_node_main(argc, (const char *const *)argv, &vt, &bar);

@@ -12,6 +12,7 @@ built-in results. `cosim run` starts it as `bar.py --run RUN --node NAME --trans
 
 import math
 import os
+import struct
 
 import numpy as np
 
@@ -21,6 +22,11 @@ FIELDS = ["position", "velocity", "force", "mass", "stiffness"]
 KEYS = {"length", "x0", "elements", "young", "density", "area", "fixed", "tip_force",
         "load_end", "courant", "interfaces"}
 END = {"left": 0, "right": 1}
+# save_state's bytes: this header (magic, format version, nodes, couplings), then float64
+# little-endian u, v, the five work and impulse sums and each coupling's force.
+STATE = struct.Struct("<8sHII")
+STATE_MAGIC = b"BARPYST1"
+STATE_VERSION = 1
 
 
 def number(params, key, default=None):
@@ -254,6 +260,40 @@ class Bar:
             "scalars": scalars,
         }
 
+    def save_state(self):
+        """The state a restart needs, as versioned bytes (the runtime writes them into the
+        node's checkpoint). Masses, step and coupling roles come again from setup()."""
+        sums = [self.external_work, self.interface_work, self.external_impulse,
+                self.applied_impulse, self.interface_impulse]
+        values = np.concatenate([self.u, self.v, sums, [c["force"] for c in self.coupled]])
+        head = STATE.pack(STATE_MAGIC, STATE_VERSION, len(self.u), len(self.coupled))
+        return head + values.astype("<f8").tobytes()
+
+    def load_state(self, data):
+        """Restore what save_state() wrote, after setup(); a state of another format,
+        version, mesh or coupling set is refused, not half-loaded."""
+        if len(data) < STATE.size:
+            raise ValueError(f"bar state of {len(data)} bytes is too short")
+        magic, version, n, nc = STATE.unpack_from(data)
+        if magic != STATE_MAGIC:
+            raise ValueError("not a state of this bar (bad magic)")
+        if version != STATE_VERSION:
+            raise ValueError(f"bar state version {version}, this bar reads {STATE_VERSION}")
+        if n != len(self.u) or nc != len(self.coupled):
+            raise ValueError(f"state of {n} nodes and {nc} couplings, this bar has "
+                             f"{len(self.u)} and {len(self.coupled)}")
+        count = 2 * n + 5 + nc
+        if len(data) != STATE.size + 8 * count:
+            raise ValueError(f"bar state of {len(data)} bytes, expected {STATE.size + 8 * count}")
+        values = np.frombuffer(data, dtype="<f8", count=count, offset=STATE.size)
+        self.u[:] = values[:n]
+        self.v[:] = values[n:2 * n]
+        (self.external_work, self.interface_work, self.external_impulse,
+         self.applied_impulse, self.interface_impulse) = (float(x) for x in values[2 * n:2 * n + 5])
+        for c, f in zip(self.coupled, values[2 * n + 5:]):
+            c["force"] = float(f)
+        self.internal_force()
+
     def write_output(self, t, window, directory):
         """The nodes as VTK points with displacement and velocity (ParaView: bar.pvd)."""
         os.makedirs(directory, exist_ok=True)
@@ -287,11 +327,18 @@ class Bar:
 </Piece></UnstructuredGrid>
 </VTKFile>
 """)
+        # The series keeps the frames of earlier windows and drops later ones (a restarted
+        # run writes the frames after its checkpoint again; a killed one may have left them).
         index = os.path.join(directory, "bar.pvd.index")
-        with open(index, "a") as idx:
-            idx.write(f"{t:e} {name}\n")
-        with open(index) as idx:
-            sets = [line.split(" ", 1) for line in idx.read().splitlines()]
+        sets = []
+        if os.path.exists(index):
+            with open(index) as idx:
+                sets = [line.split(" ", 1) for line in idx.read().splitlines()]
+        sets = [(time, f) for time, f in sets if int(f[4:-4]) < window]
+        sets.append((f"{t:e}", name))
+        with open(index + ".tmp", "w") as idx:
+            idx.write("".join(f"{time} {f}\n" for time, f in sets))
+        os.replace(index + ".tmp", index)
         with open(os.path.join(directory, "bar.pvd"), "w") as pvd:
             pvd.write('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n<Collection>\n')
             for time, f in sets:

@@ -378,6 +378,38 @@ impl NodeEngine {
             .position(|l| l.b.kind == CouplingKind::Lagrange)
     }
 
+    /// The solver's state for a checkpoint: its `save_state`, and with a lagrange coupling
+    /// the side's coupling state beside it (the pair in bincode, PROTOCOL.md §4.5).
+    pub fn save_state(&mut self) -> SolverResult<Vec<u8>> {
+        let own = self.solver.save_state()?;
+        let Some(i) = self.lagrange_link() else {
+            return Ok(own);
+        };
+        let iface = self.links[i].b.interface.clone();
+        let side = self
+            .solver
+            .lagrange_side(&iface)
+            .ok_or_else(|| SolverError::Other("the lagrange side is gone".into()))?
+            .save_state()
+            .map_err(|e| SolverError::Other(format!("lagrange side '{iface}': {e}")))?;
+        checkpoint::encode_state(&(own, side))
+    }
+
+    /// The inverse of [`Self::save_state`], after set-up.
+    pub fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
+        let Some(i) = self.lagrange_link() else {
+            return self.solver.load_state(bytes);
+        };
+        let (own, side): (Vec<u8>, Vec<u8>) = checkpoint::decode_state(bytes)?;
+        self.solver.load_state(&own)?;
+        let iface = self.links[i].b.interface.clone();
+        self.solver
+            .lagrange_side(&iface)
+            .ok_or_else(|| SolverError::Other("the lagrange side is gone".into()))?
+            .load_state(&side)
+            .map_err(|e| SolverError::Other(format!("lagrange side '{iface}': {e}")))
+    }
+
     /// Coupling steps per window of this node's lagrange side (None: no lagrange coupling).
     pub fn lagrange_steps(&mut self) -> Option<usize> {
         let i = self.lagrange_link()?;
@@ -532,6 +564,11 @@ pub struct NodeArgs {
     /// Token printed by `cosim run` for remote nodes.
     #[arg(long, default_value = "")]
     pub token: String,
+    /// A node joining from another host: the run directory on this host, where it writes its
+    /// output (`DIR/<node>`) and its checkpoints (`DIR/checkpoints/...`), instead of the
+    /// coordinator's path. Rejoin a restarted run with the same DIR: the node restores from it.
+    #[arg(long)]
+    pub output: Option<PathBuf>,
 }
 
 struct Wire {
@@ -765,7 +802,7 @@ fn run_node(
     }))?;
     // Welcome: as long as the coordinator lives (it may wait minutes for remote nodes to
     // join); the watchdog ends the wait if it dies.
-    let welcome = loop {
+    let mut welcome = loop {
         match recv_one(&mut w, Duration::from_secs(60))? {
             Some(Incoming::Cmd(Message::Welcome(wl))) => break wl,
             Some(Incoming::Cmd(Message::Reject(r))) => {
@@ -779,6 +816,9 @@ fn run_node(
             Some(_) | None => continue,
         }
     };
+    if let Some(dir) = &args.output {
+        welcome.output_dir = dir.join(&args.node).display().to_string();
+    }
     let fail = |w: &mut Wire, reason: String| -> anyhow::Result<i32> {
         tracing::error!("{reason}");
         match watchdog::stop() {
@@ -933,14 +973,13 @@ fn run_dir(welcome: &Welcome) -> PathBuf {
 /// Write the solver's state at the end of window `a.window` into its container; the `Done`
 /// that follows acknowledges it.
 fn save_checkpoint(
-    engine: &NodeEngine,
+    engine: &mut NodeEngine,
     welcome: &Welcome,
     me: &str,
     a: &Advance,
     sent: Vec<Fields>,
 ) -> anyhow::Result<()> {
     let payload = engine
-        .solver
         .save_state()
         .map_err(|e| anyhow::anyhow!("checkpoint of window {}: {e}", a.window))?;
     let c = checkpoint::Checkpoint {
@@ -988,7 +1027,6 @@ fn restore(
         anyhow::bail!("{p}: written with other parameters than this node's");
     }
     engine
-        .solver
         .load_state(&c.payload)
         .map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
     Ok(c.sent)

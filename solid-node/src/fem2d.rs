@@ -860,13 +860,8 @@ impl Solver for Fem2d {
     }
 
     fn save_state(&self) -> SolverResult<Vec<u8>> {
-        if self.lagrange.is_some() {
-            return Err(SolverError::Other(
-                "fem-2d in a lagrange coupling cannot checkpoint yet (its subdomain's coupling \
-                 state is not saved)"
-                    .into(),
-            ));
-        }
+        // In a lagrange coupling the runtime saves the subdomain beside this (its
+        // `LagrangeSide::save_state`).
         let mut s = self.s.clone();
         s.u = self.state.u.clone();
         s.v = self.state.v.clone();

@@ -44,6 +44,13 @@ impl LagrangeSide for SubdomainSide {
     fn interface_work(&self) -> f64 {
         self.0.interface_work
     }
+    fn save_state(&self) -> Result<Vec<u8>, String> {
+        protocol::checkpoint::encode_state(&self.0.save()).map_err(|e| e.to_string())
+    }
+    fn load_state(&mut self, bytes: &[u8]) -> Result<(), String> {
+        let s = protocol::checkpoint::decode_state(bytes).map_err(|e| e.to_string())?;
+        self.0.restore(s).map_err(|e| e.to_string())
+    }
 }
 
 /// The split bar of `examples/split_bar.toml` (L = 1 m cut at 0.5 m, 100 elements left,

@@ -490,3 +490,59 @@ pub fn check_pvd(dir: &Path, series: usize) -> (bool, String) {
         ],
     )
 }
+
+/// Whether `what` is available; if not, the shared policy applies: a skip with `hint`
+/// outside CI, a failure under `CI=true`.
+fn need(ok: bool, what: &str, hint: &str) -> bool {
+    if !ok {
+        skip_or_fail(what, &format!("missing ({hint})"));
+    }
+    ok
+}
+
+/// Whether the Python participant package `cosim` (with numpy) imports; if not, skipped
+/// outside CI and a failure under `CI=true`.
+pub fn python_package_or_skip() -> bool {
+    let ok = Command::new("python3")
+        .args(["-c", "import cosim, numpy"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    need(
+        ok,
+        "the Python package `cosim` (with numpy)",
+        "python3 -m pip install ./python",
+    )
+}
+
+/// Build the C bar (`examples/external/bar.c`) into `exe` against the participant library in
+/// target/release, as its Makefile does; None (skipped outside CI) without library or compiler.
+pub fn build_c_bar(exe: &Path) -> Option<PathBuf> {
+    let lib = bin_dir();
+    if !need(
+        lib.join("libcosim_participant.so").is_file(),
+        "target/release/libcosim_participant.so",
+        "cargo build --release --workspace",
+    ) {
+        return None;
+    }
+    let root = workspace_root();
+    let status = Command::new("cc")
+        .args(["-O2", "-Wall", "-Wextra", "-Werror", "-I"])
+        .arg(root.join("participant-c/include"))
+        .arg("-o")
+        .arg(exe)
+        .arg(root.join("examples/external/bar.c"))
+        .arg("-L")
+        .arg(&lib)
+        .arg("-lcosim_participant")
+        .arg(format!("-Wl,-rpath,{}", lib.display()))
+        .arg("-lm")
+        .status();
+    if !need(status.is_ok(), "a C compiler (cc)", "apt-get install gcc") {
+        return None;
+    }
+    assert!(status.is_ok_and(|s| s.success()), "bar.c does not compile");
+    Some(exe.to_path_buf())
+}

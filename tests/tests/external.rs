@@ -14,59 +14,9 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// Whether `what` is available; if not, the shared policy applies: a skip with `hint`
-/// outside CI, a failure under `CI=true`.
-fn need(ok: bool, what: &str, hint: &str) -> bool {
-    if !ok {
-        skip_or_fail(what, &format!("missing ({hint})"));
-    }
-    ok
-}
-
-fn python_package() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import cosim, numpy"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    need(
-        ok,
-        "the Python package `cosim` (with numpy)",
-        "python3 -m pip install ./python",
-    )
-}
-
-/// Build `examples/external/bar-c` from `bar.c` against the library in target/release, as
-/// its Makefile does.
+/// `examples/external/bar-c`, built from `bar.c` (see [`build_c_bar`]).
 fn c_bar() -> Option<PathBuf> {
-    let lib = bin_dir();
-    if !need(
-        lib.join("libcosim_participant.so").is_file(),
-        "target/release/libcosim_participant.so",
-        "cargo build --release --workspace",
-    ) {
-        return None;
-    }
-    let root = workspace_root();
-    let exe = root.join("examples/external/bar-c");
-    let status = Command::new("cc")
-        .args(["-O2", "-Wall", "-Wextra", "-Werror", "-I"])
-        .arg(root.join("participant-c/include"))
-        .arg("-o")
-        .arg(&exe)
-        .arg(root.join("examples/external/bar.c"))
-        .arg("-L")
-        .arg(&lib)
-        .arg("-lcosim_participant")
-        .arg(format!("-Wl,-rpath,{}", lib.display()))
-        .arg("-lm")
-        .status();
-    if !need(status.is_ok(), "a C compiler (cc)", "apt-get install gcc") {
-        return None;
-    }
-    assert!(status.is_ok_and(|s| s.success()), "bar.c does not compile");
-    Some(exe)
+    build_c_bar(&workspace_root().join("examples/external/bar-c"))
 }
 
 fn split_bar() -> PathBuf {
@@ -212,7 +162,7 @@ fn compare_with_builtin(variant: &str) {
 
 #[test]
 fn python_right_half_follows_the_exact_wave_like_the_builtin_bar() {
-    if !python_package() {
+    if !python_package_or_skip() {
         return;
     }
     compare_with_builtin("python");
@@ -228,7 +178,7 @@ fn c_right_half_follows_the_exact_wave_like_the_builtin_bar() {
 
 #[test]
 fn a_killed_python_node_ends_the_run_cleanly() {
-    if !python_package() {
+    if !python_package_or_skip() {
         return;
     }
     let (dir, id) = scratch("ext-kill");
@@ -371,7 +321,7 @@ fn run_patched_python_bar(
 
 #[test]
 fn a_python_exception_or_a_kept_view_ends_the_run_with_the_reason() {
-    if !python_package() {
+    if !python_package_or_skip() {
         return;
     }
     let raising = "    def advance(self, window, inbox, outbox):\n        \
@@ -426,7 +376,7 @@ fn a_python_exception_or_a_kept_view_ends_the_run_with_the_reason() {
 #[test]
 fn validate_names_the_bad_key_of_an_external_node() {
     let mut variants = Vec::new();
-    if python_package() {
+    if python_package_or_skip() {
         variants.push("python");
     }
     if c_bar().is_some() {

@@ -3,7 +3,9 @@
 //! bit-identical to an uninterrupted run — the final state (every node's last VTK frame), the
 //! balance in summary.json, every node report and every coupling message after the restart
 //! point — and the recording reads as one run. Split bar (bar-1d), small chamber (fluid and
-//! pd-correspondence, on the CPU and on the GPU), single joint (shell and MC-SPG joint); a
+//! pd-correspondence, on the CPU and on the GPU), single joint (shell and MC-SPG joint), the
+//! split bar with a Python or a C right half (the external nodes' own save/load hooks), and
+//! lagrange couplings (bar-1d and fem-2d subdomains, the coordinator's interface problem); a
 //! case with other parameters is refused; Ctrl-C checkpoints where it stops.
 
 use cosim_tests::*;
@@ -38,8 +40,10 @@ fn reports(mcap: &Path) -> BTreeMap<(String, u64), StepReport> {
     out
 }
 
-/// Coupling data per (coupling/sender topic without the run id, window): the exact values.
-fn traffic(mcap: &Path) -> BTreeMap<(String, u64), Vec<u64>> {
+/// Coupling data per (coupling/sender topic without the run id, window): the exact values
+/// of each message, in the order sent (a lagrange side and the coordinator exchange one per
+/// coupling step; the set-up, window 0, has the request and the first multipliers).
+fn traffic(mcap: &Path) -> BTreeMap<(String, u64), Vec<Vec<u64>>> {
     let (msgs, _) = coordinator::record::read_all(mcap).expect("readable recording");
     let mut out = BTreeMap::new();
     for m in msgs.iter().filter(|m| !m.json) {
@@ -53,8 +57,9 @@ fn traffic(mcap: &Path) -> BTreeMap<(String, u64), Vec<u64>> {
                 .flat_map(|x| x.values.iter().map(|v| v.to_bits()))
                 .collect();
             let key = format!("{}/{}", f.coupling, env.sender);
-            let old = out.insert((key.clone(), f.window), bits);
-            assert!(old.is_none(), "two messages of {key} window {}", f.window);
+            out.entry((key, f.window))
+                .or_insert_with(Vec::new)
+                .push(bits);
         }
     }
     out
@@ -307,6 +312,22 @@ fn continues_identically(reference: &Path, out: &Path, k: u64) {
     );
 }
 
+/// [`kill_and_restart`] of `examples/<name>.toml` in scratch directory `tag`: continued
+/// from the checkpoint of `kill_after` or a later one.
+fn example_killed_and_restarted(
+    tag: &str,
+    name: &str,
+    extra: &[&str],
+    changed: &str,
+    every: u64,
+    kill_after: u64,
+) {
+    let (dir, id) = scratch(tag);
+    let case = workspace_root().join(format!("examples/{name}.toml"));
+    let k = kill_and_restart(&case, &dir, &id, extra, changed, every, kill_after);
+    assert!(k >= kill_after);
+}
+
 #[test]
 fn split_bar_killed_and_restarted_is_bit_identical() {
     let (dir, id) = scratch("restart-bar");
@@ -324,18 +345,14 @@ fn split_bar_killed_and_restarted_is_bit_identical() {
 
 #[test]
 fn chamber_small_killed_and_restarted_is_bit_identical() {
-    let (dir, id) = scratch("restart-chamber");
-    let case = workspace_root().join("examples/chamber_detonation.toml");
-    let k = kill_and_restart(
-        &case,
-        &dir,
-        &id,
+    example_killed_and_restarted(
+        "restart-chamber",
+        "chamber_detonation",
         &["--variant", "small"],
         "bar.yield_stress=3.0e8",
         10,
         20,
     );
-    assert!(k >= 20);
 }
 
 /// Ctrl-C with checkpoints on: the run checkpoints the next window and stops there (exit
@@ -360,18 +377,14 @@ fn ctrl_c_checkpoints_where_it_stops_and_the_restart_continues() {
 
 #[test]
 fn shell_and_joint_killed_and_restarted_are_bit_identical() {
-    let (dir, id) = scratch("restart-joint");
-    let case = workspace_root().join("examples/single_joint.toml");
-    let k = kill_and_restart(
-        &case,
-        &dir,
-        &id,
+    example_killed_and_restarted(
+        "restart-joint",
+        "single_joint",
         &["--variant", "small", "--set", "run.end_time=0.03"],
         "joint.geometry.bolt_radius=1.4e-3",
         20,
         40,
     );
-    assert!(k >= 40);
 }
 
 /// The device paths: the gas and the bar on the GPU keep their state on the device; the
@@ -382,12 +395,9 @@ fn chamber_small_on_the_gpu_killed_and_restarted_is_bit_identical() {
     if mechanics::gpu::f64_context_or_skip(test).is_none() {
         return;
     }
-    let (dir, id) = scratch("restart-gpu");
-    let case = workspace_root().join("examples/chamber_detonation.toml");
-    let k = kill_and_restart(
-        &case,
-        &dir,
-        &id,
+    example_killed_and_restarted(
+        "restart-gpu",
+        "chamber_detonation",
         &[
             "--variant",
             "small",
@@ -400,7 +410,6 @@ fn chamber_small_on_the_gpu_killed_and_restarted_is_bit_identical() {
         10,
         20,
     );
-    assert!(k >= 20);
 }
 
 /// Must-show 5: `sig` (SIGINT or SIGTERM, `name`, exit `code`) to `cosim` mid-run of `case`
@@ -559,4 +568,211 @@ fn medium_chamber_killed_after_window_35_restarts_bit_identically() {
 #[ignore = "the crash tube: minutes; run with --ignored"]
 fn crash_tube_killed_after_window_35_restarts_bit_identically() {
     killed_after_window_35("crash_tube", "small", "j1.yield_stress=3.0e8");
+}
+
+/// The split bar with its right half an external node (`solver`: the Python or C bar of
+/// `examples/external`, which save and load their state through the participant library's
+/// hooks), cosim SIGKILLed after a checkpoint and restarted: bit-identical as above.
+fn external_half_killed_and_restarted(dir: &Path, id: &str, solver: &Path) {
+    let case = split_bar_case(dir, 100, 300, 0.5, "shm", 2.0);
+    let text = std::fs::read_to_string(&case).expect("case");
+    let builtin = "[nodes.right]\nsolver = \"solid-node\"";
+    assert!(text.contains(builtin), "the split bar's right half moved");
+    let text = text.replace(
+        builtin,
+        &format!("[nodes.right]\nsolver = \"{}\"", solver.display()),
+    );
+    std::fs::write(&case, text).expect("case");
+    let k = kill_and_restart(&case, dir, id, &[], "right.tip_force=2000.0", 500, 1000);
+    assert!(k >= 1000);
+}
+
+#[test]
+fn split_bar_with_a_python_half_killed_and_restarted_is_bit_identical() {
+    if !python_package_or_skip() {
+        return;
+    }
+    let (dir, id) = scratch("restart-python");
+    let bar = workspace_root().join("examples/external/bar.py");
+    external_half_killed_and_restarted(&dir, &id, &bar);
+}
+
+#[test]
+fn split_bar_with_a_c_half_killed_and_restarted_is_bit_identical() {
+    let (dir, id) = scratch("restart-c");
+    let Some(bar) = build_c_bar(&dir.join("bar-c")) else {
+        return;
+    };
+    external_half_killed_and_restarted(&dir, &id, &bar);
+}
+
+/// A lagrange coupling (issue 18): each side's subdomain (state, clock, last multipliers,
+/// audit sums) and the coordinator's interface problem (window, multipliers) continue from
+/// the checkpoint — the split bar as two bar-1d subdomains (average acceleration | central
+/// differences in 4 substeps), to 600 windows.
+#[test]
+fn split_bar_lagrange_killed_and_restarted_is_bit_identical() {
+    example_killed_and_restarted(
+        "restart-lagrange",
+        "split_bar_lagrange",
+        &["--set", "run.end_time=5.947268280479703e-4"],
+        "right.tip_force=2000.0",
+        100,
+        200,
+    );
+}
+
+/// The three fem-2d subdomains of seed 003 §5.3 (small), one coupling of three sides, steps
+/// 1 : 2 : 2.
+#[test]
+fn seed003_three_small_killed_and_restarted_is_bit_identical() {
+    example_killed_and_restarted(
+        "restart-three",
+        "seed003_three",
+        &["--variant", "small"],
+        "two.young=70e9",
+        50,
+        100,
+    );
+}
+
+/// The first line of `err` containing `what` (the lines before it are returned too, for
+/// the message when it never comes).
+fn line_with(err: &mut impl std::io::BufRead, what: &str) -> String {
+    let mut seen = String::new();
+    loop {
+        let mut line = String::new();
+        let n = err.read_line(&mut line).expect("cosim's stderr");
+        assert!(n > 0, "cosim ended without printing '{what}': {seen}");
+        if line.contains(what) {
+            return line;
+        }
+        seen.push_str(&line);
+    }
+}
+
+/// Starts the remote node with the join command `cosim` printed in `line` (the executable
+/// first), writing its output and checkpoints under `dir` on "its host".
+fn join_remote(line: &str, dir: &Path) -> std::process::Child {
+    let cmd: Vec<&str> = line
+        .split(": ")
+        .last()
+        .expect("a command")
+        .split_whitespace()
+        .collect();
+    assert!(cmd.contains(&"--token"), "no join command in: {line}");
+    std::process::Command::new(bin("solid-node"))
+        .args(&cmd[1..])
+        .arg("--output")
+        .arg(dir)
+        .env("COSIM_LOG", "warn")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("the remote node starts")
+}
+
+/// Two hosts on loopback (zenoh): the split bar's right half joins as a remote node with its
+/// own run directory (`--output`, standing for the other host's disk), so its checkpoints
+/// are written there and not in `cosim`'s. `cosim` is SIGKILLed after a checkpoint (the
+/// remote node follows it), `cosim restart` accepts the checkpoint without the remote file
+/// (the node's `Done` acknowledged it), prints the join command saying the node resumes,
+/// the node rejoins with the same directory and restores from it: bit-identical to the same
+/// case run uninterrupted with both nodes local.
+#[test]
+fn a_remote_node_checkpoints_on_its_own_host_and_resumes_with_the_restart() {
+    let (dir, id) = scratch("restart-remote");
+    let case = split_bar_case(&dir, 50, 150, 0.5, "zenoh", 4.0);
+    let reference = dir.join("reference");
+    let o = run_case(&case, &reference, &format!("{id}r"), &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&case)
+        .expect("case")
+        .replace("[nodes.right]\n", "[nodes.right]\nremote = true\n");
+    std::fs::write(&case, text).expect("case");
+
+    let (out, host) = (dir.join("restarted"), dir.join("other-host"));
+    let mut cosim = spawn_cosim_with(&case, &out, &id, &["--set", "run.checkpoint_every=200"]);
+    let mut err = std::io::BufReader::new(cosim.stderr.take().expect("stderr"));
+    let mut node = join_remote(
+        &line_with(&mut err, "waiting for remote node 'right'"),
+        &host,
+    );
+    let mark = protocol::checkpoint::file(&out, 400, "coordinator");
+    let t = Instant::now();
+    while !mark.exists() {
+        assert!(
+            t.elapsed() < Duration::from_secs(120),
+            "no checkpoint of window 400"
+        );
+        assert!(
+            cosim.try_wait().unwrap().is_none(),
+            "cosim ended before the kill"
+        );
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    // SAFETY: kill with the pid of our own child and a valid signal number.
+    assert_eq!(unsafe { libc::kill(cosim.id() as i32, libc::SIGKILL) }, 0);
+    let _ = cosim.wait();
+    assert!(
+        !out.join("summary.json").exists(),
+        "the run finished before the kill: the scenario is void"
+    );
+    assert!(
+        wait_exit(&mut node, Duration::from_secs(5)).is_some(),
+        "the remote node outlived its coordinator"
+    );
+    assert!(
+        protocol::checkpoint::file(&host, 400, "right").is_file(),
+        "the remote node wrote no checkpoint in its own run directory"
+    );
+    assert!(
+        !protocol::checkpoint::file(&out, 400, "right").exists(),
+        "the remote node's checkpoint is in cosim's directory"
+    );
+
+    let mut cosim = std::process::Command::new(bin("cosim"))
+        .args(["restart", out.to_str().unwrap(), "--quiet"])
+        .env("COSIM_LOG", "warn")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("cosim restart starts");
+    let mut err = std::io::BufReader::new(cosim.stderr.take().expect("stderr"));
+    let join = line_with(&mut err, "waiting for remote node 'right'");
+    let resumes = line_with(&mut err, "remote node 'right' resumes");
+    assert!(resumes.contains("checkpoint of window"), "{resumes}");
+    let node = join_remote(&join, &host);
+    let status = cosim.wait().expect("cosim restart ends");
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut err, &mut rest).expect("stderr");
+    let node = node.wait_with_output().expect("the remote node ends");
+    assert!(
+        node.status.success(),
+        "remote node {:?}: {}",
+        node.status,
+        String::from_utf8_lossy(&node.stderr)
+    );
+    assert!(status.success(), "restart failed: {rest}");
+    let k: u64 = rest
+        .split("restarted from the checkpoint of window ")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no restart line in: {rest}"));
+    assert!(
+        k >= 400 && k.is_multiple_of(200),
+        "restarted from window {k}"
+    );
+    // The remote host's frames, gathered into the run directory as a user copies them back.
+    let (from, to) = (host.join("right"), out.join("right"));
+    std::fs::create_dir_all(&to).expect("node dir");
+    for e in std::fs::read_dir(&from)
+        .expect("the remote node's output")
+        .flatten()
+    {
+        std::fs::copy(e.path(), to.join(e.file_name())).expect("copy a frame");
+    }
+    continues_identically(&reference, &out, k);
+    nothing_left(&id);
 }

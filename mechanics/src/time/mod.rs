@@ -9,4 +9,4 @@ pub mod subdomain;
 
 pub use gs4::{Design, Gs4, Gs4Error, IntegratorSpec};
 pub use linear::{Csr, LinearSystem, SparseLlt, State, Stepper};
-pub use subdomain::{CouplingMethod, InterfaceDof, Subdomain};
+pub use subdomain::{CouplingMethod, InterfaceDof, Subdomain, SubdomainState};

@@ -24,6 +24,7 @@
 
 use super::gs4::{Gs4, Gs4Error};
 use super::linear::{LinearSystem, State, Stepper};
+use serde::{Deserialize, Serialize};
 
 /// The coupling method (`method = "gs4" | "gc" | "ph"`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -99,6 +100,25 @@ pub struct Subdomain {
     x: Vec<f64>,
     prev_u: Vec<f64>,
     ids: Vec<usize>,
+}
+
+/// What a subdomain carries from one system step to the next (at a window end, after the
+/// correction): its state, clock, last multipliers and audit sums. Everything else is built
+/// again at set-up (the operators) or overwritten at the next free step (the scratch rows).
+/// A checkpoint of a lagrange side holds this.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SubdomainState {
+    pub u: Vec<f64>,
+    pub v: Vec<f64>,
+    pub a: Vec<f64>,
+    pub time: f64,
+    pub lambda_start: Vec<f64>,
+    pub lambda_end: Vec<f64>,
+    pub interface_work: f64,
+    pub interface_impulse: Vec<f64>,
+    pub external_work: f64,
+    pub load_integral: f64,
+    pub probe_integral: Vec<f64>,
 }
 
 impl std::fmt::Debug for Subdomain {
@@ -451,6 +471,63 @@ impl Subdomain {
         }
         self.lambda_end.copy_from_slice(lambda);
         self.time += self.inner as f64 * self.stepper.dt;
+    }
+
+    /// The state a restart continues from (see [`SubdomainState`]).
+    pub fn save(&self) -> SubdomainState {
+        SubdomainState {
+            u: self.state.u.clone(),
+            v: self.state.v.clone(),
+            a: self.state.a.clone(),
+            time: self.time,
+            lambda_start: self.lambda_start.clone(),
+            lambda_end: self.lambda_end.clone(),
+            interface_work: self.interface_work,
+            interface_impulse: self.interface_impulse.clone(),
+            external_work: self.external_work,
+            load_integral: self.load_integral,
+            probe_integral: self.probe_integral.clone(),
+        }
+    }
+
+    /// Continue from `s`, saved by [`Self::save`] of a subdomain built the same way; a state
+    /// of another size is refused before anything is overwritten.
+    pub fn restore(&mut self, s: SubdomainState) -> Result<(), Gs4Error> {
+        let (n, nl) = (self.sys.len(), self.iface.len());
+        for (what, got, want) in [
+            ("u", s.u.len(), n),
+            ("v", s.v.len(), n),
+            ("a", s.a.len(), n),
+            ("lambda_start", s.lambda_start.len(), nl),
+            ("lambda_end", s.lambda_end.len(), nl),
+            ("interface_impulse", s.interface_impulse.len(), nl),
+            (
+                "probe_integral",
+                s.probe_integral.len(),
+                self.probe_integral.len(),
+            ),
+        ] {
+            if got != want {
+                return Err(Gs4Error::Config {
+                    key: "subdomain".into(),
+                    reason: format!("saved state: {what} has {got} values, this subdomain {want}"),
+                });
+            }
+        }
+        self.state = State {
+            u: s.u,
+            v: s.v,
+            a: s.a,
+        };
+        self.time = s.time;
+        self.lambda_start = s.lambda_start;
+        self.lambda_end = s.lambda_end;
+        self.interface_work = s.interface_work;
+        self.interface_impulse = s.interface_impulse;
+        self.external_work = s.external_work;
+        self.load_integral = s.load_integral;
+        self.probe_integral = s.probe_integral;
+        Ok(())
     }
 
     /// Kinetic plus strain energy and the work of the external load so far is the caller's;

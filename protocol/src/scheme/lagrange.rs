@@ -77,6 +77,19 @@ pub trait LagrangeSide {
     fn correct(&mut self, lambda: &[f64]);
     /// Work done on the side by the interface forces since t = 0 (J).
     fn interface_work(&self) -> f64;
+    /// Its coupling state at a window end, as bytes in its own versioned format, for a
+    /// checkpoint (PROTOCOL.md §4.5): what `free_step` and `correct` carry from one system
+    /// step to the next (the operators are built again at set-up). The runtime calls it
+    /// after the solver's own `save_state`. The default: this side cannot checkpoint, and
+    /// a checkpointed run stops at its first checkpoint with this reason.
+    fn save_state(&self) -> Result<Vec<u8>, String> {
+        Err("this lagrange side cannot save its coupling state".into())
+    }
+    /// Restore what [`Self::save_state`] wrote, after set-up (and after the solver's own
+    /// `load_state`).
+    fn load_state(&mut self, _bytes: &[u8]) -> Result<(), String> {
+        Err("this lagrange side cannot load a coupling state".into())
+    }
 }
 
 /// Dense LU with partial pivoting, factorised once.
@@ -342,6 +355,49 @@ impl LagrangeScheme {
 
     pub fn method(&self) -> Method {
         self.method
+    }
+    /// Continue, at a system step's start, from `lambda` (λ at the end of the last one) and
+    /// each side's multipliers as [`Self::side_lambda`] gave them then: a restart's
+    /// interface problem, set up again, takes them from the checkpoint.
+    pub fn restore(&mut self, lambda: &[f64], sides: &[Vec<f64>]) -> Result<(), LagrangeError> {
+        let bad = |what: String| Err(LagrangeError::Setup(format!("restored state: {what}")));
+        if self.next != 0 {
+            return bad(format!(
+                "fine step {} of a system step is under way",
+                self.next
+            ));
+        }
+        if lambda.len() != self.lambda.len() || sides.len() != self.sides.len() {
+            return bad(format!(
+                "{} multipliers of {} sides, the interface problem has {} of {}",
+                lambda.len(),
+                sides.len(),
+                self.lambda.len(),
+                self.sides.len()
+            ));
+        }
+        if let Some((i, _)) = self
+            .sides
+            .iter()
+            .zip(sides)
+            .enumerate()
+            .find(|(_, (b, l))| b.local.len() != l.len())
+        {
+            return bad(format!("side {i} has another number of multipliers"));
+        }
+        if !lambda
+            .iter()
+            .chain(sides.iter().flatten())
+            .all(|x| x.is_finite())
+        {
+            return bad("non-finite multipliers".into());
+        }
+        self.lambda.copy_from_slice(lambda);
+        for (b, l) in self.sides.iter_mut().zip(sides) {
+            b.local.copy_from_slice(l);
+            b.offered = false;
+        }
+        Ok(())
     }
     /// Fine steps per system step: the finest side's coupling steps for gc, else 1.
     pub fn fine_steps(&self) -> usize {
