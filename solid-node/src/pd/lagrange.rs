@@ -277,7 +277,11 @@ mod tests {
     /// where each tied pair of particles moves as one particle of their summed mass under
     /// their summed force (what exact velocity continuity means for lumped masses).
     fn glued(a: &mut PdSolver, b: &mut PdSolver, dt: f64, steps: usize) {
-        let pairs: Vec<(usize, usize)> = a.interface_points("cut").into_iter().zip(b.interface_points("cut")).collect();
+        let pairs: Vec<(usize, usize)> = a
+            .interface_points("cut")
+            .into_iter()
+            .zip(b.interface_points("cut"))
+            .collect();
         let acc = |a: &PdSolver, b: &PdSolver| {
             let mut out = [Vec::new(), Vec::new()];
             for (k, s) in [a, b].into_iter().enumerate() {
@@ -285,12 +289,17 @@ mod tests {
                 out[k] = (0..body.len())
                     .map(|i| {
                         let m = body.density * body.vol[i];
-                        std::array::from_fn(|d| body.force[i][d] / body.density + s.load_on(i)[d] / m)
+                        std::array::from_fn(|d| {
+                            body.force[i][d] / body.density + s.load_on(i)[d] / m
+                        })
                     })
                     .collect::<Vec<[f64; 3]>>();
             }
             for &(i, j) in &pairs {
-                let (ma, mb) = (a.body.density * a.body.vol[i], b.body.density * b.body.vol[j]);
+                let (ma, mb) = (
+                    a.body.density * a.body.vol[i],
+                    b.body.density * b.body.vol[j],
+                );
                 let f: [f64; 3] = std::array::from_fn(|d| out[0][i][d] * ma + out[1][j][d] * mb);
                 for d in 0..3 {
                     out[0][i][d] = f[d] / (ma + mb);
@@ -372,7 +381,9 @@ mod tests {
             glued(&mut gl, &mut gr, dt, steps);
             let e = difference(&[&l, &r], &[&gl, &gr]);
             let strain = gr.body.disp.iter().map(|u| u[0].abs()).fold(0.0, f64::max);
-            println!("{method:?}: m = 1 against the glued bodies after {steps} steps: {e:.3e} (largest |ux| {strain:.3e} m)");
+            println!(
+                "{method:?}: m = 1 against the glued bodies after {steps} steps: {e:.3e} (largest |ux| {strain:.3e} m)"
+            );
             assert!(strain > 1e-4, "the load deforms the blocks: {strain:e}");
             assert!(e < 1e-11, "{method:?}: {e:e}");
             // The interface forces do no net work on the glued pair and give no net
@@ -382,5 +393,26 @@ mod tests {
             println!("{method:?}: net interface work {w:.3e} J of {wl:.3e} J per side");
             assert!(w.abs() <= 1e-9 * wl, "{method:?}: ΔE_Γ {w:e}");
         }
+    }
+
+    #[test]
+    fn gs4_refuses_substeps_and_gc_takes_them() {
+        // gs4 and ph need one particle step per system step; gc any ratio.
+        let mut l = block(0.0, 0.5, 0.5, false);
+        let window = 3.0 * l.dt();
+        let e = match l.lagrange_side_for("cut", Method::Gs4, window, (0, 1.0)) {
+            Ok(()) => panic!("gs4 with three particle steps per window was accepted"),
+            Err(e) => e.to_string(),
+        };
+        assert!(e.contains("substeps") && e.contains("gc"), "{e}");
+        if let Err(e) = l.lagrange_side_for("cut", Method::Gc, window, (0, 1.0)) {
+            panic!("{e}");
+        }
+        assert_eq!(l.coupling_steps(), 3);
+        let e = match l.lagrange_side_for("nowhere", Method::Gc, window, (0, 1.0)) {
+            Ok(()) => panic!("a second side was accepted"),
+            Err(e) => e.to_string(),
+        };
+        assert!(e.contains("one lagrange coupling"), "{e}");
     }
 }

@@ -21,10 +21,8 @@ use super::gpu::DeviceBody;
 use super::integrate::Body;
 use super::lagrange::ExplicitSide;
 use super::model::{Dim, PdModel};
-use crate::fem2d::History;
-use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
-use std::collections::BTreeMap;
 use super::rk_ba::RkBa;
+use crate::fem2d::History;
 use mechanics::damage::{
     BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain, NoDamage,
 };
@@ -32,12 +30,14 @@ use mechanics::gpu::GpuContext;
 use mechanics::j2::J2Material;
 use node_kit::device::Device;
 use node_kit::vtk::{self, Arrays, Frame};
+use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
 use protocol::{
     Binding, CouplingKind, InterfaceInfo, InterfaceMesh, NodeDescription, Role, Solver,
     SolverError, SolverResult, StepReport, Window,
 };
 use protocol::{BuildOptions, Inbox, Outbox};
 use serde::Deserialize;
+use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -779,12 +779,22 @@ impl PdSolver {
                 return cfg(&format!("{key}region"), "holds no particle");
             }
             let share = 1.0 / pts.len() as f64;
-            loads.extend(pts.into_iter().map(|i| (i, l.force.map(|f| f * share), history)));
+            loads.extend(
+                pts.into_iter()
+                    .map(|i| (i, l.force.map(|f| f * share), history)),
+            );
         }
         if on_gpu && !p.loads.is_empty() {
-            return cfg("device", "\"gpu\" does not support loads: use device = \"cpu\"");
+            return cfg(
+                "device",
+                "\"gpu\" does not support loads: use device = \"cpu\"",
+            );
         }
-        let axes: &[&str] = if three_d { &["x", "y", "z"] } else { &["x", "y"] };
+        let axes: &[&str] = if three_d {
+            &["x", "y", "z"]
+        } else {
+            &["x", "y"]
+        };
         let mut points = Vec::with_capacity(p.points.len());
         for (name, at) in &p.points {
             let key = format!("points.{name}");
@@ -803,15 +813,11 @@ impl PdSolver {
             };
             let near = (0..body.len()).min_by(|&a, &b| dist(a).total_cmp(&dist(b)));
             match near {
-                Some(i) if dist(i) <= 0.5 * p.spacing => points.push((
-                    axes.iter().map(|a| format!("{name}_u{a}")).collect(),
-                    i,
-                )),
+                Some(i) if dist(i) <= 0.5 * p.spacing => {
+                    points.push((axes.iter().map(|a| format!("{name}_u{a}")).collect(), i))
+                }
                 _ => {
-                    return cfg(
-                        &key,
-                        format!("no particle within half a spacing of {at:?}"),
-                    );
+                    return cfg(&key, format!("no particle within half a spacing of {at:?}"));
                 }
             }
         }
@@ -1097,7 +1103,9 @@ impl PdSolver {
 
     /// The particles of interface `name` (empty when there is none).
     pub fn interface_points(&self, name: &str) -> Vec<usize> {
-        self.points_of(name).map(<[usize]>::to_vec).unwrap_or_default()
+        self.points_of(name)
+            .map(<[usize]>::to_vec)
+            .unwrap_or_default()
     }
 
     /// The force of the loads on particle `i` at full load (N).
@@ -1135,7 +1143,10 @@ impl PdSolver {
             ));
         }
         if self.device.is_some() {
-            return cfg("device", "a lagrange side runs on the cpu: use device = \"cpu\"");
+            return cfg(
+                "device",
+                "a lagrange side runs on the cpu: use device = \"cpu\"",
+            );
         }
         if !self.bc_particles.is_empty() {
             return cfg(
@@ -1207,10 +1218,14 @@ impl PdSolver {
 /// without one, an empty side.
 impl LagrangeSide for PdSolver {
     fn multiplier_ids(&self) -> &[usize] {
-        self.lagrange.as_ref().map_or(&[], |(_, s)| s.multiplier_ids())
+        self.lagrange
+            .as_ref()
+            .map_or(&[], |(_, s)| s.multiplier_ids())
     }
     fn coupling_steps(&self) -> usize {
-        self.lagrange.as_ref().map_or(1, |(_, s)| s.coupling_steps())
+        self.lagrange
+            .as_ref()
+            .map_or(1, |(_, s)| s.coupling_steps())
     }
     fn operator(&self) -> &[f64] {
         self.lagrange.as_ref().map_or(&[], |(_, s)| s.operator())
@@ -1236,7 +1251,9 @@ impl LagrangeSide for PdSolver {
         }
     }
     fn interface_work(&self) -> f64 {
-        self.lagrange.as_ref().map_or(0.0, |(_, s)| s.interface_work)
+        self.lagrange
+            .as_ref()
+            .map_or(0.0, |(_, s)| s.interface_work)
     }
 }
 
