@@ -3,8 +3,8 @@
 //! explicit U0(1,1,0)) with its lumped mass, tied to the others on interface particles.
 //!
 //! One coupling step is one particle step. The step-end displacement does not depend on the
-//! step-end multipliers and the step-end acceleration is affine in them, a = M⁻¹(f(u) + f_ext
-//! + Bᵀλ); so the condensed operator is Bᵢ Hᵢ = Δt/2 M⁻¹ on the interface (from the mass and
+//! step-end multipliers and the step-end acceleration, a = M⁻¹(f(u) + f_ext + Bᵀλ), is affine
+//! in them; so the condensed operator is Bᵢ Hᵢ = Δt/2 M⁻¹ on the interface (from the mass and
 //! the step alone, no stiffness), the free step is one ordinary step with the known part of λ,
 //! and the correction a += M⁻¹Bᵀx, v += Δt/2 M⁻¹Bᵀx is exact whatever the force law (the
 //! nonlinear PD force included). gs4 and ph then need this side at one step per system step
