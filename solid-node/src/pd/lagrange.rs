@@ -415,4 +415,37 @@ mod tests {
         };
         assert!(e.contains("one lagrange coupling"), "{e}");
     }
+
+    #[test]
+    fn bad_points_and_loads_are_refused_by_key() {
+        let base = "dimension = \"plane_stress\"\nspacing = 0.1\nhorizon = 0.3015\n\
+                    density = 2700.0\nyoung = 70e9\npoisson = 0.3\n\
+                    bodies = [{ shape = \"box\", min = [0.0, 0.0, 0.0], max = [0.5, 0.4, 0.0] }]\n";
+        let far = "[{ shape = \"box\", min = [5.0, 5.0, 0.0], max = [6.0, 6.0, 0.0] }]";
+        for (extra, key) in [
+            ("points = { A = [3.0, 3.0] }", "points.A"),
+            ("points = { A = [0.05, 0.05, 0.0] }", "points.A"),
+            (
+                &format!(
+                    "loads = [{{ region = {}, force = [0.0, 1.0, 0.0] }}]",
+                    &far[1..far.len() - 1]
+                ),
+                "loads[0].region",
+            ),
+            (
+                "loads = [{ region = { shape = \"box\", min = [0.0, 0.0, 0.0], max = [0.5, 0.4, 0.0] }, force = [0.0, 1.0, 0.0], history = \"ramp\" }]",
+                "loads[0].ramp_time",
+            ),
+            ("substeps = 0", "substeps"),
+        ] {
+            let table: toml::Table = match toml::from_str(&format!("{base}{extra}\n")) {
+                Ok(t) => t,
+                Err(e) => panic!("{extra}: {e}"),
+            };
+            match PdSolver::from_table("pd-correspondence", &table) {
+                Ok(_) => panic!("{extra}: accepted"),
+                Err(e) => assert!(e.to_string().contains(key), "{extra}: {e}"),
+            }
+        }
+    }
 }
