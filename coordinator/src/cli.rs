@@ -95,31 +95,48 @@ pub enum Cmd {
     },
     /// Draw the run's fields at one time into a PNG (every node's VTK frame nearest it): the
     /// gas pressure with the solids over it, or the solids' deformed surfaces coloured by
-    /// plastic strain. `cosim run` draws the last frames into RUN/fields.png.
+    /// plastic strain and their particles by damage. `cosim run` draws the last frames into
+    /// RUN/fields.png, and each node alone into RUN/fields_<node>.png.
     Render {
         /// The run's output folder.
         run: PathBuf,
         /// Simulated time (s) to draw (default: the last frames).
-        #[arg(long, conflicts_with = "all")]
+        #[arg(long, conflicts_with_all = ["all", "gif"])]
         time: Option<f64>,
         /// Colour NODE by one of its VTK fields (NODE.FIELD, e.g. gas.density, bar.velocity).
         #[arg(long)]
         field: Option<String>,
-        /// Every written frame: RUN/frames/fields_<window>.png, one per output time.
+        /// Draw this node alone (its name as in the case, e.g. bar).
+        #[arg(long, conflicts_with = "per_node")]
+        node: Option<String>,
+        /// Draw each node alone, one picture (or series, or GIF) per node:
+        /// RUN/fields_<node>.png, RUN/frames/<node>_<k>.png, RUN/<node>.gif.
         #[arg(long)]
+        per_node: bool,
+        /// Every written frame: RUN/frames/fields_<k>.png (or <node>_<k>.png), k from 0.
+        #[arg(long, conflicts_with = "gif")]
         all: bool,
-        /// The PNG file (default: RUN/fields.png, or RUN/fields_<time>.png with --time).
-        #[arg(long, short, conflicts_with = "all")]
+        /// Every written frame as one animated GIF: RUN/fields.gif (or RUN/<node>.gif).
+        #[arg(long)]
+        gif: bool,
+        /// Milliseconds per GIF frame.
+        #[arg(long, default_value_t = 125, requires = "gif")]
+        frame_ms: u32,
+        /// The PNG (or GIF) file (default: RUN/fields.png, RUN/fields_<time>.png with --time,
+        /// RUN/fields.gif with --gif).
+        #[arg(long, short, conflicts_with_all = ["all", "per_node"])]
         output: Option<PathBuf>,
     },
     /// Write a run's per-window histories (every node's report and the balance) as arrays:
-    /// `npz` (numpy: `np.load(F)["gas/probe1.pressure"]`) or `csv` (one file per node).
+    /// `npz` (numpy: `np.load(F)["gas/probe1.pressure"]`), `csv` or `parquet` (one file per
+    /// node: `pandas.read_parquet("RUN/history/gas.parquet")`).
     Export {
         /// The run's output folder or its recording.
         run: PathBuf,
-        #[arg(long, default_value = "npz", value_parser = ["npz", "csv"])]
+        #[arg(long, default_value = "npz", value_parser = ["npz", "csv", "parquet"])]
         format: String,
-        /// Output file (npz) or directory (csv); default: RUN/history.npz or RUN/history/.
+        /// Output file (npz) or directory (csv, parquet); default: RUN/history.npz or
+        /// RUN/history/.
         #[arg(long, short)]
         output: Option<PathBuf>,
         /// Only these series: NODE/KEY with `*` as a wildcard, or NODE for all of its keys
@@ -641,23 +658,55 @@ pub fn main_with(cli: Cli) -> i32 {
             run,
             time,
             field,
+            node,
+            per_node,
             all,
+            gif,
+            frame_ms,
             output,
         } => {
+            let nodes: Vec<Option<String>> = if per_node {
+                crate::fields::nodes_with_series(&run)
+                    .into_iter()
+                    .map(Some)
+                    .collect()
+            } else {
+                vec![node]
+            };
             let drawn = field
                 .as_deref()
                 .map(crate::fields::Choice::parse)
                 .transpose()
                 .and_then(|choice| {
-                    if all {
-                        return crate::fields::render_all(&run, choice);
+                    let mut list = Vec::new();
+                    for node in &nodes {
+                        let node = node.as_deref();
+                        let stem = node.unwrap_or("fields");
+                        if all {
+                            list.extend(crate::fields::render_all(&run, choice, node)?);
+                        } else if gif {
+                            let file = output
+                                .clone()
+                                .unwrap_or_else(|| run.join(format!("{stem}.gif")));
+                            let (n, t) =
+                                crate::fields::render_gif(&run, &file, choice, node, frame_ms)?;
+                            eprintln!("{}: {n} frames", file.display());
+                            list.push((file, t));
+                        } else {
+                            let png = output.clone().unwrap_or_else(|| match (time, node) {
+                                (Some(t), None) => run.join(format!("fields_{t:e}.png")),
+                                (Some(t), Some(n)) => run.join(format!("fields_{n}_{t:e}.png")),
+                                (None, None) => run.join("fields.png"),
+                                (None, Some(n)) => run.join(format!("fields_{n}.png")),
+                            });
+                            let t = crate::fields::render(&run, time, &png, choice, node)?;
+                            list.push((png, t));
+                        }
                     }
-                    let png = output.unwrap_or_else(|| match time {
-                        Some(t) => run.join(format!("fields_{t:e}.png")),
-                        None => run.join("fields.png"),
-                    });
-                    let t = crate::fields::render(&run, time, &png, choice)?;
-                    Ok(vec![(png, t)])
+                    if list.is_empty() {
+                        anyhow::bail!("{}: no node wrote a VTK series", run.display());
+                    }
+                    Ok(list)
                 });
             match drawn {
                 Ok(list) => {
@@ -700,9 +749,13 @@ pub fn main_with(cli: Cli) -> i32 {
                         );
                     }
                 }
-                if format == "csv" {
+                if format == "csv" || format == "parquet" {
                     let dir = output.unwrap_or_else(|| base.join("history"));
-                    let files = crate::export::write_csv(&t, &dir)?;
+                    let files = if format == "csv" {
+                        crate::export::write_csv(&t, &dir)?
+                    } else {
+                        crate::export::write_parquet(&t, &dir)?
+                    };
                     Ok(format!("{} tables in {}{note}", files.len(), dir.display()))
                 } else {
                     let f = output.unwrap_or_else(|| base.join("history.npz"));
@@ -747,7 +800,7 @@ pub fn main_with(cli: Cli) -> i32 {
                         "{name}_{}{at_name}.png",
                         crate::plot::file_stem(&field)
                     ));
-                    let t = crate::fields::render(&dir, at, &png, Some(choice))?;
+                    let t = crate::fields::render(&dir, at, &png, Some(choice), None)?;
                     out.push((png, t));
                 }
                 Ok(out)

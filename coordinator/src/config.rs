@@ -58,6 +58,20 @@ pub struct RunConfig {
     /// Checkpoint every node (and the coordinator) at the end of every this many windows;
     /// 0 = never.
     pub checkpoint_every: u64,
+    /// Which field pictures the run draws when it ends.
+    pub pictures: Pictures,
+}
+
+/// `run.pictures`: the field pictures a finished run draws from its VTK series.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Pictures {
+    /// None (a batch job that only needs the data).
+    None,
+    /// The last frames: `fields.png`, and each node alone in `fields_<node>.png`.
+    #[default]
+    End,
+    /// Those, and every written frame of every node alone in `frames/<node>_<k>.png`.
+    Frames,
 }
 
 #[derive(Debug, Clone)]
@@ -150,6 +164,7 @@ const RUN_KEYS: &[&str] = &[
     "start_timeout",
     "record_every",
     "checkpoint_every",
+    "pictures",
 ];
 const NODE_KEYS: &[&str] = &["solver", "model", "params", "remote"];
 const COUPLING_KEYS: &[&str] = &[
@@ -422,6 +437,17 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
     }
     let record_every = get_u64(&run_t, p, "record_every")?.unwrap_or(1).max(1);
     let checkpoint_every = get_u64(&run_t, p, "checkpoint_every")?.unwrap_or(0);
+    let pictures = match get_str(&run_t, p, "pictures")?.as_deref() {
+        None | Some("end") => Pictures::End,
+        Some("frames") => Pictures::Frames,
+        Some("none") => Pictures::None,
+        Some(o) => {
+            return Err(err(
+                "run.pictures",
+                format!("must be \"end\", \"frames\" or \"none\", got \"{o}\""),
+            ));
+        }
+    };
 
     // Nodes.
     let nodes_t = match doc.get("nodes") {
@@ -683,6 +709,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             start_timeout,
             record_every,
             checkpoint_every,
+            pictures,
         },
         nodes,
         couplings,

@@ -2,7 +2,8 @@
 //! node's report (`/cosim/node/<name>`: energies, momentum, named scalars such as probe
 //! pressures and displacements) and the balance (`/cosim/balance`), read from the recording.
 //! `npz` holds one array per `NODE/KEY` (`balance/KEY`): 1-D float64 per window, (windows, 3)
-//! for vectors, NaN where a window lacks the key; `csv` writes one table per node. The
+//! for vectors, NaN where a window lacks the key; `csv` and `parquet` write one table per
+//! node (vectors as `KEY_x`, `KEY_y`, `KEY_z`; empty or null where a window lacks the key). The
 //! coupling messages' interface fields go to `fields.npz` (`COUPLING/SENDER/FIELD` as
 //! (messages, points, components), with `.window` and `.time` per message).
 
@@ -282,6 +283,29 @@ pub fn write_npz(tables: &BTreeMap<String, Table>, path: &Path) -> anyhow::Resul
     Ok(n)
 }
 
+/// A table's columns flattened to scalars: vectors as `KEY_x`, `KEY_y`, `KEY_z` (wider ones
+/// `KEY_0`, …), one value per row, NaN where a row lacks the key.
+fn flat_columns(t: &Table) -> Vec<(String, Vec<f64>)> {
+    let mut out = Vec::new();
+    for (key, width) in &t.columns {
+        let c = t.column(key, *width);
+        if *width == 1 {
+            out.push((key.clone(), c));
+            continue;
+        }
+        for i in 0..*width {
+            let name = match (*width, i) {
+                (3, 0) => format!("{key}_x"),
+                (3, 1) => format!("{key}_y"),
+                (3, 2) => format!("{key}_z"),
+                _ => format!("{key}_{i}"),
+            };
+            out.push((name, c.iter().skip(i).step_by(*width).copied().collect()));
+        }
+    }
+    out
+}
+
 /// Writes `DIR/NODE.csv` per table (vectors as KEY_x, KEY_y, KEY_z; empty where missing);
 /// returns the files written.
 pub fn write_csv(tables: &BTreeMap<String, Table>, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
@@ -291,34 +315,82 @@ pub fn write_csv(tables: &BTreeMap<String, Table>, dir: &Path) -> anyhow::Result
         let path = dir.join(format!("{node}.csv"));
         let mut w = csv::Writer::from_path(&path)
             .with_context(|| format!("cannot create {}", path.display()))?;
-        let mut head = Vec::new();
-        let mut cols = Vec::new();
-        for (key, width) in &t.columns {
-            match *width {
-                1 => head.push(key.clone()),
-                3 => head.extend(["x", "y", "z"].map(|a| format!("{key}_{a}"))),
-                _ => head.extend((0..*width).map(|i| format!("{key}_{i}"))),
-            }
-            cols.push((t.column(key, *width), *width));
-        }
-        w.write_record(&head)?;
-        let mut line = Vec::with_capacity(head.len());
+        let cols = flat_columns(t);
+        w.write_record(cols.iter().map(|(name, _)| name))?;
+        let mut line = Vec::with_capacity(cols.len());
         for r in 0..t.rows.len() {
             line.clear();
-            for (c, width) in &cols {
-                for v in &c[r * width..(r + 1) * width] {
-                    line.push(if v.is_nan() {
-                        String::new()
-                    } else if v.fract() == 0.0 && v.abs() < 1e15 {
-                        format!("{}", *v as i64)
-                    } else {
-                        format!("{v:e}")
-                    });
-                }
+            for (_, c) in &cols {
+                let v = c[r];
+                line.push(if v.is_nan() {
+                    String::new()
+                } else if v.fract() == 0.0 && v.abs() < 1e15 {
+                    format!("{}", v as i64)
+                } else {
+                    format!("{v:e}")
+                });
             }
             w.write_record(&line)?;
         }
         w.flush()
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        files.push(path);
+    }
+    Ok(files)
+}
+
+/// Writes `DIR/NODE.parquet` per table: the CSV's columns as optional float64 columns (null
+/// where a window lacks the key), one row per window, one row group; returns the files.
+pub fn write_parquet(tables: &BTreeMap<String, Table>, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    use parquet::basic::{Repetition, Type as Physical};
+    use parquet::data_type::DoubleType;
+    use parquet::file::writer::SerializedFileWriter;
+    use parquet::schema::types::Type;
+    use std::sync::Arc;
+
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mut files = Vec::new();
+    for (node, t) in tables {
+        let path = dir.join(format!("{node}.parquet"));
+        let cols = flat_columns(t);
+        let fields = cols
+            .iter()
+            .map(|(name, _)| {
+                Type::primitive_type_builder(name, Physical::DOUBLE)
+                    .with_repetition(Repetition::OPTIONAL)
+                    .build()
+                    .map(Arc::new)
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let schema = Arc::new(
+            Type::group_type_builder("cosim_history")
+                .with_fields(fields)
+                .build()?,
+        );
+        let file = std::fs::File::create(&path)
+            .with_context(|| format!("cannot create {}", path.display()))?;
+        let mut w = SerializedFileWriter::new(file, schema, Default::default())?;
+        let mut group = w.next_row_group()?;
+        let mut values = Vec::with_capacity(t.rows.len());
+        let mut defined = Vec::with_capacity(t.rows.len());
+        for (_, c) in &cols {
+            let Some(mut col) = group.next_column()? else {
+                bail!("{}: the writer ran out of columns", path.display());
+            };
+            values.clear();
+            defined.clear();
+            for &v in c {
+                defined.push(i16::from(!v.is_nan()));
+                if !v.is_nan() {
+                    values.push(v);
+                }
+            }
+            col.typed::<DoubleType>()
+                .write_batch(&values, Some(&defined), None)?;
+            col.close()?;
+        }
+        group.close()?;
+        w.close()
             .with_context(|| format!("cannot write {}", path.display()))?;
         files.push(path);
     }

@@ -1,8 +1,10 @@
 //! Field pictures (`fields.png`, `cosim render`): every node's VTK frame nearest a time, read
 //! back from the run's `.pvd` series and drawn on one PNG — a gas grid as a colour map of its
 //! pressure with the solids' particles over it (a plane view), or, without a grid, the solids'
-//! deformed surfaces in an oblique view, shaded and coloured by plastic strain or stress.
-//! Reads what the nodes wrote (vtkio), so it works for any node that writes VTK.
+//! deformed surfaces in an oblique view, shaded and coloured by plastic strain or stress, and
+//! their particles coloured by damage (the joint's broken-bond fraction); one node alone, every
+//! frame, or an animated GIF of the series. Reads what the nodes wrote (vtkio), so it works for
+//! any node that writes VTK.
 
 use anyhow::{Context, bail};
 use plotters::prelude::*;
@@ -197,9 +199,15 @@ fn magnitude(a: &Array, i: usize) -> f64 {
 /// The first of `names` that `list` holds with `n` entries and some non-zero value.
 fn pick<'a>(list: &'a [Array], names: &[&str], n: usize) -> Option<&'a Array> {
     names.iter().find_map(|want| {
-        list.iter().find(|a| {
-            a.name == *want && a.values.len() == a.comps * n && a.values.iter().any(|v| *v != 0.0)
-        })
+        pick_sized(list, &[want], n).filter(|a| a.values.iter().any(|v| *v != 0.0))
+    })
+}
+
+/// The first of `names` that `list` holds with `n` entries, zero or not.
+fn pick_sized<'a>(list: &'a [Array], names: &[&str], n: usize) -> Option<&'a Array> {
+    names.iter().find_map(|want| {
+        list.iter()
+            .find(|a| a.name == *want && a.values.len() == a.comps * n)
     })
 }
 
@@ -319,18 +327,19 @@ fn check_choice(frames: &[Frame], c: Choice) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Draws the frames nearest `time` (the last ones when None) of the run in `run_dir` into
-/// `png`, one node coloured by a chosen field if `choice` says so; returns the time drawn
-/// (the latest of the frames used).
-pub fn render(
+/// The frames nearest `time` (the last ones when None) of every node of the run, or of `node`
+/// alone, and the latest time among them.
+fn frames_at(
     run_dir: &Path,
     time: Option<f64>,
-    png: &Path,
-    choice: Option<Choice>,
-) -> anyhow::Result<f64> {
+    node: Option<&str>,
+) -> anyhow::Result<(Vec<Frame>, f64)> {
     let mut frames = Vec::new();
     let mut t_drawn = f64::NEG_INFINITY;
-    for (node, pvd) in all_series(run_dir) {
+    for (name, pvd) in all_series(run_dir) {
+        if node.is_some_and(|n| n != name) {
+            continue;
+        }
         let s = series(&pvd)?;
         let pick = match time {
             None => s.last(),
@@ -339,67 +348,169 @@ pub fn render(
                 .min_by(|a, b| (a.0 - t).abs().total_cmp(&(b.0 - t).abs())),
         };
         if let Some((t, file)) = pick {
-            frames.push(load(file, &node)?);
+            frames.push(load(file, &name)?);
             t_drawn = t_drawn.max(*t);
         }
     }
     if frames.is_empty() {
-        bail!(
-            "{}: no VTK series (.pvd) in its node folders",
-            run_dir.display()
-        );
+        match node {
+            Some(n) => bail!(
+                "{}: node '{n}' wrote no VTK series (nodes with series: {:?})",
+                run_dir.display(),
+                nodes_with_series(run_dir)
+            ),
+            None => bail!(
+                "{}: no VTK series (.pvd) in its node folders",
+                run_dir.display()
+            ),
+        }
     }
-    if let Some(c) = choice {
-        check_choice(&frames, c)?;
-    }
+    Ok((frames, t_drawn))
+}
+
+/// The nodes of the run that wrote a VTK series, in name order, each once.
+pub fn nodes_with_series(run_dir: &Path) -> Vec<String> {
+    let mut nodes: Vec<String> = all_series(run_dir).into_iter().map(|(n, _)| n).collect();
+    nodes.dedup();
+    nodes
+}
+
+/// Draws `frames` (time `t`) on `root`: the plane view when a gas grid is among them, else
+/// the oblique view; the colour bar and the caption.
+fn draw(
+    root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    frames: &[Frame],
+    choice: Option<Choice>,
+    t: f64,
+) -> anyhow::Result<()> {
     let text = crate::plot::font_ready();
-    let root = BitMapBackend::new(png, SIZE).into_drawing_area();
     root.fill(&WHITE)?;
     let bar = if frames.iter().any(|f| f.grid.is_some()) {
-        plane_view(&root, &frames, choice)?
+        plane_view(root, frames, choice)?
     } else {
-        oblique_view(&root, &frames, choice)?
+        oblique_view(root, frames, choice)?
     };
     if let Some((label, lo, hi)) = bar {
-        colour_bar(&root, &label, lo, hi, text)?;
+        colour_bar(root, &label, lo, hi, text)?;
     }
     if text {
         let names: Vec<&str> = frames.iter().map(|f| f.node.as_str()).collect();
         root.draw(&Text::new(
-            format!("t = {t_drawn:.4e} s   nodes: {}", names.join(", ")),
+            format!("t = {t:.4e} s   nodes: {}", names.join(", ")),
             (40, 20),
             ("sans-serif", 22).into_font(),
         ))?;
     }
+    Ok(())
+}
+
+/// Draws the frames nearest `time` (the last ones when None) of the run in `run_dir` — of
+/// every node, or of `node` alone — into `png`, one node coloured by a chosen field if
+/// `choice` says so; returns the time drawn (the latest of the frames used).
+pub fn render(
+    run_dir: &Path,
+    time: Option<f64>,
+    png: &Path,
+    choice: Option<Choice>,
+    node: Option<&str>,
+) -> anyhow::Result<f64> {
+    let (frames, t_drawn) = frames_at(run_dir, time, node)?;
+    if let Some(c) = choice {
+        check_choice(&frames, c)?;
+    }
+    let root = BitMapBackend::new(png, SIZE).into_drawing_area();
+    draw(&root, &frames, choice, t_drawn)?;
     root.present()
         .with_context(|| format!("cannot write {}", png.display()))?;
     Ok(t_drawn)
 }
 
-/// `cosim render --all`: one picture per written time (the union of the nodes' frame times)
-/// into `RUN/frames/fields_<k>.png`, k counting from 0; returns each file and its time.
-pub fn render_all(run_dir: &Path, choice: Option<Choice>) -> anyhow::Result<Vec<(PathBuf, f64)>> {
+/// The last frame of each node alone into `RUN/fields_<node>.png`, where more than one node
+/// wrote a series (one node's picture is `fields.png` itself); returns the files.
+pub fn render_nodes(run_dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let nodes = nodes_with_series(run_dir);
+    if nodes.len() < 2 {
+        return Ok(Vec::new());
+    }
+    let mut files = Vec::with_capacity(nodes.len());
+    for n in &nodes {
+        let png = run_dir.join(format!("fields_{n}.png"));
+        render(run_dir, None, &png, None, Some(n))?;
+        files.push(png);
+    }
+    Ok(files)
+}
+
+/// Every written time of the run (the union of the frame times of every node, or of `node`),
+/// in order, times equal to 1e-12 relative counted once.
+fn frame_times(run_dir: &Path, node: Option<&str>) -> anyhow::Result<Vec<f64>> {
     let mut times: Vec<f64> = Vec::new();
-    for (_, pvd) in all_series(run_dir) {
-        times.extend(series(&pvd)?.into_iter().map(|(t, _)| t));
+    for (name, pvd) in all_series(run_dir) {
+        if node.is_none_or(|n| n == name) {
+            times.extend(series(&pvd)?.into_iter().map(|(t, _)| t));
+        }
     }
     times.sort_by(f64::total_cmp);
     times.dedup_by(|a, b| (*a - *b).abs() <= 1e-12 * a.abs().max(b.abs()));
     if times.is_empty() {
         bail!(
-            "{}: no VTK series (.pvd) in its node folders",
-            run_dir.display()
+            "{}: no VTK series (.pvd) in its node folders{}",
+            run_dir.display(),
+            node.map(|n| format!(" for node '{n}'")).unwrap_or_default()
         );
     }
+    Ok(times)
+}
+
+/// `cosim render --all`: one picture per written time into `RUN/frames/fields_<k>.png` (with
+/// `node`, that node's frames alone into `RUN/frames/<node>_<k>.png`), k counting from 0;
+/// returns each file and its time.
+pub fn render_all(
+    run_dir: &Path,
+    choice: Option<Choice>,
+    node: Option<&str>,
+) -> anyhow::Result<Vec<(PathBuf, f64)>> {
+    let times = frame_times(run_dir, node)?;
     let dir = run_dir.join("frames");
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let mut out = Vec::with_capacity(times.len());
     for (k, t) in times.into_iter().enumerate() {
-        let png = dir.join(format!("fields_{k:04}.png"));
-        let drawn = render(run_dir, Some(t), &png, choice)?;
+        let png = dir.join(format!("{}_{k:04}.png", node.unwrap_or("fields")));
+        let drawn = render(run_dir, Some(t), &png, choice, node)?;
         out.push((png, drawn));
     }
     Ok(out)
+}
+
+/// `cosim render --gif`: every written time as one frame of an animated GIF (`delay_ms` per
+/// frame), of every node or of `node` alone; returns the number of frames and the last time.
+pub fn render_gif(
+    run_dir: &Path,
+    gif: &Path,
+    choice: Option<Choice>,
+    node: Option<&str>,
+    delay_ms: u32,
+) -> anyhow::Result<(usize, f64)> {
+    let times = frame_times(run_dir, node)?;
+    if let Some(parent) = gif.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("cannot create {}", parent.display()))?;
+    }
+    let root = BitMapBackend::gif(gif, SIZE, delay_ms)
+        .with_context(|| format!("cannot create {}", gif.display()))?
+        .into_drawing_area();
+    let mut last = 0.0;
+    for &t in &times {
+        let (frames, drawn) = frames_at(run_dir, Some(t), node)?;
+        if let Some(c) = choice {
+            check_choice(&frames, c)?;
+        }
+        draw(&root, &frames, choice, drawn)?;
+        root.present()
+            .with_context(|| format!("cannot write {}", gif.display()))?;
+        last = drawn;
+    }
+    Ok((times.len(), last))
 }
 
 type Bar = Option<(String, f64, f64)>;
@@ -505,7 +616,13 @@ fn oblique_view(
     let mut axes = [0usize, 1, 2];
     axes.sort_by(|&a, &b| (hi[b] - lo[b]).total_cmp(&(hi[a] - lo[a])));
     let centre: [f64; 3] = std::array::from_fn(|d| 0.5 * (lo[d] + hi[d]));
-    let (yaw, pitch) = (30f64.to_radians(), 20f64.to_radians());
+    // a flat body (a 2-D model's particles or mesh) is seen face on
+    let flat = hi[axes[2]] - lo[axes[2]] <= 1e-9 * (hi[axes[0]] - lo[axes[0]]);
+    let (yaw, pitch) = if flat {
+        (0.0, 0.0)
+    } else {
+        (30f64.to_radians(), 20f64.to_radians())
+    };
     let project = |p: &[f64; 3]| -> [f64; 3] {
         let (a, b, c) = (
             p[axes[0]] - centre[axes[0]],
@@ -573,17 +690,43 @@ fn oblique_view(
         let pts: Vec<(i32, i32)> = q.iter().map(|p| view.px(p[0], p[1])).collect();
         root.draw(&Polygon::new(pts, c.filled()))?;
     }
+    let mut bar = bar_name.map(|n| (n, vmin, vmax));
+    // particles, far to near, by the colour map: a chosen field, else damage (or the joint's
+    // broken-bond fraction) on 0..1; the bar goes to the chosen field, else to the first
     for f in frames.iter().filter(|f| f.polygons.is_empty()) {
-        for p in &f.points {
-            let q = project(p);
-            root.draw(&Circle::new(
-                view.px(q[0], q[1]),
-                1,
-                RGBColor(200, 40, 40).filled(),
-            ))?;
+        let n = f.points.len();
+        let r = if n > 20_000 { 1 } else { 2 };
+        let chosen = choice
+            .filter(|c| c.node == f.node)
+            .and_then(|c| pick(&f.point_data, &[c.field], n));
+        let fraction = pick_sized(&f.point_data, &["damage", "broken_bond_fraction"], n);
+        let (vmin, vmax) = match chosen {
+            Some(a) => range((0..n).map(|i| magnitude(a, i))),
+            None => (0.0, 1.0),
+        };
+        let mut order: Vec<(f64, usize)> = f
+            .points
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (project(p)[2], i))
+            .collect();
+        order.sort_by(|a, b| b.0.total_cmp(&a.0));
+        for (_, i) in order {
+            let q = project(&f.points[i]);
+            let c = match (chosen, fraction) {
+                (Some(a), _) => colour((magnitude(a, i) - vmin) / (vmax - vmin)),
+                (None, Some(a)) => colour(magnitude(a, i).clamp(0.0, 1.0)),
+                (None, None) => RGBColor(200, 40, 40),
+            };
+            root.draw(&Circle::new(view.px(q[0], q[1]), r, c.filled()))?;
+        }
+        if let Some(a) = chosen {
+            bar = Some((caption(&f.node, &a.name), vmin, vmax));
+        } else if let (Some(a), None) = (fraction, &bar) {
+            bar = Some((caption(&f.node, &a.name), 0.0, 1.0));
         }
     }
-    Ok(bar_name.map(|n| (n, vmin, vmax)))
+    Ok(bar)
 }
 
 /// Unit normal of a planar polygon (Newell's method).

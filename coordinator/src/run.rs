@@ -974,11 +974,31 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
                     Err(e) => tracing::warn!("plots of {}: {e:#}", out.display()),
                 }
             }
-            if interrupted.is_none() && crate::fields::has_series(&out) {
+            let pictures = case.run.pictures;
+            if interrupted.is_none()
+                && pictures != crate::config::Pictures::None
+                && crate::fields::has_series(&out)
+            {
                 let png = out.join("fields.png");
-                match crate::fields::render(&out, None, &png, None) {
+                match crate::fields::render(&out, None, &png, None, None) {
                     Ok(_) => summary["fields"] = json!(png),
                     Err(e) => tracing::warn!("fields picture of {}: {e:#}", out.display()),
+                }
+                // and each node alone where there are several (fields_<node>.png)
+                match crate::fields::render_nodes(&out) {
+                    Ok(files) => summary["node_fields"] = json!(files),
+                    Err(e) => tracing::warn!("node pictures of {}: {e:#}", out.display()),
+                }
+                // run.pictures = "frames": every written frame of each node alone
+                if pictures == crate::config::Pictures::Frames {
+                    let mut files = Vec::new();
+                    for node in crate::fields::nodes_with_series(&out) {
+                        match crate::fields::render_all(&out, None, Some(&node)) {
+                            Ok(list) => files.extend(list.into_iter().map(|(png, _)| png)),
+                            Err(e) => tracing::warn!("frames of node {node}: {e:#}"),
+                        }
+                    }
+                    summary["frame_pictures"] = json!(files.len());
                 }
             }
             std::fs::write(

@@ -1,4 +1,4 @@
-//! The users' toolchain on a real run (issue 21): `cosim export` to numpy and CSV, checked
+//! The users' toolchain on a real run (issue 21): `cosim export` to numpy, CSV and Parquet, checked
 //! against the recording read with the official MCAP reader; `cosim info --json` through
 //! `python3 -m json.tool`; the field picture `cosim run` draws (`fields.png`) shows the
 //! chamber's pressure and the bar where the case puts it; the Python package's `open_run`
@@ -97,6 +97,79 @@ fn export_gives_numpy_arrays_equal_to_the_recording() {
         assert!(rows.iter().all(|r| r.len() == head.len()), "{node}");
         assert_eq!(rows[79][0], "80", "{node}");
     }
+}
+
+/// pyarrow (the Apache Arrow project's Python reader, independent of our writer) reads each
+/// node's `history/NODE.parquet`: every column equals the recording's JSON values (vectors as
+/// `_x/_y/_z`), a key a window lacks is null.
+const PARQUET_CHECK: &str = r#"
+import json, sys
+import numpy as np
+import pyarrow.parquet as pq
+from mcap.reader import make_reader
+hist, mcap = sys.argv[1], sys.argv[2]
+rec = {}
+with open(mcap, "rb") as f:
+    for _, ch, m in make_reader(f).iter_messages(topics=["/cosim/node/gas", "/cosim/node/bar", "/cosim/balance"]):
+        name = "balance" if ch.topic == "/cosim/balance" else ch.topic.rsplit("/", 1)[1]
+        rec.setdefault(name, []).append(json.loads(m.data))
+checked = 0
+for node, rows in sorted(rec.items()):
+    t = pq.read_table(f"{hist}/{node}.parquet")
+    assert t.num_rows == len(rows), (node, t.num_rows, len(rows))
+    keys = []
+    for r in rows:
+        keys += [k for k in r if k not in keys]
+    for k in keys:
+        width = max(len(r[k]) if isinstance(r.get(k), list) else 1 for r in rows)
+        names = [k] if width == 1 else [f"{k}_{a}" for a in "xyz"] if width == 3 else [f"{k}_{i}" for i in range(width)]
+        for i, name in enumerate(names):
+            col = t.column(name)
+            assert str(col.type) == "double", (node, name, col.type)
+            got = col.to_pylist()
+            want = [(r[k][i] if width > 1 else r[k]) if k in r else None for r in rows]
+            want = [float(w) if isinstance(w, (int, float)) and not isinstance(w, bool) else None for w in want]
+            assert got == want, (node, name, got[:3], want[:3])
+            checked += 1
+print(f"nodes {len(rec)}; windows {len(rec['gas'])}; columns {checked}")
+"#;
+
+#[test]
+fn parquet_tables_read_back_in_pyarrow_equal_to_the_recording() {
+    if !python("import pyarrow, mcap", &[]).0 {
+        skip_or_fail(
+            "pyarrow with mcap",
+            "missing (python3 -m pip install pyarrow mcap)",
+        );
+        return;
+    }
+    let out = chamber();
+    let hist = out.join("parquet-check");
+    let o = cosim(&[
+        "export",
+        out.to_str().unwrap(),
+        "--format",
+        "parquet",
+        "--output",
+        hist.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (ok, text) = python(
+        PARQUET_CHECK,
+        &[
+            hist.to_str().unwrap(),
+            out.join("run.mcap").to_str().unwrap(),
+        ],
+    );
+    println!("{text}");
+    assert!(ok, "{text}");
+    assert!(text.contains("nodes 3; windows 80;"), "{text}");
+    let columns: usize = text
+        .rsplit("columns ")
+        .next()
+        .and_then(|c| c.trim().parse().ok())
+        .unwrap_or(0);
+    assert!(columns > 40, "{text}");
 }
 
 /// `cosim.open_run`: the gas probe and the bar's displacement equal the official reader's
@@ -296,6 +369,122 @@ fn the_field_picture_shows_the_pressure_and_the_bar_where_it_is() {
         assert_eq!(outside, 0);
         assert!(colours.len() >= 20, "{} colours", colours.len());
     }
+}
+
+/// `cosim run` draws each node alone too (`fields_<node>.png`): the bar's particles face on,
+/// coloured by damage on the colour map, spread across the plot's width; the gas alone as its
+/// pressure map. `cosim render --per-node --gif` animates each node's series: one GIF per
+/// node, one frame per written time, each frame the picture's size.
+#[test]
+fn each_node_is_drawn_alone_and_its_series_animated() {
+    use image::AnimationDecoder;
+    let out = chamber();
+    let listed: Vec<String> = summary(out)["node_fields"]
+        .as_array()
+        .expect("summary.json lists node_fields")
+        .iter()
+        .filter_map(|p| p.as_str().map(String::from))
+        .collect();
+    assert_eq!(listed.len(), 2, "{listed:?}");
+    let (w, h, px) = png_pixels(&out.join("fields_bar.png"));
+    assert_eq!((w, h), (1200, 800));
+    let (mut dots, mut x_lo, mut x_hi) = (0, u32::MAX, 0);
+    let mut grey = 0;
+    for (k, p) in px.iter().enumerate() {
+        let (x, y) = (k as u32 % w, k as u32 / w);
+        if !(40..1040).contains(&x) || !(60..760).contains(&y) || *p == [255, 255, 255] {
+            continue;
+        }
+        dots += 1;
+        grey += usize::from(p[0] == p[1] && p[1] == p[2]);
+        x_lo = x_lo.min(x);
+        x_hi = x_hi.max(x);
+    }
+    println!("bar alone: {dots} particle pixels across x {x_lo}..{x_hi}, {grey} grey");
+    assert!(dots >= 31 * 16 * 5, "{dots}");
+    assert_eq!(grey, 0, "particles take the colour map, not grey");
+    assert!(x_lo < 100 && x_hi > 980, "{x_lo}..{x_hi}");
+    let (_, _, gas) = png_pixels(&out.join("fields_gas.png"));
+    let colours: std::collections::HashSet<_> = gas.iter().collect();
+    assert!(colours.len() >= 20, "{}", colours.len());
+
+    let o = cosim(&["render", out.to_str().unwrap(), "--per-node", "--gif"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for (node, series) in [("gas", "fluid.pvd"), ("bar", "pd.pvd")] {
+        let pvd = std::fs::read_to_string(out.join(node).join(series)).unwrap();
+        let written = pvd.matches("<DataSet").count();
+        let file = std::fs::File::open(out.join(format!("{node}.gif"))).unwrap();
+        let frames = image::codecs::gif::GifDecoder::new(std::io::BufReader::new(file))
+            .unwrap()
+            .into_frames()
+            .collect_frames()
+            .unwrap();
+        println!(
+            "{node}.gif: {} frames for {written} written times",
+            frames.len()
+        );
+        assert!(written >= 3, "{written}");
+        assert_eq!(frames.len(), written);
+        assert!(
+            frames
+                .iter()
+                .all(|f| f.buffer().dimensions() == (1200, 800))
+        );
+    }
+}
+
+/// `run.pictures = "frames"` draws every written frame of each node alone after the run
+/// (`frames/<node>_<k>.png`, one per `.pvd` entry), "none" draws no picture, and any other
+/// value is refused before anything starts, naming the key.
+#[test]
+fn run_pictures_draws_every_frame_or_none() {
+    let (dir, id) = scratch("pictures");
+    let case = workspace_root().join("examples/chamber_detonation.toml");
+    let out = dir.join("frames");
+    let o = run_case(
+        &case,
+        &out,
+        &id,
+        &["--variant", "small", "--set", "run.pictures=\"frames\""],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for (node, series) in [("gas", "fluid.pvd"), ("bar", "pd.pvd")] {
+        let pvd = std::fs::read_to_string(out.join(node).join(series)).unwrap();
+        let written = pvd.matches("<DataSet").count();
+        let drawn = std::fs::read_dir(out.join("frames"))
+            .unwrap()
+            .flatten()
+            .filter(|e| {
+                e.file_name()
+                    .to_string_lossy()
+                    .starts_with(&format!("{node}_"))
+            })
+            .count();
+        println!("{node}: {drawn} pictures for {written} written frames");
+        assert!(written >= 3, "{written}");
+        assert_eq!(drawn, written);
+    }
+    assert_eq!(summary(&out)["frame_pictures"], 10);
+
+    let none = dir.join("none");
+    let o = run_case(
+        &case,
+        &none,
+        &format!("{id}n"),
+        &["--variant", "small", "--set", "run.pictures=\"none\""],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!none.join("fields.png").exists() && !none.join("fields_bar.png").exists());
+
+    let o = cosim(&[
+        "validate",
+        case.to_str().unwrap(),
+        "--set",
+        "run.pictures=\"all\"",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("run.pictures"), "{err}");
 }
 
 /// `cosim validate --json`: one JSON document either way, the same exit codes (0, or 2 with
