@@ -361,6 +361,14 @@ impl Bar {
         2.0 / w2.sqrt()
     }
 
+    /// Σ m|v| over the free nodes: the scale of momentum sums that cancel.
+    fn momentum_gross(&self) -> f64 {
+        (0..self.s.v.len())
+            .filter(|&i| !self.is_prescribed(i))
+            .map(|i| self.m[i] * self.s.v[i].abs())
+            .sum()
+    }
+
     fn energies(&self) -> (f64, f64, f64) {
         let s = &self.s;
         let mut ke = 0.0;
@@ -654,10 +662,7 @@ impl Solver for Bar {
             external_work: self.s.external_work,
             interface_work: self.s.interface_work,
             momentum: [p, 0.0, 0.0],
-            momentum_gross: (0..self.s.v.len())
-                .filter(|&i| !self.is_prescribed(i))
-                .map(|i| self.m[i] * self.s.v[i].abs())
-                .sum(),
+            momentum_gross: self.momentum_gross(),
             external_impulse: [self.s.external_impulse, 0.0, 0.0],
             applied_impulse: self.s.applied_impulse,
             interface_impulse: [self.s.interface_impulse, 0.0, 0.0],
@@ -879,6 +884,15 @@ impl Bar {
             sign: 1.0,
             lambda: 0,
         }];
+        // The support's reaction on the bar, R = −k u of the fixed node's neighbour (a probe:
+        // the subdomain keeps ∫ R dt over its corrected substeps).
+        let mut reaction = vec![0.0; sys.len()];
+        if let Some(f) = self.fixed.map(|e| self.node(e)) {
+            let next = if f == 0 { 1 } else { f - 1 };
+            if let Some(dn) = dof.get(next).copied().flatten() {
+                reaction[dn] = -self.k;
+            }
+        }
         let sub = Subdomain::new(
             sys,
             coef,
@@ -889,6 +903,7 @@ impl Bar {
             shape,
             Box::new(move |t| f0 * ramp.factor(t, time)),
         )
+        .and_then(|s| s.with_probes(reaction))
         .map_err(|e| SolverError::config("integrator", e.to_string()))?;
         self.s.a = vec![0.0; self.s.u.len()];
         self.lagrange = Some(LagrangeBar {
@@ -921,6 +936,17 @@ impl Bar {
             self.s.external_work += 0.5 * (f(w.t0) + f(w.t1)) * (self.s.u[i] - u0);
         }
         self.s.interface_work = sub.interface_work;
+        // Impulses as the subdomain summed them over its corrected substeps (trapezoidal:
+        // exactly the momentum central differences and average acceleration give): the end
+        // force, the support's reaction and the interface force.
+        let load_impulse = if load.is_some() {
+            sub.load_integral
+        } else {
+            0.0
+        };
+        self.s.external_impulse = load_impulse + sub.probe_integral.first().unwrap_or(&0.0);
+        self.s.applied_impulse = load_impulse.abs();
+        self.s.interface_impulse = sub.interface_impulse.first().copied().unwrap_or(0.0);
         self.s.time = w.t1;
         let substeps = sub.substeps() as u64;
         let (ke, ie, p) = self.energies();
@@ -940,6 +966,10 @@ impl Bar {
             external_work: self.s.external_work,
             interface_work: self.s.interface_work,
             momentum: [p, 0.0, 0.0],
+            momentum_gross: self.momentum_gross(),
+            external_impulse: [self.s.external_impulse, 0.0, 0.0],
+            applied_impulse: self.s.applied_impulse,
+            interface_impulse: [self.s.interface_impulse, 0.0, 0.0],
             substeps,
             scalars,
             ..Default::default()

@@ -121,6 +121,27 @@ pub enum History {
 }
 
 impl History {
+    /// `history = "step" | "ramp"` with its `ramp_time` (s); `prefix` is the key path of the
+    /// load's table ("loads[0].").
+    pub fn parse(prefix: &str, history: &str, ramp_time: Option<f64>) -> SolverResult<Self> {
+        match (history, ramp_time) {
+            ("step", None) => Ok(History::Step),
+            ("step", Some(_)) => Err(SolverError::config(
+                format!("{prefix}ramp_time"),
+                "only applies with history = \"ramp\"",
+            )),
+            ("ramp", Some(t)) if t.is_finite() && t > 0.0 => Ok(History::Ramp(t)),
+            ("ramp", t) => Err(SolverError::config(
+                format!("{prefix}ramp_time"),
+                format!("history = \"ramp\" needs ramp_time > 0 (s), got {t:?}"),
+            )),
+            (other, _) => Err(SolverError::config(
+                format!("{prefix}history"),
+                format!("must be \"step\" or \"ramp\", got \"{other}\""),
+            )),
+        }
+    }
+
     pub fn at(self, t: f64) -> f64 {
         match self {
             History::Step => 1.0,
@@ -300,28 +321,7 @@ impl Fem2d {
             if !l.traction.iter().all(|q| q.is_finite()) {
                 return Err(SolverError::config(key("traction"), "must be finite"));
             }
-            let history = match (l.history.as_str(), l.ramp_time) {
-                ("step", None) => History::Step,
-                ("step", Some(_)) => {
-                    return Err(SolverError::config(
-                        key("ramp_time"),
-                        "only applies with history = \"ramp\"",
-                    ));
-                }
-                ("ramp", Some(t)) if t.is_finite() && t > 0.0 => History::Ramp(t),
-                ("ramp", t) => {
-                    return Err(SolverError::config(
-                        key("ramp_time"),
-                        format!("history = \"ramp\" needs ramp_time > 0 (s), got {t:?}"),
-                    ));
-                }
-                (other, _) => {
-                    return Err(SolverError::config(
-                        key("history"),
-                        format!("must be \"step\" or \"ramp\", got \"{other}\""),
-                    ));
-                }
-            };
+            let history = History::parse(&key(""), &l.history, l.ramp_time)?;
             let full = model.edge_load(&model.mesh.edge(edge), l.traction);
             let mut shape = vec![0.0; sys.len()];
             model.restrict(&full, &mut shape);

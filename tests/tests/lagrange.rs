@@ -146,6 +146,19 @@ fn ratio_one_through_cosim_run_reproduces_the_single_domain_bar() {
     println!("m = 1 through cosim vs the library path: {d:e} over {n} samples");
     assert_eq!(n, windows + 1);
     assert!(d < 1e-14, "cosim and library differ by {d:e}");
+    // bar-1d reports the end force's, the support's and the interface's impulses on the
+    // lagrange path: the audit's momentum balance closes.
+    let s = summary(&out);
+    let b = &s["balance"];
+    let (resid, scale) = (
+        b["max_momentum_residual_relative"]
+            .as_f64()
+            .unwrap_or(f64::NAN),
+        b["impulse_scale"].as_f64().unwrap_or(0.0),
+    );
+    println!("m = 1: momentum residual {resid:.3e} of the impulse scale {scale:.3e} N s");
+    assert!(scale > 0.0, "impulses reported: {scale}");
+    assert!(resid < 1e-9, "momentum residual {resid:e}");
     // The recording replays bit-identically, each side against the recorded multipliers.
     for node in ["left", "right"] {
         let w = assert_replays_bit_identically(&out.join("run.mcap"), node, "lag-replay");

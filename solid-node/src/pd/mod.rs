@@ -20,6 +20,7 @@ pub mod fracture;
 pub mod geometry;
 pub mod gpu;
 pub mod integrate;
+pub mod lagrange;
 pub mod model;
 pub mod rk_ba;
 pub mod solver;

@@ -19,8 +19,10 @@ use super::family::{Bonds, surface_particles};
 use super::geometry::{Shape, lattice};
 use super::gpu::DeviceBody;
 use super::integrate::Body;
+use super::lagrange::ExplicitSide;
 use super::model::{Dim, PdModel};
 use super::rk_ba::RkBa;
+use crate::fem2d::History;
 use mechanics::damage::{
     BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain, NoDamage,
 };
@@ -28,12 +30,14 @@ use mechanics::gpu::GpuContext;
 use mechanics::j2::J2Material;
 use node_kit::device::Device;
 use node_kit::vtk::{self, Arrays, Frame};
+use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
 use protocol::{
     Binding, CouplingKind, InterfaceInfo, InterfaceMesh, NodeDescription, Role, Solver,
     SolverError, SolverResult, StepReport, Window,
 };
 use protocol::{BuildOptions, Inbox, Outbox};
 use serde::Deserialize;
+use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -109,6 +113,18 @@ pub struct PdParams {
     /// Coupling interfaces: named sets of particles.
     #[serde(default)]
     pub interfaces: Vec<InterfaceParams>,
+    /// Forces on the particles of regions (a line load on an edge: its total, spread
+    /// equally over the region's particles).
+    #[serde(default)]
+    pub loads: Vec<PdLoad>,
+    /// Named points whose displacement is reported every window (`<name>_ux`, `<name>_uy`,
+    /// and `<name>_uz` in 3-D): the particle at the point, within half a spacing.
+    #[serde(default)]
+    pub points: BTreeMap<String, Vec<f64>>,
+    /// Particle steps per window in a lagrange coupling (absent: as many as the stable step
+    /// needs); gs4 and ph take exactly one (see `pd::lagrange`).
+    #[serde(default)]
+    pub substeps: Option<usize>,
     /// Smallest connected component (particles) counted in the `fragments` report scalar;
     /// smaller ones are `debris_particles`.
     #[serde(default = "default_fragment_min_size")]
@@ -234,6 +250,30 @@ pub struct InterfaceParams {
     /// Only the particles inside this shape.
     #[serde(default)]
     pub region: Option<Shape>,
+    /// Only the particles inside any of these shapes (with `region`: inside it or any of
+    /// these), e.g. both cut edges of the middle subdomain of three in a row.
+    #[serde(default)]
+    pub regions: Vec<Shape>,
+}
+
+/// A force on the particles of a region.
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PdLoad {
+    /// The particles inside this shape carry the load.
+    pub region: Shape,
+    /// Total force [Fx, Fy, Fz] (N), spread equally over them.
+    pub force: [f64; 3],
+    /// "step" (full load from t = 0) or "ramp" (the C³ ramp over `ramp_time`, then held).
+    #[serde(default = "default_history")]
+    pub history: String,
+    /// Ramp duration T (s), for `history = "ramp"`.
+    #[serde(default)]
+    pub ramp_time: Option<f64>,
+}
+
+fn default_history() -> String {
+    "step".into()
 }
 
 fn default_select() -> String {
@@ -275,6 +315,12 @@ pub struct PdSolver {
     /// The device copy of the body when `device = "gpu"`: it owns the time stepping; `body`
     /// is brought up to date at every window end.
     device: Option<DeviceBody>,
+    /// Loads: particle, force at full load (N), and history of each load.
+    loads: Vec<(usize, [f64; 3], History)>,
+    /// Reported points: scalar names (x, y[, z]) and particle.
+    points: Vec<(Vec<String>, usize)>,
+    /// The body as one side of a lagrange coupling (then the side steps it).
+    lagrange: Option<(String, ExplicitSide)>,
 }
 
 /// Most lattice points a body's bounding box may hold (the largest runs here are ~10⁷).
@@ -664,12 +710,27 @@ impl PdSolver {
                     );
                 }
             };
-            let pts: Vec<usize> = match &ip.region {
-                Some(r) => base
-                    .into_iter()
-                    .filter(|&i| r.contains(&body.x0[i], three_d))
-                    .collect(),
-                None => base,
+            for (k, r) in ip.region.iter().chain(&ip.regions).enumerate() {
+                if let Err(e) = r.check(three_d) {
+                    let key = match ip.region {
+                        Some(_) if k == 0 => format!("interfaces[{n}].region"),
+                        Some(_) => format!("interfaces[{n}].regions[{}]", k - 1),
+                        None => format!("interfaces[{n}].regions[{k}]"),
+                    };
+                    return cfg(&key, e);
+                }
+            }
+            let pts: Vec<usize> = if ip.region.is_none() && ip.regions.is_empty() {
+                base
+            } else {
+                base.into_iter()
+                    .filter(|&i| {
+                        ip.region
+                            .iter()
+                            .chain(&ip.regions)
+                            .any(|r| r.contains(&body.x0[i], three_d))
+                    })
+                    .collect()
             };
             if pts.is_empty() {
                 return cfg(&format!("interfaces[{n}]"), "selects no particle");
@@ -701,6 +762,68 @@ impl PdSolver {
         } else {
             None
         };
+        let mut loads = Vec::new();
+        for (n, l) in p.loads.iter().enumerate() {
+            let key = format!("loads[{n}].");
+            if let Err(e) = l.region.check(three_d) {
+                return cfg(&format!("{key}region"), e);
+            }
+            if !l.force.iter().all(|f| f.is_finite()) {
+                return cfg(&format!("{key}force"), "must be finite");
+            }
+            let history = History::parse(&key, &l.history, l.ramp_time)?;
+            let pts: Vec<usize> = (0..body.len())
+                .filter(|&i| l.region.contains(&body.x0[i], three_d))
+                .collect();
+            if pts.is_empty() {
+                return cfg(&format!("{key}region"), "holds no particle");
+            }
+            let share = 1.0 / pts.len() as f64;
+            loads.extend(
+                pts.into_iter()
+                    .map(|i| (i, l.force.map(|f| f * share), history)),
+            );
+        }
+        if on_gpu && !p.loads.is_empty() {
+            return cfg(
+                "device",
+                "\"gpu\" does not support loads: use device = \"cpu\"",
+            );
+        }
+        let axes: &[&str] = if three_d {
+            &["x", "y", "z"]
+        } else {
+            &["x", "y"]
+        };
+        let mut points = Vec::with_capacity(p.points.len());
+        for (name, at) in &p.points {
+            let key = format!("points.{name}");
+            if at.len() != axes.len() || !at.iter().all(|x| x.is_finite()) {
+                return cfg(
+                    &key,
+                    format!("must be {} finite coordinates, got {at:?}", axes.len()),
+                );
+            }
+            let dist = |i: usize| -> f64 {
+                at.iter()
+                    .enumerate()
+                    .map(|(d, x)| (body.x0[i][d] - x).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            };
+            let near = (0..body.len()).min_by(|&a, &b| dist(a).total_cmp(&dist(b)));
+            match near {
+                Some(i) if dist(i) <= 0.5 * p.spacing => {
+                    points.push((axes.iter().map(|a| format!("{name}_u{a}")).collect(), i))
+                }
+                _ => {
+                    return cfg(&key, format!("no particle within half a spacing of {at:?}"));
+                }
+            }
+        }
+        if p.substeps == Some(0) {
+            return cfg("substeps", "must be ≥ 1, got 0");
+        }
         let n = body.len();
         Ok(PdSolver {
             model_name,
@@ -719,6 +842,9 @@ impl PdSolver {
             first_damage: None,
             fragment_cache: None,
             device,
+            loads,
+            points,
+            lagrange: None,
         })
     }
 
@@ -876,9 +1002,258 @@ impl PdSolver {
         )
     }
 
+    /// The window's report at `w.t1`, after `nsub` particle steps (the state of the body and
+    /// the running sums of this solver).
+    fn window_report(
+        &mut self,
+        w: &Window,
+        nsub: u64,
+        wall: std::time::Instant,
+    ) -> SolverResult<StepReport> {
+        self.body.time = w.t1;
+        let dev_report = self.device.as_ref().map(|d| d.last_report().clone());
+        let diverged = match &dev_report {
+            // the device path: the kinetic energy reduced over every particle
+            Some(r) => !r.kinetic_energy.is_finite(),
+            None => self
+                .body
+                .vel
+                .iter()
+                .any(|v| !(v[0].is_finite() && v[1].is_finite() && v[2].is_finite())),
+        };
+        if diverged {
+            return Err(SolverError::Diverged {
+                time: w.t1,
+                reason: "non-finite particle velocity".into(),
+            });
+        }
+        let damage = self.body.damage();
+        let broken = damage.iter().filter(|&&d| d >= 1.0 - 1e-12).count();
+        let maxd = damage.iter().cloned().fold(0.0, f64::max);
+        let mut fracture = self.fracture_scalars(w.t1, &damage);
+        if let Some(r) = &dev_report {
+            // the host model's stresses stay at their start values on the device path
+            for (name, v) in fracture.iter_mut() {
+                match name.as_str() {
+                    "max_von_mises" => *v = r.max_von_mises,
+                    "max_plastic_strain" => *v = r.max_plastic_strain,
+                    _ => {}
+                }
+            }
+        }
+        let (strain, plastic, released) = self.energies();
+        Ok(StepReport {
+            kinetic_energy: match &dev_report {
+                Some(r) => r.kinetic_energy,
+                None => self.body.kinetic_energy(),
+            },
+            internal_energy: strain,
+            external_work: self.external_work,
+            interface_work: self.interface_work,
+            momentum: match &dev_report {
+                Some(r) => r.momentum,
+                None => self.body.momentum(),
+            },
+            momentum_gross: match &dev_report {
+                Some(r) => r.momentum_gross,
+                None => self.body.momentum_gross(),
+            },
+            external_impulse: self.external_impulse,
+            applied_impulse: self.applied_impulse,
+            interface_impulse: self.interface_impulse,
+            substeps: nsub,
+            wall_s: wall.elapsed().as_secs_f64(),
+            coupling_wait_s: 0.0,
+            idle_s: 0.0,
+            scalars: {
+                let mut v = vec![
+                    ("max_damage".into(), maxd),
+                    ("free_particles".into(), broken as f64),
+                ];
+                // Displacement of the centre of mass (seed 000 Fig. 4a plots its x part).
+                let b = &self.body;
+                let m: f64 = b.vol.iter().sum();
+                for (d, axis) in ["x", "y", "z"].iter().enumerate() {
+                    let u: f64 = match &dev_report {
+                        Some(r) => r.vol_disp[d],
+                        None => (0..b.len()).map(|i| b.vol[i] * b.disp[i][d]).sum(),
+                    };
+                    v.push((
+                        format!("com_displacement_{axis}"),
+                        u / m.max(f64::MIN_POSITIVE),
+                    ));
+                }
+                v.extend(fracture);
+                v.push(("plastic_work".into(), plastic));
+                v.push(("fracture_energy".into(), released));
+                for (names, i) in &self.points {
+                    for (d, name) in names.iter().enumerate() {
+                        v.push((name.clone(), b.disp[*i][d]));
+                    }
+                }
+                if let Some(dev) = &self.device {
+                    // precision of the device arithmetic (64, or 32 with a warning in the log)
+                    let bits = if dev.warning().is_some() { 32.0 } else { 64.0 };
+                    v.push(("gpu_precision_bits".into(), bits));
+                }
+                v
+            },
+        })
+    }
+
+    /// The particles of interface `name` (empty when there is none).
+    pub fn interface_points(&self, name: &str) -> Vec<usize> {
+        self.points_of(name)
+            .map(<[usize]>::to_vec)
+            .unwrap_or_default()
+    }
+
+    /// The force of the loads on particle `i` at full load (N).
+    pub fn load_on(&self, i: usize) -> [f64; 3] {
+        let mut f = [0.0; 3];
+        for (_, g, _) in self.loads.iter().filter(|(j, _, _)| *j == i) {
+            for d in 0..3 {
+                f[d] += g[d];
+            }
+        }
+        f
+    }
+
     /// Stable step with the safety factor.
     pub fn dt(&self) -> f64 {
         self.params.cfl * self.body.stable_dt()
+    }
+
+    /// Makes the body one side of a lagrange coupling on `interface` (seed 003 §4, §5.4;
+    /// `pd::lagrange`) for the system step `window`: every component of every interface
+    /// particle tied, local multipliers `first_lambda` + … with sign `sign` in B (through
+    /// `cosim run`: 0 and +1, the coordinator assigns them). The particle step is `window` /
+    /// `substeps` (default: as the stable step needs); gs4 and ph take one per window.
+    pub fn lagrange_side_for(
+        &mut self,
+        interface: &str,
+        method: Method,
+        window: f64,
+        (first_lambda, sign): (usize, f64),
+    ) -> SolverResult<()> {
+        if self.lagrange.is_some() {
+            return Err(SolverError::interface(
+                interface,
+                "a peridynamic body is one side of one lagrange coupling",
+            ));
+        }
+        if self.device.is_some() {
+            return cfg(
+                "device",
+                "a lagrange side runs on the cpu: use device = \"cpu\"",
+            );
+        }
+        if !self.bc_particles.is_empty() {
+            return cfg(
+                "prescribed_velocity",
+                "a lagrange side takes no prescribed velocity (hold the supports on another \
+                 subdomain)",
+            );
+        }
+        if self.params.pressure_pulse.is_some() {
+            return cfg("pressure_pulse", "a lagrange side takes loads only");
+        }
+        let pts = self.points_of(interface)?.to_vec();
+        let substeps = match self.params.substeps {
+            Some(m) => m,
+            None => (window / self.dt() - 1e-9).ceil().max(1.0) as usize,
+        };
+        let dt = window / substeps as f64;
+        let limit = self.body.stable_dt();
+        if !(dt <= limit * (1.0 + 1e-12)) {
+            return cfg(
+                "substeps",
+                format!(
+                    "{substeps} steps per window of {window:e} s take {dt:e} s, beyond the \
+                     particles' stable step {limit:e} s"
+                ),
+            );
+        }
+        let gc = method == Method::Gc;
+        if !gc && substeps != 1 {
+            return cfg(
+                "substeps",
+                format!(
+                    "{method:?} takes one particle step per system step (an explicit side's \
+                     condensed operator over {substeps} substeps would need its stiffness): set \
+                     run.window ≤ {:e} s, or method = \"gc\"",
+                    self.dt()
+                ),
+            );
+        }
+        let mut history = History::Step;
+        for (k, l) in self.params.loads.iter().enumerate() {
+            let h = History::parse("", &l.history, l.ramp_time)?;
+            if k > 0 && h != history {
+                return cfg(
+                    &format!("loads[{k}].history"),
+                    "a lagrange side takes loads of one history",
+                );
+            }
+            history = h;
+        }
+        let loads = self.loads.iter().map(|&(i, f, _)| (i, f)).collect();
+        let comps = if self.body.dim.three_d() { 3 } else { 2 };
+        let steps = if gc { substeps } else { 1 };
+        let side = ExplicitSide::new(
+            &self.body,
+            &pts,
+            comps,
+            (first_lambda, sign),
+            (dt, steps, gc),
+            loads,
+            history,
+        );
+        self.lagrange = Some((interface.to_string(), side));
+        Ok(())
+    }
+}
+
+/// The body's lagrange side (the solver's, so that the side steps the body it owns);
+/// without one, an empty side.
+impl LagrangeSide for PdSolver {
+    fn multiplier_ids(&self) -> &[usize] {
+        self.lagrange
+            .as_ref()
+            .map_or(&[], |(_, s)| s.multiplier_ids())
+    }
+    fn coupling_steps(&self) -> usize {
+        self.lagrange
+            .as_ref()
+            .map_or(1, |(_, s)| s.coupling_steps())
+    }
+    fn operator(&self) -> &[f64] {
+        self.lagrange.as_ref().map_or(&[], |(_, s)| s.operator())
+    }
+    fn initial(&mut self, free: &mut [f64], op: &mut [f64]) {
+        if let Some((_, s)) = self.lagrange.as_mut() {
+            s.initial(&self.body, free, op);
+        }
+    }
+    fn set_initial(&mut self, lambda0: &[f64]) {
+        if let Some((_, s)) = self.lagrange.as_mut() {
+            s.set_initial(&self.body, lambda0);
+        }
+    }
+    fn free_step(&mut self, v_start: &mut [f64], v_free: &mut [f64]) {
+        if let Some((_, s)) = self.lagrange.as_mut() {
+            s.free_step(&mut self.body, v_start, v_free);
+        }
+    }
+    fn correct(&mut self, lambda: &[f64]) {
+        if let Some((_, s)) = self.lagrange.as_mut() {
+            s.correct(&mut self.body, lambda);
+        }
+    }
+    fn interface_work(&self) -> f64 {
+        self.lagrange
+            .as_ref()
+            .map_or(0.0, |(_, s)| s.interface_work)
     }
 }
 
@@ -1059,6 +1434,7 @@ impl Solver for PdSolver {
                         "force",
                         "mass",
                         "stiffness",
+                        "lagrange_operator",
                     ]
                     .iter()
                     .map(|s| s.to_string())
@@ -1082,6 +1458,17 @@ impl Solver for PdSolver {
 
     fn setup(&mut self, bindings: &[Binding], inbox: &Inbox, out: &mut Outbox) -> SolverResult<()> {
         self.coupled.clear();
+        self.lagrange = None;
+        if bindings.len() > 1
+            && let Some(b) = bindings.iter().find(|b| b.kind == CouplingKind::Lagrange)
+        {
+            return Err(SolverError::interface(
+                &b.interface,
+                "a peridynamic lagrange side takes no other coupling: join its edges in one \
+                 interface (params.interfaces[].regions) and list every subdomain in that \
+                 coupling's sides",
+            ));
+        }
         for b in bindings {
             let pts = self.points_of(&b.interface)?.to_vec();
             match (b.kind, b.role) {
@@ -1124,10 +1511,8 @@ impl Solver for PdSolver {
                     self.send_motion(&b.interface, &pts, out, false);
                 }
                 (CouplingKind::Lagrange, _) => {
-                    return Err(SolverError::interface(
-                        &b.interface,
-                        "lagrange coupling is not offered by the peridynamic node",
-                    ));
+                    let (method, window) = lwire::request(inbox, &b.interface)?;
+                    self.lagrange_side_for(&b.interface, method, window, (0, 1.0))?;
                 }
             }
             self.coupled.push(Coupled {
@@ -1144,6 +1529,13 @@ impl Solver for PdSolver {
         self.dt()
     }
 
+    fn lagrange_side(&mut self, interface: &str) -> Option<&mut dyn LagrangeSide> {
+        match &self.lagrange {
+            Some((name, _)) if name == interface => Some(self),
+            _ => None,
+        }
+    }
+
     fn advance(&mut self, w: &Window, inbox: &Inbox, out: &mut Outbox) -> SolverResult<StepReport> {
         let wall = std::time::Instant::now();
         let span = w.t1 - w.t0;
@@ -1152,6 +1544,22 @@ impl Solver for PdSolver {
                 "empty window [{}, {}]",
                 w.t0, w.t1
             )));
+        }
+        if let Some((_, side)) = &self.lagrange {
+            // The runtime stepped the body through the side: its sums are the window's.
+            let nsub = (span / side.dt()).round().max(1.0) as u64;
+            let (g, total) = (side.load_integral, side.load_total());
+            self.external_work = side.external_work;
+            self.external_impulse = total.map(|f| f * g);
+            self.applied_impulse = g.abs()
+                * self
+                    .loads
+                    .iter()
+                    .map(|(_, f, _)| (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt())
+                    .sum::<f64>();
+            self.interface_impulse = side.interface_impulse;
+            self.interface_work = side.interface_work;
+            return self.window_report(w, nsub, wall);
         }
         let nsub = (span / self.dt() - 1e-9).ceil().max(1.0) as u64;
         let dt = span / nsub as f64;
@@ -1238,6 +1646,15 @@ impl Solver for PdSolver {
                 let t = w.t0 + step as f64 * dt;
                 let pr = self.pressure_at(t + 0.5 * dt);
                 self.body.fext.copy_from_slice(&self.fcouple);
+                for &(i, f, h) in &self.loads {
+                    let g = h.at(t + 0.5 * dt);
+                    for d in 0..3 {
+                        self.body.fext[i][d] += g * f[d];
+                        self.external_impulse[d] += g * f[d] * dt;
+                    }
+                    self.applied_impulse +=
+                        g.abs() * (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt() * dt;
+                }
                 for &(i, a) in &self.pressure_area {
                     for d in 0..3 {
                         self.body.fext[i][d] += pr * a[d];
@@ -1253,6 +1670,12 @@ impl Solver for PdSolver {
                     for d in 0..3 {
                         self.interface_impulse[d] += self.fcouple[i][d] * dt;
                         self.interface_work += self.fcouple[i][d] * dt * self.body.vel[i][d];
+                    }
+                }
+                for &(i, f, h) in &self.loads {
+                    let g = h.at(t + 0.5 * dt);
+                    for d in 0..3 {
+                        self.external_work += g * f[d] * dt * self.body.vel[i][d];
                     }
                 }
                 // Supports: the impulse that holds prescribed particles on their path.
@@ -1285,23 +1708,6 @@ impl Solver for PdSolver {
             }
             self.body.eval_forces(0.0);
         }
-        self.body.time = w.t1;
-        let dev_report = self.device.as_ref().map(|d| d.last_report().clone());
-        let diverged = match &dev_report {
-            // the device path: the kinetic energy reduced over every particle
-            Some(r) => !r.kinetic_energy.is_finite(),
-            None => self
-                .body
-                .vel
-                .iter()
-                .any(|v| !(v[0].is_finite() && v[1].is_finite() && v[2].is_finite())),
-        };
-        if diverged {
-            return Err(SolverError::Diverged {
-                time: w.t1,
-                reason: "non-finite particle velocity".into(),
-            });
-        }
         // Outputs at t1.
         for c in &coupled {
             let pts = self.points_of(&c.interface)?.to_vec();
@@ -1317,73 +1723,7 @@ impl Solver for PdSolver {
                 (CouplingKind::Lagrange, _) => {}
             }
         }
-        let damage = self.body.damage();
-        let broken = damage.iter().filter(|&&d| d >= 1.0 - 1e-12).count();
-        let maxd = damage.iter().cloned().fold(0.0, f64::max);
-        let mut fracture = self.fracture_scalars(w.t1, &damage);
-        if let Some(r) = &dev_report {
-            // the host model's stresses stay at their start values on the device path
-            for (name, v) in fracture.iter_mut() {
-                match name.as_str() {
-                    "max_von_mises" => *v = r.max_von_mises,
-                    "max_plastic_strain" => *v = r.max_plastic_strain,
-                    _ => {}
-                }
-            }
-        }
-        let (strain, plastic, released) = self.energies();
-        Ok(StepReport {
-            kinetic_energy: match &dev_report {
-                Some(r) => r.kinetic_energy,
-                None => self.body.kinetic_energy(),
-            },
-            internal_energy: strain,
-            external_work: self.external_work,
-            interface_work: self.interface_work,
-            momentum: match &dev_report {
-                Some(r) => r.momentum,
-                None => self.body.momentum(),
-            },
-            momentum_gross: match &dev_report {
-                Some(r) => r.momentum_gross,
-                None => self.body.momentum_gross(),
-            },
-            external_impulse: self.external_impulse,
-            applied_impulse: self.applied_impulse,
-            interface_impulse: self.interface_impulse,
-            substeps: nsub,
-            wall_s: wall.elapsed().as_secs_f64(),
-            coupling_wait_s: 0.0,
-            idle_s: 0.0,
-            scalars: {
-                let mut v = vec![
-                    ("max_damage".into(), maxd),
-                    ("free_particles".into(), broken as f64),
-                ];
-                // Displacement of the centre of mass (seed 000 Fig. 4a plots its x part).
-                let b = &self.body;
-                let m: f64 = b.vol.iter().sum();
-                for (d, axis) in ["x", "y", "z"].iter().enumerate() {
-                    let u: f64 = match &dev_report {
-                        Some(r) => r.vol_disp[d],
-                        None => (0..b.len()).map(|i| b.vol[i] * b.disp[i][d]).sum(),
-                    };
-                    v.push((
-                        format!("com_displacement_{axis}"),
-                        u / m.max(f64::MIN_POSITIVE),
-                    ));
-                }
-                v.extend(fracture);
-                v.push(("plastic_work".into(), plastic));
-                v.push(("fracture_energy".into(), released));
-                if let Some(dev) = &self.device {
-                    // precision of the device arithmetic (64, or 32 with a warning in the log)
-                    let bits = if dev.warning().is_some() { 32.0 } else { 64.0 };
-                    v.push(("gpu_precision_bits".into(), bits));
-                }
-                v
-            },
-        })
+        self.window_report(w, nsub, wall)
     }
 
     /// The body at set-up: its particles may start moving (a launched block); it starts
@@ -1423,6 +1763,13 @@ impl Solver for PdSolver {
 
     fn save_state(&self) -> SolverResult<Vec<u8>> {
         use super::checkpoint::{Writer, flat3};
+        if self.lagrange.is_some() {
+            return Err(SolverError::Other(
+                "a peridynamic lagrange side cannot checkpoint yet (its coupling state is not \
+                 saved)"
+                    .into(),
+            ));
+        }
         let b = &self.body;
         // the device path keeps the state on the device: read it in full here
         let snap = match &self.device {
