@@ -547,25 +547,26 @@ fn sides_ideal(gamma: f64, inv_g: f64, off: f64, q: &[f64], c: &mut [f64], e: &m
     }
 }
 
-/// HLLC fluxes of one line of faces from its reconstructed sides: `lb`/`rb` hold the left
-/// and right face values (nv blocks of `len`), `ce` is scratch of 4·len. `rows[s]` holds
-/// stencil cell s (s = 0..3 around the face between cells 1 and 2) at x index
-/// `i + sh[s] - 1`, for the first-order fallback where a reconstructed side is inadmissible.
+/// HLLC fluxes of a line (or a batch of lines) of `len` faces from their reconstructed
+/// sides: `lb`/`rb` hold the left and right face values (nv blocks of `len`), `ce` is
+/// scratch of 4·len; face t's flux entry v goes to `out[v * ostride + o0 + t]`. `cell(v, t)`
+/// gives variable v of the cells left and right of face t, for the first-order fallback
+/// where a reconstructed side is inadmissible.
 #[inline(always)]
 fn riemann_line<const NM: usize, const D: usize>(
     ph: &[Phase; NM],
     lb: &[f64],
     rb: &[f64],
     ce: &mut [f64],
-    rows: [&[f64]; 4],
-    sh: [usize; 4],
     out: &mut [f64],
-    mx: usize,
-    irange: std::ops::Range<usize>,
+    ostride: usize,
+    o0: usize,
+    len: usize,
+    cell: impl Fn(usize, usize) -> [f64; 2],
 ) {
     let nv = 2 * NM + 3;
-    let (i0, i1) = (irange.start, irange.end);
-    let len = i1 - i0;
+    let (i0, i1) = (o0, o0 + len);
+    let mx = ostride;
     // single ideal gas: sound speed and total energy of every face side in one
     // vectorisable pass, then every face at once; faces with a rejected side are redone
     // by the general path below
@@ -634,8 +635,7 @@ fn riemann_line<const NM: usize, const D: usize>(
                 let mut q1 = [0.0; MAXF];
                 let mut q2 = [0.0; MAXF];
                 for v in 0..nv {
-                    q1[v] = rows[1][v * mx + i + sh[1] - 1];
-                    q2[v] = rows[2][v * mx + i + sh[2] - 1];
+                    [q1[v], q2[v]] = cell(v, t);
                 }
                 match (face_state::<NM>(ph, &q1), face_state::<NM>(ph, &q2)) {
                     (Some(a), Some(b)) => (a, b),
@@ -681,7 +681,8 @@ fn flux_row_x_into<const NM: usize>(
         let hi = &mut rb[v * len..(v + 1) * len];
         recon_row_x(lim, q, i0, s, lo, hi);
     }
-    riemann_line::<NM, 0>(ph, lb, rb, ce, [row; 4], [0, 1, 2, 3], out, mx, irange);
+    let cell = |v: usize, t: usize| [row[v * mx + i0 + t], row[v * mx + i0 + t + 1]];
+    riemann_line::<NM, 0>(ph, lb, rb, ce, out, mx, i0, len, cell);
 }
 
 /// [`flux_row_x_into`] with a growable per-thread scratch.
@@ -879,7 +880,8 @@ fn face_line<const NM: usize, const D: usize>(
         face_values(var(2), sv, &mut rb[v * len..(v + 1) * len], -1.0);
     }
     *cached = Some((r + stride, 1 - h));
-    riemann_line::<NM, D>(ph, lb, rb, ce, rows, [1; 4], out, mx, ir);
+    let cell = |v: usize, t: usize| [rows[1][v * mx + i0 + t], rows[2][v * mx + i0 + t]];
+    riemann_line::<NM, D>(ph, lb, rb, ce, out, mx, i0, len, cell);
 }
 
 /// One RK stage of a block of rows of a 2-D grid, fused: for each interior row, its x-face
@@ -1049,20 +1051,109 @@ fn fused_block_planes(planes: usize) -> usize {
     (planes / (4 * rayon::current_num_threads())).clamp(3, 16)
 }
 
-/// y lines per tile of the fused 3-D stage: a tile's z-face lines and slopes (two lines of
-/// fluxes and two rows of slopes per y line) and the primitive rows they read stay in cache
-/// while the tile sweeps up its planes; each tile recomputes one y-face line per plane.
-const TILE_J: usize = 16;
+/// y lines per tile of the fused 3-D stage: a tile's face batches, slopes and the primitive
+/// rows they read stay in cache while the tile sweeps up its planes.
+const TILE_J: usize = 8;
+
+/// MUSCL face values of a batch of `lines` lines of `w` faces into `lb`/`rb` (nv blocks of
+/// lines·w, line l's faces at `l * w ..`): `ends(l) = [ql, sl, qr, sr]` places line l's
+/// left sides' cells at `q[ql..]` and their limited slopes at `s[sl..]` (variable v `mx`
+/// further on per v), its right sides' at `qr`, `sr` (seed 002 §2.3: lo = q + ½σ,
+/// hi = q − ½σ).
+#[inline(always)]
+fn face_batch(
+    q: &[f64],
+    s: &[f64],
+    nv: usize,
+    mx: usize,
+    lines: usize,
+    w: usize,
+    lb: &mut [f64],
+    rb: &mut [f64],
+    ends: impl Fn(usize) -> [usize; 4],
+) {
+    let m = lines * w;
+    for l in 0..lines {
+        let [ql, sl, qr, sr] = ends(l);
+        for v in 0..nv {
+            let o = v * mx;
+            let lo = &mut lb[v * m + l * w..v * m + (l + 1) * w];
+            face_values(&q[ql + o..], &s[sl + o..], lo, 1.0);
+            let hi = &mut rb[v * m + l * w..v * m + (l + 1) * w];
+            face_values(&q[qr + o..], &s[sr + o..], hi, -1.0);
+        }
+    }
+}
+
+/// The z faces of a tile of rows of the fused 3-D stage: rows j0..j0 + jn of a plane.
+#[derive(Clone, Copy)]
+struct ZBatch<'a> {
+    prim: &'a [f64],
+    grid: &'a Grid,
+    j0: usize,
+    jn: usize,
+    walls: Option<WallPatch<'a>>,
+}
+
+impl ZBatch<'_> {
+    /// The fluxes of the z faces between planes k and k + 1 of the tile's rows into `out`
+    /// (nf blocks of jn·n0, row l's faces at `l * n0 ..`), from the limited slopes `sl` of
+    /// plane k's rows and `sh` of plane k + 1's (blocks of nv·mx per row), walls applied;
+    /// `work` = [lb, rb, ce] scratch of [`riemann_line`].
+    #[inline(always)]
+    fn faces<const NM: usize>(
+        &self,
+        ph: &[Phase; NM],
+        k: usize,
+        sl: &[f64],
+        sh: &[f64],
+        out: &mut [f64],
+        work: [&mut [f64]; 3],
+    ) {
+        let nv = 2 * NM + 3;
+        let (grid, prim, j0, jn) = (self.grid, self.prim, self.j0, self.jn);
+        let mx = grid.mx();
+        let rowblk = nv * mx;
+        let (i0, n0) = (grid.g[0], grid.n[0]);
+        let zs = jn * n0;
+        let [lb, rb, ce] = work;
+        let qs = [grid.row(j0, k) * rowblk, grid.row(j0, k + 1) * rowblk];
+        for l in 0..jn {
+            for v in 0..nv {
+                let o = l * rowblk + v * mx + i0;
+                let (x0, x1) = (v * zs + l * n0, v * zs + (l + 1) * n0);
+                face_values(&prim[qs[0] + o..], &sl[o..], &mut lb[x0..x1], 1.0);
+                face_values(&prim[qs[1] + o..], &sh[o..], &mut rb[x0..x1], -1.0);
+            }
+        }
+        let cell = |v: usize, t: usize| {
+            let (l, x) = (t / n0, t % n0);
+            let o = l * rowblk + v * mx + i0 + x;
+            [prim[qs[0] + o], prim[qs[1] + o]]
+        };
+        riemann_line::<NM, 2>(ph, lb, rb, ce, out, zs, 0, zs, cell);
+        if let Some(w) = self.walls {
+            for l in 0..jn {
+                let line = grid.row(j0 + l, k);
+                w.apply_strided(2, line, &mut out[l * n0..], zs, i0, n0);
+            }
+        }
+    }
+}
 
 /// One RK stage of a block of planes of a 3-D grid, fused (the 3-D form of
-/// [`fused_block_body`]): the interior y lines of the planes go in tiles of [`TILE_J`]; a
-/// tile sweeps up the planes, keeping for each of its y lines the z-face fluxes below and
-/// above the row (and the limited slopes of the next row along z, so each row's z slopes
-/// are computed once), and within a plane the y-face fluxes below and above the row, as
-/// the 2-D block does; each row's x-face fluxes go into scratch and the row is updated at
-/// once. Faces that are immersed walls take the stage's wall fluxes (`walls`). Only the
-/// domain boundary faces are stored in `fl` (the block's rows of `flux[0..3]`), for
-/// [`boundary_flux`]. Every value is that of `fluxes` + `write_wall_fluxes` + `update`.
+/// [`fused_block_body`]). The interior y lines of the planes go in tiles of [`TILE_J`]
+/// rows; a tile sweeps up the planes and, per plane, computes its faces in three batches
+/// (the z faces above its rows, the y faces between them, the x faces of each row), each
+/// batch one long vectorised pass rather than a pass per line: the limited slopes of a
+/// whole block of rows in one pass over the contiguous rows (ghost columns included, never
+/// read), the face values, then [`riemann_line`] over every face of the batch. Each row's
+/// z slopes are computed once (the tile keeps the slopes of the plane above), each y-face
+/// line once (a tile hands its top line to the next tile of the same plane), and the rows
+/// are updated at once. Faces that are immersed walls take the stage's wall fluxes
+/// (`walls`). Only the domain boundary faces are stored in `fl` (the block's rows of
+/// `flux[0..3]`), for [`boundary_flux`]. Every value is that of `fluxes` +
+/// `write_wall_fluxes` + `update`: the same operations on the same operands per face.
 #[inline(always)]
 fn fused_planes_body<const NM: usize>(
     ph: &[Phase; NM],
@@ -1084,37 +1175,47 @@ fn fused_planes_body<const NM: usize>(
     let nf = nv + 1;
     let mx = grid.mx();
     let (g, n, m1) = (grid.g, grid.n, grid.m[1]);
-    let ir = grid.irange();
-    let len = ir.end - ir.start;
-    let lx = len + 1;
+    let (i0, n0) = (g[0], n[0]);
+    let nx = n0 + 1;
     let rowblk = nv * mx;
     let fblk = nf * mx;
     let nrows = u.len() / rowblk;
     let jt = TILE_J.min(n[1]);
-    let slz_n = 2 * nv * len;
-    let work_n = (2 * nv + 5) * lx + 1;
-    let need = work_n + slz_n * (1 + jt) + fblk * (3 + 2 * jt);
+    let (kp0, kp1) = (r0 / m1, (r0 + nrows) / m1);
+    let (klo, khi) = (kp0.max(g[2]), kp1.min(g[2] + n[2]));
+    let planes = khi.saturating_sub(klo);
+    // the largest batch: jt + 1 lines of y faces or jt lines of x faces
+    let mb = (jt + 1) * nx;
+    let need = 2 * nv * mb
+        + 4 * mb
+        + rowblk * (2 * jt + (jt + 2) + jt)
+        + nf * (2 * jt * n0 + (jt + 1) * n0 + jt * nx)
+        + nf * n0 * planes;
     if buf.len() < need {
         buf.resize(need, 0.0);
     }
-    let (work, rest) = buf.split_at_mut(work_n);
-    let (sly, rest) = rest.split_at_mut(slz_n);
-    let (slz, rest) = rest.split_at_mut(slz_n * jt);
-    let (fx, rest) = rest.split_at_mut(fblk);
-    let (fa, rest) = rest.split_at_mut(fblk);
-    let (fb, rest) = rest.split_at_mut(fblk);
-    let (za, rest) = rest.split_at_mut(fblk * jt);
-    let (zb, _) = rest.split_at_mut(fblk * jt);
+    let (lb, rest) = buf.split_at_mut(nv * mb);
+    let (rb, rest) = rest.split_at_mut(nv * mb);
+    let (ce, rest) = rest.split_at_mut(4 * mb);
+    let (zsa, rest) = rest.split_at_mut(jt * rowblk);
+    let (zsb, rest) = rest.split_at_mut(jt * rowblk);
+    let (sy, rest) = rest.split_at_mut((jt + 2) * rowblk);
+    let (sx, rest) = rest.split_at_mut(jt * rowblk);
+    let (za, rest) = rest.split_at_mut(nf * jt * n0);
+    let (zb, rest) = rest.split_at_mut(nf * jt * n0);
+    let (yf, rest) = rest.split_at_mut(nf * (jt + 1) * n0);
+    let (xf, rest) = rest.split_at_mut(nf * jt * nx);
+    let ytop = &mut rest[..nf * n0 * planes];
     let [fxb, fyb, fzb] = fl;
-    // keep the domain boundary face line `line` of direction d if this block holds its row
-    let mut keep = |d: usize, line: usize, src: &[f64]| {
+    // keep the domain boundary face line `line` normal to d (1 or 2), held at `src[v *
+    // stride]..` (interior faces only), if this block holds its row
+    let keep = |fb: &mut [f64], line: usize, src: &[f64], stride: usize| {
         if line >= r0 && line < r0 + nrows {
             let o = (line - r0) * fblk;
-            let dst = match d {
-                1 => &mut fyb[o..o + fblk],
-                _ => &mut fzb[o..o + fblk],
-            };
-            dst.copy_from_slice(src);
+            for v in 0..nf {
+                let d = o + v * mx + i0;
+                fb[d..d + n0].copy_from_slice(&src[v * stride..v * stride + n0]);
+            }
         }
     };
     if first {
@@ -1126,88 +1227,155 @@ fn fused_planes_body<const NM: usize>(
             }
         }
     }
-    let (kp0, kp1) = (r0 / m1, (r0 + nrows) / m1);
-    let (klo, khi) = (kp0.max(g[2]), kp1.min(g[2] + n[2]));
-    let xfaces = g[0] - 1..g[0] + n[0];
+    // offset in `prim` of row (j, k)
+    let at = |j: usize, k: usize| grid.row(j, k) * rowblk;
     let mut j0 = g[1];
-    while klo < khi && j0 < g[1] + n[1] {
+    while planes > 0 && j0 < g[1] + n[1] {
         let j1 = (j0 + jt).min(g[1] + n[1]);
+        let jn = j1 - j0;
         let (mut z_lo, mut z_hi) = (&mut *za, &mut *zb);
-        let mut zc: [Option<(usize, usize)>; TILE_J] = [None; TILE_J];
+        let (mut s_lo, mut s_hi) = (&mut *zsa, &mut *zsb);
+        let zs = jn * n0;
+        // the z slopes of this tile's rows in plane k: one pass over the contiguous rows
+        let plane = at(0, 1);
+        let zslopes = |k: usize| {
+            let c = at(j0, k);
+            [c - plane, c, c + plane]
+        };
+        let zb = ZBatch {
+            prim,
+            grid,
+            j0,
+            jn,
+            walls,
+        };
         // the z faces below the block's first plane
-        for (t, j) in (j0..j1).enumerate() {
-            let line = grid.row(j, klo - 1);
-            let out = &mut z_lo[t * fblk..(t + 1) * fblk];
-            let sl = &mut slz[t * slz_n..(t + 1) * slz_n];
-            face_line::<NM, 2>(ph, lim, grid, prim, line, out, work, sl, &mut zc[t]);
-            if let Some(w) = walls {
-                w.apply(2, line, out);
-            }
-            if klo - 1 == g[2] - 1 {
-                keep(2, line, out);
+        let [qm, q, qp] = zslopes(klo - 1);
+        slopes(
+            lim,
+            &prim[qm..],
+            &prim[q..],
+            &prim[qp..],
+            &mut s_lo[..jn * rowblk],
+        );
+        let [qm, q, qp] = zslopes(klo);
+        slopes(
+            lim,
+            &prim[qm..],
+            &prim[q..],
+            &prim[qp..],
+            &mut s_hi[..jn * rowblk],
+        );
+        zb.faces::<NM>(ph, klo - 1, s_lo, s_hi, z_lo, [lb, rb, ce]);
+        if klo - 1 == g[2] - 1 {
+            for l in 0..jn {
+                keep(fzb, grid.row(j0 + l, klo - 1), &z_lo[l * n0..], zs);
             }
         }
-        let mut yc = None;
         for k in klo..khi {
-            for (t, j) in (j0..j1).enumerate() {
+            // s_hi holds plane k's slopes: plane k + 1's go to s_lo
+            std::mem::swap(&mut s_lo, &mut s_hi);
+            let [qm, q, qp] = zslopes(k + 1);
+            slopes(
+                lim,
+                &prim[qm..],
+                &prim[q..],
+                &prim[qp..],
+                &mut s_hi[..jn * rowblk],
+            );
+            zb.faces::<NM>(ph, k, s_lo, s_hi, z_hi, [lb, rb, ce]);
+            if k == g[2] + n[2] - 1 {
+                for l in 0..jn {
+                    keep(fzb, grid.row(j0 + l, k), &z_hi[l * n0..], zs);
+                }
+            }
+            // y faces: line slot s lies between rows j0 - 1 + s and j0 + s; the first tile
+            // computes slot 0, the later ones take it from the tile below
+            let ys = (jn + 1) * n0;
+            let top = &mut ytop[(k - klo) * nf * n0..(k - klo + 1) * nf * n0];
+            let jb = if j0 == g[1] { j0 - 1 } else { j0 };
+            let skip = jb + 1 - j0;
+            if skip == 1 {
+                for v in 0..nf {
+                    yf[v * ys..v * ys + n0].copy_from_slice(&top[v * n0..(v + 1) * n0]);
+                }
+            }
+            let lines = j1 - jb;
+            let c = at(jb, k);
+            slopes(
+                lim,
+                &prim[c - rowblk..],
+                &prim[c..],
+                &prim[c + rowblk..],
+                &mut sy[..(lines + 1) * rowblk],
+            );
+            face_batch(&prim, sy, nv, mx, lines, n0, lb, rb, |l| {
+                let o = l * rowblk + i0;
+                [c + o, o, c + o + rowblk, o + rowblk]
+            });
+            let cell = |v: usize, t: usize| {
+                let (l, x) = (t / n0, t % n0);
+                let o = c + l * rowblk + v * mx + i0 + x;
+                [prim[o], prim[o + rowblk]]
+            };
+            riemann_line::<NM, 1>(ph, lb, rb, ce, yf, ys, skip * n0, lines * n0, cell);
+            for l in 0..lines {
+                let (j, sl) = (jb + l, (skip + l) * n0);
                 let line = grid.row(j, k);
-                let out = &mut z_hi[t * fblk..(t + 1) * fblk];
-                let sl = &mut slz[t * slz_n..(t + 1) * slz_n];
-                face_line::<NM, 2>(ph, lim, grid, prim, line, out, work, sl, &mut zc[t]);
                 if let Some(w) = walls {
-                    w.apply(2, line, out);
+                    w.apply_strided(1, line, &mut yf[sl..], ys, i0, n0);
                 }
-                if k == g[2] + n[2] - 1 {
-                    keep(2, line, out);
+                if j == g[1] - 1 || j == g[1] + n[1] - 1 {
+                    keep(fyb, line, &yf[sl..], ys);
                 }
             }
-            let (mut y_lo, mut y_hi) = (&mut *fa, &mut *fb);
-            let line = grid.row(j0 - 1, k);
-            face_line::<NM, 1>(ph, lim, grid, prim, line, y_lo, work, sly, &mut yc);
-            if let Some(w) = walls {
-                w.apply(1, line, y_lo);
+            for v in 0..nf {
+                top[v * n0..(v + 1) * n0].copy_from_slice(&yf[v * ys + jn * n0..v * ys + ys]);
             }
-            if j0 - 1 == g[1] - 1 {
-                keep(1, line, y_lo);
-            }
-            for (t, j) in (j0..j1).enumerate() {
-                let r = grid.row(j, k);
-                face_line::<NM, 1>(ph, lim, grid, prim, r, y_hi, work, sly, &mut yc);
-                let row = &prim[r * rowblk..(r + 1) * rowblk];
-                flux_row_x_into::<NM>(ph, lim, row, fx, mx, xfaces.clone(), work);
+            // x faces of each row: face t of a row between cells i0 - 1 + t and i0 + t
+            let c = at(j0, k);
+            slopes(
+                lim,
+                &prim[c - 1..],
+                &prim[c..],
+                &prim[c + 1..],
+                &mut sx[..jn * rowblk],
+            );
+            face_batch(&prim, sx, nv, mx, jn, nx, lb, rb, |l| {
+                let o = l * rowblk + i0 - 1;
+                [c + o, o, c + o + 1, o + 1]
+            });
+            let xs = jn * nx;
+            let cell = |v: usize, t: usize| {
+                let (l, x) = (t / nx, t % nx);
+                let o = c + l * rowblk + v * mx + i0 - 1 + x;
+                [prim[o], prim[o + 1]]
+            };
+            riemann_line::<NM, 0>(ph, lb, rb, ce, xf, xs, 0, xs, cell);
+            for l in 0..jn {
+                let r = grid.row(j0 + l, k);
                 if let Some(w) = walls {
-                    w.apply(1, r, y_hi);
-                    w.apply(0, r, fx);
-                }
-                if j == g[1] + n[1] - 1 {
-                    keep(1, r, y_hi);
+                    w.apply_strided(0, r, &mut xf[l * nx..], xs, i0 - 1, nx);
                 }
                 // the domain boundary x faces, for the boundary impulse
                 let o = (r - r0) * fblk;
                 for v in 0..nf {
-                    for i in [g[0] - 1, g[0] + n[0] - 1] {
-                        fxb[o + v * mx + i] = fx[v * mx + i];
-                    }
+                    fxb[o + v * mx + i0 - 1] = xf[v * xs + l * nx];
+                    fxb[o + v * mx + i0 + n0 - 1] = xf[v * xs + l * nx + n0];
                 }
                 let o = (r - r0) * rowblk;
                 let (uu, u0r) = (&mut u[o..o + rowblk], &u0[o..o + rowblk]);
                 if first {
                     uu.copy_from_slice(u0r);
                 }
-                let zf = [
-                    &z_hi[t * fblk..(t + 1) * fblk],
-                    &z_lo[t * fblk..(t + 1) * fblk],
+                let faces = [
+                    (&*xf, xs, l * nx),
+                    (&*yf, ys, (l + 1) * n0),
+                    (&*yf, ys, l * n0),
+                    (&*z_hi, zs, l * n0),
+                    (&*z_lo, zs, l * n0),
                 ];
-                update_row_faces::<NM>(
-                    grid,
-                    [&*fx, &*y_hi, &*y_lo, zf[0], zf[1]],
-                    uu,
-                    u0r,
-                    a,
-                    b,
-                    dt,
-                );
-                std::mem::swap(&mut y_lo, &mut y_hi);
+                update_row_strided::<NM>(grid, faces, uu, u0r, a, b, dt);
             }
             std::mem::swap(&mut z_lo, &mut z_hi);
         }
@@ -1353,29 +1521,55 @@ fn update_row_faces<const NM: usize>(
     b: f64,
     dt: f64,
 ) {
+    let mx = grid.mx();
+    let lo = grid.irange().start;
+    let [fx, fy, fym, fz, fzm] = faces;
+    let faces = [
+        (fx, mx, lo - 1),
+        (fy, mx, lo),
+        (fym, mx, lo),
+        (fz, mx, lo),
+        (fzm, mx, lo),
+    ];
+    update_row_strided::<NM>(grid, faces, u, u0, a, b, dt);
+}
+
+/// [`update_row_faces`] with the face fluxes in any layout: `(data, stride, at)` holds
+/// variable v's flux through the lower face of the row's first interior cell (x: its left
+/// face) at `data[v * stride + at]`, the next cells' faces following.
+#[inline(always)]
+fn update_row_strided<const NM: usize>(
+    grid: &Grid,
+    faces: [(&[f64], usize, usize); 5],
+    u: &mut [f64],
+    u0: &[f64],
+    a: f64,
+    b: f64,
+    dt: f64,
+) {
     let nv = 2 * NM + 3;
     let mx = grid.mx();
     let nd = grid.nd;
     let idx = [1.0 / grid.dx[0], 1.0 / grid.dx[1], 1.0 / grid.dx[2]];
     let ir = grid.irange();
-    let [fx, fy, fym, fz, fzm] = faces;
-    let uf = nv * mx;
     let (lo, hi) = (ir.start, ir.end);
+    let n = hi - lo;
+    // variable v's faces: n + 1 in x, n otherwise
+    let var = |v: usize| -> [&[f64]; 5] {
+        std::array::from_fn(|f| {
+            let (d, s, at) = faces[f];
+            &d[v * s + at..v * s + at + n + usize::from(f == 0)]
+        })
+    };
     // face velocities (Johnsen–Colonius) for the α rows
-    let ufx = &fx[uf + lo - 1..uf + hi];
-    let (ufy, ufym) = (&fy[uf + lo..uf + hi], &fym[uf + lo..uf + hi]);
-    let (ufz, ufzm) = (&fz[uf + lo..uf + hi], &fzm[uf + lo..uf + hi]);
+    let uf = var(nv);
     for v in 0..nv {
         let o = v * mx;
         let is_alpha = v >= NM + 4;
         // slices of exactly n (n + 1 for x faces) so the loop has no bounds checks
         let uv = &mut u[o + lo..o + hi];
         let u0v = &u0[o + lo..o + hi];
-        let fxv = &fx[o + lo - 1..o + hi];
-        let (fyv, fymv) = (&fy[o + lo..o + hi], &fym[o + lo..o + hi]);
-        let (fzv, fzmv) = (&fz[o + lo..o + hi], &fzm[o + lo..o + hi]);
-        let fs = [fxv, fyv, fymv, fzv, fzmv];
-        let uf = [ufx, ufy, ufym, ufz, ufzm];
+        let fs = var(v);
         // the stage update with the dimension and the α terms fixed at compile time
         // (so the loop vectorises); the same operations as the general form
         match (nd, is_alpha) {
