@@ -527,15 +527,15 @@ fn recon_row_x(lim: Limiter, q: &[f64], i0: usize, s: &mut [f64], lo: &mut [f64]
 /// (branch-free, so it vectorises; the same arithmetic as [`face_state`], so identical
 /// values). c = NaN marks a side `face_state` would reject.
 #[inline(always)]
-fn sides_ideal(gamma: f64, inv_g: f64, off: f64, q: &[f64], c: &mut [f64], e: &mut [f64]) {
+fn sides_ideal(gamma: f64, inv_g: f64, off: f64, q: [&[f64]; 5], c: &mut [f64], e: &mut [f64]) {
     let n = c.len();
     let (e, rho, vx, vy, vz, pr) = (
         &mut e[..n],
-        &q[..n],
-        &q[n..2 * n],
-        &q[2 * n..3 * n],
-        &q[3 * n..4 * n],
-        &q[4 * n..5 * n],
+        &q[0][..n],
+        &q[1][..n],
+        &q[2][..n],
+        &q[3][..n],
+        &q[4][..n],
     );
     for t in 0..n {
         let (r, p) = (rho[t], pr[t]);
@@ -548,7 +548,8 @@ fn sides_ideal(gamma: f64, inv_g: f64, off: f64, q: &[f64], c: &mut [f64], e: &m
 }
 
 /// HLLC fluxes of a line (or a batch of lines) of `len` faces from their reconstructed
-/// sides: `lb`/`rb` hold the left and right face values (nv blocks of `len`), `ce` is
+/// sides: `lb`/`rb` hold the left and right face values (variable v of face t at
+/// `v * ls + t`), `ce` is
 /// scratch of 4·len; face t's flux entry v goes to `out[v * ostride + o0 + t]`. `cell(v, t)`
 /// gives variable v of the cells left and right of face t, for the first-order fallback
 /// where a reconstructed side is inadmissible.
@@ -557,6 +558,7 @@ fn riemann_line<const NM: usize, const D: usize>(
     ph: &[Phase; NM],
     lb: &[f64],
     rb: &[f64],
+    ls: usize,
     ce: &mut [f64],
     out: &mut [f64],
     ostride: usize,
@@ -580,15 +582,15 @@ fn riemann_line<const NM: usize, const D: usize>(
         let (cl, rest) = ce.split_at_mut(len);
         let (el, rest) = rest.split_at_mut(len);
         let (cr, er) = rest.split_at_mut(len);
-        sides_ideal(gamma, inv_g, off, &lb[..5 * len], cl, el);
-        sides_ideal(gamma, inv_g, off, &rb[..5 * len], cr, er);
+        let lsides: [&[f64]; 5] = std::array::from_fn(|v| &lb[v * ls..v * ls + len]);
+        let rsides: [&[f64]; 5] = std::array::from_fn(|v| &rb[v * ls..v * ls + len]);
+        sides_ideal(gamma, inv_g, off, lsides, cl, el);
+        sides_ideal(gamma, inv_g, off, rsides, cr, er);
         let (o0, rest) = out.split_at_mut(mx);
         let (o1, rest) = rest.split_at_mut(mx);
         let (o2, rest) = rest.split_at_mut(mx);
         let (o3, rest) = rest.split_at_mut(mx);
         let (o4, o5) = rest.split_at_mut(mx);
-        let lsides: [&[f64]; 5] = std::array::from_fn(|v| &lb[v * len..(v + 1) * len]);
-        let rsides: [&[f64]; 5] = std::array::from_fn(|v| &rb[v * len..(v + 1) * len]);
         hllc::flux_line_ideal::<D>(
             lsides,
             rsides,
@@ -625,8 +627,8 @@ fn riemann_line<const NM: usize, const D: usize>(
         let mut l = [0.0; MAXF];
         let mut r = [0.0; MAXF];
         for v in 0..nv {
-            l[v] = lb[v * len + t];
-            r[v] = rb[v * len + t];
+            l[v] = lb[v * ls + t];
+            r[v] = rb[v * ls + t];
         }
         let (sl, sr) = match (face_state::<NM>(ph, &l), face_state::<NM>(ph, &r)) {
             (Some(a), Some(b)) => (a, b),
@@ -682,7 +684,7 @@ fn flux_row_x_into<const NM: usize>(
         recon_row_x(lim, q, i0, s, lo, hi);
     }
     let cell = |v: usize, t: usize| [row[v * mx + i0 + t], row[v * mx + i0 + t + 1]];
-    riemann_line::<NM, 0>(ph, lb, rb, ce, out, mx, i0, len, cell);
+    riemann_line::<NM, 0>(ph, lb, rb, len, ce, out, mx, i0, len, cell);
 }
 
 /// [`flux_row_x_into`] with a growable per-thread scratch.
@@ -881,7 +883,7 @@ fn face_line<const NM: usize, const D: usize>(
     }
     *cached = Some((r + stride, 1 - h));
     let cell = |v: usize, t: usize| [rows[1][v * mx + i0 + t], rows[2][v * mx + i0 + t]];
-    riemann_line::<NM, D>(ph, lb, rb, ce, out, mx, i0, len, cell);
+    riemann_line::<NM, D>(ph, lb, rb, len, ce, out, mx, i0, len, cell);
 }
 
 /// One RK stage of a block of rows of a 2-D grid, fused: for each interior row, its x-face
@@ -1085,58 +1087,96 @@ fn face_batch(
     }
 }
 
-/// The z faces of a tile of rows of the fused 3-D stage: rows j0..j0 + jn of a plane.
-#[derive(Clone, Copy)]
-struct ZBatch<'a> {
-    prim: &'a [f64],
-    grid: &'a Grid,
-    j0: usize,
-    jn: usize,
-    walls: Option<WallPatch<'a>>,
+/// Limited slopes and both MUSCL face values of a stencil: `p = q + ½σ` (the side of the
+/// cell's upper face), `m = q − ½σ` (its lower face), σ from the differences to the cells
+/// before (`qm`) and after (`qp`); the operations of [`slopes`] then [`face_values`].
+#[inline(always)]
+fn sides_var<S: Fn(f64, f64) -> f64>(
+    slope: S,
+    qm: &[f64],
+    q: &[f64],
+    qp: &[f64],
+    p: &mut [f64],
+    m: &mut [f64],
+) {
+    let n = p.len();
+    let (qm, q, qp, m) = (&qm[..n], &q[..n], &qp[..n], &mut m[..n]);
+    for t in 0..n {
+        let s = slope(q[t] - qm[t], qp[t] - q[t]);
+        p[t] = q[t] + 0.5 * s;
+        m[t] = q[t] - 0.5 * s;
+    }
 }
 
-impl ZBatch<'_> {
-    /// The fluxes of the z faces between planes k and k + 1 of the tile's rows into `out`
-    /// (nf blocks of jn·n0, row l's faces at `l * n0 ..`), from the limited slopes `sl` of
-    /// plane k's rows and `sh` of plane k + 1's (blocks of nv·mx per row), walls applied;
-    /// `work` = [lb, rb, ce] scratch of [`riemann_line`].
+/// The face sides of a tile of rows of the fused 3-D stage along one direction.
+#[derive(Clone, Copy)]
+struct Sides<'a> {
+    prim: &'a [f64],
+    lim: Limiter,
+    nv: usize,
+    mx: usize,
+    i0: usize,
+    n0: usize,
+}
+
+impl Sides<'_> {
+    /// [`sides_var`] of `rows` rows, the first at `c` in `prim`, the next ones one row
+    /// further each, their stencil neighbours `off` before and after: row l's variable v
+    /// at `v * (rows · n0) + l * n0` of `p` and `m` (interior cells only).
     #[inline(always)]
-    fn faces<const NM: usize>(
-        &self,
-        ph: &[Phase; NM],
-        k: usize,
-        sl: &[f64],
-        sh: &[f64],
-        out: &mut [f64],
-        work: [&mut [f64]; 3],
-    ) {
-        let nv = 2 * NM + 3;
-        let (grid, prim, j0, jn) = (self.grid, self.prim, self.j0, self.jn);
-        let mx = grid.mx();
-        let rowblk = nv * mx;
-        let (i0, n0) = (grid.g[0], grid.n[0]);
-        let zs = jn * n0;
-        let [lb, rb, ce] = work;
-        let qs = [grid.row(j0, k) * rowblk, grid.row(j0, k + 1) * rowblk];
-        for l in 0..jn {
-            for v in 0..nv {
-                let o = l * rowblk + v * mx + i0;
-                let (x0, x1) = (v * zs + l * n0, v * zs + (l + 1) * n0);
-                face_values(&prim[qs[0] + o..], &sl[o..], &mut lb[x0..x1], 1.0);
-                face_values(&prim[qs[1] + o..], &sh[o..], &mut rb[x0..x1], -1.0);
+    fn rows(&self, c: usize, rows: usize, off: usize, p: &mut [f64], m: &mut [f64]) {
+        let (prim, mx, n0) = (self.prim, self.mx, self.n0);
+        let vs = rows * n0;
+        for l in 0..rows {
+            for v in 0..self.nv {
+                let q = c + l * self.nv * mx + v * mx + self.i0;
+                let o = v * vs + l * n0;
+                let (p, m) = (&mut p[o..o + n0], &mut m[o..o + n0]);
+                let (qm, q, qp) = (&prim[q - off..], &prim[q..], &prim[q + off..]);
+                match self.lim {
+                    Limiter::Minmod => sides_var(crate::limiter::minmod, qm, q, qp, p, m),
+                    Limiter::VanLeer => sides_var(crate::limiter::van_leer, qm, q, qp, p, m),
+                    Limiter::Mc => sides_var(crate::limiter::mc, qm, q, qp, p, m),
+                }
             }
         }
-        let cell = |v: usize, t: usize| {
-            let (l, x) = (t / n0, t % n0);
-            let o = l * rowblk + v * mx + i0 + x;
-            [prim[qs[0] + o], prim[qs[1] + o]]
-        };
-        riemann_line::<NM, 2>(ph, lb, rb, ce, out, zs, 0, zs, cell);
-        if let Some(w) = self.walls {
-            for l in 0..jn {
-                let line = grid.row(j0 + l, k);
-                w.apply_strided(2, line, &mut out[l * n0..], zs, i0, n0);
-            }
+    }
+}
+
+/// The fluxes of the z faces between planes k and k + 1 of rows j0..j0 + jn into `out`
+/// (nf blocks of jn·n0, row l's faces at `l * n0 ..`) from the face sides `lp` (plane k's
+/// upper sides) and `hm` (plane k + 1's lower sides), laid out as [`Sides::rows`] does;
+/// walls applied. `ce`: scratch of [`riemann_line`].
+#[inline(always)]
+fn z_faces<const NM: usize>(
+    ph: &[Phase; NM],
+    grid: &Grid,
+    prim: &[f64],
+    walls: Option<WallPatch<'_>>,
+    j0: usize,
+    jn: usize,
+    k: usize,
+    lp: &[f64],
+    hm: &[f64],
+    out: &mut [f64],
+    ce: &mut [f64],
+) {
+    let nv = 2 * NM + 3;
+    let mx = grid.mx();
+    let rowblk = nv * mx;
+    let (i0, n0) = (grid.g[0], grid.n[0]);
+    let zs = jn * n0;
+    let qs = [grid.row(j0, k) * rowblk, grid.row(j0, k + 1) * rowblk];
+    let cell = |v: usize, t: usize| {
+        let (l, x) = (t / n0, t % n0);
+        let o = l * rowblk + v * mx + i0 + x;
+        [prim[qs[0] + o], prim[qs[1] + o]]
+    };
+    riemann_line::<NM, 2>(ph, lp, hm, zs, ce, out, zs, 0, zs, cell);
+    if let Some(w) = walls {
+        for l in 0..jn {
+            let line = grid.row(j0 + l, k);
+            w.apply_strided(2, line, &mut out[l * n0..], zs, i0, n0);
         }
     }
 }
@@ -1145,12 +1185,13 @@ impl ZBatch<'_> {
 /// [`fused_block_body`]). The interior y lines of the planes go in tiles of [`TILE_J`]
 /// rows; a tile sweeps up the planes and, per plane, computes its faces in three batches
 /// (the z faces above its rows, the y faces between them, the x faces of each row), each
-/// batch one long vectorised pass rather than a pass per line: the limited slopes of a
-/// whole block of rows in one pass over the contiguous rows (ghost columns included, never
-/// read), the face values, then [`riemann_line`] over every face of the batch. Each row's
-/// z slopes are computed once (the tile keeps the slopes of the plane above), each y-face
-/// line once (a tile hands its top line to the next tile of the same plane), and the rows
-/// are updated at once. Faces that are immersed walls take the stage's wall fluxes
+/// batch one long vectorised pass of [`riemann_line`] rather than a pass per line. For z
+/// and y, each row's limited slopes and both its face values come in one pass
+/// ([`Sides::rows`]), laid out so that the batch reads them in place; for x, the slopes of
+/// the tile's contiguous rows come in one pass (ghost columns included, never read), then
+/// the face values. Each row's z sides are computed once (the tile keeps those of the plane
+/// above), each y-face line once (a tile hands its top line to the next tile of the same
+/// plane), and the rows are updated at once. Faces that are immersed walls take the stage's wall fluxes
 /// (`walls`). Only the domain boundary faces are stored in `fl` (the block's rows of
 /// `flux[0..3]`), for [`boundary_flux`]. Every value is that of `fluxes` +
 /// `write_wall_fluxes` + `update`: the same operations on the same operands per face.
@@ -1188,7 +1229,9 @@ fn fused_planes_body<const NM: usize>(
     let mb = (jt + 1) * nx;
     let need = 2 * nv * mb
         + 4 * mb
-        + rowblk * (2 * jt + (jt + 2) + jt)
+        + 4 * nv * jt * n0
+        + 2 * nv * (jt + 2) * n0
+        + rowblk * jt
         + nf * (2 * jt * n0 + (jt + 1) * n0 + jt * nx)
         + nf * n0 * planes;
     if buf.len() < need {
@@ -1197,9 +1240,14 @@ fn fused_planes_body<const NM: usize>(
     let (lb, rest) = buf.split_at_mut(nv * mb);
     let (rb, rest) = rest.split_at_mut(nv * mb);
     let (ce, rest) = rest.split_at_mut(4 * mb);
-    let (zsa, rest) = rest.split_at_mut(jt * rowblk);
-    let (zsb, rest) = rest.split_at_mut(jt * rowblk);
-    let (sy, rest) = rest.split_at_mut((jt + 2) * rowblk);
+    // face sides (q ± ½σ) of the tile's rows in two planes, and of jt + 2 rows of a plane
+    let zsn = nv * jt * n0;
+    let (zpa, rest) = rest.split_at_mut(zsn);
+    let (zma, rest) = rest.split_at_mut(zsn);
+    let (zpb, rest) = rest.split_at_mut(zsn);
+    let (zmb, rest) = rest.split_at_mut(zsn);
+    let (yp, rest) = rest.split_at_mut(nv * (jt + 2) * n0);
+    let (ym, rest) = rest.split_at_mut(nv * (jt + 2) * n0);
     let (sx, rest) = rest.split_at_mut(jt * rowblk);
     let (za, rest) = rest.split_at_mut(nf * jt * n0);
     let (zb, rest) = rest.split_at_mut(nf * jt * n0);
@@ -1234,56 +1282,32 @@ fn fused_planes_body<const NM: usize>(
         let j1 = (j0 + jt).min(g[1] + n[1]);
         let jn = j1 - j0;
         let (mut z_lo, mut z_hi) = (&mut *za, &mut *zb);
-        let (mut s_lo, mut s_hi) = (&mut *zsa, &mut *zsb);
+        // the face sides of this tile's rows in planes k (`lo`) and k + 1 (`hi`)
+        let (mut lo, mut hi) = ((&mut *zpa, &mut *zma), (&mut *zpb, &mut *zmb));
         let zs = jn * n0;
-        // the z slopes of this tile's rows in plane k: one pass over the contiguous rows
         let plane = at(0, 1);
-        let zslopes = |k: usize| {
-            let c = at(j0, k);
-            [c - plane, c, c + plane]
-        };
-        let zb = ZBatch {
+        let sides = Sides {
             prim,
-            grid,
-            j0,
-            jn,
-            walls,
+            lim,
+            nv,
+            mx,
+            i0,
+            n0,
         };
         // the z faces below the block's first plane
-        let [qm, q, qp] = zslopes(klo - 1);
-        slopes(
-            lim,
-            &prim[qm..],
-            &prim[q..],
-            &prim[qp..],
-            &mut s_lo[..jn * rowblk],
-        );
-        let [qm, q, qp] = zslopes(klo);
-        slopes(
-            lim,
-            &prim[qm..],
-            &prim[q..],
-            &prim[qp..],
-            &mut s_hi[..jn * rowblk],
-        );
-        zb.faces::<NM>(ph, klo - 1, s_lo, s_hi, z_lo, [lb, rb, ce]);
+        sides.rows(at(j0, klo - 1), jn, plane, lo.0, lo.1);
+        sides.rows(at(j0, klo), jn, plane, hi.0, hi.1);
+        z_faces::<NM>(ph, grid, prim, walls, j0, jn, klo - 1, lo.0, hi.1, z_lo, ce);
         if klo - 1 == g[2] - 1 {
             for l in 0..jn {
                 keep(fzb, grid.row(j0 + l, klo - 1), &z_lo[l * n0..], zs);
             }
         }
         for k in klo..khi {
-            // s_hi holds plane k's slopes: plane k + 1's go to s_lo
-            std::mem::swap(&mut s_lo, &mut s_hi);
-            let [qm, q, qp] = zslopes(k + 1);
-            slopes(
-                lim,
-                &prim[qm..],
-                &prim[q..],
-                &prim[qp..],
-                &mut s_hi[..jn * rowblk],
-            );
-            zb.faces::<NM>(ph, k, s_lo, s_hi, z_hi, [lb, rb, ce]);
+            // `hi` holds plane k's sides: plane k + 1's go to `lo`
+            std::mem::swap(&mut lo, &mut hi);
+            sides.rows(at(j0, k + 1), jn, plane, hi.0, hi.1);
+            z_faces::<NM>(ph, grid, prim, walls, j0, jn, k, lo.0, hi.1, z_hi, ce);
             if k == g[2] + n[2] - 1 {
                 for l in 0..jn {
                     keep(fzb, grid.row(j0 + l, k), &z_hi[l * n0..], zs);
@@ -1302,23 +1326,16 @@ fn fused_planes_body<const NM: usize>(
             }
             let lines = j1 - jb;
             let c = at(jb, k);
-            slopes(
-                lim,
-                &prim[c - rowblk..],
-                &prim[c..],
-                &prim[c + rowblk..],
-                &mut sy[..(lines + 1) * rowblk],
-            );
-            face_batch(&prim, sy, nv, mx, lines, n0, lb, rb, |l| {
-                let o = l * rowblk + i0;
-                [c + o, o, c + o + rowblk, o + rowblk]
-            });
+            // the sides of rows jb..=j1; line l: row jb + l's upper, row jb + l + 1's lower
+            let vs = (lines + 1) * n0;
+            sides.rows(c, lines + 1, rowblk, yp, ym);
             let cell = |v: usize, t: usize| {
                 let (l, x) = (t / n0, t % n0);
                 let o = c + l * rowblk + v * mx + i0 + x;
                 [prim[o], prim[o + rowblk]]
             };
-            riemann_line::<NM, 1>(ph, lb, rb, ce, yf, ys, skip * n0, lines * n0, cell);
+            let (yl, yr) = (&*yp, &ym[n0..]);
+            riemann_line::<NM, 1>(ph, yl, yr, vs, ce, yf, ys, skip * n0, lines * n0, cell);
             for l in 0..lines {
                 let (j, sl) = (jb + l, (skip + l) * n0);
                 let line = grid.row(j, k);
@@ -1341,7 +1358,7 @@ fn fused_planes_body<const NM: usize>(
                 &prim[c + 1..],
                 &mut sx[..jn * rowblk],
             );
-            face_batch(&prim, sx, nv, mx, jn, nx, lb, rb, |l| {
+            face_batch(prim, sx, nv, mx, jn, nx, lb, rb, |l| {
                 let o = l * rowblk + i0 - 1;
                 [c + o, o, c + o + 1, o + 1]
             });
@@ -1351,7 +1368,7 @@ fn fused_planes_body<const NM: usize>(
                 let o = c + l * rowblk + v * mx + i0 - 1 + x;
                 [prim[o], prim[o + 1]]
             };
-            riemann_line::<NM, 0>(ph, lb, rb, ce, xf, xs, 0, xs, cell);
+            riemann_line::<NM, 0>(ph, lb, rb, xs, ce, xf, xs, 0, xs, cell);
             for l in 0..jn {
                 let r = grid.row(j0 + l, k);
                 if let Some(w) = walls {
