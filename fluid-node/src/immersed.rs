@@ -492,6 +492,22 @@ impl<'a> WallPatch<'a> {
     /// by the cell below the face) that are walls with their wall fluxes.
     #[inline]
     pub fn apply(&self, d: usize, line: usize, out: &mut [f64]) {
+        self.apply_strided(d, line, out, self.mx, 0, self.mx);
+    }
+
+    /// [`apply`](Self::apply) for a line held in any layout: the face of cell i
+    /// (`first <= i < first + width`) at `out[v * stride + i - first]`; walls outside that
+    /// range are left out.
+    #[inline]
+    pub fn apply_strided(
+        &self,
+        d: usize,
+        line: usize,
+        out: &mut [f64],
+        stride: usize,
+        first: usize,
+        width: usize,
+    ) {
         let (mx, nf) = (self.mx, self.nf);
         let key = |wi: usize| (self.walls[wi].d, self.walls[wi].left / mx);
         let lo = self.order.partition_point(|&wi| key(wi) < (d, line));
@@ -500,8 +516,11 @@ impl<'a> WallPatch<'a> {
                 break;
             }
             let i = self.walls[wi].left % mx;
+            if i < first || i >= first + width {
+                continue;
+            }
             for v in 0..nf {
-                out[v * mx + i] = self.flux[wi * nf + v];
+                out[v * stride + i - first] = self.flux[wi * nf + v];
             }
         }
     }

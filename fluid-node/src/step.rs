@@ -527,15 +527,15 @@ fn recon_row_x(lim: Limiter, q: &[f64], i0: usize, s: &mut [f64], lo: &mut [f64]
 /// (branch-free, so it vectorises; the same arithmetic as [`face_state`], so identical
 /// values). c = NaN marks a side `face_state` would reject.
 #[inline(always)]
-fn sides_ideal(gamma: f64, inv_g: f64, off: f64, q: &[f64], c: &mut [f64], e: &mut [f64]) {
+fn sides_ideal(gamma: f64, inv_g: f64, off: f64, q: [&[f64]; 5], c: &mut [f64], e: &mut [f64]) {
     let n = c.len();
     let (e, rho, vx, vy, vz, pr) = (
         &mut e[..n],
-        &q[..n],
-        &q[n..2 * n],
-        &q[2 * n..3 * n],
-        &q[3 * n..4 * n],
-        &q[4 * n..5 * n],
+        &q[0][..n],
+        &q[1][..n],
+        &q[2][..n],
+        &q[3][..n],
+        &q[4][..n],
     );
     for t in 0..n {
         let (r, p) = (rho[t], pr[t]);
@@ -547,25 +547,28 @@ fn sides_ideal(gamma: f64, inv_g: f64, off: f64, q: &[f64], c: &mut [f64], e: &m
     }
 }
 
-/// HLLC fluxes of one line of faces from its reconstructed sides: `lb`/`rb` hold the left
-/// and right face values (nv blocks of `len`), `ce` is scratch of 4·len. `rows[s]` holds
-/// stencil cell s (s = 0..3 around the face between cells 1 and 2) at x index
-/// `i + sh[s] - 1`, for the first-order fallback where a reconstructed side is inadmissible.
+/// HLLC fluxes of a line (or a batch of lines) of `len` faces from their reconstructed
+/// sides: `lb`/`rb` hold the left and right face values (variable v of face t at
+/// `v * ls + t`), `ce` is
+/// scratch of 4·len; face t's flux entry v goes to `out[v * ostride + o0 + t]`. `cell(v, t)`
+/// gives variable v of the cells left and right of face t, for the first-order fallback
+/// where a reconstructed side is inadmissible.
 #[inline(always)]
 fn riemann_line<const NM: usize, const D: usize>(
     ph: &[Phase; NM],
     lb: &[f64],
     rb: &[f64],
+    ls: usize,
     ce: &mut [f64],
-    rows: [&[f64]; 4],
-    sh: [usize; 4],
     out: &mut [f64],
-    mx: usize,
-    irange: std::ops::Range<usize>,
+    ostride: usize,
+    o0: usize,
+    len: usize,
+    cell: impl Fn(usize, usize) -> [f64; 2],
 ) {
     let nv = 2 * NM + 3;
-    let (i0, i1) = (irange.start, irange.end);
-    let len = i1 - i0;
+    let (i0, i1) = (o0, o0 + len);
+    let mx = ostride;
     // single ideal gas: sound speed and total energy of every face side in one
     // vectorisable pass, then every face at once; faces with a rejected side are redone
     // by the general path below
@@ -579,15 +582,15 @@ fn riemann_line<const NM: usize, const D: usize>(
         let (cl, rest) = ce.split_at_mut(len);
         let (el, rest) = rest.split_at_mut(len);
         let (cr, er) = rest.split_at_mut(len);
-        sides_ideal(gamma, inv_g, off, &lb[..5 * len], cl, el);
-        sides_ideal(gamma, inv_g, off, &rb[..5 * len], cr, er);
+        let lsides: [&[f64]; 5] = std::array::from_fn(|v| &lb[v * ls..v * ls + len]);
+        let rsides: [&[f64]; 5] = std::array::from_fn(|v| &rb[v * ls..v * ls + len]);
+        sides_ideal(gamma, inv_g, off, lsides, cl, el);
+        sides_ideal(gamma, inv_g, off, rsides, cr, er);
         let (o0, rest) = out.split_at_mut(mx);
         let (o1, rest) = rest.split_at_mut(mx);
         let (o2, rest) = rest.split_at_mut(mx);
         let (o3, rest) = rest.split_at_mut(mx);
         let (o4, o5) = rest.split_at_mut(mx);
-        let lsides: [&[f64]; 5] = std::array::from_fn(|v| &lb[v * len..(v + 1) * len]);
-        let rsides: [&[f64]; 5] = std::array::from_fn(|v| &rb[v * len..(v + 1) * len]);
         hllc::flux_line_ideal::<D>(
             lsides,
             rsides,
@@ -624,8 +627,8 @@ fn riemann_line<const NM: usize, const D: usize>(
         let mut l = [0.0; MAXF];
         let mut r = [0.0; MAXF];
         for v in 0..nv {
-            l[v] = lb[v * len + t];
-            r[v] = rb[v * len + t];
+            l[v] = lb[v * ls + t];
+            r[v] = rb[v * ls + t];
         }
         let (sl, sr) = match (face_state::<NM>(ph, &l), face_state::<NM>(ph, &r)) {
             (Some(a), Some(b)) => (a, b),
@@ -634,8 +637,7 @@ fn riemann_line<const NM: usize, const D: usize>(
                 let mut q1 = [0.0; MAXF];
                 let mut q2 = [0.0; MAXF];
                 for v in 0..nv {
-                    q1[v] = rows[1][v * mx + i + sh[1] - 1];
-                    q2[v] = rows[2][v * mx + i + sh[2] - 1];
+                    [q1[v], q2[v]] = cell(v, t);
                 }
                 match (face_state::<NM>(ph, &q1), face_state::<NM>(ph, &q2)) {
                     (Some(a), Some(b)) => (a, b),
@@ -681,7 +683,8 @@ fn flux_row_x_into<const NM: usize>(
         let hi = &mut rb[v * len..(v + 1) * len];
         recon_row_x(lim, q, i0, s, lo, hi);
     }
-    riemann_line::<NM, 0>(ph, lb, rb, ce, [row; 4], [0, 1, 2, 3], out, mx, irange);
+    let cell = |v: usize, t: usize| [row[v * mx + i0 + t], row[v * mx + i0 + t + 1]];
+    riemann_line::<NM, 0>(ph, lb, rb, len, ce, out, mx, i0, len, cell);
 }
 
 /// [`flux_row_x_into`] with a growable per-thread scratch.
@@ -879,7 +882,8 @@ fn face_line<const NM: usize, const D: usize>(
         face_values(var(2), sv, &mut rb[v * len..(v + 1) * len], -1.0);
     }
     *cached = Some((r + stride, 1 - h));
-    riemann_line::<NM, D>(ph, lb, rb, ce, rows, [1; 4], out, mx, ir);
+    let cell = |v: usize, t: usize| [rows[1][v * mx + i0 + t], rows[2][v * mx + i0 + t]];
+    riemann_line::<NM, D>(ph, lb, rb, len, ce, out, mx, i0, len, cell);
 }
 
 /// One RK stage of a block of rows of a 2-D grid, fused: for each interior row, its x-face
@@ -1049,20 +1053,148 @@ fn fused_block_planes(planes: usize) -> usize {
     (planes / (4 * rayon::current_num_threads())).clamp(3, 16)
 }
 
-/// y lines per tile of the fused 3-D stage: a tile's z-face lines and slopes (two lines of
-/// fluxes and two rows of slopes per y line) and the primitive rows they read stay in cache
-/// while the tile sweeps up its planes; each tile recomputes one y-face line per plane.
-const TILE_J: usize = 16;
+/// y lines per tile of the fused 3-D stage: a tile's face batches, slopes and the primitive
+/// rows they read stay in cache while the tile sweeps up its planes.
+const TILE_J: usize = 8;
+
+/// MUSCL face values of a batch of `lines` lines of `w` faces into `lb`/`rb` (nv blocks of
+/// lines·w, line l's faces at `l * w ..`): `ends(l) = [ql, sl, qr, sr]` places line l's
+/// left sides' cells at `q[ql..]` and their limited slopes at `s[sl..]` (variable v `mx`
+/// further on per v), its right sides' at `qr`, `sr` (seed 002 §2.3: lo = q + ½σ,
+/// hi = q − ½σ).
+#[inline(always)]
+fn face_batch(
+    q: &[f64],
+    s: &[f64],
+    nv: usize,
+    mx: usize,
+    lines: usize,
+    w: usize,
+    lb: &mut [f64],
+    rb: &mut [f64],
+    ends: impl Fn(usize) -> [usize; 4],
+) {
+    let m = lines * w;
+    for l in 0..lines {
+        let [ql, sl, qr, sr] = ends(l);
+        for v in 0..nv {
+            let o = v * mx;
+            let lo = &mut lb[v * m + l * w..v * m + (l + 1) * w];
+            face_values(&q[ql + o..], &s[sl + o..], lo, 1.0);
+            let hi = &mut rb[v * m + l * w..v * m + (l + 1) * w];
+            face_values(&q[qr + o..], &s[sr + o..], hi, -1.0);
+        }
+    }
+}
+
+/// Limited slopes and both MUSCL face values of a stencil: `p = q + ½σ` (the side of the
+/// cell's upper face), `m = q − ½σ` (its lower face), σ from the differences to the cells
+/// before (`qm`) and after (`qp`); the operations of [`slopes`] then [`face_values`].
+#[inline(always)]
+fn sides_var<S: Fn(f64, f64) -> f64>(
+    slope: S,
+    qm: &[f64],
+    q: &[f64],
+    qp: &[f64],
+    p: &mut [f64],
+    m: &mut [f64],
+) {
+    let n = p.len();
+    let (qm, q, qp, m) = (&qm[..n], &q[..n], &qp[..n], &mut m[..n]);
+    for t in 0..n {
+        let s = slope(q[t] - qm[t], qp[t] - q[t]);
+        p[t] = q[t] + 0.5 * s;
+        m[t] = q[t] - 0.5 * s;
+    }
+}
+
+/// The face sides of a tile of rows of the fused 3-D stage along one direction.
+#[derive(Clone, Copy)]
+struct Sides<'a> {
+    prim: &'a [f64],
+    lim: Limiter,
+    nv: usize,
+    mx: usize,
+    i0: usize,
+    n0: usize,
+}
+
+impl Sides<'_> {
+    /// [`sides_var`] of `rows` rows, the first at `c` in `prim`, the next ones one row
+    /// further each, their stencil neighbours `off` before and after: row l's variable v
+    /// at `v * (rows · n0) + l * n0` of `p` and `m` (interior cells only).
+    #[inline(always)]
+    fn rows(&self, c: usize, rows: usize, off: usize, p: &mut [f64], m: &mut [f64]) {
+        let (prim, mx, n0) = (self.prim, self.mx, self.n0);
+        let vs = rows * n0;
+        for l in 0..rows {
+            for v in 0..self.nv {
+                let q = c + l * self.nv * mx + v * mx + self.i0;
+                let o = v * vs + l * n0;
+                let (p, m) = (&mut p[o..o + n0], &mut m[o..o + n0]);
+                let (qm, q, qp) = (&prim[q - off..], &prim[q..], &prim[q + off..]);
+                match self.lim {
+                    Limiter::Minmod => sides_var(crate::limiter::minmod, qm, q, qp, p, m),
+                    Limiter::VanLeer => sides_var(crate::limiter::van_leer, qm, q, qp, p, m),
+                    Limiter::Mc => sides_var(crate::limiter::mc, qm, q, qp, p, m),
+                }
+            }
+        }
+    }
+}
+
+/// The fluxes of the z faces between planes k and k + 1 of rows j0..j0 + jn into `out`
+/// (nf blocks of jn·n0, row l's faces at `l * n0 ..`) from the face sides `lp` (plane k's
+/// upper sides) and `hm` (plane k + 1's lower sides), laid out as [`Sides::rows`] does;
+/// walls applied. `ce`: scratch of [`riemann_line`].
+#[inline(always)]
+fn z_faces<const NM: usize>(
+    ph: &[Phase; NM],
+    grid: &Grid,
+    prim: &[f64],
+    walls: Option<WallPatch<'_>>,
+    j0: usize,
+    jn: usize,
+    k: usize,
+    lp: &[f64],
+    hm: &[f64],
+    out: &mut [f64],
+    ce: &mut [f64],
+) {
+    let nv = 2 * NM + 3;
+    let mx = grid.mx();
+    let rowblk = nv * mx;
+    let (i0, n0) = (grid.g[0], grid.n[0]);
+    let zs = jn * n0;
+    let qs = [grid.row(j0, k) * rowblk, grid.row(j0, k + 1) * rowblk];
+    let cell = |v: usize, t: usize| {
+        let (l, x) = (t / n0, t % n0);
+        let o = l * rowblk + v * mx + i0 + x;
+        [prim[qs[0] + o], prim[qs[1] + o]]
+    };
+    riemann_line::<NM, 2>(ph, lp, hm, zs, ce, out, zs, 0, zs, cell);
+    if let Some(w) = walls {
+        for l in 0..jn {
+            let line = grid.row(j0 + l, k);
+            w.apply_strided(2, line, &mut out[l * n0..], zs, i0, n0);
+        }
+    }
+}
 
 /// One RK stage of a block of planes of a 3-D grid, fused (the 3-D form of
-/// [`fused_block_body`]): the interior y lines of the planes go in tiles of [`TILE_J`]; a
-/// tile sweeps up the planes, keeping for each of its y lines the z-face fluxes below and
-/// above the row (and the limited slopes of the next row along z, so each row's z slopes
-/// are computed once), and within a plane the y-face fluxes below and above the row, as
-/// the 2-D block does; each row's x-face fluxes go into scratch and the row is updated at
-/// once. Faces that are immersed walls take the stage's wall fluxes (`walls`). Only the
-/// domain boundary faces are stored in `fl` (the block's rows of `flux[0..3]`), for
-/// [`boundary_flux`]. Every value is that of `fluxes` + `write_wall_fluxes` + `update`.
+/// [`fused_block_body`]). The interior y lines of the planes go in tiles of [`TILE_J`]
+/// rows; a tile sweeps up the planes and, per plane, computes its faces in three batches
+/// (the z faces above its rows, the y faces between them, the x faces of each row), each
+/// batch one long vectorised pass of [`riemann_line`] rather than a pass per line. For z
+/// and y, each row's limited slopes and both its face values come in one pass
+/// ([`Sides::rows`]), laid out so that the batch reads them in place; for x, the slopes of
+/// the tile's contiguous rows come in one pass (ghost columns included, never read), then
+/// the face values. Each row's z sides are computed once (the tile keeps those of the plane
+/// above), each y-face line once (a tile hands its top line to the next tile of the same
+/// plane), and the rows are updated at once. Faces that are immersed walls take the stage's wall fluxes
+/// (`walls`). Only the domain boundary faces are stored in `fl` (the block's rows of
+/// `flux[0..3]`), for [`boundary_flux`]. Every value is that of `fluxes` +
+/// `write_wall_fluxes` + `update`: the same operations on the same operands per face.
 #[inline(always)]
 fn fused_planes_body<const NM: usize>(
     ph: &[Phase; NM],
@@ -1084,37 +1216,54 @@ fn fused_planes_body<const NM: usize>(
     let nf = nv + 1;
     let mx = grid.mx();
     let (g, n, m1) = (grid.g, grid.n, grid.m[1]);
-    let ir = grid.irange();
-    let len = ir.end - ir.start;
-    let lx = len + 1;
+    let (i0, n0) = (g[0], n[0]);
+    let nx = n0 + 1;
     let rowblk = nv * mx;
     let fblk = nf * mx;
     let nrows = u.len() / rowblk;
     let jt = TILE_J.min(n[1]);
-    let slz_n = 2 * nv * len;
-    let work_n = (2 * nv + 5) * lx + 1;
-    let need = work_n + slz_n * (1 + jt) + fblk * (3 + 2 * jt);
+    let (kp0, kp1) = (r0 / m1, (r0 + nrows) / m1);
+    let (klo, khi) = (kp0.max(g[2]), kp1.min(g[2] + n[2]));
+    let planes = khi.saturating_sub(klo);
+    // the largest batch: jt + 1 lines of y faces or jt lines of x faces
+    let mb = (jt + 1) * nx;
+    let need = 2 * nv * mb
+        + 4 * mb
+        + 4 * nv * jt * n0
+        + 2 * nv * (jt + 2) * n0
+        + rowblk * jt
+        + nf * (2 * jt * n0 + (jt + 1) * n0 + jt * nx)
+        + nf * n0 * planes;
     if buf.len() < need {
         buf.resize(need, 0.0);
     }
-    let (work, rest) = buf.split_at_mut(work_n);
-    let (sly, rest) = rest.split_at_mut(slz_n);
-    let (slz, rest) = rest.split_at_mut(slz_n * jt);
-    let (fx, rest) = rest.split_at_mut(fblk);
-    let (fa, rest) = rest.split_at_mut(fblk);
-    let (fb, rest) = rest.split_at_mut(fblk);
-    let (za, rest) = rest.split_at_mut(fblk * jt);
-    let (zb, _) = rest.split_at_mut(fblk * jt);
+    let (lb, rest) = buf.split_at_mut(nv * mb);
+    let (rb, rest) = rest.split_at_mut(nv * mb);
+    let (ce, rest) = rest.split_at_mut(4 * mb);
+    // face sides (q ± ½σ) of the tile's rows in two planes, and of jt + 2 rows of a plane
+    let zsn = nv * jt * n0;
+    let (zpa, rest) = rest.split_at_mut(zsn);
+    let (zma, rest) = rest.split_at_mut(zsn);
+    let (zpb, rest) = rest.split_at_mut(zsn);
+    let (zmb, rest) = rest.split_at_mut(zsn);
+    let (yp, rest) = rest.split_at_mut(nv * (jt + 2) * n0);
+    let (ym, rest) = rest.split_at_mut(nv * (jt + 2) * n0);
+    let (sx, rest) = rest.split_at_mut(jt * rowblk);
+    let (za, rest) = rest.split_at_mut(nf * jt * n0);
+    let (zb, rest) = rest.split_at_mut(nf * jt * n0);
+    let (yf, rest) = rest.split_at_mut(nf * (jt + 1) * n0);
+    let (xf, rest) = rest.split_at_mut(nf * jt * nx);
+    let ytop = &mut rest[..nf * n0 * planes];
     let [fxb, fyb, fzb] = fl;
-    // keep the domain boundary face line `line` of direction d if this block holds its row
-    let mut keep = |d: usize, line: usize, src: &[f64]| {
+    // keep the domain boundary face line `line` normal to d (1 or 2), held at `src[v *
+    // stride]..` (interior faces only), if this block holds its row
+    let keep = |fb: &mut [f64], line: usize, src: &[f64], stride: usize| {
         if line >= r0 && line < r0 + nrows {
             let o = (line - r0) * fblk;
-            let dst = match d {
-                1 => &mut fyb[o..o + fblk],
-                _ => &mut fzb[o..o + fblk],
-            };
-            dst.copy_from_slice(src);
+            for v in 0..nf {
+                let d = o + v * mx + i0;
+                fb[d..d + n0].copy_from_slice(&src[v * stride..v * stride + n0]);
+            }
         }
     };
     if first {
@@ -1126,88 +1275,124 @@ fn fused_planes_body<const NM: usize>(
             }
         }
     }
-    let (kp0, kp1) = (r0 / m1, (r0 + nrows) / m1);
-    let (klo, khi) = (kp0.max(g[2]), kp1.min(g[2] + n[2]));
-    let xfaces = g[0] - 1..g[0] + n[0];
+    // offset in `prim` of row (j, k)
+    let at = |j: usize, k: usize| grid.row(j, k) * rowblk;
     let mut j0 = g[1];
-    while klo < khi && j0 < g[1] + n[1] {
+    while planes > 0 && j0 < g[1] + n[1] {
         let j1 = (j0 + jt).min(g[1] + n[1]);
+        let jn = j1 - j0;
         let (mut z_lo, mut z_hi) = (&mut *za, &mut *zb);
-        let mut zc: [Option<(usize, usize)>; TILE_J] = [None; TILE_J];
+        // the face sides of this tile's rows in planes k (`lo`) and k + 1 (`hi`)
+        let (mut lo, mut hi) = ((&mut *zpa, &mut *zma), (&mut *zpb, &mut *zmb));
+        let zs = jn * n0;
+        let plane = at(0, 1);
+        let sides = Sides {
+            prim,
+            lim,
+            nv,
+            mx,
+            i0,
+            n0,
+        };
         // the z faces below the block's first plane
-        for (t, j) in (j0..j1).enumerate() {
-            let line = grid.row(j, klo - 1);
-            let out = &mut z_lo[t * fblk..(t + 1) * fblk];
-            let sl = &mut slz[t * slz_n..(t + 1) * slz_n];
-            face_line::<NM, 2>(ph, lim, grid, prim, line, out, work, sl, &mut zc[t]);
-            if let Some(w) = walls {
-                w.apply(2, line, out);
-            }
-            if klo - 1 == g[2] - 1 {
-                keep(2, line, out);
+        sides.rows(at(j0, klo - 1), jn, plane, lo.0, lo.1);
+        sides.rows(at(j0, klo), jn, plane, hi.0, hi.1);
+        z_faces::<NM>(ph, grid, prim, walls, j0, jn, klo - 1, lo.0, hi.1, z_lo, ce);
+        if klo - 1 == g[2] - 1 {
+            for l in 0..jn {
+                keep(fzb, grid.row(j0 + l, klo - 1), &z_lo[l * n0..], zs);
             }
         }
-        let mut yc = None;
         for k in klo..khi {
-            for (t, j) in (j0..j1).enumerate() {
+            // `hi` holds plane k's sides: plane k + 1's go to `lo`
+            std::mem::swap(&mut lo, &mut hi);
+            sides.rows(at(j0, k + 1), jn, plane, hi.0, hi.1);
+            z_faces::<NM>(ph, grid, prim, walls, j0, jn, k, lo.0, hi.1, z_hi, ce);
+            if k == g[2] + n[2] - 1 {
+                for l in 0..jn {
+                    keep(fzb, grid.row(j0 + l, k), &z_hi[l * n0..], zs);
+                }
+            }
+            // y faces: line slot s lies between rows j0 - 1 + s and j0 + s; the first tile
+            // computes slot 0, the later ones take it from the tile below
+            let ys = (jn + 1) * n0;
+            let top = &mut ytop[(k - klo) * nf * n0..(k - klo + 1) * nf * n0];
+            let jb = if j0 == g[1] { j0 - 1 } else { j0 };
+            let skip = jb + 1 - j0;
+            if skip == 1 {
+                for v in 0..nf {
+                    yf[v * ys..v * ys + n0].copy_from_slice(&top[v * n0..(v + 1) * n0]);
+                }
+            }
+            let lines = j1 - jb;
+            let c = at(jb, k);
+            // the sides of rows jb..=j1; line l: row jb + l's upper, row jb + l + 1's lower
+            let vs = (lines + 1) * n0;
+            sides.rows(c, lines + 1, rowblk, yp, ym);
+            let cell = |v: usize, t: usize| {
+                let (l, x) = (t / n0, t % n0);
+                let o = c + l * rowblk + v * mx + i0 + x;
+                [prim[o], prim[o + rowblk]]
+            };
+            let (yl, yr) = (&*yp, &ym[n0..]);
+            riemann_line::<NM, 1>(ph, yl, yr, vs, ce, yf, ys, skip * n0, lines * n0, cell);
+            for l in 0..lines {
+                let (j, sl) = (jb + l, (skip + l) * n0);
                 let line = grid.row(j, k);
-                let out = &mut z_hi[t * fblk..(t + 1) * fblk];
-                let sl = &mut slz[t * slz_n..(t + 1) * slz_n];
-                face_line::<NM, 2>(ph, lim, grid, prim, line, out, work, sl, &mut zc[t]);
                 if let Some(w) = walls {
-                    w.apply(2, line, out);
+                    w.apply_strided(1, line, &mut yf[sl..], ys, i0, n0);
                 }
-                if k == g[2] + n[2] - 1 {
-                    keep(2, line, out);
+                if j == g[1] - 1 || j == g[1] + n[1] - 1 {
+                    keep(fyb, line, &yf[sl..], ys);
                 }
             }
-            let (mut y_lo, mut y_hi) = (&mut *fa, &mut *fb);
-            let line = grid.row(j0 - 1, k);
-            face_line::<NM, 1>(ph, lim, grid, prim, line, y_lo, work, sly, &mut yc);
-            if let Some(w) = walls {
-                w.apply(1, line, y_lo);
+            for v in 0..nf {
+                top[v * n0..(v + 1) * n0].copy_from_slice(&yf[v * ys + jn * n0..v * ys + ys]);
             }
-            if j0 - 1 == g[1] - 1 {
-                keep(1, line, y_lo);
-            }
-            for (t, j) in (j0..j1).enumerate() {
-                let r = grid.row(j, k);
-                face_line::<NM, 1>(ph, lim, grid, prim, r, y_hi, work, sly, &mut yc);
-                let row = &prim[r * rowblk..(r + 1) * rowblk];
-                flux_row_x_into::<NM>(ph, lim, row, fx, mx, xfaces.clone(), work);
+            // x faces of each row: face t of a row between cells i0 - 1 + t and i0 + t
+            let c = at(j0, k);
+            slopes(
+                lim,
+                &prim[c - 1..],
+                &prim[c..],
+                &prim[c + 1..],
+                &mut sx[..jn * rowblk],
+            );
+            face_batch(prim, sx, nv, mx, jn, nx, lb, rb, |l| {
+                let o = l * rowblk + i0 - 1;
+                [c + o, o, c + o + 1, o + 1]
+            });
+            let xs = jn * nx;
+            let cell = |v: usize, t: usize| {
+                let (l, x) = (t / nx, t % nx);
+                let o = c + l * rowblk + v * mx + i0 - 1 + x;
+                [prim[o], prim[o + 1]]
+            };
+            riemann_line::<NM, 0>(ph, lb, rb, xs, ce, xf, xs, 0, xs, cell);
+            for l in 0..jn {
+                let r = grid.row(j0 + l, k);
                 if let Some(w) = walls {
-                    w.apply(1, r, y_hi);
-                    w.apply(0, r, fx);
-                }
-                if j == g[1] + n[1] - 1 {
-                    keep(1, r, y_hi);
+                    w.apply_strided(0, r, &mut xf[l * nx..], xs, i0 - 1, nx);
                 }
                 // the domain boundary x faces, for the boundary impulse
                 let o = (r - r0) * fblk;
                 for v in 0..nf {
-                    for i in [g[0] - 1, g[0] + n[0] - 1] {
-                        fxb[o + v * mx + i] = fx[v * mx + i];
-                    }
+                    fxb[o + v * mx + i0 - 1] = xf[v * xs + l * nx];
+                    fxb[o + v * mx + i0 + n0 - 1] = xf[v * xs + l * nx + n0];
                 }
                 let o = (r - r0) * rowblk;
                 let (uu, u0r) = (&mut u[o..o + rowblk], &u0[o..o + rowblk]);
                 if first {
                     uu.copy_from_slice(u0r);
                 }
-                let zf = [
-                    &z_hi[t * fblk..(t + 1) * fblk],
-                    &z_lo[t * fblk..(t + 1) * fblk],
+                let faces = [
+                    (&*xf, xs, l * nx),
+                    (&*yf, ys, (l + 1) * n0),
+                    (&*yf, ys, l * n0),
+                    (&*z_hi, zs, l * n0),
+                    (&*z_lo, zs, l * n0),
                 ];
-                update_row_faces::<NM>(
-                    grid,
-                    [&*fx, &*y_hi, &*y_lo, zf[0], zf[1]],
-                    uu,
-                    u0r,
-                    a,
-                    b,
-                    dt,
-                );
-                std::mem::swap(&mut y_lo, &mut y_hi);
+                update_row_strided::<NM>(grid, faces, uu, u0r, a, b, dt);
             }
             std::mem::swap(&mut z_lo, &mut z_hi);
         }
@@ -1353,29 +1538,55 @@ fn update_row_faces<const NM: usize>(
     b: f64,
     dt: f64,
 ) {
+    let mx = grid.mx();
+    let lo = grid.irange().start;
+    let [fx, fy, fym, fz, fzm] = faces;
+    let faces = [
+        (fx, mx, lo - 1),
+        (fy, mx, lo),
+        (fym, mx, lo),
+        (fz, mx, lo),
+        (fzm, mx, lo),
+    ];
+    update_row_strided::<NM>(grid, faces, u, u0, a, b, dt);
+}
+
+/// [`update_row_faces`] with the face fluxes in any layout: `(data, stride, at)` holds
+/// variable v's flux through the lower face of the row's first interior cell (x: its left
+/// face) at `data[v * stride + at]`, the next cells' faces following.
+#[inline(always)]
+fn update_row_strided<const NM: usize>(
+    grid: &Grid,
+    faces: [(&[f64], usize, usize); 5],
+    u: &mut [f64],
+    u0: &[f64],
+    a: f64,
+    b: f64,
+    dt: f64,
+) {
     let nv = 2 * NM + 3;
     let mx = grid.mx();
     let nd = grid.nd;
     let idx = [1.0 / grid.dx[0], 1.0 / grid.dx[1], 1.0 / grid.dx[2]];
     let ir = grid.irange();
-    let [fx, fy, fym, fz, fzm] = faces;
-    let uf = nv * mx;
     let (lo, hi) = (ir.start, ir.end);
+    let n = hi - lo;
+    // variable v's faces: n + 1 in x, n otherwise
+    let var = |v: usize| -> [&[f64]; 5] {
+        std::array::from_fn(|f| {
+            let (d, s, at) = faces[f];
+            &d[v * s + at..v * s + at + n + usize::from(f == 0)]
+        })
+    };
     // face velocities (Johnsen–Colonius) for the α rows
-    let ufx = &fx[uf + lo - 1..uf + hi];
-    let (ufy, ufym) = (&fy[uf + lo..uf + hi], &fym[uf + lo..uf + hi]);
-    let (ufz, ufzm) = (&fz[uf + lo..uf + hi], &fzm[uf + lo..uf + hi]);
+    let uf = var(nv);
     for v in 0..nv {
         let o = v * mx;
         let is_alpha = v >= NM + 4;
         // slices of exactly n (n + 1 for x faces) so the loop has no bounds checks
         let uv = &mut u[o + lo..o + hi];
         let u0v = &u0[o + lo..o + hi];
-        let fxv = &fx[o + lo - 1..o + hi];
-        let (fyv, fymv) = (&fy[o + lo..o + hi], &fym[o + lo..o + hi]);
-        let (fzv, fzmv) = (&fz[o + lo..o + hi], &fzm[o + lo..o + hi]);
-        let fs = [fxv, fyv, fymv, fzv, fzmv];
-        let uf = [ufx, ufy, ufym, ufz, ufzm];
+        let fs = var(v);
         // the stage update with the dimension and the α terms fixed at compile time
         // (so the loop vectorises); the same operations as the general form
         match (nd, is_alpha) {

@@ -47,12 +47,14 @@ fn assert_same(a: &[u64], b: &[u64], what: &str) {
 
 #[test]
 fn three_d_fused_stage_equals_the_unfused_one() {
-    // 18 y lines: a full tile of 16 and a partial one; 13 and 20 planes: one or several
+    // 18 y lines: two full tiles of 8 and a partial one; 13 and 20 planes: one or several
     // blocks of planes per thread
     let cases = [
         ([20, 18, 13], true, "van_leer"),
         ([14, 12, 20], false, "minmod"),
         ([12, 17, 9], false, "mc"),
+        // fewer y lines than a tile, an odd row length
+        ([9, 5, 11], false, "van_leer"),
     ];
     let mut compared = 0;
     for (cells, two, limiter) in cases {
