@@ -10,6 +10,7 @@ pub mod export;
 pub mod fields;
 pub mod lagrange;
 pub mod plot;
+pub mod profile;
 pub mod progress;
 pub mod record;
 pub mod replay;

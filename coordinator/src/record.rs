@@ -35,6 +35,8 @@ pub struct Recorder {
     /// Topic → (channel id, sequence, the keys its schema lists: JSON channels only).
     channels: HashMap<String, (u16, u32, BTreeMap<String, &'static str>)>,
     last_flush: Instant,
+    /// The bytes of the JSON document being written (reused: no allocation per record).
+    scratch: Vec<u8>,
     pub messages: u64,
     pub bytes: u64,
 }
@@ -92,6 +94,7 @@ impl Recorder {
             bincode_schema,
             channels: HashMap::new(),
             last_flush: Instant::now(),
+            scratch: Vec::with_capacity(1024),
             messages: 0,
             bytes: 0,
         })
@@ -196,6 +199,39 @@ impl Recorder {
     ) -> anyhow::Result<()> {
         let data = serde_json::to_vec(v)?;
         self.write(topic, Some((schema_name, v)), sim_t, &data)
+    }
+
+    /// [`Recorder::json`] for a document that serializes as an object with a fixed set of
+    /// keys (a struct) plus `extra_keys` (its named scalars, say): once its channel exists
+    /// and knows every extra key, it is written without building a `Value` or allocating.
+    pub fn json_doc<T: serde::Serialize>(
+        &mut self,
+        topic: &str,
+        schema_name: &str,
+        sim_t: f64,
+        doc: &T,
+        extra_keys: &mut dyn Iterator<Item = &str>,
+    ) -> anyhow::Result<()> {
+        let known = match self.channels.get(topic) {
+            Some((_, _, have)) if !have.is_empty() => {
+                let mut all = true;
+                for k in extra_keys {
+                    all &= have.contains_key(k);
+                }
+                all
+            }
+            _ => false,
+        };
+        if !known {
+            return self.json(topic, schema_name, sim_t, &serde_json::to_value(doc)?);
+        }
+        let mut data = std::mem::take(&mut self.scratch);
+        data.clear();
+        let r = serde_json::to_writer(&mut data, doc)
+            .map_err(anyhow::Error::from)
+            .and_then(|_| self.write(topic, None, sim_t, &data));
+        self.scratch = data;
+        r
     }
 
     /// Close the current chunk and push it to disk.
