@@ -549,15 +549,16 @@ impl Wire {
         Ok(())
     }
 
+    /// Coupling data: encoded straight into the transport's buffer where it has one (a
+    /// shared-memory sample), so a large field is copied once on this side.
     fn send_data(&mut self, coupling: &str, m: &Message) -> anyhow::Result<()> {
         let seq = self.seq.fetch_add(1, Ordering::Relaxed);
-        encode_into(&mut self.buf, &self.run, &self.me, seq, m)?;
         let p = self
             .data
             .iter_mut()
             .find(|(c, _)| c == coupling)
             .ok_or_else(|| anyhow::anyhow!("no publisher for coupling {coupling}"))?;
-        p.1.send(&self.buf)?;
+        p.1.send_message(&self.run, &self.me, seq, m, &mut self.buf)?;
         Ok(())
     }
 }

@@ -98,6 +98,86 @@ pub fn encode_into(
     Ok(())
 }
 
+/// The number of bytes [`encode_into`] writes for `message` (header included), found by
+/// encoding into a counter: a large field is one block, so this costs no pass over its data.
+pub fn encoded_len(run: &str, sender: &str, message: &Message) -> Result<usize, CodecError> {
+    let body = BodyRef {
+        run,
+        sender,
+        message,
+    };
+    let mut size = bincode::enc::write::SizeWriter::default();
+    bincode::serde::encode_into_writer(&body, &mut size, config::standard())
+        .map_err(|e| CodecError::Encode(e.to_string()))?;
+    if size.bytes_written > MAX_BODY {
+        return Err(CodecError::Oversized(size.bytes_written as u64));
+    }
+    Ok(HEADER_LEN + size.bytes_written)
+}
+
+/// Writes into memory that is not initialised yet (a loaned shared-memory sample).
+struct UninitWriter<'a> {
+    dst: &'a mut [std::mem::MaybeUninit<u8>],
+    at: usize,
+}
+
+impl bincode::enc::write::Writer for UninitWriter<'_> {
+    fn write(&mut self, bytes: &[u8]) -> Result<(), bincode::error::EncodeError> {
+        let end = self.at + bytes.len();
+        let Some(dst) = self.dst.get_mut(self.at..end) else {
+            return Err(bincode::error::EncodeError::UnexpectedEnd);
+        };
+        dst.write_copy_of_slice(bytes);
+        self.at = end;
+        Ok(())
+    }
+}
+
+/// [`encode_into`] straight into `dst`, which must be exactly [`encoded_len`] bytes long
+/// (a loaned shared-memory sample: no intermediate buffer). Every byte of `dst` is written
+/// on success.
+pub fn encode_into_uninit(
+    dst: &mut [std::mem::MaybeUninit<u8>],
+    run: &str,
+    sender: &str,
+    seq: u64,
+    message: &Message,
+) -> Result<(), CodecError> {
+    if dst.len() < HEADER_LEN {
+        return Err(CodecError::Truncated(dst.len()));
+    }
+    let len = dst.len() - HEADER_LEN;
+    if len > MAX_BODY {
+        return Err(CodecError::Oversized(len as u64));
+    }
+    let mut header = [0u8; HEADER_LEN];
+    header[..4].copy_from_slice(&MAGIC);
+    header[4..6].copy_from_slice(&PROTOCOL_VERSION.to_le_bytes());
+    header[6] = message.kind();
+    header[8..12].copy_from_slice(&(len as u32).to_le_bytes());
+    header[12..20].copy_from_slice(&seq.to_le_bytes());
+    let (head, body_dst) = dst.split_at_mut(HEADER_LEN);
+    head.write_copy_of_slice(&header);
+    let body = BodyRef {
+        run,
+        sender,
+        message,
+    };
+    let mut w = UninitWriter {
+        dst: body_dst,
+        at: 0,
+    };
+    bincode::serde::encode_into_writer(&body, &mut w, config::standard())
+        .map_err(|e| CodecError::Encode(e.to_string()))?;
+    if w.at != len {
+        return Err(CodecError::LengthMismatch {
+            announced: len as u64,
+            actual: w.at,
+        });
+    }
+    Ok(())
+}
+
 pub fn encode(run: &str, sender: &str, seq: u64, message: &Message) -> Result<Vec<u8>, CodecError> {
     let mut buf = Vec::new();
     encode_into(&mut buf, run, sender, seq, message)?;
@@ -170,6 +250,32 @@ mod tests {
     use super::*;
     use crate::message::*;
     use proptest::prelude::*;
+
+    /// Encoding in place gives the bytes of `encode_into`, at the length `encoded_len` says,
+    /// and refuses a destination of another length.
+    #[test]
+    fn in_place_encoding_gives_the_same_bytes() {
+        for m in [
+            sample(),
+            Message::Finish(Finish {
+                reason: "end".into(),
+            }),
+        ] {
+            let mut buf = Vec::new();
+            encode_into(&mut buf, "run-1", "left", 42, &m).expect("encode");
+            let n = encoded_len("run-1", "left", &m).expect("len");
+            assert_eq!(n, buf.len());
+            let mut dst = vec![std::mem::MaybeUninit::<u8>::uninit(); n];
+            encode_into_uninit(&mut dst, "run-1", "left", 42, &m).expect("in place");
+            // SAFETY: encode_into_uninit wrote every byte (it succeeded at the full length).
+            let got: Vec<u8> = dst.iter().map(|b| unsafe { b.assume_init() }).collect();
+            assert_eq!(got, buf);
+            let mut short = vec![std::mem::MaybeUninit::<u8>::uninit(); n - 1];
+            assert!(encode_into_uninit(&mut short, "run-1", "left", 42, &m).is_err());
+            let mut long = vec![std::mem::MaybeUninit::<u8>::uninit(); n + 1];
+            assert!(encode_into_uninit(&mut long, "run-1", "left", 42, &m).is_err());
+        }
+    }
 
     fn sample() -> Message {
         Message::Fields(Fields {

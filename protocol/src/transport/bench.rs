@@ -3,7 +3,8 @@
 //! which answers with a `Fields` envelope carrying the payload (n bytes of f64) and then a
 //! `Done`; the coordinator decodes both with the full codec. The table gives the median (and
 //! p10/p90) over the measured rounds next to the median time of one plain memcpy of the
-//! payload bytes, the floor any transport that copies the data has to pay.
+//! payload bytes, the floor any transport that copies the data has to pay, and (shared
+//! memory) a raw iceoryx2 round trip of the same bytes, the floor of the transport under it.
 //!
 //! Bench protocol: the echo side reads the payload length (number of f64 values) from
 //! `Advance::t1`; `Advance` of window 0 is the start-up probe; `Finish` ends the echo side.
@@ -59,6 +60,10 @@ pub struct BenchRow {
     pub memcpy_us: f64,
     /// Median time of encoding plus decoding the `Fields` answer alone (no transport).
     pub codec_us: f64,
+    /// Shared memory only: median round trip of the same payload bytes over raw iceoryx2
+    /// (loan, copy in, send, wake-up, copy out, each way; [`iceoryx_variant_rtt_us`] with the
+    /// transport's service variant), measured right after this row.
+    pub raw_us: Option<f64>,
 }
 
 /// Rows rendered as a markdown table.
@@ -78,13 +83,14 @@ impl fmt::Display for BenchTable<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "| transport | payload | rounds | median µs | p10 µs | p90 µs | memcpy µs | codec µs | median / (2 memcpy) |"
+            "| transport | payload | rounds | median µs | p10 µs | p90 µs | memcpy µs | codec µs | median / (2 memcpy) | raw iceoryx2 µs | median / raw |"
         )?;
-        writeln!(f, "|---|---:|---:|---:|---:|---:|---:|---:|---:|")?;
+        writeln!(f, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")?;
         for r in self.0 {
+            let raw = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.1}"));
             writeln!(
                 f,
-                "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+                "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} |",
                 r.transport.as_str(),
                 human_bytes(r.bytes),
                 r.rounds,
@@ -94,6 +100,9 @@ impl fmt::Display for BenchTable<'_> {
                 r.memcpy_us,
                 r.codec_us,
                 r.median_us / (2.0 * r.memcpy_us.max(1e-3)),
+                raw(r.raw_us),
+                r.raw_us
+                    .map_or("–".to_string(), |v| format!("{:.2}", r.median_us / v)),
             )?;
         }
         Ok(())
@@ -336,10 +345,11 @@ fn echo_loop(t: &mut dyn Transport, run: &str, me: &str) -> Result<(), BenchErro
                 if let Message::Done(d) = &mut done {
                     d.window = a.window;
                 }
+                // As a node sends its coupling data (participant runtime): in place where
+                // the transport allows.
                 for m in [&answer, &done] {
                     seq += 1;
-                    encode_into(&mut buf, run, me, seq, m)?;
-                    up.send(&buf)?;
+                    up.send_message(run, me, seq, m, &mut buf)?;
                 }
             }
             Message::Finish(_) => return Ok(()),
@@ -473,6 +483,13 @@ fn drive(
             p90_us: percentile(&times, 0.9),
             memcpy_us: memcpy_median_us(values * 8, rounds),
             codec_us: codec_median_us(values * 8, rounds.min(50))?,
+            raw_us: if kind == TransportKind::Shm {
+                Some(iceoryx_variant_rtt_us::<
+                    iceoryx2::service::ipc_threadsafe::Service,
+                >(values * 8, rounds)?)
+            } else {
+                None
+            },
         });
     }
     seq += 1;
@@ -514,9 +531,18 @@ pub fn iceoryx_variant_rtt_us<S: iceoryx2::service::Service>(
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<S>()
             .map_err(|e| setup(&e))?;
+        // One publisher and one subscriber with small queues, as the shm transport sets its
+        // topics up: the sample pool stays small, so its pages are warm after the warm-up
+        // rounds (iceoryx2's defaults preallocate dozens of samples, each faulted in on first
+        // use, which would time the page faults rather than the transport).
         let topic = |n: &str| -> Result<_, TransportError> {
             node.service_builder(&ServiceName::new(n).map_err(|e| setup(&e))?)
                 .publish_subscribe::<[u8]>()
+                .max_publishers(1)
+                .max_subscribers(1)
+                .subscriber_max_buffer_size(2)
+                .subscriber_max_borrowed_samples(1)
+                .history_size(0)
                 .enable_safe_overflow(false)
                 .open_or_create()
                 .map_err(|e| setup(&e))
@@ -533,6 +559,7 @@ pub fn iceoryx_variant_rtt_us<S: iceoryx2::service::Service>(
             .publisher_builder()
             .initial_max_slice_len(bytes)
             .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .max_loaned_samples(1)
             .create()
             .map_err(|e| setup(&e))?;
         let sub = in_svc

@@ -7,6 +7,8 @@
 //! [`cleanup_run`] sweeps after a crash.
 
 use super::{PeerWatch, Publisher, TopicId, Transport, TransportError, TransportSpec};
+use crate::codec;
+use crate::message::Message;
 use iceoryx2::node::NodeView;
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::notifier::Notifier;
@@ -17,6 +19,7 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 use std::collections::HashMap;
+use std::mem::MaybeUninit;
 use std::time::{Duration, Instant};
 
 /// The service variant: the thread-safe one, because a `Publisher` must be `Send` (a node's
@@ -226,14 +229,20 @@ impl ShmPublisher {
         }
     }
 
-    /// Loan a sample, write the frame header and `bytes` into it (the one copy), send it;
-    /// returns how many subscribers took it.
-    fn send_once(&self, bytes: &[u8], start: Instant) -> Result<usize, TransportError> {
+    /// Loan a sample of `len` message bytes, write the frame header and let `fill` write the
+    /// message into it in place (all `len` bytes), send it; returns how many subscribers
+    /// took it.
+    fn send_once(
+        &self,
+        len: usize,
+        fill: &mut dyn FnMut(&mut [MaybeUninit<u8>]) -> Result<(), TransportError>,
+        start: Instant,
+    ) -> Result<usize, TransportError> {
         // All preallocated samples are in flight only while a reader lags behind: wait for
         // it (backpressure), never drop.
         let mut pause = Duration::from_micros(20);
         let mut sample = loop {
-            match self.publisher.loan_slice_uninit(FRAME_HEADER + bytes.len()) {
+            match self.publisher.loan_slice_uninit(FRAME_HEADER + len) {
                 Ok(s) => break s,
                 Err(LoanError::OutOfMemory) | Err(LoanError::ExceedsMaxLoans) => {
                     if super::sends_abandoned() {
@@ -247,22 +256,19 @@ impl ShmPublisher {
                     std::thread::sleep(pause);
                     pause = (pause * 2).min(Duration::from_millis(5));
                 }
-                Err(e) => return Err(self.err(format!("loan of {} bytes: {e:?}", bytes.len()))),
+                Err(e) => return Err(self.err(format!("loan of {len} bytes: {e:?}"))),
             }
         };
         let dst = sample.payload_mut();
         let mut header = [0u8; FRAME_HEADER];
         header[..8].copy_from_slice(&self.tag.to_le_bytes());
         header[8..].copy_from_slice(&self.seq.to_le_bytes());
-        // SAFETY: `dst` has exactly FRAME_HEADER + bytes.len() elements (the loan size);
-        // MaybeUninit<u8> has the layout of u8; the source and the shared-memory sample do
-        // not overlap. Every element is written before `assume_init`.
-        let sample = unsafe {
-            let p = dst.as_mut_ptr() as *mut u8;
-            std::ptr::copy_nonoverlapping(header.as_ptr(), p, FRAME_HEADER);
-            std::ptr::copy_nonoverlapping(bytes.as_ptr(), p.add(FRAME_HEADER), bytes.len());
-            sample.assume_init()
-        };
+        let (head, body) = dst.split_at_mut(FRAME_HEADER);
+        head.write_copy_of_slice(&header);
+        fill(body)?;
+        // SAFETY: the loan holds exactly FRAME_HEADER + len elements: the header was written
+        // above and `fill` wrote all `len` message bytes (its contract; it failed otherwise).
+        let sample = unsafe { sample.assume_init() };
         let delivered = sample.send().map_err(|e| self.err(format!("{e:?}")))?;
         for bell in &self.bells {
             bell.notify()
@@ -272,13 +278,18 @@ impl ShmPublisher {
     }
 }
 
-impl Publisher for ShmPublisher {
-    fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+impl ShmPublisher {
+    /// Send one message of `len` bytes written by `fill` (again for a resend).
+    fn send_with(
+        &mut self,
+        len: usize,
+        fill: &mut dyn FnMut(&mut [MaybeUninit<u8>]) -> Result<(), TransportError>,
+    ) -> Result<(), TransportError> {
         let start = Instant::now();
         let mut pause = Duration::from_micros(50);
         self.seq += 1;
         loop {
-            let delivered = self.send_once(bytes, start)?;
+            let delivered = self.send_once(len, fill, start)?;
             // iceoryx2 drops a sample for a subscriber that has not yet connected to this
             // publisher (it connects on its next receive) once that subscriber's buffer is
             // full. Detect it and send again after the bell has woken the reader; readers
@@ -296,6 +307,32 @@ impl Publisher for ShmPublisher {
             std::thread::sleep(pause);
             pause = (pause * 2).min(Duration::from_millis(5));
         }
+    }
+}
+
+impl Publisher for ShmPublisher {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+        self.send_with(bytes.len(), &mut |dst| {
+            dst.write_copy_of_slice(bytes);
+            Ok(())
+        })
+    }
+
+    /// Encodes straight into the loaned sample: the message's only copy on this side.
+    fn send_message(
+        &mut self,
+        run: &str,
+        sender: &str,
+        seq: u64,
+        message: &Message,
+        _scratch: &mut Vec<u8>,
+    ) -> Result<(), TransportError> {
+        let len = codec::encoded_len(run, sender, message)
+            .map_err(|e| self.err(format!("cannot encode: {e}")))?;
+        self.send_with(len, &mut |dst| {
+            codec::encode_into_uninit(dst, run, sender, seq, message)
+                .map_err(|e| TransportError::Encode(e.to_string()))
+        })
     }
 }
 
