@@ -1331,7 +1331,7 @@ fn send_window(
     }
     c.sim_t = t1;
     let write_output =
-        k == windows || (case.run.output_every > 0 && k % case.run.output_every == 0);
+        k == windows || (case.run.output_every > 0 && k.is_multiple_of(case.run.output_every));
     let sending = Instant::now();
     for &i in order_idx {
         if c.nodes[i].finished.is_some() {

@@ -210,6 +210,9 @@ impl ShmTransport {
     }
 }
 
+/// Writes one message into a loaned sample, in place (all of its bytes).
+type Fill<'a> = dyn FnMut(&mut [MaybeUninit<u8>]) -> Result<(), TransportError> + 'a;
+
 struct ShmPublisher {
     topic: String,
     /// Identifies this publisher in the frame header, for the readers' duplicate filter.
@@ -235,7 +238,7 @@ impl ShmPublisher {
     fn send_once(
         &self,
         len: usize,
-        fill: &mut dyn FnMut(&mut [MaybeUninit<u8>]) -> Result<(), TransportError>,
+        fill: &mut Fill,
         start: Instant,
     ) -> Result<usize, TransportError> {
         // All preallocated samples are in flight only while a reader lags behind: wait for
@@ -280,11 +283,7 @@ impl ShmPublisher {
 
 impl ShmPublisher {
     /// Send one message of `len` bytes written by `fill` (again for a resend).
-    fn send_with(
-        &mut self,
-        len: usize,
-        fill: &mut dyn FnMut(&mut [MaybeUninit<u8>]) -> Result<(), TransportError>,
-    ) -> Result<(), TransportError> {
+    fn send_with(&mut self, len: usize, fill: &mut Fill) -> Result<(), TransportError> {
         let start = Instant::now();
         let mut pause = Duration::from_micros(50);
         self.seq += 1;
