@@ -4,7 +4,8 @@
 //! * `transport` — one window round trip (Advance → Fields → Done) per transport; one update
 //!   is one payload byte (`protocol::transport::bench`).
 //! * `fluid` — one full SSP-RK3 step of one cell (issue 3) on the 2-D cylindrical blast
-//!   (`fluid_node::setup::benchmark_blast_case`), CPU and GPU (`fluid_node::gpu::GpuEuler`).
+//!   (`fluid_node::setup::benchmark_blast_case`), CPU and GPU (`fluid_node::gpu::GpuEuler`);
+//!   `fluid-3d` the same on the 3-D spherical blast of n³ cells, CPU only.
 //! * `pd-bond`, `pd-correspondence` — one particle–family-member pair processed in one
 //!   velocity-Verlet step (forces, damage check, integration; issue 4) on an n³ cubic block,
 //!   δ = 3.015 Δx; `pd-bond` also on the GPU (`solid_node::pd::gpu::GpuBondBody`).
@@ -36,7 +37,7 @@ use std::time::Instant;
 pub struct SuiteArgs {
     /// Kernels to run, comma-separated: transport, window (whole coupled windows through
     /// `cosim run`: participant round trip in Rust, Python and C; the split bar per transport),
-    /// fluid, solid (= pd-bond and pd-correspondence), pd-bond, pd-correspondence, shell,
+    /// fluid, fluid-3d, solid (= pd-bond and pd-correspondence), pd-bond, pd-correspondence, shell,
     /// joint. Default: all.
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
@@ -52,10 +53,11 @@ pub struct SuiteArgs {
 }
 
 /// All kernels, in run order.
-pub const KERNELS: [&str; 7] = [
+pub const KERNELS: [&str; 8] = [
     "transport",
     "window",
     "fluid",
+    "fluid-3d",
     "pd-bond",
     "pd-correspondence",
     "shell",
@@ -99,6 +101,9 @@ fn sizes(kernel: &str, quick: bool) -> Vec<usize> {
         ("transport", true) => vec![1 << 10, 1 << 16],
         ("fluid", false) => vec![100, 200, 400, 800],
         ("fluid", true) => vec![16, 32],
+        // 54³ has the cells of 400² (issue 22: 3-D per-cell throughput against 2-D)
+        ("fluid-3d", false) => vec![24, 34, 44, 54],
+        ("fluid-3d", true) => vec![8, 12],
         ("pd-bond" | "pd-correspondence", false) => vec![16, 23, 31, 40],
         ("pd-bond" | "pd-correspondence", true) => vec![6, 8],
         ("shell", false) => vec![100, 200, 400, 800],
@@ -654,28 +659,38 @@ struct Case {
     gpu: Option<StepFn>,
 }
 
-fn fluid(cx: &mut Ctx, n: usize) -> anyhow::Result<Case> {
+/// The fluid step on the 2-D cylindrical blast (`n`² cells), or with `three_d` on the 3-D
+/// spherical blast (`n`³ cells, CPU only).
+fn fluid(cx: &mut Ctx, n: usize, three_d: bool) -> anyhow::Result<Case> {
     use fluid_node::{gpu::GpuEuler, setup, step};
     let t0 = Instant::now();
-    let f0 = setup::from_toml_str(&setup::benchmark_blast_case(n))
-        .map_err(|e| anyhow!("benchmark case: {e}"))?;
+    let text = if three_d {
+        setup::benchmark_blast_case_3d(n)
+    } else {
+        setup::benchmark_blast_case(n)
+    };
+    let f0 = setup::from_toml_str(&text).map_err(|e| anyhow!("benchmark case: {e}"))?;
     let working_set = 8
         * (f0.cons.len()
             + f0.cons0.len()
             + f0.prim.len()
             + f0.flux.iter().map(Vec::len).sum::<usize>()) as u64;
     let p = Problem {
-        kernel: "fluid",
-        problem: format!("blast 2-D {n}×{n} cells"),
+        kernel: if three_d { "fluid-3d" } else { "fluid" },
+        problem: if three_d {
+            format!("blast 3-D {n}×{n}×{n} cells")
+        } else {
+            format!("blast 2-D {n}×{n} cells")
+        },
         size: n,
         unit: "cell-updates",
-        updates: (n * n) as u64,
+        updates: f0.grid.cells() as u64,
         working_set: Some(working_set),
         neighbours: None,
         setup_s: t0.elapsed().as_secs_f64(),
     };
     let mut gpu: Option<StepFn> = None;
-    if let Some(ctx) = cx.gpu.clone() {
+    if let (Some(ctx), false) = (cx.gpu.clone(), three_d) {
         match fluid_node::gpu::supports(&f0) {
             Err(why) => skip(cx, "fluid", &format!("{n}×{n}: {why}")),
             Ok(()) => {
@@ -1503,7 +1518,8 @@ pub fn suite(args: &SuiteArgs) -> i32 {
         let mut failed = false;
         for n in sizes(k, args.quick) {
             let r = match k {
-                "fluid" => fluid(&mut cx, n),
+                "fluid" => fluid(&mut cx, n, false),
+                "fluid-3d" => fluid(&mut cx, n, true),
                 "pd-bond" | "pd-correspondence" => pd(&mut cx, k, n),
                 "shell" => shell(n),
                 "joint" => joint(n),

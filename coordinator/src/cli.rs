@@ -100,10 +100,16 @@ pub enum Cmd {
         /// The run's output folder.
         run: PathBuf,
         /// Simulated time (s) to draw (default: the last frames).
-        #[arg(long)]
+        #[arg(long, conflicts_with = "all")]
         time: Option<f64>,
+        /// Colour NODE by one of its VTK fields (NODE.FIELD, e.g. gas.density, bar.velocity).
+        #[arg(long)]
+        field: Option<String>,
+        /// Every written frame: RUN/frames/fields_<window>.png, one per output time.
+        #[arg(long)]
+        all: bool,
         /// The PNG file (default: RUN/fields.png, or RUN/fields_<time>.png with --time).
-        #[arg(long, short)]
+        #[arg(long, short, conflicts_with = "all")]
         output: Option<PathBuf>,
     },
     /// Write a run's per-window histories (every node's report and the balance) as arrays:
@@ -116,6 +122,14 @@ pub enum Cmd {
         /// Output file (npz) or directory (csv); default: RUN/history.npz or RUN/history/.
         #[arg(long, short)]
         output: Option<PathBuf>,
+        /// Only these series: NODE/KEY with `*` as a wildcard, or NODE for all of its keys
+        /// (`balance` is the coordinator's); repeatable or comma-separated.
+        #[arg(long, value_delimiter = ',')]
+        series: Vec<String>,
+        /// Also write the interface fields of every coupling message to RUN/fields.npz
+        /// (COUPLING/SENDER/FIELD as (messages, points, components), with .window and .time).
+        #[arg(long)]
+        fields: bool,
     },
     /// Remove the shared memory left by runs whose processes are all gone (a killed cosim);
     /// a run still running is never touched.
@@ -159,8 +173,15 @@ pub enum Cmd {
         /// NODE.QUANTITY to plot (a scalar of the node's report, kinetic_energy,
         /// internal_energy, momentum_x, ...), repeatable; `*.QUANTITY`: whichever node of each
         /// run reports it.
-        #[arg(long = "series", required = true)]
+        #[arg(long = "series", required_unless_present = "field")]
         series: Vec<String>,
+        /// Instead of time histories, a picture of a field: NODE.FIELD of the node's VTK
+        /// frames (e.g. gas.pressure, bar.damage), per run, at `--at` (default the end).
+        #[arg(long, conflicts_with_all = ["series", "x"])]
+        field: Option<String>,
+        /// Simulated time (s) of the field picture (the frame nearest it).
+        #[arg(long, requires = "field")]
+        at: Option<f64>,
         /// Directory for the PNG files.
         #[arg(long, short, default_value = "plots")]
         output: PathBuf,
@@ -168,6 +189,20 @@ pub enum Cmd {
         /// force–displacement curve).
         #[arg(long)]
         x: Option<String>,
+    },
+    /// The parameters of a model (key, type, default, meaning; SI units), from the JSON Schema
+    /// its node executable derives from the types it decodes them into; without a model, the
+    /// models of the built-in nodes.
+    Params {
+        /// A model: bar-1d, fem-2d, pd-bond, pd-correspondence, pd-rk-ba, euler, blt-shell,
+        /// mc-spg, or one of `--solver`'s.
+        model: Option<String>,
+        /// Print the JSON Schema itself (for editors and tools) instead of the listing.
+        #[arg(long)]
+        json: bool,
+        /// Ask this node executable instead of the built-in ones (one that supports --schema).
+        #[arg(long)]
+        solver: Option<PathBuf>,
     },
     /// Print a shell completion script: `cosim completions bash > ~/.local/share/bash-completion/completions/cosim`
     /// (also zsh, fish, elvish, powershell).
@@ -557,19 +592,78 @@ fn validate(case: &std::path::Path, variant: Option<&str>, sets: &[String], json
 /// Run the command line; returns the exit code.
 pub fn main_with(cli: Cli) -> i32 {
     match cli.cmd {
+        Cmd::Params {
+            model,
+            json,
+            solver,
+        } => {
+            let shown = match &model {
+                None => crate::params::models(solver.as_deref()).map(|all| {
+                    if json {
+                        let v: Vec<serde_json::Value> = all
+                            .iter()
+                            .map(|(m, e)| serde_json::json!({ "model": m, "solver": e }))
+                            .collect();
+                        serde_json::Value::Array(v).to_string()
+                    } else {
+                        let mut s = String::from("model               solver\n");
+                        for (m, e) in &all {
+                            s += &format!("{m:<20}{e}\n");
+                        }
+                        s + "cosim params MODEL lists a model's parameters"
+                    }
+                }),
+                Some(m) => crate::params::schema(m, solver.as_deref()).map(|(v, exe)| {
+                    if json {
+                        serde_json::to_string_pretty(&v).unwrap_or_default()
+                    } else {
+                        crate::params::table(m, &exe, &crate::params::rows(&v))
+                    }
+                }),
+            };
+            match shown {
+                Ok(s) => {
+                    println!("{}", s.trim_end());
+                    0
+                }
+                Err(e) => {
+                    eprintln!("cosim params: {e:#}");
+                    2
+                }
+            }
+        }
         Cmd::Completions { shell } => {
             use clap::CommandFactory;
             clap_complete::generate(shell, &mut Cli::command(), "cosim", &mut std::io::stdout());
             0
         }
-        Cmd::Render { run, time, output } => {
-            let png = output.unwrap_or_else(|| match time {
-                Some(t) => run.join(format!("fields_{t:e}.png")),
-                None => run.join("fields.png"),
-            });
-            match crate::fields::render(&run, time, &png) {
-                Ok(t) => {
-                    println!("{} (t = {t:e} s)", png.display());
+        Cmd::Render {
+            run,
+            time,
+            field,
+            all,
+            output,
+        } => {
+            let drawn = field
+                .as_deref()
+                .map(crate::fields::Choice::parse)
+                .transpose()
+                .and_then(|choice| {
+                    if all {
+                        return crate::fields::render_all(&run, choice);
+                    }
+                    let png = output.unwrap_or_else(|| match time {
+                        Some(t) => run.join(format!("fields_{t:e}.png")),
+                        None => run.join("fields.png"),
+                    });
+                    let t = crate::fields::render(&run, time, &png, choice)?;
+                    Ok(vec![(png, t)])
+                });
+            match drawn {
+                Ok(list) => {
+                    for (png, t) in list {
+                        println!("{} (t = {t:e} s)", png.display());
+                    }
                     0
                 }
                 Err(e) => {
@@ -582,6 +676,8 @@ pub fn main_with(cli: Cli) -> i32 {
             run,
             format,
             output,
+            series,
+            fields,
         } => {
             let rec = recording_of(&run);
             let base = if run.is_dir() {
@@ -589,15 +685,29 @@ pub fn main_with(cli: Cli) -> i32 {
             } else {
                 run.parent().map(PathBuf::from).unwrap_or_default()
             };
-            let done = crate::export::tables(&rec).and_then(|t| {
+            let done = crate::export::tables(&rec).and_then(|mut t| {
+                crate::export::filter(&mut t, &series)?;
+                let mut note = String::new();
+                if fields {
+                    let (f, ragged) = crate::export::field_series(&rec)?;
+                    let path = base.join("fields.npz");
+                    let n = crate::export::write_fields_npz(&f, &path)?;
+                    note = format!("; {n} interface fields in {}", path.display());
+                    if !ragged.is_empty() {
+                        note += &format!(
+                            " (left out, their point count changes between messages: {})",
+                            ragged.join(", ")
+                        );
+                    }
+                }
                 if format == "csv" {
                     let dir = output.unwrap_or_else(|| base.join("history"));
                     let files = crate::export::write_csv(&t, &dir)?;
-                    Ok(format!("{} tables in {}", files.len(), dir.display()))
+                    Ok(format!("{} tables in {}{note}", files.len(), dir.display()))
                 } else {
                     let f = output.unwrap_or_else(|| base.join("history.npz"));
                     let n = crate::export::write_npz(&t, &f)?;
-                    Ok(format!("{n} arrays in {}", f.display()))
+                    Ok(format!("{n} arrays in {}{note}", f.display()))
                 }
             });
             match done {
@@ -613,9 +723,54 @@ pub fn main_with(cli: Cli) -> i32 {
         }
         Cmd::Plot {
             runs,
+            field: Some(field),
+            at,
+            output,
+            ..
+        } => {
+            let drawn = crate::fields::Choice::parse(&field).and_then(|choice| {
+                std::fs::create_dir_all(&output)
+                    .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", output.display()))?;
+                let mut out = Vec::new();
+                for run in &runs {
+                    let dir = if run.is_dir() {
+                        run.clone()
+                    } else {
+                        run.parent().map(PathBuf::from).unwrap_or_default()
+                    };
+                    let name = dir
+                        .file_name()
+                        .map(|n| n.to_string_lossy().into_owned())
+                        .unwrap_or_else(|| "run".into());
+                    let at_name = at.map(|t| format!("_{t:e}")).unwrap_or_default();
+                    let png = output.join(format!(
+                        "{name}_{}{at_name}.png",
+                        crate::plot::file_stem(&field)
+                    ));
+                    let t = crate::fields::render(&dir, at, &png, Some(choice))?;
+                    out.push((png, t));
+                }
+                Ok(out)
+            });
+            match drawn {
+                Ok(list) => {
+                    for (png, t) in list {
+                        println!("{} (t = {t:e} s)", png.display());
+                    }
+                    0
+                }
+                Err(e) => {
+                    eprintln!("cosim plot: {e:#}");
+                    1
+                }
+            }
+        }
+        Cmd::Plot {
+            runs,
             series,
             output,
             x,
+            ..
         } => match crate::plot::compare(&runs, &series, x.as_deref(), &output) {
             Ok(files) => {
                 for f in files {

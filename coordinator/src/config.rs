@@ -617,6 +617,17 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
         if c.kind != CouplingKind::Lagrange {
             continue;
         }
+        // A lagrange side's coupling state (its condensed operators' history, λ) is not in
+        // any node's checkpoint yet: refuse before anything starts rather than at window N.
+        if checkpoint_every > 0 {
+            return Err(err(
+                "run.checkpoint_every",
+                format!(
+                    "the lagrange coupling couplings[{i}] cannot checkpoint yet (its sides' \
+                     coupling state is not saved); remove run.checkpoint_every"
+                ),
+            ));
+        }
         // Every subdomain steps the system step exactly: the run is whole windows.
         let w = end_time / window;
         if (w - w.round()).abs() > 1e-9 * w.max(1.0) {

@@ -2,7 +2,9 @@
 //! node's report (`/cosim/node/<name>`: energies, momentum, named scalars such as probe
 //! pressures and displacements) and the balance (`/cosim/balance`), read from the recording.
 //! `npz` holds one array per `NODE/KEY` (`balance/KEY`): 1-D float64 per window, (windows, 3)
-//! for vectors, NaN where a window lacks the key; `csv` writes one table per node.
+//! for vectors, NaN where a window lacks the key; `csv` writes one table per node. The
+//! coupling messages' interface fields go to `fields.npz` (`COUPLING/SENDER/FIELD` as
+//! (messages, points, components), with `.window` and `.time` per message).
 
 use crate::record;
 use anyhow::{Context, bail};
@@ -84,6 +86,176 @@ pub fn tables(recording: &Path) -> anyhow::Result<BTreeMap<String, Table>> {
         );
     }
     Ok(out)
+}
+
+/// Whether `name` (`NODE/KEY`) is selected by `patterns` (`NODE/KEY` with `*` matching any
+/// run of characters, or `NODE` alone for all its keys); no pattern selects everything.
+pub fn selected(name: &str, patterns: &[String]) -> bool {
+    patterns.is_empty()
+        || patterns.iter().any(|p| {
+            glob(p, name) || (!p.contains('/') && name.split('/').next() == Some(p.as_str()))
+        })
+}
+
+/// `*`-only glob match of `text` against `pat`.
+fn glob(pat: &str, text: &str) -> bool {
+    let mut parts = pat.split('*');
+    let first = parts.next().unwrap_or("");
+    let Some(mut rest) = text.strip_prefix(first) else {
+        return false;
+    };
+    let parts: Vec<&str> = parts.collect();
+    let Some((last, middle)) = parts.split_last() else {
+        return rest.is_empty();
+    };
+    for m in middle {
+        match rest.find(m) {
+            Some(i) => rest = &rest[i + m.len()..],
+            None => return false,
+        }
+    }
+    rest.len() >= last.len() && rest.ends_with(last)
+}
+
+/// Keeps in `tables` the columns `patterns` select (`window` and `time` stay with any
+/// selected column of their table); an error names the patterns that selected nothing.
+pub fn filter(tables: &mut BTreeMap<String, Table>, patterns: &[String]) -> anyhow::Result<()> {
+    if patterns.is_empty() {
+        return Ok(());
+    }
+    let unused: Vec<&String> = patterns
+        .iter()
+        .filter(|p| {
+            !tables.iter().any(|(node, t)| {
+                t.columns
+                    .iter()
+                    .any(|(k, _)| selected(&format!("{node}/{k}"), std::slice::from_ref(p)))
+            })
+        })
+        .collect();
+    if !unused.is_empty() {
+        let known: Vec<String> = tables
+            .iter()
+            .flat_map(|(n, t)| t.columns.iter().map(move |(k, _)| format!("{n}/{k}")))
+            .take(40)
+            .collect();
+        bail!(
+            "--series {unused:?} selects nothing; series are NODE/KEY, e.g. {}",
+            known.join(", ")
+        );
+    }
+    for (node, t) in tables.iter_mut() {
+        let keep: Vec<bool> = t
+            .columns
+            .iter()
+            .map(|(k, _)| selected(&format!("{node}/{k}"), patterns))
+            .collect();
+        let any = keep.iter().any(|&k| k);
+        let mut i = 0;
+        t.columns.retain(|(k, _)| {
+            let kept = keep[i] || (any && (k == "window" || k == "time"));
+            i += 1;
+            kept
+        });
+    }
+    tables.retain(|_, t| !t.columns.is_empty());
+    Ok(())
+}
+
+/// One interface field as sent by one node on one coupling, message after message.
+#[derive(Debug, Default, Clone)]
+pub struct FieldSeries {
+    pub coupling: String,
+    pub sender: String,
+    pub field: String,
+    pub components: usize,
+    pub points: usize,
+    /// Window and simulated time of each message holding the field (the set-up's is window 0).
+    pub window: Vec<u64>,
+    pub time: Vec<f64>,
+    /// (messages, points, components), row-major.
+    pub values: Vec<f64>,
+}
+
+impl FieldSeries {
+    /// `COUPLING/SENDER/FIELD`.
+    pub fn name(&self) -> String {
+        format!("{}/{}/{}", self.coupling, self.sender, self.field)
+    }
+}
+
+/// Every interface field of the recording's coupling messages, by `COUPLING/SENDER/FIELD`,
+/// and the names of fields left out because their point count changes between messages (a
+/// table cannot hold them; the recording still does). The sender is the last part of the
+/// data topic (`cosim/<run>/<coupling>/<sender>`).
+pub fn field_series(
+    recording: &Path,
+) -> anyhow::Result<(BTreeMap<String, FieldSeries>, Vec<String>)> {
+    let (msgs, _complete) = record::read_all(recording)?;
+    let mut out: BTreeMap<String, FieldSeries> = BTreeMap::new();
+    let mut ragged = Vec::new();
+    for m in msgs.iter().filter(|m| !m.json) {
+        let Ok(env) = protocol::decode(&m.data) else {
+            continue;
+        };
+        let protocol::Message::Fields(f) = env.message else {
+            continue;
+        };
+        let sender = m.topic.rsplit('/').next().unwrap_or_default();
+        for fld in &f.fields {
+            let comps = (fld.components as usize).max(1);
+            let points = fld.values.len() / comps;
+            let name = format!("{}/{sender}/{}", f.coupling, fld.name);
+            if ragged.contains(&name) {
+                continue;
+            }
+            let s = out.entry(name.clone()).or_insert_with(|| FieldSeries {
+                coupling: f.coupling.clone(),
+                sender: sender.to_string(),
+                field: fld.name.clone(),
+                components: comps,
+                points,
+                ..Default::default()
+            });
+            if s.points != points || s.components != comps {
+                out.remove(&name);
+                ragged.push(name);
+                continue;
+            }
+            s.window.push(f.window);
+            s.time.push(f.time);
+            s.values.extend_from_slice(&fld.values);
+        }
+    }
+    Ok((out, ragged))
+}
+
+/// Writes each field series as `NAME` (messages, points, components), `NAME.window` and
+/// `NAME.time` into a numpy `.npz` file; returns the number of series.
+pub fn write_fields_npz(
+    series: &BTreeMap<String, FieldSeries>,
+    path: &Path,
+) -> anyhow::Result<usize> {
+    let file =
+        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let mut npz = ndarray_npy::NpzWriter::new(std::io::BufWriter::new(file));
+    for (name, s) in series {
+        // views of the series' own storage: no copy of the (possibly large) values
+        let a =
+            ndarray::ArrayView3::from_shape((s.window.len(), s.points, s.components), &s.values)?;
+        npz.add_array(name.as_str(), &a)?;
+        npz.add_array(
+            format!("{name}.window").as_str(),
+            &ndarray::ArrayView1::from(&s.window),
+        )?;
+        npz.add_array(
+            format!("{name}.time").as_str(),
+            &ndarray::ArrayView1::from(&s.time),
+        )?;
+    }
+    npz.finish()
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(series.len())
 }
 
 /// Writes `NODE/KEY` arrays into a numpy `.npz` file; returns the number of arrays.

@@ -254,9 +254,80 @@ impl View {
 const SIZE: (u32, u32) = (1200, 800);
 const PLOT: (i32, i32, i32, i32) = (40, 60, 1000, 700);
 
+/// A field chosen to colour one node's frame (`cosim plot RUN --field NODE.FIELD`): a cell
+/// or point array of its VTK frames, drawn by magnitude.
+#[derive(Debug, Clone, Copy)]
+pub struct Choice<'a> {
+    pub node: &'a str,
+    pub field: &'a str,
+}
+
+impl<'a> Choice<'a> {
+    /// `NODE.FIELD` (the field name may itself hold dots).
+    pub fn parse(spec: &'a str) -> anyhow::Result<Self> {
+        match spec.split_once('.') {
+            Some((node, field)) if !node.is_empty() && !field.is_empty() => {
+                Ok(Choice { node, field })
+            }
+            _ => bail!("--field {spec}: must be NODE.FIELD, e.g. gas.density or bar.damage"),
+        }
+    }
+}
+
+/// The names to colour frame `f` by: the chosen field for the chosen node, else `default`.
+fn wanted<'a>(f: &Frame, choice: Option<Choice<'a>>, default: &[&'a str]) -> Vec<&'a str> {
+    match choice {
+        Some(c) if c.node == f.node => vec![c.field],
+        _ => default.to_vec(),
+    }
+}
+
+/// A colour-bar caption: `node: field [unit]`.
+fn caption(node: &str, field: &str) -> String {
+    match crate::plot::unit_of(field) {
+        Some(u) => format!("{node}: {field} [{u}]"),
+        None => format!("{node}: {field}"),
+    }
+}
+
+/// Refuses a choice whose node or field the frames do not hold, listing what they hold.
+fn check_choice(frames: &[Frame], c: Choice) -> anyhow::Result<()> {
+    let Some(f) = frames.iter().find(|f| f.node == c.node) else {
+        let nodes: Vec<&str> = frames.iter().map(|f| f.node.as_str()).collect();
+        bail!(
+            "--field {}.{}: no VTK frames of node '{}' (nodes with frames: {nodes:?})",
+            c.node,
+            c.field,
+            c.node
+        );
+    };
+    let names: Vec<&str> = f
+        .cell_data
+        .iter()
+        .chain(&f.point_data)
+        .map(|a| a.name.as_str())
+        .collect();
+    if !names.contains(&c.field) {
+        bail!(
+            "--field {}.{}: node '{}' writes no field '{}' (it writes {names:?})",
+            c.node,
+            c.field,
+            c.node,
+            c.field
+        );
+    }
+    Ok(())
+}
+
 /// Draws the frames nearest `time` (the last ones when None) of the run in `run_dir` into
-/// `png`; returns the time drawn (the latest of the frames used).
-pub fn render(run_dir: &Path, time: Option<f64>, png: &Path) -> anyhow::Result<f64> {
+/// `png`, one node coloured by a chosen field if `choice` says so; returns the time drawn
+/// (the latest of the frames used).
+pub fn render(
+    run_dir: &Path,
+    time: Option<f64>,
+    png: &Path,
+    choice: Option<Choice>,
+) -> anyhow::Result<f64> {
     let mut frames = Vec::new();
     let mut t_drawn = f64::NEG_INFINITY;
     for (node, pvd) in all_series(run_dir) {
@@ -278,13 +349,16 @@ pub fn render(run_dir: &Path, time: Option<f64>, png: &Path) -> anyhow::Result<f
             run_dir.display()
         );
     }
+    if let Some(c) = choice {
+        check_choice(&frames, c)?;
+    }
     let text = crate::plot::font_ready();
     let root = BitMapBackend::new(png, SIZE).into_drawing_area();
     root.fill(&WHITE)?;
     let bar = if frames.iter().any(|f| f.grid.is_some()) {
-        plane_view(&root, &frames)?
+        plane_view(&root, &frames, choice)?
     } else {
-        oblique_view(&root, &frames)?
+        oblique_view(&root, &frames, choice)?
     };
     if let Some((label, lo, hi)) = bar {
         colour_bar(&root, &label, lo, hi, text)?;
@@ -302,6 +376,32 @@ pub fn render(run_dir: &Path, time: Option<f64>, png: &Path) -> anyhow::Result<f
     Ok(t_drawn)
 }
 
+/// `cosim render --all`: one picture per written time (the union of the nodes' frame times)
+/// into `RUN/frames/fields_<k>.png`, k counting from 0; returns each file and its time.
+pub fn render_all(run_dir: &Path, choice: Option<Choice>) -> anyhow::Result<Vec<(PathBuf, f64)>> {
+    let mut times: Vec<f64> = Vec::new();
+    for (_, pvd) in all_series(run_dir) {
+        times.extend(series(&pvd)?.into_iter().map(|(t, _)| t));
+    }
+    times.sort_by(f64::total_cmp);
+    times.dedup_by(|a, b| (*a - *b).abs() <= 1e-12 * a.abs().max(b.abs()));
+    if times.is_empty() {
+        bail!(
+            "{}: no VTK series (.pvd) in its node folders",
+            run_dir.display()
+        );
+    }
+    let dir = run_dir.join("frames");
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mut out = Vec::with_capacity(times.len());
+    for (k, t) in times.into_iter().enumerate() {
+        let png = dir.join(format!("fields_{k:04}.png"));
+        let drawn = render(run_dir, Some(t), &png, choice)?;
+        out.push((png, drawn));
+    }
+    Ok(out)
+}
+
 type Bar = Option<(String, f64, f64)>;
 
 /// The gas grid's x–y plane (its middle z layer) coloured by pressure, the solids' particles
@@ -309,6 +409,7 @@ type Bar = Option<(String, f64, f64)>;
 fn plane_view(
     root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
     frames: &[Frame],
+    choice: Option<Choice>,
 ) -> anyhow::Result<Bar> {
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
@@ -326,7 +427,11 @@ fn plane_view(
         let Some(g) = &f.grid else { continue };
         let n = [g[0].len() - 1, g[1].len() - 1, g[2].len().max(2) - 1];
         let cells = n[0] * n[1] * n[2];
-        let Some(a) = pick(&f.cell_data, &["pressure", "density"], cells) else {
+        let Some(a) = pick(
+            &f.cell_data,
+            &wanted(f, choice, &["pressure", "density"]),
+            cells,
+        ) else {
             continue;
         };
         let k = n[2] / 2;
@@ -344,10 +449,22 @@ fn plane_view(
                 root.draw(&Rectangle::new([(x0, y0), (x1, y1)], c.filled()))?;
             }
         }
-        bar = Some((format!("{}: {} (Pa)", f.node, a.name), vmin, vmax));
+        bar = Some((caption(&f.node, &a.name), vmin, vmax));
     }
     for f in frames.iter().filter(|f| f.grid.is_none()) {
-        if f.polygons.is_empty() {
+        // a chosen point field colours this node's particles with the map and takes the bar
+        let chosen = choice
+            .filter(|c| c.node == f.node)
+            .and_then(|c| pick(&f.point_data, &[c.field], f.points.len()));
+        if let Some(a) = chosen {
+            let (vmin, vmax) = range((0..f.points.len()).map(|i| magnitude(a, i)));
+            let r = if f.points.len() > 20_000 { 1 } else { 2 };
+            for (i, p) in f.points.iter().enumerate() {
+                let c = colour((magnitude(a, i) - vmin) / (vmax - vmin));
+                root.draw(&Circle::new(view.px(p[0], p[1]), r, c.filled()))?;
+            }
+            bar = Some((caption(&f.node, &a.name), vmin, vmax));
+        } else if f.polygons.is_empty() {
             let r = if f.points.len() > 20_000 { 1 } else { 2 };
             let damage = pick(&f.point_data, &["damage"], f.points.len());
             for (i, p) in f.points.iter().enumerate() {
@@ -374,6 +491,7 @@ fn plane_view(
 fn oblique_view(
     root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
     frames: &[Frame],
+    choice: Option<Choice>,
 ) -> anyhow::Result<Bar> {
     let all = || frames.iter().flat_map(|f| f.points.iter());
     let mut lo = [f64::INFINITY; 3];
@@ -417,10 +535,18 @@ fn oblique_view(
         let ne = f.polygons.len();
         let cell = pick(
             &f.cell_data,
-            &["plastic_strain", "mises_top", "von_mises", "damage"],
+            &wanted(
+                f,
+                choice,
+                &["plastic_strain", "mises_top", "von_mises", "damage"],
+            ),
             ne,
         );
-        let point = pick(&f.point_data, &["displacement"], f.points.len());
+        let point = pick(
+            &f.point_data,
+            &wanted(f, choice, &["displacement"]),
+            f.points.len(),
+        );
         for (e, poly) in f.polygons.iter().enumerate() {
             let q: Vec<[f64; 3]> = poly.iter().map(|&i| project(&f.points[i])).collect();
             let depth = q.iter().map(|p| p[2]).sum::<f64>() / q.len() as f64;
@@ -433,8 +559,9 @@ fn oblique_view(
             };
             faces.push((depth, q, v, fi));
         }
-        if bar_name.is_none() && ne > 0 {
-            bar_name = cell.or(point).map(|a| format!("{}: {}", f.node, a.name));
+        let is_chosen = choice.is_some_and(|c| c.node == f.node);
+        if (bar_name.is_none() || is_chosen) && ne > 0 {
+            bar_name = cell.or(point).map(|a| caption(&f.node, &a.name));
         }
     }
     let (vmin, vmax) = range(faces.iter().map(|f| f.2));

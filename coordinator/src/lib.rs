@@ -9,6 +9,7 @@ pub mod describe;
 pub mod export;
 pub mod fields;
 pub mod lagrange;
+pub mod params;
 pub mod plot;
 pub mod profile;
 pub mod progress;

@@ -62,11 +62,7 @@ const COLOURS: [RGBColor; 8] = [
 
 /// Axis range of all finite values with a margin; a flat series gets a unit-free band.
 fn range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for v in vals.filter(|v| v.is_finite()) {
-        lo = lo.min(v);
-        hi = hi.max(v);
-    }
+    let (lo, hi) = bounds(vals);
     if !lo.is_finite() {
         return (0.0, 1.0);
     }
@@ -77,6 +73,94 @@ fn range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
         0.5 * lo.abs().max(1e-12)
     };
     (lo - pad, hi + pad)
+}
+
+/// Smallest and largest finite value (infinite when there is none).
+fn bounds(vals: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in vals.filter(|v| v.is_finite()) {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    (lo, hi)
+}
+
+/// The SI unit of a reported quantity, from its name (the nodes report SI, see the README's
+/// "Units"); `None` when the name does not say.
+pub fn unit_of(key: &str) -> Option<&'static str> {
+    let k = key.rsplit('.').next().unwrap_or(key).to_ascii_lowercase();
+    let has = |w: &str| k.contains(w);
+    Some(if has("energy") || has("work") {
+        "J"
+    } else if has("momentum") || has("impulse") {
+        "N s"
+    } else if has("pressure") || has("stress") || has("modulus") {
+        "Pa"
+    } else if has("velocity") || has("speed") {
+        "m/s"
+    } else if has("displacement") || has("position") || has("deflection") || has("gap") {
+        "m"
+    } else if has("force") || has("lambda") {
+        "N"
+    } else if has("mass") {
+        "kg"
+    } else if has("density") {
+        "kg/m³"
+    } else if has("temperature") {
+        "K"
+    } else if has("strain") || has("damage") || has("fraction") || has("ratio") || has("count") {
+        "1"
+    } else if k.ends_with("_s") || k == "time" || has("dt") {
+        "s"
+    } else {
+        return None;
+    })
+}
+
+/// A y-axis title: the quantity with its unit (`point2.pressure [Pa]`).
+fn with_unit(label: &str) -> String {
+    match unit_of(label) {
+        Some(u) if !label.ends_with(']') => format!("{label} [{u}]"),
+        _ => label.to_string(),
+    }
+}
+
+/// Time axis scale: seconds shown in s, ms or µs so that the largest time reads 1–1000.
+fn time_scale(t_max: f64) -> (f64, &'static str) {
+    match t_max.abs() {
+        t if t > 0.0 && t < 1e-3 => (1e6, "t [µs]"),
+        t if t > 0.0 && t < 1.0 => (1e3, "t [ms]"),
+        _ => (1.0, "t [s]"),
+    }
+}
+
+/// Tick labels for an axis spanning `lo..hi`: fixed notation with as many decimals as the
+/// tick spacing needs for magnitudes 1e-3 … 1e5, else scientific with as many digits as tell
+/// the ticks apart; values within 1e-9 of the span from zero read 0 (no `-6.8e-21`).
+fn tick_label(v: f64, lo: f64, hi: f64) -> String {
+    let span = (hi - lo).abs();
+    let step = if span > 0.0 {
+        span / 10.0
+    } else {
+        lo.abs().max(1e-300)
+    };
+    if v.abs() <= 1e-9 * span {
+        return "0".into();
+    }
+    let mag = lo.abs().max(hi.abs());
+    if (1e-3..1e5).contains(&mag) {
+        let decimals = (-step.log10()).ceil().clamp(0.0, 9.0) as usize;
+        format!("{v:.decimals$}")
+    } else {
+        let unit = 10f64.powf(mag.log10().floor());
+        let digits = (-(step / unit).log10()).ceil().clamp(0.0, 9.0) as usize;
+        format!("{v:.digits$e}")
+    }
+}
+
+/// Whether a series is zero at every point (not worth a chart of its own).
+fn all_zero(points: &[(f64, f64)]) -> bool {
+    points.iter().all(|p| p.1 == 0.0)
 }
 
 /// Draw `series` as lines into a PNG at `path` (800×500).
@@ -91,8 +175,27 @@ pub fn line_chart(
         bail!("{title}: nothing to plot");
     }
     let text = font_ready();
-    let (x0, x1) = range(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
+    // time in s, ms or µs; the axis spans the data exactly (a run starts at t = 0)
+    let (xs, x_label) = if x_label == "t [s]" {
+        let (_, t_max) = bounds(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
+        time_scale(t_max)
+    } else {
+        (1.0, x_label)
+    };
+    let (mut x0, mut x1) = bounds(
+        series
+            .iter()
+            .flat_map(|s| s.points.iter().map(|p| p.0 * xs)),
+    );
+    if !(x0.is_finite() && x1 > x0) {
+        (x0, x1) = range(
+            series
+                .iter()
+                .flat_map(|s| s.points.iter().map(|p| p.0 * xs)),
+        );
+    }
     let (y0, y1) = range(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
+    let y_label = with_unit(y_label);
     let root = BitMapBackend::new(path, (800, 500)).into_drawing_area();
     let draw = |e: &dyn std::fmt::Display| anyhow::anyhow!("plot {}: {e}", path.display());
     root.fill(&WHITE).map_err(|e| draw(&e))?;
@@ -109,12 +212,14 @@ pub fn line_chart(
     let mut chart = builder
         .build_cartesian_2d(x0..x1, y0..y1)
         .map_err(|e| draw(&e))?;
+    let x_ticks = |v: &f64| tick_label(*v, x0, x1);
+    let y_ticks = |v: &f64| tick_label(*v, y0, y1);
     let mut mesh = chart.configure_mesh();
     if text {
         mesh.x_desc(x_label)
-            .y_desc(y_label)
-            .x_label_formatter(&|v| format!("{v:.3e}"))
-            .y_label_formatter(&|v| format!("{v:.3e}"))
+            .y_desc(y_label.as_str())
+            .x_label_formatter(&x_ticks)
+            .y_label_formatter(&y_ticks)
             .label_style(("sans-serif", 13));
     } else {
         mesh.x_labels(0).y_labels(0);
@@ -125,7 +230,7 @@ pub fn line_chart(
         let pts = s
             .points
             .iter()
-            .copied()
+            .map(|p| (p.0 * xs, p.1))
             .filter(|p| p.0.is_finite() && p.1.is_finite());
         let drawn = chart
             .draw_series(LineSeries::new(pts, colour.stroke_width(2)))
@@ -274,29 +379,43 @@ pub fn file_stem(s: &str) -> String {
 }
 
 /// The plots of one finished run (its histories, collected while it ran), written to
-/// `<dir>/plots/`: per node an energy chart and one chart per scalar. Returns the files.
+/// `<dir>/plots/`: per node an energy chart and one chart per scalar (none for a scalar that is
+/// zero throughout). Returns the files.
 pub fn run_plots(hist: &Histories, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     let plots = dir.join("plots");
     std::fs::create_dir_all(&plots)
         .with_context(|| format!("cannot create {}", plots.display()))?;
     let mut written = Vec::new();
     for (node, q) in hist {
-        let energies: Vec<Series> = ["kinetic_energy", "internal_energy", "interface_work"]
+        // every energy and work term of the node on one chart, those zero throughout left out
+        let energies: Vec<Series> = q
             .iter()
-            .filter_map(|k| {
-                q.get(*k).map(|p| Series {
-                    label: k.replace('_', " "),
-                    points: p.clone(),
-                })
+            .filter(|(k, p)| {
+                (k.ends_with("_energy") || *k == "interface_work" || *k == "external_work")
+                    && !all_zero(p)
+            })
+            .map(|(k, p)| Series {
+                label: k.replace('_', " "),
+                points: p.clone(),
             })
             .collect();
         if !energies.is_empty() {
             let p = plots.join(format!("{node}_energy.png"));
-            line_chart(&p, &format!("{node}: energy"), "t [s]", "J", &energies)?;
+            line_chart(
+                &p,
+                &format!("{node}: energy"),
+                "t [s]",
+                "energy [J]",
+                &energies,
+            )?;
             written.push(p);
         }
         for (k, pts) in q {
-            if k.ends_with("_energy") || k == "interface_work" || k == "external_work" {
+            if k.ends_with("_energy")
+                || k == "interface_work"
+                || k == "external_work"
+                || all_zero(pts)
+            {
                 continue;
             }
             let p = plots.join(format!("{node}_{}.png", file_stem(k)));
@@ -448,6 +567,53 @@ mod tests {
         let e = lookup(&h, "run", "*.force").unwrap_err().to_string();
         assert!(e.contains("several") && e.contains("shell"), "{e}");
         assert!(lookup(&h, "run", "force").is_err());
+    }
+
+    #[test]
+    fn ticks_read_plainly_and_axes_carry_units() {
+        // a pressure axis 1.0e5 … 3.5e5 Pa: scientific with the digits the ticks need
+        assert_eq!(tick_label(2.5e5, 1.0e5, 3.5e5), "2.5e5");
+        // a displacement of millimetres: fixed notation, enough decimals for the spacing
+        assert_eq!(tick_label(0.0015, 0.0, 0.004), "0.0015");
+        assert_eq!(tick_label(20.0, 0.0, 100.0), "20");
+        assert_eq!(tick_label(-4.231e-18, -5e-18, 5e-18), "-4e-18");
+        // a time axis starting at a float's round-off of zero reads 0, not -6.8e-21
+        assert_eq!(tick_label(-6.8e-21, -6.8e-21, 1.6), "0");
+        // a 1.6 ms run is drawn in ms, a 0.4 ms one in µs, a 2 s one in s
+        assert_eq!(time_scale(1.6e-3), (1e3, "t [ms]"));
+        assert_eq!(time_scale(4e-4), (1e6, "t [µs]"));
+        assert_eq!(time_scale(2.0), (1.0, "t [s]"));
+        assert_eq!(with_unit("point2.pressure"), "point2.pressure [Pa]");
+        assert_eq!(with_unit("com_displacement_x"), "com_displacement_x [m]");
+        assert_eq!(with_unit("momentum_x"), "momentum_x [N s]");
+        assert_eq!(with_unit("plastic_work"), "plastic_work [J]");
+        assert_eq!(with_unit("broken_bonds"), "broken_bonds");
+        assert_eq!(with_unit("energy [J]"), "energy [J]");
+    }
+
+    #[test]
+    fn a_run_draws_no_chart_for_a_quantity_that_stays_zero() {
+        let dir = std::env::temp_dir().join(format!("cosim-plot-zero-{}", std::process::id()));
+        let mut h = Histories::new();
+        let q = h.entry("bar".into()).or_default();
+        let t: Vec<f64> = (0..50).map(|i| i as f64 * 1e-5).collect();
+        q.insert(
+            "tip_displacement".into(),
+            t.iter().map(|&t| (t, t * 2.0)).collect(),
+        );
+        q.insert("momentum_z".into(), t.iter().map(|&t| (t, 0.0)).collect());
+        q.insert("kinetic_energy".into(), t.iter().map(|&t| (t, t)).collect());
+        q.insert(
+            "fracture_energy".into(),
+            t.iter().map(|&t| (t, 0.0)).collect(),
+        );
+        let files = run_plots(&h, &dir).expect("plots");
+        let names: Vec<String> = files
+            .iter()
+            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(names, ["bar_energy.png", "bar_tip_displacement.png"]);
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]

@@ -562,7 +562,12 @@ fn report_values(r: &StepReport) -> Vec<(String, f64)> {
             v.push((format!("{name}_{axis}"), c));
         }
     }
-    v.extend(r.scalars.iter().cloned());
+    v.extend(
+        r.scalars
+            .iter()
+            .filter(|(n, _)| !message::is_timing_scalar(n))
+            .cloned(),
+    );
     v
 }
 

@@ -1069,7 +1069,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             }
             if interrupted.is_none() && crate::fields::has_series(&out) {
                 let png = out.join("fields.png");
-                match crate::fields::render(&out, None, &png) {
+                match crate::fields::render(&out, None, &png, None) {
                     Ok(_) => summary["fields"] = json!(png),
                     Err(e) => tracing::warn!("fields picture of {}: {e:#}", out.display()),
                 }

@@ -2,7 +2,9 @@
 //! after a number of SSP-RK3 steps: prints an FNV-1a hash of every conserved value's bits, so
 //! two builds of the kernels can be compared for bit-identical results, plus the run time.
 //! Run: `cargo run --release -p fluid-node --example blast_checksum -- [n] [steps]
-//! [base|avx2|avx512]` (the last argument caps the instruction set of the row kernels).
+//! [base|avx2|avx512] [3d] [unfused]` (`base`… caps the instruction set of the row kernels;
+//! `3d`: the spherical blast on n³ cells; `unfused`: the unfused RK stages — neither
+//! changes the checksum of a case).
 
 use fluid_node::{setup, simd::Simd};
 use std::time::Instant;
@@ -14,13 +16,19 @@ fn main() -> anyhow::Result<()> {
         .collect();
     let n = args.first().copied().unwrap_or(100);
     let steps = args.get(1).copied().unwrap_or(20);
-    let text = setup::benchmark_blast_case(n);
+    let three_d = std::env::args().skip(1).any(|a| a == "3d");
+    let text = if three_d {
+        setup::benchmark_blast_case_3d(n)
+    } else {
+        setup::benchmark_blast_case(n)
+    };
     let mut f = setup::from_toml_str(&text)?;
     for a in std::env::args().skip(1) {
         match a.as_str() {
             "base" => f.simd = Simd::Base,
             "avx2" => f.simd = Simd::Avx2,
             "avx512" => f.simd = Simd::Avx512,
+            "unfused" => f.fused = false,
             _ => {}
         }
     }
@@ -37,10 +45,12 @@ fn main() -> anyhow::Result<()> {
         }
     }
     println!(
-        "n {n}, steps {steps}, {:?}, t {:.9e}: checksum {h:016x}; {:.3} M cell-updates/s",
+        "n {n}{}, steps {steps}, {:?}, fused {}, t {:.9e}: checksum {h:016x}; {:.3} M cell-updates/s",
+        if three_d { " (3-D)" } else { "" },
         f.simd,
+        f.fused,
         f.time,
-        (n * n * steps) as f64 / el / 1e6
+        (f.grid.cells() * steps) as f64 / el / 1e6
     );
     Ok(())
 }

@@ -21,43 +21,66 @@ pub enum Boundary {
 /// corners take consistent values.
 pub fn fill_ghosts(grid: &Grid, prim: &mut [f64], nv: usize, vel0: usize, bc: &[[Boundary; 2]; 3]) {
     let mx = grid.mx();
-    let g = grid.g;
     // x: inside each interior row (rows are independent: rayon over rows)
-    if g[0] > 0 {
-        let nx = grid.n[0];
+    if grid.g[0] > 0 {
         prim.par_chunks_mut(nv * mx)
             .enumerate()
             .for_each(|(r, block)| {
-                if !grid.interior_row(r) {
-                    return;
-                }
-                for side in 0..2 {
-                    for l in 0..g[0] {
-                        // ghost index and its source
-                        let (gi, mirror, inner, wrap) = if side == 0 {
-                            (g[0] - 1 - l, g[0] + l, g[0], g[0] + nx - 1 - l)
-                        } else {
-                            (g[0] + nx + l, g[0] + nx - 1 - l, g[0] + nx - 1, g[0] + l)
-                        };
-                        for v in 0..nv {
-                            let row = &mut block[v * mx..(v + 1) * mx];
-                            row[gi] = match &bc[0][side] {
-                                Boundary::Wall | Boundary::Symmetry => {
-                                    if v == vel0 {
-                                        -row[mirror]
-                                    } else {
-                                        row[mirror]
-                                    }
-                                }
-                                Boundary::Outflow => row[inner],
-                                Boundary::Periodic => row[wrap],
-                                Boundary::Inflow(s) => s[v],
-                            };
-                        }
-                    }
+                if grid.interior_row(r) {
+                    fill_row_x(grid, block, nv, vel0, &bc[0]);
                 }
             });
     }
+    fill_ghosts_yz(grid, prim, nv, vel0, bc);
+}
+
+/// The x ghost cells of one interior row (`block`: its nv variables), from its interior
+/// cells: what [`fill_ghosts`] does to that row before the y and z ghosts (which copy whole
+/// rows, x ghosts included). The time loop calls it on each row just after the row's
+/// primitives, while they are in cache.
+#[inline]
+pub fn fill_row_x(grid: &Grid, block: &mut [f64], nv: usize, vel0: usize, bc: &[Boundary; 2]) {
+    let mx = grid.mx();
+    let g = grid.g;
+    let nx = grid.n[0];
+    for side in 0..2 {
+        for l in 0..g[0] {
+            // ghost index and its source
+            let (gi, mirror, inner, wrap) = if side == 0 {
+                (g[0] - 1 - l, g[0] + l, g[0], g[0] + nx - 1 - l)
+            } else {
+                (g[0] + nx + l, g[0] + nx - 1 - l, g[0] + nx - 1, g[0] + l)
+            };
+            for v in 0..nv {
+                let row = &mut block[v * mx..(v + 1) * mx];
+                row[gi] = match &bc[side] {
+                    Boundary::Wall | Boundary::Symmetry => {
+                        if v == vel0 {
+                            -row[mirror]
+                        } else {
+                            row[mirror]
+                        }
+                    }
+                    Boundary::Outflow => row[inner],
+                    Boundary::Periodic => row[wrap],
+                    Boundary::Inflow(s) => s[v],
+                };
+            }
+        }
+    }
+}
+
+/// The y and z ghost cells of [`fill_ghosts`] (whole rows, x ghost cells included: the x
+/// ghosts of the interior rows must be filled first).
+pub fn fill_ghosts_yz(
+    grid: &Grid,
+    prim: &mut [f64],
+    nv: usize,
+    vel0: usize,
+    bc: &[[Boundary; 2]; 3],
+) {
+    let mx = grid.mx();
+    let g = grid.g;
     // y and z: whole rows (ghost x cells included)
     for d in 1..3 {
         if g[d] == 0 {

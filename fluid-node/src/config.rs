@@ -4,14 +4,16 @@
 use serde::Deserialize;
 use std::collections::BTreeMap;
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Params {
+    /// The Cartesian grid.
     pub grid: GridSpec,
     /// Materials by name; each names its EOS.
     pub materials: BTreeMap<String, MaterialSpec>,
     /// Initial regions, applied in order (later ones overwrite earlier ones).
     pub regions: Vec<RegionSpec>,
+    /// Boundary condition of each face of the grid (default: walls).
     #[serde(default)]
     pub boundaries: BoundariesSpec,
     /// Courant number of the time step (0 < cfl ≤ 1).
@@ -20,6 +22,8 @@ pub struct Params {
     /// TVD limiter of the MUSCL reconstruction: "minmod", "van_leer" or "mc".
     #[serde(default = "default_limiter")]
     pub limiter: String,
+    /// Points whose density, pressure and velocity are reported every window (as
+    /// `NAME.pressure` …) and written to `probes.csv`.
     #[serde(default)]
     pub probes: Vec<ProbeSpec>,
     /// Immersed-boundary responder interface (seed 002 §3).
@@ -46,92 +50,125 @@ fn default_limiter() -> String {
     "van_leer".into()
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct GridSpec {
     /// Cells per direction; 1 in z gives a 2-D grid (one cell thick), 1 in y and z 1-D.
     pub cells: [i64; 3],
+    /// Lower corner of the domain (m).
     pub lower: [f64; 3],
+    /// Upper corner of the domain (m).
     pub upper: [f64; 3],
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialSpec {
     /// "ideal", "stiffened" or "jwl".
     pub eos: String,
+    /// Ratio of specific heats γ (ideal, stiffened).
     pub gamma: Option<f64>,
     /// Stiffened gas p∞ (Pa), convention p = (γ-1)ρe - γ p∞.
     pub p_inf: Option<f64>,
     /// Specific gas constant (J/(kg K)) for temperatures.
     pub gas_constant: Option<f64>,
+    /// JWL reference density ρ₀ of the explosive (kg/m³).
     pub rho0: Option<f64>,
+    /// JWL coefficient A (Pa).
     pub a: Option<f64>,
+    /// JWL coefficient B (Pa).
     pub b: Option<f64>,
+    /// JWL exponent R₁ (1).
     pub r1: Option<f64>,
+    /// JWL exponent R₂ (1).
     pub r2: Option<f64>,
+    /// JWL Grüneisen coefficient ω (1).
     pub omega: Option<f64>,
+    /// JWL specific detonation energy e₀ (J/kg).
     pub e0: Option<f64>,
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct RegionSpec {
     /// "all", "box", "sphere" (a circle on a 2-D grid) or "half_space".
     pub shape: String,
+    /// Box: lower corner (m).
     pub lower: Option<[f64; 3]>,
+    /// Box: upper corner (m).
     pub upper: Option<[f64; 3]>,
+    /// Sphere: centre (m).
     pub center: Option<[f64; 3]>,
+    /// Sphere: radius (m).
     pub radius: Option<f64>,
     /// Half space: the points x with (x - point)·normal ≥ 0.
     pub point: Option<[f64; 3]>,
+    /// Half space: its normal (any length).
     pub normal: Option<[f64; 3]>,
+    /// The material filling the region (a name of `materials`).
     pub material: String,
+    /// Density (kg/m³); or give `temperature` (K) with the material's `gas_constant`.
     pub density: Option<f64>,
+    /// Temperature (K), instead of `density`.
     pub temperature: Option<f64>,
+    /// Pressure (Pa).
     pub pressure: f64,
+    /// Velocity (m/s).
     #[serde(default)]
     pub velocity: [f64; 3],
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BoundarySpec {
     /// "wall", "symmetry", "outflow", "periodic" or "inflow".
     pub kind: String,
+    /// Inflow: the material flowing in.
     pub material: Option<String>,
+    /// Inflow: density (kg/m³).
     pub density: Option<f64>,
+    /// Inflow: temperature (K), instead of density.
     pub temperature: Option<f64>,
+    /// Inflow: pressure (Pa).
     pub pressure: Option<f64>,
+    /// Inflow: velocity (m/s).
     pub velocity: Option<[f64; 3]>,
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(untagged)]
 pub enum BoundaryEntry {
     Kind(String),
     Full(BoundarySpec),
 }
 
-#[derive(Debug, Clone, Default, Deserialize)]
+#[derive(Debug, Clone, Default, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BoundariesSpec {
+    /// Face x = lower.x: a kind ("wall", "outflow", …) or a table `{ kind = "inflow", … }`.
     pub x_lower: Option<BoundaryEntry>,
+    /// Face x = upper.x (as `x_lower`).
     pub x_upper: Option<BoundaryEntry>,
+    /// Face y = lower.y (as `x_lower`).
     pub y_lower: Option<BoundaryEntry>,
+    /// Face y = upper.y (as `x_lower`).
     pub y_upper: Option<BoundaryEntry>,
+    /// Face z = lower.z (as `x_lower`).
     pub z_lower: Option<BoundaryEntry>,
+    /// Face z = upper.z (as `x_lower`).
     pub z_upper: Option<BoundaryEntry>,
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ProbeSpec {
+    /// The probe's name (its report scalars are `NAME.pressure`, `NAME.density`, …).
     pub name: String,
+    /// Where it samples (m); the cell holding it.
     pub position: [f64; 3],
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ImmersedSpec {
     /// Interface name the solid side couples to (default "particles").

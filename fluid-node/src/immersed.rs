@@ -67,6 +67,17 @@ pub struct Immersed {
     pub reclass_energy: f64,
     /// Gas mass that entered the gas (+) through the moving wall faces since the start (kg).
     pub wall_mass: f64,
+    /// Fluxes of the wall faces in the current RK stage (nf per wall, in `walls` order).
+    #[serde(skip)]
+    pub wall_flux: Vec<f64>,
+    /// Wall indices sorted by (direction, left cell): the walls of one line of faces, for the
+    /// fused stage. Cleared by the classification, rebuilt by [`wall_fluxes`] when its
+    /// length is not that of `walls` (also after a restart, which does not store it).
+    #[serde(skip)]
+    pub wall_order: Vec<usize>,
+    /// Scratch of the classification's counting sort (one entry per cell).
+    #[serde(skip)]
+    sort_scratch: Vec<usize>,
 }
 
 impl Immersed {
@@ -92,6 +103,9 @@ impl Immersed {
             reclass_mass: 0.0,
             reclass_energy: 0.0,
             wall_mass: 0.0,
+            wall_flux: Vec::new(),
+            wall_order: Vec::new(),
+            sort_scratch: Vec::new(),
         }
     }
 
@@ -128,21 +142,36 @@ impl Immersed {
             };
             self.cell_of.push(c);
         }
-        // counting sort of particles by cell (deterministic: particle order within a cell)
-        let mut order: Vec<usize> = (0..self.n).filter(|&p| self.cell_of[p] != NONE).collect();
-        order.sort_by_key(|&p| (self.cell_of[p], p));
+        // counting sort of particles by cell (deterministic: particle order within a cell;
+        // O(cells + particles), no allocation once the buffers have grown)
+        let at = &mut self.sort_scratch;
+        at.clear();
+        at.resize(self.kind.len(), 0);
+        for &c in &self.cell_of {
+            if c != NONE {
+                at[c] += 1;
+            }
+        }
         self.cells.clear();
         self.off.clear();
-        self.parts.clear();
-        for &p in &order {
-            let c = self.cell_of[p];
-            if self.cells.last() != Some(&c) {
+        let mut total = 0;
+        for (c, k) in at.iter_mut().enumerate() {
+            if *k > 0 {
                 self.cells.push(c);
-                self.off.push(self.parts.len());
+                self.off.push(total);
+                // from here on: where the cell's next particle goes
+                (*k, total) = (total, total + *k);
             }
-            self.parts.push(p);
         }
-        self.off.push(self.parts.len());
+        self.off.push(total);
+        self.parts.clear();
+        self.parts.resize(total, 0);
+        for (p, &c) in self.cell_of.iter().enumerate() {
+            if c != NONE {
+                self.parts[at[c]] = p;
+                at[c] += 1;
+            }
+        }
         for &c in &self.cells {
             self.kind[c] = SOLID;
         }
@@ -193,6 +222,7 @@ impl Immersed {
                 }
             }
         }
+        self.wall_order.clear();
         self.refill(f);
         // interface cells take the particle velocity now (eq. 31) keeping ρ and ρe
         for (ci, &c) in self.cells.iter().enumerate() {
@@ -349,13 +379,23 @@ pub fn fill_solid_prims(f: &mut Fluid, im: &Immersed) {
 }
 
 /// Wall fluxes on the faces between interface and solid cells: the gas cell's state against
-/// its mirror image in the wall moving with the interface velocity. The momentum these
-/// faces carry out of the gas, weighted by the stage's flux weight `dt_w` (RK3 weight · dt),
-/// goes to the particles of the solid cell — together with the projections it is the whole
-/// momentum the gas loses to the body.
-pub fn wall_fluxes<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], im: &mut Immersed, dt_w: f64) {
+/// its mirror image in the wall moving with the interface velocity, into `im.wall_flux`. The
+/// momentum these faces carry out of the gas, weighted by the stage's flux weight `dt_w` (RK3
+/// weight · dt), goes to the particles of the solid cell — together with the projections it
+/// is the whole momentum the gas loses to the body. The stage then uses these fluxes on those
+/// faces: [`write_wall_fluxes`] (unfused) or [`WallPatch`] (fused).
+pub fn wall_fluxes<const NM: usize>(f: &Fluid, ph: &[Phase; NM], im: &mut Immersed, dt_w: f64) {
     let mx = f.grid.mx();
     let nv = f.nv;
+    let nf = nv + 1;
+    im.wall_flux.resize(im.walls.len() * nf, 0.0);
+    if im.wall_order.len() != im.walls.len() {
+        im.wall_order.clear();
+        im.wall_order.extend(0..im.walls.len());
+        let walls = &im.walls;
+        im.wall_order
+            .sort_unstable_by_key(|&wi| (walls[wi].d, walls[wi].left));
+    }
     for wi in 0..im.walls.len() {
         let w = im.walls[wi].clone();
         let gas = if w.gas_left { w.left } else { w.right };
@@ -381,11 +421,7 @@ pub fn wall_fluxes<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], im: &mut Im
             }
             _ => [f64::NAN; MAXF],
         };
-        let (rl, il) = (w.left / mx, w.left % mx);
-        let nf = nv + 1;
-        for (v, x) in fl.iter().enumerate().take(nf) {
-            f.flux[w.d][(rl * nf + v) * mx + il] = *x;
-        }
+        im.wall_flux[wi * nf..(wi + 1) * nf].copy_from_slice(&fl[..nf]);
         // momentum into the solid cell: +F if the gas is on the lower side, -F otherwise
         let sign = if w.gas_left { 1.0 } else { -1.0 };
         let solid = if w.gas_left { w.right } else { w.left };
@@ -412,6 +448,62 @@ pub fn wall_fluxes<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], im: &mut Im
         let area = f.grid.face_area(w.d);
         let mflux: f64 = fl[..NM].iter().sum();
         im.wall_mass -= sign * mflux * area * dt_w;
+    }
+}
+
+/// The stage's wall fluxes ([`wall_fluxes`]) into the face-flux arrays (the unfused stage).
+pub fn write_wall_fluxes(f: &mut Fluid, im: &Immersed) {
+    let mx = f.grid.mx();
+    let nf = f.nf();
+    for (wi, w) in im.walls.iter().enumerate() {
+        let (rl, il) = (w.left / mx, w.left % mx);
+        for v in 0..nf {
+            f.flux[w.d][(rl * nf + v) * mx + il] = im.wall_flux[wi * nf + v];
+        }
+    }
+}
+
+/// The stage's wall fluxes as the fused stage applies them: line by line of faces, each line
+/// held in row-local scratch.
+#[derive(Clone, Copy)]
+pub struct WallPatch<'a> {
+    walls: &'a [WallFace],
+    order: &'a [usize],
+    flux: &'a [f64],
+    nf: usize,
+    mx: usize,
+}
+
+impl<'a> WallPatch<'a> {
+    /// The wall fluxes [`wall_fluxes`] left in `im` for a grid of row length `mx` and `nf`
+    /// flux entries per face.
+    pub fn new(im: &'a Immersed, mx: usize, nf: usize) -> Self {
+        debug_assert_eq!(im.wall_order.len(), im.walls.len());
+        WallPatch {
+            walls: &im.walls,
+            order: &im.wall_order,
+            flux: &im.wall_flux,
+            nf,
+            mx,
+        }
+    }
+
+    /// Overwrite the faces of line `line` normal to `d` (`out`: nf blocks of `mx`, indexed
+    /// by the cell below the face) that are walls with their wall fluxes.
+    #[inline]
+    pub fn apply(&self, d: usize, line: usize, out: &mut [f64]) {
+        let (mx, nf) = (self.mx, self.nf);
+        let key = |wi: usize| (self.walls[wi].d, self.walls[wi].left / mx);
+        let lo = self.order.partition_point(|&wi| key(wi) < (d, line));
+        for &wi in &self.order[lo..] {
+            if key(wi) != (d, line) {
+                break;
+            }
+            let i = self.walls[wi].left % mx;
+            for v in 0..nf {
+                out[v * mx + i] = self.flux[wi * nf + v];
+            }
+        }
     }
 }
 

@@ -44,6 +44,17 @@ pub fn factory(model: &str, params: &toml::Table) -> SolverResult<Box<dyn Solver
 
 /// Builds the solver named `model` from its parameter table as `opts` asks (the node's
 /// registry: one line per model; describe-only opens no GPU).
+/// The models this node offers.
+pub const MODELS: &[&str] = &["euler"];
+
+/// JSON Schema of a model's parameters (`fluid-node --schema --model M`, `cosim params M`): derived
+/// from the types the parameters are decoded into, so it lists exactly what is accepted.
+pub fn schema(model: &str) -> Option<serde_json::Value> {
+    (model == "euler")
+        .then(|| serde_json::to_value(schemars::schema_for!(config::Params)).ok())
+        .flatten()
+}
+
 pub fn build(
     model: &str,
     params: &toml::Table,

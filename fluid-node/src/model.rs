@@ -56,6 +56,32 @@ pub struct Fluid {
     /// Widest instruction set the row kernels may use (`Simd::detect()` by default; every
     /// choice gives bit-identical results).
     pub simd: Simd,
+    /// Run each RK stage's fluxes and update fused per block of rows (2-D and 3-D, with or
+    /// without an immersed body; the default). `false` runs the unfused kernels, which give
+    /// bit-identical results (the tests compare the two).
+    pub fused: bool,
+    /// Where the steps' time went since the model was built (not in checkpoints).
+    pub timing: StepTiming,
+}
+
+/// Wall-clock time of the steps since the model was built, by kind of work (s), and the
+/// cell-updates they made: what the node reports in every window (`time_*_s` scalars).
+#[derive(Debug, Clone, Default)]
+pub struct StepTiming {
+    /// Whole steps (`step::step`).
+    pub steps_s: f64,
+    /// The fluid kernels: primitive recovery, wave rates, fluxes, stage updates, boundary
+    /// fluxes.
+    pub kernels_s: f64,
+    /// Immersed work inside the steps: solid-cell fills, wall fluxes and the impulses they
+    /// give, projections.
+    pub immersed_s: f64,
+    /// Ghost-cell fills.
+    pub ghosts_s: f64,
+    /// Immersed work once per window: classification of the cells, refills, forces.
+    pub immersed_window_s: f64,
+    /// Interior cells × steps.
+    pub cell_updates: f64,
 }
 
 impl Fluid {

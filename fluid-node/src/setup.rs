@@ -490,6 +490,8 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
         max_steps_per_window: p.max_steps_per_window.unwrap_or(10_000_000),
         prim_valid: false,
         simd: crate::simd::Simd::detect(),
+        fused: true,
+        timing: Default::default(),
     };
     initialise(&mut f, &regions, &mats);
     for (pi, pr) in p.probes.iter().enumerate() {
@@ -623,6 +625,18 @@ pub fn benchmark_blast_case(n: usize) -> String {
         y_upper = "outflow"
     "#
     )
+}
+
+/// [`benchmark_blast_case`] in 3-D: p 10 in a sphere of radius 0.1 at the centre of the
+/// unit cube of `n`³ cells, 0.1 outside, ρ 1, γ 1.4, outflow on every side.
+pub fn benchmark_blast_case_3d(n: usize) -> String {
+    benchmark_blast_case(n)
+        .replace(&format!("[{n}, {n}, 1]"), &format!("[{n}, {n}, {n}]"))
+        .replace("center = [0.5, 0.5, 0.0]", "center = [0.5, 0.5, 0.5]")
+        .replace(
+            "y_upper = \"outflow\"",
+            "y_upper = \"outflow\"\n        z_lower = \"outflow\"\n        z_upper = \"outflow\"",
+        )
 }
 
 /// The parameter table (TOML text) of Sod's shock tube (PHYSICS.md "Fluid node"): γ 1.4,

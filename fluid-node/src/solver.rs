@@ -7,7 +7,7 @@ use crate::gpu::{GpuEuler, GpuSetupError};
 use crate::immersed::Immersed;
 use crate::model::Fluid;
 use crate::{diagnostics, output, setup, step};
-use mechanics::gpu::PrecisionRequest;
+use node_kit::device::Device;
 use protocol::message::{InterfaceMesh, StepReport};
 use protocol::{
     BuildOptions, Inbox, InterfaceInfo, NodeDescription, Outbox, Solver, SolverError, SolverResult,
@@ -38,43 +38,19 @@ impl EulerSolver {
     pub fn build(params: &toml::Table, opts: &BuildOptions) -> SolverResult<Self> {
         let p = setup::parse(params)?;
         let fluid = setup::build(&p)?;
-        let request = match (p.precision.as_deref(), p.device.as_deref()) {
-            (None | Some("f64"), _) => PrecisionRequest::Best,
-            (Some("f32"), Some("gpu")) => PrecisionRequest::ForceF32,
-            (Some("f32"), _) => {
-                return Err(SolverError::config(
-                    "precision",
-                    "\"f32\" applies to device = \"gpu\" only (the CPU path is f64)",
-                ));
-            }
-            (Some(other), _) => {
-                return Err(SolverError::config(
-                    "precision",
-                    format!("must be \"f64\" or \"f32\", got \"{other}\""),
-                ));
-            }
-        };
-        let gpu = match p.device.as_deref() {
-            None | Some("cpu") => None,
-            Some("gpu") if opts.describe_only => {
-                crate::gpu::supports(&fluid)
-                    .map_err(|s| SolverError::from(GpuSetupError::Unsupported(s)))?;
-                None
-            }
-            Some("gpu") => {
-                let g = GpuEuler::with_precision(&fluid, request)?;
-                tracing::info!("fluid step on the GPU: {}", g.context().describe());
-                if let Some(w) = g.warning() {
-                    tracing::warn!("{w}");
-                }
-                Some(g)
-            }
-            Some(other) => {
-                return Err(SolverError::config(
-                    "device",
-                    format!("must be \"cpu\" or \"gpu\", got \"{other}\""),
-                ));
-            }
+        let device = Device::parse(p.device.as_deref(), p.precision.as_deref())?;
+        // What the device kernels cannot run is refused before any adapter is asked for;
+        // describe-only stops there (the state stays on the host).
+        if device.is_gpu() {
+            crate::gpu::supports(&fluid)
+                .map_err(|s| SolverError::from(GpuSetupError::Unsupported(s)))?;
+        }
+        let gpu = match opts.describe_only {
+            true => None,
+            false => match device.open("fluid step")? {
+                Some(ctx) => Some(GpuEuler::with_context(ctx, &fluid)?),
+                None => None,
+            },
         };
         Ok(EulerSolver {
             fluid,
@@ -239,7 +215,9 @@ impl Solver for EulerSolver {
         }
         self.fluid.time = w.t0;
         if self.fluid.immersed.is_some() {
+            let t = Instant::now();
             self.read_particles(inbox)?;
+            self.fluid.timing.immersed_window_s += t.elapsed().as_secs_f64();
         }
         if let Some(g) = self.gpu.as_mut() {
             let mut report =
@@ -254,6 +232,7 @@ impl Solver for EulerSolver {
             return Ok(report);
         }
         let substeps = self.advance_to(w.t1)?;
+        let t_forces = Instant::now();
         if let Some(im) = &self.fluid.immersed {
             let n = im.n;
             let buf = out.put(&im.interface.clone(), "force", 3, n);
@@ -264,6 +243,7 @@ impl Solver for EulerSolver {
                 .zip(&im.velocities)
                 .map(|(j, v)| j[0] * v[0] + j[1] * v[1] + j[2] * v[2])
                 .sum::<f64>();
+            self.fluid.timing.immersed_window_s += t_forces.elapsed().as_secs_f64();
         }
         self.record_probes();
         let d = diagnostics::totals(&mut self.fluid)?;
@@ -301,6 +281,7 @@ impl Solver for EulerSolver {
         }
         report.scalars.push(("mass".into(), d.mass));
         report.scalars.push(("max_pressure".into(), d.max_pressure));
+        timing_scalars(&self.fluid, &mut report.scalars);
         if let Some((_, last)) = self.probe_history.last() {
             for (p, s) in self.fluid.probes.iter().zip(last) {
                 report.scalars.push((format!("{}.pressure", p.name), s[1]));
@@ -366,6 +347,29 @@ impl Solver for EulerSolver {
             g.upload(&self.fluid)?;
         }
         Ok(())
+    }
+}
+
+/// Where the fluid's time went since the node started (s; a restart starts the clocks
+/// again): its steps, split into the fluid kernels, the immersed work inside the steps and
+/// the ghost fills; the immersed work once per window (classification, refills, forces); and
+/// the steps' throughput (interior cells × steps per second of step).
+fn timing_scalars(f: &Fluid, out: &mut Vec<(String, f64)>) {
+    let t = &f.timing;
+    let rate = if t.steps_s > 0.0 {
+        t.cell_updates / t.steps_s
+    } else {
+        0.0
+    };
+    for (name, v) in [
+        ("time_steps_s", t.steps_s),
+        ("time_fluid_kernels_s", t.kernels_s),
+        ("time_immersed_s", t.immersed_s),
+        ("time_ghost_fills_s", t.ghosts_s),
+        ("time_immersed_window_s", t.immersed_window_s),
+        ("cell_updates_per_s", rate),
+    ] {
+        out.push((name.into(), v));
     }
 }
 

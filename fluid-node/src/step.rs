@@ -11,10 +11,10 @@
 //! so no flux array goes through memory. None of this changes a value: the same
 //! operations on the same operands in the same order as the plain per-face form.
 
-use crate::boundary::fill_ghosts;
+use crate::boundary::{fill_ghosts, fill_ghosts_yz, fill_row_x};
 use crate::eos::Material;
 use crate::grid::Grid;
-use crate::immersed;
+use crate::immersed::{self, WallPatch};
 use crate::limiter::Limiter;
 use crate::mixture::{self, Phase};
 use crate::model::Fluid;
@@ -22,6 +22,7 @@ use crate::riemann::{FaceState, MAXF, hllc};
 use crate::simd::multiversion;
 use protocol::{SolverError, SolverResult};
 use rayon::prelude::*;
+use std::time::Instant;
 
 /// SSP-RK3 in Shu–Osher form: U_s = a U_0 + b (U_{s-1} + dt L(U_{s-1})).
 pub const RK3: [(f64, f64); 3] = [(0.0, 1.0), (0.75, 0.25), (1.0 / 3.0, 2.0 / 3.0)];
@@ -232,14 +233,17 @@ multiversion! {
     ) -> Option<(usize, usize, f64)> = prim_row_fast_body;
 }
 
-/// Primitive variables of every interior cell; a diverged cell becomes an error naming the
-/// cell, the time and the variable.
+/// Primitive variables of every interior cell, and the x ghost cells of each interior row
+/// just after its primitives, while the row is in cache (`boundary::fill_row_x`; the y and z
+/// ghosts, and the x ghosts again where an immersed body changed cells, come later); a
+/// diverged cell becomes an error naming the cell, the time and the variable.
 fn prim_all<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], stage: usize) -> SolverResult<()> {
     let grid = &f.grid;
     let simd = f.simd;
     let nv = f.nv;
     let mx = grid.mx();
     let ir = grid.irange();
+    let bcx = &f.bc[0];
     f.cons
         .par_chunks(nv * mx)
         .zip(f.prim.par_chunks_mut(nv * mx))
@@ -247,7 +251,11 @@ fn prim_all<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], stage: usize) -> S
         .enumerate()
         .for_each(|(r, ((c, p), bad))| {
             *bad = if grid.interior_row(r) {
-                prim_row_fast::<NM>(simd, ph, c, p, mx, ir.clone())
+                let b = prim_row_fast::<NM>(simd, ph, c, p, mx, ir.clone());
+                if b.is_none() && grid.g[0] > 0 {
+                    fill_row_x(grid, p, nv, NM, bcx);
+                }
+                b
             } else {
                 None
             };
@@ -874,12 +882,13 @@ fn face_line<const NM: usize, const D: usize>(
     riemann_line::<NM, D>(ph, lb, rb, ce, rows, [1; 4], out, mx, ir);
 }
 
-/// One RK stage of a block of rows of a 2-D grid without an immersed body, fused: for each
-/// interior row, its x-face fluxes and its upper y-face fluxes (the lower ones kept from the
-/// row before) go into row-local scratch and the row is updated at once, so no flux array
-/// is written or read back (the memory traffic of the stage halves). Only the domain
-/// boundary faces are stored in `fxb`/`fyb` (the block's rows of `flux[0]`, `flux[1]`),
-/// for [`boundary_flux`]. Every value is that of `fluxes` + `update`.
+/// One RK stage of a block of rows of a 2-D grid, fused: for each interior row, its x-face
+/// fluxes and its upper y-face fluxes (the lower ones kept from the row before) go into
+/// row-local scratch, the faces that are immersed walls take the stage's wall fluxes
+/// (`walls`), and the row is updated at once, so no flux array is written or read back (the
+/// memory traffic of the stage halves). Only the domain boundary faces are stored in
+/// `fxb`/`fyb` (the block's rows of `flux[0]`, `flux[1]`), for [`boundary_flux`]. Every
+/// value is that of `fluxes` + `write_wall_fluxes` + `update`.
 #[inline(always)]
 fn fused_block_body<const NM: usize>(
     ph: &[Phase; NM],
@@ -896,6 +905,7 @@ fn fused_block_body<const NM: usize>(
     dt: f64,
     buf: &mut Vec<f64>,
     first: bool,
+    walls: Option<WallPatch<'_>>,
 ) {
     let nv = 2 * NM + 3;
     let nf = nv + 1;
@@ -933,10 +943,17 @@ fn fused_block_body<const NM: usize>(
         }
         if have != Some(r - 1) {
             face_line::<NM, 1>(ph, lim, grid, prim, r - 1, fy_lo, work, sl, &mut cached);
+            if let Some(w) = walls {
+                w.apply(1, r - 1, fy_lo);
+            }
         }
         face_line::<NM, 1>(ph, lim, grid, prim, r, fy_hi, work, sl, &mut cached);
         let row = &prim[r * rowblk..(r + 1) * rowblk];
         flux_row_x_into::<NM>(ph, lim, row, fx, mx, xfaces.clone(), work);
+        if let Some(w) = walls {
+            w.apply(1, r, fy_hi);
+            w.apply(0, r, fx);
+        }
         update_row_faces::<NM>(
             grid,
             [&*fx, &*fy_hi, &*fy_lo, &*fx, &*fx],
@@ -980,15 +997,17 @@ multiversion! {
         dt: f64,
         buf: &mut Vec<f64>,
         first: bool,
+        walls: Option<WallPatch<'_>>,
     ) = fused_block_body;
 }
 
-/// [`fluxes`] in x and y, then [`update`], fused per block of rows (2-D, no immersed body).
-/// `first`: the first stage, for which `cons` holds nothing yet and each row is copied from
-/// `cons0` before its update.
+/// [`fluxes`] in x and y, then [`update`], fused per block of rows (2-D), the immersed walls'
+/// fluxes (`walls`) applied on the way. `first`: the first stage, for which `cons` holds
+/// nothing yet and each row is copied from `cons0` before its update.
 fn fused_stage_2d<const NM: usize>(
     f: &mut Fluid,
     ph: &[Phase; NM],
+    walls: Option<WallPatch<'_>>,
     a: f64,
     b: f64,
     dt: f64,
@@ -1015,6 +1034,254 @@ fn fused_stage_2d<const NM: usize>(
                 let r0 = blk * nb;
                 fused_block::<NM>(
                     simd, ph, lim, grid, prim, r0, u, u0, fxb, fyb, a, b, dt, &mut buf, first,
+                    walls,
+                );
+            });
+        });
+}
+
+/// Planes (rows of constant k) per rayon task of the fused 3-D stage: about four tasks per
+/// thread, at least 3 planes (so that the first task holds the lower ghost plane whose z
+/// faces it computes, for [`boundary_flux`]) and at most 16 (the z-face line each task
+/// recomputes below its planes costs 1/planes of the z faces). Any block size gives the same
+/// values.
+fn fused_block_planes(planes: usize) -> usize {
+    (planes / (4 * rayon::current_num_threads())).clamp(3, 16)
+}
+
+/// y lines per tile of the fused 3-D stage: a tile's z-face lines and slopes (two lines of
+/// fluxes and two rows of slopes per y line) and the primitive rows they read stay in cache
+/// while the tile sweeps up its planes; each tile recomputes one y-face line per plane.
+const TILE_J: usize = 16;
+
+/// One RK stage of a block of planes of a 3-D grid, fused (the 3-D form of
+/// [`fused_block_body`]): the interior y lines of the planes go in tiles of [`TILE_J`]; a
+/// tile sweeps up the planes, keeping for each of its y lines the z-face fluxes below and
+/// above the row (and the limited slopes of the next row along z, so each row's z slopes
+/// are computed once), and within a plane the y-face fluxes below and above the row, as
+/// the 2-D block does; each row's x-face fluxes go into scratch and the row is updated at
+/// once. Faces that are immersed walls take the stage's wall fluxes (`walls`). Only the
+/// domain boundary faces are stored in `fl` (the block's rows of `flux[0..3]`), for
+/// [`boundary_flux`]. Every value is that of `fluxes` + `write_wall_fluxes` + `update`.
+#[inline(always)]
+fn fused_planes_body<const NM: usize>(
+    ph: &[Phase; NM],
+    lim: Limiter,
+    grid: &Grid,
+    prim: &[f64],
+    r0: usize,
+    u: &mut [f64],
+    u0: &[f64],
+    fl: [&mut [f64]; 3],
+    a: f64,
+    b: f64,
+    dt: f64,
+    buf: &mut Vec<f64>,
+    first: bool,
+    walls: Option<WallPatch<'_>>,
+) {
+    let nv = 2 * NM + 3;
+    let nf = nv + 1;
+    let mx = grid.mx();
+    let (g, n, m1) = (grid.g, grid.n, grid.m[1]);
+    let ir = grid.irange();
+    let len = ir.end - ir.start;
+    let lx = len + 1;
+    let rowblk = nv * mx;
+    let fblk = nf * mx;
+    let nrows = u.len() / rowblk;
+    let jt = TILE_J.min(n[1]);
+    let slz_n = 2 * nv * len;
+    let work_n = (2 * nv + 5) * lx + 1;
+    let need = work_n + slz_n * (1 + jt) + fblk * (3 + 2 * jt);
+    if buf.len() < need {
+        buf.resize(need, 0.0);
+    }
+    let (work, rest) = buf.split_at_mut(work_n);
+    let (sly, rest) = rest.split_at_mut(slz_n);
+    let (slz, rest) = rest.split_at_mut(slz_n * jt);
+    let (fx, rest) = rest.split_at_mut(fblk);
+    let (fa, rest) = rest.split_at_mut(fblk);
+    let (fb, rest) = rest.split_at_mut(fblk);
+    let (za, rest) = rest.split_at_mut(fblk * jt);
+    let (zb, _) = rest.split_at_mut(fblk * jt);
+    let [fxb, fyb, fzb] = fl;
+    // keep the domain boundary face line `line` of direction d if this block holds its row
+    let mut keep = |d: usize, line: usize, src: &[f64]| {
+        if line >= r0 && line < r0 + nrows {
+            let o = (line - r0) * fblk;
+            let dst = match d {
+                1 => &mut fyb[o..o + fblk],
+                _ => &mut fzb[o..o + fblk],
+            };
+            dst.copy_from_slice(src);
+        }
+    };
+    if first {
+        // U ← U0 for the rows no tile visits (ghost rows); the interior rows are copied just
+        // before their update, while they are in cache
+        for (k, (uu, u0r)) in u.chunks_mut(rowblk).zip(u0.chunks(rowblk)).enumerate() {
+            if !grid.interior_row(r0 + k) {
+                uu.copy_from_slice(u0r);
+            }
+        }
+    }
+    let (kp0, kp1) = (r0 / m1, (r0 + nrows) / m1);
+    let (klo, khi) = (kp0.max(g[2]), kp1.min(g[2] + n[2]));
+    let xfaces = g[0] - 1..g[0] + n[0];
+    let mut j0 = g[1];
+    while klo < khi && j0 < g[1] + n[1] {
+        let j1 = (j0 + jt).min(g[1] + n[1]);
+        let (mut z_lo, mut z_hi) = (&mut *za, &mut *zb);
+        let mut zc: [Option<(usize, usize)>; TILE_J] = [None; TILE_J];
+        // the z faces below the block's first plane
+        for (t, j) in (j0..j1).enumerate() {
+            let line = grid.row(j, klo - 1);
+            let out = &mut z_lo[t * fblk..(t + 1) * fblk];
+            let sl = &mut slz[t * slz_n..(t + 1) * slz_n];
+            face_line::<NM, 2>(ph, lim, grid, prim, line, out, work, sl, &mut zc[t]);
+            if let Some(w) = walls {
+                w.apply(2, line, out);
+            }
+            if klo - 1 == g[2] - 1 {
+                keep(2, line, out);
+            }
+        }
+        let mut yc = None;
+        for k in klo..khi {
+            for (t, j) in (j0..j1).enumerate() {
+                let line = grid.row(j, k);
+                let out = &mut z_hi[t * fblk..(t + 1) * fblk];
+                let sl = &mut slz[t * slz_n..(t + 1) * slz_n];
+                face_line::<NM, 2>(ph, lim, grid, prim, line, out, work, sl, &mut zc[t]);
+                if let Some(w) = walls {
+                    w.apply(2, line, out);
+                }
+                if k == g[2] + n[2] - 1 {
+                    keep(2, line, out);
+                }
+            }
+            let (mut y_lo, mut y_hi) = (&mut *fa, &mut *fb);
+            let line = grid.row(j0 - 1, k);
+            face_line::<NM, 1>(ph, lim, grid, prim, line, y_lo, work, sly, &mut yc);
+            if let Some(w) = walls {
+                w.apply(1, line, y_lo);
+            }
+            if j0 - 1 == g[1] - 1 {
+                keep(1, line, y_lo);
+            }
+            for (t, j) in (j0..j1).enumerate() {
+                let r = grid.row(j, k);
+                face_line::<NM, 1>(ph, lim, grid, prim, r, y_hi, work, sly, &mut yc);
+                let row = &prim[r * rowblk..(r + 1) * rowblk];
+                flux_row_x_into::<NM>(ph, lim, row, fx, mx, xfaces.clone(), work);
+                if let Some(w) = walls {
+                    w.apply(1, r, y_hi);
+                    w.apply(0, r, fx);
+                }
+                if j == g[1] + n[1] - 1 {
+                    keep(1, r, y_hi);
+                }
+                // the domain boundary x faces, for the boundary impulse
+                let o = (r - r0) * fblk;
+                for v in 0..nf {
+                    for i in [g[0] - 1, g[0] + n[0] - 1] {
+                        fxb[o + v * mx + i] = fx[v * mx + i];
+                    }
+                }
+                let o = (r - r0) * rowblk;
+                let (uu, u0r) = (&mut u[o..o + rowblk], &u0[o..o + rowblk]);
+                if first {
+                    uu.copy_from_slice(u0r);
+                }
+                let zf = [
+                    &z_hi[t * fblk..(t + 1) * fblk],
+                    &z_lo[t * fblk..(t + 1) * fblk],
+                ];
+                update_row_faces::<NM>(
+                    grid,
+                    [&*fx, &*y_hi, &*y_lo, zf[0], zf[1]],
+                    uu,
+                    u0r,
+                    a,
+                    b,
+                    dt,
+                );
+                std::mem::swap(&mut y_lo, &mut y_hi);
+            }
+            std::mem::swap(&mut z_lo, &mut z_hi);
+        }
+        j0 = j1;
+    }
+}
+
+multiversion! {
+    /// [`fused_planes_body`] for the widest instruction set allowed.
+    fn fused_planes<const NM: usize>(
+        ph: &[Phase; NM],
+        lim: Limiter,
+        grid: &Grid,
+        prim: &[f64],
+        r0: usize,
+        u: &mut [f64],
+        u0: &[f64],
+        fl: [&mut [f64]; 3],
+        a: f64,
+        b: f64,
+        dt: f64,
+        buf: &mut Vec<f64>,
+        first: bool,
+        walls: Option<WallPatch<'_>>,
+    ) = fused_planes_body;
+}
+
+/// [`fluxes`] in x, y and z, then [`update`], fused per block of planes (3-D), the immersed
+/// walls' fluxes applied on the way; `first` as for [`fused_stage_2d`].
+fn fused_stage_3d<const NM: usize>(
+    f: &mut Fluid,
+    ph: &[Phase; NM],
+    walls: Option<WallPatch<'_>>,
+    a: f64,
+    b: f64,
+    dt: f64,
+    first: bool,
+) {
+    let grid = &f.grid;
+    let simd = f.simd;
+    let lim = f.limiter;
+    let nv = f.nv;
+    let nf = nv + 1;
+    let mx = grid.mx();
+    let prim = &f.prim;
+    let [fx, fy, fz] = &mut f.flux;
+    let nb = fused_block_planes(grid.m[2]) * grid.m[1];
+    f.cons
+        .par_chunks_mut(nb * nv * mx)
+        .zip(f.cons0.par_chunks(nb * nv * mx))
+        .zip(fx.par_chunks_mut(nb * nf * mx))
+        .zip(fy.par_chunks_mut(nb * nf * mx))
+        .zip(fz.par_chunks_mut(nb * nf * mx))
+        .enumerate()
+        .for_each(|(blk, ((((u, u0), fxb), fyb), fzb))| {
+            LINE_SCRATCH.with(|cell| {
+                let mut buf = cell.borrow_mut();
+                let r0 = blk * nb;
+                fused_planes::<NM>(
+                    simd,
+                    ph,
+                    lim,
+                    grid,
+                    prim,
+                    r0,
+                    u,
+                    u0,
+                    [fxb, fyb, fzb],
+                    a,
+                    b,
+                    dt,
+                    &mut buf,
+                    first,
+                    walls,
                 );
             });
         });
@@ -1192,44 +1459,52 @@ fn boundary_flux(f: &Fluid, dt_w: f64) -> [f64; 4] {
     let nm = f.nmat();
     let nf = f.nf();
     let mx = grid.mx();
-    let g = grid.g;
-    let n = grid.n;
+    let (g, n) = (grid.g, grid.n);
     debug_assert_eq!(f.ip(), nm + 3);
     let mut imp = [0.0; 4];
     for d in 0..grid.nd {
         let area = grid.face_area(d);
-        for c in 0..4 {
-            let v = nm + c;
-            let mut lo = 0.0;
-            let mut hi = 0.0;
-            for r in 0..grid.rows() {
-                let (j, k) = grid.jk(r);
-                let fr = &f.flux[d][r * nf * mx..(r + 1) * nf * mx];
-                match d {
-                    0 => {
-                        if grid.interior_row(r) {
-                            lo += fr[v * mx + g[0] - 1];
-                            hi += fr[v * mx + g[0] + n[0] - 1];
-                        }
-                    }
-                    _ => {
-                        let (t, other_ok) = if d == 1 {
-                            (j, k >= g[2] && k < g[2] + n[2])
-                        } else {
-                            (k, j >= g[1] && j < g[1] + n[1])
-                        };
-                        if !other_ok {
-                            continue;
-                        }
-                        if t == g[d] - 1 {
-                            lo += fr[v * mx + g[0]..v * mx + g[0] + n[0]].iter().sum::<f64>();
-                        } else if t == g[d] + n[d] - 1 {
-                            hi += fr[v * mx + g[0]..v * mx + g[0] + n[0]].iter().sum::<f64>();
+        let fr = |r: usize| &f.flux[d][r * nf * mx..(r + 1) * nf * mx];
+        // per quantity, the sums over the lower and upper boundary faces, each in row order
+        let mut lo = [0.0; 4];
+        let mut hi = [0.0; 4];
+        // one boundary face line (d > 0): the sum over its interior faces
+        let line = |r: usize, c: usize| {
+            let o = (nm + c) * mx + g[0];
+            fr(r)[o..o + n[0]].iter().sum::<f64>()
+        };
+        for k in g[2]..g[2] + n[2] {
+            match d {
+                0 => {
+                    for j in g[1]..g[1] + n[1] {
+                        let fr = fr(grid.row(j, k));
+                        for c in 0..4 {
+                            lo[c] += fr[(nm + c) * mx + g[0] - 1];
+                            hi[c] += fr[(nm + c) * mx + g[0] + n[0] - 1];
                         }
                     }
                 }
+                1 => {
+                    let (a, b) = (grid.row(g[1] - 1, k), grid.row(g[1] + n[1] - 1, k));
+                    for c in 0..4 {
+                        lo[c] += line(a, c);
+                        hi[c] += line(b, c);
+                    }
+                }
+                _ => {}
             }
-            imp[c] += dt_w * area * (lo - hi);
+        }
+        if d == 2 {
+            for j in g[1]..g[1] + n[1] {
+                let (a, b) = (grid.row(j, g[2] - 1), grid.row(j, g[2] + n[2] - 1));
+                for c in 0..4 {
+                    lo[c] += line(a, c);
+                    hi[c] += line(b, c);
+                }
+            }
+        }
+        for c in 0..4 {
+            imp[c] += dt_w * area * (lo[c] - hi[c]);
         }
     }
     imp
@@ -1270,6 +1545,8 @@ pub fn step(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
 }
 
 fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
+    let t_step = Instant::now();
+    let mut clock = t_step;
     let ph: [Phase; NM] = std::array::from_fn(|k| f.phases[k].clone());
     if !f.prim_valid {
         prim_all::<NM>(f, &ph, 0)?;
@@ -1282,7 +1559,7 @@ fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
         });
     }
     let dt = (f.cfl / rate).min(dt_max);
-    let fused = f.grid.nd == 2 && f.immersed.is_none();
+    let fused = f.fused && f.grid.nd >= 2;
     if fused {
         // U0 ← U by swapping; the first fused stage copies each row back before updating it
         std::mem::swap(&mut f.cons, &mut f.cons0);
@@ -1293,42 +1570,62 @@ fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
             .zip(f.cons.par_chunks(chunk))
             .for_each(|(a, b)| a.copy_from_slice(b));
     }
+    f.timing.kernels_s += lap(&mut clock);
     let mut ib = f.immersed.take();
     let result = (|| -> SolverResult<()> {
         for (s, &(a, b)) in RK3.iter().enumerate() {
             if s > 0 {
                 prim_all::<NM>(f, &ph, s)?;
+                f.timing.kernels_s += lap(&mut clock);
             }
             if let Some(im) = ib.as_ref() {
                 immersed::fill_solid_prims(f, im);
+                f.timing.immersed_s += lap(&mut clock);
             }
             let vel0 = f.vel0();
-            fill_ghosts(&f.grid, &mut f.prim, f.nv, vel0, &f.bc);
+            if ib.is_some() {
+                // the solid-cell fills may have changed cells the x ghosts mirror
+                fill_ghosts(&f.grid, &mut f.prim, f.nv, vel0, &f.bc);
+            } else {
+                // `prim_all` filled the x ghosts
+                fill_ghosts_yz(&f.grid, &mut f.prim, f.nv, vel0, &f.bc);
+            }
+            f.timing.ghosts_s += lap(&mut clock);
+            let dt_w = RK3_FLUX_WEIGHT[s] * dt;
             if fused {
                 // fluxes and update fused per block of rows; only the domain boundary
                 // faces are stored, which is all `boundary_flux` reads
-                fused_stage_2d::<NM>(f, &ph, a, b, dt, s == 0);
-                let bi = boundary_flux(f, RK3_FLUX_WEIGHT[s] * dt);
-                for c in 0..3 {
-                    f.boundary_impulse[c] += bi[c];
+                if let Some(im) = ib.as_mut() {
+                    immersed::wall_fluxes::<NM>(f, &ph, im, dt_w);
+                    f.timing.immersed_s += lap(&mut clock);
                 }
-                f.boundary_work += bi[3];
+                let nf = f.nf();
+                let walls = ib
+                    .as_ref()
+                    .map(|im| immersed::WallPatch::new(im, f.grid.mx(), nf));
+                if f.grid.nd == 2 {
+                    fused_stage_2d::<NM>(f, &ph, walls, a, b, dt, s == 0);
+                } else {
+                    fused_stage_3d::<NM>(f, &ph, walls, a, b, dt, s == 0);
+                }
+                f.add_boundary_flux(dt_w);
             } else {
                 for d in 0..f.grid.nd {
                     fluxes::<NM>(f, &ph, d);
                 }
+                f.timing.kernels_s += lap(&mut clock);
                 if let Some(im) = ib.as_mut() {
-                    immersed::wall_fluxes::<NM>(f, &ph, im, RK3_FLUX_WEIGHT[s] * dt);
+                    immersed::wall_fluxes::<NM>(f, &ph, im, dt_w);
+                    immersed::write_wall_fluxes(f, im);
+                    f.timing.immersed_s += lap(&mut clock);
                 }
-                let bi = boundary_flux(f, RK3_FLUX_WEIGHT[s] * dt);
-                for c in 0..3 {
-                    f.boundary_impulse[c] += bi[c];
-                }
-                f.boundary_work += bi[3];
+                f.add_boundary_flux(dt_w);
                 update::<NM>(f, a, b, dt);
             }
+            f.timing.kernels_s += lap(&mut clock);
             if let Some(im) = ib.as_mut() {
                 immersed::project(f, im, RK3_PROJECTION_WEIGHT[s]);
+                f.timing.immersed_s += lap(&mut clock);
             }
         }
         Ok(())
@@ -1338,5 +1635,28 @@ fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
     f.prim_valid = false;
     f.time += dt;
     f.steps += 1;
+    f.timing.steps_s += t_step.elapsed().as_secs_f64();
+    f.timing.cell_updates += f.grid.cells() as f64;
     Ok(dt)
+}
+
+/// Seconds since `clock`, which moves on to now.
+#[inline]
+fn lap(clock: &mut Instant) -> f64 {
+    let now = Instant::now();
+    let s = (now - *clock).as_secs_f64();
+    *clock = now;
+    s
+}
+
+impl Fluid {
+    /// Adds the impulse and work of the domain boundary faces' fluxes over `dt_w` (a stage's
+    /// flux weight × dt) to the boundary accumulators.
+    fn add_boundary_flux(&mut self, dt_w: f64) {
+        let bi = boundary_flux(self, dt_w);
+        for c in 0..3 {
+            self.boundary_impulse[c] += bi[c];
+        }
+        self.boundary_work += bi[3];
+    }
 }

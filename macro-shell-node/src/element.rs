@@ -12,6 +12,7 @@
 //! strain, the Hughes–Winget property); forces use the geometry at t_{n+1}.
 
 use mechanics::j2_plane_stress::{J2PlaneStress, PlaneStressPoint};
+use mechanics::tensor::{Vector3, vec3};
 
 /// Largest number of through-thickness integration points.
 pub const MAX_IP: usize = 5;
@@ -120,27 +121,6 @@ pub fn gauss(n: usize) -> ([f64; MAX_IP], [f64; MAX_IP]) {
     (z, w)
 }
 
-#[inline]
-pub fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-#[inline]
-pub fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-#[inline]
-pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-#[inline]
-pub fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
-}
-
 /// Corotational frame and one-point shape-function derivatives of one element.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Geom {
@@ -161,36 +141,28 @@ pub struct Geom {
 /// negative projected area).
 #[inline(always)]
 pub fn geometry(x: &[[f64; 3]; 4]) -> Option<Geom> {
-    let s31 = sub(x[2], x[0]);
-    let s42 = sub(x[3], x[1]);
-    let n = cross(s31, s42);
-    let nn = norm(n);
+    let x = x.map(Vector3::from);
+    let n = (x[2] - x[0]).cross(&(x[3] - x[1]));
+    let nn = n.norm();
     if nn.is_nan() || nn <= 0.0 {
         return None;
     }
-    let r3 = 1.0 / nn;
-    let e3 = [n[0] * r3, n[1] * r3, n[2] * r3];
-    let s21 = sub(x[1], x[0]);
-    let p = dot(s21, e3);
-    let t = [s21[0] - p * e3[0], s21[1] - p * e3[1], s21[2] - p * e3[2]];
-    let tn = norm(t);
+    let e3 = n * (1.0 / nn);
+    let s21 = x[1] - x[0];
+    let t = s21 - e3 * s21.dot(&e3);
+    let tn = t.norm();
     if tn.is_nan() || tn <= 0.0 {
         return None;
     }
-    let r1 = 1.0 / tn;
-    let e1 = [t[0] * r1, t[1] * r1, t[2] * r1];
-    let e2 = cross(e3, e1);
-    let c = [
-        0.25 * (x[0][0] + x[1][0] + x[2][0] + x[3][0]),
-        0.25 * (x[0][1] + x[1][1] + x[2][1] + x[3][1]),
-        0.25 * (x[0][2] + x[1][2] + x[2][2] + x[3][2]),
-    ];
+    let e1 = t * (1.0 / tn);
+    let e2 = e3.cross(&e1);
+    let c = (x[0] + x[1] + x[2] + x[3]) * 0.25;
     let mut xl = [0.0; 4];
     let mut yl = [0.0; 4];
     for i in 0..4 {
-        let r = sub(x[i], c);
-        xl[i] = dot(r, e1);
-        yl[i] = dot(r, e2);
+        let r = x[i] - c;
+        xl[i] = r.dot(&e1);
+        yl[i] = r.dot(&e2);
     }
     let area = 0.5 * ((xl[2] - xl[0]) * (yl[3] - yl[1]) - (xl[3] - xl[1]) * (yl[2] - yl[0]));
     if area.is_nan() || area <= 0.0 {
@@ -217,7 +189,7 @@ pub fn geometry(x: &[[f64; 3]; 4]) -> Option<Geom> {
         gam[i] = 0.25 * (h[i] - hx * b1[i] - hy * b2[i]);
     }
     Some(Geom {
-        e: [e1, e2, e3],
+        e: [e1.into(), e2.into(), e3.into()],
         b1,
         b2,
         area,
@@ -396,10 +368,10 @@ pub fn element_step(
     let mut wl = [[0.0; 3]; 4];
     for i in 0..4 {
         for a in 0..3 {
-            vl[i][a] = dot(gm.e[a], inp.v[i]);
+            vl[i][a] = vec3(&gm.e[a]).dot(&vec3(&inp.v[i]));
         }
         for a in 0..2 {
-            wl[i][a] = dot(gm.e[a], inp.w[i]);
+            wl[i][a] = vec3(&gm.e[a]).dot(&vec3(&inp.w[i]));
         }
     }
     let (b1, b2) = (gm.b1, gm.b2);
@@ -554,7 +526,7 @@ pub fn element_step(
     if pressure != 0.0 {
         let mut wp = 0.0;
         for i in 0..4 {
-            wp += pa * dot(g1.e[2], inp.v[i]) * dt;
+            wp += pa * vec3(&g1.e[2]).dot(&vec3(&inp.v[i])) * dt;
         }
         res[R_WPRES] += wp;
     }

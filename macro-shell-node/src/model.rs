@@ -4,6 +4,7 @@
 //! sets. Seed 004 eq. 21: M Ü = F_ext + F_c − F_int, with M lumped (eq. 23).
 
 use crate::element::{Material, PL, RES, Section};
+use mechanics::tensor::vec3;
 use std::collections::BTreeMap;
 
 /// Constraint bits per node: translations x, y, z then rotations x, y, z.
@@ -160,7 +161,7 @@ impl Model {
     pub fn angular_momentum(&self) -> [f64; 3] {
         let mut l = [0.0; 3];
         for i in 0..self.x.len() {
-            let c = crate::element::cross(self.x[i], self.v[i]);
+            let c = vec3(&self.x[i]).cross(&vec3(&self.v[i]));
             for k in 0..3 {
                 l[k] += self.mass[i] * c[k] + self.inertia[i] * self.w[i][k];
             }

@@ -7,36 +7,51 @@ use crate::element::{self, Material, PL, R_H, RES, Section};
 use crate::mesh::{self, Mesh};
 use crate::model::{DOF_ALL, Model, ReactionSet};
 use mechanics::j2_plane_stress::J2PlaneStress;
+use mechanics::tensor::vec3;
 use protocol::{SolverError, SolverResult};
 use serde::Deserialize;
 
 /// The whole parameter table of a `blt-shell` node.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ShellConfig {
+    /// The shell mesh: a plate, plates, a lap joint, a tube or explicit nodes and elements.
     pub mesh: MeshConfig,
+    /// The shell material (elastic or J2 plasticity).
     pub material: MaterialConfig,
+    /// Through-thickness section: thickness and integration points.
     pub section: SectionConfig,
+    /// Hourglass control coefficients (Belytschko–Tsay).
     #[serde(default)]
     pub hourglass: HourglassConfig,
+    /// Time step control: safety factor, mass scaling, velocity ramp.
     #[serde(default)]
     pub time: TimeConfig,
+    /// Named node sets (by ids or boxes) that supports, loads and outputs refer to.
     #[serde(default)]
     pub node_sets: Vec<SetConfig>,
+    /// Named element sets (by ids or boxes, by centroid) for pressures and interfaces.
     #[serde(default)]
     pub element_sets: Vec<SetConfig>,
+    /// Supports: constrained degrees of freedom of node sets.
     #[serde(default)]
     pub fixed: Vec<FixedConfig>,
+    /// Prescribed velocities (m/s) of node sets for the whole run.
     #[serde(default)]
     pub velocity: Vec<VelocityConfig>,
+    /// Initial velocities (m/s) of node sets.
     #[serde(default)]
     pub initial_velocity: Vec<VelocityConfig>,
+    /// Constant forces (N per node) on node sets.
     #[serde(default)]
     pub point_loads: Vec<PointLoadConfig>,
+    /// Follower pressures (Pa) on element sets.
     #[serde(default)]
     pub pressure: Vec<PressureConfig>,
+    /// Coupling interfaces: element sets under the joints' coupling surfaces.
     #[serde(default)]
     pub interfaces: Vec<InterfaceConfig>,
+    /// Extra outputs (support reactions).
     #[serde(default)]
     pub output: OutputConfig,
 }
@@ -45,64 +60,96 @@ pub struct ShellConfig {
 /// each with origin, length, width, nx, ny), "lap_joint" (length, width, overlap, gap, nx,
 /// ny), "tube" (side, length, n_side, n_length, overlap, gap, seams) or "explicit" (nodes,
 /// elements).
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MeshConfig {
+    /// "plate", "plates", "lap_joint", "tube" or "explicit".
     pub kind: String,
+    /// Plate / lap joint / tube length (m).
     pub length: Option<f64>,
+    /// Plate / lap joint width (m).
     pub width: Option<f64>,
+    /// Tube: side of its square section (m).
     pub side: Option<f64>,
+    /// Elements along the length.
     pub nx: Option<usize>,
+    /// Elements across the width.
     pub ny: Option<usize>,
+    /// Tube: elements along each side.
     pub n_side: Option<usize>,
+    /// Tube: elements along the length.
     pub n_length: Option<usize>,
+    /// Lap joint / tube seam: overlap of the two sheets (m).
     pub overlap: Option<f64>,
+    /// Lap joint / tube seam: gap between the sheets' mid-surfaces (m).
     pub gap: Option<f64>,
+    /// Where the mesh starts (m).
     pub origin: Option<[f64; 3]>,
+    /// Explicit mesh: node positions (m).
     pub nodes: Option<Vec<[f64; 3]>>,
+    /// Explicit mesh: quadrilaterals as four node indices (from 0).
     pub elements: Option<Vec<[u32; 4]>>,
+    /// Plates mesh: the plates.
     pub plates: Option<Vec<PlateConfig>>,
     /// Tube: 1 (default) or 2 seams (the second on the opposite face).
     pub seams: Option<usize>,
 }
 
 /// One plate of a `kind = "plates"` mesh.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PlateConfig {
+    /// Corner of the plate (m).
     #[serde(default)]
     pub origin: [f64; 3],
+    /// Length (m).
     pub length: f64,
+    /// Width (m).
     pub width: f64,
+    /// Elements along the length.
     pub nx: usize,
+    /// Elements across the width.
     pub ny: usize,
 }
 
 /// `model` = "elastic" or "j2". Hardening either by plastic moduli (`isotropic_modulus`,
 /// `kinematic_modulus`) or by `tangent_modulus` E_t with `kinematic_fraction` (0 = purely
 /// isotropic, 1 = purely kinematic); see `mechanics::j2_plane_stress` for the convention.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialConfig {
+    /// "elastic" or "j2".
     pub model: String,
+    /// Density (kg/m³).
     pub density: f64,
+    /// Young's modulus (Pa).
     pub youngs_modulus: f64,
+    /// Poisson's ratio (1).
     pub poisson_ratio: f64,
+    /// Initial yield stress (Pa) of j2.
     pub yield_stress: Option<f64>,
+    /// Isotropic plastic modulus (Pa).
     pub isotropic_modulus: Option<f64>,
+    /// Kinematic plastic modulus (Pa).
     pub kinematic_modulus: Option<f64>,
+    /// Tangent modulus E_t (Pa), instead of the plastic moduli.
     pub tangent_modulus: Option<f64>,
+    /// Share of E_t's hardening that is kinematic (0–1).
     pub kinematic_fraction: Option<f64>,
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SectionConfig {
+    /// Shell thickness (m).
     pub thickness: f64,
+    /// Integration points through the thickness.
     #[serde(default = "default_nip")]
     pub integration_points: usize,
+    /// Transverse shear correction factor (1).
     #[serde(default = "default_shear")]
     pub shear_factor: f64,
+    /// Update the thickness with the membrane strain (plane stress).
     #[serde(default = "default_true")]
     pub update_thickness: bool,
 }
@@ -118,13 +165,16 @@ fn default_true() -> bool {
 }
 
 /// Belytschko–Tsay hourglass coefficients (stiffness form).
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct HourglassConfig {
+    /// Membrane hourglass coefficient (1).
     #[serde(default = "default_hg")]
     pub membrane: f64,
+    /// Bending hourglass coefficient (1).
     #[serde(default = "default_hg")]
     pub bending: f64,
+    /// Transverse hourglass coefficient (1).
     #[serde(default = "default_hg")]
     pub transverse: f64,
 }
@@ -143,7 +193,7 @@ impl Default for HourglassConfig {
     }
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TimeConfig {
     /// Safety factor on the element stable step.
@@ -172,11 +222,14 @@ impl Default for TimeConfig {
 
 /// A named set: by explicit ids, by a box `[xmin, ymin, zmin, xmax, ymax, zmax]` (nodes by
 /// position, elements by centroid), by a list of such `boxes`, or any of them (union).
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SetConfig {
+    /// The set's name.
     pub name: String,
+    /// Explicit ids (from 0).
     pub ids: Option<Vec<u32>>,
+    /// A box [xmin, ymin, zmin, xmax, ymax, zmax] (m).
     #[serde(rename = "box")]
     pub bbox: Option<[f64; 6]>,
     /// Several boxes (union), e.g. the footprints of several joints.
@@ -185,10 +238,12 @@ pub struct SetConfig {
 
 /// Constrained DOFs of a node set: any of "x", "y", "z", "rx", "ry", "rz", "translations",
 /// "rotations", "all" (default "all").
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct FixedConfig {
+    /// The node set held.
     pub node_set: String,
+    /// The constrained degrees of freedom.
     #[serde(default = "default_dofs")]
     pub dofs: Vec<String>,
 }
@@ -198,40 +253,50 @@ fn default_dofs() -> Vec<String> {
 }
 
 /// Prescribed (or initial) translational velocity components of a node set.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct VelocityConfig {
+    /// The node set.
     pub node_set: String,
+    /// x velocity (m/s); absent: free.
     pub x: Option<f64>,
+    /// y velocity (m/s); absent: free.
     pub y: Option<f64>,
+    /// z velocity (m/s); absent: free.
     pub z: Option<f64>,
 }
 
 /// A constant force on every node of a set (N per node).
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PointLoadConfig {
+    /// The node set loaded.
     pub node_set: String,
+    /// Force on each node (N).
     pub force: [f64; 3],
 }
 
 /// A follower pressure on an element set (Pa, positive along the element normal).
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PressureConfig {
+    /// The element set loaded.
     pub element_set: String,
+    /// Pressure (Pa), positive along the element normal.
     pub pressure: f64,
 }
 
 /// A coupling interface: the shell elements under a joint's coupling surface.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct InterfaceConfig {
+    /// The interface's name (what a coupling names after the node).
     pub name: String,
+    /// The element set it covers.
     pub element_set: String,
 }
 
-#[derive(Debug, Clone, Default, Deserialize)]
+#[derive(Debug, Clone, Default, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct OutputConfig {
     /// Node sets whose summed support reactions go to `reactions.csv` every window.
@@ -901,7 +966,7 @@ pub fn assemble(mesh: &Mesh, material: Material, section: Section, density: f64,
     let n0 = nsum
         .iter()
         .map(|s| {
-            let l = element::norm(*s);
+            let l = vec3(s).norm();
             if l > 0.0 {
                 [s[0] / l, s[1] / l, s[2] / l]
             } else {

@@ -8,6 +8,7 @@ use crate::model::Model;
 use crate::output::{self, History};
 use crate::setup::{self, ShellConfig};
 use crate::step;
+use mechanics::tensor::vec3;
 use protocol::{
     Binding, CouplingKind, Inbox, InterfaceInfo, InterfaceMesh, NodeDescription, Outbox, Role,
     Solver, SolverError, SolverResult, StepReport, Window,
@@ -150,7 +151,7 @@ impl ShellSolver {
             momentum_gross: m.momentum_gross(),
             external_impulse: m.external_impulse,
             interface_impulse: m.interface_impulse,
-            applied_impulse: element::norm(m.load_impulse),
+            applied_impulse: vec3(&m.load_impulse).norm(),
             substeps,
             wall_s: wall,
             coupling_wait_s: 0.0,

@@ -17,6 +17,7 @@
 use crate::element::{self, ElemInput, R_H};
 use crate::lanes;
 use crate::model::Model;
+use mechanics::tensor::{Vector3, vec3};
 use protocol::{SolverError, SolverResult};
 use rayon::prelude::*;
 
@@ -26,7 +27,7 @@ const CHUNK: usize = 256;
 /// Rotate a unit quaternion by the rotation vector `phi` (applied on the left, global frame).
 #[inline]
 fn rotate_quat(q: [f64; 4], phi: [f64; 3]) -> [f64; 4] {
-    let a2 = element::dot(phi, phi);
+    let a2 = vec3(&phi).norm_squared();
     if a2 == 0.0 {
         return q;
     }
@@ -56,15 +57,9 @@ fn rotate_quat(q: [f64; 4], phi: [f64; 3]) -> [f64; 4] {
 
 /// Rotate a vector by a unit quaternion.
 pub fn quat_apply(q: [f64; 4], v: [f64; 3]) -> [f64; 3] {
-    let u = [q[1], q[2], q[3]];
-    let t = element::cross(u, v);
-    let t = [2.0 * t[0], 2.0 * t[1], 2.0 * t[2]];
-    let ut = element::cross(u, t);
-    [
-        v[0] + q[0] * t[0] + ut[0],
-        v[1] + q[0] * t[1] + ut[1],
-        v[2] + q[0] * t[2] + ut[2],
-    ]
+    let (u, v) = (Vector3::new(q[1], q[2], q[3]), vec3(&v));
+    let t = u.cross(&v) * 2.0;
+    (v + t * q[0] + u.cross(&t)).into()
 }
 
 /// Rotation vector (axis × angle) of a unit quaternion.
@@ -414,7 +409,7 @@ pub fn step(m: &mut Model, dt: f64) -> SolverResult<()> {
             m.x[i][1] - dt * m.v[i][1],
             m.x[i][2] - dt * m.v[i][2],
         ];
-        let tq = element::cross(xn, m.f_c[i]);
+        let tq = vec3(&xn).cross(&vec3(&m.f_c[i]));
         for d in 0..3 {
             m.interface_angular_impulse[d] += dt_avg * (tq[d] + m.m_c[i][d]);
             m.interface_work += dt * (m.f_c[i][d] * m.v[i][d] + m.m_c[i][d] * m.w[i][d]);

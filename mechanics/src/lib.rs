@@ -1,7 +1,7 @@
 //! What several solvers share (ARCHITECTURE §2): constitutive updates (J2 plasticity with
 //! isotropic and kinematic hardening, in 3-D and plane stress), damage laws, meshfree
 //! kernels, neighbour search in compressed rows, explicit time-step helpers, 2-D bilinear
-//! finite elements and the GS4-II time integrators.
+//! finite elements, the GS4-II time integrators and the small tensor algebra (on nalgebra).
 //! One concern per file.
 
 pub mod damage;
@@ -12,4 +12,5 @@ pub mod j2_plane_stress;
 pub mod kernel;
 pub mod neighbour;
 pub mod simd;
+pub mod tensor;
 pub mod time;

@@ -2,11 +2,12 @@
 //! `deny_unknown_fields` and a validation that names the offending key (the set-up stage of
 //! the node, OpenRadioss "starter" style). Units are SI (m, kg, s, Pa).
 
+use mechanics::tensor::Vector3;
 use protocol::{SolverError, SolverResult};
 use serde::Deserialize;
 
 /// How a rigid fastener holds the plates (`fastener`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default, schemars::JsonSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum Fastener {
     /// Bonded to the material around it (a thread-formed screw).
@@ -17,7 +18,7 @@ pub enum Fastener {
 }
 
 /// Velocity smoothing variant (seed 004 §2.1).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default, schemars::JsonSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum Smoothing {
     /// The momentum-consistent gather/scatter pair of eq. 2–11 (MC-SPG), with the smoothing
@@ -37,22 +38,34 @@ pub enum Smoothing {
 }
 
 /// Geometry of the particle set.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, PartialEq, schemars::JsonSchema)]
 #[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum Geometry {
     /// A box `[origin, origin + size]` filled with a cubic lattice of `spacing`.
-    Block { origin: [f64; 3], size: [f64; 3] },
+    Block {
+        /// Lower corner (m).
+        origin: [f64; 3],
+        /// Edge lengths (m).
+        size: [f64; 3],
+    },
     /// Seed 004 §4.2: two plates of `thickness` (default 1 mm), `width` × `length` each,
     /// overlapping over `overlap` around a rigid bolt of `bolt_radius` with heads of
     /// `head_radius` and `head_height`.
     BoltedPlates {
+        /// Plate thickness (m).
         #[serde(default = "default_plate_thickness")]
         thickness: f64,
+        /// Plate width (m).
         width: f64,
+        /// Plate length (m).
         length: f64,
+        /// Length over which the plates overlap (m).
         overlap: f64,
+        /// Bolt radius (m).
         bolt_radius: f64,
+        /// Radius of the bolt heads (m).
         head_radius: f64,
+        /// Height of the bolt heads (m).
         head_height: f64,
     },
 }
@@ -62,10 +75,12 @@ fn default_plate_thickness() -> f64 {
 }
 
 /// Axis-aligned box region `[lo, hi]`.
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Region {
+    /// Lower corner (m).
     pub lo: [f64; 3],
+    /// Upper corner (m).
     pub hi: [f64; 3],
 }
 
@@ -76,24 +91,31 @@ impl Region {
 }
 
 /// Prescribed velocity on the particles of a region, ramped linearly over `ramp` seconds.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, PartialEq, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct VelocityBc {
+    /// The condition's name (its reaction force is reported under it).
     pub name: String,
+    /// The particles inside this box.
     pub region: Region,
+    /// Velocity (m/s).
     pub velocity: [f64; 3],
+    /// Time over which the velocity ramps up from zero (s).
     #[serde(default)]
     pub ramp: f64,
 }
 
 /// A coupling region: the free particles inside `[lo, hi]`; a named region's summed
 /// constraint force is reported every window (`force_<name>_x`, ..., `force_<name>`).
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, PartialEq, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct CouplingRegion {
+    /// The region's name (its force is reported as `force_<name>`).
     #[serde(default)]
     pub name: String,
+    /// Lower corner (m).
     pub lo: [f64; 3],
+    /// Upper corner (m).
     pub hi: [f64; 3],
 }
 
@@ -109,7 +131,7 @@ impl CouplingRegion {
 /// runtime maps the driver's shell-node motion onto the particles with the shell's shape
 /// functions at each particle's projection (`v_r = W v_d`, eq. 29–30; the projection is done
 /// once, on the reference meshes) and maps the particle loads back with `Wᵀ` (eq. 33).
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, PartialEq, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct CouplingParams {
     /// This node's interface name (the binding's `interface`).
@@ -129,17 +151,23 @@ fn default_interface() -> String {
 /// `head_radius`: a screw instead of a bolt). Coupling regions are given in the local frame
 /// and apply to every placement; a placement's region forces are reported as
 /// `force_<placement>_<region>...`.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, PartialEq, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Placement {
+    /// The placement's name.
     pub name: String,
+    /// Origin of the local frame (m).
     #[serde(default)]
     pub origin: [f64; 3],
+    /// Direction of the local x axis.
     #[serde(default = "ex")]
     pub x_axis: [f64; 3],
+    /// Direction of the local z axis.
     #[serde(default = "ez")]
     pub z_axis: [f64; 3],
+    /// Fastener radius of this placement (m).
     pub bolt_radius: Option<f64>,
+    /// Head radius of this placement's fastener (m).
     pub head_radius: Option<f64>,
 }
 
@@ -154,19 +182,19 @@ impl Placement {
     /// Rotation of the placement: its local x, y, z axes in global coordinates; None when
     /// the axes are zero or parallel.
     pub fn frame(&self) -> Option<[[f64; 3]; 3]> {
-        let unit = |a: [f64; 3]| {
-            let l = crate::shape::norm(&a);
+        let unit = |a: Vector3<f64>| {
+            let l = a.norm();
             (l > 0.0 && l.is_finite()).then(|| a.map(|c| c / l))
         };
-        let z = unit(self.z_axis)?;
-        let xd = unit(self.x_axis)?;
-        let d = crate::shape::dot(&xd, &z);
+        let z = unit(self.z_axis.into())?;
+        let xd = unit(self.x_axis.into())?;
+        let d = xd.dot(&z);
         if d.abs() > 1.0 - 1e-9 {
             return None;
         }
-        let x = unit([xd[0] - d * z[0], xd[1] - d * z[1], xd[2] - d * z[2]])?;
-        let y = crate::shape::cross(&z, &x);
-        Some([x, y, z])
+        let x = unit(xd - z.map(|c| d * c))?;
+        let y = z.cross(&x);
+        Some([x.into(), y.into(), z.into()])
     }
 
     /// Local → global.
@@ -176,24 +204,31 @@ impl Placement {
 }
 
 /// The whole parameter table of model `mc-spg`.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, PartialEq, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Params {
+    /// The particle set: a block or the bolted plates.
     pub geometry: Geometry,
     /// Particle spacing (m).
     pub spacing: f64,
     /// Kernel support radius (m); must exceed `spacing`.
     pub kernel_support: f64,
+    /// Density (kg/m³).
     pub density: f64,
+    /// Young's modulus (Pa).
     pub young: f64,
+    /// Poisson's ratio (1).
     pub poisson: f64,
+    /// Initial yield stress (Pa).
     pub yield_stress: f64,
+    /// Linear isotropic hardening modulus (Pa).
     #[serde(default)]
     pub iso_hardening: f64,
     /// Kinematic (Prager) plastic modulus H_kin; alternatively give `tangent_modulus` E_t
     /// and H_kin = E E_t / (E − E_t).
     #[serde(default)]
     pub kin_hardening: Option<f64>,
+    /// Tangent modulus E_t (Pa), instead of `kin_hardening`.
     #[serde(default)]
     pub tangent_modulus: Option<f64>,
     /// Critical pair-averaged effective plastic strain for bond failure (eq. 17).
@@ -221,6 +256,7 @@ pub struct Params {
     /// Steps between re-anchoring of the adaptive anisotropic Lagrangian kernel (eq. 12–14).
     #[serde(default = "default_reanchor")]
     pub reanchor_every: u64,
+    /// Stabilisation of the nodal integration (seed 004).
     #[serde(default)]
     pub smoothing: Smoothing,
     /// Courant factor on spacing / dilatational wave speed.
@@ -229,8 +265,10 @@ pub struct Params {
     /// Mass scaling: raise particle masses so the stable step is at least this (s).
     #[serde(default)]
     pub mass_scaling_dt: Option<f64>,
+    /// Prescribed velocities of regions (grips, supports).
     #[serde(default)]
     pub velocity_bc: Vec<VelocityBc>,
+    /// The responder side of a kinematic coupling with a shell node.
     #[serde(default)]
     pub coupling: Option<CouplingParams>,
     /// Copies of the geometry (default: one, in the global frame, unnamed).

@@ -27,6 +27,17 @@ pub fn factory(model: &str, params: &toml::Table) -> SolverResult<Box<dyn Solver
 
 /// Builds the solver named `model` from its parameter table (the node's registry: one line
 /// per model). This node opens no device, so describe-only builds the same solver.
+/// The models this node offers.
+pub const MODELS: &[&str] = &["mc-spg"];
+
+/// JSON Schema of a model's parameters (`meso-joint-node --schema --model M`, `cosim params M`): derived
+/// from the types the parameters are decoded into, so it lists exactly what is accepted.
+pub fn schema(model: &str) -> Option<serde_json::Value> {
+    (model == "mc-spg")
+        .then(|| serde_json::to_value(schemars::schema_for!(config::Params)).ok())
+        .flatten()
+}
+
 pub fn build(
     model: &str,
     params: &toml::Table,

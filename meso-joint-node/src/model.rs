@@ -36,8 +36,9 @@
 //! (eq. 16) also changes `A`; it is not corrected (an open, dissipative event).
 
 use crate::config::Smoothing;
-use crate::shape::{IDENTITY, M3, Rows, cross, det, inv, mat_mul, mul_vec, norm, sub};
+use crate::shape::{M3, Rows};
 use mechanics::j2::{J2Material, J2State, jaumann_rotate};
+use mechanics::tensor::{self, IDENTITY, Matrix3, Vector3, vec3};
 use rayon::prelude::*;
 
 /// What drives a particle's velocity.
@@ -199,7 +200,7 @@ impl Model {
             } else {
                 is_rigid(i) && is_rigid(j)
             };
-            (part[i] == part[j] || rigid_pair) && crate::shape::dist(&x[i], &x[j]) < reach
+            (part[i] == part[j] || rigid_pair) && (vec3(&x[i]) - vec3(&x[j])).norm() < reach
         });
         let mass: Vec<f64> = vol.iter().map(|v| v * p.density).collect();
         let mut m = Model {
@@ -314,11 +315,12 @@ impl Model {
             }
             _ => return Ok(()),
         }
-        for i in 0..self.x.len() {
-            if self.kind[i] == Kind::Free {
-                self.v[i] = self.acc[i];
+        let (kind, acc) = (&self.kind, &self.acc);
+        self.v.par_iter_mut().enumerate().for_each(|(i, v)| {
+            if kind[i] == Kind::Free {
+                *v = acc[i];
             }
-        }
+        });
         Ok(())
     }
 
@@ -482,17 +484,17 @@ impl Model {
             let mut inertia = [[0.0; 3]; 3];
             for &i in &b.particles {
                 let i = i as usize;
-                let r = sub(&self.x[i], &b.com);
-                let mut fi = self.f[i];
+                let r = vec3(&self.x[i]) - vec3(&b.com);
+                let mut fi = vec3(&self.f[i]);
                 if consistent && dt > 0.0 {
-                    let w = cross(&b.omega, &r);
+                    let w = vec3(&b.omega).cross(&r);
                     for d in 0..3 {
                         let v_rigid = b.vel[d] + w[d];
                         fi[d] += self.mh[i] * (self.vh[i][d] - v_rigid) / dt;
                     }
                 }
-                let t = cross(&r, &fi);
-                let r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+                let t = r.cross(&fi);
+                let r2 = r.norm_squared();
                 for a in 0..3 {
                     force[a] += fi[a];
                     torque[a] += t[a];
@@ -501,25 +503,20 @@ impl Model {
                     }
                 }
             }
-            let iw = mul_vec(&inertia, &b.omega);
-            let gyro = cross(&b.omega, &iw);
-            let rhs = [
-                torque[0] - gyro[0],
-                torque[1] - gyro[1],
-                torque[2] - gyro[2],
-            ];
-            let dw = inv(&inertia)
-                .map(|ii| mul_vec(&ii, &rhs))
-                .unwrap_or([0.0; 3]);
+            let inertia = tensor::mat(&inertia);
+            let omega = vec3(&b.omega);
+            let rhs = vec3(&torque) - omega.cross(&(inertia * omega));
+            let dw = tensor::inverse(&inertia, 1e-300)
+                .map(|ii| ii * rhs)
+                .unwrap_or_else(Vector3::zeros);
             for a in 0..3 {
                 b.vel[a] += dt * force[a] / b.mass;
                 b.omega[a] += dt * dw[a];
             }
             for &i in &b.particles {
                 let i = i as usize;
-                let r = sub(&self.x[i], &b.com);
-                let w = cross(&b.omega, &r);
-                let vi = [b.vel[0] + w[0], b.vel[1] + w[1], b.vel[2] + w[2]];
+                let r = vec3(&self.x[i]) - vec3(&b.com);
+                let vi = (vec3(&b.vel) + vec3(&b.omega).cross(&r)).into();
                 self.v[i] = vi;
                 self.vh[i] = vi;
             }
@@ -575,7 +572,7 @@ impl Model {
                     x[d] += dt * v[d];
                     xh[d] += dt * vh[d];
                 }
-                *u = sub(x, xa);
+                *u = (vec3(x) - vec3(xa)).into();
             });
         for b in &mut self.rigid {
             for d in 0..3 {
@@ -655,12 +652,12 @@ impl Model {
         let mut energy = 0.0;
         for &(i, j) in &self.contact_pairs {
             let (i, j) = (i as usize, j as usize);
-            let r = sub(&self.x[j], &self.x[i]);
-            let d = norm(&r);
+            let r = vec3(&self.x[j]) - vec3(&self.x[i]);
+            let d = r.norm();
             // Contact distance: one spacing, or the pair's distance in the reference state
             // if that is closer (the lattices of bolt and plate need not mesh), so the
             // contact is at rest in the reference state.
-            let d0 = h.min(norm(&sub(&self.x0[j], &self.x0[i])));
+            let d0 = h.min((vec3(&self.x0[j]) - vec3(&self.x0[i])).norm());
             if d >= d0 || d <= 0.0 {
                 continue;
             }
@@ -679,7 +676,7 @@ impl Model {
     pub fn initial_forces(&mut self) {
         let n = self.len();
         for i in 0..n {
-            let fi = inv(&self.fhat[i]).unwrap_or(IDENTITY);
+            let fi = inverse(&self.fhat[i]).unwrap_or_else(Matrix3::identity);
             self.bmat[i] = stress_factor(&self.mat[i].stress, self.vol[i], &fi);
         }
         internal_force(&self.rows, &self.bmat, &mut self.f);
@@ -689,8 +686,8 @@ impl Model {
     /// Bond failure (eq. 15–17): a bond breaks, for good, when the pair-averaged effective
     /// plastic strain reaches ε_crit *and* the stretch ratio exceeds e_crit (so never under
     /// compression). Broken bonds drop out of the kernel (χ = 0) and the rows are rebuilt.
+    /// `max_eps` is that of the current states (`kinematics_and_stress` reduces it).
     fn bond_failure(&mut self) -> StepResult {
-        self.max_eps = self.mat.iter().fold(0.0, |m, s| m.max(s.eq_plastic_strain));
         if self.max_eps < self.p.eps_crit {
             return Ok(());
         }
@@ -706,7 +703,7 @@ impl Model {
                     return false;
                 }
                 let eps = 0.5 * (mat[i].eq_plastic_strain + mat[j].eq_plastic_strain);
-                let stretch = crate::shape::dist(&x[i], &x[j]) / rows.len0[p];
+                let stretch = (vec3(&x[i]) - vec3(&x[j])).norm() / rows.len0[p];
                 eps >= ec && stretch > sc
             })
             .collect();
@@ -743,7 +740,7 @@ impl Model {
                 .for_each(|(i, (fh, bm))| {
                     if dirty[i] {
                         *fh = incremental_f(rows, x, xa, i);
-                        if let Some(fi) = inv(fh) {
+                        if let Some(fi) = inverse(fh) {
                             *bm = stress_factor(&mat[i].stress, vol[i], &fi);
                         }
                     }
@@ -760,17 +757,34 @@ impl Model {
             self.restore_angular_momentum();
         }
         self.xh.copy_from_slice(&self.x);
-        for i in 0..self.len() {
-            self.ftot_a[i] = mat_mul(&self.fhat[i], &self.ftot_a[i]);
-            self.finv_a[i] = inv(&self.ftot_a[i])
-                .ok_or_else(|| format!("particle {i}: singular deformation gradient"))?;
-            self.fhat[i] = IDENTITY;
+        let singular = self
+            .ftot_a
+            .par_iter_mut()
+            .zip(self.finv_a.par_iter_mut())
+            .zip(self.fhat.par_iter_mut())
+            .enumerate()
+            .filter_map(|(i, ((ft, fi), fh))| {
+                let f = tensor::mat(fh) * tensor::mat(ft);
+                *ft = tensor::rows(&f);
+                *fh = IDENTITY;
+                match tensor::inverse(&f, 1e-300) {
+                    Some(m) => {
+                        *fi = tensor::rows(&m);
+                        None
+                    }
+                    None => Some(i),
+                }
+            })
+            .min();
+        if let Some(i) = singular {
+            return Err(format!("particle {i}: singular deformation gradient"));
         }
         self.xa.copy_from_slice(&self.x);
         self.vol_a.copy_from_slice(&self.vol);
-        for i in 0..self.len() {
-            self.bmat[i] = stress_factor(&self.mat[i].stress, self.vol[i], &IDENTITY);
-        }
+        let (mat, vol) = (&self.mat, &self.vol);
+        self.bmat.par_iter_mut().enumerate().for_each(|(i, b)| {
+            *b = stress_factor(&mat[i].stress, vol[i], &Matrix3::identity());
+        });
         self.rebuild_shapes(None)
     }
 
@@ -798,10 +812,10 @@ impl Model {
                 continue;
             }
             let m = self.mh[i];
-            let dy = sub(&self.xh[i], &self.x[i]);
-            let t = cross(&dy, &self.vh[i]);
-            let r = sub(&self.x[i], &c);
-            let r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+            let dy = vec3(&self.xh[i]) - vec3(&self.x[i]);
+            let t = dy.cross(&vec3(&self.vh[i]));
+            let r = vec3(&self.x[i]) - vec3(&c);
+            let r2 = r.norm_squared();
             for a in 0..3 {
                 dl[a] += m * t[a];
                 for b in 0..3 {
@@ -809,13 +823,13 @@ impl Model {
                 }
             }
         }
-        let Some(ii) = inv(&inertia) else {
+        let Some(ii) = tensor::inverse(&tensor::mat(&inertia), 1e-300) else {
             return;
         };
-        let w = mul_vec(&ii, &dl);
+        let w = ii * vec3(&dl);
         for i in 0..self.len() {
             if self.kind[i] == Kind::Free {
-                let dv = cross(&w, &sub(&self.x[i], &c));
+                let dv = w.cross(&(vec3(&self.x[i]) - vec3(&c)));
                 for d in 0..3 {
                     self.vh[i][d] += dv[d];
                 }
@@ -894,8 +908,8 @@ impl Model {
         };
         let mut l = [0.0; 3];
         for i in 0..self.len() {
-            let mv = vel[i].map(|c| c * m[i]);
-            let c = cross(&x[i], &mv);
+            let mv = vec3(&vel[i]) * m[i];
+            let c = vec3(&x[i]).cross(&mv);
             for d in 0..3 {
                 l[d] += c[d];
             }
@@ -907,8 +921,8 @@ impl Model {
     pub fn smoothed_angular_momentum(&self) -> [f64; 3] {
         let mut l = [0.0; 3];
         for i in 0..self.len() {
-            let mv = self.v[i].map(|c| c * self.mh[i]);
-            let c = cross(&self.x[i], &mv);
+            let mv = vec3(&self.v[i]) * self.mh[i];
+            let c = vec3(&self.x[i]).cross(&mv);
             for d in 0..3 {
                 l[d] += c[d];
             }
@@ -1021,49 +1035,40 @@ pub fn average_smooth(rows: &Rows, vh: &[[f64; 3]], v: &mut [[f64; 3]]) {
 /// `F̂_I = I + Σ_J (u_J − u_I) ⊗ ∇φ_J(X_I)`, u = x − X̂ (eq. 14).
 #[inline]
 pub fn incremental_f(rows: &Rows, x: &[[f64; 3]], xa: &[[f64; 3]], i: usize) -> M3 {
-    let ui = sub(&x[i], &xa[i]);
-    let mut f = IDENTITY;
+    let ui = vec3(&x[i]) - vec3(&xa[i]);
+    let mut f = Matrix3::identity();
     for p in rows.range(i) {
         let j = rows.cols[p] as usize;
-        let uj = sub(&x[j], &xa[j]);
-        let du = sub(&uj, &ui);
-        let g = &rows.grad[p];
-        for a in 0..3 {
-            for b in 0..3 {
-                f[a][b] += du[a] * g[b];
-            }
-        }
+        let du = (vec3(&x[j]) - vec3(&xa[j])) - ui;
+        f += du * vec3(&rows.grad[p]).transpose();
     }
-    f
+    tensor::rows(&f)
 }
 
 /// [`incremental_f`] from the stored displacements `u = x − X̂` (same arithmetic).
 #[inline]
-fn incremental_f_u(rows: &Rows, u: &[[f64; 3]], i: usize) -> M3 {
-    let ui = u[i];
-    let mut f = IDENTITY;
+fn incremental_f_u(rows: &Rows, u: &[[f64; 3]], i: usize) -> Matrix3<f64> {
+    let ui = vec3(&u[i]);
+    let mut f = Matrix3::identity();
     let r = rows.offsets[i]..rows.offsets[i + 1];
     for (&j, g) in rows.cols[r.clone()].iter().zip(&rows.grad[r]) {
-        let du = sub(&u[j as usize], &ui);
-        for a in 0..3 {
-            for b in 0..3 {
-                f[a][b] += du[a] * g[b];
-            }
-        }
+        let du = vec3(&u[j as usize]) - ui;
+        f += du * vec3(g).transpose();
     }
     f
 }
 
+/// The inverse of a flat-stored deformation gradient; `None` when singular.
+#[inline]
+fn inverse(f: &M3) -> Option<Matrix3<f64>> {
+    tensor::inverse(&tensor::mat(f), 1e-300)
+}
+
 /// `V σ F̂⁻ᵀ` (Voigt σ, tensor shear).
 #[inline]
-fn stress_factor(s: &[f64; 6], vol: f64, finv: &M3) -> M3 {
-    let sm = [[s[0], s[5], s[4]], [s[5], s[1], s[3]], [s[4], s[3], s[2]]];
-    // σ F⁻ᵀ: (σ F⁻ᵀ)_{ab} = Σ_c σ_ac Finv_bc
-    std::array::from_fn(|a| {
-        std::array::from_fn(|b| {
-            vol * (sm[a][0] * finv[b][0] + sm[a][1] * finv[b][1] + sm[a][2] * finv[b][2])
-        })
-    })
+fn stress_factor(s: &[f64; 6], vol: f64, finv: &Matrix3<f64>) -> M3 {
+    let sm = Matrix3::new(s[0], s[5], s[4], s[5], s[1], s[3], s[4], s[3], s[2]);
+    tensor::rows(&(sm * finv.transpose() * vol))
 }
 
 /// Kinematics (eq. 12–14), continuity density (eq. 8–9) and the J2 update.
@@ -1074,7 +1079,11 @@ fn kinematics_and_stress(m: &mut Model, dt: f64) -> StepResult {
     let mass = &m.mass;
     let damaged = &m.damaged;
     let failed = std::sync::atomic::AtomicUsize::new(usize::MAX);
-    m.fhat
+    // The largest equivalent plastic strain (bond failure's test, eq. 15) and whether any
+    // density is not positive are reduced in the same pass: no serial sweep of the states.
+    // Both reductions are exact (max, or), so the result does not depend on the split.
+    let (max_eps, bad_rho) = m
+        .fhat
         .par_iter_mut()
         .zip(m.mat.par_iter_mut())
         .zip(m.rho.par_iter_mut())
@@ -1082,73 +1091,74 @@ fn kinematics_and_stress(m: &mut Model, dt: f64) -> StepResult {
         .zip(m.bmat.par_iter_mut())
         .zip(m.eint.par_iter_mut())
         .enumerate()
-        .for_each(|(i, (((((fh, st), rho), vol), bm), ei))| {
-            // A particle with broken bonds (eq. 16) whose remaining support no longer gives
-            // an invertible deformation (or a positive density) has separated: it carries no
-            // stress from now on (its state is kept, its force contribution is zero). An
-            // intact particle in that state is a divergence.
-            let separate = |st: &mut J2State, bm: &mut M3| {
-                if damaged[i] {
-                    st.stress = [0.0; 6];
-                    st.back_stress = [0.0; 6];
-                    *bm = [[0.0; 3]; 3];
-                } else {
-                    failed.fetch_min(i, std::sync::atomic::Ordering::Relaxed);
+        .map(|(i, (((((fh, st), rho), vol), bm), ei))| {
+            'update: {
+                // A particle with broken bonds (eq. 16) whose remaining support no longer gives
+                // an invertible deformation (or a positive density) has separated: it carries no
+                // stress from now on (its state is kept, its force contribution is zero). An
+                // intact particle in that state is a divergence.
+                let separate = |st: &mut J2State, bm: &mut M3| {
+                    if damaged[i] {
+                        st.stress = [0.0; 6];
+                        st.back_stress = [0.0; 6];
+                        *bm = [[0.0; 3]; 3];
+                    } else {
+                        failed.fetch_min(i, std::sync::atomic::Ordering::Relaxed);
+                    }
+                };
+                let f_new = incremental_f_u(rows, u, i);
+                let f_old = tensor::mat(fh);
+                let Some(fmi) = tensor::inverse(&((f_new + f_old) * 0.5), 1e-300) else {
+                    separate(st, bm);
+                    break 'update;
+                };
+                // L Δt = (F̂ⁿ⁺¹ − F̂ⁿ) F̂_mid⁻¹
+                let ldt = (f_new - f_old) * fmi;
+                let de = [
+                    ldt[(0, 0)],
+                    ldt[(1, 1)],
+                    ldt[(2, 2)],
+                    0.5 * (ldt[(1, 2)] + ldt[(2, 1)]),
+                    0.5 * (ldt[(0, 2)] + ldt[(2, 0)]),
+                    0.5 * (ldt[(0, 1)] + ldt[(1, 0)]),
+                ];
+                let spin = tensor::rows(&((ldt - ldt.transpose()) * 0.5 / dt));
+                let s_old = st.stress;
+                let v_old = *vol;
+                jaumann_rotate(&mut st.stress, &spin, dt);
+                jaumann_rotate(&mut st.back_stress, &spin, dt);
+                material.update(st, &de);
+                // Continuity (eq. 8) and volume (eq. 9).
+                let tr = de[0] + de[1] + de[2];
+                if damaged[i] && !(1.0 - tr > 0.0 && f_new.determinant() > 0.0) {
+                    separate(st, bm);
+                    break 'update;
                 }
-            };
-            let f_new = incremental_f_u(rows, u, i);
-            let f_mid: M3 =
-                std::array::from_fn(|a| std::array::from_fn(|b| 0.5 * (f_new[a][b] + fh[a][b])));
-            let Some(fmi) = inv(&f_mid) else {
-                separate(st, bm);
-                return;
-            };
-            // L Δt = (F̂ⁿ⁺¹ − F̂ⁿ) F̂_mid⁻¹
-            let df: M3 = std::array::from_fn(|a| std::array::from_fn(|b| f_new[a][b] - fh[a][b]));
-            let ldt = mat_mul(&df, &fmi);
-            let de = [
-                ldt[0][0],
-                ldt[1][1],
-                ldt[2][2],
-                0.5 * (ldt[1][2] + ldt[2][1]),
-                0.5 * (ldt[0][2] + ldt[2][0]),
-                0.5 * (ldt[0][1] + ldt[1][0]),
-            ];
-            let spin: M3 = std::array::from_fn(|a| {
-                std::array::from_fn(|b| 0.5 * (ldt[a][b] - ldt[b][a]) / dt)
-            });
-            let s_old = st.stress;
-            let v_old = *vol;
-            jaumann_rotate(&mut st.stress, &spin, dt);
-            jaumann_rotate(&mut st.back_stress, &spin, dt);
-            material.update(st, &de);
-            // Continuity (eq. 8) and volume (eq. 9).
-            let tr = de[0] + de[1] + de[2];
-            if damaged[i] && !(1.0 - tr > 0.0 && det(&f_new) > 0.0) {
-                separate(st, bm);
-                return;
+                *rho *= 1.0 - tr;
+                *vol = mass[i] / *rho;
+                let s = &st.stress;
+                let work = 0.5
+                    * ((s[0] + s_old[0]) * de[0]
+                        + (s[1] + s_old[1]) * de[1]
+                        + (s[2] + s_old[2]) * de[2]
+                        + 2.0
+                            * ((s[3] + s_old[3]) * de[3]
+                                + (s[4] + s_old[4]) * de[4]
+                                + (s[5] + s_old[5]) * de[5]));
+                *ei += 0.5 * (v_old + *vol) * work;
+                *fh = tensor::rows(&f_new);
+                let Some(fi) = tensor::inverse(&f_new, 1e-300) else {
+                    separate(st, bm);
+                    break 'update;
+                };
+                *bm = stress_factor(&st.stress, *vol, &fi);
             }
-            *rho *= 1.0 - tr;
-            *vol = mass[i] / *rho;
-            let s = &st.stress;
-            let work = 0.5
-                * ((s[0] + s_old[0]) * de[0]
-                    + (s[1] + s_old[1]) * de[1]
-                    + (s[2] + s_old[2]) * de[2]
-                    + 2.0
-                        * ((s[3] + s_old[3]) * de[3]
-                            + (s[4] + s_old[4]) * de[4]
-                            + (s[5] + s_old[5]) * de[5]));
-            *ei += 0.5 * (v_old + *vol) * work;
-            *fh = f_new;
-            let Some(fi) = inv(&f_new) else {
-                separate(st, bm);
-                return;
-            };
-            *bm = stress_factor(&st.stress, *vol, &fi);
-        });
+            (st.eq_plastic_strain, !(*rho > 0.0))
+        })
+        .reduce(|| (0.0, false), |a, b| (a.0.max(b.0), a.1 || b.1));
+    m.max_eps = max_eps;
     let bad = failed.into_inner();
-    if bad != usize::MAX || m.rho.iter().any(|r| !(*r > 0.0)) {
+    if bad != usize::MAX || bad_rho {
         return Err(format!(
             "particle {}: singular deformation gradient or non-positive density",
             if bad == usize::MAX {
@@ -1158,7 +1168,6 @@ fn kinematics_and_stress(m: &mut Model, dt: f64) -> StepResult {
             }
         ));
     }
-    let _ = det;
     Ok(())
 }
 
@@ -1168,15 +1177,12 @@ fn kinematics_and_stress(m: &mut Model, dt: f64) -> StepResult {
 pub fn internal_force(rows: &Rows, bmat: &[M3], f: &mut [[f64; 3]]) {
     let (offsets, cols, grad_t) = (&rows.offsets, &rows.cols, &rows.grad_t);
     f.par_iter_mut().enumerate().for_each(|(k, fk)| {
-        let mut s = [0.0; 3];
+        let mut s = Vector3::zeros();
         let r = offsets[k]..offsets[k + 1];
         for (&i, g) in cols[r.clone()].iter().zip(&grad_t[r]) {
-            let b = &bmat[i as usize];
-            for a in 0..3 {
-                s[a] -= b[a][0] * g[0] + b[a][1] * g[1] + b[a][2] * g[2];
-            }
+            s -= tensor::mat(&bmat[i as usize]) * vec3(g);
         }
-        *fk = s;
+        *fk = s.into();
     });
 }
 

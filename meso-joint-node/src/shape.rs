@@ -16,9 +16,11 @@
 
 use mechanics::kernel::{cubic_spline, rk_row, rk_values};
 use mechanics::neighbour::Families;
+use mechanics::tensor::vec3;
 use rayon::prelude::*;
 
-pub type M3 = [[f64; 3]; 3];
+/// A 3×3 matrix in the row-major flat storage of the state arrays.
+pub type M3 = mechanics::tensor::Rows3;
 
 /// Supports in compressed rows, with per-entry shape data.
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
@@ -116,7 +118,7 @@ impl Rows {
             .map(|p| {
                 let i = row_of[p] as usize;
                 let j = cols[p] as usize;
-                dist(&x[i], &x[j])
+                (vec3(&x[i]) - vec3(&x[j])).norm()
             })
             .collect();
         Rows {
@@ -212,8 +214,7 @@ impl Rows {
                 for k in 0..phi.len() {
                     let p = base + k;
                     let j = cols[p] as usize;
-                    let dj = sub(&xa[j], &xa[i]);
-                    d[k] = dj;
+                    d[k] = (vec3(&xa[j]) - vec3(&xa[i])).into();
                     // Kernel of the pair at its material distance (eq. 12–14, see above).
                     let q = len0[p] / support;
                     w[k] = if alive[p] { cubic_spline(q) } else { 0.0 };
@@ -361,85 +362,4 @@ pub fn split_rows<'a, T>(mut buf: &'a mut [T], offsets: &[usize]) -> Vec<&'a mut
         buf = b;
     }
     out
-}
-
-#[inline]
-pub fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-#[inline]
-pub fn norm(a: &[f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
-}
-#[inline]
-pub fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    norm(&sub(a, b))
-}
-#[inline]
-pub fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-#[inline]
-pub fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-#[inline]
-/// Rotate `v` by the rotation vector `theta` (Rodrigues).
-pub fn rotate(theta: &[f64; 3], v: &[f64; 3]) -> [f64; 3] {
-    let a = norm(theta);
-    if a < 1e-300 {
-        return *v;
-    }
-    let k = theta.map(|c| c / a);
-    let kv = cross(&k, v);
-    let kd = dot(&k, v);
-    let (s, c) = a.sin_cos();
-    std::array::from_fn(|d| v[d] * c + kv[d] * s + k[d] * kd * (1.0 - c))
-}
-
-pub fn mul_vec(m: &M3, v: &[f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|r| m[r][0] * v[0] + m[r][1] * v[1] + m[r][2] * v[2])
-}
-#[inline]
-pub fn mat_mul(a: &M3, b: &M3) -> M3 {
-    std::array::from_fn(|r| {
-        std::array::from_fn(|c| a[r][0] * b[0][c] + a[r][1] * b[1][c] + a[r][2] * b[2][c])
-    })
-}
-pub const IDENTITY: M3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-#[inline]
-pub fn det(m: &M3) -> f64 {
-    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
-}
-/// Inverse of a 3×3 matrix; `None` when singular.
-#[inline]
-pub fn inv(m: &M3) -> Option<M3> {
-    let d = det(m);
-    if !(d.abs() > 1e-300) || !d.is_finite() {
-        return None;
-    }
-    let id = 1.0 / d;
-    Some([
-        [
-            (m[1][1] * m[2][2] - m[1][2] * m[2][1]) * id,
-            (m[0][2] * m[2][1] - m[0][1] * m[2][2]) * id,
-            (m[0][1] * m[1][2] - m[0][2] * m[1][1]) * id,
-        ],
-        [
-            (m[1][2] * m[2][0] - m[1][0] * m[2][2]) * id,
-            (m[0][0] * m[2][2] - m[0][2] * m[2][0]) * id,
-            (m[0][2] * m[1][0] - m[0][0] * m[1][2]) * id,
-        ],
-        [
-            (m[1][0] * m[2][1] - m[1][1] * m[2][0]) * id,
-            (m[0][1] * m[2][0] - m[0][0] * m[2][1]) * id,
-            (m[0][0] * m[1][1] - m[0][1] * m[1][0]) * id,
-        ],
-    ])
 }

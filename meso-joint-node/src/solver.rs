@@ -19,8 +19,9 @@
 use crate::config::{Geometry, Params};
 use crate::geometry;
 use crate::model::{Kind, Model, ModelParams, RigidBody};
-use crate::shape::{M3, Rows, cross, dot, norm, rotate};
+use crate::shape::{M3, Rows};
 use mechanics::j2::J2State;
+use mechanics::tensor::{self, Vector3, vec3};
 use protocol::{
     Binding, Inbox, InterfaceInfo, InterfaceMesh, NodeDescription, Outbox, Solver, SolverError,
     SolverResult, StepReport, Window,
@@ -63,9 +64,9 @@ pub struct SpgSolver {
     pub history: Vec<HistoryRow>,
 }
 
-fn unit(a: [f64; 3]) -> [f64; 3] {
-    let l = norm(&a);
-    if l > 0.0 { a.map(|c| c / l) } else { a }
+fn unit(a: Vector3<f64>) -> Vector3<f64> {
+    let l = a.norm();
+    if l > 0.0 { a / l } else { a }
 }
 
 /// A per-particle 3-vector field of the inbox, if present (checked length, finite values).
@@ -336,7 +337,8 @@ impl SpgSolver {
         }
         let m = out.put(&c.interface, "moment", 3, n);
         for (k, &i) in c.particles.iter().enumerate() {
-            m[3 * k..3 * k + 3].copy_from_slice(&cross(&c.arm[k], &model.f[i as usize]));
+            let moment = vec3(&c.arm[k]).cross(&vec3(&model.f[i as usize]));
+            m[3 * k..3 * k + 3].copy_from_slice(moment.as_slice());
         }
     }
 
@@ -373,33 +375,30 @@ impl SpgSolver {
                     }
                 };
                 let x0 = model.x0[i as usize];
-                let a0: [f64; 3] = std::array::from_fn(|d| x0[d] - foot0[d]);
+                let a0 = vec3(&x0) - vec3(&foot0);
                 match normal {
                     Some(nv) => {
                         // Reference normal: the current one rotated back (exact for a
                         // uniform rotation; at the first window the rotation is ~0 anyway).
-                        let nt = unit(at(nv, k));
+                        let nt = unit(at(nv, k).into());
                         let n0 = match rotation {
-                            Some(r) => {
-                                let th = at(r, k);
-                                unit(rotate(&th.map(|v| -v), &nt))
-                            }
+                            Some(r) => unit(tensor::rotate(&-vec3(&at(r, k)), &nt)),
                             None => nt,
                         };
-                        let d = dot(&a0, &n0);
+                        let d = a0.dot(&n0);
                         c.depth[k] = d;
-                        c.tang[k] = std::array::from_fn(|q| a0[q] - d * n0[q]);
+                        c.tang[k] = (a0 - n0 * d).into();
                     }
                     None => {
                         c.depth[k] = 0.0;
-                        c.tang[k] = a0;
+                        c.tang[k] = a0.into();
                     }
                 }
             }
             c.anchored = true;
         }
         for k in 0..n {
-            let nb = normal.map_or([0.0; 3], |nv| unit(at(nv, k)));
+            let nb = normal.map_or(Vector3::zeros(), |nv| unit(at(nv, k).into()));
             let p = at(pos, k);
             let arm: [f64; 3] = std::array::from_fn(|d| c.depth[k] * nb[d] + c.tang[k][d]);
             c.arm[k] = arm;
@@ -588,7 +587,7 @@ impl Solver for SpgSolver {
                 for (d, axis) in ["x", "y", "z"].iter().enumerate() {
                     scalars.push((format!("force_{name}_{axis}"), f[d]));
                 }
-                scalars.push((format!("force_{name}"), norm(f)));
+                scalars.push((format!("force_{name}"), vec3(f).norm()));
             }
         }
         Ok(StepReport {

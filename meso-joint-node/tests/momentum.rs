@@ -9,6 +9,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use mechanics::j2::J2Material;
+use mechanics::tensor::{self, Vector3};
 use meso_joint_node::config::Smoothing;
 use meso_joint_node::geometry::block;
 use meso_joint_node::model::{Model, ModelParams};
@@ -81,11 +82,11 @@ fn lumped_momentum(m: &Model) -> [f64; 3] {
 }
 
 fn norm(a: [f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+    Vector3::from(a).norm()
 }
 
 fn diff(a: [f64; 3], b: [f64; 3]) -> f64 {
-    norm([a[0] - b[0], a[1] - b[1], a[2] - b[2]])
+    (Vector3::from(a) - Vector3::from(b)).norm()
 }
 
 const STEPS: usize = 2000;
@@ -113,9 +114,9 @@ fn drifts(smoothing: Smoothing, dt: f64) -> (f64, f64, f64, f64) {
         .iter()
         .zip(&m.ftot_a)
         .map(|(f, g)| {
-            let t = meso_joint_node::shape::mat_mul(f, g);
+            let t = tensor::mat(f) * tensor::mat(g);
             // symmetric part of F − I with the rotation removed to first order
-            (0..3).map(|a| (t[a][a] - 1.0).abs()).fold(0.0, f64::max)
+            (0..3).map(|a| (t[(a, a)] - 1.0).abs()).fold(0.0, f64::max)
         })
         .fold(0.0, f64::max);
     eprintln!(

@@ -7,10 +7,10 @@
 #![allow(clippy::needless_range_loop)]
 
 use mechanics::j2::J2Material;
+use mechanics::tensor::{self, vec3};
 use meso_joint_node::config::Smoothing;
 use meso_joint_node::geometry::block;
 use meso_joint_node::model::{Model, ModelParams};
-use meso_joint_node::shape::mat_mul;
 
 const E: f64 = 210e9;
 const SY: f64 = 0.2e9;
@@ -58,7 +58,7 @@ fn gauge(m: &Model) -> (f64, f64, f64) {
     let (mut e, mut s, mut ep, mut n) = (0.0, 0.0, 0.0, 0.0);
     for i in 0..m.len() {
         if (m.x0[i][0] - 0.5 * L).abs() < 0.25 * L {
-            let f = mat_mul(&m.fhat[i], &m.ftot_a[i]);
+            let f = tensor::rows(&(tensor::mat(&m.fhat[i]) * tensor::mat(&m.ftot_a[i])));
             e += f[0][0].ln();
             let st = &m.mat[i].stress;
             s += st[0] - 0.5 * (st[1] + st[2]);
@@ -152,7 +152,7 @@ fn failure_starts_at_eps_crit_in_tension_and_never_in_compression() {
         let mut e: f64 = 0.0;
         for p in 0..m.rows.cols.len() {
             let (i, j) = (m.rows.row_of[p] as usize, m.rows.cols[p] as usize);
-            let x = meso_joint_node::shape::dist(&m.x[i], &m.x[j]);
+            let x = (vec3(&m.x[i]) - vec3(&m.x[j])).norm();
             if i != j && m.rows.alive[p] && x > m.rows.len0[p] {
                 e = e.max(0.5 * (m.mat[i].eq_plastic_strain + m.mat[j].eq_plastic_strain));
             }
@@ -191,7 +191,7 @@ fn failure_starts_at_eps_crit_in_tension_and_never_in_compression() {
         for p in 0..alive.len() {
             if alive[p] && !c.rows.alive[p] {
                 let (i, j) = (c.rows.row_of[p] as usize, c.rows.cols[p] as usize);
-                let e = meso_joint_node::shape::dist(&c.x[i], &c.x[j]) / c.rows.len0[p];
+                let e = (vec3(&c.x[i]) - vec3(&c.x[j])).norm() / c.rows.len0[p];
                 if e <= c.p.e_crit {
                     broke_compressed += 1;
                 }

@@ -36,7 +36,7 @@ impl Frame<'_> {
         let file = self.file(ext);
         let vtk = Vtk {
             version: Version::new(if ext == "vtk" { (4, 2) } else { (1, 0) }),
-            title: format!("{} t = {:e} s", self.stem, self.time),
+            title: format!("{} t = {:e} s (cosim, SI units)", self.stem, self.time),
             byte_order: order,
             file_path: None,
             data,
@@ -162,7 +162,7 @@ fn add_to_series(frame: &Frame, file: &str) -> std::io::Result<()> {
         file: file.to_string(),
     });
     let mut text = String::from(
-        "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n",
+        "<?xml version=\"1.0\"?>\n<!-- cosim output; units SI (m, kg, s, N, Pa, J) -->\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n",
     );
     for e in &entries {
         let _ = writeln!(

@@ -29,6 +29,7 @@
 //! a [`MappingError`] instead of panicking.
 
 use crate::message::{CellKind, InterfaceMesh};
+use nalgebra::Vector3;
 
 /// Why a mapping could not be built or applied.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -413,39 +414,25 @@ fn check_points(driver: &InterfaceMesh, responder: &[[f64; 3]]) -> Result<(), Ma
 // ---------------------------------------------------------------------------------------------
 // Small vector helpers.
 
-fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
+type V3 = Vector3<f64>;
+
+/// The point stored in `a` (positions travel as `[f64; 3]`; nalgebra does the algebra).
+fn v3(a: &[f64; 3]) -> V3 {
+    V3::from(*a)
 }
 fn dist2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    let d = sub(a, b);
-    dot(&d, &d)
-}
-fn norm(a: &[f64; 3]) -> f64 {
-    dot(a, a).sqrt()
+    (v3(a) - v3(b)).norm_squared()
 }
 /// `Σ n_k x_k` over the first `n.len()` nodes.
 fn combine(n: &[f64], x: &[[f64; 3]]) -> [f64; 3] {
-    let mut p = [0.0; 3];
-    for (w, xk) in n.iter().zip(x) {
-        for d in 0..3 {
-            p[d] += w * xk[d];
-        }
-    }
-    p
+    n.iter()
+        .zip(x)
+        .fold(V3::zeros(), |p, (w, xk)| p + v3(xk) * *w)
+        .into()
 }
 fn bbox_diagonal(pts: &[[f64; 3]]) -> f64 {
     let (lo, hi) = bbox(pts.iter().map(|&p| (p, p)));
-    norm(&sub(&hi, &lo))
+    (v3(&hi) - v3(&lo)).norm()
 }
 fn bbox(items: impl Iterator<Item = ([f64; 3], [f64; 3])>) -> ([f64; 3], [f64; 3]) {
     let mut lo = [f64::INFINITY; 3];
@@ -485,15 +472,14 @@ fn box_dist2(q: &[f64; 3], lo: &[f64; 3], hi: &[f64; 3]) -> f64 {
 
 /// Closest point of segment `a b` to `q`: parameter `t ∈ [0, 1]` and squared distance.
 fn segment_closest(q: &[f64; 3], a: &[f64; 3], b: &[f64; 3]) -> (f64, f64) {
-    let e = sub(b, a);
-    let l2 = dot(&e, &e);
+    let e = v3(b) - v3(a);
+    let l2 = e.norm_squared();
     let t = if l2 > 0.0 {
-        (dot(&sub(q, a), &e) / l2).clamp(0.0, 1.0)
+        ((v3(q) - v3(a)).dot(&e) / l2).clamp(0.0, 1.0)
     } else {
         0.0
     };
-    let p = [a[0] + t * e[0], a[1] + t * e[1], a[2] + t * e[2]];
-    (t, dist2(q, &p))
+    (t, dist2(q, &(v3(a) + e * t).into()))
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -510,9 +496,9 @@ struct CellGeom {
     lo: [f64; 3],
     hi: [f64; 3],
     /// Quad only: best-fit plane (centroid, in-plane axes) and the nodes in plane coordinates.
-    c: [f64; 3],
-    e1: [f64; 3],
-    e2: [f64; 3],
+    c: V3,
+    e1: V3,
+    e2: V3,
     x2d: [[f64; 2]; 4],
 }
 
@@ -524,22 +510,22 @@ impl CellGeom {
             x,
             lo,
             hi,
-            c: [0.0; 3],
-            e1: [0.0; 3],
-            e2: [0.0; 3],
+            c: V3::zeros(),
+            e1: V3::zeros(),
+            e2: V3::zeros(),
             x2d: [[0.0; 2]; 4],
         }
     }
 
     fn line(a: [f64; 3], b: [f64; 3], scale: f64) -> Result<Self, &'static str> {
-        if norm(&sub(&b, &a)) <= DEGENERATE * scale {
+        if (v3(&b) - v3(&a)).norm() <= DEGENERATE * scale {
             return Err("zero length");
         }
         Ok(CellGeom::new(CellKind::Line, [a, b, [0.0; 3], [0.0; 3]], 2))
     }
 
     fn triangle(a: [f64; 3], b: [f64; 3], c: [f64; 3], scale: f64) -> Result<Self, &'static str> {
-        let area2 = norm(&cross(&sub(&b, &a), &sub(&c, &a)));
+        let area2 = (v3(&b) - v3(&a)).cross(&(v3(&c) - v3(&a))).norm();
         if area2 <= DEGENERATE * scale * scale {
             return Err("zero area");
         }
@@ -552,28 +538,25 @@ impl CellGeom {
     /// plane (all four corner Jacobians positive), which rejects folded (bow-tie) and
     /// re-entrant quads.
     fn quad(x: [[f64; 3]; 4], scale: f64) -> Result<Self, &'static str> {
-        let nvec = cross(&sub(&x[2], &x[0]), &sub(&x[3], &x[1]));
-        let nn = norm(&nvec);
+        let nvec = (v3(&x[2]) - v3(&x[0])).cross(&(v3(&x[3]) - v3(&x[1])));
+        let nn = nvec.norm();
         if nn <= DEGENERATE * scale * scale {
             return Err("zero area");
         }
-        let n = [nvec[0] / nn, nvec[1] / nn, nvec[2] / nn];
-        let c = combine(&[0.25; 4], &x);
-        let d = sub(&x[1], &x[0]);
-        let d = sub(&d, &{
-            let s = dot(&d, &n);
-            [s * n[0], s * n[1], s * n[2]]
-        });
-        let dn = norm(&d);
+        let n = nvec / nn;
+        let c = v3(&combine(&[0.25; 4], &x));
+        let d = v3(&x[1]) - v3(&x[0]);
+        let d = d - n * d.dot(&n);
+        let dn = d.norm();
         if dn <= DEGENERATE * scale {
             return Err("first edge parallel to the normal");
         }
-        let e1 = [d[0] / dn, d[1] / dn, d[2] / dn];
-        let e2 = cross(&n, &e1);
+        let e1 = d / dn;
+        let e2 = n.cross(&e1);
         let mut g = CellGeom::new(CellKind::Quad, x, 4);
         for (y, xk) in g.x2d.iter_mut().zip(&x) {
-            let r = sub(xk, &c);
-            *y = [dot(&r, &e1), dot(&r, &e2)];
+            let r = v3(xk) - c;
+            *y = [r.dot(&e1), r.dot(&e2)];
         }
         for k in 0..4 {
             let p = g.x2d[(k + 3) % 4];
@@ -602,11 +585,11 @@ impl CellGeom {
             CellKind::Triangle => {
                 // Barycentric coordinates of the projection onto the plane (Gram system); if
                 // it lies outside, the closest point is on an edge.
-                let e1 = sub(&x[1], &x[0]);
-                let e2 = sub(&x[2], &x[0]);
-                let r = sub(q, &x[0]);
-                let (a, b, c) = (dot(&e1, &e1), dot(&e1, &e2), dot(&e2, &e2));
-                let (r1, r2) = (dot(&r, &e1), dot(&r, &e2));
+                let e1 = v3(&x[1]) - v3(&x[0]);
+                let e2 = v3(&x[2]) - v3(&x[0]);
+                let r = v3(q) - v3(&x[0]);
+                let (a, b, c) = (e1.dot(&e1), e1.dot(&e2), e2.dot(&e2));
+                let (r1, r2) = (r.dot(&e1), r.dot(&e2));
                 let det = a * c - b * b;
                 let s = (c * r1 - b * r2) / det;
                 let t = (a * r2 - b * r1) / det;
@@ -641,8 +624,8 @@ impl CellGeom {
             }
             n
         };
-        let r = sub(q, &self.c);
-        let p = [dot(&r, &self.e1), dot(&r, &self.e2)];
+        let r = v3(q) - self.c;
+        let p = [r.dot(&self.e1), r.dot(&self.e2)];
         let xs = &self.x2d;
         // Inverse bilinear map by Newton from the centre (converges quadratically inside a
         // valid quad, so a last step of 1e-12 leaves an error near 1e-24); a solution outside
@@ -719,7 +702,7 @@ impl BinGrid {
     fn new(boxes: &[([f64; 3], [f64; 3])]) -> Self {
         let n = boxes.len();
         let (lo, hi) = bbox(boxes.iter().copied());
-        let ext = sub(&hi, &lo);
+        let ext: [f64; 3] = (v3(&hi) - v3(&lo)).into();
         let max_ext = ext[0].max(ext[1]).max(ext[2]);
         let mut grid = BinGrid {
             lo,
@@ -754,7 +737,7 @@ impl BinGrid {
             let mean_item = boxes
                 .iter()
                 .map(|(a, b)| {
-                    let e = sub(b, a);
+                    let e = v3(b) - v3(a);
                     e[0].max(e[1]).max(e[2])
                 })
                 .sum::<f64>()

@@ -4,6 +4,53 @@
 
 use crate::solver::{SolverError, SolverResult};
 use serde::de::DeserializeOwned;
+use std::sync::OnceLock;
+
+/// The parameter schemas of a node binary's models: JSON Schemas derived (schemars) from the
+/// same types [`decode`] fills, so what `cosim params MODEL` lists is what validation
+/// accepts. A node registers them in `main` before [`crate::participant::node_main`];
+/// `NODE --schema` prints the models, `NODE --schema --model M` the model's schema.
+#[derive(Debug, Clone, Copy)]
+pub struct Schemas {
+    pub models: &'static [&'static str],
+    pub schema: fn(&str) -> Option<serde_json::Value>,
+}
+
+static SCHEMAS: OnceLock<Schemas> = OnceLock::new();
+
+/// Register this binary's parameter schemas (the first registration holds).
+pub fn register_schemas(s: Schemas) {
+    let _ = SCHEMAS.set(s);
+}
+
+/// The registered schemas, if the binary registered any.
+pub fn schemas() -> Option<&'static Schemas> {
+    SCHEMAS.get()
+}
+
+/// `NODE --schema [--model M]`: prints `{"models": [...]}` or the model's JSON Schema on
+/// stdout; exit 0, or 2 for an unknown model or a binary without schemas.
+pub fn schema_main(binary: &str, model: Option<&str>) -> i32 {
+    let Some(s) = schemas() else {
+        eprintln!("{binary}: this node publishes no parameter schema");
+        return 2;
+    };
+    let doc = match model {
+        None => serde_json::json!({ "node": binary, "models": s.models }),
+        Some(m) => match (s.schema)(m) {
+            Some(v) => v,
+            None => {
+                eprintln!(
+                    "{binary}: unknown model '{m}' (this node has: {})",
+                    s.models.join(", ")
+                );
+                return 2;
+            }
+        },
+    };
+    println!("{doc}");
+    0
+}
 
 /// Decode `params` into `T`; an error names the key path inside `params` and the reason.
 pub fn decode<T: DeserializeOwned>(params: &toml::Table) -> SolverResult<T> {

@@ -495,7 +495,7 @@ pub struct NodeArgs {
     #[arg(
         long,
         alias = "join",
-        required_unless_present = "describe",
+        required_unless_present_any = ["describe", "schema"],
         default_value = "",
         hide_default_value = true
     )]
@@ -503,7 +503,7 @@ pub struct NodeArgs {
     /// This node's name in the case file (with --describe: only names it in messages).
     #[arg(
         long,
-        required_unless_present = "describe",
+        required_unless_present_any = ["describe", "schema"],
         default_value = "",
         hide_default_value = true
     )]
@@ -513,8 +513,12 @@ pub struct NodeArgs {
     /// Opens no device and no transport.
     #[arg(long, requires = "model")]
     pub describe: bool,
-    /// The model to describe (with --describe).
-    #[arg(long, requires = "describe")]
+    /// Print the JSON Schema of a model's parameters (with --model), or the models this
+    /// node offers (without), instead of running (what `cosim params` reads).
+    #[arg(long, conflicts_with = "describe")]
+    pub schema: bool,
+    /// The model to describe (with --describe or --schema).
+    #[arg(long)]
     pub model: Option<String>,
     /// Params file (TOML) to describe with; `-` or none: standard input.
     #[arg(long, requires = "describe")]
@@ -625,6 +629,9 @@ pub fn node_main_with(
             return code;
         }
     };
+    if args.schema {
+        return crate::params::schema_main(binary, args.model.as_deref());
+    }
     init_logging();
     if args.describe {
         let model = args.model.as_deref().unwrap_or_default();

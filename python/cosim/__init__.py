@@ -1,4 +1,7 @@
-"""Write a cosim solver node in Python.
+"""Write a cosim solver node in Python, and read a run's results back.
+
+Reading: ``cosim.open_run("out/CASE")`` gives a :class:`Run` whose ``report(node)``,
+``balance()`` and ``fields(coupling, sender)`` return numpy arrays (see ``cosim.results``).
 
 A solver is a class built as ``Solver(model, params)`` (``params`` is the node's
 ``[nodes.NAME.params]`` table as a dict) with these methods:
@@ -35,14 +38,19 @@ import sys
 
 from ._cosim import Binding, Inbox, Outbox, Window
 from ._cosim import run_node as _run_node
+from .results import FieldSeries, Run, Table, open_run
 
 __all__ = [
     "Binding",
+    "FieldSeries",
+    "Run",
+    "Table",
     "ConfigError",
     "Inbox",
     "InterfaceError",
     "Outbox",
     "Window",
+    "open_run",
     "run_node",
 ]
 

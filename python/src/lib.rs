@@ -3,9 +3,11 @@
 //! writes a class; `cosim.run_node(Class)` parses the node command line, joins the run, builds
 //! the solver from the coordinator's parameters and drives it window by window. Coupling
 //! fields reach Python as numpy arrays that view the runtime's own buffers (no copies).
+//! `cosim.open_run` reads a run's recording back (results.rs).
 
 mod convert;
 mod fields;
+mod results;
 mod solver;
 
 use fields::{Inbox, Lease, Outbox};
@@ -50,6 +52,9 @@ fn run_node(py: Python<'_>, factory: Py<PyAny>, argv: Vec<String>) -> i32 {
 #[pymodule]
 fn _cosim(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(run_node, m)?)?;
+    m.add_function(wrap_pyfunction!(results::read_tables, m)?)?;
+    m.add_function(wrap_pyfunction!(results::read_json_messages, m)?)?;
+    m.add_function(wrap_pyfunction!(results::read_fields, m)?)?;
     m.add_class::<Inbox>()?;
     m.add_class::<Outbox>()?;
     m.add_class::<Lease>()?;

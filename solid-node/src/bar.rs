@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// Parameters of `bar-1d`, as in the case file's `[nodes.<name>.params]`.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BarParams {
     /// Bar length (m).
@@ -27,6 +27,7 @@ pub struct BarParams {
     /// Position of the left end (m); interface positions are reported from it.
     #[serde(default)]
     pub x0: f64,
+    /// Number of elements (linear, equal length).
     pub elements: usize,
     /// Young's modulus (Pa).
     pub young: f64,
@@ -71,7 +72,7 @@ pub struct BarParams {
 }
 
 /// The start of the end force (see [`BarParams::ramp`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum Ramp {
     #[default]
@@ -151,7 +152,7 @@ struct Coupled {
 }
 
 /// The bar's complete state (what `save_state` writes).
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, schemars::JsonSchema)]
 struct BarState {
     u: Vec<f64>,
     v: Vec<f64>,

@@ -6,14 +6,18 @@
 //! Set-up (`from_params`) checks every key and builds the linear system; `advance` takes
 //! equal substeps through the window with the load weighted at each step's algorithmic time
 //! (seed 003 eq. 67); `write_output` writes the nodes with displacement, velocity and nodal
-//! stress. [`Fem2d::subdomain`] presents the same model as one side of a `lagrange` coupling.
+//! stress. [`Fem2d::subdomain`] presents the same model as one side of a `lagrange` coupling,
+//! which `cosim run` drives through [`Solver::lagrange_side`] (the recipe of
+//! `crate::lagrange`); `advance` then only reports the window from the subdomain's state.
 
+use crate::lagrange::SubdomainSide;
 use mechanics::fem2d::{Edge, Fem2dError, Material, Mesh, Model, Plane};
 use mechanics::time::{
     CouplingMethod, Gs4, Gs4Error, IntegratorSpec, InterfaceDof, LinearSystem, State, Stepper,
     Subdomain,
 };
-use protocol::{Inbox, Outbox};
+use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
+use protocol::{Binding, CouplingKind, Inbox, Outbox};
 use protocol::{
     InterfaceInfo, InterfaceMesh, NodeDescription, Solver, SolverError, SolverResult, StepReport,
     Window,
@@ -22,20 +26,23 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// Parameters of `fem-2d`, as in the case file's `[nodes.<name>.params]`.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Fem2dParams {
     /// Box length along x and height along y (m).
     pub length: f64,
+    /// Box height along y (m).
     pub height: f64,
     /// Lower-left corner (m).
     #[serde(default)]
     pub origin: [f64; 2],
     /// Elements along x and y.
     pub nx: usize,
+    /// Elements along y.
     pub ny: usize,
     /// Young's modulus (Pa).
     pub young: f64,
+    /// Poisson's ratio (1).
     pub poisson: f64,
     /// Density (kg/m³).
     pub density: f64,
@@ -48,15 +55,21 @@ pub struct Fem2dParams {
     /// Supported edges: "left" (both components held), or "left.x" / "left.y" (one).
     #[serde(default)]
     pub fixed: Vec<String>,
+    /// Uniform line loads on edges.
     #[serde(default)]
     pub loads: Vec<LoadParams>,
     /// Named points whose displacement is reported every window (`<name>_ux`, `<name>_uy`):
     /// the node nearest to [x, y], which must lie within one element of it.
     #[serde(default)]
     pub points: BTreeMap<String, [f64; 2]>,
-    /// Interface names → edge, for a `lagrange` coupling.
+    /// Interface names → edge, for a `lagrange` coupling; edges joined with "+" make one
+    /// interface of several ("left+right": the middle subdomain of three in a row).
     #[serde(default)]
     pub interfaces: BTreeMap<String, String>,
+    /// Steps per window in a lagrange coupling (the ratio m of the system step to this
+    /// subdomain's step). Absent: as many as `dt` (or the explicit step bound) needs.
+    #[serde(default)]
+    pub substeps: Option<usize>,
     /// Time integrator (as `bar-1d`'s). Absent: central differences, the explicit member of
     /// U0(1,1,0).
     #[serde(default)]
@@ -70,7 +83,7 @@ pub struct Fem2dParams {
 }
 
 /// A uniform line load on an edge.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct LoadParams {
     /// "left" | "right" | "bottom" | "top".
@@ -128,7 +141,7 @@ fn gs4_error(Gs4Error::Config { key, reason }: Gs4Error) -> SolverError {
 }
 
 /// What `save_state` writes: the free-dof state and the running sums.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, schemars::JsonSchema)]
 struct Fem2dState {
     u: Vec<f64>,
     v: Vec<f64>,
@@ -168,6 +181,17 @@ pub struct Fem2d {
     scratch: Vec<f64>,
     /// Names of the point scalars, built once.
     scalar_names: Vec<(String, String)>,
+    lagrange: Option<LagrangeFem>,
+}
+
+/// The model as one subdomain of a lagrange coupling: the runtime steps it.
+struct LagrangeFem {
+    interface: String,
+    side: SubdomainSide,
+    /// Σ of the load shape per component (N): the load's impulse is this × ∫ g dt.
+    load_total: [f64; 2],
+    /// Σ |load shape| (N).
+    load_gross: f64,
 }
 
 impl std::fmt::Debug for Fem2d {
@@ -178,6 +202,13 @@ impl std::fmt::Debug for Fem2d {
             .field("coef", &self.coef)
             .finish()
     }
+}
+
+/// Parses an interface's edges, "left" or several joined with "+" ("left+right").
+fn parse_edges(key: &str, s: &str) -> SolverResult<Vec<Edge>> {
+    s.split('+')
+        .map(|e| Edge::parse(key, e.trim()).map_err(fem_error("")))
+        .collect()
 }
 
 /// Parses "left" or "left.x" / "left.y": the edge and the components held.
@@ -321,7 +352,10 @@ impl Fem2d {
             }
         }
         for (name, edge) in &p.interfaces {
-            Edge::parse(&format!("interfaces.{name}"), edge).map_err(fem_error(""))?;
+            parse_edges(&format!("interfaces.{name}"), edge)?;
+        }
+        if p.substeps == Some(0) {
+            return Err(SolverError::config("substeps", "must be ≥ 1, got 0"));
         }
         let mut reaction = [vec![0.0; sys.len()], vec![0.0; sys.len()]];
         let k = &model.stiffness;
@@ -369,6 +403,7 @@ impl Fem2d {
             u0: vec![0.0; n],
             scratch: vec![0.0; n],
             scalar_names,
+            lagrange: None,
             critical,
             coef,
             sys,
@@ -488,21 +523,30 @@ impl Fem2d {
         Ok(())
     }
 
-    /// The edge of an interface.
-    fn interface_edge(&self, name: &str) -> SolverResult<Edge> {
+    /// The nodes of an interface: its edges' nodes in order, each node once.
+    fn interface_nodes(&self, name: &str) -> SolverResult<Vec<usize>> {
         let s = self.p.interfaces.get(name).ok_or_else(|| {
             SolverError::interface(
                 name,
                 "no such interface on this mesh (see params.interfaces)",
             )
         })?;
-        Edge::parse(&format!("interfaces.{name}"), s).map_err(fem_error(""))
+        let mut nodes: Vec<usize> = Vec::new();
+        for e in parse_edges(&format!("interfaces.{name}"), s)? {
+            for n in self.model.mesh.edge(e) {
+                if !nodes.contains(&n) {
+                    nodes.push(n);
+                }
+            }
+        }
+        Ok(nodes)
     }
 
     /// This model as one subdomain of a `lagrange` coupling (seed 003 §4.1): the multipliers
-    /// tie both components of every node of interface `name`'s edge (ordered along it; the
-    /// node's x multiplier is `first_lambda + 2k`, its y one the next), with sign `sign` in
-    /// B (+1 on one side, −1 on the other). The loads must share one history.
+    /// tie both components of every node of interface `name`'s edges (ordered along them;
+    /// the node's x multiplier is `first_lambda + 2k`, its y one the next), with sign `sign`
+    /// in B (+1 on one side, −1 on the other). The loads must share one history. The
+    /// subdomain keeps ∫ r·u dt of the support reactions (its probes 0 and 1: x and y).
     pub fn subdomain(
         &self,
         name: &str,
@@ -512,9 +556,8 @@ impl Fem2d {
         substeps: usize,
         method: CouplingMethod,
     ) -> SolverResult<Subdomain> {
-        let edge = self.interface_edge(name)?;
         let mut iface = Vec::new();
-        for (k, n) in self.model.mesh.edge(edge).into_iter().enumerate() {
+        for (k, n) in self.interface_nodes(name)?.into_iter().enumerate() {
             for c in 0..2 {
                 let dof = self.model.dof[2 * n + c].ok_or_else(|| {
                     SolverError::interface(name, format!("node {n} is held by a support"))
@@ -550,7 +593,121 @@ impl Fem2d {
             shape,
             Box::new(move |t| history.at(t)),
         )
+        .and_then(|s| s.with_probes(self.reaction.concat()))
         .map_err(gs4_error)
+    }
+
+    /// Builds the subdomain for the lagrange coupling `b` (seed 003 §4) from the system step
+    /// and method the coordinator asks for, this model's integrator and `substeps` per
+    /// system step (an explicit integrator within its critical step).
+    fn setup_lagrange(&mut self, b: &Binding, inbox: &Inbox) -> SolverResult<()> {
+        let (method, window) = lwire::request(inbox, &b.interface)?;
+        let substeps = match self.p.substeps {
+            Some(m) => m,
+            None => (window / self.step_limit() - 1e-9).ceil().max(1.0) as usize,
+        };
+        let step = window / substeps as f64;
+        if self.coef.explicit && step > self.critical * (1.0 + 1e-12) {
+            return Err(SolverError::config(
+                "substeps",
+                format!(
+                    "{substeps} steps per window of {window:e} s take {step:e} s, beyond the \
+                     explicit critical step bound {:e} s",
+                    self.critical
+                ),
+            ));
+        }
+        let method = match method {
+            Method::Gs4 => CouplingMethod::Gs4,
+            Method::Gc => CouplingMethod::Gc,
+            Method::Ph => CouplingMethod::Ph,
+        };
+        let sub = self.subdomain(&b.interface, 1.0, 0, window, substeps, method)?;
+        let mut load_total = [0.0; 2];
+        let mut load_gross = 0.0;
+        for (shape, _) in &self.loads {
+            for (i, s) in shape.iter().enumerate() {
+                load_total[self.component[i] as usize] += s;
+                load_gross += s.abs();
+            }
+        }
+        self.lagrange = Some(LagrangeFem {
+            interface: b.interface.clone(),
+            side: SubdomainSide(sub),
+            load_total,
+            load_gross,
+        });
+        Ok(())
+    }
+
+    /// Energies, momentum, the named points and the running sums of `self.s`: the window's
+    /// report.
+    fn report(&mut self, substeps: u64) -> StepReport {
+        let (u, v) = (&self.state.u, &self.state.v);
+        let mut ke = 0.0;
+        let mut p = [0.0; 2];
+        let mut gross = 0.0;
+        for i in 0..u.len() {
+            let m = self.sys.mass[i];
+            ke += 0.5 * m * v[i] * v[i];
+            p[self.component[i] as usize] += m * v[i];
+            gross += m * v[i].abs();
+        }
+        self.sys.stiffness.mul(u, &mut self.scratch);
+        let ie: f64 = 0.5 * u.iter().zip(&self.scratch).map(|(a, b)| a * b).sum::<f64>();
+        let mut scalars = Vec::with_capacity(2 * self.points.len());
+        for ((_, node), (nx, ny)) in self.points.iter().zip(&self.scalar_names) {
+            scalars.push((nx.clone(), self.node_motion(*node, 0)[0]));
+            scalars.push((ny.clone(), self.node_motion(*node, 1)[0]));
+        }
+        StepReport {
+            kinetic_energy: ke,
+            internal_energy: ie,
+            external_work: self.s.external_work,
+            momentum: [p[0], p[1], 0.0],
+            momentum_gross: gross,
+            external_impulse: [self.s.external_impulse[0], self.s.external_impulse[1], 0.0],
+            applied_impulse: self.s.applied_impulse,
+            substeps,
+            scalars,
+            ..Default::default()
+        }
+    }
+
+    /// The report of a window the runtime has stepped through the lagrange side: the state
+    /// from the subdomain; the work and impulses of the loads, supports and interface as the
+    /// subdomain summed them over its substeps.
+    fn report_lagrange(&mut self, w: &Window) -> SolverResult<StepReport> {
+        let Some(l) = self.lagrange.as_ref() else {
+            return Err(SolverError::Other("no lagrange side".into()));
+        };
+        let sub = &l.side.0;
+        if let Some(i) = sub.state.u.iter().position(|x| !x.is_finite()) {
+            return Err(SolverError::Diverged {
+                time: w.t1,
+                reason: format!("displacement of free dof {i} is not finite"),
+            });
+        }
+        self.state.u.copy_from_slice(&sub.state.u);
+        self.state.v.copy_from_slice(&sub.state.v);
+        self.state.a.copy_from_slice(&sub.state.a);
+        let g = sub.load_integral;
+        self.s.external_work = sub.external_work;
+        for c in 0..2 {
+            self.s.external_impulse[c] = l.load_total[c] * g + sub.probe_integral[c];
+        }
+        self.s.applied_impulse = l.load_gross * g.abs();
+        let mut iface = [0.0; 3];
+        // Local interface dof r is component r % 2 of its node (see `subdomain`).
+        for (r, j) in sub.interface_impulse.iter().enumerate() {
+            iface[r % 2] += j;
+        }
+        let (work, substeps) = (sub.interface_work, sub.substeps() as u64);
+        self.s.time = w.t1;
+        let mut report = self.report(substeps);
+        report.interface_work = work;
+        report.interface_impulse = iface;
+        Ok(report)
     }
 
     fn full(&self, free: &[f64]) -> Vec<f64> {
@@ -567,13 +724,12 @@ impl Solver for Fem2d {
             interfaces: self
                 .p
                 .interfaces
-                .iter()
-                .map(|(name, edge)| InterfaceInfo {
+                .keys()
+                .map(|name| InterfaceInfo {
                     name: name.clone(),
-                    points: Edge::parse("", edge)
-                        .map(|e| self.model.mesh.edge(e).len())
-                        .unwrap_or(0),
-                    provides: vec!["velocity".into()],
+                    points: self.interface_nodes(name).map_or(0, |n| n.len()),
+                    // a lagrange side (seed 003 §4): its condensed interface operator
+                    provides: vec!["velocity".into(), "lagrange_operator".into()],
                     accepts: vec!["force".into()],
                 })
                 .collect(),
@@ -582,11 +738,8 @@ impl Solver for Fem2d {
     }
 
     fn interface(&self, name: &str) -> SolverResult<InterfaceMesh> {
-        let edge = self.interface_edge(name)?;
         Ok(InterfaceMesh::points(
-            self.model
-                .mesh
-                .edge(edge)
+            self.interface_nodes(name)?
                 .into_iter()
                 .map(|n| {
                     let [x, y] = self.model.mesh.nodes[n];
@@ -598,17 +751,39 @@ impl Solver for Fem2d {
 
     fn setup(
         &mut self,
-        bindings: &[protocol::Binding],
-        _inbox: &Inbox,
+        bindings: &[Binding],
+        inbox: &Inbox,
         _out: &mut Outbox,
     ) -> SolverResult<()> {
-        if let Some(b) = bindings.first() {
-            return Err(SolverError::interface(
-                &b.interface,
-                "fem-2d takes part in lagrange couplings only (not kinematic or immersed)",
-            ));
+        self.lagrange = None;
+        let mut lagrange = None;
+        for b in bindings {
+            if b.kind != CouplingKind::Lagrange {
+                return Err(SolverError::interface(
+                    &b.interface,
+                    "fem-2d takes part in lagrange couplings only (not kinematic or immersed)",
+                ));
+            }
+            if lagrange.is_some() {
+                return Err(SolverError::interface(
+                    &b.interface,
+                    "fem-2d is one subdomain of one lagrange coupling: join its edges in one \
+                     interface (\"left+right\") and list every subdomain in that coupling's sides",
+                ));
+            }
+            lagrange = Some(b);
+        }
+        if let Some(b) = lagrange {
+            self.setup_lagrange(b, inbox)?;
         }
         Ok(())
+    }
+
+    fn lagrange_side(&mut self, interface: &str) -> Option<&mut dyn LagrangeSide> {
+        match self.lagrange.as_mut() {
+            Some(l) if l.interface == interface => Some(&mut l.side),
+            _ => None,
+        }
     }
 
     fn stable_dt(&self) -> f64 {
@@ -628,39 +803,14 @@ impl Solver for Fem2d {
                 w.t0, w.t1
             )));
         }
+        if self.lagrange.is_some() {
+            return self.report_lagrange(w);
+        }
         let nsub = (span / self.step_limit() - 1e-9).ceil().max(1.0) as u64;
         let dt = span / nsub as f64;
         self.step(w.t0, nsub, dt)?;
         self.s.time = w.t1;
-        let (u, v) = (&self.state.u, &self.state.v);
-        let mut ke = 0.0;
-        let mut p = [0.0; 2];
-        let mut gross = 0.0;
-        for i in 0..u.len() {
-            let m = self.sys.mass[i];
-            ke += 0.5 * m * v[i] * v[i];
-            p[self.component[i] as usize] += m * v[i];
-            gross += m * v[i].abs();
-        }
-        self.sys.stiffness.mul(u, &mut self.scratch);
-        let ie: f64 = 0.5 * u.iter().zip(&self.scratch).map(|(a, b)| a * b).sum::<f64>();
-        let mut scalars = Vec::with_capacity(2 * self.points.len());
-        for ((_, node), (nx, ny)) in self.points.iter().zip(&self.scalar_names) {
-            scalars.push((nx.clone(), self.node_motion(*node, 0)[0]));
-            scalars.push((ny.clone(), self.node_motion(*node, 1)[0]));
-        }
-        Ok(StepReport {
-            kinetic_energy: ke,
-            internal_energy: ie,
-            external_work: self.s.external_work,
-            momentum: [p[0], p[1], 0.0],
-            momentum_gross: gross,
-            external_impulse: [self.s.external_impulse[0], self.s.external_impulse[1], 0.0],
-            applied_impulse: self.s.applied_impulse,
-            substeps: nsub,
-            scalars,
-            ..Default::default()
-        })
+        Ok(self.report(nsub))
     }
 
     fn write_output(&self, t: f64, window: u64, dir: &std::path::Path) -> SolverResult<()> {
@@ -710,6 +860,13 @@ impl Solver for Fem2d {
     }
 
     fn save_state(&self) -> SolverResult<Vec<u8>> {
+        if self.lagrange.is_some() {
+            return Err(SolverError::Other(
+                "fem-2d in a lagrange coupling cannot checkpoint yet (its subdomain's coupling \
+                 state is not saved)"
+                    .into(),
+            ));
+        }
         let mut s = self.s.clone();
         s.u = self.state.u.clone();
         s.v = self.state.v.clone();

@@ -16,6 +16,27 @@ pub fn factory(model: &str, params: &toml::Table) -> SolverResult<Box<dyn Solver
 
 /// Builds the solver named `model` from its parameter table as `opts` asks (the node
 /// binary's `SolverFactory`: describe-only opens no GPU).
+/// The models this node offers.
+pub const MODELS: &[&str] = &[
+    "bar-1d",
+    "fem-2d",
+    "pd-bond",
+    "pd-correspondence",
+    "pd-rk-ba",
+];
+
+/// JSON Schema of a model's parameters (`solid-node --schema --model M`, `cosim params M`): derived
+/// from the types the parameters are decoded into, so it lists exactly what is accepted.
+pub fn schema(model: &str) -> Option<serde_json::Value> {
+    let s = match model {
+        "bar-1d" => schemars::schema_for!(bar::BarParams),
+        "fem-2d" => schemars::schema_for!(fem2d::Fem2dParams),
+        "pd-bond" | "pd-correspondence" | "pd-rk-ba" => schemars::schema_for!(pd::solver::PdParams),
+        _ => return None,
+    };
+    serde_json::to_value(s).ok()
+}
+
 pub fn build(
     model: &str,
     params: &toml::Table,

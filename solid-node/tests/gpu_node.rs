@@ -5,8 +5,10 @@
 //! receiving a different, non-uniform force each window (as from a gas), advanced over 6
 //! windows by the factory-built node on "cpu" and on "gpu"; the interface outputs (positions
 //! as displacements, velocities) and the report (momentum, kinetic energy, interface work and
-//! impulse, support impulse, centre-of-mass displacement, von Mises stress) must agree within
-//! 1e-10 of their magnitude, for pd-bond and pd-correspondence. The CPU path itself is
+//! impulse, support impulse, centre-of-mass displacement, von Mises stress, and since issue 20
+//! the strain energy, plastic work and the residual of the node's energy balance) must agree
+//! within 1e-10 of their magnitude, for pd-bond and pd-correspondence; a yielding
+//! pd-correspondence bar within 10× the CPU's own one-ulp sensitivity. The CPU path itself is
 //! verified by pd_verification.rs (wave speed, patch test) and pd_solver.rs (impulse balance).
 //! What the device path does not implement is refused at set-up naming `device`. Without an
 //! adapter with f64 kernels the comparisons print why they were skipped and pass outside CI;
@@ -65,8 +67,8 @@ fn build(model: &str, t: &toml::Table) -> Result<Box<dyn Solver>, SolverError> {
     }
 }
 
-/// (initial positions, final positions, final velocities, reports) of 6 windows of 2 µs, and
-/// the full state (displacements, velocities, forces) from the node's checkpoint at the end:
+/// (initial positions, final positions, final velocities, reports: the initial report, then
+/// one per window) of 6 windows of 2 µs, and the full state (displacements, velocities, forces) from the node's checkpoint at the end:
 /// on the device path read from the device in full only there (per window only the report
 /// crosses).
 type Run = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<StepReport>, [Vec<f64>; 3]);
@@ -84,13 +86,12 @@ fn full_state(bytes: &[u8]) -> [Vec<f64>; 3] {
     std::array::from_fn(|_| r.f64s(3 * n, "state").expect("state block"))
 }
 
-fn run(model: &str, device: &str) -> Run {
-    run_with(model, device, 7850.0)
-}
-
-fn run_with(model: &str, device: &str, density: f64) -> Run {
+fn run_with(model: &str, device: &str, density: f64, yield_stress: Option<f64>) -> Run {
     let mut t = table(model, device);
     t.insert("density".into(), toml::Value::Float(density));
+    if let Some(y) = yield_stress {
+        t.insert("yield_stress".into(), toml::Value::Float(y));
+    }
     let mut s = build(model, &t).expect("the bar must build");
     let mut out = Outbox::new();
     s.setup(
@@ -101,7 +102,7 @@ fn run_with(model: &str, device: &str, density: f64) -> Run {
     .expect("setup");
     let n = s.interface("all").expect("interface").len();
     let x0 = out.require("all", "position", 3 * n).expect("x0").to_vec();
-    let mut reports = Vec::new();
+    let mut reports = vec![s.initial_report().expect("initial report")];
     for w in 1..=6u64 {
         // A force up to ~1 N per particle (particle mass 7.85e-6 kg), different each window,
         // zero on every fifth particle.
@@ -154,25 +155,58 @@ fn scalar(r: &StepReport, name: &str) -> Option<f64> {
     r.scalars.iter().find(|(k, _)| k == name).map(|(_, v)| *v)
 }
 
-fn compare(model: &str) {
-    let test = format!("{model} bar wave through the node");
-    if adapter(&test).is_none() {
-        return;
-    }
-    let (x0, xc, vc, rc, fc) = run(model, "cpu");
-    let (x0g, xg, vg, rg, fg) = run(model, "gpu");
-    assert_eq!(x0, x0g);
-    let disp = |x: &[f64]| -> Vec<f64> { x.iter().zip(&x0).map(|(a, b)| a - b).collect() };
-    let mut worst: Vec<(&str, f64)> = vec![
-        ("displacement", rel(&disp(&xg), &disp(&xc))),
-        ("velocity", rel(&vg, &vc)),
-        ("full-state displacement", rel(&fg[0], &fc[0])),
-        ("full-state velocity", rel(&fg[1], &fc[1])),
-        ("full-state force", rel(&fg[2], &fc[2])),
+/// Per window: strain energy, plastic work, and the energy residual of the node's own
+/// balance, KE + U + W_p − (KE + U)(t = 0) − W_interface (the support is held at rest and
+/// does no work), from the initial report and the window reports.
+fn energy_series(first: &StepReport, reports: &[StepReport]) -> [Vec<f64>; 3] {
+    let plastic = |r: &StepReport| scalar(r, "plastic_work").expect("plastic_work reported");
+    let e0 = first.kinetic_energy + first.internal_energy + plastic(first);
+    [
+        reports.iter().map(|r| r.internal_energy).collect(),
+        reports.iter().map(plastic).collect(),
+        reports
+            .iter()
+            .map(|r| r.kinetic_energy + r.internal_energy + plastic(r) - e0 - r.interface_work)
+            .collect(),
+    ]
+}
+
+/// Largest differences of run `a` against run `b` (relative to `b`'s magnitudes, see
+/// [`rel`]): interface outputs, full state, every report quantity window by window, and the
+/// energies (strain energy and plastic work as series over the windows; the residual of the
+/// node's own energy balance relative to the largest energy KE + U + W_p of `b`).
+fn differences(a: &Run, b: &Run) -> Vec<(&'static str, f64)> {
+    let (x0, xa, va, ra, fa) = a;
+    let (_, xb, vb, rb, fb) = b;
+    assert_eq!((ra.len(), rb.len()), (7, 7), "initial and 6 window reports");
+    let disp = |x: &[f64]| -> Vec<f64> { x.iter().zip(x0).map(|(p, q)| p - q).collect() };
+    let (ea, eb) = (
+        energy_series(&ra[0], &ra[1..]),
+        energy_series(&rb[0], &rb[1..]),
+    );
+    let scale = rb[1..]
+        .iter()
+        .map(|r| r.kinetic_energy + r.internal_energy + scalar(r, "plastic_work").unwrap_or(0.0))
+        .fold(0.0_f64, f64::max);
+    let residual = ea[2]
+        .iter()
+        .zip(&eb[2])
+        .map(|(p, q)| (p - q).abs())
+        .fold(0.0_f64, f64::max)
+        / scale;
+    let mut worst = vec![
+        ("displacement", rel(&disp(xa), &disp(xb))),
+        ("velocity", rel(va, vb)),
+        ("full-state displacement", rel(&fa[0], &fb[0])),
+        ("full-state velocity", rel(&fa[1], &fb[1])),
+        ("full-state force", rel(&fa[2], &fb[2])),
+        ("strain energy", rel(&ea[0], &eb[0])),
+        ("plastic work", rel(&ea[1], &eb[1])),
+        ("energy residual (of the largest energy)", residual),
     ];
     let (mut p, mut ke, mut wk, mut ii, mut ei, mut com, mut vm) =
         (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-    for (c, g) in rc.iter().zip(&rg) {
+    for (g, c) in ra[1..].iter().zip(&rb[1..]) {
         assert_eq!(c.substeps, g.substeps);
         p = f64::max(p, rel(&g.momentum, &c.momentum));
         ke = f64::max(ke, rel(&[g.kinetic_energy], &[c.kinetic_energy]));
@@ -187,7 +221,6 @@ fn compare(model: &str) {
         if let Some(s) = scalar(c, "max_von_mises") {
             vm = f64::max(vm, rel(&[scalar(g, "max_von_mises").expect("vm")], &[s]));
         }
-        assert_eq!(scalar(g, "gpu_precision_bits"), Some(64.0));
     }
     worst.extend([
         ("momentum", p),
@@ -198,41 +231,100 @@ fn compare(model: &str) {
         ("com displacement", com),
         ("max von Mises", vm),
     ]);
-    let last = rc.last().expect("reports");
-    println!(
-        "{test}: {} substeps in 6 windows; final KE {:.4e} J, support impulse x {:.4e} N s, interface work {:.4e} J",
-        rc.iter().map(|r| r.substeps).sum::<u64>(),
-        last.kinetic_energy,
-        last.external_impulse[0],
-        last.interface_work
-    );
-    for (name, e) in &worst {
-        println!("  {name}: max relative difference GPU vs CPU {e:.3e}");
+    worst
+}
+
+/// The bar through the node on "cpu" and "gpu" (see the module doc); with `yield_stress`
+/// the bar yields (pd-correspondence) and its plastic work is compared too.
+fn compare(model: &str, yield_stress: Option<f64>) {
+    let test = format!("{model} bar wave through the node (yield stress {yield_stress:?})");
+    if adapter(&test).is_none() {
+        return;
     }
-    // For scale (printed, not asserted): the CPU against itself with the density one ulp
-    // larger, the round-off sensitivity of the case.
-    let (_, xu, vu, _, _) = run_with(model, "cpu", f64::from_bits(7850.0f64.to_bits() + 1));
-    println!(
-        "  one-ulp CPU control (density 7850 + 1 ulp): displacement {:.3e}, velocity {:.3e}",
-        rel(&disp(&xu), &disp(&xc)),
-        rel(&vu, &vc)
+    let cpu = run_with(model, "cpu", 7850.0, yield_stress);
+    let gpu = run_with(model, "gpu", 7850.0, yield_stress);
+    assert_eq!(cpu.0, gpu.0);
+    for r in &gpu.3[1..] {
+        assert_eq!(scalar(r, "gpu_precision_bits"), Some(64.0));
+    }
+    // For scale: the CPU against itself with the density one ulp larger, the round-off
+    // sensitivity of the case.
+    let ulp = run_with(
+        model,
+        "cpu",
+        f64::from_bits(7850.0f64.to_bits() + 1),
+        yield_stress,
     );
-    // the case is not trivial: the support held, the wave moved, the forces did work
+    let worst = differences(&gpu, &cpu);
+    let control = differences(&ulp, &cpu);
+    let rc = &cpu.3;
+    let last = rc.last().expect("reports");
+    let [strain, plastic, residual] = energy_series(&rc[0], &rc[1..]);
+    let [_, _, residual_gpu] = energy_series(&gpu.3[0], &gpu.3[1..]);
+    let peak = |v: &[f64]| v.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+    println!(
+        "{test}: {} substeps in 6 windows; final KE {:.4e} J, strain energy {:.4e} J, plastic work {:.4e} J, support impulse x {:.4e} N s, interface work {:.4e} J; largest energy residual CPU {:.4e} J, GPU {:.4e} J",
+        rc[1..].iter().map(|r| r.substeps).sum::<u64>(),
+        last.kinetic_energy,
+        last.internal_energy,
+        plastic.last().copied().unwrap_or(0.0),
+        last.external_impulse[0],
+        last.interface_work,
+        peak(&residual),
+        peak(&residual_gpu),
+    );
+    for ((name, e), (_, c)) in worst.iter().zip(&control) {
+        println!(
+            "  {name}: max relative difference GPU vs CPU {e:.3e} (one-ulp CPU control {c:.3e})"
+        );
+    }
+    // the case is not trivial: the support held, the wave moved, the forces did work, the
+    // bar stores strain energy
     assert!(last.external_impulse[0].abs() > 0.0 && last.interface_work.abs() > 0.0);
-    // Issue 8 asks 1e-10. With displacement-based kinematics (session 4) the worst measured
-    // on lavapipe is 2.4e-13 (pd-correspondence displacement; velocity was 6.5e-11 before):
-    // held to 1e-11.
-    assert!(worst.iter().all(|(_, e)| *e <= 1e-11), "{worst:?}");
+    assert!(strain.iter().all(|&u| u > 0.0), "strain energy {strain:?}");
+    match yield_stress {
+        None => {
+            assert!(plastic.iter().all(|&w| w == 0.0), "{plastic:?}");
+            // Issue 8 asks 1e-10. With displacement-based kinematics (session 4) the worst
+            // measured on lavapipe is 2.4e-13 (pd-correspondence displacement; velocity was
+            // 6.5e-11 before): held to 1e-11, the energies (issue 20) too.
+            assert!(worst.iter().all(|(_, e)| *e <= 1e-11), "{worst:?}");
+        }
+        Some(_) => {
+            assert!(
+                plastic.last().is_some_and(|&w| w > 0.0),
+                "the case must yield: {plastic:?}"
+            );
+            // The radial return makes a yielding case sensitive to round-off (a particle a
+            // hair above or below the yield surface in a step): each quantity is held to 10×
+            // the one-ulp control's difference, and to 1e-11 at least.
+            for ((name, e), (_, c)) in worst.iter().zip(&control) {
+                let env = c.max(1e-12);
+                assert!(
+                    *e <= 10.0 * env,
+                    "{name}: GPU differs by {e:e}, the one-ulp control by {c:e}"
+                );
+            }
+        }
+    }
 }
 
 #[test]
 fn bond_bar_wave_gpu_matches_cpu_through_the_node() {
-    compare("pd-bond");
+    compare("pd-bond", None);
 }
 
 #[test]
 fn correspondence_bar_wave_gpu_matches_cpu_through_the_node() {
-    compare("pd-correspondence");
+    compare("pd-correspondence", None);
+}
+
+/// Issue 20: the plastic work accumulated on the device per step, and the strain energy of a
+/// yielded bar, equal the CPU path's.
+#[test]
+fn plastic_correspondence_bar_energies_gpu_match_cpu_through_the_node() {
+    // the launched quarter meets the held end at ≈ ρ c v/2 ≈ 115 MPa against 40 MPa
+    compare("pd-correspondence", Some(40e6));
 }
 
 fn refusal(model: &str, t: &toml::Table) -> (String, String) {

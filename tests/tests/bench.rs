@@ -38,7 +38,7 @@ fn run_suite(only: &str) -> (Value, String) {
 
 #[test]
 fn quick_suite_covers_every_kernel_with_consistent_numbers() {
-    let (j, md) = run_suite("transport,fluid,solid,shell,joint");
+    let (j, md) = run_suite("transport,fluid,fluid-3d,solid,shell,joint");
     let rows = j["results"].as_array().expect("results");
     let skipped = j["skipped"].as_array().expect("skipped");
     assert!(j["errors"].as_array().expect("errors").is_empty(), "{j:#}");
@@ -54,7 +54,14 @@ fn quick_suite_covers_every_kernel_with_consistent_numbers() {
             .count()
     };
     // Every CPU kernel at 1 and 2 threads, at both quick sizes.
-    for k in ["fluid", "pd-bond", "pd-correspondence", "shell", "joint"] {
+    for k in [
+        "fluid",
+        "fluid-3d",
+        "pd-bond",
+        "pd-correspondence",
+        "shell",
+        "joint",
+    ] {
         for th in [1, 2] {
             assert_eq!(has(k, "cpu", Some(th)), 2, "{k} at {th} thread(s)");
         }

@@ -504,6 +504,19 @@ fn lagrange_coupling_keys_are_checked() {
         },
         "run.end_time",
     );
+    // A lagrange side cannot checkpoint yet: refused before anything starts, not at the
+    // first checkpoint.
+    refused_naming(
+        "lag-checkpoint",
+        |t| {
+            lagrange(
+                t,
+                "kind = \"lagrange\"\nsides = [\"left.tip\", \"right.root\"]",
+            )
+            .replace("end_time = 1e-4", "end_time = 1e-4\ncheckpoint_every = 10")
+        },
+        &["run.checkpoint_every", "couplings[0]"],
+    );
 }
 
 /// Issue 18 must-show 5: a coupling whose node does not provide or accept a field its scheme

@@ -1,7 +1,9 @@
 //! The users' toolchain on a real run (issue 21): `cosim export` to numpy and CSV, checked
 //! against the recording read with the official MCAP reader; `cosim info --json` through
 //! `python3 -m json.tool`; the field picture `cosim run` draws (`fields.png`) shows the
-//! chamber's pressure and the bar where the case puts it.
+//! chamber's pressure and the bar where the case puts it; the Python package's `open_run`
+//! returns the same histories and interface fields as the official reader and an independent
+//! decoder of the wire format find in the recording.
 
 use cosim_tests::*;
 use std::path::PathBuf;
@@ -95,6 +97,113 @@ fn export_gives_numpy_arrays_equal_to_the_recording() {
         assert!(rows.iter().all(|r| r.len() == head.len()), "{node}");
         assert_eq!(rows[79][0], "80", "{node}");
     }
+}
+
+/// `cosim.open_run`: the gas probe and the bar's displacement equal the official reader's
+/// JSON values; every interface field of every recorded coupling message equals what
+/// tools/wire_decode.py (written from PROTOCOL.md alone) decodes; `cosim export --fields`
+/// writes the same arrays; `--series` keeps only what it names.
+const PYTHON_READER_CHECK: &str = r#"
+import json, sys
+from collections import defaultdict
+import numpy as np
+import cosim
+from mcap.reader import make_reader
+out, tools = sys.argv[1], sys.argv[2]
+sys.path.insert(0, tools)
+import wire_decode
+run = cosim.open_run(out)
+assert run.complete and run.nodes == ["bar", "gas"], run
+rec = {"gas": [], "bar": []}
+sent = defaultdict(list)
+with open(out + "/run.mcap", "rb") as f:
+    for _, ch, m in make_reader(f).iter_messages():
+        if ch.topic in ("/cosim/node/gas", "/cosim/node/bar"):
+            rec[ch.topic.rsplit("/", 1)[1]].append(json.loads(m.data))
+        elif ch.message_encoding != "json":
+            msg = wire_decode.decode(m.data)["message"]
+            if "Fields" in msg:
+                f = msg["Fields"]
+                for fld in f["fields"]:
+                    key = (f["coupling"], ch.topic.rsplit("/", 1)[1], fld["name"])
+                    sent[key].append((f["window"], f["time"], fld["values"]))
+gas, bar = run.report("gas"), run.report("bar")
+assert np.array_equal(gas["point2.pressure"], [r["point2.pressure"] for r in rec["gas"]])
+assert np.array_equal(bar["com_displacement_x"], [r["com_displacement_x"] for r in rec["bar"]])
+assert bar["momentum"].shape == (len(rec["bar"]), 3)
+assert len(run.balance()["energy_residual"]) == len(rec["gas"])
+assert run.case is not None and "nodes" in json.dumps(run.case)
+values = messages = 0
+assert sent and len(run.couplings()) > 0
+for (coupling, sender, name), msgs in sent.items():
+    s = run.fields(coupling, sender)
+    a = s[name]
+    assert a.shape[0] == len(msgs), (coupling, sender, name, a.shape, len(msgs))
+    assert np.array_equal(s.window[name], [w for w, _, _ in msgs])
+    assert np.array_equal(s.time[name], [t for _, t, _ in msgs])
+    assert np.array_equal(a.reshape(len(msgs), -1), np.array([v for _, _, v in msgs]).reshape(len(msgs), -1))
+    messages += len(msgs)
+    values += a.size
+npz = np.load(out + "/fields.npz")
+for (coupling, sender), s in ((k, run.fields(*k)) for k in run.couplings()):
+    for name, a in s.items():
+        assert np.array_equal(npz[f"{coupling}/{sender}/{name}"], a)
+        assert np.array_equal(npz[f"{coupling}/{sender}/{name}.window"], s.window[name])
+h = np.load(out + "/series.npz")
+assert sorted(h.keys()) == ["gas/point1.pressure", "gas/point2.pressure", "gas/time", "gas/window"], sorted(h.keys())
+assert np.array_equal(h["gas/point2.pressure"], gas["point2.pressure"])
+print(f"windows {len(gas['point2.pressure'])}; field series {len(sent)}; messages {messages}; values {values}")
+"#;
+
+#[test]
+fn the_python_package_reads_the_histories_and_the_interface_fields() {
+    if !python_with_cosim() {
+        return;
+    }
+    let out = chamber();
+    let o = cosim(&[
+        "export",
+        out.to_str().unwrap(),
+        "--fields",
+        "--series",
+        "gas/point*.pressure",
+        "-o",
+        out.join("series.npz").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let tools = workspace_root().join("tools");
+    let (ok, text) = python(
+        PYTHON_READER_CHECK,
+        &[out.to_str().unwrap(), tools.to_str().unwrap()],
+    );
+    println!("{text}");
+    assert!(ok, "{text}");
+    let n = |key: &str| -> u64 {
+        text.split(key)
+            .nth(1)
+            .and_then(|s| s.split(';').next())
+            .and_then(|s| s.trim().parse().ok())
+            .unwrap_or(0)
+    };
+    assert_eq!(n("windows "), 80, "{text}");
+    // set-up and 80 windows, both directions of the immersed coupling
+    assert!(n("messages ") >= 160, "{text}");
+    assert!(n("values ") > 10_000, "{text}");
+}
+
+/// Whether `import cosim, numpy, mcap` works; if not, the shared policy (fail under CI).
+fn python_with_cosim() -> bool {
+    let ok = Command::new("python3")
+        .args(["-c", "import cosim, numpy, mcap; cosim.open_run"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !ok {
+        skip_or_fail(
+            "the Python package `cosim` with numpy and mcap",
+            "missing (python3 -m pip install ./python mcap)",
+        );
+    }
+    ok
 }
 
 #[test]
@@ -191,6 +300,76 @@ fn the_field_picture_shows_the_pressure_and_the_bar_where_it_is() {
 
 /// `cosim validate --json`: one JSON document either way, the same exit codes (0, or 2 with
 /// the full key path of the bad value).
+/// `--field NODE.FIELD` colours that node by the field: the bar's particles, light grey by
+/// default, take the colour map of their speed (no grey pixel left in the bar's box, many
+/// colours); a field the node does not write is refused naming those it does; `--all` draws
+/// one picture per written time; `cosim plot --field --at` draws the same picture.
+#[test]
+fn a_chosen_field_colours_its_node_and_every_frame_can_be_drawn() {
+    let out = chamber();
+    let dir = out.join("chosen");
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join("velocity.png");
+    let o = cosim(&[
+        "render",
+        out.to_str().unwrap(),
+        "--field",
+        "bar.velocity",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (w, _, px) = png_pixels(&png);
+    let to_px = |x: f64, y: f64| (190.0 + 1750.0 * x, 760.0 - 1750.0 * y);
+    let (bx0, by1) = to_px(0.1, 0.15);
+    let (bx1, by0) = to_px(0.3, 0.25);
+    let (mut grey, mut seen) = (0, 0);
+    let mut colours = std::collections::HashSet::new();
+    for (k, p) in px.iter().enumerate() {
+        let (x, y) = ((k as u32 % w) as f64, (k as u32 / w) as f64);
+        if x >= bx0 + 3.0 && x <= bx1 - 3.0 && y >= by0 + 3.0 && y <= by1 - 3.0 {
+            seen += 1;
+            grey += usize::from(*p == [235, 235, 235]);
+            colours.insert(*p);
+        }
+    }
+    println!(
+        "bar box: {seen} pixels, {grey} grey, {} colours",
+        colours.len()
+    );
+    assert!(seen > 50_000, "{seen}");
+    assert_eq!(grey, 0);
+    assert!(colours.len() >= 10, "{}", colours.len());
+
+    let o = cosim(&["render", out.to_str().unwrap(), "--field", "bar.nosuch"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("nosuch") && err.contains("velocity"), "{err}");
+
+    let o = cosim(&["render", out.to_str().unwrap(), "--all"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let frames = std::fs::read_dir(out.join("frames")).unwrap().count();
+    let pvd = std::fs::read_to_string(out.join("gas").join("fluid.pvd")).unwrap();
+    let written = pvd.matches("<DataSet").count();
+    println!("{frames} pictures for {written} written times");
+    assert!(written >= 3, "{written}");
+    assert_eq!(frames, written);
+
+    let o = cosim(&[
+        "plot",
+        out.to_str().unwrap(),
+        "--field",
+        "gas.density",
+        "--at",
+        "2e-4",
+        "-o",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let listed = String::from_utf8_lossy(&o.stdout);
+    assert!(listed.contains("gas_density_2e-4.png"), "{listed}");
+}
+
 #[test]
 fn validate_json_names_the_key_or_lists_the_case() {
     let case = workspace_root().join("examples/split_bar.toml");

@@ -311,6 +311,12 @@ pub struct StepReport {
 /// a node that does not dissipate, or does not separate it, simply leaves them out).
 pub const DISSIPATED_SCALARS: [&str; 2] = ["plastic_work", "fracture_energy"];
 
+/// Whether a `StepReport.scalars` name is a timing: wall-clock seconds (`time_…`) or a rate
+/// (`…_per_s`). Timings differ from run to run, so replay does not compare them.
+pub fn is_timing_scalar(name: &str) -> bool {
+    name.starts_with("time_") || name.ends_with("_per_s")
+}
+
 impl StepReport {
     /// The energy the node reports as dissipated (J): the sum of its [`DISSIPATED_SCALARS`].
     pub fn dissipated(&self) -> f64 {

@@ -242,14 +242,21 @@ impl Gs4 {
 
 /// The `integrator` table of a structural model:
 /// `{ scheme = "gs4", design = "U0(1,1,0)", rho_inf = 1.0, implicit = false }`.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, PartialEq, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct IntegratorSpec {
+    /// The integrator family: "gs4" (GS4-II, seed 003 §4).
     pub scheme: String,
+    /// The member of the family: "U0(ρ1,ρ2,ρs)" spectral radii, or a named design with
+    /// `rho_inf`: "newmark" (U0(1,1,0)), "wbz", "hht" or "generalized-alpha". Explicit
+    /// (`implicit = false`) U0(1,1,0) is central differences.
     #[serde(default = "default_design")]
     pub design: String,
+    /// Spectral radius at infinite step ρ∞ ∈ [0, 1] of the named designs wbz, hht (ρ∞ ≥ 1/2)
+    /// and generalized-alpha.
     #[serde(default)]
     pub rho_inf: Option<f64>,
+    /// Solve each step implicitly (sparse Cholesky, factorised once) instead of explicitly.
     #[serde(default)]
     pub implicit: bool,
 }

@@ -15,6 +15,12 @@
 //! §4.3: time-level consistency); `Ph` (Prakash and Hjelmstad 2004) ramps it the same way but
 //! samples at the substep end; `Gc` (Gravouil and Combescure 2001) solves λ at every step of
 //! the finest subdomain, interpolating the coarser subdomains' interface velocities linearly.
+//!
+//! Audit: per substep the subdomain keeps, for the corrected trajectory, the work and the
+//! time integral of its load, the impulse of the interface forces and ∫ p·u dt of any probe
+//! vectors p its model gives ([`Subdomain::with_probes`], e.g. support reactions). For the
+//! U0(1,1,0) members (equilibrium at each step's end, trapezoidal velocity update) these
+//! trapezoidal sums are exactly the momentum the forces gave.
 
 use super::gs4::{Gs4, Gs4Error};
 use super::linear::{LinearSystem, State, Stepper};
@@ -74,6 +80,21 @@ pub struct Subdomain {
     iface_v_start: Vec<f64>,
     /// Work done on this subdomain by the interface forces since the start (J).
     pub interface_work: f64,
+    /// Impulse of the interface force on each interface dof since the start (N s, along the
+    /// dof).
+    pub interface_impulse: Vec<f64>,
+    /// Work of the external load since the start (J) and ∫ g dt of its history (s).
+    pub external_work: f64,
+    pub load_integral: f64,
+    /// ∫ pᵩ·u dt of each probe since the start.
+    pub probe_integral: Vec<f64>,
+    /// The load shape, then the probes (row-major, n each).
+    probes: Vec<f64>,
+    /// pᵩ·u after each inner substep of the free run, and its response per unit multiplier.
+    free_probe: Vec<f64>,
+    phi_probe: Vec<f64>,
+    /// pᵩ·u at the start of the coupling step (a scratch row while correcting).
+    probe_start: Vec<f64>,
     f: Vec<f64>,
     x: Vec<f64>,
     prev_u: Vec<f64>,
@@ -151,14 +172,59 @@ impl Subdomain {
             iface_u_start: vec![0.0; nl],
             iface_v_start: vec![0.0; nl],
             interface_work: 0.0,
+            interface_impulse: vec![0.0; nl],
+            external_work: 0.0,
+            load_integral: 0.0,
+            probe_integral: Vec::new(),
+            probes: Vec::new(),
+            free_probe: Vec::new(),
+            phi_probe: Vec::new(),
+            probe_start: Vec::new(),
             f: vec![0.0; n],
             x: vec![0.0; nl],
             prev_u: vec![0.0; nl],
             ids: Vec::new(),
         };
         s.ids = s.iface.iter().map(|d| d.lambda).collect();
+        s.set_probes(Vec::new());
         s.condense();
         Ok(s)
+    }
+
+    /// The subdomain with probe vectors (row-major, n entries each) whose ∫ p·u dt it keeps
+    /// ([`Self::probe_integral`]): condenses again.
+    pub fn with_probes(mut self, probes: Vec<f64>) -> Result<Self, Gs4Error> {
+        let n = self.sys.len();
+        if !probes.len().is_multiple_of(n.max(1)) {
+            return Err(Gs4Error::Config {
+                key: "subdomain".into(),
+                reason: format!("probes have {} entries for {n} dofs", probes.len()),
+            });
+        }
+        self.set_probes(probes);
+        self.condense();
+        Ok(self)
+    }
+
+    fn set_probes(&mut self, probes: Vec<f64>) {
+        let n = self.sys.len();
+        let nq = probes.len() / n.max(1);
+        let (np, nl) = (nq + 1, self.iface.len());
+        let mut all = Vec::with_capacity(np * n);
+        all.extend_from_slice(&self.load_shape);
+        all.extend_from_slice(&probes);
+        self.probes = all;
+        self.probe_integral = vec![0.0; nq];
+        self.free_probe = vec![0.0; self.inner * np];
+        self.phi_probe = vec![0.0; self.inner * np * nl];
+        self.probe_start = vec![0.0; np];
+    }
+
+    /// pᵩ·u of every probe (the load shape first) into `out`.
+    fn probe_values(probes: &[f64], u: &[f64], out: &mut [f64]) {
+        for (o, p) in out.iter_mut().zip(probes.chunks_exact(u.len().max(1))) {
+            *o = p.iter().zip(u).map(|(a, b)| a * b).sum();
+        }
     }
 
     pub fn multipliers(&self) -> usize {
@@ -214,6 +280,11 @@ impl Subdomain {
                 self.stepper.step(&self.sys, &mut st, &self.f);
                 for (r, dr) in self.iface.iter().enumerate() {
                     self.phi_iface_u[(j * nl + r) * nl + k] = dr.sign * st.u[dr.dof];
+                }
+                let np = self.probe_start.len();
+                for (q, p) in self.probes.chunks_exact(n.max(1)).enumerate() {
+                    self.phi_probe[(j * np + q) * nl + k] =
+                        p.iter().zip(&st.u).map(|(a, b)| a * b).sum();
                 }
             }
             self.phi_u[k * n..(k + 1) * n].copy_from_slice(&st.u);
@@ -274,6 +345,8 @@ impl Subdomain {
         let mut iu = std::mem::take(&mut self.iface_u_start);
         self.interface_values(&self.state.u, &mut iu);
         self.iface_u_start = iu;
+        Self::probe_values(&self.probes, &self.state.u, &mut self.probe_start);
+        let np = self.probe_start.len();
         // gs4/ph keep λ_n as the known part of the ramp; gc's unknown is the whole λ.
         if self.method == CouplingMethod::Gc {
             self.lambda_start.fill(0.0);
@@ -293,6 +366,11 @@ impl Subdomain {
             for (r, d) in self.iface.iter().enumerate() {
                 self.free_iface_u[j * nl + r] = d.sign * self.state.u[d.dof];
             }
+            Self::probe_values(
+                &self.probes,
+                &self.state.u,
+                &mut self.free_probe[j * np..(j + 1) * np],
+            );
         }
         self.interface_values(&self.state.v, v_free);
     }
@@ -301,6 +379,7 @@ impl Subdomain {
     /// and advances the clock; adds the interface work of the step.
     pub fn correct(&mut self, lambda: &[f64]) {
         let n = self.sys.len();
+        let dt = self.stepper.dt;
         let nl = self.iface.len();
         for ((x, l), l0) in self.x.iter_mut().zip(lambda).zip(&self.lambda_start) {
             *x = l - l0;
@@ -343,10 +422,33 @@ impl Subdomain {
                     ),
                 };
                 work += (u - prev_u[r]) * 0.5 * (l0 + l1);
+                self.interface_impulse[r] += self.iface[r].sign * 0.5 * (l0 + l1) * dt;
                 prev_u[r] = u;
             }
         }
         self.interface_work += work;
+        // The load's work and the probes' integrals along the corrected substeps (the
+        // trapezoidal rule, as the interface work).
+        let np = self.probe_start.len();
+        for j in 0..self.inner {
+            let ta = self.time + j as f64 * dt;
+            let (ga, gb) = ((self.load)(ta), (self.load)(ta + dt));
+            for q in 0..np {
+                let row = (j * np + q) * nl;
+                let mut val = self.free_probe[j * np + q];
+                for (p, x) in self.phi_probe[row..row + nl].iter().zip(&self.x) {
+                    val += p * x;
+                }
+                let prev = self.probe_start[q];
+                if q == 0 {
+                    self.external_work += 0.5 * (ga + gb) * (val - prev);
+                } else {
+                    self.probe_integral[q - 1] += 0.5 * dt * (prev + val);
+                }
+                self.probe_start[q] = val;
+            }
+            self.load_integral += 0.5 * dt * (ga + gb);
+        }
         self.lambda_end.copy_from_slice(lambda);
         self.time += self.inner as f64 * self.stepper.dt;
     }

@@ -15,9 +15,10 @@
     clippy::too_many_arguments
 )]
 
-use super::family::{Bonds, par_points, par_row_blocks, par_rows, sub};
+use super::family::{Bonds, par_points, par_row_blocks, par_rows};
 use super::model::{Dim, Kinematics, PdModel};
 use mechanics::simd::Simd;
+use mechanics::tensor::vec3;
 use std::f64::consts::PI;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -521,7 +522,7 @@ impl BondModel {
                         continue;
                     }
                     let j = nbr[b] as usize;
-                    let eta = sub(&disp[j], &disp[i]);
+                    let eta = (vec3(&disp[j]) - vec3(&disp[i])).into();
                     let s = stretch_over_len(&xi_all[b], &eta, inv_len[b]).0;
                     let cb = bond_coef(c, h, dims, g, (i, j), &xi_all[b], inv_len[b], vol);
                     *rel += bond_energy_share(cb, s, inv_len[b], vol[i]);
@@ -587,8 +588,8 @@ impl PdModel for BondModel {
                     continue;
                 }
                 let j = bonds.nbr[b] as usize;
-                let xi = sub(&x0[j], &x0[i]);
-                let eta = sub(&disp[j], &disp[i]);
+                let xi = (vec3(&x0[j]) - vec3(&x0[i])).into();
+                let eta = (vec3(&disp[j]) - vec3(&disp[i])).into();
                 let s = stretch_over_len(&xi, &eta, bonds.inv_len[b]).0;
                 sum += bond_energy_share(coef[b], s, bonds.inv_len[b], vol[i]);
             }

@@ -24,66 +24,44 @@
     clippy::too_many_arguments
 )]
 
-use super::family::{Bonds, par_row_blocks};
+use super::family::{Bonds, par_row_blocks, par_rows};
 use super::model::{Dim, Kinematics, PdModel};
 use mechanics::damage::{BondInput, DamageModel};
 use mechanics::j2::{J2Material, J2State, Sym, jaumann_rotate, von_mises};
 use mechanics::simd::Simd;
+use mechanics::tensor::{self, IDENTITY};
 use rayon::prelude::*;
 use std::f64::consts::PI;
+use std::sync::atomic::{AtomicU64, Ordering};
 
-pub type M3 = [[f64; 3]; 3];
+/// A 3×3 matrix in the row-major flat storage of the per-particle arrays.
+pub type M3 = tensor::Rows3;
 
+/// `a b` (nalgebra, in flat storage).
 #[inline]
 pub fn matmul(a: &M3, b: &M3) -> M3 {
-    std::array::from_fn(|i| {
-        std::array::from_fn(|j| a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j])
-    })
+    tensor::rows(&(tensor::mat(a) * tensor::mat(b)))
 }
 
 #[inline]
 pub fn det(a: &M3) -> f64 {
-    a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
-        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
-        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
+    tensor::mat(a).determinant()
 }
 
-/// Inverse by the adjugate; `None` when |det| ≤ tiny.
+/// Inverse by the adjugate (`mechanics::tensor::inverse`); `None` when |det| ≤ tiny.
 #[inline]
 pub fn inverse(a: &M3, tiny: f64) -> Option<M3> {
-    let d = det(a);
-    if !(d.abs() > tiny) {
-        return None;
-    }
-    let id = 1.0 / d;
-    Some([
-        [
-            (a[1][1] * a[2][2] - a[1][2] * a[2][1]) * id,
-            (a[0][2] * a[2][1] - a[0][1] * a[2][2]) * id,
-            (a[0][1] * a[1][2] - a[0][2] * a[1][1]) * id,
-        ],
-        [
-            (a[1][2] * a[2][0] - a[1][0] * a[2][2]) * id,
-            (a[0][0] * a[2][2] - a[0][2] * a[2][0]) * id,
-            (a[0][2] * a[1][0] - a[0][0] * a[1][2]) * id,
-        ],
-        [
-            (a[1][0] * a[2][1] - a[1][1] * a[2][0]) * id,
-            (a[0][1] * a[2][0] - a[0][0] * a[2][1]) * id,
-            (a[0][0] * a[1][1] - a[0][1] * a[1][0]) * id,
-        ],
-    ])
+    tensor::inverse(&tensor::mat(a), tiny).map(|m| tensor::rows(&m))
 }
 
+/// `a v`.
 #[inline]
 pub fn mv(a: &M3, v: &[f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|i| a[i][0] * v[0] + a[i][1] * v[1] + a[i][2] * v[2])
+    (tensor::mat(a) * tensor::vec3(v)).into()
 }
 
 #[cfg(target_arch = "x86_64")]
 mod avx512;
-
-const IDENTITY: M3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
 /// Per-particle kinematic results of pass 1 (not gathered by neighbours).
 #[derive(Debug, Clone, Copy, Default)]
@@ -128,6 +106,12 @@ pub struct Correspondence<D: DamageModel> {
     pub plastic_work: Vec<f64>,
     /// Per-particle scratch of the strain-energy sum (J).
     energy: Vec<f64>,
+    /// Strain energy given up by bond damage per particle since the start (J; see
+    /// `release`).
+    released: Vec<f64>,
+    /// The bonds' intact fractions when damage was last booked (empty until the first
+    /// force evaluation and after a checkpoint is loaded: then taken as they are).
+    booked: Vec<f64>,
     pub kin: Vec<PointKin>,
     pub side: Vec<BondSide>,
     /// det K of the intact family (to detect a family too damaged for a gradient).
@@ -183,6 +167,8 @@ impl<D: DamageModel> Correspondence<D> {
             state: vec![J2State::default(); n],
             plastic_work: vec![0.0; n],
             energy: vec![0.0; n],
+            released: vec![0.0; n],
+            booked: Vec::new(),
             kin: vec![
                 PointKin {
                     wsum: f64::NAN,
@@ -345,6 +331,53 @@ impl<D: DamageModel> Correspondence<D> {
         }
     }
 
+    /// What [`point_energy`] reads.
+    fn energy_view(&self) -> EnergyView<'_> {
+        EnergyView {
+            dim: self.dim,
+            mat: self.material,
+            inv_h: 1.0 / self.horizon,
+            kappa0: self.stabilization * self.micromodulus * self.horizon_volume,
+            state: &self.state,
+            kin: &self.kin,
+            side: &self.side,
+            k0det: &self.k0det,
+        }
+    }
+
+    /// Books the strain energy that this evaluation's bond damage took from the families it
+    /// touched (issue 20): for every row whose intact fractions changed since the last
+    /// booking, [`point_energy`] with the fractions before less that with the fractions
+    /// now, at the same displacements and stress, is released; strain energy + released
+    /// energy is then unchanged by damage. (The stabilisation part can grow when a family
+    /// loses a bond: κ = κ₀/Σ ω V_j grows, so a single event may release a negative amount.)
+    /// Runs only on an evaluation that changed a bond.
+    fn release(&mut self, k: &Kinematics, bonds: &Bonds) {
+        // taken out for the pass (no allocation), so the view can borrow the rest
+        let (mut released, mut booked) = (
+            std::mem::take(&mut self.released),
+            std::mem::take(&mut self.booked),
+        );
+        let view = self.energy_view();
+        let offsets = &bonds.offsets;
+        par_rows(
+            offsets,
+            &mut released,
+            &mut booked,
+            &|i, rel: &mut f64, old| {
+                let now = &bonds.intact[offsets[i]..offsets[i + 1]];
+                if old == now {
+                    return;
+                }
+                *rel +=
+                    point_energy(&view, i, k, bonds, old) - point_energy(&view, i, k, bonds, now);
+                old.copy_from_slice(now);
+            },
+        );
+        self.released = released;
+        self.booked = booked;
+    }
+
     /// Runs only the stress update (pass 1), e.g. for prescribed-motion tests.
     pub fn update_stress(&mut self, k: &Kinematics, bonds: &Bonds, dt: f64) {
         self.pass1(k, bonds, dt);
@@ -480,8 +513,9 @@ fn force_block_body<D: DamageModel>(
     point: &[BondSide],
     damage: &D,
     inv_h: f64,
-) {
+) -> u32 {
     let base = offsets[lo];
+    let mut changed = 0;
     // (1 + s0)² of a pure critical-stretch law
     let limit = damage.stretch_limit().map(|s0| (1.0 + s0) * (1.0 + s0));
     for (p, fi) in f.iter_mut().enumerate() {
@@ -520,6 +554,7 @@ fn force_block_body<D: DamageModel>(
                     damage.update(*om, &input)
                 }
             };
+            changed += u32::from(w != *om);
             *om = w;
             if w == 0.0 {
                 continue;
@@ -536,6 +571,7 @@ fn force_block_body<D: DamageModel>(
         }
         *fi = acc;
     }
+    changed
 }
 
 mechanics::simd::multiversion! {
@@ -552,7 +588,7 @@ mechanics::simd::multiversion! {
         point: &[BondSide],
         damage: &D,
         inv_h: f64,
-    ) = force_block_body;
+    ) -> u32 = force_block_body;
 }
 
 /// A particle whose shape tensor has become singular through damage (its intact bonds too
@@ -562,7 +598,9 @@ mechanics::simd::multiversion! {
 /// whose family is degenerate already in the reference state (det K₀ = 0: no neighbours, or
 /// all of them on a line or a plane in 3-D) never had a gradient to lose and keeps its bonds,
 /// as before. Serial and cheap: one flag per particle, and the rows of inactive particles.
-fn detach_inactive(kin: &[PointKin], k0det: &[f64], bonds: &mut Bonds) {
+/// Returns how many bond copies it broke.
+fn detach_inactive(kin: &[PointKin], k0det: &[f64], bonds: &mut Bonds) -> u32 {
+    let mut broke = 0;
     for (i, pk) in kin.iter().enumerate() {
         if pk.active || k0det[i] == 0.0 {
             continue;
@@ -572,14 +610,116 @@ fn detach_inactive(kin: &[PointKin], k0det: &[f64], bonds: &mut Bonds) {
                 continue;
             }
             bonds.intact[b] = 0.0;
+            broke += 1;
             let j = bonds.nbr[b] as usize;
             let row = bonds.offsets[j]..bonds.offsets[j + 1];
             // families are symmetric (one horizon), so (j, i) exists
             if let Some(q) = bonds.nbr[row.clone()].iter().position(|&n| n as usize == i) {
                 bonds.intact[row.start + q] = 0.0;
+                broke += 1;
             }
         }
     }
+    broke
+}
+
+/// What a particle's strain energy reads from the model (see [`point_energy`]).
+struct EnergyView<'a> {
+    dim: Dim,
+    mat: J2Material,
+    inv_h: f64,
+    /// κ₀ = G C V_H (κ = κ₀/Σ ω V_j).
+    kappa0: f64,
+    state: &'a [J2State],
+    kin: &'a [PointKin],
+    side: &'a [BondSide],
+    k0det: &'a [f64],
+}
+
+/// Particle i's strain energy V_i [w_e(σ_i) + ψ_i] (J) with its family as `row` (the intact
+/// fractions of its bonds) holds it: w_e = ½ σ : C⁻¹ : σ of its stress (seed 000 eq. 14 and
+/// 19: the internal energy whose rate is the stress power σ : L, less the plastic work) and
+/// the zero-energy-mode stabilisation ψ_i = ½ (κ_i/δ) Σ_j ω V_j |z_ij|², z = η − Hξ
+/// (eq. 184): the potential whose derivative is the stabilisation force state ω κ z/δ of
+/// eq. (186) (the variation through H vanishes, since H is the least-squares fit of η).
+/// For the family pass 1 last saw (Σ ω V_j equal to the one its K⁻¹ was built for), H and
+/// κ are pass 1's; for a family that damage changed since, K⁻¹, H and κ = κ₀/Σ ω V_j are
+/// formed as the next pass 1 forms them, so the energy follows damage at once. A particle
+/// that carries no gradient (fully broken, or too few bonds left) stores nothing.
+fn point_energy(v: &EnergyView, i: usize, k: &Kinematics, bonds: &Bonds, row: &[f64]) -> f64 {
+    let r = bonds.offsets[i]..bonds.offsets[i + 1];
+    let (nbr, xis) = (&bonds.nbr[r.clone()], &bonds.xi[r]);
+    let pk = &v.kin[i];
+    let mut w0 = 0.0;
+    for (&om, &j) in row.iter().zip(nbr) {
+        if om != 0.0 {
+            w0 += om * k.vol[j as usize];
+        }
+    }
+    let ui = k.disp[i];
+    let (f, kappa) = if w0 == pk.wsum {
+        if !pk.active {
+            return 0.0;
+        }
+        (pk.f, v.side[i].kappa)
+    } else {
+        // K (eq. 182) and N = Σ ω V_j η⊗ξ of the family as it is now (as pass 1 and
+        // `shape_tensor` form them)
+        let (mut kk, mut nn) = ([[0.0; 3]; 3], [[0.0; 3]; 3]);
+        for ((&om, &j), x) in row.iter().zip(nbr).zip(xis) {
+            if om == 0.0 {
+                continue;
+            }
+            let j = j as usize;
+            let w = om * k.vol[j];
+            let uj = k.disp[j];
+            let wy = [
+                w * (uj[0] - ui[0]),
+                w * (uj[1] - ui[1]),
+                w * (uj[2] - ui[2]),
+            ];
+            for a in 0..3 {
+                for c in 0..3 {
+                    kk[a][c] += w * x[a] * x[c];
+                    nn[a][c] += wy[a] * x[c];
+                }
+            }
+        }
+        if !v.dim.three_d() {
+            kk[2][2] = 1.0;
+            nn[2][2] = 0.0;
+        }
+        let Some(kinv) = inverse(&kk, 1e-3 * v.k0det[i].abs()) else {
+            return 0.0;
+        };
+        let h = matmul(&nn, &kinv);
+        let f: M3 = std::array::from_fn(|a| {
+            std::array::from_fn(|c| h[a][c] + if a == c { 1.0 } else { 0.0 })
+        });
+        (f, if w0 > 0.0 { v.kappa0 / w0 } else { 0.0 })
+    };
+    let mut psi = 0.0;
+    if kappa != 0.0 {
+        for ((&w, &j), x) in row.iter().zip(nbr).zip(xis) {
+            if w == 0.0 {
+                continue;
+            }
+            let j = j as usize;
+            let uj = k.disp[j];
+            let mut z2 = 0.0;
+            for a in 0..3 {
+                // z = η − Hξ, H = F − I
+                let hx = (f[a][0] - f64::from(a == 0)) * x[0]
+                    + (f[a][1] - f64::from(a == 1)) * x[1]
+                    + (f[a][2] - f64::from(a == 2)) * x[2];
+                let z = (uj[a] - ui[a]) - hx;
+                z2 += z * z;
+            }
+            psi += w * k.vol[j] * z2;
+        }
+        psi *= 0.5 * kappa * v.inv_h;
+    }
+    k.vol[i] * (v.mat.elastic_energy(&v.state[i].stress) + psi)
 }
 
 impl<D: DamageModel> PdModel for Correspondence<D> {
@@ -588,31 +728,51 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
     }
 
     fn force_density(&mut self, k: &Kinematics, bonds: &mut Bonds, dt: f64, f: &mut [[f64; 3]]) {
+        if self.booked.len() != bonds.len() {
+            self.booked.clone_from(&bonds.intact);
+        }
         self.pass1(k, bonds, dt);
-        detach_inactive(&self.kin, &self.k0det, bonds);
+        let detached = detach_inactive(&self.kin, &self.k0det, bonds);
         let point = &self.side;
         let damage = &self.damage;
         let inv_h = 1.0 / self.horizon;
         let (offsets, nbr, inv_len) = (&bonds.offsets, &bonds.nbr, &bonds.inv_len);
         let simd = self.simd;
+        // bonds whose intact fraction this evaluation changed (counted per block)
+        let changed = AtomicU64::new(u64::from(detached));
+        let count = |n: u32| {
+            if n > 0 {
+                changed.fetch_add(u64::from(n), Ordering::Relaxed);
+            }
+        };
         #[cfg(target_arch = "x86_64")]
-        if self.explicit_avx512()
+        let done = if self.explicit_avx512()
             && let Some(s0) = damage.stretch_limit()
         {
             let (packed, lim) = (&self.packed, (1.0 + s0) * (1.0 + s0));
             par_row_blocks(offsets, f, &mut bonds.intact, &|lo, fb, ib| {
                 // SAFETY: `explicit_avx512` holds only on a CPU with AVX-512 F/DQ/VL.
-                unsafe {
+                count(unsafe {
                     avx512::force_block(lo, fb, ib, offsets, nbr, inv_len, packed, lim, inv_h)
-                };
+                });
             });
-            return;
+            true
+        } else {
+            false
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let done = false;
+        if !done {
+            par_row_blocks(offsets, f, &mut bonds.intact, &|lo, fb, ib| {
+                count(force_block::<D>(
+                    simd, lo, fb, ib, offsets, nbr, inv_len, k.x0, k.disp, k.vol, point, damage,
+                    inv_h,
+                ));
+            });
         }
-        par_row_blocks(offsets, f, &mut bonds.intact, &|lo, fb, ib| {
-            force_block::<D>(
-                simd, lo, fb, ib, offsets, nbr, inv_len, k.x0, k.disp, k.vol, point, damage, inv_h,
-            );
-        });
+        if changed.into_inner() > 0 {
+            self.release(k, bonds);
+        }
     }
 
     fn stable_dt(&self, k: &Kinematics, bonds: &Bonds, density: f64) -> f64 {
@@ -630,50 +790,28 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
         lmin / c
     }
 
-    /// Σ_i V_i [w_e(σ_i) + ψ_i]: the elastic strain energy density ½ σ : C⁻¹ : σ of each
-    /// particle's stress (seed 000 eq. 14 and 19: the internal energy whose rate is the
-    /// stress power σ : L, less the plastic work), plus the energy of the zero-energy-mode
-    /// stabilization, ψ_i = ½ (κ_i/δ) Σ_j ω V_j |z_ij|² with z = η − Hξ (eq. 184): the
-    /// potential whose derivative is the stabilization force state ω κ z/δ of eq. (186)
-    /// (the variation through H vanishes, since H is the least-squares fit of η). A particle
-    /// that carries no gradient (fully broken) stores nothing.
+    /// Σ_i V_i [w_e(σ_i) + ψ_i]: see [`point_energy`].
     fn strain_energy(&mut self, k: &Kinematics, bonds: &Bonds) -> f64 {
-        let (mat, inv_h) = (self.material, 1.0 / self.horizon);
-        let (state, kin, side) = (&self.state, &self.kin, &self.side);
-        super::family::par_points(&mut self.energy, &|i, e: &mut f64| {
-            let pk = &kin[i];
-            if !pk.active {
-                *e = 0.0;
-                return;
-            }
-            let mut psi = 0.0;
-            let kappa = side[i].kappa;
-            if kappa != 0.0 {
-                let ui = k.disp[i];
-                for b in bonds.offsets[i]..bonds.offsets[i + 1] {
-                    let w = bonds.intact[b];
-                    if w == 0.0 {
-                        continue;
-                    }
-                    let j = bonds.nbr[b] as usize;
-                    let x = bonds.xi[b];
-                    let uj = k.disp[j];
-                    let mut z2 = 0.0;
-                    for a in 0..3 {
-                        // z = η − Hξ, H = F − I
-                        let hx = (pk.f[a][0] - f64::from(a == 0)) * x[0]
-                            + (pk.f[a][1] - f64::from(a == 1)) * x[1]
-                            + (pk.f[a][2] - f64::from(a == 2)) * x[2];
-                        let z = (uj[a] - ui[a]) - hx;
-                        z2 += z * z;
-                    }
-                    psi += w * k.vol[j] * z2;
-                }
-                psi *= 0.5 * kappa * inv_h;
-            }
-            *e = k.vol[i] * (mat.elastic_energy(&state[i].stress) + psi);
+        // taken out for the pass (no allocation), so the view can borrow the rest
+        let mut energy = std::mem::take(&mut self.energy);
+        let view = self.energy_view();
+        let offsets = &bonds.offsets;
+        super::family::par_points(&mut energy, &|i, e: &mut f64| {
+            *e = point_energy(
+                &view,
+                i,
+                k,
+                bonds,
+                &bonds.intact[offsets[i]..offsets[i + 1]],
+            );
         });
-        self.energy.iter().sum()
+        let total = energy.iter().sum();
+        self.energy = energy;
+        total
+    }
+
+    fn fracture_energy(&self) -> f64 {
+        self.released.iter().sum()
     }
 
     fn plastic_work(&self, vol: &[f64]) -> f64 {
@@ -691,11 +829,15 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
     fn save_state(&self, w: &mut super::checkpoint::Writer) {
         super::checkpoint::put_j2(w, &self.state);
         w.f64s(self.plastic_work.iter().copied());
+        w.f64s(self.released.iter().copied());
     }
 
     fn load_state(&mut self, r: &mut super::checkpoint::Reader) -> Result<(), String> {
         super::checkpoint::get_j2(r, &mut self.state, "particle J2 states")?;
         self.plastic_work = r.f64s(self.plastic_work.len(), "plastic work")?;
+        self.released = r.f64s(self.released.len(), "released bond energy")?;
+        // the loaded intact fractions are booked as they are at the next evaluation
+        self.booked.clear();
         // K⁻¹ is rebuilt from the restored bond damage on the next step.
         for k in self.kin.iter_mut() {
             k.wsum = f64::NAN;

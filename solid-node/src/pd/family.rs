@@ -10,6 +10,7 @@
 )]
 
 use mechanics::neighbour::{Families, find_neighbours};
+use mechanics::tensor::vec3;
 
 /// Bonds of all particles: the bonds of particle `i` are `offsets[i]..offsets[i + 1]`.
 /// Both (i, j) and (j, i) are stored; each row owns its copy of the bond state, and the two
@@ -34,9 +35,9 @@ impl Bonds {
         let mut inv_len = Vec::with_capacity(indices.len());
         for i in 0..x0.len() {
             for &j in &indices[offsets[i]..offsets[i + 1]] {
-                let d = sub(&x0[j as usize], &x0[i]);
-                xi.push(d);
-                inv_len.push(1.0 / norm(&d));
+                let d = vec3(&x0[j as usize]) - vec3(&x0[i]);
+                xi.push(d.into());
+                inv_len.push(1.0 / d.norm());
             }
         }
         let n = indices.len();
@@ -73,16 +74,6 @@ impl Bonds {
             *o = if b > 0.0 { 1.0 - a / b } else { 0.0 };
         }
     }
-}
-
-#[inline]
-pub fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-#[inline]
-pub fn norm(a: &[f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
 /// Particles per rayon task.

@@ -13,32 +13,47 @@ use serde::Deserialize;
 
 /// A region of space. In 2-D only x and y matter; in 3-D the round and square shapes are
 /// prisms along z of the given `height` centred on `center[2]`.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, schemars::JsonSchema)]
 #[serde(tag = "shape", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Shape {
+    /// An axis-aligned box.
     Box {
+        /// Lower corner (m).
         min: [f64; 3],
+        /// Upper corner (m).
         max: [f64; 3],
     },
+    /// A disc (2-D) or a round prism along z (3-D).
     Disc {
+        /// Centre (m).
         center: [f64; 3],
+        /// Radius (m).
         radius: f64,
+        /// Length along z in 3-D (m).
         #[serde(default)]
         height: f64,
     },
+    /// A ring (2-D) or a hollow cylinder along z (3-D).
     HollowCylinder {
+        /// Centre (m).
         center: [f64; 3],
+        /// Inner radius (m).
         inner_radius: f64,
+        /// Outer radius (m).
         outer_radius: f64,
+        /// Length along z in 3-D (m).
         #[serde(default)]
         height: f64,
     },
+    /// A square with a square hole (2-D), or its prism along z (3-D).
     HollowSquare {
+        /// Centre (m).
         center: [f64; 3],
-        /// Half side of the hole.
+        /// Half side of the hole (m).
         inner_half: f64,
-        /// Half side of the outer square.
+        /// Half side of the outer square (m).
         outer_half: f64,
+        /// Length along z in 3-D (m).
         #[serde(default)]
         height: f64,
     },

@@ -36,13 +36,17 @@ use std::sync::Arc;
 const WG: u32 = 64;
 /// Reals per particle in the particle buffer: pos, vel, force, fext, vpres (3 each), vol,
 /// the window accumulators (work 1, impulse 3), the displacement u and the reference
-/// position X (3 each).
-const PV_REALS: usize = 26;
+/// position X (3 each), and the strain energy scratch of the `energy` kernel (1).
+const PV_REALS: usize = 27;
+/// Reals per chunk of the `report` kernel (see the shader).
+const REPORT_REALS: usize = 12;
 
-/// Velocity Verlet of integrate.rs (`Body::step`) on the device, shared by both force models.
-/// Each model's shader defines the layout of `pv` (pos 0, vel 3n, force 6n, fext 9n, vpres 12n,
-/// vol 15n, work 16n, impulse 17n, disp 20n, x0 23n), `iu` (prescribed flags first) and the accessors `n_pts`,
-/// `step_dt`, `half_dt` and `density`.
+/// Velocity Verlet of integrate.rs (`Body::step`) on the device, shared by both force models,
+/// and the window report. Each model's shader defines the layout of `pv` (pos 0, vel 3n,
+/// force 6n, fext 9n, vpres 12n, vol 15n, work 16n, impulse 17n, disp 20n, x0 23n, energy
+/// 26n), `iu` (prescribed flags first) and the accessors `n_pts`, `step_dt`, `half_dt`,
+/// `density`, `vm_at`, `eqp_at`, `energy_at` (the particle's strain energy, J) and `wp_at`
+/// (its plastic work since the start, J).
 const INTEGRATE_SHADER: &str = r#"
 fn lin(gid: vec3<u32>, nwg: vec3<u32>) -> u32 { return gid.x + gid.y * nwg.x * 64u; }
 
@@ -92,13 +96,24 @@ fn kick_drift(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
 }
 
 // The window report (issue 8: per window only the interface arrays and reduced scalars cross
-// to the host). `report`: one thread per chunk of CHUNK particles sums, in index order, the
-// node's report terms (solver.rs): kinetic energy ½ρV|v|², momentum ρVv (3), gross momentum
-// ρV|v|, Σ V u (3), and the largest von Mises stress and plastic strain (`vm_at`, `eqp_at`),
-// into rg[11c..11c+11]; the host adds the chunks in order. `gather`: for the listed particles
-// gi[1..=gi[0]], position, velocity, external work and internal impulse (10 reals each) after
-// the chunk sums. Both are deterministic.
+// to the host). `energy`: one thread per particle writes its strain energy (`energy_at`, the
+// CPU model's per-particle term of `strain_energy`) to pv[26n + i]. `report`: one thread per
+// chunk of CHUNK particles sums, in index order, the node's report terms (solver.rs): kinetic
+// energy ½ρV|v|², momentum ρVv (3), gross momentum ρV|v|, Σ V u (3), the largest von Mises
+// stress and plastic strain (`vm_at`, `eqp_at`), the strain energy and the plastic work
+// (issue 20), into rg[NR c..NR c + NR]; the host adds the chunks in order. `gather`: for the
+// listed particles gi[1..=gi[0]], position, velocity, external work and internal impulse (10
+// reals each) after the chunk sums. All are deterministic.
 const CHUNK: u32 = 256u;
+const NR: u32 = 12u;
+
+@compute @workgroup_size(64)
+fn energy(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = lin(gid, nwg);
+    let n = n_pts();
+    if i >= n { return; }
+    pv[26u * n + i] = energy_at(i);
+}
 
 @compute @workgroup_size(64)
 fn report(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
@@ -107,8 +122,8 @@ fn report(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
     let nch = (n + CHUNK - 1u) / CHUNK;
     if c >= nch { return; }
     let rho = density();
-    var s: array<real, 11>;
-    for (var k = 0u; k < 11u; k++) { s[k] = real(0.0); }
+    var s: array<real, NR>;
+    for (var k = 0u; k < NR; k++) { s[k] = real(0.0); }
     let end = min(n, (c + 1u) * CHUNK);
     for (var i = c * CHUNK; i < end; i++) {
         let vol = pv[15u * n + i];
@@ -123,8 +138,10 @@ fn report(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
         s[4] += rho * vol * sqrt(vv);
         s[8] = max(s[8], vm_at(i));
         s[9] = max(s[9], eqp_at(i));
+        s[10] += pv[26u * n + i];
+        s[11] += wp_at(i);
     }
-    for (var k = 0u; k < 11u; k++) { rg[11u * c + k] = s[k]; }
+    for (var k = 0u; k < NR; k++) { rg[NR * c + k] = s[k]; }
 }
 
 @compute @workgroup_size(64)
@@ -133,7 +150,7 @@ fn gather(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
     if k >= gi[0] { return; }
     let n = n_pts();
     let i = gi[1u + k];
-    let o = 11u * ((n + CHUNK - 1u) / CHUNK) + 10u * k;
+    let o = NR * ((n + CHUNK - 1u) / CHUNK) + 10u * k;
     for (var d = 0u; d < 3u; d++) {
         rg[o + d] = pv[3u * i + d];
         rg[o + 3u + d] = pv[3u * n + 3u * i + d];
@@ -157,7 +174,7 @@ const SHADER: &str = r#"
 struct P { n: u32, nb: u32, pad0: u32, pad1: u32, dt: real, half_dt: real, rho: real, bf: real }
 @group(0) @binding(0) var<uniform> pp: P;
 // pos 0, vel 3n, force 6n, fext 9n, vpres 12n, vol 15n, work 16n, impulse 17n, disp 20n,
-// x0 23n
+// x0 23n, energy 26n
 @group(0) @binding(1) var<storage, read_write> pv: array<real>;
 // prescribed 0, offsets n, nbr 2n+1
 @group(0) @binding(2) var<storage, read> iu: array<u32>;
@@ -171,6 +188,42 @@ struct P { n: u32, nb: u32, pad0: u32, pad1: u32, dt: real, half_dt: real, rho: 
 fn n_pts() -> u32 { return pp.n; }
 fn vm_at(i: u32) -> real { return real(0.0); }
 fn eqp_at(i: u32) -> real { return real(0.0); }
+fn wp_at(i: u32) -> real { return real(0.0); }
+
+// bond.rs strain_energy() at particle i: Σ_j ¼ c_b s² |ξ| V_i over the row's unbroken bonds in
+// row order (`bond_energy_share`: row i's half of the micro-potential ½ c_b s² |ξ| V_i V_j,
+// Silling 2000), s from bond.rs stretch_over_len(): s = t/(1 + |y| il), t = η·(2ξ + η) il²
+fn energy_at(i: u32) -> real {
+    let n = pp.n;
+    let ux = pv[20u * n + 3u * i];
+    let uy = pv[20u * n + 3u * i + 1u];
+    let uz = pv[20u * n + 3u * i + 2u];
+    let xx = pv[23u * n + 3u * i];
+    let xy = pv[23u * n + 3u * i + 1u];
+    let xz = pv[23u * n + 3u * i + 2u];
+    let vol = pv[15u * n + i];
+    var sum = real(0.0);
+    for (var b = iu[n + i]; b < iu[n + i + 1u]; b++) {
+        let cb = bd[pp.nb + b];
+        if cb == real(0.0) { continue; }
+        let j = iu[2u * n + 1u + b];
+        let ex = pv[20u * n + 3u * j] - ux;
+        let ey = pv[20u * n + 3u * j + 1u] - uy;
+        let ez = pv[20u * n + 3u * j + 2u] - uz;
+        let sx = pv[23u * n + 3u * j] - xx;
+        let sy = pv[23u * n + 3u * j + 1u] - xy;
+        let sz = pv[23u * n + 3u * j + 2u] - xz;
+        let num = ex * (real(2.0) * sx + ex) + ey * (real(2.0) * sy + ey) + ez * (real(2.0) * sz + ez);
+        let yx = sx + ex;
+        let yy = sy + ey;
+        let yz = sz + ez;
+        let ly = sqrt(yx * yx + yy * yy + yz * yz);
+        let il = bd[b];
+        let st = num * il * il / (real(1.0) + ly * il);
+        sum += real(0.25) * cb * st * st / il * vol;
+    }
+    return sum;
+}
 fn step_dt() -> real { return pp.dt; }
 fn half_dt() -> real { return pp.half_dt; }
 fn density() -> real { return pp.rho; }
@@ -304,6 +357,8 @@ impl GpuBondBody {
         reals.resize(20 * n, 0.0);
         reals.extend_from_slice(flat(&body.disp));
         reals.extend_from_slice(flat(&body.x0));
+        // the strain energy scratch of the `energy` kernel
+        reals.resize(PV_REALS * n, 0.0);
         let mut ints: Vec<u32> = body.prescribed.iter().map(|&x| x as u32).collect();
         ints.extend(body.bonds.offsets.iter().map(|&o| o as u32));
         ints.extend_from_slice(&body.bonds.nbr);
@@ -323,15 +378,22 @@ impl GpuBondBody {
                     "pd",
                     &[Uniform, ReadWrite, Read, ReadWrite, ReadWrite, Read],
                 );
-                let [kd, ko, fo, rp, ga]: [wgpu::ComputePipeline; 5] = ctx
+                let [kd, ko, fo, rp, ga, en]: [wgpu::ComputePipeline; 6] = ctx
                     .pipelines(
                         "pd",
                         &[Some(&layout)],
                         &module,
-                        &["kick_drift", "kick_only", "force", "report", "gather"],
+                        &[
+                            "kick_drift",
+                            "kick_only",
+                            "force",
+                            "report",
+                            "gather",
+                            "energy",
+                        ],
                     )
                     .try_into()
-                    .unwrap_or_else(|_| unreachable!("five entry points, five pipelines"));
+                    .unwrap_or_else(|_| unreachable!("six entry points, six pipelines"));
                 let rg = ctx.storage("pd report", rg_len * rb);
                 let gib = ctx.storage_init("pd gather list", mechanics::gpu::u32_bytes(&gi));
                 let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -345,6 +407,7 @@ impl GpuBondBody {
                 let bd = ctx.storage_init("pd bonds", &reals_to_bytes(p, &breal));
                 let bind = ctx.bind_group("pd", &layout, &[&params, &pv, &iu, &bd, &rg, &gib]);
                 let report = Report {
+                    energy: en,
                     report: rp,
                     gather: ga,
                     rg,
@@ -353,7 +416,7 @@ impl GpuBondBody {
                 };
                 (kd, ko, fo, bind, params, pv, bd, report)
             })?;
-        Ok(GpuBondBody {
+        let gpu = GpuBondBody {
             max_wg: ctx.limits.max_compute_workgroups_per_dimension,
             ctx,
             kick_drift,
@@ -370,11 +433,14 @@ impl GpuBondBody {
             bf,
             time: body.time,
             steps: body.steps,
-        })
+        };
+        // the particle count for a report before the first steps
+        gpu.upload_params(0.0);
+        Ok(gpu)
     }
 
-    /// `k` velocity-Verlet steps of size `dt` (integrate.rs `Body::step`), one submission.
-    pub fn steps(&mut self, k: u64, dt: f64) -> Result<(), GpuError> {
+    /// The uniform parameters (`P` in the shader) for steps of size `dt`.
+    fn upload_params(&self, dt: f64) {
         let p = self.ctx.precision;
         let mut u = vec![0u8; 64];
         u[0..4].copy_from_slice(&(self.n as u32).to_le_bytes());
@@ -383,6 +449,11 @@ impl GpuBondBody {
         // the first real sits at byte 16 (after 4 u32) for both f32 and f64 alignment
         u[16..16 + r.len()].copy_from_slice(&r);
         self.ctx.upload(&self.params, 0, &u);
+    }
+
+    /// `k` velocity-Verlet steps of size `dt` (integrate.rs `Body::step`), one submission.
+    pub fn steps(&mut self, k: u64, dt: f64) -> Result<(), GpuError> {
+        self.upload_params(dt);
         let (x, y) = dispatch_dims((self.n as u32).div_ceil(WG), self.max_wg);
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         {
@@ -524,18 +595,19 @@ fn window_sums(
 const CHUNK: usize = 256;
 
 /// The gather list as the shader reads it (count, then indices) and the report buffer's
-/// length in reals: 11 per chunk, 10 per gathered particle.
+/// length in reals: REPORT_REALS per chunk, 10 per gathered particle.
 fn gather_list(n: usize, gather: &[usize]) -> Result<(Vec<u32>, usize), GpuError> {
     if let Some(&i) = gather.iter().find(|&&i| i >= n) {
         return Err(GpuError(format!("gathered particle {i} of {n}")));
     }
     let mut gi = vec![gather.len() as u32];
     gi.extend(gather.iter().map(|&i| i as u32));
-    Ok((gi, 11 * n.div_ceil(CHUNK) + 10 * gather.len()))
+    Ok((gi, REPORT_REALS * n.div_ceil(CHUNK) + 10 * gather.len()))
 }
 
-/// The `report` and `gather` kernels of a body and their output buffer.
+/// The `energy`, `report` and `gather` kernels of a body and their output buffer.
 struct Report {
+    energy: wgpu::ComputePipeline,
     report: wgpu::ComputePipeline,
     gather: wgpu::ComputePipeline,
     rg: wgpu::Buffer,
@@ -553,6 +625,10 @@ pub struct WindowReport {
     pub vol_disp: [f64; 3],
     pub max_von_mises: f64,
     pub max_plastic_strain: f64,
+    /// Elastic strain energy of the force state (J), as the CPU model's `strain_energy`.
+    pub strain_energy: f64,
+    /// Plastic work since the start (J), as the CPU model's `plastic_work`.
+    pub plastic_work: f64,
     /// Per gathered particle: position, velocity, work of the external force, internal-force
     /// impulse over the window.
     pub pos: Vec<[f64; 3]>,
@@ -575,6 +651,9 @@ impl Report {
         {
             let mut pass = enc.begin_compute_pass(&Default::default());
             pass.set_bind_group(0, bind, &[]);
+            let (x, y) = dispatch_dims((self.n as u32).div_ceil(WG), max_wg);
+            pass.set_pipeline(&self.energy);
+            pass.dispatch_workgroups(x, y, 1);
             let (x, y) = dispatch_dims((nch as u32).div_ceil(WG), max_wg);
             pass.set_pipeline(&self.report);
             pass.dispatch_workgroups(x, y, 1);
@@ -586,7 +665,7 @@ impl Report {
         }
         ctx.checked("pd window report", || ctx.queue.submit(Some(enc.finish())))?;
         let p = ctx.precision;
-        let len = 11 * nch + 10 * self.m;
+        let len = REPORT_REALS * nch + 10 * self.m;
         let b = ctx.read(&self.rg, 0, (len * p.bytes()) as u64)?;
         let mut all = vec![0.0; len];
         bytes_to_reals(p, &b, &mut all)?;
@@ -594,7 +673,7 @@ impl Report {
             bytes: b.len(),
             ..Default::default()
         };
-        for c in all[..11 * nch].chunks_exact(11) {
+        for c in all[..REPORT_REALS * nch].chunks_exact(REPORT_REALS) {
             r.kinetic_energy += c[0];
             for d in 0..3 {
                 r.momentum[d] += c[1 + d];
@@ -603,8 +682,10 @@ impl Report {
             r.momentum_gross += c[4];
             r.max_von_mises = r.max_von_mises.max(c[8]);
             r.max_plastic_strain = r.max_plastic_strain.max(c[9]);
+            r.strain_energy += c[10];
+            r.plastic_work += c[11];
         }
-        for g in all[11 * nch..].chunks_exact(10) {
+        for g in all[REPORT_REALS * nch..].chunks_exact(10) {
             r.pos.push([g[0], g[1], g[2]]);
             r.vel.push([g[3], g[4], g[5]]);
             r.work.push(g[6]);
@@ -624,16 +705,17 @@ const CORR_SHADER: &str = r#"
 struct U { n: u32, nb: u32, three_d: u32, pad: u32 }
 @group(0) @binding(0) var<uniform> pu: U;
 // mp: dt, half_dt, rho, inv_h, kappa0, mu, lambda, yield, iso, 2/3 kin, dgamma denominator,
-// sqrt(2/3), 1e-300
+// sqrt(2/3), 1e-300, bulk modulus K, sqrt(3/2)
 @group(0) @binding(1) var<storage, read> mp: array<real>;
 // pos 0, vel 3n, force 6n, fext 9n, vpres 12n, vol 15n, work 16n, impulse 17n, disp 20n,
-// x0 23n
+// x0 23n, energy 26n
 @group(0) @binding(2) var<storage, read_write> pv: array<real>;
 // prescribed 0, offsets n, nbr 2n+1
 @group(0) @binding(3) var<storage, read> iu: array<u32>;
 // xi 0 (3 per bond), intact 3nb
 @group(0) @binding(4) var<storage, read> bd: array<real>;
-// kinv 0 (9n), active 9n, stress 10n (6n), back 16n (6n), eqp 22n, ahat 23n (9n), kappa 32n
+// kinv 0 (9n), active 9n, stress 10n (6n), back 16n (6n), eqp 22n, ahat 23n (9n), kappa 32n,
+// plastic work density 33n
 @group(0) @binding(5) var<storage, read_write> pt: array<real>;
 // window report: chunk sums, then the gathered particles (see `report`, `gather`)
 @group(0) @binding(6) var<storage, read_write> rg: array<real>;
@@ -650,6 +732,7 @@ fn vm_at(i: u32) -> real {
     return sqrt(real(1.5) * dd);
 }
 fn eqp_at(i: u32) -> real { return pt[22u * pu.n + i]; }
+fn wp_at(i: u32) -> real { return pt[33u * pu.n + i] * pv[15u * pu.n + i]; }
 fn step_dt() -> real { return mp[0]; }
 fn half_dt() -> real { return mp[1]; }
 fn density() -> real { return mp[2]; }
@@ -725,51 +808,106 @@ fn ddot6(a: array<real, 6>, b: array<real, 6>) -> real {
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + real(2.0) * (a[3] * b[3] + a[4] * b[4] + a[5] * b[5]);
 }
 
+struct Fam { m: array<real, 9>, w0: real }
+
+// correspondence.rs family_sums() of one field of pv (base `o`: 20n for u, 3n for v) at
+// particle i, in row order: Σ ω V_j (a_j − a_i)⊗ξ over the intact bonds, and Σ ω V_j
+fn family_sum(i: u32, o: u32) -> Fam {
+    let n = pu.n;
+    let nb = pu.nb;
+    let ai = array<real, 3>(pv[o + 3u * i], pv[o + 3u * i + 1u], pv[o + 3u * i + 2u]);
+    var r: Fam;
+    for (var q = 0u; q < 9u; q++) { r.m[q] = real(0.0); }
+    r.w0 = real(0.0);
+    for (var b = iu[n + i]; b < iu[n + i + 1u]; b++) {
+        let om = bd[3u * nb + b];
+        if om == real(0.0) { continue; }
+        let j = iu[2u * n + 1u + b];
+        let w = om * pv[15u * n + j];
+        r.w0 += w;
+        let aj = o + 3u * j;
+        let wy = array<real, 3>(w * (pv[aj] - ai[0]), w * (pv[aj + 1u] - ai[1]),
+            w * (pv[aj + 2u] - ai[2]));
+        for (var a = 0u; a < 3u; a++) {
+            for (var c = 0u; c < 3u; c++) {
+                r.m[3u * a + c] += wy[a] * bd[3u * b + c];
+            }
+        }
+    }
+    return r;
+}
+
+// mechanics::j2 plastic_work(): the plastic work density √(3/2) Δε̄ᵖ s:ξ/‖ξ‖ of a return
+// that gave Δε̄ᵖ = dp, from the returned stress (s = dev σ) and back stress α (ξ = s − α)
+fn plastic_work(st: array<real, 6>, bs: array<real, 6>, dp: real) -> real {
+    if !(dp > real(0.0)) { return real(0.0); }
+    let m = (st[0] + st[1] + st[2]) / real(3.0);
+    let s = array<real, 6>(st[0] - m, st[1] - m, st[2] - m, st[3], st[4], st[5]);
+    var xi: array<real, 6>;
+    for (var k = 0u; k < 6u; k++) { xi[k] = s[k] - bs[k]; }
+    let norm = sqrt(ddot6(xi, xi));
+    if !(norm > real(0.0)) { return real(0.0); }
+    return mp[14] * dp * ddot6(s, xi) / norm;
+}
+
+// correspondence.rs strain_energy() at particle i: V_i [½ σ:C⁻¹:σ + ψ_i] with
+// ½ σ:C⁻¹:σ = p²/(2K) + s:s/(4μ) (mechanics::j2 elastic_energy) and the stabilisation
+// potential ψ_i = ½ (κ_i/δ) Σ_j ω V_j |η − Hξ|² (seed 001 eq. 184, 186), H from F = I + H
+// as pass 1 forms it at the current displacements; 0 for an inactive family
+fn energy_at(i: u32) -> real {
+    let n = pu.n;
+    if pt[9u * n + i] == real(0.0) { return real(0.0); }
+    var psi = real(0.0);
+    let kappa = pt[32u * n + i];
+    if kappa != real(0.0) {
+        var nn = family_sum(i, 20u * n).m;
+        if pu.three_d == 0u {
+            nn[8] = real(0.0);
+        }
+        var kinv: array<real, 9>;
+        for (var q = 0u; q < 9u; q++) { kinv[q] = pt[9u * i + q]; }
+        var f = mm(nn, kinv);
+        f[0] += real(1.0);
+        f[4] += real(1.0);
+        f[8] += real(1.0);
+        let ui = array<real, 3>(pv[20u * n + 3u * i], pv[20u * n + 3u * i + 1u], pv[20u * n + 3u * i + 2u]);
+        let nb = pu.nb;
+        for (var b = iu[n + i]; b < iu[n + i + 1u]; b++) {
+            let w = bd[3u * nb + b];
+            if w == real(0.0) { continue; }
+            let j = iu[2u * n + 1u + b];
+            var z2 = real(0.0);
+            for (var a = 0u; a < 3u; a++) {
+                // z = η − Hξ, H = F − I
+                let hx = (f[3u * a] - select(real(0.0), real(1.0), a == 0u)) * bd[3u * b]
+                    + (f[3u * a + 1u] - select(real(0.0), real(1.0), a == 1u)) * bd[3u * b + 1u]
+                    + (f[3u * a + 2u] - select(real(0.0), real(1.0), a == 2u)) * bd[3u * b + 2u];
+                let z = (pv[20u * n + 3u * j + a] - ui[a]) - hx;
+                z2 += z * z;
+            }
+            psi += w * pv[15u * n + j] * z2;
+        }
+        psi *= real(0.5) * kappa * mp[3];
+    }
+    let o = 10u * n + 6u * i;
+    let p = (pt[o] + pt[o + 1u] + pt[o + 2u]) / real(3.0);
+    let d = array<real, 6>(pt[o] - p, pt[o + 1u] - p, pt[o + 2u] - p, pt[o + 3u], pt[o + 4u], pt[o + 5u]);
+    let we = p * p / (real(2.0) * mp[13]) + ddot6(d, d) / (real(4.0) * mp[5]);
+    return pv[15u * n + i] * (we + psi);
+}
+
 // pass 1 of correspondence.rs at particle i
 @compute @workgroup_size(64)
 fn pass1(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let i = lin(gid, nwg);
     let n = pu.n;
     if i >= n { return; }
-    let nb = pu.nb;
     let dt = mp[0];
-    // η = u_j − u_i: nn = Σ ω V η⊗ξ, H = nn K⁻¹, F = I + H
-    let ui = array<real, 3>(pv[20u * n + 3u * i], pv[20u * n + 3u * i + 1u], pv[20u * n + 3u * i + 2u]);
-    let vi = array<real, 3>(pv[3u * n + 3u * i], pv[3u * n + 3u * i + 1u], pv[3u * n + 3u * i + 2u]);
-    var nn: array<real, 9>;
-    var nd: array<real, 9>;
-    for (var q = 0u; q < 9u; q++) { nn[q] = real(0.0); nd[q] = real(0.0); }
-    var w0 = real(0.0);
-    let b0 = iu[n + i];
-    let b1 = iu[n + i + 1u];
-    for (var b = b0; b < b1; b++) {
-        let om = bd[3u * nb + b];
-        if om == real(0.0) { continue; }
-        let j = iu[2u * n + 1u + b];
-        let w = om * pv[15u * n + j];
-        w0 += w;
-        let uo = 20u * n + 3u * j;
-        let wy = array<real, 3>(w * (pv[uo] - ui[0]), w * (pv[uo + 1u] - ui[1]),
-            w * (pv[uo + 2u] - ui[2]));
-        for (var a = 0u; a < 3u; a++) {
-            for (var c = 0u; c < 3u; c++) {
-                nn[3u * a + c] += wy[a] * bd[3u * b + c];
-            }
-        }
-    }
-    for (var b = b0; b < b1; b++) {
-        let om = bd[3u * nb + b];
-        if om == real(0.0) { continue; }
-        let j = iu[2u * n + 1u + b];
-        let w = om * pv[15u * n + j];
-        let o = 3u * n + 3u * j;
-        let wv = array<real, 3>(w * (pv[o] - vi[0]), w * (pv[o + 1u] - vi[1]), w * (pv[o + 2u] - vi[2]));
-        for (var a = 0u; a < 3u; a++) {
-            for (var c = 0u; c < 3u; c++) {
-                nd[3u * a + c] += wv[a] * bd[3u * b + c];
-            }
-        }
-    }
+    // η = u_j − u_i: nn = Σ ω V η⊗ξ, H = nn K⁻¹, F = I + H; nd = Σ ω V (v_j − v_i)⊗ξ
+    let su = family_sum(i, 20u * n);
+    var nn = su.m;
+    let w0 = su.w0;
+    let nd = family_sum(i, 3u * n).m;
     if pt[9u * n + i] == real(0.0) {
         // an inactive family carries no stress
         for (var q = 0u; q < 9u; q++) { pt[23u * n + 9u * i + q] = real(0.0); }
@@ -829,8 +967,10 @@ fn pass1(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
                 st[k] -= real(2.0) * mu * dgamma * nk;
                 bs[k] += mp[9] * dgamma * nk;
             }
-            eqp += mp[11] * dgamma;
+            let dp = mp[11] * dgamma;
+            eqp += dp;
             pt[22u * n + i] = eqp;
+            pt[33u * n + i] += plastic_work(st, bs, dp);
         }
         for (var k = 0u; k < 6u; k++) {
             pt[10u * n + 6u * i + k] = st[k];
@@ -938,7 +1078,7 @@ impl GpuCorrBody {
     ) -> Result<GpuCorrBody, GpuError> {
         let n = body.len();
         let nb = body.bonds.len();
-        if model.kin.len() != n || model.state.len() != n {
+        if model.kin.len() != n || model.state.len() != n || model.plastic_work.len() != n {
             return Err(GpuError(format!(
                 "the model has {} particles, the body {n}",
                 model.kin.len()
@@ -977,6 +1117,8 @@ impl GpuCorrBody {
             2.0 * mu + 2.0 / 3.0 * (m.iso_hardening + m.kin_hardening),
             (2.0f64 / 3.0).sqrt(),
             1e-300,
+            m.bulk_modulus(),
+            (1.5f64).sqrt(),
         ];
         let module = ctx.shader(
             "pd-correspondence",
@@ -994,12 +1136,15 @@ impl GpuCorrBody {
         reals.resize(20 * n, 0.0);
         reals.extend_from_slice(flat(&body.disp));
         reals.extend_from_slice(flat(&body.x0));
+        // the strain energy scratch of the `energy` kernel
+        reals.resize(PV_REALS * n, 0.0);
         let mut ints: Vec<u32> = body.prescribed.iter().map(|&x| x as u32).collect();
         ints.extend(body.bonds.offsets.iter().map(|&o| o as u32));
         ints.extend_from_slice(&body.bonds.nbr);
         let mut breal: Vec<f64> = flat(&body.bonds.xi).to_vec();
         breal.extend_from_slice(&body.bonds.intact);
-        let mut pts = vec![0.0; 33 * n];
+        let mut pts = vec![0.0; 34 * n];
+        pts[33 * n..].copy_from_slice(&model.plastic_work);
         for (i, (k, s)) in model.kin.iter().zip(&model.state).enumerate() {
             pts[9 * i..9 * i + 9].copy_from_slice(k.kinv.as_flattened());
             pts[9 * n + i] = if k.active { 1.0 } else { 0.0 };
@@ -1027,7 +1172,7 @@ impl GpuCorrBody {
                         Uniform, Read, ReadWrite, Read, Read, ReadWrite, ReadWrite, Read,
                     ],
                 );
-                let [kd, p1, fo, ko, rp, ga]: [wgpu::ComputePipeline; 6] = ctx
+                let [kd, p1, fo, ko, rp, ga, en]: [wgpu::ComputePipeline; 7] = ctx
                     .pipelines(
                         "pd-corr",
                         &[Some(&layout)],
@@ -1039,10 +1184,11 @@ impl GpuCorrBody {
                             "kick_only",
                             "report",
                             "gather",
+                            "energy",
                         ],
                     )
                     .try_into()
-                    .unwrap_or_else(|_| unreachable!("six entry points, six pipelines"));
+                    .unwrap_or_else(|_| unreachable!("seven entry points, seven pipelines"));
                 let pipes = [kd, p1, fo, ko];
                 let rg = ctx.storage("pd-corr report", rg_len * rb);
                 let gib = ctx.storage_init("pd-corr gather list", mechanics::gpu::u32_bytes(&gi));
@@ -1058,6 +1204,7 @@ impl GpuCorrBody {
                     &[&pu, &mp, &pv, &iu, &bd, &pt, &rg, &gib],
                 );
                 let report = Report {
+                    energy: en,
                     report: rp,
                     gather: ga,
                     rg,
@@ -1212,6 +1359,8 @@ pub struct Snapshot {
     pub force: Vec<[f64; 3]>,
     /// The J2 states (pd-correspondence).
     pub states: Option<Vec<J2State>>,
+    /// The plastic work density per particle since the start (J/m³; pd-correspondence).
+    pub plastic_work: Option<Vec<f64>>,
 }
 
 /// `len` reals from `offset` (in reals) of a device buffer.
@@ -1243,7 +1392,7 @@ impl DeviceBody {
         gather: &[usize],
     ) -> Result<Self, GpuError> {
         let gpu = GpuBondBody::gathering(ctx.clone(), body, &twin, None, gather)?;
-        Ok(Self::with(
+        Self::with(
             ctx,
             body.len(),
             gather,
@@ -1251,7 +1400,7 @@ impl DeviceBody {
                 gpu,
                 twin: Box::new(twin),
             },
-        ))
+        )
     }
 
     /// `pd-correspondence` without damage (plane strain or 3-D): `twin` is a copy of the
@@ -1273,7 +1422,7 @@ impl DeviceBody {
         };
         twin.update_stress(&k, &body.bonds, 0.0);
         let gpu = GpuCorrBody::gathering(ctx.clone(), body, &twin, gather)?;
-        Ok(Self::with(
+        Self::with(
             ctx,
             body.len(),
             gather,
@@ -1281,21 +1430,28 @@ impl DeviceBody {
                 gpu,
                 twin: Box::new(twin),
             },
-        ))
+        )
     }
 
-    fn with(ctx: Arc<GpuContext>, n: usize, gather: &[usize], kind: DeviceKind) -> Self {
+    fn with(
+        ctx: Arc<GpuContext>,
+        n: usize,
+        gather: &[usize],
+        kind: DeviceKind,
+    ) -> Result<Self, GpuError> {
         let mut slot = vec![usize::MAX; n];
         for (k, &i) in gather.iter().enumerate() {
             slot[i] = k;
         }
-        DeviceBody {
+        let mut d = DeviceBody {
             ctx,
             kind,
             gather: gather.to_vec(),
             slot,
             report: WindowReport::default(),
-        }
+        };
+        d.refresh()?;
+        Ok(d)
     }
 
     /// Upload `body` again (after a checkpoint was loaded into it and its model).
@@ -1305,15 +1461,29 @@ impl DeviceBody {
                 *gpu = GpuBondBody::gathering(self.ctx.clone(), body, twin, None, &self.gather)?;
             }
             DeviceKind::Corr { gpu, twin } => {
-                // the J2 states through the model's own checkpoint format
+                // the J2 states and the plastic work through the model's own checkpoint
+                // format
                 let mut w = super::checkpoint::Writer::default();
                 body.model.save_state(&mut w);
                 let mut r = super::checkpoint::Reader::new(&w.buf);
                 super::checkpoint::get_j2(&mut r, &mut twin.state, "particle J2 states")
                     .map_err(GpuError)?;
+                twin.plastic_work = r
+                    .f64s(twin.plastic_work.len(), "plastic work")
+                    .map_err(GpuError)?;
                 *gpu = GpuCorrBody::gathering(self.ctx.clone(), body, twin, &self.gather)?;
             }
         }
+        self.refresh()
+    }
+
+    /// Reduce the report of the device state as it stands (after an upload), so that
+    /// [`DeviceBody::last_report`]'s energies describe it before the next window.
+    fn refresh(&mut self) -> Result<(), GpuError> {
+        self.report = match &self.kind {
+            DeviceKind::Bond { gpu, .. } => gpu.window_report()?,
+            DeviceKind::Corr { gpu, .. } => gpu.window_report()?,
+        };
         Ok(())
     }
 
@@ -1363,7 +1533,7 @@ impl DeviceBody {
             DeviceKind::Bond { gpu, .. } => (gpu.n, gpu.ctx.precision.bytes(), false),
             DeviceKind::Corr { gpu, .. } => (gpu.n, gpu.ctx.precision.bytes(), true),
         };
-        let now = (11 * n.div_ceil(CHUNK) + 10 * self.gather.len()) * rb;
+        let now = (REPORT_REALS * n.div_ceil(CHUNK) + 10 * self.gather.len()) * rb;
         let before = (13 + if corr { 13 } else { 0 }) * n * rb;
         (now, before)
     }
@@ -1396,22 +1566,21 @@ impl DeviceBody {
         };
         let a = read_reals(ctx, pv, 3 * n, 6 * n)?;
         let disp = unflat(&read_reals(ctx, pv, 20 * n, 3 * n)?);
-        let states = match &self.kind {
-            DeviceKind::Bond { .. } => None,
+        let (states, plastic_work) = match &self.kind {
+            DeviceKind::Bond { .. } => (None, None),
             DeviceKind::Corr { gpu, .. } => {
                 let s = read_reals(ctx, &gpu.pt, 10 * n, 13 * n)?;
-                Some(
-                    (0..n)
-                        .map(|i| {
-                            let mut st = J2State::default();
-                            st.stress.copy_from_slice(&s[6 * i..6 * i + 6]);
-                            st.back_stress
-                                .copy_from_slice(&s[6 * n + 6 * i..6 * n + 6 * i + 6]);
-                            st.eq_plastic_strain = s[12 * n + i];
-                            st
-                        })
-                        .collect(),
-                )
+                let states = (0..n)
+                    .map(|i| {
+                        let mut st = J2State::default();
+                        st.stress.copy_from_slice(&s[6 * i..6 * i + 6]);
+                        st.back_stress
+                            .copy_from_slice(&s[6 * n + 6 * i..6 * n + 6 * i + 6]);
+                        st.eq_plastic_strain = s[12 * n + i];
+                        st
+                    })
+                    .collect();
+                (Some(states), Some(read_reals(ctx, &gpu.pt, 33 * n, n)?))
             }
         };
         Ok(Snapshot {
@@ -1419,6 +1588,7 @@ impl DeviceBody {
             vel: unflat(&a[..3 * n]),
             force: unflat(&a[3 * n..]),
             states,
+            plastic_work,
         })
     }
 

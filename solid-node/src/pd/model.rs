@@ -67,7 +67,10 @@ pub trait PdModel: Send + Sync {
         0.0
     }
 
-    /// Energy released by bonds that broke since the start (J, ≥ 0).
+    /// Energy released by bond damage since the start (J): the strain energy the damage
+    /// took out of the force state (pd-bond: each broken bond's micro-potential, ≥ 0; the
+    /// correspondence models: the drop of their strain energy when bonds change, see their
+    /// `release`, which a single event can make negative).
     fn fracture_energy(&self) -> f64 {
         0.0
     }

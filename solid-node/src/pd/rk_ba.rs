@@ -35,6 +35,8 @@ use super::family::{Bonds, par_rows};
 use super::model::{Dim, Kinematics, PdModel};
 use mechanics::damage::{BondInput, DamageModel};
 use mechanics::j2::{J2Material, J2State, Sym, jaumann_rotate_skew, von_mises};
+use mechanics::tensor::vec3;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Largest monomial basis: 3-D, order 2 (x, y, z, x², xy, xz, y², yz, z²).
 pub const MAX_BASIS: usize = 9;
@@ -254,11 +256,6 @@ fn phi_of(
     out
 }
 
-#[inline]
-fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
 /// Per-particle results of the gradient pass.
 #[derive(Debug, Clone, Copy)]
 pub struct RkPoint {
@@ -317,8 +314,15 @@ fn gradient_pass(
                 continue;
             }
             let j = j as usize;
-            *ph = phi_of(&pt.g, om, &sub(&pos[j], &p), dims, order, horizon);
-            let du = sub(&field[j], &u);
+            *ph = phi_of(
+                &pt.g,
+                om,
+                &(vec3(&pos[j]) - vec3(&p)).into(),
+                dims,
+                order,
+                horizon,
+            );
+            let du = vec3(&field[j]) - vec3(&u);
             let vj = vol[j];
             for a in 0..3 {
                 for c in 0..3 {
@@ -383,6 +387,32 @@ pub struct RkBa<D: DamageModel> {
     pub rev: Vec<u32>,
     /// Row starts (a copy of the family offsets).
     offsets: Vec<usize>,
+    /// Strain energy given up by bond damage per particle since the start (J; see
+    /// [`RkBa::release`]).
+    released: Vec<f64>,
+}
+
+/// Particle i's strain energy V_i S/W (J) with S = Σ_j ω_b V_j w_e(σ_b), W = Σ_j ω_b V_j over
+/// its row (`hrow`, neighbours `nbr`) with the influences `om(b)` (b the index in the row):
+/// the α-weighted bond energy of seed 000 eq. (15)–(18), α = ω/W. Zero when W = 0.
+fn row_energy(
+    mat: &J2Material,
+    vol: &[f64],
+    i: usize,
+    nbr: &[u32],
+    hrow: &[BondHistory],
+    om: impl Fn(usize) -> f64,
+) -> f64 {
+    let (mut s, mut w) = (0.0, 0.0);
+    for (b, (h, &j)) in hrow.iter().zip(nbr).enumerate() {
+        let o = om(b);
+        if o != 0.0 {
+            let wv = o * vol[j as usize];
+            s += wv * mat.elastic_energy(&h.state.stress);
+            w += wv;
+        }
+    }
+    if w > 0.0 { vol[i] * s / w } else { 0.0 }
 }
 
 impl<D: DamageModel> RkBa<D> {
@@ -429,7 +459,35 @@ impl<D: DamageModel> RkBa<D> {
                 .collect(),
             rev,
             offsets: bonds.offsets.clone(),
+            released: vec![0.0; n],
         }
+    }
+
+    /// Books the strain energy that this step's bond damage took from the rows it touched
+    /// (issue 20): at the stresses and positions of the step, the row's energy
+    /// ([`row_energy`]) with the influences before the damage (this step's ω) less that with
+    /// the influences after it (W renormalised, as the next gradient pass forms it) is
+    /// released, so strain energy + released energy is unchanged by damage. The energy is
+    /// a family average: a bond less loaded than its family's average takes less than its
+    /// share with it, and such an event releases a negative amount (the remaining bonds'
+    /// weight grows). Runs only on a step whose damage changed an influence.
+    fn release(&mut self, vol: &[f64], nbr: &[u32]) {
+        let (mat, omega, offsets) = (self.material, &self.omega, &self.offsets);
+        par_rows(
+            offsets,
+            &mut self.released,
+            &mut self.hist,
+            &|i, rel: &mut f64, hrow| {
+                let r = offsets[i]..offsets[i + 1];
+                let (om0, nb) = (&omega[r.clone()], &nbr[r]);
+                if hrow.iter().zip(om0).all(|(h, &w)| h.om == w) {
+                    return;
+                }
+                let before = row_energy(&mat, vol, i, nb, hrow, |b| om0[b]);
+                let after = row_energy(&mat, vol, i, nb, hrow, |b| hrow[b].om);
+                *rel += before - after;
+            },
+        );
     }
 
     /// The first particle whose moment matrix M (A.7) is singular in the reference
@@ -488,11 +546,14 @@ impl<D: DamageModel> PdModel for RkBa<D> {
         //    and z_i (A.14).
         let (offsets, nbr, inv_len) = (&bonds.offsets, &bonds.nbr, &bonds.inv_len);
         let (point, omega, mat, damage) = (&self.point, &self.omega, self.material, &self.damage);
+        // rows whose damage changed an influence this step (see `release`)
+        let damaged = AtomicU64::new(0);
         par_rows(offsets, &mut self.z, &mut self.hist, &|i, zi, hrow| {
             let r = offsets[i]..offsets[i + 1];
             let pi = &point[i];
             let (p, v) = (k.pos[i], k.vel[i]);
             let mut z = [[0.0; 3]; 3];
+            let mut changed = false;
             for ((h, &j), (&om0, &il)) in hrow
                 .iter_mut()
                 .zip(&nbr[r.clone()])
@@ -508,6 +569,7 @@ impl<D: DamageModel> PdModel for RkBa<D> {
                         h.wd = 0.0;
                     }
                     h.om = 0.0;
+                    changed |= om0 != 0.0;
                     continue;
                 }
                 let j = j as usize;
@@ -515,10 +577,11 @@ impl<D: DamageModel> PdModel for RkBa<D> {
                 if !pj.active {
                     h.wd = 0.0;
                     h.om = 0.0;
+                    changed = true;
                     continue;
                 }
-                let x = sub(&k.pos[j], &p);
-                let vv = sub(&k.vel[j], &v);
+                let x: [f64; 3] = (vec3(&k.pos[j]) - vec3(&p)).into();
+                let vv = vec3(&k.vel[j]) - vec3(&v);
                 let x2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
                 if dt > 0.0 {
                     // (A.11): L_b = L̄ + (v − L̄ x) xᵀ/|x|²
@@ -563,6 +626,7 @@ impl<D: DamageModel> PdModel for RkBa<D> {
                 let om = if wd < h.wd { om0 * (wd / h.wd) } else { om0 };
                 h.wd = wd;
                 h.om = om;
+                changed |= om != om0;
                 if om == 0.0 {
                     continue;
                 }
@@ -578,7 +642,13 @@ impl<D: DamageModel> PdModel for RkBa<D> {
                 }
             }
             *zi = z;
+            if changed {
+                damaged.fetch_add(1, Ordering::Relaxed);
+            }
         });
+        if damaged.into_inner() > 0 {
+            self.release(k.vol, nbr);
+        }
         // 3. Force density f_i = Σ_j (T_ij − T_ji) V_j with T of (A.13).
         let (point, z, phi, hist, rev) = (&self.point, &self.z, &self.phi, &self.hist, &self.rev);
         super::family::par_points(f, &|i, fi: &mut [f64; 3]| {
@@ -591,7 +661,7 @@ impl<D: DamageModel> PdModel for RkBa<D> {
                     continue;
                 }
                 let j = nbr[b] as usize;
-                let x = sub(&k.pos[j], &p);
+                let x: [f64; 3] = (vec3(&k.pos[j]) - vec3(&p)).into();
                 let x2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
                 let s = mechanics::j2::to_matrix(&h.state.stress);
                 let c = h.om * (1.0 / wi + 1.0 / point[j].wbar) / x2;
@@ -633,24 +703,22 @@ impl<D: DamageModel> PdModel for RkBa<D> {
     /// ½ σ_b : C⁻¹ : σ_b averaged over each family with the normalised weight α = ω/ω̄_i
     /// of seed 000 eq. (15)–(18) (Σ_j α V_j = 1), the internal energy whose rate is the
     /// bond-associated stress power α σ_b : L_b of eq. (19), less the plastic work.
+    /// ω̄_i = Σ_j ω V_j is formed from the influences after the last damage update (equal to
+    /// the gradient pass's ω̄ where nothing broke), so the energy of a family that lost a
+    /// bond is its renormalised average at once (see [`RkBa::release`]).
     fn strain_energy(&mut self, k: &Kinematics, bonds: &Bonds) -> f64 {
-        let (mat, hist, point) = (self.material, &self.hist, &self.point);
+        let (mat, hist) = (self.material, &self.hist);
         let mut e = 0.0;
         for i in 0..bonds.particles() {
-            let wbar = point[i].wbar;
-            if !(point[i].active && wbar > 0.0) {
-                continue;
-            }
-            let mut s = 0.0;
-            for b in bonds.offsets[i]..bonds.offsets[i + 1] {
-                let h = &hist[b];
-                if h.om != 0.0 {
-                    s += h.om * k.vol[bonds.nbr[b] as usize] * mat.elastic_energy(&h.state.stress);
-                }
-            }
-            e += k.vol[i] * s / wbar;
+            let r = bonds.offsets[i]..bonds.offsets[i + 1];
+            let hrow = &hist[r.clone()];
+            e += row_energy(&mat, k.vol, i, &bonds.nbr[r], hrow, |b| hrow[b].om);
         }
         e
+    }
+
+    fn fracture_energy(&self) -> f64 {
+        self.released.iter().sum()
     }
 
     fn plastic_work(&self, vol: &[f64]) -> f64 {
@@ -676,6 +744,7 @@ impl<D: DamageModel> PdModel for RkBa<D> {
         super::checkpoint::put_j2(w, &st);
         w.f64s(self.hist.iter().map(|h| h.wd));
         w.f64s(self.hist.iter().map(|h| h.plastic_work));
+        w.f64s(self.released.iter().copied());
     }
 
     fn load_state(&mut self, r: &mut super::checkpoint::Reader) -> Result<(), String> {
@@ -683,6 +752,7 @@ impl<D: DamageModel> PdModel for RkBa<D> {
         super::checkpoint::get_j2(r, &mut st, "bond J2 states")?;
         let wd = r.f64s(self.hist.len(), "bond damage")?;
         let wp = r.f64s(self.hist.len(), "bond plastic work")?;
+        self.released = r.f64s(self.released.len(), "released bond energy")?;
         for (((h, s), d), p) in self.hist.iter_mut().zip(st).zip(wd).zip(wp) {
             h.state = s;
             h.wd = d;

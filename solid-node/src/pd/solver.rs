@@ -24,8 +24,9 @@ use super::rk_ba::RkBa;
 use mechanics::damage::{
     BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain, NoDamage,
 };
-use mechanics::gpu::{GpuContext, PrecisionRequest};
+use mechanics::gpu::GpuContext;
 use mechanics::j2::J2Material;
+use node_kit::device::Device;
 use node_kit::vtk::{self, Arrays, Frame};
 use protocol::{
     Binding, CouplingKind, InterfaceInfo, InterfaceMesh, NodeDescription, Role, Solver,
@@ -50,7 +51,7 @@ fn default_rk_order() -> usize {
 }
 
 /// The parameter table of a peridynamic node (`[nodes.X.params]`).
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PdParams {
     /// "3d", "plane_stress" or "plane_strain".
@@ -64,13 +65,17 @@ pub struct PdParams {
     pub horizon: f64,
     /// Mass density ρ (kg/m³).
     pub density: f64,
+    /// Young's modulus E (Pa).
     pub young: f64,
+    /// Poisson's ratio ν (pd-bond: 1/4 in 3-D and plane strain, 1/3 in plane stress).
     pub poisson: f64,
-    /// Initial yield stress; absent = elastic.
+    /// Initial yield stress (Pa); absent = elastic.
     #[serde(default)]
     pub yield_stress: Option<f64>,
+    /// Linear isotropic hardening modulus H_iso (Pa) of the J2 plasticity.
     #[serde(default)]
     pub iso_hardening: f64,
+    /// Linear kinematic hardening modulus H_kin (Pa) of the J2 plasticity.
     #[serde(default)]
     pub kin_hardening: f64,
     /// G of seed 001 eq. (186).
@@ -82,17 +87,26 @@ pub struct PdParams {
     /// Safety factor on the stable step.
     #[serde(default = "default_cfl")]
     pub cfl: f64,
+    /// Bond breaking: `{ kind = "critical_stretch", critical_stretch = … }` and the others
+    /// below; absent: no damage.
     #[serde(default)]
     pub damage: Option<DamageParams>,
+    /// The shapes filled with particles on the lattice.
     pub bodies: Vec<Shape>,
+    /// Shapes cut out of the bodies.
     #[serde(default)]
     pub holes: Vec<Shape>,
+    /// Initial velocity (m/s) of the particles in a region.
     #[serde(default)]
     pub initial_velocity: Vec<RegionVelocity>,
+    /// Velocity (m/s) held by the particles in a region for the whole run (a support or a
+    /// driven grip).
     #[serde(default)]
     pub prescribed_velocity: Vec<RegionVelocity>,
+    /// A pressure pulse on the face of a round hole.
     #[serde(default)]
     pub pressure_pulse: Option<PressurePulse>,
+    /// Coupling interfaces: named sets of particles.
     #[serde(default)]
     pub interfaces: Vec<InterfaceParams>,
     /// Smallest connected component (particles) counted in the `fragments` report scalar;
@@ -134,28 +148,37 @@ pub struct FirstDamage {
     pub radius: [f64; 2],
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum DamageParams {
     /// No damage (a struct variant, so that a key given with it is refused: serde ignores
     /// extra keys on a unit variant of an internally tagged enum).
     None {},
+    /// A bond breaks when its stretch exceeds `critical_stretch`.
     CriticalStretch {
+        /// Critical bond stretch s₀ (1).
         critical_stretch: f64,
     },
+    /// Bonds of a particle break when its von Mises stress exceeds `critical_stress`.
     VonMises {
+        /// Critical von Mises stress (Pa).
         critical_stress: f64,
     },
+    /// Damage grows with the equivalent plastic strain between the two values.
     PlasticStrain {
+        /// Equivalent plastic strain at which damage starts (1).
         eps_threshold: f64,
+        /// Equivalent plastic strain at which bonds are fully broken (1).
         eps_critical: f64,
     },
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct RegionVelocity {
+    /// The particles inside this shape.
     pub region: Shape,
+    /// Velocity (m/s).
     pub velocity: [f64; 3],
 }
 
@@ -164,13 +187,15 @@ pub struct RegionVelocity {
 /// `peak` over `rise`, then falls linearly to 0 at `duration` (`rise` = 0: a step down-ramp).
 /// Applied as forces p·A·n on the particles of the first lattice layer outside the face,
 /// A = Δx·h (2-D) or Δx² (3-D) of face per particle, n the outward radial direction.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PressurePulse {
     /// Only "inner" (the face of the hole of radius `inner_radius`).
     #[serde(default = "default_surface")]
     pub surface: String,
+    /// A point of the hole's axis (m).
     pub center: [f64; 3],
+    /// Radius of the hole (m).
     pub inner_radius: f64,
     /// Peak pressure (Pa).
     pub peak: f64,
@@ -198,13 +223,15 @@ impl PressurePulse {
     }
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct InterfaceParams {
+    /// The interface's name (what a coupling's `driver`/`responder` names after the node).
     pub name: String,
     /// "all" or "surface"; restricted to `region` when given.
     #[serde(default = "default_select")]
     pub select: String,
+    /// Only the particles inside this shape.
     #[serde(default)]
     pub region: Option<Shape>,
 }
@@ -288,34 +315,10 @@ impl PdSolver {
             }
         };
         let three_d = dim.three_d();
-        let on_gpu = match p.device.as_deref() {
-            None | Some("cpu") => false,
-            Some("gpu") => {
-                gpu_supports(model, dim, &p).map_err(|r| SolverError::config("device", r))?;
-                true
-            }
-            Some(other) => {
-                return cfg(
-                    "device",
-                    format!("must be \"cpu\" or \"gpu\", got \"{other}\""),
-                );
-            }
-        };
-        match p.precision.as_deref() {
-            None | Some("f64") => {}
-            Some("f32") if on_gpu => {}
-            Some("f32") => {
-                return cfg(
-                    "precision",
-                    "\"f32\" applies to device = \"gpu\" only (the CPU path is f64)",
-                );
-            }
-            Some(other) => {
-                return cfg(
-                    "precision",
-                    format!("must be \"f64\" or \"f32\", got \"{other}\""),
-                );
-            }
+        let target = Device::parse(p.device.as_deref(), p.precision.as_deref())?;
+        let on_gpu = target.is_gpu();
+        if on_gpu {
+            gpu_supports(model, dim, &p).map_err(|r| SolverError::config("device", r))?;
         }
         if !(p.spacing.is_finite() && p.spacing > 0.0) {
             return cfg("spacing", format!("must be > 0, got {}", p.spacing));
@@ -683,7 +686,18 @@ impl PdSolver {
                 .collect();
             gather.sort_unstable();
             gather.dedup();
-            Some(device_body(&model_name, dim, &p, material, &body, &gather)?)
+            match target.open(&format!("{model_name} body"))? {
+                Some(ctx) => Some(device_body(
+                    ctx,
+                    &model_name,
+                    dim,
+                    &p,
+                    material,
+                    &body,
+                    &gather,
+                )?),
+                None => None,
+            }
         } else {
             None
         };
@@ -838,11 +852,13 @@ impl PdSolver {
     /// and energy released by broken bonds since the start (the last two dissipated; the
     /// coordinator's balance counts all three, see `wire::DISSIPATED_SCALARS`).
     /// On the device path the host body is not up to date between windows (only the
-    /// interface and support particles come back), so nothing is reported there (zeros;
-    /// see [`Solver::warnings`]).
+    /// interface and support particles come back): the strain energy and plastic work are
+    /// reduced on the device with the window report (gpu.rs `energy` and `report`), and no
+    /// bond breaks there (damage is refused at set-up).
     pub fn energies(&mut self) -> (f64, f64, f64) {
-        if self.device.is_some() {
-            return (0.0, 0.0, 0.0);
+        if let Some(dev) = &self.device {
+            let r = dev.last_report();
+            return (r.strain_energy, r.plastic_work, 0.0);
         }
         let b = &mut self.body;
         let k = super::model::Kinematics {
@@ -903,8 +919,9 @@ fn gpu_supports(model: &str, dim: Dim, p: &PdParams) -> Result<(), String> {
     Ok(())
 }
 
-/// The device copy of a freshly built `body` (issue 8); no adapter is a config error.
+/// The device copy of a freshly built `body` on `ctx` (issue 8).
 fn device_body(
+    ctx: Arc<GpuContext>,
     model: &str,
     dim: Dim,
     p: &PdParams,
@@ -913,12 +930,6 @@ fn device_body(
     gather: &[usize],
 ) -> SolverResult<DeviceBody> {
     let bad = |e: String| SolverError::config("device", format!("device = \"gpu\": {e}"));
-    let req = match p.precision.as_deref() {
-        Some("f32") => PrecisionRequest::ForceF32,
-        _ => PrecisionRequest::Best,
-    };
-    let ctx = GpuContext::with_precision(req).map_err(|e| bad(e.to_string()))?;
-    let ctx = Arc::new(ctx);
     // the arguments the body's own model was built with (PdSolver::new)
     let rest = vec![[0.0; 3]; body.len()];
     let k = super::model::Kinematics {
@@ -949,16 +960,12 @@ fn device_body(
         other => return Err(bad(format!("no device kernels for {other}"))),
     }
     .map_err(|e| bad(e.to_string()))?;
-    tracing::info!("{model} body on the GPU: {}", dev.describe());
     let (now, before) = dev.window_bytes();
     tracing::info!(
         "{model} on the GPU: {now} bytes read back per window ({} particles, {} gathered; the full state would be {before} bytes)",
         body.len(),
         gather.len()
     );
-    if let Some(w) = dev.warning() {
-        tracing::warn!("{w}");
-    }
     Ok(dev)
 }
 
@@ -1033,11 +1040,7 @@ impl Solver for PdSolver {
         let Some(dev) = &self.device else {
             return Vec::new();
         };
-        let mut w: Vec<String> = dev.warning().map(|w| w.to_string()).into_iter().collect();
-        w.push(
-            "device = \"gpu\" reports no strain energy, plastic work or fracture energy (the device path has no energy kernel): this node's energy balance reads its strain energy as lost; use device = \"cpu\" for an energy audit".into(),
-        );
-        w
+        dev.warning().map(|w| w.to_string()).into_iter().collect()
     }
 
     fn describe(&self) -> NodeDescription {
@@ -1469,11 +1472,15 @@ impl Solver for PdSolver {
             ],
         };
         w.f64s(fd.into_iter());
-        match snap.as_ref().and_then(|s| s.states.as_ref()) {
-            // pd-correspondence on the device: its J2 states, in the model's own format
-            Some(states) => {
+        match snap
+            .as_ref()
+            .and_then(|s| s.states.as_ref().zip(s.plastic_work.as_ref()))
+        {
+            // pd-correspondence on the device: its J2 states, plastic work and released bond
+            // energy (none: no damage on the device), in the model's own format
+            Some((states, plastic_work)) => {
                 super::checkpoint::put_j2(&mut w, states);
-                // the plastic work the model's format carries next (not tracked on the device)
+                w.f64s(plastic_work.iter().copied());
                 w.f64s(std::iter::repeat_n(0.0, states.len()));
             }
             None => b.model.save_state(&mut w),

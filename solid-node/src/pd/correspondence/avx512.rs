@@ -126,7 +126,7 @@ pub fn family_sums(i: usize, p: &Packed, nbr: &[u32], intact: &[f64]) -> FamilyS
 
 /// The force pass over the block of particles `lo..lo + f.len()` (rows' intact fractions in
 /// `intact`) for a damage law that breaks a bond for good when |y|²/|ξ|² > `lim` = (1 + s0)²
-/// (∞: never), as the scalar `force_block_body` does it.
+/// (∞: never), as the scalar `force_block_body` does it. Returns how many bonds broke.
 #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,avx")]
 pub fn force_block(
     lo: usize,
@@ -138,8 +138,9 @@ pub fn force_block(
     p: &Packed,
     lim: f64,
     inv_h: f64,
-) {
+) -> u32 {
     let base = offsets[lo];
+    let mut broke = 0;
     let zero = _mm512_setzero_pd();
     let neg_zero = _mm512_set1_pd(-0.0);
     let (lim, inv_h) = (_mm512_set1_pd(lim), _mm512_set1_pd(inv_h));
@@ -198,6 +199,7 @@ pub fn force_block(
             // the scalar loop skips ω = 0, and breaks (ω = 0) or keeps ω otherwise
             let nonzero = _mm512_cmp_pd_mask::<_CMP_NEQ_UQ>(om, zero) & lanes;
             let breaks = nonzero & broken;
+            broke += breaks.count_ones();
             if breaks != 0 {
                 // SAFETY: only lanes set in `breaks` ⊆ the first n are written, and
                 // om_row[start..start + n] is in bounds (n ≤ len − start).
@@ -227,4 +229,5 @@ pub fn force_block(
         }
         *fi = [reduce(acc[0]), reduce(acc[1]), reduce(acc[2])];
     }
+    broke
 }

@@ -1,0 +1,239 @@
+//! `cosim params` (issue 21): every model's parameters listed from the JSON Schema its node
+//! derives from the types it decodes them into. The schema covers every parameter the
+//! example cases use, refuses what validation refuses (unknown keys), and the copies
+//! published for editors in docs/schema/ are the ones the nodes print.
+
+use cosim_tests::*;
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::process::Command;
+
+const MODELS: [&str; 8] = [
+    "bar-1d",
+    "fem-2d",
+    "pd-bond",
+    "pd-correspondence",
+    "pd-rk-ba",
+    "euler",
+    "blt-shell",
+    "mc-spg",
+];
+
+fn cosim(args: &[&str]) -> (i32, String, String) {
+    let o = Command::new(bin("cosim")).args(args).output().unwrap();
+    (
+        o.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+/// The key paths the listing of `model` shows (variants of tagged tables as `a[kind = "x"].b`,
+/// written here without the variant part).
+fn keys(model: &str) -> Vec<String> {
+    let (code, out, err) = cosim(&["params", model]);
+    assert_eq!(code, 0, "{model}: {err}");
+    let mut keys = Vec::new();
+    for k in out
+        .lines()
+        .skip(2)
+        .filter_map(|l| l.split_whitespace().next())
+    {
+        let mut s = String::new();
+        let mut tag = String::new();
+        let mut depth = 0;
+        for c in k.chars() {
+            match c {
+                '[' => depth += 1,
+                ']' => {
+                    depth -= 1;
+                    // the tag key of a variant (`bodies[shape="box"]` → `bodies.shape`)
+                    if let Some((key, _)) = tag.split_once('=') {
+                        keys.push(format!("{s}.{key}"));
+                    }
+                    tag.clear();
+                }
+                _ if depth == 0 => s.push(c),
+                _ => tag.push(c),
+            }
+        }
+        keys.push(s);
+    }
+    keys
+}
+
+/// Every key path of a TOML table (tables walked into, arrays of tables by their keys).
+fn paths(t: &toml::Table, prefix: &str, out: &mut Vec<String>) {
+    for (k, v) in t {
+        let key = if prefix.is_empty() {
+            k.clone()
+        } else {
+            format!("{prefix}.{k}")
+        };
+        out.push(key.clone());
+        match v {
+            toml::Value::Table(inner) => paths(inner, &key, out),
+            toml::Value::Array(a) => {
+                for x in a {
+                    if let toml::Value::Table(inner) = x {
+                        paths(inner, &key, out);
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+#[test]
+fn every_model_is_listed_with_its_node() {
+    let (code, out, err) = cosim(&["params"]);
+    assert_eq!(code, 0, "{err}");
+    for m in MODELS {
+        assert!(out.lines().any(|l| l.starts_with(m)), "{m} missing:\n{out}");
+    }
+    let (code, _, err) = cosim(&["params", "no-such-model"]);
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("no-such-model") && err.contains("pd-bond"),
+        "{err}"
+    );
+}
+
+#[test]
+fn the_listing_gives_types_defaults_and_meanings() {
+    let (code, out, err) = cosim(&["params", "bar-1d"]);
+    assert_eq!(code, 0, "{err}");
+    println!("{out}");
+    let line = |k: &str| {
+        out.lines()
+            .find(|l| l.split_whitespace().next() == Some(k))
+            .unwrap_or_else(|| panic!("no {k}:\n{out}"))
+            .to_string()
+    };
+    let young = line("young");
+    assert!(
+        young.contains("number") && young.contains("required") && young.contains("(Pa)"),
+        "{young}"
+    );
+    let fixed = line("fixed");
+    assert!(fixed.contains("\"left\""), "{fixed}");
+    let elements = line("elements");
+    assert!(elements.contains("integer"), "{elements}");
+    // a nested table's keys are listed under it
+    assert!(
+        out.contains("integrator.rho_inf") || out.contains("integrator.design"),
+        "{out}"
+    );
+}
+
+/// Every key the listing shows has a meaning (a doc comment on the field or its type),
+/// except the entries of the user's own names (`materials.<name>`), which their table's row
+/// explains.
+#[test]
+fn every_parameter_is_explained() {
+    let mut missing = Vec::new();
+    let mut rows = 0;
+    for m in MODELS {
+        let (code, out, err) = cosim(&["params", m, "--json"]);
+        assert_eq!(code, 0, "{m}: {err}");
+        let schema: Value = serde_json::from_str(&out).unwrap();
+        for r in coordinator::params::rows(&schema) {
+            rows += 1;
+            if r.meaning.is_empty() && !r.key.ends_with("<name>") {
+                missing.push(format!("{m}: {}", r.key));
+            }
+        }
+    }
+    println!("{rows} rows");
+    assert!(rows > 250, "{rows}");
+    assert!(
+        missing.is_empty(),
+        "keys without a meaning:\n{}",
+        missing.join("\n")
+    );
+}
+
+/// Every parameter key of every node of every example case is in its model's schema.
+#[test]
+fn the_schemas_cover_every_parameter_the_examples_use() {
+    let mut known: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    let mut checked = 0;
+    let dir = workspace_root().join("examples");
+    let mut cases: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    cases.sort();
+    for case in &cases {
+        let text = std::fs::read_to_string(case).unwrap();
+        let doc: toml::Table = toml::from_str(&text).unwrap();
+        let Some(nodes) = doc.get("nodes").and_then(|n| n.as_table()) else {
+            continue;
+        };
+        for (name, node) in nodes {
+            let (Some(model), Some(params)) = (
+                node.get("model").and_then(|m| m.as_str()),
+                node.get("params").and_then(|p| p.as_table()),
+            ) else {
+                continue;
+            };
+            if !MODELS.contains(&model) {
+                continue;
+            }
+            let list = known
+                .entry(model.to_string())
+                .or_insert_with(|| keys(model));
+            let mut used = Vec::new();
+            paths(params, "", &mut used);
+            for k in used {
+                // `<name>` in a listed key stands for any name of the user's (materials,
+                // interfaces)
+                let matches = |l: &String| {
+                    let (a, b): (Vec<&str>, Vec<&str>) =
+                        (l.split('.').collect(), k.split('.').collect());
+                    a.len() == b.len() && a.iter().zip(&b).all(|(x, y)| x == y || *x == "<name>")
+                };
+                assert!(
+                    list.iter().any(matches),
+                    "{}: nodes.{name}.params.{k} ({model}) is not in `cosim params {model}`",
+                    case.display()
+                );
+                checked += 1;
+            }
+        }
+    }
+    println!(
+        "{checked} parameter keys of {} cases checked against {} models",
+        cases.len(),
+        known.len()
+    );
+    assert!(checked > 200, "{checked}");
+    assert!(known.len() >= 6, "{known:?}");
+}
+
+/// docs/schema/MODEL.json is what `cosim params MODEL --json` prints, and each refuses
+/// unknown keys at its top level as validation does.
+#[test]
+fn the_published_schemas_are_current() {
+    for m in MODELS {
+        let (code, out, err) = cosim(&["params", m, "--json"]);
+        assert_eq!(code, 0, "{m}: {err}");
+        let live: Value = serde_json::from_str(&out).unwrap();
+        assert_eq!(live["additionalProperties"], Value::Bool(false), "{m}");
+        let path = workspace_root()
+            .join("docs/schema")
+            .join(format!("{m}.json"));
+        let published: Value = std::fs::read_to_string(&path)
+            .ok()
+            .and_then(|t| serde_json::from_str(&t).ok())
+            .unwrap_or(Value::Null);
+        assert!(
+            published == live,
+            "{} is out of date: ./target/release/cosim params {m} --json > {}",
+            path.display(),
+            path.display()
+        );
+    }
+}
