@@ -19,7 +19,8 @@ pub enum Phase {
     Blocked,
     /// Decoding what arrived and acting on it (Done, Heartbeat, lagrange inputs).
     Handle,
-    /// Writing the nodes' messages into the recording (MCAP, before compression).
+    /// Handing the nodes' messages to the recorder thread (a copy into a pooled buffer; the
+    /// MCAP writing and compression happen on that thread).
     RecordMessages,
     /// Liveness checks between receives (child status, heartbeats, stalls).
     Health,
@@ -27,7 +28,8 @@ pub enum Phase {
     Audit,
     /// The per-window JSON records (balance, node reports, multipliers) and plot histories.
     Reports,
-    /// Closing and compressing recording chunks (`flush`), checkpoints, the progress line.
+    /// Asking the recorder thread to close a chunk, checkpoints (which wait for the
+    /// recording to reach the disk), the progress line.
     Flush,
 }
 

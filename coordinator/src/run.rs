@@ -15,7 +15,7 @@
 use crate::config::{self, Case};
 use crate::profile::{Phase, Profile};
 use crate::progress::Progress;
-use crate::record::{self, Recorder};
+use crate::record::{self, Recorder, RecorderThread};
 use anyhow::Context;
 use protocol::codec::{self, encode_into};
 use protocol::stop;
@@ -151,7 +151,8 @@ struct Coord<'a> {
     t: Box<dyn Transport>,
     topics: Vec<(String, Topic)>,
     nodes: Vec<NodeRt>,
-    rec: Recorder,
+    /// The recorder, on its own thread: recording never holds the window loop up.
+    rec: RecorderThread,
     buf: Vec<u8>,
     seq: u64,
     sim_t: f64,
@@ -175,6 +176,20 @@ struct Coord<'a> {
     last_recv_ns: (u64, u64),
     /// [`Coord::wait_all`]'s list of the nodes still awaited.
     pending: Vec<usize>,
+    /// When [`Coord::check_health`] last ran in [`Coord::wait_all`].
+    health_at: Instant,
+}
+
+/// How often [`Coord::wait_all`] checks the nodes' health while messages keep arriving.
+const HEALTH_EVERY: Duration = Duration::from_millis(2);
+
+/// A message as [`Coord::pump_one`] received it.
+enum Got {
+    /// Decoded in full.
+    Full(Result<Envelope, codec::CodecError>),
+    /// Peer data checked in place (no lagrange hub reads it): whether it came from the topic's
+    /// node and run, else the sender and run it claims.
+    Fields(Result<(), (String, String)>),
 }
 
 /// What a lagrange hub takes from a side.
@@ -423,33 +438,50 @@ impl<'a> Coord<'a> {
     }
 
     fn pump_inner(&mut self, timeout: Duration) -> Result<bool, Fault> {
-        let mut got: Option<(TopicId, Result<Envelope, codec::CodecError>)> = None;
+        let mut got: Option<(TopicId, Got)> = None;
         let rec = &mut self.rec;
         let topics = &self.topics;
         let sim_t = self.sim_t;
         let every = self.case.run.record_every;
-        let window = self.window;
+        // Peer data nobody here consumes (no lagrange hub) is checked and recorded where it
+        // lies: a large field is never copied out of the transport's buffer.
+        let in_place = self.hubs.is_empty();
+        let (run, nodes) = (self.run.as_str(), &self.nodes);
         let entered = Instant::now();
         let (mut in_cb, mut recorded) = (0u64, 0u64);
         let r = self.t.recv(timeout, &mut |id, bytes| {
             let cb = Instant::now();
-            let dec = codec::decode(bytes);
-            let keep = match &dec {
-                Ok(Envelope {
-                    message: Message::Fields(f),
-                    ..
-                }) => every <= 1 || f.window % every == 0,
-                Ok(Envelope {
-                    message: Message::Heartbeat(_),
-                    ..
-                }) => true,
-                _ => true,
-            };
+            let (dec, fields_window) =
+                if in_place && codec::header(bytes).is_ok_and(|h| h.kind == codec::FIELDS_KIND) {
+                    match codec::decode_fields_view(bytes) {
+                        Ok(v) => {
+                            let owner = topics.get(id).map(|(_, t)| match t {
+                                Topic::Up(i) | Topic::Data(i) => *i,
+                            });
+                            let claimed = (v.run == run
+                                && owner.is_some_and(|i| nodes[i].name == v.sender))
+                            .then_some(())
+                            .ok_or_else(|| (v.sender.to_string(), v.run.to_string()));
+                            (Got::Fields(claimed), Some(v.window))
+                        }
+                        Err(e) => (Got::Full(Err(e)), None),
+                    }
+                } else {
+                    let dec = codec::decode(bytes);
+                    let w = match &dec {
+                        Ok(Envelope {
+                            message: Message::Fields(f),
+                            ..
+                        }) => Some(f.window),
+                        _ => None,
+                    };
+                    (Got::Full(dec), w)
+                };
+            let keep = fields_window.is_none_or(|w| every <= 1 || w % every == 0);
             let r0 = Instant::now();
             if keep && let Some((name, _)) = topics.get(id) {
                 let _ = rec.message(name, sim_t, bytes);
             }
-            let _ = window;
             got = Some((id, dec));
             recorded += r0.elapsed().as_nanos() as u64;
             in_cb += cb.elapsed().as_nanos() as u64;
@@ -467,8 +499,25 @@ impl<'a> Coord<'a> {
         let Some((id, dec)) = got else {
             return Ok(false);
         };
-        let (tname, owner) = match &self.topics[id] {
-            (n, Topic::Up(i)) | (n, Topic::Data(i)) => (n.clone(), *i),
+        let owner = match self.topics[id].1 {
+            Topic::Up(i) | Topic::Data(i) => i,
+        };
+        let tname = self.topics[id].0.as_str();
+        let dec = match dec {
+            Got::Full(dec) => dec,
+            Got::Fields(claimed) => {
+                let n = &mut self.nodes[owner];
+                if let Err((sender, run)) = claimed {
+                    return Err(Fault {
+                        node: n.name.clone(),
+                        reason: format!(
+                            "message on {tname} claims sender '{sender}' of run '{run}'"
+                        ),
+                    });
+                }
+                n.last_seen = Instant::now();
+                return Ok(true);
+            }
         };
         let env = dec.map_err(|e| Fault {
             node: self.nodes[owner].name.clone(),
@@ -654,7 +703,12 @@ impl<'a> Coord<'a> {
             }
             let t = Instant::now();
             self.stop_now()?;
-            self.check_health(if beating { &pending } else { &[] })?;
+            // Children, heartbeats and stalls are looked at every few milliseconds, not after
+            // every message (a window brings several): faults are judged in seconds.
+            if t.duration_since(self.health_at) >= HEALTH_EVERY {
+                self.check_health(if beating { &pending } else { &[] })?;
+                self.health_at = t;
+            }
             self.prof.lap(Phase::Health, t);
             if let Some((l, why)) = limit
                 && start.elapsed() > l
@@ -891,6 +945,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
     // On disk at once: a cosim killed before its first window leaves a recording that still
     // names its case (a chunk closes only on a flush).
     rec.flush()?;
+    let rec = RecorderThread::spawn(rec)?;
     let kind = case.run.transport;
     transport::cleanup(kind, &run_id);
     // What earlier runs whose processes are all gone left in shared memory (a killed cosim).
@@ -1004,6 +1059,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         prof: Profile::default(),
         last_recv_ns: (0, 0),
         pending: Vec::with_capacity(case.nodes.len()),
+        health_at: Instant::now(),
     };
     let started = Instant::now();
     let result = drive(&mut c, &out, &order, &listen, opts);
@@ -1035,8 +1091,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         hubs,
         ..
     } = c;
-    let (messages, bytes) = (rec.messages, rec.bytes);
-    rec.finish()?;
+    let (messages, bytes) = rec.finish()?;
     // Every port of this process goes before the sweep, which only runs once no participant
     // of the run is alive.
     drop(nodes);
@@ -1325,11 +1380,13 @@ fn send_window(
     let every = case.run.checkpoint_every;
     // The last window needs no checkpoint: the run ends there.
     let checkpoint = every > 0 && (k.is_multiple_of(every) || stop_after) && k < windows;
-    c.sim_t = t0;
+    // Log times never go back on a channel: with windows in flight the coordinator has
+    // already recorded messages of later windows.
+    c.sim_t = c.sim_t.max(t0);
     if decouple_due(c, decoupled, k, t0)? {
         active.retain(|&i| c.nodes[i].finished.is_none());
     }
-    c.sim_t = t1;
+    c.sim_t = c.sim_t.max(t1);
     let write_output =
         k == windows || (case.run.output_every > 0 && k.is_multiple_of(case.run.output_every));
     let sending = Instant::now();
@@ -1530,7 +1587,7 @@ fn drive(
             in_flight.push_back((sent + 1, ck));
             sent += 1;
         }
-        c.sim_t = t1;
+        c.sim_t = c.sim_t.max(t1);
         c.wait_all(&active, "Done", None, |n| n.done.is_some_and(|d| d >= k))?;
         let auditing = Instant::now();
         let checkpoint = in_flight.pop_front().is_some_and(|w| w.1);
