@@ -46,6 +46,23 @@ const INITIAL_SLICE: usize = 4096;
 /// of hanging the sender forever.
 pub const SEND_TIMEOUT: Duration = Duration::from_secs(30);
 
+/// How long `recv` polls for a message before it sleeps on its bell: `COSIM_SPIN_US`
+/// (microseconds, default [`SPIN_US`]; 0 sleeps at once). Polling spends a core while it
+/// lasts, so it pays only where a reply usually comes that soon (fine coupling windows).
+fn spin() -> Duration {
+    static SPIN: std::sync::OnceLock<Duration> = std::sync::OnceLock::new();
+    *SPIN.get_or_init(|| {
+        let us = std::env::var("COSIM_SPIN_US")
+            .ok()
+            .and_then(|v| v.trim().parse::<u64>().ok())
+            .unwrap_or(SPIN_US);
+        Duration::from_micros(us.min(10_000))
+    })
+}
+
+/// Default of `COSIM_SPIN_US`.
+pub const SPIN_US: u64 = 0;
+
 /// The file-name prefix of every shared-memory resource of `run`: `cx_<run>_`. Run ids are
 /// `[A-Za-z0-9_-]`, at most 32 characters; anything else is replaced by `_`.
 pub fn prefix(run: &str) -> String {
@@ -404,7 +421,11 @@ impl Transport for ShmTransport {
         timeout: Duration,
         f: &mut dyn FnMut(TopicId, &[u8]),
     ) -> Result<bool, TransportError> {
-        let deadline = Instant::now() + timeout;
+        let start = Instant::now();
+        let deadline = start + timeout;
+        // A reply that comes within the spin window is taken without sleeping on the bell
+        // (a sleep and a wake-up cost the kernel's scheduling latency each time).
+        let spin_until = start + spin().min(timeout);
         let n = self.subs.len();
         loop {
             // Round robin: start after the topic served last, so a busy topic cannot starve
@@ -428,6 +449,10 @@ impl Transport for ShmTransport {
             let now = Instant::now();
             if now >= deadline {
                 return Ok(false);
+            }
+            if now < spin_until {
+                std::hint::spin_loop();
+                continue;
             }
             // A bell rung after the scan above is still pending here, so nothing is missed.
             match self.bell.timed_wait(|_| {}, deadline - now) {
