@@ -659,7 +659,7 @@ mod tests {
         let path = dir.join("run.mcap");
         let mut rec = RecorderThread::spawn(Recorder::create(&path).unwrap()).unwrap();
         let n = 3 * QUEUE + 7;
-        let topic = |i: usize| if i % 3 == 0 { "a" } else { "b" };
+        let topic = |i: usize| if i.is_multiple_of(3) { "a" } else { "b" };
         for i in 0..n {
             rec.message(topic(i), i as f64 * 1e-9, &(i as u64).to_le_bytes())
                 .unwrap();
