@@ -2,8 +2,10 @@
 //! window costs a user end to end, with the coordinator, both nodes and the recorder in the
 //! loop. Two tables: the participant round trip (the Rust `echo` node drives, the responder is
 //! the same node in Rust, in Python on the `cosim` package, or in C on the participant
-//! library; 1 KiB each way) and the split bar's window on each transport, split into the
-//! nodes' compute and everything beyond it.
+//! library; 1 KiB each way) and the split bar's window on each transport, in lockstep and
+//! pipelined (`COSIM_WINDOWS_AHEAD` 1 and 2), split into the nodes' compute and everything
+//! beyond it, with a third table of where the window goes (the coordinator's phases from
+//! `summary.json` `window_breakdown`, each node's compute, coupling wait and idle time).
 //!
 //! A window's time is the wall-clock spacing of consecutive `/cosim/balance` records in the
 //! recording (the coordinator writes one when every node has reported the window done); the
@@ -50,6 +52,13 @@ pub struct WindowRow {
     /// Window-loop time per window beyond both nodes' compute (`window_loop_s / windows` −
     /// compute; the serial schedule runs the nodes one after the other).
     pub beyond_compute_us: Option<f64>,
+    /// Windows the coordinator lets run at once (`COSIM_WINDOWS_AHEAD`; 1 = lockstep), split
+    /// bar rows.
+    pub windows_ahead: Option<u64>,
+    /// Where the window's time goes, µs per window (mean over runs): the coordinator's
+    /// phases (`summary.json` `window_breakdown`), then each node's compute, coupling wait
+    /// and idle time; and the coordinator's allocations per window.
+    pub breakdown: Vec<(String, f64)>,
 }
 
 /// A row that could not be measured here, and why.
@@ -137,7 +146,7 @@ fn measure(
             let case = dir.join(format!("echo-{name}-{r}.toml"));
             std::fs::write(&case, echo_case(&rust, exe, size.echo_windows))?;
             let out = dir.join(format!("out-echo-{name}-{r}"));
-            let (dts, _) = run_case(cosim, &case, &out, &[], size.echo_windows)
+            let (dts, _) = run_case(cosim, &case, &out, &[], &[], size.echo_windows)
                 .with_context(|| format!("participant window, {name} responder"))?;
             times[i].extend(dts);
         }
@@ -158,6 +167,8 @@ fn measure(
             ratio_to_rust: None,
             compute_us: None,
             beyond_compute_us: None,
+            windows_ahead: None,
+            breakdown: Vec::new(),
         });
     }
     let base = rows[0].median_us;
@@ -169,29 +180,40 @@ fn measure(
     std::fs::write(&split, SPLIT_BAR)?;
     let window = split_bar_window()?;
     let end = format!("run.end_time={:e}", window * size.split_bar_windows as f64);
-    let transports = ["shm", "zenoh"];
+    // Each transport in lockstep (each Advance after the last window's audit, as before
+    // issue 22) and pipelined (the default).
+    let transports = [("shm", 1u64), ("shm", 2), ("zenoh", 1), ("zenoh", 2)];
     let mut times: Vec<Vec<f64>> = vec![Vec::new(); transports.len()];
     let mut compute = vec![0.0; transports.len()];
     let mut beyond = vec![0.0; transports.len()];
+    let mut parts: Vec<Vec<(String, f64)>> = vec![Vec::new(); transports.len()];
     for r in 0..size.runs {
-        for (i, t) in transports.iter().enumerate() {
-            let out = dir.join(format!("out-split-{t}-{r}"));
+        for (i, (t, ahead)) in transports.iter().enumerate() {
+            let out = dir.join(format!("out-split-{t}-{ahead}-{r}"));
             let tr = format!("run.transport=\"{t}\"");
+            let ahead_s = ahead.to_string();
             let (dts, summary) = run_case(
                 cosim,
                 &split,
                 &out,
                 &["--set", &end, "--set", &tr],
+                &[("COSIM_WINDOWS_AHEAD", &ahead_s)],
                 size.split_bar_windows,
             )
-            .with_context(|| format!("split bar on {t}"))?;
+            .with_context(|| format!("split bar on {t}, {ahead} window(s) ahead"))?;
             times[i].extend(dts);
             let (c, b) = compute_split(&summary)?;
             compute[i] += c / size.runs as f64;
             beyond[i] += b / size.runs as f64;
+            for (k, v) in breakdown(&summary)? {
+                match parts[i].iter_mut().find(|(n, _)| *n == k) {
+                    Some(p) => p.1 += v / size.runs as f64,
+                    None => parts[i].push((k, v / size.runs as f64)),
+                }
+            }
         }
     }
-    for (i, t) in transports.iter().enumerate() {
+    for (i, (t, ahead)) in transports.iter().enumerate() {
         let (median, p10, p90) = quantiles(&mut times[i]);
         rows.push(WindowRow {
             case: "split-bar".into(),
@@ -206,6 +228,8 @@ fn measure(
             ratio_to_rust: None,
             compute_us: Some(compute[i] * 1e6),
             beyond_compute_us: Some(beyond[i] * 1e6),
+            windows_ahead: Some(*ahead),
+            breakdown: std::mem::take(&mut parts[i]),
         });
     }
     Ok((rows, missing))
@@ -317,6 +341,7 @@ fn run_case(
     case: &Path,
     out: &Path,
     extra: &[&str],
+    env: &[(&str, &str)],
     windows: usize,
 ) -> anyhow::Result<(Vec<f64>, serde_json::Value)> {
     let o = Command::new(cosim)
@@ -326,6 +351,7 @@ fn run_case(
         .arg(out)
         .arg("--quiet")
         .args(extra)
+        .envs(env.iter().copied())
         .env("COSIM_LOG", "warn")
         .stdout(Stdio::null())
         .output()
@@ -369,17 +395,27 @@ fn balance_times(mcap: &Path) -> anyhow::Result<Vec<u64>> {
     Ok(t)
 }
 
+/// The summary's number `key`.
+fn number(summary: &serde_json::Value, key: &str) -> anyhow::Result<f64> {
+    summary[key]
+        .as_f64()
+        .ok_or_else(|| anyhow!("summary.json has no {key}"))
+}
+
+/// The summary's nodes.
+fn nodes(
+    summary: &serde_json::Value,
+) -> anyhow::Result<&serde_json::Map<String, serde_json::Value>> {
+    summary["nodes"]
+        .as_object()
+        .ok_or_else(|| anyhow!("summary.json has no nodes"))
+}
+
 /// (Both nodes' compute per window, window-loop time per window beyond it), in seconds.
 fn compute_split(summary: &serde_json::Value) -> anyhow::Result<(f64, f64)> {
-    let windows = summary["windows"]
-        .as_f64()
-        .ok_or_else(|| anyhow!("summary.json has no windows"))?;
-    let lp = summary["window_loop_s"]
-        .as_f64()
-        .ok_or_else(|| anyhow!("summary.json has no window_loop_s"))?;
-    let nodes = summary["nodes"]
-        .as_object()
-        .ok_or_else(|| anyhow!("summary.json has no nodes"))?;
+    let windows = number(summary, "windows")?;
+    let lp = number(summary, "window_loop_s")?;
+    let nodes = nodes(summary)?;
     let mut c = 0.0;
     for (name, n) in nodes {
         c += n["compute_s"]
@@ -387,6 +423,39 @@ fn compute_split(summary: &serde_json::Value) -> anyhow::Result<(f64, f64)> {
             .ok_or_else(|| anyhow!("summary.json: nodes.{name} has no compute_s"))?;
     }
     Ok((c / windows, (lp - c) / windows))
+}
+
+/// Where a window's time goes (µs per window): the coordinator's phases from the summary's
+/// `window_breakdown`, then each node's compute, coupling wait and idle time per window.
+fn breakdown(summary: &serde_json::Value) -> anyhow::Result<Vec<(String, f64)>> {
+    let b = summary["window_breakdown"]
+        .as_object()
+        .ok_or_else(|| anyhow!("summary.json has no window_breakdown"))?;
+    let mut out = Vec::new();
+    for (k, v) in b {
+        if k == "windows" {
+            continue;
+        }
+        let name = k.strip_suffix("_us").unwrap_or(k).to_string();
+        // allocations are absent (null) where the counting allocator is not installed
+        if let Some(x) = v.as_f64() {
+            out.push((name, x));
+        }
+    }
+    let windows = number(summary, "windows")?;
+    for (name, n) in nodes(summary)? {
+        for (key, label) in [
+            ("compute_s", "compute"),
+            ("coupling_wait_s", "coupling wait"),
+            ("idle_s", "idle"),
+        ] {
+            let s = n[key]
+                .as_f64()
+                .ok_or_else(|| anyhow!("summary.json: nodes.{name} has no {key}"))?;
+            out.push((format!("{name} {label}"), s / windows * 1e6));
+        }
+    }
+    Ok(out)
 }
 
 /// (median, p10, p90) of `x` (sorted in place); NaN when empty.
@@ -431,7 +500,7 @@ pub fn table(rows: &[WindowRow], missing: &[Missing], round_trip_1k: &[(String, 
     let _ = writeln!(
         s,
         "\nSplit bar window (examples/split_bar.toml, both nodes, serial, recording on):\n\n\
-         | transport | runs | windows | median µs | p10 µs | p90 µs | compute µs/window | beyond compute µs/window | raw round trip 1 KiB µs | beyond / (2 round trips) |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+         | transport | windows ahead | runs | windows | median µs | p10 µs | p90 µs | compute µs/window | beyond compute µs/window | raw round trip 1 KiB µs | beyond / (2 round trips) |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
     );
     for r in rows.iter().filter(|r| r.case == "split-bar") {
         let rt = round_trip_1k
@@ -441,8 +510,9 @@ pub fn table(rows: &[WindowRow], missing: &[Missing], round_trip_1k: &[(String, 
         let beyond = r.beyond_compute_us.unwrap_or(f64::NAN);
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} |",
+            "| {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} |",
             r.transport,
+            r.windows_ahead.map_or("–".into(), |a| a.to_string()),
             r.runs,
             r.windows,
             r.median_us,
@@ -453,6 +523,36 @@ pub fn table(rows: &[WindowRow], missing: &[Missing], round_trip_1k: &[(String, 
             rt.map_or("–".into(), |v| format!("{v:.1}")),
             rt.map_or("–".into(), |v| format!("{:.2}", beyond / (2.0 * v))),
         );
+    }
+    let split: Vec<&WindowRow> = rows.iter().filter(|r| r.case == "split-bar").collect();
+    if let Some(first) = split.first() {
+        let _ = writeln!(
+            s,
+            "\nWhere a split bar window goes (columns: transport × windows in flight, 1 = lockstep; \
+             µs per window, mean over runs; the coordinator's phases, \
+             then each node's compute, coupling wait and idle time; the serial chain overlaps \
+             them, so they do not add up to the window):\n"
+        );
+        let mut head = "| part |".to_string();
+        let mut rule = "|---|".to_string();
+        for r in &split {
+            let _ = write!(
+                head,
+                " {} × {} |",
+                r.transport,
+                r.windows_ahead.unwrap_or(1)
+            );
+            rule.push_str("---:|");
+        }
+        let _ = writeln!(s, "{head}\n{rule}");
+        for (name, _) in &first.breakdown {
+            let mut line = format!("| {} |", name.replace('_', " "));
+            for r in &split {
+                let v = r.breakdown.iter().find(|(n, _)| n == name).map(|p| p.1);
+                let _ = write!(line, " {} |", v.map_or("–".into(), |v| format!("{v:.1}")));
+            }
+            let _ = writeln!(s, "{line}");
+        }
     }
     s
 }

@@ -11,6 +11,7 @@ pub mod fields;
 pub mod lagrange;
 pub mod params;
 pub mod plot;
+pub mod profile;
 pub mod progress;
 pub mod record;
 pub mod replay;

@@ -2,6 +2,10 @@
 
 use clap::Parser;
 
+/// Counts the window loop's allocations for `summary.json` (`window_breakdown`).
+#[global_allocator]
+static ALLOC: coordinator::profile::CountingAlloc = coordinator::profile::CountingAlloc;
+
 fn main() {
     let cli = coordinator::cli::Cli::parse();
     if let Some(filter) = cli.log_filter() {

@@ -267,7 +267,7 @@ pub fn add_report(h: &mut Histories, node: &str, v: &serde_json::Value) {
     let q = h.entry(node.to_string()).or_default();
     for (k, val) in obj {
         match (k.as_str(), val) {
-            ("time" | "window" | "substeps" | "wall_s" | "coupling_wait_s" | "idle_s", _) => {}
+            (k, _) if SKIPPED.contains(&k) => {}
             (_, serde_json::Value::Number(n)) => {
                 if let Some(x) = n.as_f64() {
                     q.entry(k.clone()).or_default().push((t, x));
@@ -286,6 +286,70 @@ pub fn add_report(h: &mut Histories, node: &str, v: &serde_json::Value) {
         }
     }
 }
+
+/// [`add_report`] straight from a node's report of the window ending at `t` (as the
+/// coordinator records it, see `run::NodeReportDoc`), without building its JSON: each series
+/// is reserved for `windows` points when it first appears, so a run adds them without
+/// allocating.
+pub fn add_node_report(
+    h: &mut Histories,
+    node: &str,
+    t: f64,
+    r: &protocol::StepReport,
+    windows: usize,
+) {
+    if !h.contains_key(node) {
+        h.insert(node.to_string(), BTreeMap::new());
+    }
+    let Some(q) = h.get_mut(node) else { return };
+    let mut push = |k: &str, x: f64| {
+        // a NaN or infinite value is recorded as null, which add_report skips
+        if !x.is_finite() || SKIPPED.contains(&k) {
+            return;
+        }
+        match q.get_mut(k) {
+            Some(v) => v.push((t, x)),
+            None => {
+                let mut v = Vec::with_capacity(windows.max(1));
+                v.push((t, x));
+                q.insert(k.to_string(), v);
+            }
+        }
+    };
+    let shadowed = |k: &str| r.scalars.iter().any(|(n, _)| n == k);
+    for (k, x) in [
+        ("kinetic_energy", r.kinetic_energy),
+        ("internal_energy", r.internal_energy),
+        ("external_work", r.external_work),
+        ("interface_work", r.interface_work),
+        ("momentum_gross", r.momentum_gross),
+    ] {
+        if !shadowed(k) {
+            push(k, x);
+        }
+    }
+    if !shadowed("momentum") {
+        for (d, axis) in ["momentum_x", "momentum_y", "momentum_z"]
+            .iter()
+            .enumerate()
+        {
+            push(axis, r.momentum[d]);
+        }
+    }
+    for (k, x) in &r.scalars {
+        push(k, *x);
+    }
+}
+
+/// Keys of a node report that are not plotted.
+const SKIPPED: [&str; 6] = [
+    "time",
+    "window",
+    "substeps",
+    "wall_s",
+    "coupling_wait_s",
+    "idle_s",
+];
 
 /// The node histories of a recording (its `/cosim/node/<n>` channels).
 pub fn node_histories(msgs: &[Recorded]) -> Histories {

@@ -63,6 +63,10 @@ impl Recorder {
             WriteOptions::new()
                 .compression(Some(Compression::Zstd))
                 .chunk_size(Some(1 << 20))
+                // The fastest zstd level, on the recorder thread itself: compression worker
+                // threads would only compete with the nodes for the cores.
+                .compression_level(1)
+                .compression_threads(0)
                 .profile("cosim"),
         )?;
         w.write_metadata(&mcap::records::Metadata {
@@ -423,4 +427,276 @@ fn read_segment(path: &Path, json_only: bool) -> anyhow::Result<(Vec<Recorded>, 
         complete = false;
     }
     Ok((out, complete))
+}
+
+/// What the window loop asks of the recorder thread.
+enum Cmd {
+    /// Bytes to write on a topic (a protocol message, or a JSON document whose channel
+    /// already lists its keys); the buffer goes back to the pool afterwards.
+    Write {
+        topic: std::sync::Arc<str>,
+        sim_t: f64,
+        data: Vec<u8>,
+    },
+    /// A JSON document that may open a channel or add keys to its schema.
+    Json {
+        topic: std::sync::Arc<str>,
+        schema: String,
+        sim_t: f64,
+        doc: serde_json::Value,
+    },
+    FlushIfOlder(std::time::Duration),
+    /// Close the current chunk; answer once it is written.
+    Flush(std::sync::mpsc::SyncSender<Result<(), String>>),
+}
+
+/// Commands queued for the recorder thread before the window loop waits for it (a full queue
+/// holds the loop back: nothing is ever dropped).
+const QUEUE: usize = 4096;
+
+/// The recorder on a thread of its own (issue 22): the window loop hands it each message's
+/// bytes through a bounded queue and goes on, so MCAP writes, compression and flushes never
+/// delay an `Advance`. Buffers come back through a pool, so steady state allocates nothing.
+/// Order is kept (one queue, one writer); [`RecorderThread::flush`] and
+/// [`RecorderThread::finish`] wait until everything queued before them is written.
+pub struct RecorderThread {
+    tx: Option<std::sync::mpsc::SyncSender<Cmd>>,
+    pool: std::sync::mpsc::Receiver<Vec<u8>>,
+    handle: Option<std::thread::JoinHandle<anyhow::Result<(u64, u64)>>>,
+    /// Interned topic names (one allocation per topic, ever).
+    topics: HashMap<String, std::sync::Arc<str>>,
+    /// Keys each JSON topic's channel lists, as far as this side has sent them.
+    json_keys: HashMap<String, std::collections::BTreeSet<String>>,
+}
+
+impl RecorderThread {
+    /// Start the thread around `rec`.
+    pub fn spawn(mut rec: Recorder) -> anyhow::Result<Self> {
+        let (tx, rx) = std::sync::mpsc::sync_channel::<Cmd>(QUEUE);
+        let (back, pool) = std::sync::mpsc::sync_channel::<Vec<u8>>(QUEUE);
+        let handle = std::thread::Builder::new()
+            .name("cosim-recorder".into())
+            .spawn(move || -> anyhow::Result<(u64, u64)> {
+                let mut warned = false;
+                let mut warn = |e: anyhow::Error| {
+                    if !std::mem::replace(&mut warned, true) {
+                        tracing::warn!("recording: {e:#}");
+                    }
+                };
+                for cmd in rx {
+                    match cmd {
+                        Cmd::Write { topic, sim_t, data } => {
+                            if let Err(e) = rec.write(&topic, None, sim_t, &data) {
+                                warn(e);
+                            }
+                            let _ = back.try_send(data);
+                        }
+                        Cmd::Json {
+                            topic,
+                            schema,
+                            sim_t,
+                            doc,
+                        } => {
+                            if let Err(e) = rec.json(&topic, &schema, sim_t, &doc) {
+                                warn(e);
+                            }
+                        }
+                        Cmd::FlushIfOlder(age) => {
+                            if let Err(e) = rec.flush_if_older(age) {
+                                warn(e);
+                            }
+                        }
+                        Cmd::Flush(done) => {
+                            let _ = done.send(rec.flush().map_err(|e| format!("{e:#}")));
+                        }
+                    }
+                }
+                let counts = (rec.messages, rec.bytes);
+                rec.finish()?;
+                Ok(counts)
+            })
+            .context("starting the recorder thread")?;
+        Ok(RecorderThread {
+            tx: Some(tx),
+            pool,
+            handle: Some(handle),
+            topics: HashMap::new(),
+            json_keys: HashMap::new(),
+        })
+    }
+
+    fn send(&mut self, cmd: Cmd) -> anyhow::Result<()> {
+        self.tx
+            .as_ref()
+            .and_then(|tx| tx.send(cmd).ok())
+            .ok_or_else(|| anyhow::anyhow!("the recorder thread has stopped"))
+    }
+
+    fn topic(&mut self, topic: &str) -> std::sync::Arc<str> {
+        if let Some(t) = self.topics.get(topic) {
+            return t.clone();
+        }
+        let t: std::sync::Arc<str> = topic.into();
+        self.topics.insert(topic.to_string(), t.clone());
+        t
+    }
+
+    /// A buffer from the pool (or a new one while the pool is empty), cleared.
+    fn buffer(&mut self) -> Vec<u8> {
+        let mut b = self.pool.try_recv().unwrap_or_default();
+        b.clear();
+        b
+    }
+
+    /// Record the exact bytes of a protocol message seen on `topic`.
+    pub fn message(&mut self, topic: &str, sim_t: f64, bytes: &[u8]) -> anyhow::Result<()> {
+        let mut data = self.buffer();
+        data.extend_from_slice(bytes);
+        let topic = self.topic(topic);
+        self.send(Cmd::Write { topic, sim_t, data })
+    }
+
+    /// [`Recorder::json`] on the thread.
+    pub fn json(
+        &mut self,
+        topic: &str,
+        schema_name: &str,
+        sim_t: f64,
+        v: &serde_json::Value,
+    ) -> anyhow::Result<()> {
+        if let serde_json::Value::Object(m) = v {
+            let known = self.json_keys.entry(topic.to_string()).or_default();
+            known.extend(m.keys().cloned());
+        }
+        let topic = self.topic(topic);
+        self.send(Cmd::Json {
+            topic,
+            schema: schema_name.to_string(),
+            sim_t,
+            doc: v.clone(),
+        })
+    }
+
+    /// [`RecorderThread::json`] for a document that serializes as an object with a fixed set
+    /// of keys (a struct) plus `extra_keys` (its named scalars, say): once its channel lists
+    /// every key, it is serialised here into a pooled buffer and written there without
+    /// building a `Value` or allocating; otherwise it goes as a `Value`.
+    pub fn json_doc<T: serde::Serialize>(
+        &mut self,
+        topic: &str,
+        schema_name: &str,
+        sim_t: f64,
+        doc: &T,
+        extra_keys: &mut dyn Iterator<Item = &str>,
+    ) -> anyhow::Result<()> {
+        let known = match self.json_keys.get(topic) {
+            Some(have) => {
+                let mut all = true;
+                for k in extra_keys {
+                    all &= have.contains(k);
+                }
+                all
+            }
+            None => false,
+        };
+        if !known {
+            return self.json(topic, schema_name, sim_t, &serde_json::to_value(doc)?);
+        }
+        let mut data = self.buffer();
+        serde_json::to_writer(&mut data, doc)?;
+        let topic = self.topic(topic);
+        self.send(Cmd::Write { topic, sim_t, data })
+    }
+
+    /// Close the current chunk once it is older than `age` (on the thread; returns at once).
+    pub fn flush_if_older(&mut self, age: std::time::Duration) -> anyhow::Result<()> {
+        self.send(Cmd::FlushIfOlder(age))
+    }
+
+    /// Write everything queued so far and close the chunk; returns once it is on disk.
+    pub fn flush(&mut self) -> anyhow::Result<()> {
+        let (done, wait) = std::sync::mpsc::sync_channel(1);
+        self.send(Cmd::Flush(done))?;
+        wait.recv()
+            .map_err(|_| anyhow::anyhow!("the recorder thread has stopped"))?
+            .map_err(|e| anyhow::anyhow!(e))
+    }
+
+    /// Write everything queued, the summary and the footer; returns the messages and bytes
+    /// recorded.
+    pub fn finish(mut self) -> anyhow::Result<(u64, u64)> {
+        drop(self.tx.take());
+        match self.handle.take().map(|h| h.join()) {
+            Some(Ok(r)) => r,
+            Some(Err(_)) => anyhow::bail!("the recorder thread panicked"),
+            None => anyhow::bail!("the recorder thread was already finished"),
+        }
+    }
+}
+
+impl Drop for RecorderThread {
+    /// Without `finish` (an early return): the queue is still written and the file closed.
+    fn drop(&mut self) {
+        drop(self.tx.take());
+        if let Some(h) = self.handle.take() {
+            let _ = h.join();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The recorder thread writes every message it is handed, in that order, with its topic,
+    /// log time and bytes, also when the window loop outruns its queue (the loop then waits:
+    /// nothing is dropped); a JSON document's first record opens its channel, the next ones
+    /// go as plain bytes on it.
+    #[test]
+    fn the_recorder_thread_keeps_every_message_in_order() {
+        let dir = std::env::temp_dir().join(format!("cosim-rec-thread-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("run.mcap");
+        let mut rec = RecorderThread::spawn(Recorder::create(&path).unwrap()).unwrap();
+        let n = 3 * QUEUE + 7;
+        let topic = |i: usize| if i.is_multiple_of(3) { "a" } else { "b" };
+        for i in 0..n {
+            rec.message(topic(i), i as f64 * 1e-9, &(i as u64).to_le_bytes())
+                .unwrap();
+            if i == n / 2 {
+                rec.flush().unwrap();
+            }
+        }
+        #[derive(serde::Serialize)]
+        struct Doc {
+            window: u64,
+        }
+        for w in 1..=2 {
+            rec.json_doc("/j", "J", 0.0, &Doc { window: w }, &mut std::iter::empty())
+                .unwrap();
+        }
+        let (messages, _) = rec.finish().unwrap();
+        assert_eq!(messages, n as u64 + 2);
+        let (all, complete) = read_all(&path).unwrap();
+        assert!(complete);
+        let bin: Vec<&Recorded> = all.iter().filter(|m| !m.json).collect();
+        assert_eq!(bin.len(), n);
+        for (i, m) in bin.iter().enumerate() {
+            assert_eq!(m.data, (i as u64).to_le_bytes(), "message {i}");
+            assert_eq!((m.topic.as_str(), m.log_time), (topic(i), i as u64));
+        }
+        let docs: Vec<serde_json::Value> = all
+            .iter()
+            .filter(|m| m.topic == "/j")
+            .map(|m| serde_json::from_slice(&m.data).unwrap())
+            .collect();
+        assert_eq!(
+            docs,
+            vec![
+                serde_json::json!({ "window": 1 }),
+                serde_json::json!({ "window": 2 })
+            ]
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

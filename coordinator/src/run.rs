@@ -5,17 +5,24 @@
 //! order and waits for every `Done`; the serial data dependencies (a responder needs its
 //! driver's motion of the same window) are enforced by the nodes themselves, which wait for
 //! their inputs, so the same loop serves the serial and the parallel schedules.
+//!
+//! The coordinator is kept off the window's critical path (issue 22): the next window's
+//! `Advance` goes out before the last window is audited and recorded (two windows in flight,
+//! [`WINDOWS_AHEAD`]), so the nodes exchange peer to peer and never wait for the audit or
+//! the recorder; it waits where a window's end decides the next (checkpoint, decoupling rule,
+//! lagrange hub, stop request). Reports of a window ahead are kept until its own audit.
 
 use crate::config::{self, Case};
+use crate::profile::{Phase, Profile};
 use crate::progress::Progress;
-use crate::record::{self, Recorder};
+use crate::record::{self, Recorder, RecorderThread};
 use anyhow::Context;
 use protocol::codec::{self, encode_into};
 use protocol::stop;
 use protocol::transport::{self, Publisher, TopicId, Transport, TransportKind, TransportSpec};
 use protocol::*;
 use serde_json::json;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -88,6 +95,53 @@ struct NodeRt {
     finished: Option<u64>,
     /// What the node warned of in its descriptions (each once).
     warnings: Vec<String>,
+    /// Reports of windows after the one being audited (pipelining), oldest first.
+    ahead: VecDeque<(u64, StepReport)>,
+    /// The recording's channel of its per-window reports: `/cosim/node/<name>`.
+    report_topic: String,
+}
+
+/// A node's report of one window as recorded on `/cosim/node/<name>` (schema
+/// `cosim.NodeReport`): the window, its end time, the report's quantities and its named
+/// scalars as keys of their own (a scalar named like a quantity replaces it). Written
+/// straight from the report, without an intermediate `Value`.
+struct NodeReportDoc<'a> {
+    window: u64,
+    time: f64,
+    r: &'a StepReport,
+}
+
+impl serde::Serialize for NodeReportDoc<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let r = self.r;
+        let mut m = s.serialize_map(None)?;
+        let shadowed = |k: &str| r.scalars.iter().any(|(n, _)| n == k);
+        macro_rules! put {
+            ($k:expr, $v:expr) => {
+                if !shadowed($k) {
+                    m.serialize_entry($k, $v)?;
+                }
+            };
+        }
+        put!("window", &self.window);
+        put!("time", &self.time);
+        put!("kinetic_energy", &r.kinetic_energy);
+        put!("internal_energy", &r.internal_energy);
+        put!("external_work", &r.external_work);
+        put!("interface_work", &r.interface_work);
+        put!("momentum", &r.momentum);
+        put!("momentum_gross", &r.momentum_gross);
+        put!("external_impulse", &r.external_impulse);
+        put!("interface_impulse", &r.interface_impulse);
+        put!("substeps", &r.substeps);
+        put!("wall_s", &r.wall_s);
+        put!("coupling_wait_s", &r.coupling_wait_s);
+        for (name, val) in &r.scalars {
+            m.serialize_entry(name, val)?;
+        }
+        m.end()
+    }
 }
 
 struct Coord<'a> {
@@ -97,7 +151,8 @@ struct Coord<'a> {
     t: Box<dyn Transport>,
     topics: Vec<(String, Topic)>,
     nodes: Vec<NodeRt>,
-    rec: Recorder,
+    /// The recorder, on its own thread: recording never holds the window loop up.
+    rec: RecorderThread,
     buf: Vec<u8>,
     seq: u64,
     sim_t: f64,
@@ -115,6 +170,26 @@ struct Coord<'a> {
     progress: Progress,
     /// The lagrange couplings (the interface problems solved here) and their publishers.
     hubs: Vec<(crate::lagrange::Hub, Box<dyn Publisher>)>,
+    /// Where the window loop's time goes (`summary.json`: `window_breakdown`).
+    prof: Profile,
+    /// The last receive's time blocked and recording (ns), for [`Coord::pump_one`].
+    last_recv_ns: (u64, u64),
+    /// [`Coord::wait_all`]'s list of the nodes still awaited.
+    pending: Vec<usize>,
+    /// When [`Coord::check_health`] last ran in [`Coord::wait_all`].
+    health_at: Instant,
+}
+
+/// How often [`Coord::wait_all`] checks the nodes' health while messages keep arriving.
+const HEALTH_EVERY: Duration = Duration::from_millis(2);
+
+/// A message as [`Coord::pump_one`] received it.
+enum Got {
+    /// Decoded in full.
+    Full(Result<Envelope, codec::CodecError>),
+    /// Peer data checked in place (no lagrange hub reads it): whether it came from the topic's
+    /// node and run, else the sender and run it claims.
+    Fields(Result<(), (String, String)>),
 }
 
 /// What a lagrange hub takes from a side.
@@ -352,31 +427,69 @@ impl<'a> Coord<'a> {
 
     /// Receive, record and act on one message. Returns whether one arrived.
     fn pump_one(&mut self, timeout: Duration) -> Result<bool, Fault> {
-        let mut got: Option<(TopicId, Result<Envelope, codec::CodecError>)> = None;
+        let start = Instant::now();
+        let r = self.pump_inner(timeout);
+        // What was neither blocked nor recording: decoding and acting on the message.
+        let total = start.elapsed().as_nanos() as u64;
+        let (blocked, recorded) = self.last_recv_ns;
+        self.prof
+            .add_ns(Phase::Handle, total.saturating_sub(blocked + recorded));
+        r
+    }
+
+    fn pump_inner(&mut self, timeout: Duration) -> Result<bool, Fault> {
+        let mut got: Option<(TopicId, Got)> = None;
         let rec = &mut self.rec;
         let topics = &self.topics;
         let sim_t = self.sim_t;
         let every = self.case.run.record_every;
-        let window = self.window;
+        // Peer data nobody here consumes (no lagrange hub) is checked and recorded where it
+        // lies: a large field is never copied out of the transport's buffer.
+        let in_place = self.hubs.is_empty();
+        let (run, nodes) = (self.run.as_str(), &self.nodes);
+        let entered = Instant::now();
+        let (mut in_cb, mut recorded) = (0u64, 0u64);
         let r = self.t.recv(timeout, &mut |id, bytes| {
-            let dec = codec::decode(bytes);
-            let keep = match &dec {
-                Ok(Envelope {
-                    message: Message::Fields(f),
-                    ..
-                }) => every <= 1 || f.window % every == 0,
-                Ok(Envelope {
-                    message: Message::Heartbeat(_),
-                    ..
-                }) => true,
-                _ => true,
-            };
+            let cb = Instant::now();
+            let (dec, fields_window) =
+                if in_place && codec::header(bytes).is_ok_and(|h| h.kind == codec::FIELDS_KIND) {
+                    match codec::decode_fields_view(bytes) {
+                        Ok(v) => {
+                            let owner = topics.get(id).map(|(_, t)| match t {
+                                Topic::Up(i) | Topic::Data(i) => *i,
+                            });
+                            let claimed = (v.run == run
+                                && owner.is_some_and(|i| nodes[i].name == v.sender))
+                            .then_some(())
+                            .ok_or_else(|| (v.sender.to_string(), v.run.to_string()));
+                            (Got::Fields(claimed), Some(v.window))
+                        }
+                        Err(e) => (Got::Full(Err(e)), None),
+                    }
+                } else {
+                    let dec = codec::decode(bytes);
+                    let w = match &dec {
+                        Ok(Envelope {
+                            message: Message::Fields(f),
+                            ..
+                        }) => Some(f.window),
+                        _ => None,
+                    };
+                    (Got::Full(dec), w)
+                };
+            let keep = fields_window.is_none_or(|w| every <= 1 || w % every == 0);
+            let r0 = Instant::now();
             if keep && let Some((name, _)) = topics.get(id) {
                 let _ = rec.message(name, sim_t, bytes);
             }
-            let _ = window;
             got = Some((id, dec));
+            recorded += r0.elapsed().as_nanos() as u64;
+            in_cb += cb.elapsed().as_nanos() as u64;
         });
+        let blocked = (entered.elapsed().as_nanos() as u64).saturating_sub(in_cb);
+        self.prof.add_ns(Phase::Blocked, blocked);
+        self.prof.add_ns(Phase::RecordMessages, recorded);
+        self.last_recv_ns = (blocked, recorded);
         if let Err(e) = r {
             return Err(Fault {
                 node: "coordinator".into(),
@@ -386,8 +499,25 @@ impl<'a> Coord<'a> {
         let Some((id, dec)) = got else {
             return Ok(false);
         };
-        let (tname, owner) = match &self.topics[id] {
-            (n, Topic::Up(i)) | (n, Topic::Data(i)) => (n.clone(), *i),
+        let owner = match self.topics[id].1 {
+            Topic::Up(i) | Topic::Data(i) => i,
+        };
+        let tname = self.topics[id].0.as_str();
+        let dec = match dec {
+            Got::Full(dec) => dec,
+            Got::Fields(claimed) => {
+                let n = &mut self.nodes[owner];
+                if let Err((sender, run)) = claimed {
+                    return Err(Fault {
+                        node: n.name.clone(),
+                        reason: format!(
+                            "message on {tname} claims sender '{sender}' of run '{run}'"
+                        ),
+                    });
+                }
+                n.last_seen = Instant::now();
+                return Ok(true);
+            }
         };
         let env = dec.map_err(|e| Fault {
             node: self.nodes[owner].name.clone(),
@@ -444,6 +574,7 @@ impl<'a> Coord<'a> {
                 }
             }
             Message::Done(d) => {
+                let ahead = d.window > self.window;
                 n.done = Some(d.window);
                 n.waiting_since = None;
                 n.substeps += d.report.substeps;
@@ -455,7 +586,11 @@ impl<'a> Coord<'a> {
                         d.report.kinetic_energy + d.report.internal_energy + d.report.dissipated();
                     n.initial_momentum = d.report.momentum;
                 }
-                n.report = d.report;
+                if ahead {
+                    n.ahead.push_back((d.window, d.report));
+                } else {
+                    n.report = d.report;
+                }
             }
             Message::Heartbeat(h) => {
                 if !h.waiting {
@@ -557,17 +692,24 @@ impl<'a> Coord<'a> {
         let start = Instant::now();
         // Nodes beat from the Welcome on: before it only an exit is a fault.
         let beating = what != "Hello";
+        // Reused across calls: a window's wait allocates nothing.
+        let mut pending = std::mem::take(&mut self.pending);
         loop {
-            let pending: Vec<usize> = who
-                .iter()
-                .copied()
-                .filter(|&i| !pred(&self.nodes[i]))
-                .collect();
+            pending.clear();
+            pending.extend(who.iter().copied().filter(|&i| !pred(&self.nodes[i])));
             if pending.is_empty() {
+                self.pending = pending;
                 return Ok(());
             }
+            let t = Instant::now();
             self.stop_now()?;
-            self.check_health(if beating { &pending } else { &[] })?;
+            // Children, heartbeats and stalls are looked at every few milliseconds, not after
+            // every message (a window brings several): faults are judged in seconds.
+            if t.duration_since(self.health_at) >= HEALTH_EVERY {
+                self.check_health(if beating { &pending } else { &[] })?;
+                self.health_at = t;
+            }
+            self.prof.lap(Phase::Health, t);
             if let Some((l, why)) = limit
                 && start.elapsed() > l
             {
@@ -803,6 +945,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
     // On disk at once: a cosim killed before its first window leaves a recording that still
     // names its case (a chunk closes only on a flush).
     rec.flush()?;
+    let rec = RecorderThread::spawn(rec)?;
     let kind = case.run.transport;
     transport::cleanup(kind, &run_id);
     // What earlier runs whose processes are all gone left in shared memory (a killed cosim).
@@ -890,6 +1033,8 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             exited: None,
             log: None,
             finished: None,
+            ahead: VecDeque::with_capacity(4),
+            report_topic: format!("/cosim/node/{}", n.name),
         });
     }
     let mut c = Coord {
@@ -911,6 +1056,10 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         interrupted: None,
         progress: Progress::quiet(),
         hubs,
+        prof: Profile::default(),
+        last_recv_ns: (0, 0),
+        pending: Vec::with_capacity(case.nodes.len()),
+        health_at: Instant::now(),
     };
     let started = Instant::now();
     let result = drive(&mut c, &out, &order, &listen, opts);
@@ -942,8 +1091,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         hubs,
         ..
     } = c;
-    let (messages, bytes) = (rec.messages, rec.bytes);
-    rec.finish()?;
+    let (messages, bytes) = rec.finish()?;
     // Every port of this process goes before the sweep, which only runs once no participant
     // of the run is alive.
     drop(nodes);
@@ -1210,6 +1358,96 @@ fn save_checkpoint(
     ck::save(out, &st).map_err(fault)
 }
 
+/// Start and end time of window `k` of `windows` (the last one ends at the end time).
+fn window_span(case: &Case, k: u64, windows: u64) -> (f64, f64) {
+    let t0 = (k - 1) as f64 * case.run.window;
+    let t1 = if k == windows {
+        case.run.end_time
+    } else {
+        k as f64 * case.run.window
+    };
+    (t0, t1)
+}
+
+/// Windows in flight at most (the one awaited included): `COSIM_WINDOWS_AHEAD`, default
+/// [`WINDOWS_AHEAD`]; 1 is the lockstep schedule (each Advance after the last window's audit).
+fn windows_ahead() -> u64 {
+    std::env::var("COSIM_WINDOWS_AHEAD")
+        .ok()
+        .and_then(|s| s.parse::<u64>().ok())
+        .unwrap_or(WINDOWS_AHEAD)
+        .clamp(1, 3)
+}
+
+/// Default of [`windows_ahead`]: the awaited window and the next one. More gains nothing on
+/// a serial chain (the nodes wait for each other's data anyway) and fills the queues of the
+/// control topics (`transport::shm::SUBSCRIBER_BUFFER`).
+pub const WINDOWS_AHEAD: u64 = 2;
+
+/// Whether the window after the last one sent may start before the awaited window's end:
+/// not when that end decides something about it — a checkpoint there (nothing may run past
+/// a checkpoint before it is complete), a decoupling rule still to fire (it reads the
+/// reports), a lagrange hub (it answers within the window), a stop request.
+fn may_run_ahead(
+    c: &Coord,
+    decoupled: &[Option<(u64, f64, String)>],
+    last_checkpoints: bool,
+) -> bool {
+    !last_checkpoints
+        && c.hubs.is_empty()
+        && stop::requested().is_none()
+        && c.case
+            .couplings
+            .iter()
+            .zip(decoupled)
+            .all(|(cp, d)| d.is_some() || !cp.decouple.is_set())
+}
+
+/// Send window `k`'s `Advance` to every node still running, in the coupling graph's order,
+/// after the decouplings due before it; returns whether the window checkpoints.
+fn send_window(
+    c: &mut Coord,
+    order_idx: &[usize],
+    decoupled: &mut [Option<(u64, f64, String)>],
+    active: &mut Vec<usize>,
+    k: u64,
+    stop_after: bool,
+) -> Result<bool, Fault> {
+    let case = c.case;
+    let windows = window_count(case);
+    let (t0, t1) = window_span(case, k, windows);
+    let every = case.run.checkpoint_every;
+    // The last window needs no checkpoint: the run ends there.
+    let checkpoint = every > 0 && (k.is_multiple_of(every) || stop_after) && k < windows;
+    // Log times never go back on a channel: with windows in flight the coordinator has
+    // already recorded messages of later windows.
+    c.sim_t = c.sim_t.max(t0);
+    if decouple_due(c, decoupled, k, t0)? {
+        active.retain(|&i| c.nodes[i].finished.is_none());
+    }
+    c.sim_t = c.sim_t.max(t1);
+    let write_output =
+        k == windows || (case.run.output_every > 0 && k.is_multiple_of(case.run.output_every));
+    let sending = Instant::now();
+    for &i in order_idx {
+        if c.nodes[i].finished.is_some() {
+            continue;
+        }
+        c.send(
+            i,
+            &Message::Advance(Advance {
+                window: k,
+                t0,
+                t1,
+                write_output,
+                checkpoint,
+            }),
+        )?;
+    }
+    c.prof.lap(Phase::Advance, sending);
+    Ok(checkpoint)
+}
+
 fn drive(
     c: &mut Coord,
     out: &Path,
@@ -1369,41 +1607,43 @@ fn drive(
     c.progress.resume_after(first - 1);
     let loop_start = Instant::now();
     c.in_windows = true;
+    c.prof = Profile::default();
+    c.prof.start();
+    // Windows whose Advance is out and whose Done is not yet all in: (window, checkpoint).
+    let mut in_flight: VecDeque<(u64, bool)> = VecDeque::with_capacity(8);
+    let ahead = windows_ahead();
+    let mut sent = first - 1;
     for k in first..=windows {
-        // The last window needs no checkpoint: the run ends there.
-        let checkpoint = every > 0 && (k.is_multiple_of(every) || stop_after) && k < windows;
-        let t0 = (k - 1) as f64 * case.run.window;
-        let t1 = if k == windows {
-            case.run.end_time
-        } else {
-            k as f64 * case.run.window
-        };
+        let (_, t1) = window_span(case, k, windows);
         c.window = k;
-        c.sim_t = t0;
-        if decouple_due(c, &mut decoupled, k, t0)? {
-            active.retain(|&i| c.nodes[i].finished.is_none());
+        if sent < k {
+            let ck = send_window(c, &order_idx, &mut decoupled, &mut active, k, stop_after)?;
+            in_flight.push_back((k, ck));
+            sent = k;
         }
-        c.sim_t = t1;
-        let write_output =
-            k == windows || (case.run.output_every > 0 && k % case.run.output_every == 0);
-        let to_run: Vec<usize> = order_idx
-            .iter()
-            .copied()
-            .filter(|&i| c.nodes[i].finished.is_none())
-            .collect();
-        for i in to_run {
-            c.send(
-                i,
-                &Message::Advance(Advance {
-                    window: k,
-                    t0,
-                    t1,
-                    write_output,
-                    checkpoint,
-                }),
-            )?;
+        // Pipelining: the next windows' Advances go out now, so that the nodes go on while
+        // this one is audited and recorded; only where nothing decided at this window's end
+        // can change them (module doc).
+        while sent < windows
+            && sent < k + ahead - 1
+            && may_run_ahead(c, &decoupled, in_flight.back().is_some_and(|w| w.1))
+        {
+            let ck = send_window(c, &order_idx, &mut decoupled, &mut active, sent + 1, false)?;
+            in_flight.push_back((sent + 1, ck));
+            sent += 1;
         }
-        c.wait_all(&active, "Done", None, |n| n.done == Some(k))?;
+        c.sim_t = c.sim_t.max(t1);
+        c.wait_all(&active, "Done", None, |n| n.done.is_some_and(|d| d >= k))?;
+        let auditing = Instant::now();
+        let checkpoint = in_flight.pop_front().is_some_and(|w| w.1);
+        // Reports of later windows that came in meanwhile wait for their own audit.
+        for n in &mut c.nodes {
+            while n.ahead.front().is_some_and(|(w, _)| *w <= k) {
+                if let Some((_, r)) = n.ahead.pop_front() {
+                    n.report = r;
+                }
+            }
+        }
         // Audit (ARCHITECTURE §5): momentum against external impulse, energy against work.
         let mut p = [0.0; 3];
         let mut p0 = [0.0; 3];
@@ -1456,6 +1696,7 @@ fn drive(
                 .max(norm(r.external_impulse))
                 .max(norm(r.interface_impulse));
         }
+        let reporting = c.prof.lap(Phase::Audit, auditing);
         let row = crate::checkpoint::BalanceRow {
             window: k,
             time: t1,
@@ -1470,31 +1711,28 @@ fn drive(
             interface_work_sum: wif,
             energy_residual: e_resid,
         };
-        let _ = c
-            .rec
-            .json("/cosim/balance", "cosim.Balance", t1, &json!(row));
+        let _ = c.rec.json_doc(
+            "/cosim/balance",
+            "cosim.Balance",
+            t1,
+            &row,
+            &mut std::iter::empty(),
+        );
         for n in c.nodes.iter().filter(|n| n.finished.is_none()) {
             let r = &n.report;
-            let mut v = json!({
-                "window": k, "time": t1,
-                "kinetic_energy": r.kinetic_energy, "internal_energy": r.internal_energy,
-                "external_work": r.external_work, "interface_work": r.interface_work,
-                "momentum": r.momentum, "momentum_gross": r.momentum_gross,
-                "external_impulse": r.external_impulse,
-                "interface_impulse": r.interface_impulse,
-                "substeps": r.substeps, "wall_s": r.wall_s,
-                "coupling_wait_s": r.coupling_wait_s,
-            });
-            for (name, val) in &r.scalars {
-                v[name] = json!(val);
-            }
-            let _ = c.rec.json(
-                &format!("/cosim/node/{}", n.name),
+            let doc = NodeReportDoc {
+                window: k,
+                time: t1,
+                r,
+            };
+            let _ = c.rec.json_doc(
+                &n.report_topic,
                 "cosim.NodeReport",
                 t1,
-                &v,
+                &doc,
+                &mut r.scalars.iter().map(|(k, _)| k.as_str()),
             );
-            crate::plot::add_report(&mut c.history, &n.name, &v);
+            crate::plot::add_node_report(&mut c.history, &n.name, t1, r, windows as usize);
         }
         for h in 0..c.hubs.len() {
             let (name, sides) = (c.hubs[h].0.coupling.clone(), c.hubs[h].0.sides.clone());
@@ -1515,6 +1753,7 @@ fn drive(
             }
         }
         a.rows.push(row);
+        let flushing = c.prof.lap(Phase::Reports, reporting);
         c.progress.window(k, t1);
         c.completed = k;
         if checkpoint {
@@ -1523,9 +1762,13 @@ fn drive(
         }
         // Completed windows reach the disk (a killed cosim leaves them recoverable).
         let _ = c.rec.flush_if_older(Duration::from_millis(20));
+        c.prof.lap(Phase::Flush, flushing);
         // A stop signal ends the run here, at the window boundary; with checkpoints, after
         // one more window that checkpoints, so that a restart continues from where it stopped.
         if let Some(sig) = stop::requested() {
+            if sent > k {
+                continue; // windows already under way end first, each at its boundary
+            }
             if every > 0 && !checkpoint && !stop_after {
                 stop_after = true;
                 continue;
@@ -1536,6 +1779,8 @@ fn drive(
     }
     c.progress.finish();
     let loop_s = loop_before + loop_start.elapsed().as_secs_f64();
+    c.prof.stop();
+    let breakdown = c.prof.per_window(c.completed.saturating_sub(first - 1));
     // A node publishes its last window's data before its Done, but on another topic: that
     // data may still be queued here. Record it before the nodes go (a quiet 50 ms, at most
     // 2 s), so the recording holds every message of every window.
@@ -1667,6 +1912,8 @@ fn drive(
         // What the run costs beyond its slowest node's own work: the coupling overhead on
         // the critical path (exchange, waiting, coordination).
         "window_loop_s": loop_s,
+        // The coordinator's side of a window (this process only: a restart's segment).
+        "window_breakdown": breakdown,
         "coupling_overhead": if loop_s > 0.0 {
             1.0 - c.nodes.iter().map(|n| n.wall_s).fold(0.0, f64::max) / loop_s
         } else {
@@ -1699,4 +1946,70 @@ fn drive(
             "per_window": a.rows,
         },
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report() -> StepReport {
+        StepReport {
+            kinetic_energy: 1.5,
+            internal_energy: 2.5,
+            external_work: 3.0,
+            interface_work: -0.25,
+            momentum: [0.1, -0.2, 0.3],
+            momentum_gross: 4.0,
+            external_impulse: [1.0, 0.0, 0.0],
+            interface_impulse: [0.0, 2.0, 0.0],
+            substeps: 3,
+            wall_s: 1e-5,
+            coupling_wait_s: 2e-6,
+            scalars: vec![
+                ("tip_displacement".into(), 7e-4),
+                ("internal_energy".into(), 9.0),
+                ("probe".into(), f64::NAN),
+            ],
+            ..Default::default()
+        }
+    }
+
+    /// The record written straight from the report is the document the coordinator built
+    /// with `json!` before (written out here as it did: quantities, then the scalars set over
+    /// them), and gives the same plot histories.
+    #[test]
+    fn node_report_doc_is_the_json_report() {
+        let r = report();
+        let mut old = json!({
+            "window": 7, "time": 3.5e-6,
+            "kinetic_energy": r.kinetic_energy, "internal_energy": r.internal_energy,
+            "external_work": r.external_work, "interface_work": r.interface_work,
+            "momentum": r.momentum, "momentum_gross": r.momentum_gross,
+            "external_impulse": r.external_impulse,
+            "interface_impulse": r.interface_impulse,
+            "substeps": r.substeps, "wall_s": r.wall_s,
+            "coupling_wait_s": r.coupling_wait_s,
+        });
+        for (name, val) in &r.scalars {
+            old[name] = json!(val);
+        }
+        let doc = NodeReportDoc {
+            window: 7,
+            time: 3.5e-6,
+            r: &r,
+        };
+        let bytes = serde_json::to_vec(&doc).expect("serialize");
+        let new: serde_json::Value = serde_json::from_slice(&bytes).expect("parse");
+        assert_eq!(new, old);
+        assert_eq!(new["internal_energy"], json!(9.0));
+        assert!(new["probe"].is_null());
+        let mut h_old = crate::plot::Histories::new();
+        crate::plot::add_report(&mut h_old, "left", &old);
+        let mut h_new = crate::plot::Histories::new();
+        crate::plot::add_node_report(&mut h_new, "left", 3.5e-6, &r, 10);
+        assert_eq!(h_new, h_old);
+        // kinetic, internal (the scalar), external and interface work, gross momentum,
+        // three momentum components, the tip displacement; not the NaN probe
+        assert_eq!(h_new["left"].len(), 9, "{:?}", h_new["left"].keys());
+    }
 }

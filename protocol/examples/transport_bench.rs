@@ -66,8 +66,8 @@ fn main() -> anyhow::Result<()> {
         println!("| raw iceoryx2 round trip, two threads | ipc µs | ipc_threadsafe µs |");
         println!("|---|---:|---:|");
         for &b in &sizes {
-            let a = iceoryx_variant_rtt_us::<ipc::Service>(b, rounds)?;
-            let t = iceoryx_variant_rtt_us::<ipc_threadsafe::Service>(b, rounds)?;
+            let a = iceoryx_variant_rtt_us::<ipc::Service>(b, b, rounds)?;
+            let t = iceoryx_variant_rtt_us::<ipc_threadsafe::Service>(b, b, rounds)?;
             println!("| {b} B | {a:.1} | {t:.1} |");
         }
     }

@@ -590,15 +590,16 @@ impl Wire {
         Ok(())
     }
 
+    /// Coupling data: encoded straight into the transport's buffer where it has one (a
+    /// shared-memory sample), so a large field is copied once on this side.
     fn send_data(&mut self, coupling: &str, m: &Message) -> anyhow::Result<()> {
         let seq = self.seq.fetch_add(1, Ordering::Relaxed);
-        encode_into(&mut self.buf, &self.run, &self.me, seq, m)?;
         let p = self
             .data
             .iter_mut()
             .find(|(c, _)| c == coupling)
             .ok_or_else(|| anyhow::anyhow!("no publisher for coupling {coupling}"))?;
-        p.1.send(&self.buf)?;
+        p.1.send_message(&self.run, &self.me, seq, m, &mut self.buf)?;
         Ok(())
     }
 }
@@ -844,8 +845,11 @@ fn run_node(
             let mut buf = Vec::new();
             let mut last = Instant::now();
             while alive.load(Ordering::Relaxed) {
-                std::thread::sleep(Duration::from_millis(5));
-                if last.elapsed() < period {
+                // Asleep until the next beat is due (woken early when the node leaves), not
+                // polling: a wake-up costs the node's cores a context switch.
+                let due = period.saturating_sub(last.elapsed());
+                if !due.is_zero() {
+                    std::thread::park_timeout(due);
                     continue;
                 }
                 last = Instant::now();
@@ -872,6 +876,7 @@ fn run_node(
     }))
     .unwrap_or_else(|_| Err(last_panic()));
     alive.store(false, Ordering::Relaxed);
+    hb.thread().unpark();
     let _ = hb.join();
     match result {
         Ok(Ok(code)) => Ok(code),
@@ -938,13 +943,13 @@ fn build_and_run(
     let wire = |w: &mut Wire| -> anyhow::Result<()> {
         for b in &welcome.bindings {
             w.t.subscribe(&topic::data(&welcome.run, &b.coupling, &b.peer))?;
-            let mut readers = vec![b.peer.clone()];
-            if b.peer != "coordinator" {
-                readers.push("coordinator".to_string());
-            }
+            // Only the peer is woken by coupling data. The coordinator subscribes to record it
+            // (or, on a lagrange coupling, is the peer), but it needs no wake-up of its own:
+            // the window's `Done`, which always follows its `Fields`, wakes it, and it takes
+            // everything queued then. One notification and one wake-up less per message.
             let p = w.t.publisher(
                 &topic::data(&welcome.run, &b.coupling, &args.node),
-                &readers,
+                std::slice::from_ref(&b.peer),
             )?;
             w.data.push((b.coupling.clone(), p));
         }

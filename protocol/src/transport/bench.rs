@@ -1,16 +1,21 @@
 //! Transport benchmark: the round trip of one coupling window as the coordinator sees it.
 //! Per round the coordinator encodes and sends an `Advance` envelope to an echo endpoint,
 //! which answers with a `Fields` envelope carrying the payload (n bytes of f64) and then a
-//! `Done`; the coordinator decodes both with the full codec. The table gives the median (and
-//! p10/p90) over the measured rounds next to the median time of one plain memcpy of the
-//! payload bytes, the floor any transport that copies the data has to pay.
+//! `Done`; the coordinator checks both with the full codec, reading the payload where it
+//! lies ([`crate::codec::decode_fields_view`]). The table gives the median (and p10/p90) over
+//! the measured rounds next to the median time of one plain memcpy of the payload bytes, the
+//! floor any transport that copies the data has to pay, and (shared memory) a raw iceoryx2
+//! round trip of the same bytes (the `Advance` down, the `Fields` envelope up), the floor of
+//! the transport under it.
 //!
 //! Bench protocol: the echo side reads the payload length (number of f64 values) from
 //! `Advance::t1`; `Advance` of window 0 is the start-up probe; `Finish` ends the echo side.
 
 use super::local::LocalHub;
 use super::{Publisher, TopicId, Transport, TransportError, TransportKind, TransportSpec};
-use crate::codec::{CodecError, decode, encode_into};
+use crate::codec::{
+    CodecError, FIELDS_KIND, decode, decode_fields_view, encode_into, encoded_len, header,
+};
 use crate::message::{Advance, Done, Field, Fields, Finish, Message, StepReport, topic};
 use std::fmt;
 use std::process::{Child, Command, Stdio};
@@ -59,6 +64,11 @@ pub struct BenchRow {
     pub memcpy_us: f64,
     /// Median time of encoding plus decoding the `Fields` answer alone (no transport).
     pub codec_us: f64,
+    /// Shared memory only: median round trip of the same bytes over raw iceoryx2 (the
+    /// `Advance`'s bytes down, the `Fields` envelope's bytes up: loan, copy in, send, wake-up,
+    /// read in place; [`iceoryx_variant_rtt_us`] with the transport's service variant),
+    /// measured right after this row.
+    pub raw_us: Option<f64>,
 }
 
 /// Rows rendered as a markdown table.
@@ -78,13 +88,14 @@ impl fmt::Display for BenchTable<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "| transport | payload | rounds | median µs | p10 µs | p90 µs | memcpy µs | codec µs | median / (2 memcpy) |"
+            "| transport | payload | rounds | median µs | p10 µs | p90 µs | memcpy µs | codec µs | median / (2 memcpy) | raw iceoryx2 µs | median / raw |"
         )?;
-        writeln!(f, "|---|---:|---:|---:|---:|---:|---:|---:|---:|")?;
+        writeln!(f, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")?;
         for r in self.0 {
+            let raw = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.1}"));
             writeln!(
                 f,
-                "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+                "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} |",
                 r.transport.as_str(),
                 human_bytes(r.bytes),
                 r.rounds,
@@ -94,6 +105,9 @@ impl fmt::Display for BenchTable<'_> {
                 r.memcpy_us,
                 r.codec_us,
                 r.median_us / (2.0 * r.memcpy_us.max(1e-3)),
+                raw(r.raw_us),
+                r.raw_us
+                    .map_or("–".to_string(), |v| format!("{:.2}", r.median_us / v)),
             )?;
         }
         Ok(())
@@ -336,10 +350,11 @@ fn echo_loop(t: &mut dyn Transport, run: &str, me: &str) -> Result<(), BenchErro
                 if let Message::Done(d) = &mut done {
                     d.window = a.window;
                 }
+                // As a node sends its coupling data (participant runtime): in place where
+                // the transport allows.
                 for m in [&answer, &done] {
                     seq += 1;
-                    encode_into(&mut buf, run, me, seq, m)?;
-                    up.send(&buf)?;
+                    up.send_message(run, me, seq, m, &mut buf)?;
                 }
             }
             Message::Finish(_) => return Ok(()),
@@ -369,35 +384,66 @@ fn await_window(
         if now >= end {
             return Ok(false);
         }
-        t.recv(
-            end - now,
-            &mut |_: TopicId, bytes: &[u8]| match decode(bytes) {
-                Ok(env) => match env.message {
-                    Message::Fields(fl) if fl.window == window => {
+        t.recv(end - now, &mut |_: TopicId, bytes: &[u8]| {
+            // The payload is read where it lies (a shared-memory sample), never copied out.
+            if header(bytes).is_ok_and(|h| h.kind == FIELDS_KIND) {
+                match decode_fields_view(bytes) {
+                    Ok(fl) if fl.window == window => {
                         let ok = fl.fields.len() == 1
-                            && fl.fields[0].values.len() == values
-                            && fl.fields[0]
-                                .values
-                                .last()
-                                .is_none_or(|&x| x == (values - 1) as f64);
+                            && fl.fields[0].len() == values
+                            && (values == 0
+                                || fl.fields[0].get(values - 1) == Some((values - 1) as f64));
                         if ok {
                             a.fields = true;
                         } else {
                             a.error = Some(format!("window {window}: payload arrived altered"));
                         }
                     }
-                    Message::Done(d) if d.window == window => a.done = true,
                     // Answers to earlier probes.
+                    Ok(_) => {}
+                    Err(e) => a.error = Some(e.to_string()),
+                }
+                return;
+            }
+            match decode(bytes) {
+                Ok(env) => match env.message {
+                    Message::Done(d) if d.window == window => a.done = true,
                     _ => {}
                 },
                 Err(e) => a.error = Some(e.to_string()),
-            },
-        )?;
+            }
+        })?;
         if let Some(e) = a.error.take() {
             return Err(BenchError::Protocol(e));
         }
     }
     Ok(true)
+}
+
+/// Bytes of the window's `Advance` and of its `Fields` answer of `values` values, as
+/// encoded on the wire: what the raw round trip moves.
+fn envelope_lens(run: &str, values: usize) -> Result<(usize, usize), BenchError> {
+    let advance = Message::Advance(Advance {
+        window: 1,
+        t0: 0.0,
+        t1: values as f64,
+        write_output: false,
+        checkpoint: false,
+    });
+    let fields = Message::Fields(Fields {
+        coupling: "bench".into(),
+        window: 1,
+        time: 0.0,
+        fields: vec![Field {
+            name: "payload".into(),
+            components: 1,
+            values: vec![0.0; values],
+        }],
+    });
+    Ok((
+        encoded_len(run, COORDINATOR, &advance)?,
+        encoded_len(run, ECHO_ENDPOINT, &fields)?,
+    ))
 }
 
 fn drive(
@@ -473,6 +519,14 @@ fn drive(
             p90_us: percentile(&times, 0.9),
             memcpy_us: memcpy_median_us(values * 8, rounds),
             codec_us: codec_median_us(values * 8, rounds.min(50))?,
+            raw_us: if kind == TransportKind::Shm {
+                let (request, answer) = envelope_lens(run, values)?;
+                Some(iceoryx_variant_rtt_us::<
+                    iceoryx2::service::ipc_threadsafe::Service,
+                >(request, answer, rounds)?)
+            } else {
+                None
+            },
         });
     }
     seq += 1;
@@ -489,11 +543,15 @@ fn drive(
     Ok(rows)
 }
 
-/// Median round trip (µs) of `bytes` bytes between two threads over raw iceoryx2 pub/sub +
-/// event wake-ups with service variant `S`: compares `ipc` with the `ipc_threadsafe` variant
-/// the shm transport uses (its ports lock a mutex per operation).
+/// Median round trip (µs) over raw iceoryx2 between two threads, pub/sub plus event
+/// wake-ups with service variant `S`: one side sends `request` bytes, the other answers with
+/// `answer` bytes, as a window exchange does (an `Advance` down, the `Fields` envelope up).
+/// Each side does the least any user of the transport must: the answer's bytes are copied
+/// into the loaned sample (as encoding into it does) and read where they lie on arrival (its
+/// length and last value checked, as the bench's reader of the `Fields` view does).
 pub fn iceoryx_variant_rtt_us<S: iceoryx2::service::Service>(
-    bytes: usize,
+    request: usize,
+    answer: usize,
     rounds: usize,
 ) -> Result<f64, TransportError> {
     use iceoryx2::prelude::*;
@@ -509,14 +567,28 @@ pub fn iceoryx_variant_rtt_us<S: iceoryx2::service::Service>(
                      lead: bool|
           -> Result<Vec<f64>, TransportError> {
         let setup = |e: &dyn std::fmt::Debug| TransportError::Setup(format!("{e:?}"));
+        let (send_len, recv_len) = if lead {
+            (request, answer)
+        } else {
+            (answer, request)
+        };
         let node = NodeBuilder::new()
             .config(&config)
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<S>()
             .map_err(|e| setup(&e))?;
+        // One publisher and one subscriber with small queues, as the shm transport sets its
+        // topics up: the sample pool stays small, so its pages are warm after the warm-up
+        // rounds (iceoryx2's defaults preallocate dozens of samples, each faulted in on first
+        // use, which would time the page faults rather than the transport).
         let topic = |n: &str| -> Result<_, TransportError> {
             node.service_builder(&ServiceName::new(n).map_err(|e| setup(&e))?)
                 .publish_subscribe::<[u8]>()
+                .max_publishers(1)
+                .max_subscribers(1)
+                .subscriber_max_buffer_size(2)
+                .subscriber_max_borrowed_samples(1)
+                .history_size(0)
                 .enable_safe_overflow(false)
                 .open_or_create()
                 .map_err(|e| setup(&e))
@@ -531,8 +603,9 @@ pub fn iceoryx_variant_rtt_us<S: iceoryx2::service::Service>(
         let in_svc = topic(me)?;
         let publisher = out_svc
             .publisher_builder()
-            .initial_max_slice_len(bytes)
+            .initial_max_slice_len(send_len.max(1))
             .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .max_loaned_samples(1)
             .create()
             .map_err(|e| setup(&e))?;
         let sub = in_svc
@@ -552,11 +625,12 @@ pub fn iceoryx_variant_rtt_us<S: iceoryx2::service::Service>(
             std::thread::sleep(Duration::from_millis(1));
         }
         std::thread::sleep(Duration::from_millis(20));
-        let data = vec![1u8; bytes];
-        let mut got = vec![0u8; bytes];
+        let data: Vec<u8> = (0..send_len).map(|i| i as u8).collect();
         let mut times = Vec::with_capacity(total);
         let send = || -> Result<(), TransportError> {
-            let s = publisher.loan_slice_uninit(bytes).map_err(|e| setup(&e))?;
+            let s = publisher
+                .loan_slice_uninit(send_len)
+                .map_err(|e| setup(&e))?;
             s.write_from_slice(&data).send().map_err(|e| setup(&e))?;
             notifier.notify().map_err(|e| setup(&e))?;
             Ok(())
@@ -568,7 +642,16 @@ pub fn iceoryx_variant_rtt_us<S: iceoryx2::service::Service>(
             }
             loop {
                 if let Some(s) = sub.receive().map_err(|e| setup(&e))? {
-                    got.copy_from_slice(s.payload());
+                    let got = s.payload();
+                    let want_last = (recv_len > 0).then(|| (recv_len - 1) as u8);
+                    if got.len() != recv_len
+                        || std::hint::black_box(got.last().copied()) != want_last
+                    {
+                        return Err(TransportError::Recv(format!(
+                            "raw round trip: {} bytes arrived, {recv_len} sent",
+                            got.len()
+                        )));
+                    }
                     break;
                 }
                 listener

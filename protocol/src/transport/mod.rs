@@ -24,6 +24,8 @@ pub enum TransportError {
     Recv(String),
     #[error("the process was asked to terminate")]
     Terminated,
+    #[error("cannot encode the message: {0}")]
+    Encode(String),
 }
 
 /// Which transport a run uses.
@@ -77,6 +79,22 @@ pub type TopicId = usize;
 /// Sends bytes on one topic. `Send` so a node's heartbeat thread can own one.
 pub trait Publisher: Send {
     fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError>;
+
+    /// Encode `message` as an envelope (run, sender, sequence number) and send it. By
+    /// default it is encoded into `scratch` (capacity reused) and its bytes sent; shared
+    /// memory encodes straight into the loaned sample instead.
+    fn send_message(
+        &mut self,
+        run: &str,
+        sender: &str,
+        seq: u64,
+        message: &crate::message::Message,
+        scratch: &mut Vec<u8>,
+    ) -> Result<(), TransportError> {
+        crate::codec::encode_into(scratch, run, sender, seq, message)
+            .map_err(|e| TransportError::Encode(e.to_string()))?;
+        self.send(scratch)
+    }
 }
 
 pub trait Transport {

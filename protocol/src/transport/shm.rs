@@ -7,6 +7,8 @@
 //! [`cleanup_run`] sweeps after a crash.
 
 use super::{PeerWatch, Publisher, TopicId, Transport, TransportError, TransportSpec};
+use crate::codec;
+use crate::message::Message;
 use iceoryx2::node::NodeView;
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::notifier::Notifier;
@@ -17,6 +19,7 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 use std::collections::HashMap;
+use std::mem::MaybeUninit;
 use std::time::{Duration, Instant};
 
 /// The service variant: the thread-safe one, because a `Publisher` must be `Send` (a node's
@@ -42,6 +45,23 @@ const INITIAL_SLICE: usize = 4096;
 /// A send that cannot deliver for this long (a reader that stopped reading) fails instead
 /// of hanging the sender forever.
 pub const SEND_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// How long `recv` polls for a message before it sleeps on its bell: `COSIM_SPIN_US`
+/// (microseconds, default [`SPIN_US`]; 0 sleeps at once). Polling spends a core while it
+/// lasts, so it pays only where a reply usually comes that soon (fine coupling windows).
+fn spin() -> Duration {
+    static SPIN: std::sync::OnceLock<Duration> = std::sync::OnceLock::new();
+    *SPIN.get_or_init(|| {
+        let us = std::env::var("COSIM_SPIN_US")
+            .ok()
+            .and_then(|v| v.trim().parse::<u64>().ok())
+            .unwrap_or(SPIN_US);
+        Duration::from_micros(us.min(10_000))
+    })
+}
+
+/// Default of `COSIM_SPIN_US`.
+pub const SPIN_US: u64 = 0;
 
 /// The file-name prefix of every shared-memory resource of `run`: `cx_<run>_`. Run ids are
 /// `[A-Za-z0-9_-]`, at most 32 characters; anything else is replaced by `_`.
@@ -207,6 +227,9 @@ impl ShmTransport {
     }
 }
 
+/// Writes one message into a loaned sample, in place (all of its bytes).
+type Fill<'a> = dyn FnMut(&mut [MaybeUninit<u8>]) -> Result<(), TransportError> + 'a;
+
 struct ShmPublisher {
     topic: String,
     /// Identifies this publisher in the frame header, for the readers' duplicate filter.
@@ -226,14 +249,20 @@ impl ShmPublisher {
         }
     }
 
-    /// Loan a sample, write the frame header and `bytes` into it (the one copy), send it;
-    /// returns how many subscribers took it.
-    fn send_once(&self, bytes: &[u8], start: Instant) -> Result<usize, TransportError> {
+    /// Loan a sample of `len` message bytes, write the frame header and let `fill` write the
+    /// message into it in place (all `len` bytes), send it; returns how many subscribers
+    /// took it.
+    fn send_once(
+        &self,
+        len: usize,
+        fill: &mut Fill,
+        start: Instant,
+    ) -> Result<usize, TransportError> {
         // All preallocated samples are in flight only while a reader lags behind: wait for
         // it (backpressure), never drop.
         let mut pause = Duration::from_micros(20);
         let mut sample = loop {
-            match self.publisher.loan_slice_uninit(FRAME_HEADER + bytes.len()) {
+            match self.publisher.loan_slice_uninit(FRAME_HEADER + len) {
                 Ok(s) => break s,
                 Err(LoanError::OutOfMemory) | Err(LoanError::ExceedsMaxLoans) => {
                     if super::sends_abandoned() {
@@ -247,22 +276,19 @@ impl ShmPublisher {
                     std::thread::sleep(pause);
                     pause = (pause * 2).min(Duration::from_millis(5));
                 }
-                Err(e) => return Err(self.err(format!("loan of {} bytes: {e:?}", bytes.len()))),
+                Err(e) => return Err(self.err(format!("loan of {len} bytes: {e:?}"))),
             }
         };
         let dst = sample.payload_mut();
         let mut header = [0u8; FRAME_HEADER];
         header[..8].copy_from_slice(&self.tag.to_le_bytes());
         header[8..].copy_from_slice(&self.seq.to_le_bytes());
-        // SAFETY: `dst` has exactly FRAME_HEADER + bytes.len() elements (the loan size);
-        // MaybeUninit<u8> has the layout of u8; the source and the shared-memory sample do
-        // not overlap. Every element is written before `assume_init`.
-        let sample = unsafe {
-            let p = dst.as_mut_ptr() as *mut u8;
-            std::ptr::copy_nonoverlapping(header.as_ptr(), p, FRAME_HEADER);
-            std::ptr::copy_nonoverlapping(bytes.as_ptr(), p.add(FRAME_HEADER), bytes.len());
-            sample.assume_init()
-        };
+        let (head, body) = dst.split_at_mut(FRAME_HEADER);
+        head.write_copy_of_slice(&header);
+        fill(body)?;
+        // SAFETY: the loan holds exactly FRAME_HEADER + len elements: the header was written
+        // above and `fill` wrote all `len` message bytes (its contract; it failed otherwise).
+        let sample = unsafe { sample.assume_init() };
         let delivered = sample.send().map_err(|e| self.err(format!("{e:?}")))?;
         for bell in &self.bells {
             bell.notify()
@@ -272,13 +298,14 @@ impl ShmPublisher {
     }
 }
 
-impl Publisher for ShmPublisher {
-    fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+impl ShmPublisher {
+    /// Send one message of `len` bytes written by `fill` (again for a resend).
+    fn send_with(&mut self, len: usize, fill: &mut Fill) -> Result<(), TransportError> {
         let start = Instant::now();
         let mut pause = Duration::from_micros(50);
         self.seq += 1;
         loop {
-            let delivered = self.send_once(bytes, start)?;
+            let delivered = self.send_once(len, fill, start)?;
             // iceoryx2 drops a sample for a subscriber that has not yet connected to this
             // publisher (it connects on its next receive) once that subscriber's buffer is
             // full. Detect it and send again after the bell has woken the reader; readers
@@ -296,6 +323,32 @@ impl Publisher for ShmPublisher {
             std::thread::sleep(pause);
             pause = (pause * 2).min(Duration::from_millis(5));
         }
+    }
+}
+
+impl Publisher for ShmPublisher {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+        self.send_with(bytes.len(), &mut |dst| {
+            dst.write_copy_of_slice(bytes);
+            Ok(())
+        })
+    }
+
+    /// Encodes straight into the loaned sample: the message's only copy on this side.
+    fn send_message(
+        &mut self,
+        run: &str,
+        sender: &str,
+        seq: u64,
+        message: &Message,
+        _scratch: &mut Vec<u8>,
+    ) -> Result<(), TransportError> {
+        let len = codec::encoded_len(run, sender, message)
+            .map_err(|e| self.err(format!("cannot encode: {e}")))?;
+        self.send_with(len, &mut |dst| {
+            codec::encode_into_uninit(dst, run, sender, seq, message)
+                .map_err(|e| TransportError::Encode(e.to_string()))
+        })
     }
 }
 
@@ -368,7 +421,11 @@ impl Transport for ShmTransport {
         timeout: Duration,
         f: &mut dyn FnMut(TopicId, &[u8]),
     ) -> Result<bool, TransportError> {
-        let deadline = Instant::now() + timeout;
+        let start = Instant::now();
+        let deadline = start + timeout;
+        // A reply that comes within the spin window is taken without sleeping on the bell
+        // (a sleep and a wake-up cost the kernel's scheduling latency each time).
+        let spin_until = start + spin().min(timeout);
         let n = self.subs.len();
         loop {
             // Round robin: start after the topic served last, so a busy topic cannot starve
@@ -392,6 +449,10 @@ impl Transport for ShmTransport {
             let now = Instant::now();
             if now >= deadline {
                 return Ok(false);
+            }
+            if now < spin_until {
+                std::hint::spin_loop();
+                continue;
             }
             // A bell rung after the scan above is still pending here, so nothing is missed.
             match self.bell.timed_wait(|_| {}, deadline - now) {

@@ -1,0 +1,117 @@
+//! The coordinator's pipelined window schedule (issue 22): with the next window's `Advance`
+//! out before the last one is audited, the split bar is the same run as in lockstep — the same
+//! coupling data and reports every window, the same balance — its recording holds every
+//! window in order, it replays bit-identically, and its summary says where the time went.
+
+use cosim_tests::*;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Run `case` with `COSIM_WINDOWS_AHEAD=ahead`; returns its summary.
+fn run_with(case: &Path, out: &Path, id: &str, ahead: &str) -> serde_json::Value {
+    let o = std::process::Command::new(bin("cosim"))
+        .args(["run", case.to_str().expect("utf-8 path"), "--output"])
+        .arg(out)
+        .args(["--run-id", id, "--quiet"])
+        .env("COSIM_WINDOWS_AHEAD", ahead)
+        .output()
+        .expect("cosim runs");
+    assert!(
+        o.status.success(),
+        "cosim (windows ahead {ahead}) failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    nothing_left(id);
+    summary(out)
+}
+
+/// Every coupling message of the recording, per topic, in order: (window, fields as bits).
+type Traffic = BTreeMap<String, Vec<(u64, Vec<(String, Vec<u64>)>)>>;
+
+fn coupling_traffic(mcap: &Path) -> Traffic {
+    let (msgs, complete) = coordinator::record::read_all(mcap).expect("readable recording");
+    assert!(complete, "{}: incomplete recording", mcap.display());
+    let mut t = Traffic::new();
+    for m in msgs.iter().filter(|m| !m.json) {
+        let env = protocol::decode(&m.data).expect("recorded bytes decode");
+        if let protocol::Message::Fields(f) = env.message {
+            let fields = f
+                .fields
+                .iter()
+                .map(|x| {
+                    let bits = x.values.iter().map(|v| v.to_bits()).collect();
+                    (x.name.clone(), bits)
+                })
+                .collect();
+            t.entry(m.topic.clone())
+                .or_default()
+                .push((f.window, fields));
+        }
+    }
+    t
+}
+
+#[test]
+fn pipelined_split_bar_is_the_lockstep_run_and_replays_bit_identically() {
+    let (dir, id) = scratch("pipeline");
+    let case = split_bar_case(&dir, 100, 300, 0.5, "shm", 0.5);
+    let lock = dir.join("lockstep");
+    let pipe = dir.join("pipelined");
+    let s1 = run_with(&case, &lock, &format!("{id}a"), "1");
+    let s2 = run_with(&case, &pipe, &format!("{id}b"), "2");
+    let windows = s1["windows"].as_u64().expect("windows");
+    assert!(windows > 100, "{windows} windows");
+    assert_eq!(s2["windows"].as_u64(), Some(windows));
+    // Every window's balance, in order, with the same bits.
+    for (s, mcap) in [(&s1, lock.join("run.mcap")), (&s2, pipe.join("run.mcap"))] {
+        let rows = s["balance"]["per_window"].as_array().expect("per_window");
+        assert_eq!(rows.len() as u64, windows);
+        let order: Vec<u64> = balance_windows(&mcap);
+        assert_eq!(
+            order,
+            (1..=windows).collect::<Vec<_>>(),
+            "balance records in order"
+        );
+        assert_eq!(recorded_windows(&mcap, "left"), windows);
+        assert_eq!(recorded_windows(&mcap, "right"), windows);
+    }
+    assert_eq!(
+        s1["balance"]["per_window"], s2["balance"]["per_window"],
+        "the balance differs between lockstep and pipelined"
+    );
+    // The same coupling data, window by window, on every topic (set-up included).
+    let a = coupling_traffic(&lock.join("run.mcap"));
+    let b = coupling_traffic(&pipe.join("run.mcap"));
+    assert_eq!(a.len(), 2, "topics: {:?}", a.keys());
+    for (topic, msgs) in &a {
+        assert_eq!(
+            msgs.len() as u64,
+            windows + 1,
+            "{topic}: set-up and every window"
+        );
+        let w: Vec<u64> = msgs.iter().map(|m| m.0).collect();
+        assert_eq!(w, (0..=windows).collect::<Vec<_>>(), "{topic}: in order");
+    }
+    let renamed: Traffic = b
+        .into_iter()
+        .map(|(k, v)| (k.replace(&format!("{id}b"), &format!("{id}a")), v))
+        .collect();
+    assert_eq!(a, renamed, "the coupling data differ");
+    // The breakdown of the window loop is there, phase by phase.
+    for s in [&s1, &s2] {
+        let b = &s["window_breakdown"];
+        assert_eq!(b["windows"].as_u64(), Some(windows));
+        for k in [
+            "advance_send_us",
+            "blocked_on_nodes_us",
+            "record_messages_us",
+            "reports_us",
+        ] {
+            assert!(b[k].as_f64().is_some_and(|x| x >= 0.0), "{k}: {b}");
+        }
+        assert!(b["allocations_per_window"].as_f64().is_some(), "{b}");
+    }
+    for node in ["left", "right"] {
+        assert_replays_bit_identically(&pipe.join("run.mcap"), node, &format!("pipe-{node}"));
+    }
+}
