@@ -47,10 +47,18 @@ fn run_variant(tag: &str, variant: Option<&str>) -> (PathBuf, Value, String) {
 /// The shape of a JSON value: its keys and types, with every leaf replaced by its type.
 fn shape(v: &Value) -> Value {
     match v {
-        Value::Object(m) => Value::Object(m.iter().map(|(k, v)| (k.clone(), shape(v))).collect()),
-        // lists of files (plots, pictures) are as long as what the nodes write: the C bar
-        // writes no VTK, so its run has no picture of that node alone
-        Value::Array(a) if a.iter().all(Value::is_string) => Value::String("strings".into()),
+        // the lists of drawn files are as long as what the nodes write: the C bar writes no
+        // VTK, so its run has no picture of that node alone; every other list keeps its length
+        Value::Object(m) => Value::Object(
+            m.iter()
+                .map(|(k, v)| match (k.as_str(), v) {
+                    ("plots" | "node_fields", Value::Array(_)) => {
+                        (k.clone(), Value::String("files".into()))
+                    }
+                    _ => (k.clone(), shape(v)),
+                })
+                .collect(),
+        ),
         Value::Array(a) => Value::Array(a.iter().map(shape).collect()),
         Value::Number(_) => Value::String("number".into()),
         Value::String(_) => Value::String("string".into()),

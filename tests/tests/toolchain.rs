@@ -448,9 +448,11 @@ fn run_pictures_draws_every_frame_or_none() {
         &["--variant", "small", "--set", "run.pictures=\"frames\""],
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut all_written = 0;
     for (node, series) in [("gas", "fluid.pvd"), ("bar", "pd.pvd")] {
         let pvd = std::fs::read_to_string(out.join(node).join(series)).unwrap();
         let written = pvd.matches("<DataSet").count();
+        all_written += written;
         let drawn = std::fs::read_dir(out.join("frames"))
             .unwrap()
             .flatten()
@@ -464,7 +466,7 @@ fn run_pictures_draws_every_frame_or_none() {
         assert!(written >= 3, "{written}");
         assert_eq!(drawn, written);
     }
-    assert_eq!(summary(&out)["frame_pictures"], 10);
+    assert_eq!(summary(&out)["frame_pictures"], all_written);
 
     let none = dir.join("none");
     let o = run_case(
