@@ -382,14 +382,19 @@ fn read_where(path: &Path, json_only: bool) -> anyhow::Result<(Vec<Recorded>, bo
             anyhow::bail!("{}: its resume mark names no window", s.display());
         };
         cut_after_checkpoint(&mut out, k);
-        // The restore sends the `Fields` of window k again, and they may be recorded after
-        // the mark: keep them only where the earlier segment lost its own.
+        // The restore sends the `Fields` of window k again, recorded before the mark (while
+        // the coordinator awaits the restores) or after it: keep them only where the earlier
+        // segment lost its own (a coordinator killed before it recorded them).
         let have: std::collections::HashSet<(String, u64)> = out
             .iter()
             .filter_map(|m| Some((m.topic.clone(), fields_window(m)?)))
             .collect();
-        out.extend(msgs.into_iter().skip(i + 1).filter(|m| {
-            fields_window(m).is_none_or(|w| w > k || !have.contains(&(m.topic.clone(), w)))
+        out.extend(msgs.into_iter().enumerate().filter_map(|(j, m)| {
+            let keep = match fields_window(&m) {
+                Some(w) if w <= k => !have.contains(&(m.topic.clone(), w)),
+                _ => j > i,
+            };
+            keep.then_some(m)
         }));
         complete = c;
     }
@@ -697,6 +702,82 @@ mod tests {
                 serde_json::json!({ "window": 2 })
             ]
         );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A coordinator killed after the checkpoint of window 2 had not recorded node b's data
+    /// of window 2; the restart sends it again while the coordinator awaits the restores,
+    /// before the resume mark. Read as one run, the recording holds every node's data of
+    /// every window once: a's window-2 data from the first segment (its resent copy dropped),
+    /// b's from the second, and the windows after the checkpoint from the second only.
+    #[test]
+    fn a_restart_fills_the_data_the_killed_run_lost_wherever_it_lies() {
+        let dir = std::env::temp_dir().join(format!("cosim-rec-resume-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("run.mcap");
+        let fields = |node: &str, window: u64, v: f64| {
+            let m = protocol::Message::Fields(protocol::message::Fields {
+                coupling: "c".into(),
+                window,
+                time: window as f64,
+                fields: vec![protocol::message::Field {
+                    name: "force".into(),
+                    components: 1,
+                    values: vec![v],
+                }],
+            });
+            protocol::encode("r", node, window, &m).unwrap()
+        };
+        let mark = |rec: &mut Recorder, topic: &str, w: u64| {
+            rec.json(topic, "M", w as f64, &serde_json::json!({ "window": w }))
+                .unwrap();
+        };
+        // The killed run: windows 1..=3 of a, 1..=1 and 3 of b (window 2 lost), mark of 2.
+        let mut rec = Recorder::create(&path).unwrap();
+        for w in 1..=2 {
+            rec.message("/a", 0.0, &fields("a", w, 1.0)).unwrap();
+        }
+        rec.message("/b", 0.0, &fields("b", 1, 1.0)).unwrap();
+        mark(&mut rec, CHECKPOINT_TOPIC, 2);
+        rec.message("/a", 0.0, &fields("a", 3, 1.0)).unwrap();
+        rec.message("/b", 0.0, &fields("b", 3, 1.0)).unwrap();
+        rec.finish().unwrap();
+        // The restart: both resend window 2 before the mark, then run windows 3 and 4.
+        let mut rec = Recorder::create(&dir.join("run.1.mcap")).unwrap();
+        rec.message("/a", 0.0, &fields("a", 2, 2.0)).unwrap();
+        rec.message("/b", 0.0, &fields("b", 2, 2.0)).unwrap();
+        mark(&mut rec, RESUMED_TOPIC, 2);
+        for w in 3..=4 {
+            rec.message("/a", 0.0, &fields("a", w, 2.0)).unwrap();
+            rec.message("/b", 0.0, &fields("b", w, 2.0)).unwrap();
+        }
+        rec.finish().unwrap();
+
+        let (all, complete) = read_all(&path).unwrap();
+        assert!(complete);
+        let mut got: Vec<(String, u64, f64)> = all
+            .iter()
+            .filter(|m| !m.json)
+            .map(|m| match protocol::decode(&m.data).unwrap().message {
+                protocol::Message::Fields(f) => (m.topic.clone(), f.window, f.fields[0].values[0]),
+                _ => unreachable!(),
+            })
+            .collect();
+        got.sort_by(|x, y| x.partial_cmp(y).unwrap());
+        let want: Vec<(String, u64, f64)> = [
+            ("/a", 1, 1.0),
+            ("/a", 2, 1.0),
+            ("/a", 3, 2.0),
+            ("/a", 4, 2.0),
+            ("/b", 1, 1.0),
+            ("/b", 2, 2.0),
+            ("/b", 3, 2.0),
+            ("/b", 4, 2.0),
+        ]
+        .iter()
+        .map(|(t, w, v)| (t.to_string(), *w, *v))
+        .collect();
+        assert_eq!(got, want);
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -276,6 +276,12 @@ fn continues_identically(reference: &Path, out: &Path, k: u64) {
         traffic(&reference.join("run.mcap")),
         traffic(&out.join("run.mcap")),
     );
+    let missing: Vec<_> = ta.keys().filter(|x| !tb.contains_key(*x)).collect();
+    let extra: Vec<_> = tb.keys().filter(|x| !ta.contains_key(*x)).collect();
+    assert!(
+        missing.is_empty() && extra.is_empty(),
+        "coupling messages (checkpoint {k}): missing after the restart {missing:?}, not in the uninterrupted run {extra:?}"
+    );
     assert_eq!(ta.len(), tb.len(), "coupling messages in the recordings");
     let mut messages = 0;
     for (key, v) in ta.iter().filter(|(k2, _)| k2.1 > k) {
