@@ -9,6 +9,7 @@ pub mod describe;
 pub mod export;
 pub mod fields;
 pub mod lagrange;
+pub mod nest;
 pub mod params;
 pub mod plot;
 pub mod profile;

@@ -113,7 +113,7 @@ impl Recorder {
         if let Some((id, _, have)) = self.channels.get(topic) {
             let known = match json.map(|(_, doc)| doc) {
                 None => true,
-                Some(serde_json::Value::Object(m)) => m.keys().all(|k| have.contains_key(k)),
+                Some(serde_json::Value::Object(m)) => all_known(m, have),
                 Some(_) => true,
             };
             if known {
@@ -225,33 +225,47 @@ impl Recorder {
     }
 }
 
-/// The JSON Schema type of each key of an object (empty for anything else).
+/// The JSON Schema type of each leaf of an object, by dotted path (nested objects are
+/// walked, see [`crate::nest`]; empty for anything else).
 fn keys_of(doc: &serde_json::Value) -> BTreeMap<String, &'static str> {
     use serde_json::Value;
     let Value::Object(m) = doc else {
         return BTreeMap::new();
     };
-    m.iter()
-        .map(|(k, v)| {
-            let ty = match v {
-                // serde_json writes a NaN or infinite f64 as null
-                Value::Null | Value::Number(_) => "number",
-                Value::Bool(_) => "boolean",
-                Value::String(_) => "string",
-                Value::Array(_) => "array",
-                Value::Object(_) => "object",
-            };
-            (k.clone(), ty)
-        })
-        .collect()
+    let mut out = BTreeMap::new();
+    crate::nest::for_each_leaf(m, &mut |k, v| {
+        let ty = match v {
+            // serde_json writes a NaN or infinite f64 as null
+            Value::Null | Value::Number(_) => "number",
+            Value::Bool(_) => "boolean",
+            Value::String(_) => "string",
+            Value::Array(_) => "array",
+            Value::Object(_) => "object",
+        };
+        out.insert(k.to_string(), ty);
+    });
+    out
 }
 
-/// A JSON Schema (draft 2020-12) of an object with these keys and types; a number may be
-/// null (a NaN or infinite value), arrays hold numbers (Foxglove plots the numbers).
+/// Whether every leaf of `doc` is one of `have`'s keys (allocates only for nested objects).
+fn all_known<V>(
+    doc: &serde_json::Map<String, serde_json::Value>,
+    have: &BTreeMap<String, V>,
+) -> bool {
+    if !crate::nest::has_nested(doc) {
+        return doc.keys().all(|k| have.contains_key(k));
+    }
+    let mut all = true;
+    crate::nest::for_each_leaf(doc, &mut |k, _| all &= have.contains_key(k));
+    all
+}
+
+/// A JSON Schema (draft 2020-12) of an object with these keys (dotted paths of nested
+/// objects, as [`keys_of`] gives them) and types; a number may be null (a NaN or infinite
+/// value), arrays hold numbers (Foxglove plots the numbers).
 pub fn object_schema(title: &str, keys: &BTreeMap<String, &'static str>) -> String {
-    let props: serde_json::Map<String, serde_json::Value> = keys
-        .iter()
-        .map(|(k, ty)| {
+    let props = crate::nest::properties(
+        keys.iter().map(|(k, ty)| {
             let v = match *ty {
                 "number" => serde_json::json!({ "type": ["number", "null"] }),
                 "array" => serde_json::json!({
@@ -260,9 +274,10 @@ pub fn object_schema(title: &str, keys: &BTreeMap<String, &'static str>) -> Stri
                 }),
                 t => serde_json::json!({ "type": t }),
             };
-            (k.clone(), v)
-        })
-        .collect();
+            (k.as_str(), v)
+        }),
+        &|k| keys.contains_key(k),
+    );
     serde_json::json!({
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "title": title,
@@ -289,7 +304,8 @@ pub fn read_json(path: &Path) -> anyhow::Result<(Vec<Recorded>, bool)> {
 
 /// Read every message of a recording in file order; `complete` is false when the file ended
 /// early (a killed writer): the messages of its completed chunks are still returned. A
-/// restarted run's segments are read as one run (see [`segments`]).
+/// restarted run's segments are read as one run (see [`segments`]). Node reports come back
+/// flat: a scalar recorded nested (`{"point1": {"pressure": …}}`) as `point1.pressure`.
 pub fn read_all(path: &Path) -> anyhow::Result<(Vec<Recorded>, bool)> {
     read_where(path, false)
 }
@@ -404,6 +420,19 @@ fn read_where(path: &Path, json_only: bool) -> anyhow::Result<(Vec<Recorded>, bo
     Ok((out, complete))
 }
 
+/// Prefix of the JSON channels of the node reports (`/cosim/node/<name>`).
+pub const NODE_TOPIC_PREFIX: &str = "/cosim/node/";
+
+/// A node report recorded with nested objects (dotted scalar names, [`crate::nest`]) as the
+/// flat object of dotted names our readers use; `None` when it has none (or is no object).
+fn flat_report(data: &[u8]) -> Option<Vec<u8>> {
+    let v: serde_json::Map<String, serde_json::Value> = serde_json::from_slice(data).ok()?;
+    if !crate::nest::has_nested(&v) {
+        return None;
+    }
+    serde_json::to_vec(&crate::nest::flatten(&v)).ok()
+}
+
 fn read_segment(path: &Path, json_only: bool) -> anyhow::Result<(Vec<Recorded>, bool)> {
     let buf = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
     let mut out = Vec::new();
@@ -414,10 +443,16 @@ fn read_segment(path: &Path, json_only: bool) -> anyhow::Result<(Vec<Recorded>, 
             Ok(m) => {
                 let json = m.channel.message_encoding == "json";
                 if json || !json_only {
+                    let topic = &m.channel.topic;
+                    let data = if json && topic.starts_with(NODE_TOPIC_PREFIX) {
+                        flat_report(&m.data).unwrap_or_else(|| m.data.into_owned())
+                    } else {
+                        m.data.into_owned()
+                    };
                     out.push(Recorded {
-                        topic: m.channel.topic.clone(),
+                        topic: topic.clone(),
                         log_time: m.log_time,
-                        data: m.data.into_owned(),
+                        data,
                         json,
                     });
                 }
@@ -571,7 +606,11 @@ impl RecorderThread {
     ) -> anyhow::Result<()> {
         if let serde_json::Value::Object(m) = v {
             let known = self.json_keys.entry(topic.to_string()).or_default();
-            known.extend(m.keys().cloned());
+            crate::nest::for_each_leaf(m, &mut |k, _| {
+                if !known.contains(k) {
+                    known.insert(k.to_string());
+                }
+            });
         }
         let topic = self.topic(topic);
         self.send(Cmd::Json {

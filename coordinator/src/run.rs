@@ -111,6 +111,23 @@ struct NodeReportDoc<'a> {
     r: &'a StepReport,
 }
 
+/// The keys a node report has besides its named scalars.
+const BUILTIN_KEYS: [&str; 13] = [
+    "window",
+    "time",
+    "kinetic_energy",
+    "internal_energy",
+    "external_work",
+    "interface_work",
+    "momentum",
+    "momentum_gross",
+    "external_impulse",
+    "interface_impulse",
+    "substeps",
+    "wall_s",
+    "coupling_wait_s",
+];
+
 impl serde::Serialize for NodeReportDoc<'_> {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         use serde::ser::SerializeMap;
@@ -137,9 +154,20 @@ impl serde::Serialize for NodeReportDoc<'_> {
         put!("substeps", &r.substeps);
         put!("wall_s", &r.wall_s);
         put!("coupling_wait_s", &r.coupling_wait_s);
+        // A dotted name is recorded nested (`point1.pressure` as `{"point1": {"pressure": …}}`,
+        // Foxglove's path syntax), unless a prefix of it is a key itself.
+        let is_key = |k: &str| BUILTIN_KEYS.contains(&k) || shadowed(k);
         for (name, val) in &r.scalars {
-            m.serialize_entry(name, val)?;
+            if !crate::nest::nests(name, is_key) {
+                m.serialize_entry(name, val)?;
+            }
         }
+        crate::nest::Group {
+            scalars: &r.scalars,
+            prefix: "",
+            is_key: &is_key,
+        }
+        .entries(&mut m)?;
         m.end()
     }
 }
@@ -1979,7 +2007,9 @@ mod tests {
     /// them), and gives the same plot histories.
     #[test]
     fn node_report_doc_is_the_json_report() {
-        let r = report();
+        let mut r = report();
+        r.scalars.push(("point1.pressure".into(), 2e5));
+        r.scalars.push(("point1.density".into(), 1.2));
         let mut old = json!({
             "window": 7, "time": 3.5e-6,
             "kinetic_energy": r.kinetic_energy, "internal_energy": r.internal_energy,
@@ -2000,7 +2030,10 @@ mod tests {
         };
         let bytes = serde_json::to_vec(&doc).expect("serialize");
         let new: serde_json::Value = serde_json::from_slice(&bytes).expect("parse");
-        assert_eq!(new, old);
+        // the dotted names nested as Foxglove addresses them, the same document flattened
+        assert_eq!(new["point1"], json!({ "pressure": 2e5, "density": 1.2 }));
+        let flat = crate::nest::flatten(new.as_object().expect("an object"));
+        assert_eq!(serde_json::Value::Object(flat), old);
         assert_eq!(new["internal_energy"], json!(9.0));
         assert!(new["probe"].is_null());
         let mut h_old = crate::plot::Histories::new();
@@ -2009,7 +2042,8 @@ mod tests {
         crate::plot::add_node_report(&mut h_new, "left", 3.5e-6, &r, 10);
         assert_eq!(h_new, h_old);
         // kinetic, internal (the scalar), external and interface work, gross momentum,
-        // three momentum components, the tip displacement; not the NaN probe
-        assert_eq!(h_new["left"].len(), 9, "{:?}", h_new["left"].keys());
+        // three momentum components, the tip displacement, the two point values; not the
+        // NaN probe
+        assert_eq!(h_new["left"].len(), 11, "{:?}", h_new["left"].keys());
     }
 }

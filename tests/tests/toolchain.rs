@@ -57,7 +57,7 @@ with open(mcap, "rb") as f:
         rec[ch.topic.rsplit("/", 1)[1]].append(json.loads(m.data))
 assert pressure.dtype == np.float64 and pressure.shape == (len(rec["gas"]),), pressure.shape
 assert com.shape == (len(rec["bar"]),), com.shape
-assert np.array_equal(pressure, [r["point2.pressure"] for r in rec["gas"]])
+assert np.array_equal(pressure, [r["point2"]["pressure"] for r in rec["gas"]])
 assert np.array_equal(com, [r["com_displacement_x"] for r in rec["bar"]])
 assert np.array_equal(time, [r["time"] for r in rec["gas"]])
 assert d["bar/momentum"].shape == (len(rec["bar"]), 3)
@@ -99,6 +99,72 @@ fn export_gives_numpy_arrays_equal_to_the_recording() {
     }
 }
 
+/// Foxglove's message paths address every series of a node report: `/cosim/node/gas.point1.pressure`
+/// resolved as Foxglove does (the topic, then one key per dot, no quoting) against the official
+/// reader's messages gives the same values as the export's `gas/point1.pressure`; no key of any
+/// report holds a dot; the channel's schema lists the nested keys with their types.
+const FOXGLOVE_CHECK: &str = r#"
+import json, sys
+import numpy as np
+from mcap.reader import make_reader
+npz, mcap = sys.argv[1], sys.argv[2]
+d = np.load(npz)
+msgs, schemas = {}, {}
+with open(mcap, "rb") as f:
+    for schema, ch, m in make_reader(f).iter_messages():
+        if ch.topic.startswith("/cosim/node/"):
+            msgs.setdefault(ch.topic, []).append(json.loads(m.data))
+            schemas[ch.topic] = json.loads(schema.data)
+def dotted(doc):
+    return [k for k, v in doc.items() if "." in k or (isinstance(v, dict) and dotted(v))]
+def resolve(path):
+    topic, _, rest = path.partition(".")
+    out = []
+    for doc in msgs[topic]:
+        for k in rest.split("."):
+            doc = doc[k]
+        out.append(doc)
+    return out
+checked = 0
+for node in ("gas", "bar"):
+    for doc in msgs[f"/cosim/node/{node}"]:
+        assert not dotted(doc), (node, dotted(doc))
+for series in ("point1.pressure", "point2.pressure", "point1.density"):
+    got = resolve(f"/cosim/node/gas.{series}")
+    assert len(got) == 80, len(got)
+    assert np.array_equal(np.array(got, dtype=float), d[f"gas/{series}"]), series
+    checked += len(got)
+props = schemas["/cosim/node/gas"]["properties"]
+assert props["point1"]["type"] == "object", props["point1"]
+assert props["point1"]["properties"]["pressure"]["type"] == ["number", "null"]
+print(f"{checked} values through Foxglove paths")
+"#;
+
+#[test]
+fn foxglove_paths_address_every_named_scalar() {
+    let out = chamber();
+    let npz = out.join("history-foxglove.npz");
+    let o = cosim(&[
+        "export",
+        out.to_str().unwrap(),
+        "--format",
+        "npz",
+        "-o",
+        npz.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (ok, text) = python(
+        FOXGLOVE_CHECK,
+        &[
+            npz.to_str().unwrap(),
+            out.join("run.mcap").to_str().unwrap(),
+        ],
+    );
+    println!("{text}");
+    assert!(ok, "{text}");
+    assert!(text.contains("240 values through Foxglove paths"), "{text}");
+}
+
 /// pyarrow (the Apache Arrow project's Python reader, independent of our writer) reads each
 /// node's `history/NODE.parquet`: every column equals the recording's JSON values (vectors as
 /// `_x/_y/_z`), a key a window lacks is null.
@@ -108,11 +174,18 @@ import numpy as np
 import pyarrow.parquet as pq
 from mcap.reader import make_reader
 hist, mcap = sys.argv[1], sys.argv[2]
+def flat(d, path=""):
+    """A report's nested objects as the dotted names of the export's columns."""
+    out = {}
+    for k, v in d.items():
+        name = f"{path}.{k}" if path else k
+        out.update(flat(v, name) if isinstance(v, dict) and v else {name: v})
+    return out
 rec = {}
 with open(mcap, "rb") as f:
     for _, ch, m in make_reader(f).iter_messages(topics=["/cosim/node/gas", "/cosim/node/bar", "/cosim/balance"]):
         name = "balance" if ch.topic == "/cosim/balance" else ch.topic.rsplit("/", 1)[1]
-        rec.setdefault(name, []).append(json.loads(m.data))
+        rec.setdefault(name, []).append(flat(json.loads(m.data)))
 checked = 0
 for node, rows in sorted(rec.items()):
     t = pq.read_table(f"{hist}/{node}.parquet")
@@ -201,7 +274,7 @@ with open(out + "/run.mcap", "rb") as f:
                     key = (f["coupling"], ch.topic.rsplit("/", 1)[1], fld["name"])
                     sent[key].append((f["window"], f["time"], fld["values"]))
 gas, bar = run.report("gas"), run.report("bar")
-assert np.array_equal(gas["point2.pressure"], [r["point2.pressure"] for r in rec["gas"]])
+assert np.array_equal(gas["point2.pressure"], [r["point2"]["pressure"] for r in rec["gas"]])
 assert np.array_equal(bar["com_displacement_x"], [r["com_displacement_x"] for r in rec["bar"]])
 assert bar["momentum"].shape == (len(rec["bar"]), 3)
 assert len(run.balance()["energy_residual"]) == len(rec["gas"])
