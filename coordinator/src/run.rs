@@ -985,7 +985,8 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
     }
     let mut hubs = Vec::new();
     for c in &case.couplings {
-        if c.kind == CouplingKind::Lagrange {
+        // A scheme the coordinator solves has a hub here (the lagrange interface problem).
+        if protocol::scheme::of(c.kind).coordinator_solved() {
             let readers: Vec<String> = c.sides.iter().map(|s| s.0.clone()).collect();
             let p = t.publisher(
                 &topic::data(&run_id, &c.name, protocol::scheme::lagrange::wire::PEER),
