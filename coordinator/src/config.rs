@@ -723,6 +723,45 @@ fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
             n.interfaces = Some(d.interfaces.into_iter().map(|i| i.name).collect());
         }
     }
+    check_interfaces(case, |node| {
+        case.nodes
+            .iter()
+            .find(|n| n.name == node)
+            .and_then(|n| n.interfaces.clone())
+    })?;
+    check_fields(case, |node, iface| {
+        let cfg = case.nodes.iter().find(|x| x.name == node)?;
+        let pos = cfg.interfaces.as_ref()?.iter().position(|x| x == iface)?;
+        cfg.fields
+            .get(pos)
+            .map(|(p, a)| (p.as_slice(), a.as_slice()))
+    })
+}
+
+/// Check remote node `node`, which was not described before the run, by the interfaces of
+/// its `Describe` at the handshake (issue 18 must-show 5): every coupling it is a member of
+/// must find its interface and the fields the scheme needs, refused as before the run.
+pub fn check_joined(
+    case: &Case,
+    node: &str,
+    described: &[protocol::message::InterfaceDescription],
+) -> Result<(), ConfigError> {
+    let only = |n: &str| n == node;
+    check_interfaces(case, |n| {
+        only(n).then(|| described.iter().map(|i| i.name.clone()).collect())
+    })?;
+    check_fields(case, |n, iface| {
+        let d = described.iter().find(|i| only(n) && i.name == iface)?;
+        Some((d.provides.as_slice(), d.accepts.as_slice()))
+    })
+}
+
+/// Refuse a coupling member naming an interface its node does not offer; `offered` gives a
+/// node's interfaces (None: not known yet, a remote node checked when it joins).
+fn check_interfaces(
+    case: &Case,
+    offered: impl Fn(&str) -> Option<Vec<String>>,
+) -> Result<(), ConfigError> {
     for (i, c) in case.couplings.iter().enumerate() {
         let keys: Vec<String> = if c.sides.is_empty() {
             vec!["driver".into(), "responder".into()]
@@ -730,8 +769,7 @@ fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
             (0..c.sides.len()).map(|k| format!("sides[{k}]")).collect()
         };
         for (key, (node, iface)) in keys.iter().zip(c.members()) {
-            let n = case.nodes.iter().find(|n| &n.name == node);
-            if let Some(list) = n.and_then(|n| n.interfaces.as_ref())
+            if let Some(list) = offered(node)
                 && !list.iter().any(|x| x == iface)
             {
                 return Err(err(
@@ -748,7 +786,7 @@ fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
             }
         }
     }
-    check_fields(case)
+    Ok(())
 }
 
 /// One field list a coupling member must offer (the scheme's declaration, ARCHITECTURE §5).
@@ -799,21 +837,16 @@ pub fn required_fields(c: &CouplingConfig) -> Vec<Need<'_>> {
 
 /// Refuse a coupling whose node does not provide or accept a field its scheme needs, by the
 /// node's own description (issue 18 must-show 5): the key, the coupling, the node, the field.
-fn check_fields(case: &Case) -> Result<(), ConfigError> {
+/// `fields` gives what a node's interface provides and accepts (None: not known yet, a remote
+/// node checked when it joins).
+fn check_fields<'d>(
+    case: &Case,
+    fields: impl Fn(&str, &str) -> Option<(&'d [String], &'d [String])>,
+) -> Result<(), ConfigError> {
     for (i, c) in case.couplings.iter().enumerate() {
         for n in required_fields(c) {
             let (node, iface) = n.member;
-            let Some(cfg) = case.nodes.iter().find(|x| &x.name == node) else {
-                continue;
-            };
-            let Some(pos) = cfg
-                .interfaces
-                .as_ref()
-                .and_then(|l| l.iter().position(|x| x == iface))
-            else {
-                continue; // a remote node, checked when it joins
-            };
-            let Some((provides, accepts)) = cfg.fields.get(pos) else {
+            let Some((provides, accepts)) = fields(node, iface) else {
                 continue;
             };
             let (have, verb) = if n.provide {

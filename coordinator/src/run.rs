@@ -564,6 +564,14 @@ impl<'a> Coord<'a> {
                 n.hello = true;
             }
             Message::Describe(d) => {
+                // A remote node not described before the run is checked now, before any
+                // window: its interfaces and fields against every coupling it is in.
+                if self.case.nodes[owner].interfaces.is_none() {
+                    config::check_joined(self.case, &n.name, &d.interfaces).map_err(|e| Fault {
+                        node: n.name.clone(),
+                        reason: format!("refused at the handshake: {e}"),
+                    })?;
+                }
                 n.described += 1;
                 n.stable_dt = d.stable_dt;
                 for w in d.warnings {
