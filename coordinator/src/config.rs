@@ -3,6 +3,7 @@
 //! `run.window: must be > 0 and ≤ run.end_time (0.001), got 0`.
 
 use protocol::CouplingKind;
+use protocol::scheme;
 use protocol::transport::TransportKind;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -302,17 +303,12 @@ pub fn resolve_exe(solver: &str, case_dir: &Path) -> Option<PathBuf> {
     cand.is_file().then_some(cand)
 }
 
-/// Default fields of a coupling kind: (driver sends, responder sends).
+/// Default fields of a coupling kind, as its scheme declares them: (driver sends,
+/// responder sends).
 pub fn default_fields(kind: CouplingKind) -> (Vec<String>, Vec<String>) {
     let v = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
-    match kind {
-        CouplingKind::Kinematic => (v(&["position", "velocity"]), v(&["force"])),
-        CouplingKind::Immersed => (v(&["position", "velocity", "volume"]), v(&["force"])),
-        CouplingKind::Lagrange => (
-            v(protocol::scheme::lagrange::PROVIDES),
-            v(protocol::scheme::lagrange::ACCEPTS),
-        ),
-    }
+    let (d, r) = scheme::of(kind).default_fields();
+    (v(d), v(r))
 }
 
 /// Parse and validate a case file; `overrides` are `node.key=value` settings applied to
@@ -615,7 +611,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             decouple.when =
                 Some(parse_when(&w, &nodes).map_err(|r| err(format!("{p}decouple_when"), r))?);
         }
-        if decouple.is_set() && kind != CouplingKind::Immersed {
+        if decouple.is_set() && !scheme::of(kind).decouples() {
             let key = if decouple.at.is_some() {
                 "decouple_at"
             } else {
@@ -667,16 +663,14 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
         }
     }
     if schedule == Schedule::Parallel
-        && let Some((i, _)) = couplings
+        && let Some((i, why)) = couplings
             .iter()
             .enumerate()
-            .find(|(_, c)| c.kind == CouplingKind::Kinematic)
+            .find_map(|(i, c)| Some((i, scheme::of(c.kind).parallel_refusal()?)))
     {
         return Err(err(
             "run.schedule".to_string(),
-            format!(
-                "\"parallel\" lags every input by a window, which is unstable for the kinematic coupling couplings[{i}] (ARCHITECTURE §5); use \"serial\""
-            ),
+            format!("{why} couplings[{i}] (ARCHITECTURE §5); use \"serial\""),
         ));
     }
     let mut case = Case {
@@ -729,6 +723,45 @@ fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
             n.interfaces = Some(d.interfaces.into_iter().map(|i| i.name).collect());
         }
     }
+    check_interfaces(case, |node| {
+        case.nodes
+            .iter()
+            .find(|n| n.name == node)
+            .and_then(|n| n.interfaces.clone())
+    })?;
+    check_fields(case, |node, iface| {
+        let cfg = case.nodes.iter().find(|x| x.name == node)?;
+        let pos = cfg.interfaces.as_ref()?.iter().position(|x| x == iface)?;
+        cfg.fields
+            .get(pos)
+            .map(|(p, a)| (p.as_slice(), a.as_slice()))
+    })
+}
+
+/// Check remote node `node`, which was not described before the run, by the interfaces of
+/// its `Describe` at the handshake (issue 18 must-show 5): every coupling it is a member of
+/// must find its interface and the fields the scheme needs, refused as before the run.
+pub fn check_joined(
+    case: &Case,
+    node: &str,
+    described: &[protocol::message::InterfaceDescription],
+) -> Result<(), ConfigError> {
+    let only = |n: &str| n == node;
+    check_interfaces(case, |n| {
+        only(n).then(|| described.iter().map(|i| i.name.clone()).collect())
+    })?;
+    check_fields(case, |n, iface| {
+        let d = described.iter().find(|i| only(n) && i.name == iface)?;
+        Some((d.provides.as_slice(), d.accepts.as_slice()))
+    })
+}
+
+/// Refuse a coupling member naming an interface its node does not offer; `offered` gives a
+/// node's interfaces (None: not known yet, a remote node checked when it joins).
+fn check_interfaces(
+    case: &Case,
+    offered: impl Fn(&str) -> Option<Vec<String>>,
+) -> Result<(), ConfigError> {
     for (i, c) in case.couplings.iter().enumerate() {
         let keys: Vec<String> = if c.sides.is_empty() {
             vec!["driver".into(), "responder".into()]
@@ -736,8 +769,7 @@ fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
             (0..c.sides.len()).map(|k| format!("sides[{k}]")).collect()
         };
         for (key, (node, iface)) in keys.iter().zip(c.members()) {
-            let n = case.nodes.iter().find(|n| &n.name == node);
-            if let Some(list) = n.and_then(|n| n.interfaces.as_ref())
+            if let Some(list) = offered(node)
                 && !list.iter().any(|x| x == iface)
             {
                 return Err(err(
@@ -754,7 +786,7 @@ fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
             }
         }
     }
-    check_fields(case)
+    Ok(())
 }
 
 /// One field list a coupling member must offer (the scheme's declaration, ARCHITECTURE §5).
@@ -780,7 +812,7 @@ pub fn required_fields(c: &CouplingConfig) -> Vec<Need<'_>> {
         fields,
     };
     if c.kind == CouplingKind::Lagrange {
-        use protocol::scheme::lagrange::{ACCEPTS, PROVIDES};
+        let (provides, accepts) = scheme::of(c.kind).default_fields();
         let own = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
         return c
             .sides
@@ -788,8 +820,8 @@ pub fn required_fields(c: &CouplingConfig) -> Vec<Need<'_>> {
             .enumerate()
             .flat_map(|(k, s)| {
                 [
-                    need(format!("sides[{k}]"), s, true, own(PROVIDES)),
-                    need(format!("sides[{k}]"), s, false, own(ACCEPTS)),
+                    need(format!("sides[{k}]"), s, true, own(provides)),
+                    need(format!("sides[{k}]"), s, false, own(accepts)),
                 ]
             })
             .collect();
@@ -805,21 +837,16 @@ pub fn required_fields(c: &CouplingConfig) -> Vec<Need<'_>> {
 
 /// Refuse a coupling whose node does not provide or accept a field its scheme needs, by the
 /// node's own description (issue 18 must-show 5): the key, the coupling, the node, the field.
-fn check_fields(case: &Case) -> Result<(), ConfigError> {
+/// `fields` gives what a node's interface provides and accepts (None: not known yet, a remote
+/// node checked when it joins).
+fn check_fields<'d>(
+    case: &Case,
+    fields: impl Fn(&str, &str) -> Option<(&'d [String], &'d [String])>,
+) -> Result<(), ConfigError> {
     for (i, c) in case.couplings.iter().enumerate() {
         for n in required_fields(c) {
             let (node, iface) = n.member;
-            let Some(cfg) = case.nodes.iter().find(|x| &x.name == node) else {
-                continue;
-            };
-            let Some(pos) = cfg
-                .interfaces
-                .as_ref()
-                .and_then(|l| l.iter().position(|x| x == iface))
-            else {
-                continue; // a remote node, checked when it joins
-            };
-            let Some((provides, accepts)) = cfg.fields.get(pos) else {
+            let Some((provides, accepts)) = fields(node, iface) else {
                 continue;
             };
             let (have, verb) = if n.provide {
@@ -1175,17 +1202,15 @@ pub fn bindings_of(case: &Case, node: &str) -> Vec<protocol::Binding> {
                     peer_interface: String::new(),
                     sends: c.driver_fields.clone(),
                     receives: c.responder_fields.clone(),
-                    input_lag: 0,
+                    input_lag: scheme::of(c.kind).input_lag(protocol::Role::Driver, true),
                 });
             }
             continue;
         }
-        // Serial: the driver's motion feeds the responder in the same window; the responder's
-        // force reaches the driver at the next sync time (lag 1). Parallel: both lag.
-        let responder_lag = match case.run.schedule {
-            Schedule::Serial => 0,
-            Schedule::Parallel => 1,
-        };
+        // The lags are the scheme's (serial: the driver's motion feeds the responder in the
+        // same window; the responder's force reaches the driver at the next sync time).
+        let sch = scheme::of(c.kind);
+        let serial = case.run.schedule == Schedule::Serial;
         if c.driver.0 == node {
             v.push(protocol::Binding {
                 coupling: c.name.clone(),
@@ -1196,7 +1221,7 @@ pub fn bindings_of(case: &Case, node: &str) -> Vec<protocol::Binding> {
                 peer_interface: c.responder.1.clone(),
                 sends: c.driver_fields.clone(),
                 receives: c.responder_fields.clone(),
-                input_lag: 1,
+                input_lag: sch.input_lag(protocol::Role::Driver, serial),
             });
         }
         if c.responder.0 == node {
@@ -1209,7 +1234,7 @@ pub fn bindings_of(case: &Case, node: &str) -> Vec<protocol::Binding> {
                 peer_interface: c.driver.1.clone(),
                 sends: c.responder_fields.clone(),
                 receives: c.driver_fields.clone(),
-                input_lag: responder_lag,
+                input_lag: sch.input_lag(protocol::Role::Responder, serial),
             });
         }
     }
@@ -1221,16 +1246,15 @@ pub fn bindings_of(case: &Case, node: &str) -> Vec<protocol::Binding> {
 pub fn window_order(case: &Case) -> Result<Vec<String>, ConfigError> {
     let names: Vec<String> = case.nodes.iter().map(|n| n.name.clone()).collect();
     let mut deps: BTreeMap<&str, Vec<&str>> = BTreeMap::new();
-    if case.run.schedule == Schedule::Serial {
-        for c in case
-            .couplings
-            .iter()
-            .filter(|c| c.kind != CouplingKind::Lagrange)
-        {
-            deps.entry(c.responder.0.as_str())
-                .or_default()
-                .push(c.driver.0.as_str());
-        }
+    let serial = case.run.schedule == Schedule::Serial;
+    for c in case
+        .couplings
+        .iter()
+        .filter(|c| scheme::of(c.kind).responder_after_driver(serial))
+    {
+        deps.entry(c.responder.0.as_str())
+            .or_default()
+            .push(c.driver.0.as_str());
     }
     let mut order: Vec<String> = Vec::new();
     let mut left: Vec<&str> = names.iter().map(String::as_str).collect();

@@ -257,18 +257,10 @@ fn plan(msgs: &[Recorded], node: &str) -> anyhow::Result<Plan> {
 }
 
 /// The peer output window that window `window` of the node consumes on binding `b`, once
-/// the coupling is decoupled before window `until` (the participant runtime's rule,
-/// ARCHITECTURE §5): set-up needs the responder's set-up fields at the driver only; later
-/// windows need the peer's window `window - input_lag` unless it comes after a decoupling.
+/// the coupling is decoupled before window `until`: the participant runtime's
+/// driver/responder rule ([`protocol::scheme::driver_responder_input`]).
 fn needed(b: &Binding, until: Option<u64>, window: u64) -> Option<u64> {
-    if window == 0 {
-        return (b.role == Role::Driver).then_some(0);
-    }
-    let k = window.checked_sub(b.input_lag)?;
-    match until {
-        Some(u) if k >= u => None,
-        _ => Some(k),
-    }
+    protocol::scheme::driver_responder_input(b.role, b.input_lag, until, window)
 }
 
 /// The replayed node process and the transport the replay plays its coordinator and peers on.

@@ -592,6 +592,14 @@ impl<'a> Coord<'a> {
                 n.hello = true;
             }
             Message::Describe(d) => {
+                // A remote node not described before the run is checked now, before any
+                // window: its interfaces and fields against every coupling it is in.
+                if self.case.nodes[owner].interfaces.is_none() {
+                    config::check_joined(self.case, &n.name, &d.interfaces).map_err(|e| Fault {
+                        node: n.name.clone(),
+                        reason: format!("refused at the handshake: {e}"),
+                    })?;
+                }
                 n.described += 1;
                 n.stable_dt = d.stable_dt;
                 for w in d.warnings {
@@ -1013,7 +1021,8 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
     }
     let mut hubs = Vec::new();
     for c in &case.couplings {
-        if c.kind == CouplingKind::Lagrange {
+        // A scheme the coordinator solves has a hub here (the lagrange interface problem).
+        if protocol::scheme::of(c.kind).coordinator_solved() {
             let readers: Vec<String> = c.sides.iter().map(|s| s.0.clone()).collect();
             let p = t.publisher(
                 &topic::data(&run_id, &c.name, protocol::scheme::lagrange::wire::PEER),

@@ -10,7 +10,7 @@
 use crate::codec::{self, encode_into};
 use crate::mapping::Mapping;
 use crate::message::*;
-use crate::scheme::lagrange;
+use crate::scheme::{self, lagrange};
 use crate::solver::{
     BuildOptions, FieldSet, Solver, SolverError, SolverFactory, SolverResult, Window,
 };
@@ -121,22 +121,12 @@ impl NodeEngine {
             Role::Driver => l.wire_points = own.len(),
             Role::Responder => {
                 l.wire_points = m.mesh.len();
-                let same = own.positions.len() == m.mesh.positions.len()
-                    && own
-                        .positions
-                        .iter()
-                        .zip(&m.mesh.positions)
-                        .all(|(a, b)| a == b);
-                l.map = if same || l.b.kind == CouplingKind::Immersed {
-                    None
-                } else {
-                    Some(Mapping::consistent(&m.mesh, &own.positions).map_err(|e| {
-                        EngineError::Coupling {
-                            coupling: m.coupling.clone(),
-                            reason: format!("cannot map onto the driver's mesh: {e}"),
-                        }
-                    })?)
-                };
+                l.map = scheme::of(l.b.kind)
+                    .responder_map(&m.mesh, &own)
+                    .map_err(|reason| EngineError::Coupling {
+                        coupling: m.coupling.clone(),
+                        reason,
+                    })?;
             }
         }
         Ok(())
@@ -146,7 +136,7 @@ impl NodeEngine {
     pub fn meshes_complete(&self) -> bool {
         self.links
             .iter()
-            .all(|l| l.wire_points > 0 || l.b.kind != CouplingKind::Kinematic)
+            .all(|l| l.wire_points > 0 || !scheme::of(l.b.kind).needs_peer_mesh())
     }
 
     /// Buffer fields that arrived from a peer.
@@ -166,23 +156,7 @@ impl NodeEngine {
 
     /// Label of the peer output window `window` consumes on link `l` (None: nothing needed).
     fn needed(l: &Link, window: u64) -> Option<u64> {
-        if l.b.kind == CouplingKind::Lagrange {
-            // Set-up waits for the coordinator's request; in a window the multipliers are
-            // exchanged inside it (`lagrange_*` below), not taken as an input.
-            return (window == 0).then_some(0);
-        }
-        if window == 0 {
-            // Set-up: the driver waits for its responder's set-up fields (the kinematic
-            // coupling's mass and stiffness); the responder sets up at once, whatever the
-            // schedule (in `parallel` both sides lag, and both waiting would deadlock).
-            return (l.b.role == Role::Driver).then_some(0);
-        }
-        let k = window - l.b.input_lag;
-        // After a decoupling only what the peer produced before it is still consumed.
-        match l.until {
-            Some(u) if k >= u => None,
-            _ => Some(k),
-        }
+        scheme::of(l.b.kind).input_window(l.b.role, l.b.input_lag, l.until, window)
     }
 
     /// End coupling `coupling` before window `window` (ARCHITECTURE §5, seed 000 §4): the
@@ -264,31 +238,19 @@ impl NodeEngine {
                     reason: format!("input of window {k} missing"),
                 });
             };
+            let sch = scheme::of(l.b.kind);
             for field in &f.fields {
-                let c = field.components.max(1) as usize;
-                match (&l.map, l.b.role) {
-                    (Some(m), Role::Responder) => {
-                        let n_r = m.n_responder();
-                        let dst = self.inbox.put(&l.b.interface, &field.name, c as u32, n_r);
-                        if is_motion(&field.name) {
-                            m.map_motion(&field.values, c, dst).map_err(|e| {
-                                EngineError::Coupling {
-                                    coupling: l.b.coupling.clone(),
-                                    reason: format!("field {}: {e}", field.name),
-                                }
-                            })?;
-                        } else {
-                            return Err(EngineError::Coupling {
-                                coupling: l.b.coupling.clone(),
-                                reason: format!(
-                                    "a responder receives motion only, got '{}'",
-                                    field.name
-                                ),
-                            });
-                        }
-                    }
-                    _ => self.inbox.insert(&l.b.interface, field.clone()),
-                }
+                sch.receive(
+                    l.b.role,
+                    l.map.as_ref(),
+                    &l.b.interface,
+                    field,
+                    &mut self.inbox,
+                )
+                .map_err(|reason| EngineError::Coupling {
+                    coupling: l.b.coupling.clone(),
+                    reason,
+                })?;
             }
         }
         Ok(())
@@ -301,36 +263,19 @@ impl NodeEngine {
             if l.until.is_some_and(|u| window >= u) {
                 continue; // decoupled: the peer has gone on without us
             }
-            if l.b.kind == CouplingKind::Lagrange && window > 0 {
-                continue; // sent during the window, step by step
+            let sch = scheme::of(l.b.kind);
+            if !sch.sends_at_window_end(window) {
+                continue;
             }
             let mut fields = Vec::new();
             for f in self.outbox.fields_of(&l.b.interface) {
-                match (&l.map, l.b.role) {
-                    (Some(m), Role::Responder) => {
-                        if is_motion(&f.name) {
-                            return Err(EngineError::Coupling {
-                                coupling: l.b.coupling.clone(),
-                                reason: format!("a responder sends loads only, not '{}'", f.name),
-                            });
-                        }
-                        let c = f.components.max(1) as usize;
-                        self.scratch.clear();
-                        self.scratch.resize(m.n_driver() * c, 0.0);
-                        m.map_load(&f.values, c, &mut self.scratch).map_err(|e| {
-                            EngineError::Coupling {
-                                coupling: l.b.coupling.clone(),
-                                reason: format!("field {}: {e}", f.name),
-                            }
-                        })?;
-                        fields.push(Field {
-                            name: f.name.clone(),
-                            components: f.components,
-                            values: self.scratch.clone(),
-                        });
-                    }
-                    _ => fields.push(f.clone()),
-                }
+                fields.push(
+                    sch.send(l.b.role, l.map.as_ref(), f, &mut self.scratch)
+                        .map_err(|reason| EngineError::Coupling {
+                            coupling: l.b.coupling.clone(),
+                            reason,
+                        })?,
+                );
             }
             msgs.push(Fields {
                 coupling: l.b.coupling.clone(),
@@ -1094,7 +1039,7 @@ fn node_loop(
     for b in &welcome.bindings {
         let tp = topic::data(&welcome.run, &b.coupling, me);
         // A lagrange side's only reader is the coordinator.
-        let want = if b.kind == CouplingKind::Lagrange {
+        let want = if scheme::of(b.kind).coordinator_solved() {
             1
         } else {
             2

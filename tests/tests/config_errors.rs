@@ -520,9 +520,10 @@ fn a_field_the_scheme_needs_and_the_node_lacks_is_refused() {
         },
         &[
             "couplings[0].driver_fields",
-            "left-right",
+            "kinematic coupling 'left-right'",
             "node 'left'",
-            "'temperature'",
+            "interface 'tip'",
+            "provide field 'temperature'",
         ],
     );
     refused_naming(
@@ -535,8 +536,9 @@ fn a_field_the_scheme_needs_and_the_node_lacks_is_refused() {
         },
         &[
             "couplings[0].responder_fields",
-            "left-right",
+            "kinematic coupling 'left-right'",
             "node 'left'",
+            "interface 'tip'",
             "accept field 'heat'",
         ],
     );
@@ -544,7 +546,13 @@ fn a_field_the_scheme_needs_and_the_node_lacks_is_refused() {
     refused_naming(
         "fields-immersed",
         |t| t.replace("kind = \"kinematic\"", "kind = \"immersed\""),
-        &["couplings[0].driver_fields", "node 'left'", "'volume'"],
+        &[
+            "couplings[0].driver_fields",
+            "immersed coupling 'left-right'",
+            "node 'left'",
+            "interface 'tip'",
+            "provide field 'volume'",
+        ],
     );
     // Lagrange: a side must provide its condensed interface operator; the echo node has none.
     refused_naming(

@@ -115,6 +115,19 @@ fn assert_rejected(bad: &std::process::Output) {
     assert!(stderr.contains("rejected"), "{stderr}");
 }
 
+/// The command `cosim` prints for the remote node `right` on its first stderr line, as words.
+fn printed_command(err: &mut impl BufRead) -> Vec<String> {
+    let mut line = String::new();
+    err.read_line(&mut line).unwrap();
+    assert!(line.contains("waiting for remote node 'right'"), "{line}");
+    line.split(": ")
+        .last()
+        .unwrap()
+        .split_whitespace()
+        .map(str::to_string)
+        .collect()
+}
+
 /// Runs `solid-node` as the remote node `right` with the printed command `cmd` (its first
 /// word the executable), the token replaced by `token` when given.
 fn join_with(cmd: &[String], token: Option<&str>) -> std::process::Output {
@@ -153,16 +166,7 @@ fn a_remote_node_may_join_after_the_heartbeat_timeout() {
     std::fs::write(&case, text).unwrap();
     let mut cosim = spawn_cosim(&case, &out, &id);
     let mut err = BufReader::new(cosim.stderr.take().unwrap());
-    let mut line = String::new();
-    err.read_line(&mut line).unwrap();
-    assert!(line.contains("waiting for remote node 'right'"), "{line}");
-    let cmd: Vec<String> = line
-        .split(": ")
-        .last()
-        .unwrap()
-        .split_whitespace()
-        .map(str::to_string)
-        .collect();
+    let cmd = printed_command(&mut err);
     std::thread::sleep(delay);
     // The local node is still there, waiting.
     assert!(
@@ -192,4 +196,53 @@ fn a_remote_node_may_join_after_the_heartbeat_timeout() {
     assert_eq!(s["status"], "finished");
     assert!(!node_series(&out.join("run.mcap"), "right", "tip_displacement").is_empty());
     nothing_left(&id);
+}
+
+/// Issue 18 must-show 5 for a node checked only when it joins: the remote node's executable
+/// is not on this host, so `cosim` cannot describe it before the run; its `Describe` at the
+/// handshake shows that its interface does not accept the field the coupling asks the
+/// responder to take, and the run is refused before any window, naming the coupling, node,
+/// interface and field, with no process or shared memory left and a readable recording.
+#[test]
+fn a_remote_node_lacking_a_coupling_field_is_refused_when_it_joins() {
+    let (case, out, id) = remote_case("lacking");
+    // `lagrange_operator`: the left bar provides it, no bar accepts it.
+    let text = std::fs::read_to_string(&case)
+        .unwrap()
+        .replace(
+            "remote = true\nsolver = \"solid-node\"",
+            "remote = true\nsolver = \"solid-node-on-another-host\"",
+        )
+        .replace(
+            "responder = \"right.root\"",
+            "responder = \"right.root\"\ndriver_fields = [\"velocity\", \"lagrange_operator\"]",
+        );
+    assert!(text.contains("solid-node-on-another-host") && text.contains("driver_fields"));
+    std::fs::write(&case, text).unwrap();
+    let mut cosim = spawn_cosim(&case, &out, &id);
+    let mut err = BufReader::new(cosim.stderr.take().unwrap());
+    let cmd = printed_command(&mut err);
+    assert_eq!(cmd[0], "solid-node-on-another-host");
+    let node = join_with(&cmd, None);
+    let status = cosim.wait().unwrap();
+    let mut rest = String::new();
+    let _ = std::io::Read::read_to_string(&mut err, &mut rest);
+    assert!(!status.success(), "cosim: {rest}");
+    assert!(!node.status.success(), "the refused node exited 0");
+    for part in [
+        "node 'right'",
+        "couplings[0].driver_fields",
+        "kinematic coupling 'mid'",
+        "interface 'root'",
+        "accept field 'lagrange_operator'",
+    ] {
+        assert!(rest.contains(part), "'{part}' not in: {rest}");
+    }
+    std::thread::sleep(Duration::from_millis(100));
+    nothing_left(&id);
+    let mcap = out.join("run.mcap");
+    let (ok, text) = check_mcap(&mcap, "--recover");
+    assert!(ok, "check_mcap --recover: {text}");
+    assert!(balance_windows(&mcap).is_empty(), "a window ran");
+    assert_eq!(summary(&out)["status"], "failed");
 }

@@ -36,6 +36,45 @@ pub const PROVIDES: &[&str] = &["velocity", "lagrange_operator"];
 /// Fields every side's interface must accept: the multipliers are forces on it.
 pub const ACCEPTS: &[&str] = &["force"];
 
+/// The scheme's contract (ARCHITECTURE §5.3): every side exchanges with the coordinator,
+/// which solves the interface problem; nothing is lagged and no side waits for another.
+pub struct Lagrange;
+
+impl super::Scheme for Lagrange {
+    fn default_fields(&self) -> (&'static [&'static str], &'static [&'static str]) {
+        (PROVIDES, ACCEPTS)
+    }
+
+    fn input_lag(&self, _role: crate::message::Role, _serial: bool) -> u64 {
+        0
+    }
+
+    fn responder_after_driver(&self, _serial: bool) -> bool {
+        false
+    }
+
+    fn coordinator_solved(&self) -> bool {
+        true
+    }
+
+    /// Set-up waits for the coordinator's request; in a window the multipliers are
+    /// exchanged inside it (the runtime's `lagrange_*` steps), not taken as an input.
+    fn input_window(
+        &self,
+        _role: crate::message::Role,
+        _input_lag: u64,
+        _until: Option<u64>,
+        window: u64,
+    ) -> Option<u64> {
+        (window == 0).then_some(0)
+    }
+
+    /// Only the set-up fields go at a window's end; in a window a side sends step by step.
+    fn sends_at_window_end(&self, window: u64) -> bool {
+        window == 0
+    }
+}
+
 /// `method = "gs4" | "gc" | "ph"`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Method {

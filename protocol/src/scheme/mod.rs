@@ -1,4 +1,150 @@
-//! Coupling schemes, one module each, holding the coordinator's side of the scheme and the
-//! contract of its node side (ARCHITECTURE §5, "one place per scheme").
+//! Coupling schemes, one module each, holding what is particular to the scheme: its field
+//! contract, the coordinator's schedule for it (input lags, same-window order) and its node
+//! side (what each side sends, what it does with what arrives; ARCHITECTURE §5).
+//!
+//! * [`sync_force`]: `kind = "kinematic"`, the kinematic sync-force scheme (§5.1);
+//! * [`immersed`]: `kind = "immersed"`, the immersed boundary scheme (§5.2);
+//! * [`lagrange`]: `kind = "lagrange"`, Lagrange multipliers solved by the coordinator (§5.3).
+//!
+//! [`of`] gives a kind's [`Scheme`]; the coordinator's validation and bindings and the
+//! participant runtime ask it instead of matching on the kind.
 
+pub mod immersed;
 pub mod lagrange;
+pub mod sync_force;
+
+use crate::mapping::Mapping;
+use crate::solver::FieldSet;
+use wire::message::{CouplingKind, Field, InterfaceMesh, Role};
+
+/// What a coupling scheme fixes. The defaults are the driver/responder contract that
+/// `sync_force` and `immersed` share; a scheme overrides what differs. Every method is
+/// allocation-free except where it builds a message or a mapping.
+pub trait Scheme: Sync {
+    /// The fields the driver and the responder send (`driver_fields`, `responder_fields`)
+    /// when the case file does not list them; for a lagrange coupling what every side
+    /// provides and accepts.
+    fn default_fields(&self) -> (&'static [&'static str], &'static [&'static str]);
+
+    /// Windows between a peer's output and the window of `role` that consumes it, under the
+    /// serial (`serial`) or parallel schedule: the driver's input (the responder's loads)
+    /// arrives at the next sync time; the responder's (the driver's motion) in the same
+    /// window when serial, a window later when parallel.
+    fn input_lag(&self, role: Role, serial: bool) -> u64 {
+        match role {
+            Role::Driver => 1,
+            Role::Responder => u64::from(!serial),
+        }
+    }
+
+    /// Whether the responder needs its driver's output of the same window, so that the serial
+    /// schedule advances the driver first.
+    fn responder_after_driver(&self, serial: bool) -> bool {
+        serial
+    }
+
+    /// Why the parallel schedule (every input lagged by a window) cannot run the scheme.
+    fn parallel_refusal(&self) -> Option<&'static str> {
+        None
+    }
+
+    /// Whether a coupling of the scheme can end before the run (`decouple_at`/`_when`).
+    fn decouples(&self) -> bool {
+        false
+    }
+
+    /// Whether the node's side talks to the coordinator only (its data topic's one reader),
+    /// not to a peer node.
+    fn coordinator_solved(&self) -> bool {
+        false
+    }
+
+    /// The peer output window that window `window` (0 = set-up) of a side with `role` and
+    /// `input_lag` consumes, when the coupling is decoupled before window `until`; None:
+    /// nothing.
+    fn input_window(
+        &self,
+        role: Role,
+        input_lag: u64,
+        until: Option<u64>,
+        window: u64,
+    ) -> Option<u64> {
+        driver_responder_input(role, input_lag, until, window)
+    }
+
+    /// Whether the node's peer mesh must have arrived before set-up.
+    fn needs_peer_mesh(&self) -> bool {
+        false
+    }
+
+    /// The responder's mapping from the driver's interface mesh `driver` onto its own
+    /// (None: the fields travel as they are).
+    fn responder_map(
+        &self,
+        _driver: &InterfaceMesh,
+        _own: &InterfaceMesh,
+    ) -> Result<Option<Mapping>, String> {
+        Ok(None)
+    }
+
+    /// Whether the node sends its outbox at the end of window `window` (0 = set-up).
+    fn sends_at_window_end(&self, _window: u64) -> bool {
+        true
+    }
+
+    /// Put field `field` received on `interface` into the inbox, in the solver's layout.
+    fn receive(
+        &self,
+        _role: Role,
+        _map: Option<&Mapping>,
+        interface: &str,
+        field: &Field,
+        inbox: &mut FieldSet,
+    ) -> Result<(), String> {
+        inbox.insert(interface, field.clone());
+        Ok(())
+    }
+
+    /// The wire form of output field `field` (in the driver's layout); `scratch` is a reused
+    /// buffer.
+    fn send(
+        &self,
+        _role: Role,
+        _map: Option<&Mapping>,
+        field: &Field,
+        _scratch: &mut Vec<f64>,
+    ) -> Result<Field, String> {
+        Ok(field.clone())
+    }
+}
+
+/// The scheme of a coupling kind.
+pub fn of(kind: CouplingKind) -> &'static dyn Scheme {
+    match kind {
+        CouplingKind::Kinematic => &sync_force::SyncForce,
+        CouplingKind::Immersed => &immersed::Immersed,
+        CouplingKind::Lagrange => &lagrange::Lagrange,
+    }
+}
+
+/// The driver/responder input rule (ARCHITECTURE §5): at set-up the driver waits for its
+/// responder's set-up fields (the kinematic coupling's mass and stiffness) and the responder
+/// sets up at once, whatever the schedule (in `parallel` both sides lag, and both waiting
+/// would deadlock); window `window` consumes the peer's window `window - input_lag`, unless
+/// that comes after a decoupling before window `until`.
+pub fn driver_responder_input(
+    role: Role,
+    input_lag: u64,
+    until: Option<u64>,
+    window: u64,
+) -> Option<u64> {
+    if window == 0 {
+        return (role == Role::Driver).then_some(0);
+    }
+    let k = window.checked_sub(input_lag)?;
+    // After a decoupling only what the peer produced before it is still consumed.
+    match until {
+        Some(u) if k >= u => None,
+        _ => Some(k),
+    }
+}
