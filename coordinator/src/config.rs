@@ -650,6 +650,21 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             ));
         }
         for (k, (node, _)) in c.sides.iter().enumerate() {
+            // The device path has no lagrange side (its state lives on the device between
+            // windows): refused here rather than once the nodes are set up.
+            let params = nodes.iter().find(|n: &&NodeConfig| &n.name == node);
+            if params
+                .and_then(|n| n.params.get("device"))
+                .and_then(|d| d.as_str())
+                == Some("gpu")
+            {
+                return Err(err(
+                    format!("nodes.{node}.params.device"),
+                    format!(
+                        "node '{node}' is a side of the lagrange coupling couplings[{i}], which runs on the cpu: use device = \"cpu\""
+                    ),
+                ));
+            }
             if let Some(j) = couplings[..i].iter().position(|o| {
                 o.kind == CouplingKind::Lagrange && o.sides.iter().any(|s| &s.0 == node)
             }) {

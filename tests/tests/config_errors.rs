@@ -575,3 +575,26 @@ fn a_field_the_scheme_needs_and_the_node_lacks_is_refused() {
         ],
     );
 }
+
+/// A lagrange side on the device path (issue 19: it could neither set up nor checkpoint) is
+/// refused by `cosim validate` before anything starts, naming the node's `device` key — the
+/// notched specimen with its ligament on the GPU (plane strain, which the device kernels take).
+#[test]
+fn a_lagrange_side_on_the_gpu_is_refused_at_validation() {
+    let case = workspace_root().join("examples/seed003_notch.toml");
+    let o = cosim(&[
+        "validate",
+        case.to_str().unwrap(),
+        "--variant",
+        "small",
+        "--set",
+        "notch.dimension=\"plane_strain\"",
+        "--set",
+        "notch.device=\"gpu\"",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    println!("{err}");
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("nodes.notch.params.device"), "{err}");
+    assert!(err.contains("couplings[0]") && err.contains("cpu"), "{err}");
+}

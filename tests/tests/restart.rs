@@ -5,8 +5,9 @@
 //! point — and the recording reads as one run. Split bar (bar-1d), small chamber (fluid and
 //! pd-correspondence, on the CPU and on the GPU), single joint (shell and MC-SPG joint), the
 //! split bar with a Python or a C right half (the external nodes' own save/load hooks), and
-//! lagrange couplings (bar-1d and fem-2d subdomains, the coordinator's interface problem); a
-//! case with other parameters is refused; Ctrl-C checkpoints where it stops.
+//! lagrange couplings (bar-1d and fem-2d subdomains, peridynamic particle sides, the
+//! coordinator's interface problem); a case with other parameters is refused; Ctrl-C
+//! checkpoints where it stops.
 
 use cosim_tests::*;
 use protocol::{Message, StepReport};
@@ -639,6 +640,50 @@ fn seed003_three_small_killed_and_restarted_is_bit_identical() {
         "two.young=70e9",
         50,
         100,
+    );
+}
+
+/// Seed 003 §5.4's notched specimen (small): a fem-2d subdomain and two pd-correspondence
+/// particle bodies in one coupling of three sides, gs4 at one particle step per system step.
+/// Each particle side saves its coupling state (step-end accelerations, multipliers, audit
+/// sums, clock) beside its body; 500 windows.
+#[test]
+fn seed003_notch_small_killed_and_restarted_is_bit_identical() {
+    example_killed_and_restarted(
+        "restart-notch",
+        "seed003_notch",
+        &["--variant", "small"],
+        "notch.young=71e9",
+        100,
+        200,
+    );
+}
+
+/// The same with gc at four particle steps per system step (the `multirate` settings on the
+/// small case, to 100 windows): the particle sides' clocks and multipliers cross system
+/// steps in substeps.
+#[test]
+fn seed003_notch_small_gc_substeps_killed_and_restarted_is_bit_identical() {
+    example_killed_and_restarted(
+        "restart-notch-gc",
+        "seed003_notch",
+        &[
+            "--variant",
+            "small",
+            "--set",
+            "run.window=6.0e-5",
+            "--set",
+            "notch.substeps=4",
+            "--set",
+            "right.substeps=4",
+            "--set",
+            "couplings.cuts.method=gc",
+            "--set",
+            "run.end_time=6.0e-3",
+        ],
+        "right.young=71e9",
+        20,
+        40,
     );
 }
 

@@ -10,6 +10,7 @@
 //! nonlinear PD force included). gs4 and ph then need this side at one step per system step
 //! (more would need the body's tangent stiffness over the substeps); gc takes any ratio.
 
+use super::checkpoint::{Reader, Writer, flat3, unflat3};
 use super::integrate::Body;
 use crate::fem2d::History;
 
@@ -232,6 +233,90 @@ impl ExplicitSide {
     }
 }
 
+/// First bytes of a lagrange side's coupling state (`LagrangeSide::save_state`).
+const STATE_MAGIC: &[u8] = b"cosim-pd-lagrange-v1";
+
+impl ExplicitSide {
+    /// What the side carries from one system step to the next, for a checkpoint beside the
+    /// body's (`PdSolver::save_state`): the step-end accelerations, the multipliers, the
+    /// step-start interface displacements, the load's Σ f·u, the audit sums and the clock.
+    /// The size, step and method go first so that a state of another side is refused.
+    pub fn save_state(&self) -> Vec<u8> {
+        let mut w = Writer::default();
+        w.bytes(STATE_MAGIC);
+        w.u64(self.acc.len() as u64);
+        w.u64(self.dofs.len() as u64);
+        w.u64(self.steps as u64);
+        w.u64(u64::from(self.gc));
+        w.f64(self.dt);
+        w.f64s(flat3(&self.acc));
+        w.f64s(self.lambda_start.iter().copied());
+        w.f64s(self.lambda_end.iter().copied());
+        w.f64s(self.u_start.iter().copied());
+        let [ix, iy, iz] = self.interface_impulse;
+        let sums = [
+            self.load_u,
+            self.interface_work,
+            ix,
+            iy,
+            iz,
+            self.external_work,
+            self.load_integral,
+            self.time,
+        ];
+        w.f64s(sums.into_iter());
+        w.buf
+    }
+
+    /// The inverse of [`Self::save_state`], on the side set up again for the same body,
+    /// interface, step and method; nothing changes unless the whole state reads.
+    pub fn load_state(&mut self, bytes: &[u8]) -> Result<(), String> {
+        let mut r = Reader::new(bytes);
+        if r.bytes(STATE_MAGIC.len(), "magic")? != STATE_MAGIC {
+            return Err(
+                "not the coupling state of a peridynamic lagrange side (or of an \
+                        older version)"
+                    .into(),
+            );
+        }
+        let (n, nl) = (r.u64()?, r.u64()?);
+        let (steps, gc, dt) = (r.u64()?, r.u64()? != 0, r.f64()?);
+        if n as usize != self.acc.len() || nl as usize != self.dofs.len() {
+            return Err(format!(
+                "coupling state of {n} particles / {nl} interface unknowns, this side has {} / {}",
+                self.acc.len(),
+                self.dofs.len()
+            ));
+        }
+        if steps as usize != self.steps || gc != self.gc || dt.to_bits() != self.dt.to_bits() {
+            return Err(format!(
+                "coupling state of {steps} steps of {dt:e} s (gc: {gc}) per system step, this \
+                 side takes {} of {:e} s (gc: {})",
+                self.steps, self.dt, self.gc
+            ));
+        }
+        let acc = r.f64s(3 * self.acc.len(), "accelerations")?;
+        let lambda_start = r.f64s(self.dofs.len(), "step-start multipliers")?;
+        let lambda_end = r.f64s(self.dofs.len(), "step-end multipliers")?;
+        let u_start = r.f64s(self.dofs.len(), "step-start displacements")?;
+        let sums = r.f64s(8, "audit sums")?;
+        if !r.rest.is_empty() {
+            return Err(format!("{} trailing bytes", r.rest.len()));
+        }
+        unflat3(&acc, &mut self.acc);
+        self.lambda_start = lambda_start;
+        self.lambda_end = lambda_end;
+        self.u_start = u_start;
+        self.load_u = sums[0];
+        self.interface_work = sums[1];
+        self.interface_impulse = [sums[2], sums[3], sums[4]];
+        self.external_work = sums[5];
+        self.load_integral = sums[6];
+        self.time = sums[7];
+        Ok(())
+    }
+}
+
 fn mass(body: &Body, p: usize) -> f64 {
     body.density * body.vol[p]
 }
@@ -240,6 +325,7 @@ fn mass(body: &Body, p: usize) -> f64 {
 mod tests {
     use crate::pd::solver::PdSolver;
     use protocol::scheme::lagrange::{LagrangeScheme, LagrangeSide, Method};
+    use protocol::solver::Solver;
 
     /// A plane-stress pd-correspondence block x in [x0, x1] (lattice columns at x0 … x1,
     /// spacing 0.1, 5 rows), interface "cut" = the column at `cut`; with a load on the column
@@ -393,6 +479,154 @@ mod tests {
             println!("{method:?}: net interface work {w:.3e} J of {wl:.3e} J per side");
             assert!(w.abs() <= 1e-9 * wl, "{method:?}: ΔE_Γ {w:e}");
         }
+    }
+
+    /// Sets both blocks up as sides of `method` at system step `window` and builds the
+    /// interface problem.
+    fn coupled(method: Method, window: f64) -> (PdSolver, PdSolver, LagrangeScheme) {
+        let (mut l, mut r) = (block(0.0, 0.5, 0.5, false), block(0.5, 1.0, 0.5, true));
+        for (s, sign) in [(&mut l, 1.0), (&mut r, -1.0)] {
+            if let Err(e) = s.lagrange_side_for("cut", method, window, (0, sign)) {
+                panic!("{e}");
+            }
+        }
+        let nl = LagrangeSide::multiplier_ids(&l).len();
+        let scheme = {
+            let mut sides: [&mut dyn LagrangeSide; 2] = [&mut l, &mut r];
+            match LagrangeScheme::new(method, nl, &mut sides) {
+                Ok(s) => s,
+                Err(e) => panic!("{e}"),
+            }
+        };
+        (l, r, scheme)
+    }
+
+    fn run(sc: &mut LagrangeScheme, l: &mut PdSolver, r: &mut PdSolver, steps: usize) {
+        for _ in 0..steps {
+            let mut sides: [&mut dyn LagrangeSide; 2] = [&mut *l, &mut *r];
+            if let Err(e) = sc.step(&mut sides) {
+                panic!("{e}");
+            }
+        }
+    }
+
+    /// Everything that must continue bit for bit: λ, both bodies' motion and forces, clocks,
+    /// the sides' audit sums.
+    fn bits(sc: &LagrangeScheme, l: &PdSolver, r: &PdSolver) -> Vec<u64> {
+        let mut v: Vec<u64> = sc.lambda().iter().map(|x| x.to_bits()).collect();
+        for s in [l, r] {
+            let b = &s.body;
+            for a in b.disp.iter().chain(&b.vel).chain(&b.force) {
+                v.extend(a.iter().map(|x| x.to_bits()));
+            }
+            v.push(b.time.to_bits());
+            v.push(b.steps);
+            let (_, side) = s.lagrange.as_ref().expect("a lagrange side");
+            for x in [
+                side.interface_work,
+                side.external_work,
+                side.load_integral,
+                side.time,
+            ]
+            .iter()
+            .chain(&side.interface_impulse)
+            {
+                v.push(x.to_bits());
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn a_restored_particle_side_continues_bit_identically() {
+        // gs4 at one particle step per system step; gc at three (its clock, loads and
+        // multipliers then cross system steps in substeps).
+        let (total, at) = (300, 120);
+        for (method, ratio) in [(Method::Gs4, 0.5), (Method::Gc, 3.0)] {
+            let window = ratio * block(0.0, 0.5, 0.5, false).dt();
+            let (mut l, mut r, mut sc) = coupled(method, window);
+            assert_eq!(l.coupling_steps(), if method == Method::Gc { 3 } else { 1 });
+            run(&mut sc, &mut l, &mut r, total);
+            let uninterrupted = bits(&sc, &l, &r);
+
+            let (mut l, mut r, mut sc) = coupled(method, window);
+            run(&mut sc, &mut l, &mut r, at);
+            let take = |s: &PdSolver| -> (Vec<u8>, Vec<u8>) {
+                match (Solver::save_state(s), LagrangeSide::save_state(s)) {
+                    (Ok(own), Ok(side)) => (own, side),
+                    (Err(e), _) => panic!("{e}"),
+                    (_, Err(e)) => panic!("{e}"),
+                }
+            };
+            let saved = [take(&l), take(&r)];
+            let lambda = (
+                sc.lambda().to_vec(),
+                vec![sc.side_lambda(0).to_vec(), sc.side_lambda(1).to_vec()],
+            );
+            assert!(
+                l.body.disp.iter().any(|u| u[0] != 0.0),
+                "{method:?}: at rest"
+            );
+            assert!(lambda.0.iter().any(|&x| x != 0.0), "{method:?}: no λ yet");
+
+            let (mut l, mut r, mut sc) = coupled(method, window);
+            for (s, (own, side)) in [&mut l, &mut r].into_iter().zip(&saved) {
+                if let Err(e) = Solver::load_state(s, own) {
+                    panic!("{e}");
+                }
+                if let Err(e) = LagrangeSide::load_state(s, side) {
+                    panic!("{e}");
+                }
+            }
+            if let Err(e) = sc.restore(&lambda.0, &lambda.1) {
+                panic!("{e}");
+            }
+            run(&mut sc, &mut l, &mut r, total - at);
+            let restored = bits(&sc, &l, &r);
+            assert_eq!(uninterrupted.len(), restored.len());
+            let differ = uninterrupted
+                .iter()
+                .zip(&restored)
+                .filter(|(a, b)| a != b)
+                .count();
+            println!(
+                "{method:?}: {differ} of {} values differ after the restart",
+                restored.len()
+            );
+            assert_eq!(differ, 0, "{method:?}");
+        }
+    }
+
+    #[test]
+    fn a_coupling_state_of_another_side_is_refused() {
+        let window = 0.5 * block(0.0, 0.5, 0.5, false).dt();
+        let (l, mut r, _) = coupled(Method::Gs4, window);
+        let state = match LagrangeSide::save_state(&l) {
+            Ok(s) => s,
+            Err(e) => panic!("{e}"),
+        };
+        // Same particle count and interface, other step.
+        let (_, mut other, _) = coupled(Method::Gs4, 0.5 * window);
+        let e = match LagrangeSide::load_state(&mut other, &state) {
+            Ok(()) => panic!("a state of another step loaded"),
+            Err(e) => e,
+        };
+        assert!(e.contains("steps of"), "{e}");
+        let mut wrong = state.clone();
+        wrong[8] ^= 1;
+        let e = match LagrangeSide::load_state(&mut r, &wrong) {
+            Ok(()) => panic!("a state with another magic loaded"),
+            Err(e) => e,
+        };
+        assert!(e.contains("older version"), "{e}");
+        let e = match LagrangeSide::load_state(&mut r, &state[..state.len() - 8]) {
+            Ok(()) => panic!("a truncated state loaded"),
+            Err(e) => e,
+        };
+        assert!(e.contains("truncated"), "{e}");
+        // A body without a lagrange side has no coupling state.
+        let plain = block(0.0, 0.5, 0.5, false);
+        assert!(LagrangeSide::save_state(&plain).is_err());
     }
 
     #[test]

@@ -320,7 +320,7 @@ pub struct PdSolver {
     /// Reported points: scalar names (x, y[, z]) and particle.
     points: Vec<(Vec<String>, usize)>,
     /// The body as one side of a lagrange coupling (then the side steps it).
-    lagrange: Option<(String, ExplicitSide)>,
+    pub(super) lagrange: Option<(String, ExplicitSide)>,
 }
 
 /// Most lattice points a body's bounding box may hold (the largest runs here are ~10⁷).
@@ -1255,6 +1255,18 @@ impl LagrangeSide for PdSolver {
             .as_ref()
             .map_or(0.0, |(_, s)| s.interface_work)
     }
+    fn save_state(&self) -> Result<Vec<u8>, String> {
+        self.lagrange
+            .as_ref()
+            .map(|(_, s)| s.save_state())
+            .ok_or_else(|| "this peridynamic body is no lagrange side".into())
+    }
+    fn load_state(&mut self, bytes: &[u8]) -> Result<(), String> {
+        match self.lagrange.as_mut() {
+            Some((_, s)) => s.load_state(bytes),
+            None => Err("this peridynamic body is no lagrange side".into()),
+        }
+    }
 }
 
 /// Why `device = "gpu"` cannot run this configuration (`Err` is the reason, for the key
@@ -1763,13 +1775,8 @@ impl Solver for PdSolver {
 
     fn save_state(&self) -> SolverResult<Vec<u8>> {
         use super::checkpoint::{Writer, flat3};
-        if self.lagrange.is_some() {
-            return Err(SolverError::Other(
-                "a peridynamic lagrange side cannot checkpoint yet (its coupling state is not \
-                 saved)"
-                    .into(),
-            ));
-        }
+        // A lagrange side's coupling state goes beside this (`LagrangeSide::save_state`, the
+        // runtime pairs them).
         let b = &self.body;
         // the device path keeps the state on the device: read it in full here
         let snap = match &self.device {
