@@ -415,6 +415,29 @@ fn every_bad_parameter_is_refused_naming_its_full_key() {
             "horizon = 0.5e-3",
             "nodes.plate.params.horizon",
         ),
+        // the bond budget (max_bonds, default 5e7): 200³ particles at δ = 3.015 Δx (~10⁹
+        // bonds), 50³ at δ = 20 Δx (~4·10⁹), and 96 particles over a lowered budget
+        (
+            "pd-bonds-spacing",
+            BLOCK,
+            "max = [0.006, 0.004, 0.004]",
+            "max = [0.2, 0.2, 0.2]",
+            "nodes.plate.params.spacing",
+        ),
+        (
+            "pd-bonds-horizon",
+            BLOCK,
+            "horizon = 3.015e-3\ndensity = 7850.0\nyoung = 200e9\npoisson = 0.25\nbodies = [{ shape = \"box\", min = [0.0, 0.0, 0.0], max = [0.006, 0.004, 0.004] }]",
+            "horizon = 2e-2\ndensity = 7850.0\nyoung = 200e9\npoisson = 0.25\nbodies = [{ shape = \"box\", min = [0.0, 0.0, 0.0], max = [0.05, 0.05, 0.05] }]",
+            "nodes.plate.params.horizon",
+        ),
+        (
+            "pd-bonds-max",
+            BLOCK,
+            "poisson = 0.25",
+            "poisson = 0.25\nmax_bonds = 1000",
+            "nodes.plate.params.spacing",
+        ),
         (
             "pd-f32-on-cpu",
             BLOCK,
@@ -576,6 +599,34 @@ fn every_bad_parameter_is_refused_naming_its_full_key() {
         refused += 1;
     }
     assert_eq!(refused, table.len());
+}
+
+/// A body past the bond budget is refused before it is built (its ~10⁹ bonds would take
+/// some 60 GB): exit 2 naming the spacing, with the estimate and the way out in the reason;
+/// the same body within a raised `max_bonds` but at a coarser spacing validates.
+#[test]
+fn a_body_past_the_bond_budget_is_refused_naming_the_key() {
+    let big = BLOCK.replacen("max = [0.006, 0.004, 0.004]", "max = [0.2, 0.2, 0.2]", 1);
+    let o = validate("bonds-over", &big, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    // 200³ particles, the interior family of δ = 3.015 Δx has 122 members
+    for part in [
+        "nodes.plate.params.spacing: ",
+        "8000000 particles",
+        "122 neighbours",
+        "9.760e8 bonds",
+        "max_bonds = 50000000",
+    ] {
+        assert!(err.contains(part), "'{part}' not in: {err}");
+    }
+    // 20³ particles at 10 mm (~8·10⁵ bonds) under a budget lowered to 10⁶: accepted
+    let coarse = big
+        .replacen("spacing = 1e-3", "spacing = 1e-2", 1)
+        .replacen("horizon = 3.015e-3", "horizon = 3.015e-2", 1)
+        .replacen("poisson = 0.25", "poisson = 0.25\nmax_bonds = 1000000", 1);
+    let o = validate("bonds-under", &coarse, &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
 /// `solid-node --describe`: the interfaces of a bar as JSON (params on stdin or from a

@@ -611,11 +611,9 @@ fn detach_inactive(kin: &[PointKin], k0det: &[f64], bonds: &mut Bonds) -> u32 {
             }
             bonds.intact[b] = 0.0;
             broke += 1;
-            let j = bonds.nbr[b] as usize;
-            let row = bonds.offsets[j]..bonds.offsets[j + 1];
             // families are symmetric (one horizon), so (j, i) exists
-            if let Some(q) = bonds.nbr[row.clone()].iter().position(|&n| n as usize == i) {
-                bonds.intact[row.start + q] = 0.0;
+            if let Some(q) = bonds.twin(i, b) {
+                bonds.intact[q] = 0.0;
                 broke += 1;
             }
         }

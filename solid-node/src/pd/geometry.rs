@@ -206,6 +206,26 @@ impl Shape {
 /// corner) inside any of `bodies` and outside all `holes`. Deterministic order: z, y, x.
 pub fn lattice(bodies: &[Shape], holes: &[Shape], dx: f64, three_d: bool) -> Vec<[f64; 3]> {
     let mut out = Vec::new();
+    each_lattice_point(bodies, holes, dx, three_d, |p| out.push(p));
+    out
+}
+
+/// How many points [`lattice`] gives, without storing them (the size check before a body
+/// is built).
+pub fn lattice_count(bodies: &[Shape], holes: &[Shape], dx: f64, three_d: bool) -> usize {
+    let mut n = 0;
+    each_lattice_point(bodies, holes, dx, three_d, |_| n += 1);
+    n
+}
+
+/// Calls `f` on each point of [`lattice`], in its order.
+fn each_lattice_point(
+    bodies: &[Shape],
+    holes: &[Shape],
+    dx: f64,
+    three_d: bool,
+    mut f: impl FnMut([f64; 3]),
+) {
     for body in bodies {
         let (lo, hi) = body.bounds();
         let n = |d: usize| ((hi[d] - lo[d]) / dx + 1e-9).floor().max(0.0) as usize;
@@ -225,13 +245,12 @@ pub fn lattice(bodies: &[Shape], holes: &[Shape], dx: f64, three_d: bool) -> Vec
                     ];
                     if body.contains(&p, three_d) && !holes.iter().any(|h| h.contains(&p, three_d))
                     {
-                        out.push(p);
+                        f(p);
                     }
                 }
             }
         }
     }
-    out
 }
 
 /// The 31³-style benchmark block: `n` particles a side, spacing `dx`, origin at 0.

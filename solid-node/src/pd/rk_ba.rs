@@ -426,17 +426,7 @@ impl<D: DamageModel> RkBa<D> {
     ) -> Self {
         let n = bonds.particles();
         let nb = bonds.len();
-        let mut rev = vec![0u32; nb];
-        for i in 0..n {
-            for b in bonds.offsets[i]..bonds.offsets[i + 1] {
-                let j = bonds.nbr[b] as usize;
-                let r = bonds.offsets[j]..bonds.offsets[j + 1];
-                // Families are symmetric (same horizon both ways), so (j, i) exists.
-                if let Some(k) = bonds.nbr[r.clone()].iter().position(|&q| q as usize == i) {
-                    rev[b] = (r.start + k) as u32;
-                }
-            }
-        }
+        let rev = bonds.twins();
         RkBa {
             dim,
             order,
@@ -491,12 +481,14 @@ impl<D: DamageModel> RkBa<D> {
     }
 
     /// The first particle whose moment matrix M (A.7) is singular in the reference
-    /// configuration (too few family members for the order), if any.
-    pub fn singular_particle(&self, k: &Kinematics, bonds: &Bonds) -> Option<usize> {
+    /// configuration with the current bond damage (too few family members for the order),
+    /// if any. Runs the gradient pass in the model's own buffers (no allocation; every step
+    /// forms them afresh).
+    pub fn singular_particle(&mut self, k: &Kinematics, bonds: &Bonds) -> Option<usize> {
         let dims = if self.dim.three_d() { 3 } else { 2 };
-        let mut point = vec![RkPoint::default(); bonds.particles()];
-        let mut omega = vec![1.0; bonds.len()];
-        let mut phi = vec![[0.0; 3]; bonds.len()];
+        for (w, h) in self.omega.iter_mut().zip(&self.hist) {
+            *w = h.wd;
+        }
         gradient_pass(
             dims,
             self.order,
@@ -505,11 +497,11 @@ impl<D: DamageModel> RkBa<D> {
             k.vol,
             k.x0,
             bonds,
-            &mut point,
-            &mut omega,
-            &mut phi,
+            &mut self.point,
+            &mut self.omega,
+            &mut self.phi,
         );
-        point.iter().position(|p| !p.active)
+        self.point.iter().position(|p| !p.active)
     }
 
     /// The bond histories (for checkpoints and tests).

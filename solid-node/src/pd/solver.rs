@@ -15,8 +15,8 @@
 
 use super::bond::{BondModel, implied_poisson};
 use super::correspondence::Correspondence;
-use super::family::{Bonds, surface_particles};
-use super::geometry::{Shape, lattice};
+use super::family::{Bonds, full_family, surface_particles};
+use super::geometry::{Shape, lattice, lattice_count};
 use super::gpu::DeviceBody;
 use super::integrate::Body;
 use super::lagrange::ExplicitSide;
@@ -137,6 +137,15 @@ pub struct PdParams {
     /// relative accuracy, with a warning).
     #[serde(default)]
     pub precision: Option<String>,
+    /// Most bonds the bodies may hold (both copies of a bond counted), checked before the
+    /// body is built against particles × full family (an upper estimate; a body past it is
+    /// refused naming `spacing`, or `horizon` when δ > 6 Δx). The default, 5·10⁷ (about
+    /// 4·10⁵ particles in 3-D or 1.8·10⁶ in 2-D at δ = 3.015 Δx), keeps a body within about
+    /// 11 GB of memory with every model (about 57 bytes a bond for pd-bond and
+    /// pd-correspondence, 216 for pd-rk-ba); raise it for a larger body on a host with the
+    /// memory.
+    #[serde(default = "default_max_bonds")]
+    pub max_bonds: u64,
 }
 
 fn default_fragment_min_size() -> usize {
@@ -326,6 +335,64 @@ pub struct PdSolver {
 /// Most lattice points a body's bounding box may hold (the largest runs here are ~10⁷).
 pub const MAX_LATTICE_POINTS: f64 = 2e8;
 
+/// Default of `max_bonds`: the most bonds (both copies counted) a body may hold, estimated
+/// before it is built. 5·10⁷ bonds are about 4·10⁵ particles in 3-D or 1.8·10⁶ in 2-D at
+/// δ = 3.015 Δx. Set-up takes about 57 bytes of host memory a bond for pd-bond and
+/// pd-correspondence and 216 for pd-rk-ba (peak resident set of `solid-node --describe` on
+/// 20³ and 40³ blocks, issue 20): 3 to 11 GB at the default, which a 16 GB host holds, built
+/// in seconds. The examples hold under 10⁶ bonds.
+pub const DEFAULT_MAX_BONDS: u64 = 50_000_000;
+
+fn default_max_bonds() -> u64 {
+    DEFAULT_MAX_BONDS
+}
+
+/// Refuses a body whose bonds would exceed `max_bonds`, before anything is allocated:
+/// `particles` × the full family of the horizon (capped at the other particles), an upper
+/// estimate (surface particles have smaller families). The key named is `horizon` when the
+/// family is far past the usual few spacings (δ > 6 Δx), else `spacing`.
+fn bond_budget(p: &PdParams, particles: usize, three_d: bool) -> SolverResult<()> {
+    let family = full_family(p.horizon, p.spacing, three_d).min((particles - 1) as f64);
+    let bonds = particles as f64 * family;
+    if bonds <= p.max_bonds as f64 {
+        return Ok(());
+    }
+    let ratio = p.horizon / p.spacing;
+    let key = if ratio > 6.0 { "horizon" } else { "spacing" };
+    cfg(
+        key,
+        format!(
+            "the bodies' {particles} particles at spacing {} with up to {family:.0} neighbours each (horizon {} = {ratio:.3} spacings) make about {bonds:.3e} bonds, more than max_bonds = {} (each takes 57 to 216 bytes of memory, by model, and set-up time): coarsen the spacing, shorten the horizon, or raise max_bonds where the host has the memory",
+            p.spacing, p.horizon, p.max_bonds
+        ),
+    )
+}
+
+/// The pd-rk-ba model with damage law `damage`, refused (key `horizon`) when a moment
+/// matrix of the reference configuration is singular; the check runs in the model's own
+/// buffers.
+fn rk_ba<D: DamageModel + 'static>(
+    dim: Dim,
+    order: usize,
+    horizon: f64,
+    material: J2Material,
+    damage: D,
+    k: &super::model::Kinematics,
+    bonds: &Bonds,
+) -> SolverResult<Box<dyn PdModel>> {
+    let mut m = RkBa::new(dim, order, horizon, material, damage, bonds);
+    if let Some(i) = m.singular_particle(k, bonds) {
+        return cfg(
+            "horizon",
+            format!(
+                "too small for rk_order = {order}: the moment matrix is singular at particle {i} (use δ ≥ {}·Δx)",
+                order + 1
+            ),
+        );
+    }
+    Ok(Box::new(m))
+}
+
 /// First bytes of a checkpoint of this node.
 const CHECKPOINT_MAGIC: &[u8] = b"cosim-pd-state-v4";
 
@@ -446,10 +513,12 @@ impl PdSolver {
                 );
             }
         }
-        let x0 = lattice(&p.bodies, &p.holes, p.spacing, three_d);
-        if x0.is_empty() {
+        let particles = lattice_count(&p.bodies, &p.holes, p.spacing, three_d);
+        if particles == 0 {
             return cfg("bodies", "the bodies hold no lattice point at this spacing");
         }
+        bond_budget(&p, particles, three_d)?;
+        let x0 = lattice(&p.bodies, &p.holes, p.spacing, three_d);
         let v = if three_d {
             p.spacing.powi(3)
         } else {
@@ -570,30 +639,30 @@ impl PdSolver {
                     return cfg("rk_order", format!("must be 1 or 2, got {}", p.rk_order));
                 }
                 let (order, h) = (p.rk_order, p.horizon);
-                let m: Box<dyn PdModel> = match p.damage.clone().unwrap_or(DamageParams::None {}) {
-                    DamageParams::None {} => {
-                        Box::new(RkBa::new(dim, order, h, material, NoDamage, &bonds))
-                    }
-                    DamageParams::CriticalStretch { critical_stretch } => Box::new(RkBa::new(
+                match p.damage.clone().unwrap_or(DamageParams::None {}) {
+                    DamageParams::None {} => rk_ba(dim, order, h, material, NoDamage, &k, &bonds)?,
+                    DamageParams::CriticalStretch { critical_stretch } => rk_ba(
                         dim,
                         order,
                         h,
                         material,
                         CriticalStretch { critical_stretch },
+                        &k,
                         &bonds,
-                    )),
-                    DamageParams::VonMises { critical_stress } => Box::new(RkBa::new(
+                    )?,
+                    DamageParams::VonMises { critical_stress } => rk_ba(
                         dim,
                         order,
                         h,
                         material,
                         BrittleVonMises { critical_stress },
+                        &k,
                         &bonds,
-                    )),
+                    )?,
                     DamageParams::PlasticStrain {
                         eps_threshold,
                         eps_critical,
-                    } => Box::new(RkBa::new(
+                    } => rk_ba(
                         dim,
                         order,
                         h,
@@ -602,20 +671,10 @@ impl PdSolver {
                             threshold: eps_threshold,
                             critical: eps_critical,
                         },
+                        &k,
                         &bonds,
-                    )),
-                };
-                let probe = RkBa::new(dim, order, h, material, NoDamage, &bonds);
-                if let Some(i) = probe.singular_particle(&k, &bonds) {
-                    return cfg(
-                        "horizon",
-                        format!(
-                            "too small for rk_order = {order}: the moment matrix is singular at particle {i} (use δ ≥ {}·Δx)",
-                            order + 1
-                        ),
-                    );
+                    )?,
                 }
-                m
             }
             other => return cfg("model", format!("unknown peridynamic model '{other}'")),
         };
