@@ -378,6 +378,40 @@ pub fn fill_solid_prims(f: &mut Fluid, im: &Immersed) {
     }
 }
 
+/// The x ghost cells of the rows in which [`fill_solid_prims`] changed a cell that those
+/// ghosts copy (wall/symmetry mirror, outflow, periodic wrap: the first and last `g[0]`
+/// interior cells of a row), refilled from the row's primitives; every other row keeps the x
+/// ghosts `prim_all` gave it from the same primitives, so the result equals refilling every
+/// row (`boundary::fill_ghosts`) bit for bit. Touches only rows where the body reaches within
+/// `g[0]` cells of an x end of the domain (none when it stays clear of the x boundaries);
+/// returns how many rows it refilled.
+pub fn refill_x_ghosts(f: &mut Fluid, im: &Immersed) -> usize {
+    let grid = &f.grid;
+    let g0 = grid.g[0];
+    if g0 == 0 {
+        return 0;
+    }
+    let mx = grid.mx();
+    let nv = f.nv;
+    let vel0 = f.vel0();
+    // interior i (ghost-inclusive) that the x ghosts read: [g0, 2 g0) and [n0, n0 + g0)
+    let near = |i: usize| i < 2 * g0 || i >= grid.n[0];
+    let mut last = usize::MAX;
+    let mut rows = 0;
+    for (ci, &c) in im.cells.iter().enumerate() {
+        let r = c / mx;
+        // cells are sorted by flat index: a row's cells are consecutive
+        if r == last || im.cell_kind[ci] != SOLID || !near(c % mx) {
+            continue;
+        }
+        last = r;
+        let block = &mut f.prim[r * nv * mx..(r + 1) * nv * mx];
+        crate::boundary::fill_row_x(grid, block, nv, vel0, &f.bc[0]);
+        rows += 1;
+    }
+    rows
+}
+
 /// Wall fluxes on the faces between interface and solid cells: the gas cell's state against
 /// its mirror image in the wall moving with the interface velocity, into `im.wall_flux`. The
 /// momentum these faces carry out of the gas, weighted by the stage's flux weight `dt_w` (RK3

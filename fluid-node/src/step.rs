@@ -11,7 +11,7 @@
 //! so no flux array goes through memory. None of this changes a value: the same
 //! operations on the same operands in the same order as the plain per-face form.
 
-use crate::boundary::{fill_ghosts, fill_ghosts_yz, fill_row_x};
+use crate::boundary::{fill_ghosts_yz, fill_row_x};
 use crate::eos::Material;
 use crate::grid::Grid;
 use crate::immersed::{self, WallPatch};
@@ -1794,13 +1794,12 @@ fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
                 f.timing.immersed_s += lap(&mut clock);
             }
             let vel0 = f.vel0();
-            if ib.is_some() {
-                // the solid-cell fills may have changed cells the x ghosts mirror
-                fill_ghosts(&f.grid, &mut f.prim, f.nv, vel0, &f.bc);
-            } else {
-                // `prim_all` filled the x ghosts
-                fill_ghosts_yz(&f.grid, &mut f.prim, f.nv, vel0, &f.bc);
+            // `prim_all` filled the x ghosts; the solid-cell fills may have changed cells
+            // that some rows' x ghosts copy: those rows only are filled again
+            if let Some(im) = ib.as_ref() {
+                immersed::refill_x_ghosts(f, im);
             }
+            fill_ghosts_yz(&f.grid, &mut f.prim, f.nv, vel0, &f.bc);
             f.timing.ghosts_s += lap(&mut clock);
             let dt_w = RK3_FLUX_WEIGHT[s] * dt;
             if fused {

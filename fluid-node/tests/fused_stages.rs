@@ -5,7 +5,7 @@
 //! materials, every limiter, on 1 and 2 threads.
 
 mod common;
-use common::{solver, walled_blast_case};
+use common::{particle_block, solver, walled_blast_case};
 use fluid_node::EulerSolver;
 use protocol::{Field, Inbox, Outbox, Solver, Window, message::is_timing_scalar};
 
@@ -100,25 +100,7 @@ fn immersed_run(cells: [usize; 3], fused: bool, threads: usize) -> Vec<Vec<u64>>
         // particles half a cell apart in the block [0.55, 0.75] × [0.3, 0.6] (× [0.2, 0.6])
         let sp = [0.5 * dx[0], 0.5 * dx[1], 0.5 * dx[2]];
         let (lo, hi) = ([0.55, 0.3, 0.2], [0.75, 0.6, 0.6]);
-        let count = |d: usize| ((hi[d] - lo[d]) / sp[d]).round() as usize;
-        let nz = if nd == 3 { count(2) } else { 1 };
-        let mut x0 = Vec::new();
-        for a in 0..count(0) {
-            for b in 0..count(1) {
-                for c in 0..nz {
-                    let z = if nd == 3 {
-                        lo[2] + (c as f64 + 0.5) * sp[2]
-                    } else {
-                        0.4
-                    };
-                    x0.extend_from_slice(&[
-                        lo[0] + (a as f64 + 0.5) * sp[0],
-                        lo[1] + (b as f64 + 0.5) * sp[1],
-                        z,
-                    ]);
-                }
-            }
-        }
+        let x0 = particle_block(dx, nd, lo, hi);
         let n = x0.len() / 3;
         let u = [0.4, -0.3, if nd == 3 { 0.2 } else { 0.0 }];
         let vol = sp[0] * sp[1] * if nd == 3 { sp[2] } else { dx[2] };

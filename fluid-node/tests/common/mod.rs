@@ -218,3 +218,29 @@ pub fn walled_blast_case(cells: [usize; 3], two: bool, limiter: &str) -> String 
     "#
     )
 }
+
+/// Particle positions (flat xyz) half a cell apart filling the box `lo..hi` of a grid of cell
+/// size `dx`; on a 2-D grid (`nd` 2) one layer at z = 0.4.
+pub fn particle_block(dx: [f64; 3], nd: usize, lo: [f64; 3], hi: [f64; 3]) -> Vec<f64> {
+    let sp = [0.5 * dx[0], 0.5 * dx[1], 0.5 * dx[2]];
+    let count = |d: usize| ((hi[d] - lo[d]) / sp[d]).round() as usize;
+    let nz = if nd == 3 { count(2) } else { 1 };
+    let mut x = Vec::new();
+    for a in 0..count(0) {
+        for b in 0..count(1) {
+            for c in 0..nz {
+                let z = if nd == 3 {
+                    lo[2] + (c as f64 + 0.5) * sp[2]
+                } else {
+                    0.4
+                };
+                x.extend_from_slice(&[
+                    lo[0] + (a as f64 + 0.5) * sp[0],
+                    lo[1] + (b as f64 + 0.5) * sp[1],
+                    z,
+                ]);
+            }
+        }
+    }
+    x
+}
