@@ -2011,6 +2011,29 @@ mod tests {
         }
     }
 
+    /// `BUILTIN_KEYS` (what a dotted scalar name may not nest under) lists exactly the keys
+    /// the serializer writes besides the scalars: a key added to one and not the other fails.
+    #[test]
+    fn builtin_keys_are_the_keys_of_a_report_without_scalars() {
+        let r = StepReport::default();
+        let doc = NodeReportDoc {
+            window: 1,
+            time: 0.0,
+            r: &r,
+        };
+        let v = serde_json::to_value(&doc).expect("serialize");
+        let mut got: Vec<&str> = v
+            .as_object()
+            .expect("an object")
+            .keys()
+            .map(String::as_str)
+            .collect();
+        let mut want = BUILTIN_KEYS.to_vec();
+        got.sort_unstable();
+        want.sort_unstable();
+        assert_eq!(got, want);
+    }
+
     /// The record written straight from the report is the document the coordinator built
     /// with `json!` before (written out here as it did: quantities, then the scalars set over
     /// them), and gives the same plot histories.

@@ -143,16 +143,7 @@ pub fn memcpy_median_us(bytes: usize, rounds: usize) -> f64 {
 /// buffer and decoding it again: the codec's share of a window exchange.
 pub fn codec_median_us(bytes: usize, rounds: usize) -> Result<f64, BenchError> {
     let values = bytes / 8;
-    let m = Message::Fields(Fields {
-        coupling: "bench".into(),
-        window: 1,
-        time: 0.0,
-        fields: vec![Field {
-            name: "payload".into(),
-            components: 1,
-            values: (0..values).map(|i| i as f64).collect(),
-        }],
-    });
+    let m = payload(1, (0..values).map(|i| i as f64).collect());
     let mut buf = Vec::new();
     encode_into(&mut buf, "run", ECHO_ENDPOINT, 1, &m)?;
     let mut t = Vec::with_capacity(rounds);
@@ -305,16 +296,7 @@ pub fn echo_spec_from_env() -> Result<TransportSpec, BenchError> {
 fn echo_loop(t: &mut dyn Transport, run: &str, me: &str) -> Result<(), BenchError> {
     t.subscribe(&topic::down(run, me))?;
     let mut up = t.publisher(&topic::up(run, me), &[COORDINATOR.to_string()])?;
-    let mut answer = Message::Fields(Fields {
-        coupling: "bench".into(),
-        window: 0,
-        time: 0.0,
-        fields: vec![Field {
-            name: "payload".into(),
-            components: 1,
-            values: Vec::new(),
-        }],
-    });
+    let mut answer = payload(0, Vec::new());
     let mut done = Message::Done(Done {
         window: 0,
         report: StepReport::default(),
@@ -422,6 +404,20 @@ fn await_window(
 
 /// Bytes of the window's `Advance` and of its `Fields` answer of `values` values, as
 /// encoded on the wire: what the raw round trip moves.
+/// The benchmarks' window data: one `Fields` message of coupling `bench` holding `values`.
+fn payload(window: u64, values: Vec<f64>) -> Message {
+    Message::Fields(Fields {
+        coupling: "bench".into(),
+        window,
+        time: 0.0,
+        fields: vec![Field {
+            name: "payload".into(),
+            components: 1,
+            values,
+        }],
+    })
+}
+
 fn envelope_lens(run: &str, values: usize) -> Result<(usize, usize), BenchError> {
     let advance = Message::Advance(Advance {
         window: 1,
@@ -430,16 +426,7 @@ fn envelope_lens(run: &str, values: usize) -> Result<(usize, usize), BenchError>
         write_output: false,
         checkpoint: false,
     });
-    let fields = Message::Fields(Fields {
-        coupling: "bench".into(),
-        window: 1,
-        time: 0.0,
-        fields: vec![Field {
-            name: "payload".into(),
-            components: 1,
-            values: vec![0.0; values],
-        }],
-    });
+    let fields = payload(1, vec![0.0; values]);
     Ok((
         encoded_len(run, COORDINATOR, &advance)?,
         encoded_len(run, ECHO_ENDPOINT, &fields)?,
