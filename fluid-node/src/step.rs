@@ -1664,8 +1664,10 @@ fn update_var<const ND: usize, const ALPHA: bool>(
 
 /// Impulse (entries 0–2) and work (entry 3) on the gas of the fluxes through the domain
 /// boundary faces over `dt_w`: the momentum and total-energy fluxes, which follow each
-/// other in the variable order (`vel0() .. vel0() + 3`, then `ip()`).
-fn boundary_flux(f: &Fluid, dt_w: f64) -> [f64; 4] {
+/// other in the variable order (`vel0() .. vel0() + 3`, then `ip()`). A face whose cell
+/// inside the domain is solid (`kind`, the immersed body's cell classes) bounds no gas: the
+/// body covers the wall there, and its flux enters neither the gas nor these sums.
+fn boundary_flux(f: &Fluid, kind: Option<&[u8]>, dt_w: f64) -> [f64; 4] {
     let grid = &f.grid;
     let nm = f.nmat();
     let nf = f.nf();
@@ -1679,27 +1681,45 @@ fn boundary_flux(f: &Fluid, dt_w: f64) -> [f64; 4] {
         // per quantity, the sums over the lower and upper boundary faces, each in row order
         let mut lo = [0.0; 4];
         let mut hi = [0.0; 4];
-        // one boundary face line (d > 0): the sum over its interior faces
-        let line = |r: usize, c: usize| {
+        // one boundary face line (d > 0, face row r, the row of its domain cells rc): the
+        // sum over its interior faces, in x order
+        let line = |r: usize, rc: usize, c: usize| {
             let o = (nm + c) * mx + g[0];
-            fr(r)[o..o + n[0]].iter().sum::<f64>()
+            let faces = &fr(r)[o..o + n[0]];
+            match kind {
+                None => faces.iter().sum::<f64>(),
+                Some(kind) => faces
+                    .iter()
+                    .zip(&kind[rc * mx + g[0]..])
+                    .filter(|&(_, &k)| k != immersed::SOLID)
+                    .map(|(x, _)| x)
+                    .sum::<f64>(),
+            }
         };
+        let gas = |cell: usize| kind.is_none_or(|kind| kind[cell] != immersed::SOLID);
         for k in g[2]..g[2] + n[2] {
             match d {
                 0 => {
                     for j in g[1]..g[1] + n[1] {
-                        let fr = fr(grid.row(j, k));
+                        let r = grid.row(j, k);
+                        let fr = fr(r);
+                        let (a, b) = (gas(r * mx + g[0]), gas(r * mx + g[0] + n[0] - 1));
                         for c in 0..4 {
-                            lo[c] += fr[(nm + c) * mx + g[0] - 1];
-                            hi[c] += fr[(nm + c) * mx + g[0] + n[0] - 1];
+                            if a {
+                                lo[c] += fr[(nm + c) * mx + g[0] - 1];
+                            }
+                            if b {
+                                hi[c] += fr[(nm + c) * mx + g[0] + n[0] - 1];
+                            }
                         }
                     }
                 }
                 1 => {
                     let (a, b) = (grid.row(g[1] - 1, k), grid.row(g[1] + n[1] - 1, k));
+                    let (ca, cb) = (grid.row(g[1], k), b);
                     for c in 0..4 {
-                        lo[c] += line(a, c);
-                        hi[c] += line(b, c);
+                        lo[c] += line(a, ca, c);
+                        hi[c] += line(b, cb, c);
                     }
                 }
                 _ => {}
@@ -1708,9 +1728,10 @@ fn boundary_flux(f: &Fluid, dt_w: f64) -> [f64; 4] {
         if d == 2 {
             for j in g[1]..g[1] + n[1] {
                 let (a, b) = (grid.row(j, g[2] - 1), grid.row(j, g[2] + n[2] - 1));
+                let (ca, cb) = (grid.row(j, g[2]), b);
                 for c in 0..4 {
-                    lo[c] += line(a, c);
-                    hi[c] += line(b, c);
+                    lo[c] += line(a, ca, c);
+                    hi[c] += line(b, cb, c);
                 }
             }
         }
@@ -1818,7 +1839,7 @@ fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
                 } else {
                     fused_stage_3d::<NM>(f, &ph, walls, a, b, dt, s == 0);
                 }
-                f.add_boundary_flux(dt_w);
+                f.add_boundary_flux(ib.as_ref(), dt_w);
             } else {
                 for d in 0..f.grid.nd {
                     fluxes::<NM>(f, &ph, d);
@@ -1829,7 +1850,7 @@ fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
                     immersed::write_wall_fluxes(f, im);
                     f.timing.immersed_s += lap(&mut clock);
                 }
-                f.add_boundary_flux(dt_w);
+                f.add_boundary_flux(ib.as_ref(), dt_w);
                 update::<NM>(f, a, b, dt);
             }
             f.timing.kernels_s += lap(&mut clock);
@@ -1862,8 +1883,9 @@ fn lap(clock: &mut Instant) -> f64 {
 impl Fluid {
     /// Adds the impulse and work of the domain boundary faces' fluxes over `dt_w` (a stage's
     /// flux weight × dt) to the boundary accumulators.
-    fn add_boundary_flux(&mut self, dt_w: f64) {
-        let bi = boundary_flux(self, dt_w);
+    fn add_boundary_flux(&mut self, ib: Option<&immersed::Immersed>, dt_w: f64) {
+        let kind = ib.map(|im| &im.kind[..]).filter(|k| !k.is_empty());
+        let bi = boundary_flux(self, kind, dt_w);
         for c in 0..3 {
             self.boundary_impulse[c] += bi[c];
         }

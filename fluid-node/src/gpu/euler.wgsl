@@ -498,16 +498,20 @@ fn update(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
 
 // ---------------------------------------------------------------- boundary impulse, clock
 
-fn row_sum(fo: u32, r: u32, v: u32) -> real {
+// the faces of boundary face row r whose domain cell (row rc) is not solid
+fn row_sum(fo: u32, r: u32, rc: u32, v: u32) -> real {
     var s = -real(0.0);
     for (var i = g(0u); i < g(0u) + n(0u); i++) {
-        s += flux[fo + at(r, v, i)];
+        if !is_solid_cell(rc * mx() + i) {
+            s += flux[fo + at(r, v, i)];
+        }
     }
     return s;
 }
 
 // step.rs boundary_flux(): per momentum component c (0..3) and the total energy (c = 3,
-// the variable after the momentum), the same summation order
+// the variable after the momentum), the same summation order; a face whose domain cell is
+// solid bounds no gas and is skipped
 @compute @workgroup_size(4)
 fn impulse(@builtin(local_invocation_index) c: u32) {
     if c >= 4u || !running() {
@@ -524,19 +528,25 @@ fn impulse(@builtin(local_invocation_index) c: u32) {
             for (var k = g(2u); k < g(2u) + n(2u); k++) {
                 for (var j = g(1u); j < g(1u) + n(1u); j++) {
                     let r = row(j, k);
-                    lo += flux[fo + at(r, v, g(0u) - 1u)];
-                    hi += flux[fo + at(r, v, g(0u) + n(0u) - 1u)];
+                    if !is_solid_cell(r * mx() + g(0u)) {
+                        lo += flux[fo + at(r, v, g(0u) - 1u)];
+                    }
+                    if !is_solid_cell(r * mx() + g(0u) + n(0u) - 1u) {
+                        hi += flux[fo + at(r, v, g(0u) + n(0u) - 1u)];
+                    }
                 }
             }
         } else if d == 1u {
             for (var k = g(2u); k < g(2u) + n(2u); k++) {
-                lo += row_sum(fo, row(g(1u) - 1u, k), v);
-                hi += row_sum(fo, row(g(1u) + n(1u) - 1u, k), v);
+                let b = row(g(1u) + n(1u) - 1u, k);
+                lo += row_sum(fo, row(g(1u) - 1u, k), row(g(1u), k), v);
+                hi += row_sum(fo, b, b, v);
             }
         } else {
             for (var j = g(1u); j < g(1u) + n(1u); j++) {
-                lo += row_sum(fo, row(j, g(2u) - 1u), v);
-                hi += row_sum(fo, row(j, g(2u) + n(2u) - 1u), v);
+                let b = row(j, g(2u) + n(2u) - 1u);
+                lo += row_sum(fo, row(j, g(2u) - 1u), row(j, g(2u)), v);
+                hi += row_sum(fo, b, b, v);
             }
         }
         imp += dtw * area(d) * (lo - hi);
