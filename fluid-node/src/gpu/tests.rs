@@ -4,7 +4,8 @@
 //! interface as a solid node would. A disc of particles moves diagonally through a 2-D box
 //! while a blast wave from a high-pressure circle hits it, so every immersed operation runs:
 //! interface and solid cells, moving walls in x and y, cells the disc leaves (refilled) and
-//! cells it enters (turned solid). Per window, the force on every particle, the interface
+//! cells it enters (turned solid); a resting strip against the left wall covers boundary
+//! faces, which the wall impulse leaves out. Per window, the force on every particle, the interface
 //! impulse, the reclassification momentum, the wall and refill mass bookkeeping and the
 //! totals must agree within 1e-10 relative (f64 kernels); the final field likewise. The CPU
 //! path is verified against the piston problem and by mass balance in
@@ -102,7 +103,15 @@ fn moving_disc_in_a_blast_matches_cpu() {
             }
         }
     }
-    let np = x0.len();
+    // a resting strip against the left wall, in the blast's path: its solid cells cover
+    // domain boundary faces, which the wall impulse leaves out on both paths
+    let mut strip = Vec::new();
+    for a in 0..(0.06 / sp) as i64 {
+        for b in 0..(0.1 / sp) as i64 {
+            strip.push([(a as f64 + 0.5) * sp, 0.6 + (b as f64 + 0.5) * sp, 0.05]);
+        }
+    }
+    let np = x0.len() + strip.len();
     let field = |name: &str, c: u32, v: Vec<f64>| Field {
         name: name.into(),
         components: c,
@@ -113,6 +122,7 @@ fn moving_disc_in_a_blast_matches_cpu() {
     let (mut out_c, mut out_g) = (Outbox::new(), Outbox::new());
     let mut worst = [0.0_f64; 6];
     let mut refilled = 0usize;
+    let mut wall_solid = 0usize;
     let mut peak_force = 0.0_f64;
     let mut prev_kind: Option<Vec<u8>> = None;
     let (mut t_cpu, mut t_gpu) = (0.0, 0.0);
@@ -123,6 +133,10 @@ fn moving_disc_in_a_blast_matches_cpu() {
         for x in &x0 {
             pos.extend_from_slice(&[x[0] + u[0] * t0, x[1] + u[1] * t0, x[2]]);
             vel.extend_from_slice(&[u[0], u[1], 0.0]);
+        }
+        for x in &strip {
+            pos.extend_from_slice(x);
+            vel.extend_from_slice(&[0.0; 3]);
         }
         let mut inbox = Inbox::new();
         inbox.insert("particles", field("position", 3, pos));
@@ -162,6 +176,10 @@ fn moving_disc_in_a_blast_matches_cpu() {
         ));
         let (ic, ig) = (cpu.immersed().expect("im"), gpu.immersed().expect("im"));
         assert_eq!(ic.kind, ig.kind, "window {k}: cell classes");
+        let g = &cpu.fluid.grid;
+        wall_solid += (0..g.rows())
+            .filter(|&r| g.interior_row(r) && ic.kind[r * g.mx() + g.g[0]] == SOLID)
+            .count();
         worst[5] = worst[5].max(rel(
             &[
                 ig.wall_mass,
@@ -212,6 +230,8 @@ fn moving_disc_in_a_blast_matches_cpu() {
     );
     println!("wall time of the windows: CPU {t_cpu:.3} s, GPU {t_gpu:.3} s");
     assert!(refilled > 0, "the disc must leave cells");
+    println!("{wall_solid} solid cells against the left wall over the windows");
+    assert!(wall_solid > 0, "the strip must cover wall cells");
     assert!(peak_force > 0.0, "the gas must push the particles");
     for (q, x) in worst.iter().enumerate() {
         assert!(*x <= 1e-10, "quantity {q}: {x:e}");
