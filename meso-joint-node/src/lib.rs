@@ -4,7 +4,8 @@
 //! the responder side of the shell kinematic coupling (eq. 29–33).
 //!
 //! Layout: `config` (parameters and validation), `geometry` (particle sets), `shape`
-//! (supports and shape functions), `model` (state and the time step), `output` (VTK, CSV),
+//! (supports and shape functions), `model` (state and the time step), `profile` (time per
+//! phase of the step), `output` (VTK, CSV),
 //! `solver` (the `Solver` implementation; its coupling particles follow the shell through the
 //! participant runtime's mapping).
 
@@ -15,6 +16,7 @@ pub mod config;
 pub mod geometry;
 pub mod model;
 pub mod output;
+pub mod profile;
 pub mod shape;
 pub mod solver;
 

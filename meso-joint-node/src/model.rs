@@ -36,6 +36,7 @@
 //! (eq. 16) also changes `A`; it is not corrected (an open, dissipative event).
 
 use crate::config::Smoothing;
+use crate::profile::{Phase, PhaseClock};
 use crate::shape::{M3, Rows};
 use mechanics::j2::{J2Material, J2State, jaumann_rotate};
 use mechanics::tensor::{self, IDENTITY, Matrix3, Vector3, vec3};
@@ -170,6 +171,8 @@ pub struct Model {
     pub contact_search: ContactSearch,
     /// Elastic energy stored in the bearing contact now (J).
     pub contact_energy: f64,
+    /// Time per phase of the step (off unless enabled; `profile`).
+    pub clock: PhaseClock,
 }
 
 /// Why a step failed.
@@ -246,6 +249,7 @@ impl Model {
             contact_pairs: Vec::new(),
             contact_search: ContactSearch::default(),
             contact_energy: 0.0,
+            clock: PhaseClock::default(),
             x,
             p,
         };
@@ -422,6 +426,7 @@ impl Model {
     /// Phase 1–2: velocity update and smoothing (eq. 2–6, 10–11), then rigid bodies and
     /// velocity boundary conditions. Coupled particles keep `presc` (set by the caller).
     pub fn velocity_phase(&mut self, dt: f64) {
+        self.clock.begin();
         let rows = &self.rows;
         match self.p.smoothing {
             Smoothing::Consistent => {
@@ -435,7 +440,9 @@ impl Model {
                         [0.0; 3]
                     };
                 });
+                self.clock.lap(Phase::Mask);
                 scatter_consistent(rows, &self.acc, &self.mh, dt, &mut self.vh);
+                self.clock.lap(Phase::Scatter);
                 gather_consistent(rows, &self.vh, &mut self.v);
             }
             Smoothing::Shepard => {
@@ -473,6 +480,7 @@ impl Model {
                 self.v.copy_from_slice(&self.vh);
             }
         }
+        self.clock.lap(Phase::Gather);
         // Rigid bodies: Newton–Euler on the sum of the particle forces. With the consistent
         // scatter, free neighbours also push momentum into the body's particles (their rows
         // reach them): that momentum, m (v̂ − v_rigid), joins the body's force and torque
@@ -556,10 +564,12 @@ impl Model {
                 }
             }
         }
+        self.clock.lap(Phase::Kinematic);
     }
 
     /// Phases 3–5: positions, kinematics and stress, bond failure, re-anchoring, forces.
     pub fn position_phase(&mut self, dt: f64) -> StepResult {
+        self.clock.begin();
         self.x
             .par_iter_mut()
             .zip(self.v.par_iter())
@@ -581,13 +591,19 @@ impl Model {
         }
         self.time += dt;
         self.steps += 1;
+        self.clock.lap(Phase::Positions);
         kinematics_and_stress(self, dt)?;
+        self.clock.lap(Phase::Stress);
         self.bond_failure()?;
+        self.clock.lap(Phase::Bonds);
         if self.steps.is_multiple_of(self.p.reanchor_every) {
             self.reanchor()?;
         }
+        self.clock.lap(Phase::Reanchor);
         internal_force(&self.rows, &self.bmat, &mut self.f);
+        self.clock.lap(Phase::Force);
         self.bearing_contact();
+        self.clock.lap(Phase::Contact);
         Ok(())
     }
 
