@@ -35,9 +35,17 @@ pub struct Fluid {
     pub cons: Vec<f64>,
     pub cons0: Vec<f64>,
     pub prim: Vec<f64>,
+    /// The next RK stage's primitives, written by a fused stage as it updates each row (no
+    /// immersed body), then swapped with `prim`.
+    pub prim_next: Vec<f64>,
     /// Face fluxes per direction (nv + 1 entries: the last is the face velocity), indexed
     /// by the cell left of the face.
     pub flux: [Vec<f64>; 3],
+    /// The fluxes through the two domain boundary x faces of every row, `[lower (nv + 1),
+    /// upper (nv + 1)]` per row, read by the boundary impulse: the fused stages store these
+    /// and no `flux[0]` (one contiguous line per row instead of 2·(nv + 1) scattered
+    /// writes), the unfused ones copy them from `flux[0]`.
+    pub x_bound: Vec<f64>,
     /// Per-row scratch for deterministic reductions.
     pub row_max: Vec<f64>,
     pub row_bad: Vec<Option<(usize, usize, f64)>>,

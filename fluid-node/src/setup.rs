@@ -472,6 +472,7 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
         cons: vec![0.0; total],
         cons0: vec![0.0; total],
         prim: vec![0.0; total],
+        prim_next: vec![0.0; total],
         flux: std::array::from_fn(|d| {
             if d < grid.nd {
                 vec![0.0; grid.rows() * (nv + 1) * grid.mx()]
@@ -479,6 +480,7 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
                 Vec::new()
             }
         }),
+        x_bound: vec![0.0; grid.rows() * 2 * (nv + 1)],
         row_max: vec![0.0; grid.rows()],
         row_bad: vec![None; grid.rows()],
         time: 0.0,

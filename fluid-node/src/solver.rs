@@ -231,7 +231,9 @@ impl Solver for EulerSolver {
             }
             return Ok(report);
         }
-        let substeps = self.advance_to(w.t1)?;
+        // the window's steps run inside the thread pool: their parallel loops (about seven
+        // per RK stage) then start on a pool thread instead of each waking one from outside
+        let substeps = rayon::scope(|_| self.advance_to(w.t1))?;
         let t_forces = Instant::now();
         if let Some(im) = &self.fluid.immersed {
             let n = im.n;

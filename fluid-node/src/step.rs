@@ -11,7 +11,7 @@
 //! so no flux array goes through memory. None of this changes a value: the same
 //! operations on the same operands in the same order as the plain per-face form.
 
-use crate::boundary::{fill_ghosts_yz, fill_row_x};
+use crate::boundary::{Boundary, fill_ghosts_yz, fill_row_x};
 use crate::eos::Material;
 use crate::grid::Grid;
 use crate::immersed::{self, WallPatch};
@@ -288,6 +288,31 @@ fn check_rows<const NM: usize>(f: &Fluid, stage: usize) -> SolverResult<()> {
         }
     }
     Ok(())
+}
+
+/// Where a fused stage puts the primitives of the rows it updates, for the next stage (no
+/// immersed body, which changes cells after the update): the block's rows of `prim_next`
+/// and of `row_bad`, and the x boundary conditions.
+pub(crate) struct NextPrims<'a> {
+    prim: &'a mut [f64],
+    bad: &'a mut [Option<(usize, usize, f64)>],
+    bcx: &'a [Boundary; 2],
+}
+
+impl NextPrims<'_> {
+    /// What [`prim_all`] does to a row, on row `k` of the block from its updated conserved
+    /// variables `u`, while they are in cache: the same calls, so the same values.
+    #[inline(always)]
+    fn row<const NM: usize>(&mut self, grid: &Grid, ph: &[Phase; NM], k: usize, u: &[f64]) {
+        let nv = 2 * NM + 3;
+        let mx = grid.mx();
+        let p = &mut self.prim[k * nv * mx..(k + 1) * nv * mx];
+        let b = prim_row_fast_body::<NM>(ph, u, p, mx, grid.irange());
+        if b.is_none() && grid.g[0] > 0 {
+            fill_row_x(grid, p, nv, NM, self.bcx);
+        }
+        self.bad[k] = b;
+    }
 }
 
 /// Largest Σ_d (|u_d| + c)/Δx_d over the interior cells of one row block of primitives `p`
@@ -890,9 +915,9 @@ fn face_line<const NM: usize, const D: usize>(
 /// fluxes and its upper y-face fluxes (the lower ones kept from the row before) go into
 /// row-local scratch, the faces that are immersed walls take the stage's wall fluxes
 /// (`walls`), and the row is updated at once, so no flux array is written or read back (the
-/// memory traffic of the stage halves). Only the domain boundary faces are stored in
-/// `fxb`/`fyb` (the block's rows of `flux[0]`, `flux[1]`), for [`boundary_flux`]. Every
-/// value is that of `fluxes` + `write_wall_fluxes` + `update`.
+/// memory traffic of the stage halves). Only the domain boundary faces are stored, in `xb`
+/// (the block's rows of `x_bound`) and `fyb` (its rows of `flux[1]`), for
+/// [`boundary_flux`]. Every value is that of `fluxes` + `write_wall_fluxes` + `update`.
 #[inline(always)]
 fn fused_block_body<const NM: usize>(
     ph: &[Phase; NM],
@@ -902,7 +927,7 @@ fn fused_block_body<const NM: usize>(
     r0: usize,
     u: &mut [f64],
     u0: &[f64],
-    fxb: &mut [f64],
+    xb: &mut [f64],
     fyb: &mut [f64],
     a: f64,
     b: f64,
@@ -910,6 +935,7 @@ fn fused_block_body<const NM: usize>(
     buf: &mut Vec<f64>,
     first: bool,
     walls: Option<WallPatch<'_>>,
+    mut next: Option<NextPrims<'_>>,
 ) {
     let nv = 2 * NM + 3;
     let nf = nv + 1;
@@ -967,11 +993,14 @@ fn fused_block_body<const NM: usize>(
             b,
             dt,
         );
+        if let Some(nx) = next.as_mut() {
+            nx.row::<NM>(grid, ph, k, uu);
+        }
         // the domain boundary faces, for the boundary impulse
+        let xb = &mut xb[k * 2 * nf..(k + 1) * 2 * nf];
         for v in 0..nf {
-            for i in [g[0] - 1, g[0] + n[0] - 1] {
-                fxb[k * nf * mx + v * mx + i] = fx[v * mx + i];
-            }
+            xb[v] = fx[v * mx + g[0] - 1];
+            xb[nf + v] = fx[v * mx + g[0] + n[0] - 1];
         }
         for (line, fl) in [(r - 1, &*fy_lo), (r, &*fy_hi)] {
             if (line == g[1] - 1 || line == g[1] + n[1] - 1) && line >= r0 {
@@ -994,7 +1023,7 @@ multiversion! {
         r0: usize,
         u: &mut [f64],
         u0: &[f64],
-        fxb: &mut [f64],
+        xb: &mut [f64],
         fyb: &mut [f64],
         a: f64,
         b: f64,
@@ -1002,12 +1031,14 @@ multiversion! {
         buf: &mut Vec<f64>,
         first: bool,
         walls: Option<WallPatch<'_>>,
+        next: Option<NextPrims<'_>>,
     ) = fused_block_body;
 }
 
 /// [`fluxes`] in x and y, then [`update`], fused per block of rows (2-D), the immersed walls'
 /// fluxes (`walls`) applied on the way. `first`: the first stage, for which `cons` holds
-/// nothing yet and each row is copied from `cons0` before its update.
+/// nothing yet and each row is copied from `cons0` before its update. `next`: also the
+/// primitives of each updated row into `prim_next` ([`NextPrims`]).
 fn fused_stage_2d<const NM: usize>(
     f: &mut Fluid,
     ph: &[Phase; NM],
@@ -1016,6 +1047,7 @@ fn fused_stage_2d<const NM: usize>(
     b: f64,
     dt: f64,
     first: bool,
+    next: bool,
 ) {
     let grid = &f.grid;
     let simd = f.simd;
@@ -1024,33 +1056,41 @@ fn fused_stage_2d<const NM: usize>(
     let nf = nv + 1;
     let mx = grid.mx();
     let prim = &f.prim;
-    let [fx, fy, _] = &mut f.flux;
+    let [_, fy, _] = &mut f.flux;
+    let bcx = &f.bc[0];
     let nb = fused_block_rows(grid.rows());
     f.cons
         .par_chunks_mut(nb * nv * mx)
         .zip(f.cons0.par_chunks(nb * nv * mx))
-        .zip(fx.par_chunks_mut(nb * nf * mx))
+        .zip(f.x_bound.par_chunks_mut(nb * 2 * nf))
         .zip(fy.par_chunks_mut(nb * nf * mx))
+        .zip(f.prim_next.par_chunks_mut(nb * nv * mx))
+        .zip(f.row_bad.par_chunks_mut(nb))
         .enumerate()
-        .for_each(|(blk, (((u, u0), fxb), fyb))| {
+        .for_each(|(blk, (((((u, u0), xb), fyb), pn), bad))| {
             LINE_SCRATCH.with(|cell| {
                 let mut buf = cell.borrow_mut();
                 let r0 = blk * nb;
+                let next = next.then_some(NextPrims { prim: pn, bad, bcx });
                 fused_block::<NM>(
-                    simd, ph, lim, grid, prim, r0, u, u0, fxb, fyb, a, b, dt, &mut buf, first,
-                    walls,
+                    simd, ph, lim, grid, prim, r0, u, u0, xb, fyb, a, b, dt, &mut buf, first,
+                    walls, next,
                 );
             });
         });
 }
 
-/// Planes (rows of constant k) per rayon task of the fused 3-D stage: about four tasks per
+/// Planes (rows of constant k) per rayon task of the fused 3-D stage: on one thread all of
+/// them (one task, so no z-face plane is computed twice); otherwise about four tasks per
 /// thread, at least 3 planes (so that the first task holds the lower ghost plane whose z
-/// faces it computes, for [`boundary_flux`]) and at most 16 (the z-face line each task
+/// faces it computes, for [`boundary_flux`]) and at most 16 (the z-face plane each task
 /// recomputes below its planes costs 1/planes of the z faces). Any block size gives the same
 /// values.
 fn fused_block_planes(planes: usize) -> usize {
-    (planes / (4 * rayon::current_num_threads())).clamp(3, 16)
+    match rayon::current_num_threads() {
+        1 => planes,
+        t => (planes / (4 * t)).clamp(3, 16),
+    }
 }
 
 /// y lines per tile of the fused 3-D stage: a tile's face batches, slopes and the primitive
@@ -1193,7 +1233,7 @@ fn z_faces<const NM: usize>(
 /// above), each y-face line once (a tile hands its top line to the next tile of the same
 /// plane), and the rows are updated at once. Faces that are immersed walls take the stage's wall fluxes
 /// (`walls`). Only the domain boundary faces are stored in `fl` (the block's rows of
-/// `flux[0..3]`), for [`boundary_flux`]. Every value is that of `fluxes` +
+/// `x_bound`, `flux[1]`, `flux[2]`), for [`boundary_flux`]. Every value is that of `fluxes` +
 /// `write_wall_fluxes` + `update`: the same operations on the same operands per face.
 #[inline(always)]
 fn fused_planes_body<const NM: usize>(
@@ -1211,6 +1251,7 @@ fn fused_planes_body<const NM: usize>(
     buf: &mut Vec<f64>,
     first: bool,
     walls: Option<WallPatch<'_>>,
+    mut next: Option<NextPrims<'_>>,
 ) {
     let nv = 2 * NM + 3;
     let nf = nv + 1;
@@ -1254,7 +1295,7 @@ fn fused_planes_body<const NM: usize>(
     let (yf, rest) = rest.split_at_mut(nf * (jt + 1) * n0);
     let (xf, rest) = rest.split_at_mut(nf * jt * nx);
     let ytop = &mut rest[..nf * n0 * planes];
-    let [fxb, fyb, fzb] = fl;
+    let [xb, fyb, fzb] = fl;
     // keep the domain boundary face line `line` normal to d (1 or 2), held at `src[v *
     // stride]..` (interior faces only), if this block holds its row
     let keep = |fb: &mut [f64], line: usize, src: &[f64], stride: usize| {
@@ -1375,10 +1416,10 @@ fn fused_planes_body<const NM: usize>(
                     w.apply_strided(0, r, &mut xf[l * nx..], xs, i0 - 1, nx);
                 }
                 // the domain boundary x faces, for the boundary impulse
-                let o = (r - r0) * fblk;
+                let xb = &mut xb[(r - r0) * 2 * nf..(r - r0 + 1) * 2 * nf];
                 for v in 0..nf {
-                    fxb[o + v * mx + i0 - 1] = xf[v * xs + l * nx];
-                    fxb[o + v * mx + i0 + n0 - 1] = xf[v * xs + l * nx + n0];
+                    xb[v] = xf[v * xs + l * nx];
+                    xb[nf + v] = xf[v * xs + l * nx + n0];
                 }
                 let o = (r - r0) * rowblk;
                 let (uu, u0r) = (&mut u[o..o + rowblk], &u0[o..o + rowblk]);
@@ -1393,6 +1434,9 @@ fn fused_planes_body<const NM: usize>(
                     (&*z_lo, zs, l * n0),
                 ];
                 update_row_strided::<NM>(grid, faces, uu, u0r, a, b, dt);
+                if let Some(nx) = next.as_mut() {
+                    nx.row::<NM>(grid, ph, r - r0, uu);
+                }
             }
             std::mem::swap(&mut z_lo, &mut z_hi);
         }
@@ -1417,11 +1461,12 @@ multiversion! {
         buf: &mut Vec<f64>,
         first: bool,
         walls: Option<WallPatch<'_>>,
+        next: Option<NextPrims<'_>>,
     ) = fused_planes_body;
 }
 
 /// [`fluxes`] in x, y and z, then [`update`], fused per block of planes (3-D), the immersed
-/// walls' fluxes applied on the way; `first` as for [`fused_stage_2d`].
+/// walls' fluxes applied on the way; `first` and `next` as for [`fused_stage_2d`].
 fn fused_stage_3d<const NM: usize>(
     f: &mut Fluid,
     ph: &[Phase; NM],
@@ -1430,6 +1475,7 @@ fn fused_stage_3d<const NM: usize>(
     b: f64,
     dt: f64,
     first: bool,
+    next: bool,
 ) {
     let grid = &f.grid;
     let simd = f.simd;
@@ -1438,19 +1484,23 @@ fn fused_stage_3d<const NM: usize>(
     let nf = nv + 1;
     let mx = grid.mx();
     let prim = &f.prim;
-    let [fx, fy, fz] = &mut f.flux;
+    let [_, fy, fz] = &mut f.flux;
+    let bcx = &f.bc[0];
     let nb = fused_block_planes(grid.m[2]) * grid.m[1];
     f.cons
         .par_chunks_mut(nb * nv * mx)
         .zip(f.cons0.par_chunks(nb * nv * mx))
-        .zip(fx.par_chunks_mut(nb * nf * mx))
+        .zip(f.x_bound.par_chunks_mut(nb * 2 * nf))
         .zip(fy.par_chunks_mut(nb * nf * mx))
         .zip(fz.par_chunks_mut(nb * nf * mx))
+        .zip(f.prim_next.par_chunks_mut(nb * nv * mx))
+        .zip(f.row_bad.par_chunks_mut(nb))
         .enumerate()
-        .for_each(|(blk, ((((u, u0), fxb), fyb), fzb))| {
+        .for_each(|(blk, ((((((u, u0), xb), fyb), fzb), pn), bad))| {
             LINE_SCRATCH.with(|cell| {
                 let mut buf = cell.borrow_mut();
                 let r0 = blk * nb;
+                let next = next.then_some(NextPrims { prim: pn, bad, bcx });
                 fused_planes::<NM>(
                     simd,
                     ph,
@@ -1460,13 +1510,14 @@ fn fused_stage_3d<const NM: usize>(
                     r0,
                     u,
                     u0,
-                    [fxb, fyb, fzb],
+                    [xb, fyb, fzb],
                     a,
                     b,
                     dt,
                     &mut buf,
                     first,
                     walls,
+                    next,
                 );
             });
         });
@@ -1662,6 +1713,24 @@ fn update_var<const ND: usize, const ALPHA: bool>(
     }
 }
 
+/// The fluxes of the two domain boundary x faces of every interior row from `flux[0]` into
+/// `x_bound` (the unfused stages; the fused ones store them there directly).
+fn store_x_bound(f: &mut Fluid) {
+    let grid = &f.grid;
+    let nf = f.nf();
+    let mx = grid.mx();
+    let (i0, i1) = (grid.g[0] - 1, grid.g[0] + grid.n[0] - 1);
+    for (r, xb) in f.x_bound.chunks_mut(2 * nf).enumerate() {
+        if grid.interior_row(r) {
+            let fr = &f.flux[0][r * nf * mx..(r + 1) * nf * mx];
+            for v in 0..nf {
+                xb[v] = fr[v * mx + i0];
+                xb[nf + v] = fr[v * mx + i1];
+            }
+        }
+    }
+}
+
 /// Impulse (entries 0–2) and work (entry 3) on the gas of the fluxes through the domain
 /// boundary faces over `dt_w`: the momentum and total-energy fluxes, which follow each
 /// other in the variable order (`vel0() .. vel0() + 3`, then `ip()`). A face whose cell
@@ -1702,14 +1771,14 @@ fn boundary_flux(f: &Fluid, kind: Option<&[u8]>, dt_w: f64) -> [f64; 4] {
                 0 => {
                     for j in g[1]..g[1] + n[1] {
                         let r = grid.row(j, k);
-                        let fr = fr(r);
+                        let xb = &f.x_bound[r * 2 * nf..(r + 1) * 2 * nf];
                         let (a, b) = (gas(r * mx + g[0]), gas(r * mx + g[0] + n[0] - 1));
                         for c in 0..4 {
                             if a {
-                                lo[c] += fr[(nm + c) * mx + g[0] - 1];
+                                lo[c] += xb[nm + c];
                             }
                             if b {
-                                hi[c] += fr[(nm + c) * mx + g[0] + n[0] - 1];
+                                hi[c] += xb[nf + nm + c];
                             }
                         }
                     }
@@ -1805,8 +1874,10 @@ fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
     f.timing.kernels_s += lap(&mut clock);
     let mut ib = f.immersed.take();
     let result = (|| -> SolverResult<()> {
+        // whether the stage before computed this stage's primitives (fused, no immersed body)
+        let mut have_prims = false;
         for (s, &(a, b)) in RK3.iter().enumerate() {
-            if s > 0 {
+            if s > 0 && !have_prims {
                 prim_all::<NM>(f, &ph, s)?;
                 f.timing.kernels_s += lap(&mut clock);
             }
@@ -1834,12 +1905,21 @@ fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
                 let walls = ib
                     .as_ref()
                     .map(|im| immersed::WallPatch::new(im, f.grid.mx(), nf));
+                // the next stage's primitives while each row is in cache, unless an
+                // immersed body's projection changes the cells after the update
+                let next = ib.is_none() && s + 1 < RK3.len();
                 if f.grid.nd == 2 {
-                    fused_stage_2d::<NM>(f, &ph, walls, a, b, dt, s == 0);
+                    fused_stage_2d::<NM>(f, &ph, walls, a, b, dt, s == 0, next);
                 } else {
-                    fused_stage_3d::<NM>(f, &ph, walls, a, b, dt, s == 0);
+                    fused_stage_3d::<NM>(f, &ph, walls, a, b, dt, s == 0, next);
                 }
                 f.add_boundary_flux(ib.as_ref(), dt_w);
+                if next {
+                    std::mem::swap(&mut f.prim, &mut f.prim_next);
+                    check_rows::<NM>(f, s + 1)?;
+                    f.prim_valid = true;
+                }
+                have_prims = next;
             } else {
                 for d in 0..f.grid.nd {
                     fluxes::<NM>(f, &ph, d);
@@ -1850,6 +1930,7 @@ fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
                     immersed::write_wall_fluxes(f, im);
                     f.timing.immersed_s += lap(&mut clock);
                 }
+                store_x_bound(f);
                 f.add_boundary_flux(ib.as_ref(), dt_w);
                 update::<NM>(f, a, b, dt);
             }
