@@ -488,7 +488,14 @@ enum Cmd {
     FlushIfOlder(std::time::Duration),
     /// Close the current chunk; answer once it is written.
     Flush(std::sync::mpsc::SyncSender<Result<(), String>>),
+    /// Several of the above, in order: what the window loop gathered since its last hand-over
+    /// (one wake-up of the thread instead of one per message); the vector comes back empty.
+    Batch(Vec<Cmd>),
 }
+
+/// Commands gathered before they go to the thread without waiting for
+/// [`RecorderThread::commit`] (a long wait gathers heartbeats).
+const BATCH: usize = 64;
 
 /// Commands queued for the recorder thread before the window loop waits for it (a full queue
 /// holds the loop back: nothing is ever dropped).
@@ -496,12 +503,18 @@ const QUEUE: usize = 4096;
 
 /// The recorder on a thread of its own (issue 22): the window loop hands it each message's
 /// bytes through a bounded queue and goes on, so MCAP writes, compression and flushes never
-/// delay an `Advance`. Buffers come back through a pool, so steady state allocates nothing.
+/// delay an `Advance`. The messages of a window go over in one batch at its end (one wake-up
+/// of the thread per window, not one per message). Buffers come back through a pool, so
+/// steady state allocates nothing.
 /// Order is kept (one queue, one writer); [`RecorderThread::flush`] and
 /// [`RecorderThread::finish`] wait until everything queued before them is written.
 pub struct RecorderThread {
     tx: Option<std::sync::mpsc::SyncSender<Cmd>>,
     pool: std::sync::mpsc::Receiver<Vec<u8>>,
+    /// Commands gathered for the next hand-over ([`RecorderThread::commit`]).
+    batch: Vec<Cmd>,
+    /// Emptied batch vectors coming back from the thread.
+    batches: std::sync::mpsc::Receiver<Vec<Cmd>>,
     handle: Option<std::thread::JoinHandle<anyhow::Result<(u64, u64)>>>,
     /// Interned topic names (one allocation per topic, ever).
     topics: HashMap<String, std::sync::Arc<str>>,
@@ -514,6 +527,7 @@ impl RecorderThread {
     pub fn spawn(mut rec: Recorder) -> anyhow::Result<Self> {
         let (tx, rx) = std::sync::mpsc::sync_channel::<Cmd>(QUEUE);
         let (back, pool) = std::sync::mpsc::sync_channel::<Vec<u8>>(QUEUE);
+        let (batches_back, batches) = std::sync::mpsc::sync_channel::<Vec<Cmd>>(4);
         let handle = std::thread::Builder::new()
             .name("cosim-recorder".into())
             .spawn(move || -> anyhow::Result<(u64, u64)> {
@@ -523,32 +537,43 @@ impl RecorderThread {
                         tracing::warn!("recording: {e:#}");
                     }
                 };
+                let mut one = |cmd: Cmd, rec: &mut Recorder| match cmd {
+                    Cmd::Write { topic, sim_t, data } => {
+                        if let Err(e) = rec.write(&topic, None, sim_t, &data) {
+                            warn(e);
+                        }
+                        let _ = back.try_send(data);
+                    }
+                    Cmd::Json {
+                        topic,
+                        schema,
+                        sim_t,
+                        doc,
+                    } => {
+                        if let Err(e) = rec.json(&topic, &schema, sim_t, &doc) {
+                            warn(e);
+                        }
+                    }
+                    Cmd::FlushIfOlder(age) => {
+                        if let Err(e) = rec.flush_if_older(age) {
+                            warn(e);
+                        }
+                    }
+                    Cmd::Flush(done) => {
+                        let _ = done.send(rec.flush().map_err(|e| format!("{e:#}")));
+                    }
+                    // Batches are never nested (`RecorderThread::push`).
+                    Cmd::Batch(_) => {}
+                };
                 for cmd in rx {
                     match cmd {
-                        Cmd::Write { topic, sim_t, data } => {
-                            if let Err(e) = rec.write(&topic, None, sim_t, &data) {
-                                warn(e);
+                        Cmd::Batch(mut cmds) => {
+                            for c in cmds.drain(..) {
+                                one(c, &mut rec);
                             }
-                            let _ = back.try_send(data);
+                            let _ = batches_back.try_send(cmds);
                         }
-                        Cmd::Json {
-                            topic,
-                            schema,
-                            sim_t,
-                            doc,
-                        } => {
-                            if let Err(e) = rec.json(&topic, &schema, sim_t, &doc) {
-                                warn(e);
-                            }
-                        }
-                        Cmd::FlushIfOlder(age) => {
-                            if let Err(e) = rec.flush_if_older(age) {
-                                warn(e);
-                            }
-                        }
-                        Cmd::Flush(done) => {
-                            let _ = done.send(rec.flush().map_err(|e| format!("{e:#}")));
-                        }
+                        c => one(c, &mut rec),
                     }
                 }
                 let counts = (rec.messages, rec.bytes);
@@ -559,6 +584,8 @@ impl RecorderThread {
         Ok(RecorderThread {
             tx: Some(tx),
             pool,
+            batch: Vec::with_capacity(BATCH),
+            batches,
             handle: Some(handle),
             topics: HashMap::new(),
             json_keys: HashMap::new(),
@@ -570,6 +597,29 @@ impl RecorderThread {
             .as_ref()
             .and_then(|tx| tx.send(cmd).ok())
             .ok_or_else(|| anyhow::anyhow!("the recorder thread has stopped"))
+    }
+
+    /// Gather `cmd` for the next hand-over; a full batch goes at once.
+    fn push(&mut self, cmd: Cmd) -> anyhow::Result<()> {
+        self.batch.push(cmd);
+        if self.batch.len() >= BATCH {
+            self.commit()?;
+        }
+        Ok(())
+    }
+
+    /// Hand what was gathered to the thread (one wake-up); the window loop calls it once per
+    /// window and whenever it waits idle, and every flush calls it first, so order is kept.
+    pub fn commit(&mut self) -> anyhow::Result<()> {
+        if self.batch.is_empty() {
+            return Ok(());
+        }
+        let next = self
+            .batches
+            .try_recv()
+            .unwrap_or_else(|_| Vec::with_capacity(BATCH));
+        let cmds = std::mem::replace(&mut self.batch, next);
+        self.send(Cmd::Batch(cmds))
     }
 
     fn topic(&mut self, topic: &str) -> std::sync::Arc<str> {
@@ -593,7 +643,7 @@ impl RecorderThread {
         let mut data = self.buffer();
         data.extend_from_slice(bytes);
         let topic = self.topic(topic);
-        self.send(Cmd::Write { topic, sim_t, data })
+        self.push(Cmd::Write { topic, sim_t, data })
     }
 
     /// [`Recorder::json`] on the thread.
@@ -613,7 +663,7 @@ impl RecorderThread {
             });
         }
         let topic = self.topic(topic);
-        self.send(Cmd::Json {
+        self.push(Cmd::Json {
             topic,
             schema: schema_name.to_string(),
             sim_t,
@@ -649,17 +699,19 @@ impl RecorderThread {
         let mut data = self.buffer();
         serde_json::to_writer(&mut data, doc)?;
         let topic = self.topic(topic);
-        self.send(Cmd::Write { topic, sim_t, data })
+        self.push(Cmd::Write { topic, sim_t, data })
     }
 
     /// Close the current chunk once it is older than `age` (on the thread; returns at once).
     pub fn flush_if_older(&mut self, age: std::time::Duration) -> anyhow::Result<()> {
-        self.send(Cmd::FlushIfOlder(age))
+        self.push(Cmd::FlushIfOlder(age))?;
+        self.commit()
     }
 
     /// Write everything queued so far and close the chunk; returns once it is on disk.
     pub fn flush(&mut self) -> anyhow::Result<()> {
         let (done, wait) = std::sync::mpsc::sync_channel(1);
+        self.commit()?;
         self.send(Cmd::Flush(done))?;
         wait.recv()
             .map_err(|_| anyhow::anyhow!("the recorder thread has stopped"))?
@@ -669,6 +721,7 @@ impl RecorderThread {
     /// Write everything queued, the summary and the footer; returns the messages and bytes
     /// recorded.
     pub fn finish(mut self) -> anyhow::Result<(u64, u64)> {
+        self.commit()?;
         drop(self.tx.take());
         match self.handle.take().map(|h| h.join()) {
             Some(Ok(r)) => r,
@@ -681,6 +734,7 @@ impl RecorderThread {
 impl Drop for RecorderThread {
     /// Without `finish` (an early return): the queue is still written and the file closed.
     fn drop(&mut self) {
+        let _ = self.commit();
         drop(self.tx.take());
         if let Some(h) = self.handle.take() {
             let _ = h.join();

@@ -754,7 +754,10 @@ impl<'a> Coord<'a> {
                     reason: format!("no {what} within {} s: {why}", l.as_secs_f64()),
                 });
             }
-            self.pump_one(Duration::from_millis(20))?;
+            if !self.pump_one(Duration::from_millis(20))? {
+                // Idle: what the recorder was given so far goes to its thread now.
+                let _ = self.rec.commit();
+            }
         }
     }
 
@@ -1485,6 +1488,25 @@ fn send_window(
     Ok(checkpoint)
 }
 
+/// Send the windows after `sent` up to `upto` while [`may_run_ahead`] allows, noting each in
+/// `in_flight` (window, whether it checkpoints).
+fn run_ahead(
+    c: &mut Coord,
+    order_idx: &[usize],
+    decoupled: &mut [Option<(u64, f64, String)>],
+    active: &mut Vec<usize>,
+    in_flight: &mut VecDeque<(u64, bool)>,
+    sent: &mut u64,
+    upto: u64,
+) -> Result<(), Fault> {
+    while *sent < upto && may_run_ahead(c, decoupled, in_flight.back().is_some_and(|w| w.1)) {
+        let ck = send_window(c, order_idx, decoupled, active, *sent + 1, false)?;
+        in_flight.push_back((*sent + 1, ck));
+        *sent += 1;
+    }
+    Ok(())
+}
+
 fn drive(
     c: &mut Coord,
     out: &Path,
@@ -1650,6 +1672,20 @@ fn drive(
     let mut in_flight: VecDeque<(u64, bool)> = VecDeque::with_capacity(8);
     let ahead = windows_ahead();
     let mut sent = first - 1;
+    // The windows after the last one sent, up to the one given, while they may run ahead.
+    macro_rules! send_ahead {
+        ($upto:expr) => {
+            run_ahead(
+                c,
+                &order_idx,
+                &mut decoupled,
+                &mut active,
+                &mut in_flight,
+                &mut sent,
+                $upto,
+            )?
+        };
+    }
     for k in first..=windows {
         let (_, t1) = window_span(case, k, windows);
         c.window = k;
@@ -1661,18 +1697,18 @@ fn drive(
         // Pipelining: the next windows' Advances go out now, so that the nodes go on while
         // this one is audited and recorded; only where nothing decided at this window's end
         // can change them (module doc).
-        while sent < windows
-            && sent < k + ahead - 1
-            && may_run_ahead(c, &decoupled, in_flight.back().is_some_and(|w| w.1))
-        {
-            let ck = send_window(c, &order_idx, &mut decoupled, &mut active, sent + 1, false)?;
-            in_flight.push_back((sent + 1, ck));
-            sent += 1;
-        }
+        send_ahead!((k + ahead - 1).min(windows));
         c.sim_t = c.sim_t.max(t1);
         c.wait_all(&active, "Done", None, |n| n.done.is_some_and(|d| d >= k))?;
-        let auditing = Instant::now();
         let checkpoint = in_flight.pop_front().is_some_and(|w| w.1);
+        // The window after the next goes out now, before this one's audit and records: the
+        // driver finishes its next window while the responder computes, and then needs it
+        // (the coordinator's own work per window would otherwise stand in its way). Not past
+        // a checkpoint at this window: it is complete only once saved below.
+        if ahead > 1 && !checkpoint {
+            send_ahead!((k + ahead).min(windows));
+        }
+        let auditing = Instant::now();
         // Reports of later windows that came in meanwhile wait for their own audit.
         for n in &mut c.nodes {
             while n.ahead.front().is_some_and(|(w, _)| *w <= k) {

@@ -58,7 +58,12 @@ pub struct NodeEngine {
     inbox: FieldSet,
     outbox: FieldSet,
     scratch: Vec<f64>,
+    /// Consumed peer messages, kept so that the next ones are read into their buffers.
+    spare: Vec<Fields>,
 }
+
+/// Consumed peer messages kept for reuse (a few per coupling suffice: a window holds one).
+const SPARE: usize = 8;
 
 /// Why the engine stopped.
 #[derive(Debug, thiserror::Error)]
@@ -87,6 +92,7 @@ impl NodeEngine {
             inbox: FieldSet::new(),
             outbox: FieldSet::new(),
             scratch: Vec::new(),
+            spare: Vec::new(),
         }
     }
 
@@ -149,6 +155,46 @@ impl NodeEngine {
         };
         if l.until.is_some_and(|u| f.window >= u) {
             return Ok(()); // produced after the decoupling: nobody consumes it
+        }
+        l.pending.push_back(f);
+        Ok(())
+    }
+
+    /// [`Self::receive`] for fields read where they arrived (a shared-memory sample, checked
+    /// by [`codec::decode_fields_view`]): their values are copied once, into the buffers of a
+    /// message already consumed, so a window's input allocates nothing in steady state.
+    pub fn receive_view(&mut self, v: &codec::FieldsView) -> Result<(), EngineError> {
+        let Some(l) = self.links.iter_mut().find(|l| l.b.coupling == v.coupling) else {
+            return Err(EngineError::Coupling {
+                coupling: v.coupling.to_string(),
+                reason: "fields for a coupling this node is not part of".into(),
+            });
+        };
+        if l.until.is_some_and(|u| v.window >= u) {
+            return Ok(()); // produced after the decoupling: nobody consumes it
+        }
+        let mut f = self.spare.pop().unwrap_or_else(|| Fields {
+            coupling: String::new(),
+            window: 0,
+            time: 0.0,
+            fields: Vec::new(),
+        });
+        f.coupling.clear();
+        f.coupling.push_str(v.coupling);
+        f.window = v.window;
+        f.time = v.time;
+        f.fields.truncate(v.fields.len());
+        f.fields.resize_with(v.fields.len(), || Field {
+            name: String::new(),
+            components: 0,
+            values: Vec::new(),
+        });
+        for (to, from) in f.fields.iter_mut().zip(&v.fields) {
+            to.name.clear();
+            to.name.push_str(from.name);
+            to.components = from.components;
+            to.values.clear();
+            to.values.extend(from.values());
         }
         l.pending.push_back(f);
         Ok(())
@@ -230,7 +276,11 @@ impl NodeEngine {
                 continue;
             };
             while l.pending.front().is_some_and(|f| f.window < k) {
-                l.pending.pop_front();
+                if let Some(f) = l.pending.pop_front()
+                    && self.spare.len() < SPARE
+                {
+                    self.spare.push(f);
+                }
             }
             let Some(f) = l.pending.iter().find(|f| f.window == k) else {
                 return Err(EngineError::Coupling {
@@ -553,12 +603,20 @@ impl Wire {
 enum Incoming {
     Cmd(Message),
     Data(Message),
+    /// A peer's `Fields`, already in the engine's input buffers.
+    Taken,
     Bad(String),
 }
 
 /// Wait up to `timeout` for the next message, in slices of at most 100 ms so that a stop
-/// raised by the watchdog (a stop signal, a dead coordinator) is seen promptly.
-fn recv_one(w: &mut Wire, timeout: Duration) -> anyhow::Result<Option<Incoming>> {
+/// raised by the watchdog (a stop signal, a dead coordinator) is seen promptly. With an
+/// engine, a peer's `Fields` goes into it straight from the received bytes
+/// ([`NodeEngine::receive_view`]) and comes back as [`Incoming::Taken`].
+fn recv_one(
+    w: &mut Wire,
+    mut engine: Option<&mut NodeEngine>,
+    timeout: Duration,
+) -> anyhow::Result<Option<Incoming>> {
     let deadline = Instant::now() + timeout;
     let cmd = w.cmd_topic;
     loop {
@@ -569,13 +627,30 @@ fn recv_one(w: &mut Wire, timeout: Duration) -> anyhow::Result<Option<Incoming>>
             .saturating_duration_since(Instant::now())
             .min(Duration::from_millis(100));
         let mut got = None;
+        let mut refused = None;
         w.t.recv(slice, &mut |topic, bytes| {
+            if topic != cmd
+                && let Some(e) = engine.as_deref_mut()
+                && codec::header(bytes).is_ok_and(|h| h.kind == codec::FIELDS_KIND)
+            {
+                got = Some(match codec::decode_fields_view(bytes) {
+                    Ok(v) => {
+                        refused = e.receive_view(&v).err();
+                        Incoming::Taken
+                    }
+                    Err(e) => Incoming::Bad(e.to_string()),
+                });
+                return;
+            }
             got = Some(match codec::decode(bytes) {
                 Ok(env) if topic == cmd => Incoming::Cmd(env.message),
                 Ok(env) => Incoming::Data(env.message),
                 Err(e) => Incoming::Bad(e.to_string()),
             });
         })?;
+        if let Some(e) = refused {
+            return Err(e.into());
+        }
         if got.is_some() || Instant::now() >= deadline {
             return Ok(got);
         }
@@ -749,7 +824,7 @@ fn run_node(
     // Welcome: as long as the coordinator lives (it may wait minutes for remote nodes to
     // join); the watchdog ends the wait if it dies.
     let mut welcome = loop {
-        match recv_one(&mut w, Duration::from_secs(60))? {
+        match recv_one(&mut w, None, Duration::from_secs(60))? {
             Some(Incoming::Cmd(Message::Welcome(wl))) => break wl,
             Some(Incoming::Cmd(Message::Reject(r))) => {
                 eprintln!("{binary} {}: rejected: {}", args.node, r.reason);
@@ -1019,7 +1094,7 @@ fn node_loop(
     // subscribed to its inputs, so nothing we publish is lost.
     let mut pending_cmd: VecDeque<Message> = VecDeque::new();
     loop {
-        match recv_one(w, Duration::from_secs(60))? {
+        match recv_one(w, Some(engine), Duration::from_secs(60))? {
             Some(Incoming::Cmd(Message::Advance(a))) if a.window == 0 => break,
             Some(Incoming::Cmd(Message::Abort(a))) => {
                 tracing::info!("aborted: {}", a.reason);
@@ -1029,7 +1104,7 @@ fn node_loop(
             Some(Incoming::Cmd(m)) => pending_cmd.push_back(m),
             Some(Incoming::Data(Message::Mesh(m))) => engine.peer_mesh(&m)?,
             Some(Incoming::Data(Message::Fields(f))) => engine.receive(f)?,
-            Some(Incoming::Data(_)) => {}
+            Some(Incoming::Data(_)) | Some(Incoming::Taken) => {}
             Some(Incoming::Bad(e)) => anyhow::bail!("malformed message received: {e}"),
             None => anyhow::bail!("no set-up command from the coordinator within 60 s"),
         }
@@ -1048,7 +1123,9 @@ fn node_loop(
             if start.elapsed() > Duration::from_secs(60) {
                 anyhow::bail!("peer '{}' never subscribed to {tp}", b.peer);
             }
-            if let Some(Incoming::Cmd(Message::Abort(a))) = recv_one(w, Duration::from_millis(2))? {
+            if let Some(Incoming::Cmd(Message::Abort(a))) =
+                recv_one(w, Some(engine), Duration::from_millis(2))?
+            {
                 tracing::info!("aborted: {}", a.reason);
                 return Ok(3);
             }
@@ -1181,7 +1258,7 @@ fn node_loop(
         let on_input = !set_up || matches!(pending_cmd.front(), Some(Message::Advance(_)));
         progress.waiting.store(on_input, Ordering::Relaxed);
         let waited = Instant::now();
-        let got = recv_one(w, Duration::from_millis(500))?;
+        let got = recv_one(w, Some(engine), Duration::from_millis(500))?;
         progress.waiting.store(false, Ordering::Relaxed);
         if set_up {
             let dt = waited.elapsed().as_secs_f64();
@@ -1192,7 +1269,7 @@ fn node_loop(
             }
         }
         match got {
-            None => {}
+            None | Some(Incoming::Taken) => {}
             Some(Incoming::Bad(e)) => anyhow::bail!("malformed message received: {e}"),
             Some(Incoming::Cmd(Message::Advance(a))) => pending_cmd.push_back(Message::Advance(a)),
             Some(Incoming::Cmd(Message::Finish(f))) => {
@@ -1245,13 +1322,13 @@ fn lagrange_wait(
     let start = Instant::now();
     while !engine.lagrange_correct(me, window)? {
         progress.waiting.store(true, Ordering::Relaxed);
-        let got = recv_one(w, Duration::from_millis(500))?;
+        let got = recv_one(w, Some(engine), Duration::from_millis(500))?;
         progress.waiting.store(false, Ordering::Relaxed);
         match got {
             None if start.elapsed() > Duration::from_secs(3600) => {
                 anyhow::bail!("no lagrange multipliers for window {window} within an hour")
             }
-            None => {}
+            None | Some(Incoming::Taken) => {}
             Some(Incoming::Bad(e)) => anyhow::bail!("malformed message received: {e}"),
             Some(Incoming::Cmd(Message::Abort(a))) => {
                 tracing::info!("aborted by the coordinator: {}", a.reason);
