@@ -167,12 +167,16 @@ fn each_side_follows_or_takes_loads_as_its_scheme_says() {
     assert_eq!(k.setup_receives(Role::Driver), ["mass", "stiffness"]);
     assert!(k.setup_receives(Role::Responder).is_empty());
     assert!(!k.loads_may_be_absent());
+    assert_eq!(k.sends(Role::Driver), ["position", "velocity"]);
+    assert_eq!(k.sends(Role::Responder), ["force"]);
     // Immersed: nobody follows (the fluid immerses the particles), nothing extra at set-up,
     // and the solid's loads are absent before the fluid's first output and after a decoupling.
     let i = scheme::of(CouplingKind::Immersed);
     assert!(!i.follows(Role::Responder) && !i.follows(Role::Driver));
     assert!(i.setup_sends(Role::Driver).is_empty() && i.setup_sends(Role::Responder).is_empty());
     assert!(i.loads_may_be_absent());
+    assert_eq!(i.sends(Role::Driver), ["position", "velocity", "volume"]);
+    assert_eq!(i.sends(Role::Responder), ["force"]);
     let l = scheme::of(CouplingKind::Lagrange);
     assert!(!l.follows(Role::Responder) && !l.follows(Role::Driver));
 }

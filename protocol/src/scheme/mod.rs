@@ -72,6 +72,15 @@ pub trait Scheme: Sync {
         driver_responder_input(role, input_lag, until, window)
     }
 
+    /// The fields the side with `role` sends every window, by the scheme's contract.
+    fn sends(&self, role: Role) -> &'static [&'static str] {
+        let (driver, responder) = self.default_fields();
+        match role {
+            Role::Driver => driver,
+            Role::Responder => responder,
+        }
+    }
+
     /// Whether the side with `role` moves its interface along its peer's motion
     /// ([`sync_force::Follow`]) and sends back its interface force, rather than sending its
     /// motion and taking its peer's loads.

@@ -290,14 +290,12 @@ fn default_select() -> String {
     "surface".into()
 }
 
-/// One coupling as this node plays it: its scheme's side (`role`) and the fields it sends
-/// every window.
+/// One coupling as this node plays it: its scheme's side (`role`).
 #[derive(Debug, Clone)]
 struct Coupled {
     interface: String,
     kind: CouplingKind,
     role: Role,
-    sends: Vec<String>,
     /// Decoupled (seed 000 §4): a force still in flight is applied, nothing more is sent.
     ended: bool,
 }
@@ -927,17 +925,17 @@ impl PdSolver {
     }
 
     /// Write the fields `fields` of interface `iface` (particles `pts`), in that order: what
-    /// its scheme's side sends (the binding's fields, and the scheme's set-up fields).
-    fn send_fields<S: AsRef<str>>(
+    /// its scheme's side sends (its window fields, and the scheme's set-up fields).
+    fn send_fields(
         &self,
         iface: &str,
         pts: &[usize],
-        fields: &[S],
+        fields: &[&str],
         out: &mut Outbox,
     ) -> SolverResult<()> {
         let n = pts.len();
-        for f in fields {
-            match f.as_ref() {
+        for &f in fields {
+            match f {
                 "position" => {
                     let x = out.put(iface, "position", 3, n);
                     for (k, &i) in pts.iter().enumerate() {
@@ -1620,13 +1618,12 @@ impl Solver for PdSolver {
             }
             if !sch.coordinator_solved() {
                 self.send_fields(&b.interface, &pts, sch.setup_sends(b.role), out)?;
-                self.send_fields(&b.interface, &pts, &b.sends, out)?;
+                self.send_fields(&b.interface, &pts, sch.sends(b.role), out)?;
             }
             self.coupled.push(Coupled {
                 interface: b.interface.clone(),
                 kind: b.kind,
                 role: b.role,
-                sends: b.sends.clone(),
                 ended: false,
             });
         }
@@ -1828,7 +1825,8 @@ impl Solver for PdSolver {
                 continue;
             }
             let pts = self.points_of(&c.interface)?.to_vec();
-            self.send_fields(&c.interface, &pts, &c.sends, out)?;
+            let fields = scheme::of(c.kind).sends(c.role);
+            self.send_fields(&c.interface, &pts, fields, out)?;
         }
         self.window_report(w, nsub, wall)
     }
