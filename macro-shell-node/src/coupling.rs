@@ -21,6 +21,8 @@ use protocol::{CellKind, Cells, Inbox, InterfaceMesh, Outbox, SolverError, Solve
 pub const SENDS: [&str; 4] = ["position", "velocity", "rotation", "normal"];
 /// Fields it takes (set-up: all four; windows: force and moment).
 pub const ACCEPTS: [&str; 4] = ["force", "moment", "mass", "stiffness"];
+/// What it needs from its peer at set-up besides the loads.
+pub const SETUP: [&str; 2] = ["mass", "stiffness"];
 
 /// One coupling interface of the shell.
 #[derive(Debug, Clone, PartialEq)]

@@ -2,16 +2,17 @@
 //! orchestrates — set-up of the kinematic couplings it drives, sub-cycling each window to land
 //! exactly on t1, the window report, and output (seed 004 Fig. 4, driver side).
 
-use crate::coupling::{self, ACCEPTS, Interface, SENDS};
+use crate::coupling::{self, ACCEPTS, Interface, SENDS, SETUP};
 use crate::element;
 use crate::model::Model;
 use crate::output::{self, History};
 use crate::setup::{self, ShellConfig};
 use crate::step;
 use mechanics::tensor::vec3;
+use protocol::scheme;
 use protocol::{
-    Binding, CouplingKind, Inbox, InterfaceInfo, InterfaceMesh, NodeDescription, Outbox, Role,
-    Solver, SolverError, SolverResult, StepReport, Window,
+    Binding, Inbox, InterfaceInfo, InterfaceMesh, NodeDescription, Outbox, Solver, SolverError,
+    SolverResult, StepReport, Window,
 };
 use std::path::Path;
 use std::time::Instant;
@@ -187,7 +188,11 @@ impl Solver for ShellSolver {
     fn setup(&mut self, bindings: &[Binding], inbox: &Inbox, out: &mut Outbox) -> SolverResult<()> {
         for b in bindings {
             let k = self.find(&b.interface)?;
-            if b.kind != CouplingKind::Kinematic || b.role != Role::Driver {
+            // The shell's side sends its motion and takes its peer's loads, with the peer's
+            // coupling mass and stiffness at set-up: a sync-force driver.
+            let sch = scheme::of(b.kind);
+            let takes_loads = !sch.coordinator_solved() && !sch.follows(b.role);
+            if !(takes_loads && SETUP.iter().all(|f| sch.setup_receives(b.role).contains(f))) {
                 return Err(SolverError::interface(
                     &b.interface,
                     format!(

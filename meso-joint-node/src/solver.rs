@@ -22,6 +22,7 @@ use crate::model::{Kind, Model, ModelParams, RigidBody};
 use crate::shape::{M3, Rows};
 use mechanics::j2::J2State;
 use mechanics::tensor::{self, Vector3, vec3};
+use protocol::scheme::sync_force::{self, Follow};
 use protocol::{
     Binding, Inbox, InterfaceInfo, InterfaceMesh, NodeDescription, Outbox, Solver, SolverError,
     SolverResult, StepReport, Window,
@@ -41,9 +42,9 @@ struct CouplingRt {
     depth: Vec<f64>,
     tang: Vec<[f64; 3]>,
     anchored: bool,
-    /// Target positions at the last and the next synchronisation time.
-    target_prev: Vec<[f64; 3]>,
-    target_next: Vec<[f64; 3]>,
+    /// Target positions at the last and the next synchronisation time, interpolated
+    /// linearly in time through the window (eq. 31–32).
+    follow: Follow,
     /// Lever arm `d n̄ + rest` at the last synchronisation time.
     arm: Vec<[f64; 3]>,
     ready: bool,
@@ -217,7 +218,10 @@ impl SpgSolver {
                     model.kind[i as usize] = Kind::Coupled;
                 }
                 let n = particles.len();
-                let target_prev = particles.iter().map(|&i| model.x0[i as usize]).collect();
+                let mut follow = Follow::new(sync_force::Path::Linear, n, 3);
+                for (q, &i) in particles.iter().enumerate() {
+                    follow.set_start(q, &model.x0[i as usize]);
+                }
                 Some(CouplingRt {
                     interface: c.interface.clone(),
                     particles,
@@ -226,8 +230,7 @@ impl SpgSolver {
                     depth: vec![0.0; n],
                     tang: vec![[0.0; 3]; n],
                     anchored: false,
-                    target_prev,
-                    target_next: vec![[0.0; 3]; n],
+                    follow,
                     arm: vec![[0.0; 3]; n],
                     ready: false,
                 })
@@ -402,7 +405,8 @@ impl SpgSolver {
             let p = at(pos, k);
             let arm: [f64; 3] = std::array::from_fn(|d| c.depth[k] * nb[d] + c.tang[k][d]);
             c.arm[k] = arm;
-            c.target_next[k] = std::array::from_fn(|d| p[d] + arm[d]);
+            c.follow
+                .set_end(k, &std::array::from_fn::<f64, 3, _>(|d| p[d] + arm[d]));
         }
         Ok(())
     }
@@ -532,12 +536,10 @@ impl Solver for SpgSolver {
             if let Some(c) = self.coupling.as_ref() {
                 // Driver motion interpolated linearly in time between the synchronisation
                 // times (eq. 31–32); the velocity lands each particle on its target.
-                let s = (k + 1) as f64 / nsub as f64;
                 for (q, &i) in c.particles.iter().enumerate() {
-                    let (a, b) = (c.target_prev[q], c.target_next[q]);
                     let x = self.model.x[i as usize];
                     self.model.presc[i as usize] =
-                        std::array::from_fn(|d| ((1.0 - s) * a[d] + s * b[d] - x[d]) / dt);
+                        std::array::from_fn(|d| c.follow.velocity(q, d, x[d], k, nsub, dt));
                 }
             }
             self.model.velocity_phase(dt);
@@ -549,7 +551,7 @@ impl Solver for SpgSolver {
                 })?;
         }
         if let Some(c) = self.coupling.as_mut() {
-            std::mem::swap(&mut c.target_prev, &mut c.target_next);
+            c.follow.next_window();
             SpgSolver::write_loads(c, &self.model, out);
         }
         let reactions = self.bc_reactions();

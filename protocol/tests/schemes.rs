@@ -1,8 +1,11 @@
 //! The coupling schemes' contracts (ARCHITECTURE §5): each kind's input lags and serial order,
 //! and the sync-force node side's mapping (`v_r = W v_d`, `f_d = Wᵀ f_r`) against values worked
-//! out by hand for a responder point halfway along the driver's one-cell line.
+//! out by hand for a responder point halfway along the driver's one-cell line, and the
+//! responder's following of the driver's motion through a window (`sync_force::Follow`)
+//! against positions and velocities worked out by hand.
 
 use protocol::mapping::Mapping;
+use protocol::scheme::sync_force::{Follow, Path};
 use protocol::scheme::{self, driver_responder_input};
 use protocol::{CellKind, Cells, CouplingKind, Field, FieldSet, InterfaceMesh, Role};
 
@@ -151,4 +154,94 @@ fn immersed_fields_travel_unmapped() {
     s.receive(Role::Responder, None, "particles", &p, &mut inbox)
         .expect("taken as it is");
     assert_eq!(inbox.get("particles", "position"), Some(&p));
+}
+
+#[test]
+fn each_side_follows_or_takes_loads_as_its_scheme_says() {
+    let k = scheme::of(CouplingKind::Kinematic);
+    // The sync-force responder follows its driver and sends its coupling mass and stiffness
+    // at set-up, which its driver receives; the driver takes loads, which always come.
+    assert!(k.follows(Role::Responder) && !k.follows(Role::Driver));
+    assert_eq!(k.setup_sends(Role::Responder), ["mass", "stiffness"]);
+    assert!(k.setup_sends(Role::Driver).is_empty());
+    assert_eq!(k.setup_receives(Role::Driver), ["mass", "stiffness"]);
+    assert!(k.setup_receives(Role::Responder).is_empty());
+    assert!(!k.loads_may_be_absent());
+    assert_eq!(k.sends(Role::Driver), ["position", "velocity"]);
+    assert_eq!(k.sends(Role::Responder), ["force"]);
+    // Immersed: nobody follows (the fluid immerses the particles), nothing extra at set-up,
+    // and the solid's loads are absent before the fluid's first output and after a decoupling.
+    let i = scheme::of(CouplingKind::Immersed);
+    assert!(!i.follows(Role::Responder) && !i.follows(Role::Driver));
+    assert!(i.setup_sends(Role::Driver).is_empty() && i.setup_sends(Role::Responder).is_empty());
+    assert!(i.loads_may_be_absent());
+    assert_eq!(i.sends(Role::Driver), ["position", "velocity", "volume"]);
+    assert_eq!(i.sends(Role::Responder), ["force"]);
+    let l = scheme::of(CouplingKind::Lagrange);
+    assert!(!l.follows(Role::Responder) && !l.follows(Role::Driver));
+}
+
+/// A held path: one point, one component, at 2 at the window start, the driver's velocity 3,
+/// a window of 1 in 4 sub-steps of 0.25: after sub-step k it is at 2 + (k+1)·0.25·3.
+#[test]
+fn a_held_path_integrates_the_drivers_velocity_from_the_window_start() {
+    let mut f = Follow::new(Path::Held, 1, 1);
+    assert_eq!((f.len(), f.path()), (1, Path::Held));
+    f.set_start(0, &[2.0]);
+    f.set_end(0, &[3.0]);
+    let want = [2.75, 3.5, 4.25, 5.0];
+    for (k, w) in want.iter().enumerate() {
+        assert_eq!(f.position(0, 0, k as u64, 4, 0.25), *w, "sub-step {k}");
+        // The velocity is the driver's, whatever the point's position.
+        assert_eq!(
+            f.velocity(0, 0, -7.0, k as u64, 4, 0.25),
+            3.0,
+            "sub-step {k}"
+        );
+    }
+    // The next window starts from the node's state: nothing carries over.
+    f.next_window();
+    f.set_start(0, &[5.0]);
+    f.set_end(0, &[-1.0]);
+    assert_eq!(f.position(0, 0, 1, 4, 0.25), 4.5);
+}
+
+/// A linear path: two points of three components, 4 sub-steps of 0.5. Point 0 goes from the
+/// origin to (4, 8, −4): after sub-step k (s = (k+1)/4) at s·(4, 8, −4); point 1 stays at
+/// (1, 2, 3). The velocity lands a point from where it is on the next target in one step.
+#[test]
+fn a_linear_path_interpolates_between_the_sync_positions() {
+    let mut f = Follow::new(Path::Linear, 2, 3);
+    assert_eq!(f.len(), 2);
+    f.set_start(1, &[1.0, 2.0, 3.0]);
+    f.set_end(0, &[4.0, 8.0, -4.0]);
+    f.set_end(1, &[1.0, 2.0, 3.0]);
+    let want0 = [
+        [1.0, 2.0, -1.0],
+        [2.0, 4.0, -2.0],
+        [3.0, 6.0, -3.0],
+        [4.0, 8.0, -4.0],
+    ];
+    for (k, w) in want0.iter().enumerate() {
+        for d in 0..3 {
+            assert_eq!(
+                f.position(0, d, k as u64, 4, 0.5),
+                w[d],
+                "sub-step {k}, {d}"
+            );
+            assert_eq!(f.position(1, d, k as u64, 4, 0.5), [1.0, 2.0, 3.0][d]);
+        }
+    }
+    // From x = 0.5 the first target 1 is 0.5 away: 1 per unit time over a step of 0.5.
+    assert_eq!(f.velocity(0, 0, 0.5, 0, 4, 0.5), 1.0);
+    // From x = 4 the last target 8 (component 1) is 4 away: 8.
+    assert_eq!(f.velocity(0, 1, 4.0, 3, 4, 0.5), 8.0);
+    assert_eq!(f.velocity(1, 2, 3.0, 2, 4, 0.5), 0.0);
+    // The next window starts at this one's sync positions: halfway to (8, 8, 8) after two
+    // of four sub-steps is (6, 8, 2).
+    f.next_window();
+    f.set_end(0, &[8.0, 8.0, 8.0]);
+    for (d, w) in [6.0, 8.0, 2.0].iter().enumerate() {
+        assert_eq!(f.position(0, d, 1, 4, 0.5), *w);
+    }
 }

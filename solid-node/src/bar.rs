@@ -11,10 +11,9 @@ use crate::lagrange::SubdomainSide;
 use mechanics::time::{CouplingMethod, InterfaceDof, Subdomain};
 use mechanics::time::{Gs4, Gs4Error, IntegratorSpec, LinearSystem, State, Stepper};
 use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
-use protocol::{
-    Binding, InterfaceMesh, Role, Solver, SolverError, SolverResult, StepReport, Window,
-};
-use protocol::{CouplingKind, Inbox, InterfaceInfo, NodeDescription, Outbox};
+use protocol::scheme::{self, sync_force};
+use protocol::{Binding, InterfaceMesh, Solver, SolverError, SolverResult, StepReport, Window};
+use protocol::{Inbox, InterfaceInfo, NodeDescription, Outbox};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -143,7 +142,9 @@ fn check_positive(key: &str, v: f64) -> SolverResult<()> {
 struct Coupled {
     interface: String,
     end: End,
-    role: Role,
+    /// Whether the end follows its peer's motion (a sync-force responder, as the scheme
+    /// says) rather than sending its motion and taking the peer's force (the driver).
+    follows: bool,
     /// Driver: the responder's constraint force at the last sync time (N).
     force: f64,
     /// Driver: interface mass and stiffness bound received at set-up.
@@ -191,6 +192,8 @@ pub struct Bar {
     f: Vec<f64>,
     s: BarState,
     coupled: Vec<Coupled>,
+    /// The following ends' path through the window (sync-force responder side).
+    follow: sync_force::Follow,
     gs4: Option<Gs4Path>,
     lagrange: Option<LagrangeBar>,
 }
@@ -279,6 +282,7 @@ impl Bar {
                 a: Vec::new(),
             },
             coupled: Vec::new(),
+            follow: sync_force::Follow::default(),
             gs4: None,
             lagrange: None,
             p,
@@ -333,7 +337,7 @@ impl Bar {
             || self
                 .coupled
                 .iter()
-                .any(|c| c.role == Role::Responder && self.node(c.end) == i)
+                .any(|c| c.follows && self.node(c.end) == i)
     }
 
     /// Critical step of the chain: Gershgorin bound on the highest frequency,
@@ -352,7 +356,7 @@ impl Bar {
                 ksum = 0.0;
             }
             for c in &self.coupled {
-                if c.role == Role::Driver && self.node(c.end) == i {
+                if !c.follows && self.node(c.end) == i {
                     ksum += c.added_stiffness;
                 }
             }
@@ -434,7 +438,7 @@ impl Solver for Bar {
         self.coupled.clear();
         let (lagrange, bindings): (Vec<&Binding>, Vec<&Binding>) = bindings
             .iter()
-            .partition(|b| b.kind == CouplingKind::Lagrange);
+            .partition(|b| scheme::of(b.kind).coordinator_solved());
         if self.gs4.is_some() && !bindings.is_empty() {
             return Err(SolverError::config(
                 "integrator",
@@ -463,7 +467,7 @@ impl Solver for Bar {
             self.coupled.push(Coupled {
                 interface: b.interface.clone(),
                 end,
-                role: b.role,
+                follows: scheme::of(b.kind).follows(b.role),
                 force: 0.0,
                 added_mass: 0.0,
                 added_stiffness: 0.0,
@@ -471,36 +475,35 @@ impl Solver for Bar {
         }
         self.internal_force();
         for c in 0..self.coupled.len() {
-            let (name, end, role) = {
+            let (name, end, follows) = {
                 let c = &self.coupled[c];
-                (c.interface.clone(), c.end, c.role)
+                (c.interface.clone(), c.end, c.follows)
             };
             let i = self.node(end);
-            match role {
-                Role::Responder => {
-                    out.put(&name, "mass", 1, 1)[0] = self.m[i];
-                    out.put(&name, "stiffness", 1, 1)[0] = self.k;
-                    let f = out.put(&name, "force", 3, 1);
-                    f.copy_from_slice(&[self.f[i], 0.0, 0.0]);
+            if follows {
+                out.put(&name, "mass", 1, 1)[0] = self.m[i];
+                out.put(&name, "stiffness", 1, 1)[0] = self.k;
+                let f = out.put(&name, "force", 3, 1);
+                f.copy_from_slice(&[self.f[i], 0.0, 0.0]);
+            } else {
+                let m = inbox.require(&name, "mass", 1)?[0];
+                let k = inbox.require(&name, "stiffness", 1)?[0];
+                let f = inbox.require(&name, "force", 3)?[0];
+                if !(m >= 0.0 && k >= 0.0 && m.is_finite() && k.is_finite()) {
+                    return Err(SolverError::interface(
+                        &name,
+                        format!("bad set-up mass {m} or stiffness {k}"),
+                    ));
                 }
-                Role::Driver => {
-                    let m = inbox.require(&name, "mass", 1)?[0];
-                    let k = inbox.require(&name, "stiffness", 1)?[0];
-                    let f = inbox.require(&name, "force", 3)?[0];
-                    if !(m >= 0.0 && k >= 0.0 && m.is_finite() && k.is_finite()) {
-                        return Err(SolverError::interface(
-                            &name,
-                            format!("bad set-up mass {m} or stiffness {k}"),
-                        ));
-                    }
-                    self.m[i] += m;
-                    let c = &mut self.coupled[c];
-                    c.added_mass = m;
-                    c.added_stiffness = k;
-                    c.force = f;
-                }
+                self.m[i] += m;
+                let c = &mut self.coupled[c];
+                c.added_mass = m;
+                c.added_stiffness = k;
+                c.force = f;
             }
         }
+        let n = self.coupled.iter().filter(|c| c.follows).count();
+        self.follow = sync_force::Follow::new(sync_force::Path::Held, n, 1);
         Ok(())
     }
 
@@ -528,28 +531,27 @@ impl Solver for Bar {
         }
         let nsub = (span / self.stable_dt() - 1e-9).ceil().max(1.0) as u64;
         let dt = span / nsub as f64;
-        // Inputs of this window.
-        // Responder ends: node, displacement at t0, driver velocity over the window.
-        let mut prescribed: Vec<(usize, f64, f64)> = Vec::new();
+        // Inputs of this window. Following ends: displacement at t0 and the driver's
+        // velocity, held over the window.
+        let mut q = 0;
         for c in self.coupled.iter_mut() {
             let i = match c.end {
                 End::Left => 0,
                 End::Right => self.p.elements,
             };
-            match c.role {
-                Role::Driver => {
-                    c.force = inbox.require(&c.interface, "force", 3)?[0];
+            if c.follows {
+                let vel = inbox.require(&c.interface, "velocity", 3)?[0];
+                if !vel.is_finite() {
+                    return Err(SolverError::interface(
+                        &c.interface,
+                        "non-finite velocity received",
+                    ));
                 }
-                Role::Responder => {
-                    let vel = inbox.require(&c.interface, "velocity", 3)?[0];
-                    if !vel.is_finite() {
-                        return Err(SolverError::interface(
-                            &c.interface,
-                            "non-finite velocity received",
-                        ));
-                    }
-                    prescribed.push((i, self.s.u[i], vel));
-                }
+                self.follow.set_start(q, &[self.s.u[i]]);
+                self.follow.set_end(q, &[vel]);
+                q += 1;
+            } else {
+                c.force = inbox.require(&c.interface, "force", 3)?[0];
             }
         }
         let fixed = self.fixed.map(|e| self.node(e));
@@ -569,15 +571,12 @@ impl Solver for Bar {
             }
             for c in &self.coupled {
                 let i = self.node(c.end);
-                match c.role {
-                    Role::Driver => {
-                        self.f[i] += c.force;
-                        self.s.interface_impulse += c.force * dt;
-                    }
-                    Role::Responder => {
-                        // The chain feels −f on the prescribed node's spring.
-                        self.s.interface_impulse += -self.f[i] * dt;
-                    }
+                if c.follows {
+                    // The chain feels −f on the prescribed node's spring.
+                    self.s.interface_impulse += -self.f[i] * dt;
+                } else {
+                    self.f[i] += c.force;
+                    self.s.interface_impulse += c.force * dt;
                 }
             }
             if let Some((i, f0)) = load {
@@ -594,17 +593,19 @@ impl Solver for Bar {
             if let Some(i) = fixed {
                 self.s.v[i] = 0.0;
             }
-            for &(i, _, vel) in &prescribed {
-                self.s.v[i] = vel;
+            for (q, c) in self.coupled.iter().filter(|c| c.follows).enumerate() {
+                let i = self.node(c.end);
+                self.s.v[i] = self.follow.velocity(q, 0, self.s.u[i], step, nsub, dt);
             }
             // Work of loads and interface forces over this step's displacement increment.
             for c in &self.coupled {
                 let i = self.node(c.end);
                 let du = dt * self.s.v[i];
-                match c.role {
-                    Role::Driver => self.s.interface_work += c.force * du,
-                    Role::Responder => self.s.interface_work += -self.f[i] * du,
-                }
+                self.s.interface_work += if c.follows {
+                    -self.f[i] * du
+                } else {
+                    c.force * du
+                };
             }
             if let Some((i, f0)) = load {
                 let fl = f0 * ramp.factor(w.t0 + step as f64 * dt, ramp_time);
@@ -613,10 +614,10 @@ impl Solver for Bar {
             for i in 0..n {
                 self.s.u[i] += dt * self.s.v[i];
             }
-            for &(i, u0, vel) in &prescribed {
-                // Along the driver's motion (seed 004 eq. 31: interpolated in time). Integrated
-                // from the window start rather than accumulated, so no drift builds up.
-                self.s.u[i] = u0 + (step + 1) as f64 * dt * vel;
+            for (q, c) in self.coupled.iter().filter(|c| c.follows).enumerate() {
+                // Along the driver's motion (seed 004 eq. 31: interpolated in time).
+                let i = self.node(c.end);
+                self.s.u[i] = self.follow.position(q, 0, step, nsub, dt);
             }
         }
         self.s.time = w.t1;
@@ -628,23 +629,17 @@ impl Solver for Bar {
                 End::Left => self.p.x0,
                 End::Right => self.p.x0 + self.p.length,
             };
-            match c.role {
-                Role::Driver => {
-                    out.put(&c.interface, "position", 3, 1).copy_from_slice(&[
-                        x_ref + self.s.u[i],
-                        0.0,
-                        0.0,
-                    ]);
-                    out.put(&c.interface, "velocity", 3, 1).copy_from_slice(&[
-                        self.s.v[i],
-                        0.0,
-                        0.0,
-                    ]);
-                }
-                Role::Responder => {
-                    out.put(&c.interface, "force", 3, 1)
-                        .copy_from_slice(&[self.f[i], 0.0, 0.0]);
-                }
+            if c.follows {
+                out.put(&c.interface, "force", 3, 1)
+                    .copy_from_slice(&[self.f[i], 0.0, 0.0]);
+            } else {
+                out.put(&c.interface, "position", 3, 1).copy_from_slice(&[
+                    x_ref + self.s.u[i],
+                    0.0,
+                    0.0,
+                ]);
+                out.put(&c.interface, "velocity", 3, 1)
+                    .copy_from_slice(&[self.s.v[i], 0.0, 0.0]);
             }
         }
         let (ke, ie, p) = self.energies();

@@ -16,8 +16,9 @@ use mechanics::time::{
     CouplingMethod, Gs4, Gs4Error, IntegratorSpec, InterfaceDof, LinearSystem, State, Stepper,
     Subdomain,
 };
+use protocol::scheme;
 use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
-use protocol::{Binding, CouplingKind, Inbox, Outbox};
+use protocol::{Binding, Inbox, Outbox};
 use protocol::{
     InterfaceInfo, InterfaceMesh, NodeDescription, Solver, SolverError, SolverResult, StepReport,
     Window,
@@ -758,7 +759,7 @@ impl Solver for Fem2d {
         self.lagrange = None;
         let mut lagrange = None;
         for b in bindings {
-            if b.kind != CouplingKind::Lagrange {
+            if !scheme::of(b.kind).coordinator_solved() {
                 return Err(SolverError::interface(
                     &b.interface,
                     "fem-2d takes part in lagrange couplings only (not kinematic or immersed)",

@@ -95,7 +95,7 @@ fn run_with(model: &str, device: &str, density: f64, yield_stress: Option<f64>) 
     let mut s = build(model, &t).expect("the bar must build");
     let mut out = Outbox::new();
     s.setup(
-        &[binding(CouplingKind::Immersed, Role::Responder)],
+        &[binding(CouplingKind::Immersed, Role::Driver)],
         &Inbox::new(),
         &mut out,
     )
@@ -498,7 +498,7 @@ fn gpu_checkpoint_restart_is_bit_identical() {
         t1: w as f64 * 2e-6,
         write_output: false,
     };
-    let b = [binding(CouplingKind::Immersed, Role::Responder)];
+    let b = [binding(CouplingKind::Immersed, Role::Driver)];
     let mut a = build(model, &table(model, "gpu")).expect("builds");
     let mut out = Outbox::new();
     a.setup(&b, &Inbox::new(), &mut out).expect("setup");

@@ -146,15 +146,16 @@ fn assert_impulse(rep: &protocol::StepReport, fsum: [f64; 3]) {
     }
 }
 
-/// Immersed provider: sends position/velocity/volume at set-up and each window; a received
-/// per-particle force F held over the window changes the momentum by Σ F · window exactly.
+/// Immersed provider (the driver, as the scheme has the solid): sends position/velocity/volume
+/// at set-up and each window; a received per-particle force F held over the window changes
+/// the momentum by Σ F · window exactly.
 #[test]
 fn immersed_provider_applies_forces_and_conserves_impulse() {
     let mut s = match solid_node::pd::factory("pd-bond", &base()) {
         Some(Ok(s)) => s,
         _ => panic!("base config must build"),
     };
-    let b = [binding(CouplingKind::Immersed, Role::Responder, "surface")];
+    let b = [binding(CouplingKind::Immersed, Role::Driver, "surface")];
     let mut out = Outbox::new();
     s.setup(&b, &Inbox::new(), &mut out).expect("setup");
     let n = s.interface("surface").expect("iface").len();

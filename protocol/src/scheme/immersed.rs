@@ -20,4 +20,9 @@ impl Scheme for Immersed {
     fn decouples(&self) -> bool {
         true
     }
+
+    /// The fluid sends nothing at set-up, and nothing after the decoupling.
+    fn loads_may_be_absent(&self) -> bool {
+        true
+    }
 }

@@ -72,6 +72,41 @@ pub trait Scheme: Sync {
         driver_responder_input(role, input_lag, until, window)
     }
 
+    /// The fields the side with `role` sends every window, by the scheme's contract.
+    fn sends(&self, role: Role) -> &'static [&'static str] {
+        let (driver, responder) = self.default_fields();
+        match role {
+            Role::Driver => driver,
+            Role::Responder => responder,
+        }
+    }
+
+    /// Whether the side with `role` moves its interface along its peer's motion
+    /// ([`sync_force::Follow`]) and sends back its interface force, rather than sending its
+    /// motion and taking its peer's loads.
+    fn follows(&self, _role: Role) -> bool {
+        false
+    }
+
+    /// Fields the side with `role` sends at set-up besides its window fields.
+    fn setup_sends(&self, _role: Role) -> &'static [&'static str] {
+        &[]
+    }
+
+    /// Fields the side with `role` receives at set-up besides its peer's window fields.
+    fn setup_receives(&self, role: Role) -> &'static [&'static str] {
+        self.setup_sends(match role {
+            Role::Driver => Role::Responder,
+            Role::Responder => Role::Driver,
+        })
+    }
+
+    /// Whether a window's inbox may lack the loads of a side that takes them: before its
+    /// peer's first output (the peer sends nothing at set-up) and after a decoupling.
+    fn loads_may_be_absent(&self) -> bool {
+        false
+    }
+
     /// Whether the node's peer mesh must have arrived before set-up.
     fn needs_peer_mesh(&self) -> bool {
         false

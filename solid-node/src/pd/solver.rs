@@ -31,6 +31,7 @@ use mechanics::j2::J2Material;
 use node_kit::device::Device;
 use node_kit::vtk::{self, Arrays, Frame};
 use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
+use protocol::scheme::{self, sync_force};
 use protocol::{
     Binding, CouplingKind, InterfaceInfo, InterfaceMesh, NodeDescription, Role, Solver,
     SolverError, SolverResult, StepReport, Window,
@@ -289,7 +290,7 @@ fn default_select() -> String {
     "surface".into()
 }
 
-/// One coupling as this node plays it.
+/// One coupling as this node plays it: its scheme's side (`role`).
 #[derive(Debug, Clone)]
 struct Coupled {
     interface: String,
@@ -308,6 +309,10 @@ pub struct PdSolver {
     coupled: Vec<Coupled>,
     /// External force per particle from couplings, held over a window (N).
     fcouple: Vec<[f64; 3]>,
+    /// The particles that follow a driver's motion, in coupling order, and their path
+    /// through the window (sync-force responder side).
+    follow_pts: Vec<usize>,
+    follow: sync_force::Follow,
     /// Pressure particles and their outward area vectors (m²).
     pressure_area: Vec<(usize, [f64; 3])>,
     /// Particles with prescribed velocity from the config.
@@ -891,6 +896,8 @@ impl PdSolver {
             interfaces,
             coupled: Vec::new(),
             fcouple: vec![[0.0; 3]; n],
+            follow_pts: Vec::new(),
+            follow: sync_force::Follow::default(),
             pressure_area,
             bc_particles,
             external_impulse: [0.0; 3],
@@ -917,21 +924,64 @@ impl PdSolver {
             })
     }
 
-    fn send_motion(&self, iface: &str, pts: &[usize], out: &mut Outbox, with_volume: bool) {
-        let x = out.put(iface, "position", 3, pts.len());
-        for (k, &i) in pts.iter().enumerate() {
-            x[3 * k..3 * k + 3].copy_from_slice(&self.body.pos[i]);
-        }
-        let v = out.put(iface, "velocity", 3, pts.len());
-        for (k, &i) in pts.iter().enumerate() {
-            v[3 * k..3 * k + 3].copy_from_slice(&self.body.vel[i]);
-        }
-        if with_volume {
-            let w = out.put(iface, "volume", 1, pts.len());
-            for (k, &i) in pts.iter().enumerate() {
-                w[k] = self.body.vol[i];
+    /// Write the fields `fields` of interface `iface` (particles `pts`), in that order: what
+    /// its scheme's side sends (its window fields, and the scheme's set-up fields).
+    fn send_fields(
+        &self,
+        iface: &str,
+        pts: &[usize],
+        fields: &[&str],
+        out: &mut Outbox,
+    ) -> SolverResult<()> {
+        let n = pts.len();
+        for &f in fields {
+            match f {
+                "position" => {
+                    let x = out.put(iface, "position", 3, n);
+                    for (k, &i) in pts.iter().enumerate() {
+                        x[3 * k..3 * k + 3].copy_from_slice(&self.body.pos[i]);
+                    }
+                }
+                "velocity" => {
+                    let v = out.put(iface, "velocity", 3, n);
+                    for (k, &i) in pts.iter().enumerate() {
+                        v[3 * k..3 * k + 3].copy_from_slice(&self.body.vel[i]);
+                    }
+                }
+                "volume" => {
+                    let w = out.put(iface, "volume", 1, n);
+                    for (k, &i) in pts.iter().enumerate() {
+                        w[k] = self.body.vol[i];
+                    }
+                }
+                "force" => {
+                    let f = out.put(iface, "force", 3, n);
+                    for (k, &i) in pts.iter().enumerate() {
+                        f[3 * k..3 * k + 3].copy_from_slice(&self.internal_force(i));
+                    }
+                }
+                "mass" => {
+                    let m = out.put(iface, "mass", 1, n);
+                    for (k, &i) in pts.iter().enumerate() {
+                        m[k] = self.body.density * self.body.vol[i];
+                    }
+                }
+                "stiffness" => {
+                    let kin = self.body.kinematics();
+                    let st = out.put(iface, "stiffness", 1, n);
+                    for (k, &i) in pts.iter().enumerate() {
+                        st[k] = self.body.model.stiffness_bound(&kin, &self.body.bonds, i);
+                    }
+                }
+                other => {
+                    return Err(SolverError::interface(
+                        iface,
+                        format!("a peridynamic body cannot send '{other}'"),
+                    ));
+                }
             }
         }
+        Ok(())
     }
 
     /// Internal force (N) on particle i: force density × volume.
@@ -939,13 +989,6 @@ impl PdSolver {
         let f = self.body.force[i];
         let v = self.body.vol[i];
         [f[0] * v, f[1] * v, f[2] * v]
-    }
-
-    fn send_force(&self, iface: &str, pts: &[usize], out: &mut Outbox) {
-        let f = out.put(iface, "force", 3, pts.len());
-        for (k, &i) in pts.iter().enumerate() {
-            f[3 * k..3 * k + 3].copy_from_slice(&self.internal_force(i));
-        }
     }
 
     /// Fragments: sizes of the connected components (over unbroken bonds) with at least
@@ -1529,9 +1572,12 @@ impl Solver for PdSolver {
 
     fn setup(&mut self, bindings: &[Binding], inbox: &Inbox, out: &mut Outbox) -> SolverResult<()> {
         self.coupled.clear();
+        self.follow_pts.clear();
         self.lagrange = None;
         if bindings.len() > 1
-            && let Some(b) = bindings.iter().find(|b| b.kind == CouplingKind::Lagrange)
+            && let Some(b) = bindings
+                .iter()
+                .find(|b| scheme::of(b.kind).coordinator_solved())
         {
             return Err(SolverError::interface(
                 &b.interface,
@@ -1542,49 +1588,37 @@ impl Solver for PdSolver {
         }
         for b in bindings {
             let pts = self.points_of(&b.interface)?.to_vec();
-            match (b.kind, b.role) {
-                (CouplingKind::Immersed, _) => self.send_motion(&b.interface, &pts, out, true),
-                (CouplingKind::Kinematic, Role::Responder) => {
-                    if self.device.is_some() {
-                        return Err(SolverError::config(
-                            "device",
-                            format!(
-                                "\"gpu\" does not support a kinematic responder coupling (interface '{}'): it moves particles along the driver's path every substep, which the device path does not; use device = \"cpu\"",
-                                b.interface
-                            ),
-                        ));
-                    }
-                    let m = out.put(&b.interface, "mass", 1, pts.len());
-                    for (k, &i) in pts.iter().enumerate() {
-                        m[k] = self.body.density * self.body.vol[i];
-                    }
-                    let kin = self.body.kinematics();
-                    let st: Vec<f64> = pts
-                        .iter()
-                        .map(|&i| self.body.model.stiffness_bound(&kin, &self.body.bonds, i))
-                        .collect();
-                    out.put(&b.interface, "stiffness", 1, pts.len())
-                        .copy_from_slice(&st);
-                    self.send_force(&b.interface, &pts, out);
-                    for &i in &pts {
-                        self.body.prescribed[i] = 1;
-                    }
+            let sch = scheme::of(b.kind);
+            if sch.coordinator_solved() {
+                let (method, window) = lwire::request(inbox, &b.interface)?;
+                self.lagrange_side_for(&b.interface, method, window, (0, 1.0))?;
+            } else if sch.follows(b.role) {
+                if self.device.is_some() {
+                    return Err(SolverError::config(
+                        "device",
+                        format!(
+                            "\"gpu\" does not support a kinematic responder coupling (interface '{}'): it moves particles along the driver's path every substep, which the device path does not; use device = \"cpu\"",
+                            b.interface
+                        ),
+                    ));
                 }
-                (CouplingKind::Kinematic, Role::Driver) => {
-                    // The responder's set-up mass and stiffness bound: checked; its mass is
-                    // small against the body's for a boundary layer, so we keep our own
-                    // step (the runtime's stable-step report carries the bound).
-                    if let Some(m) = inbox.get(&b.interface, "mass")
-                        && m.values.iter().any(|v| !(v.is_finite() && *v >= 0.0))
-                    {
-                        return Err(SolverError::interface(&b.interface, "bad set-up mass"));
-                    }
-                    self.send_motion(&b.interface, &pts, out, false);
+                for &i in &pts {
+                    self.body.prescribed[i] = 1;
                 }
-                (CouplingKind::Lagrange, _) => {
-                    let (method, window) = lwire::request(inbox, &b.interface)?;
-                    self.lagrange_side_for(&b.interface, method, window, (0, 1.0))?;
+                self.follow_pts.extend_from_slice(&pts);
+            } else {
+                // A set-up mass from the peer (a sync-force responder's, with its stiffness
+                // bound): checked; its mass is small against the body's for a boundary layer,
+                // so we keep our own step (the runtime's stable-step report carries the bound).
+                if let Some(m) = inbox.get(&b.interface, "mass")
+                    && m.values.iter().any(|v| !(v.is_finite() && *v >= 0.0))
+                {
+                    return Err(SolverError::interface(&b.interface, "bad set-up mass"));
                 }
+            }
+            if !sch.coordinator_solved() {
+                self.send_fields(&b.interface, &pts, sch.setup_sends(b.role), out)?;
+                self.send_fields(&b.interface, &pts, sch.sends(b.role), out)?;
             }
             self.coupled.push(Coupled {
                 interface: b.interface.clone(),
@@ -1593,6 +1627,7 @@ impl Solver for PdSolver {
                 ended: false,
             });
         }
+        self.follow = sync_force::Follow::new(sync_force::Path::Held, self.follow_pts.len(), 3);
         Ok(())
     }
 
@@ -1638,60 +1673,60 @@ impl Solver for PdSolver {
         for f in self.fcouple.iter_mut() {
             *f = [0.0; 3];
         }
-        let mut targets: Vec<(usize, [f64; 3])> = Vec::new();
+        // Followed motion: each particle's displacement at t0 and the driver's velocity,
+        // held over the window. Loads (an immersed fluid's window-averaged force, a
+        // sync-force responder's constraint force): held over the window.
+        let mut q = 0;
         let coupled = self.coupled.clone();
         for c in &coupled {
+            let sch = scheme::of(c.kind);
+            if sch.coordinator_solved() {
+                continue;
+            }
             let pts = self.points_of(&c.interface)?.to_vec();
             let n = pts.len();
-            match (c.kind, c.role) {
-                (CouplingKind::Kinematic, Role::Responder) => {
-                    let x = inbox.require(&c.interface, "position", 3 * n)?;
-                    let v = inbox.require(&c.interface, "velocity", 3 * n)?;
-                    if x.iter().chain(v).any(|a| !a.is_finite()) {
-                        return Err(SolverError::interface(
-                            &c.interface,
-                            "non-finite motion received",
-                        ));
-                    }
-                    for (k, &i) in pts.iter().enumerate() {
-                        let vi = [v[3 * k], v[3 * k + 1], v[3 * k + 2]];
-                        self.body.prescribed[i] = 1;
-                        self.body.vpres[i] = vi;
-                        targets.push((i, [x[3 * k], x[3 * k + 1], x[3 * k + 2]]));
-                    }
+            if sch.follows(c.role) {
+                let x = inbox.require(&c.interface, "position", 3 * n)?;
+                let v = inbox.require(&c.interface, "velocity", 3 * n)?;
+                if x.iter().chain(v).any(|a| !a.is_finite()) {
+                    return Err(SolverError::interface(
+                        &c.interface,
+                        "non-finite motion received",
+                    ));
                 }
-                // Immersed: window-averaged force from the fluid, held over this window
-                // (absent before the first exchange). Kinematic driver: constraint force.
-                (CouplingKind::Immersed, _) | (CouplingKind::Kinematic, Role::Driver) => {
-                    let f = match c.kind {
-                        CouplingKind::Immersed => match inbox.get(&c.interface, "force") {
-                            None => continue,
-                            Some(_) => inbox.require(&c.interface, "force", 3 * n)?,
-                        },
-                        _ => inbox.require(&c.interface, "force", 3 * n)?,
-                    };
-                    if f.iter().any(|a| !a.is_finite()) {
-                        return Err(SolverError::interface(
-                            &c.interface,
-                            "non-finite force received",
-                        ));
-                    }
-                    for (k, &i) in pts.iter().enumerate() {
-                        for d in 0..3 {
-                            self.fcouple[i][d] += f[3 * k + d];
-                        }
-                    }
+                for (k, &i) in pts.iter().enumerate() {
+                    self.body.prescribed[i] = 1;
+                    self.follow.set_start(q, &self.body.disp[i]);
+                    self.follow.set_end(q, &v[3 * k..3 * k + 3]);
+                    let x = self.body.pos[i];
+                    self.body.vpres[i] =
+                        std::array::from_fn(|d| self.follow.velocity(q, d, x[d], 0, nsub, dt));
+                    q += 1;
                 }
-                (CouplingKind::Lagrange, _) => {}
+                continue;
+            }
+            if sch.loads_may_be_absent() && inbox.get(&c.interface, "force").is_none() {
+                continue;
+            }
+            let f = inbox.require(&c.interface, "force", 3 * n)?;
+            if f.iter().any(|a| !a.is_finite()) {
+                return Err(SolverError::interface(
+                    &c.interface,
+                    "non-finite force received",
+                ));
+            }
+            for (k, &i) in pts.iter().enumerate() {
+                for d in 0..3 {
+                    self.fcouple[i][d] += f[3 * k + d];
+                }
             }
         }
-        let start: Vec<[f64; 3]> = targets.iter().map(|&(i, _)| self.body.disp[i]).collect();
         let coupled_pts: Vec<usize> = (0..self.body.len())
             .filter(|&i| self.fcouple[i] != [0.0; 3])
             .collect();
         if let Some(dev) = self.device.as_mut() {
             // The body on the device (kinematic responders and pressure pulses were refused
-            // at set-up, so `targets` is empty and the external force is `fcouple` for the
+            // at set-up, so nothing follows a driver and the external force is `fcouple` for the
             // whole window). Only the window report comes back, at the window end.
             dev.advance(&self.fcouple, nsub, dt).map_err(gpu_err)?;
             dev.finish(&mut self.body, w.t1).map_err(gpu_err)?;
@@ -1756,13 +1791,10 @@ impl Solver for PdSolver {
                         self.external_impulse[d] -= f[d] * dt;
                     }
                 }
-                for (k, &(i, _)) in targets.iter().enumerate() {
-                    // seed 004 eq. (31): along the driver's motion, integrated from the window
-                    // start so no drift builds up.
-                    let s = (step + 1) as f64 * dt;
-                    let vp = self.body.vpres[i];
-                    self.body
-                        .set_disp(i, std::array::from_fn(|d| start[k][d] + s * vp[d]));
+                for (q, &i) in self.follow_pts.iter().enumerate() {
+                    // seed 004 eq. (31): along the driver's motion.
+                    let u = std::array::from_fn(|d| self.follow.position(q, d, step, nsub, dt));
+                    self.body.set_disp(i, u);
                     let f = self.internal_force(i);
                     for d in 0..3 {
                         self.interface_impulse[d] -= f[d] * dt;
@@ -1771,28 +1803,30 @@ impl Solver for PdSolver {
             }
         }
         // Land exactly on the driver's positions at t1.
-        if !targets.is_empty() {
-            for &(i, x) in &targets {
+        for c in coupled
+            .iter()
+            .filter(|c| scheme::of(c.kind).follows(c.role))
+        {
+            let pts = self.points_of(&c.interface)?.to_vec();
+            let x = inbox.require(&c.interface, "position", 3 * pts.len())?;
+            for (k, &i) in pts.iter().enumerate() {
+                let x = [x[3 * k], x[3 * k + 1], x[3 * k + 2]];
                 let x0 = self.body.x0[i];
                 self.body.set_disp(i, std::array::from_fn(|d| x[d] - x0[d]));
                 self.body.pos[i] = x;
             }
+        }
+        if !self.follow.is_empty() {
             self.body.eval_forces(0.0);
         }
         // Outputs at t1.
         for c in &coupled {
-            let pts = self.points_of(&c.interface)?.to_vec();
-            match (c.kind, c.role) {
-                (CouplingKind::Immersed, _) if c.ended => {}
-                (CouplingKind::Immersed, _) => self.send_motion(&c.interface, &pts, out, true),
-                (CouplingKind::Kinematic, Role::Responder) => {
-                    self.send_force(&c.interface, &pts, out)
-                }
-                (CouplingKind::Kinematic, Role::Driver) => {
-                    self.send_motion(&c.interface, &pts, out, false)
-                }
-                (CouplingKind::Lagrange, _) => {}
+            if c.ended || scheme::of(c.kind).coordinator_solved() {
+                continue;
             }
+            let pts = self.points_of(&c.interface)?.to_vec();
+            let fields = scheme::of(c.kind).sends(c.role);
+            self.send_fields(&c.interface, &pts, fields, out)?;
         }
         self.window_report(w, nsub, wall)
     }
@@ -1821,7 +1855,7 @@ impl Solver for PdSolver {
     /// particles on a driver's path and cannot simply end.
     fn decouple(&mut self, interface: &str) -> SolverResult<()> {
         for c in self.coupled.iter_mut().filter(|c| c.interface == interface) {
-            if c.kind != CouplingKind::Immersed {
+            if !scheme::of(c.kind).decouples() {
                 return Err(SolverError::interface(
                     interface,
                     "only an immersed coupling can be decoupled",
