@@ -15,8 +15,9 @@ use thiserror::Error;
 
 /// First bytes of every checkpoint file.
 pub const MAGIC: [u8; 8] = *b"COSIMCKP";
-/// Version of the container layout; a reader refuses any other.
-pub const FORMAT_VERSION: u16 = 1;
+/// Version of the container layout and of the built-in nodes' payloads; a reader refuses any
+/// other. 2: the joint node's coupling state holds the shared sync-force `Follow`.
+pub const FORMAT_VERSION: u16 = 2;
 /// File name of the coordinator's own state in a checkpoint directory.
 pub const COORDINATOR: &str = "coordinator";
 
