@@ -331,6 +331,30 @@ fn c_echo(dir: &Path, bin: &Path) -> anyhow::Result<PathBuf> {
             String::from_utf8_lossy(&o.stderr)
         );
     }
+    // Executable bits set here, not left to the linker, and the file synced; then the node
+    // must start (its usage answer is enough), retried for up to 2 s. On the 2-core VM the
+    // first `cosim run` of this node was twice refused by exec (EACCES) in one afternoon,
+    // a cause we have not found; these steps rule out an unfinished file.
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&exe, std::fs::Permissions::from_mode(0o755))?;
+    std::fs::File::open(&exe)?.sync_all()?;
+    let mut tries = 0;
+    loop {
+        match Command::new(&exe)
+            .arg("--help")
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .status()
+        {
+            Ok(_) => break,
+            Err(e) if tries < 20 => {
+                tries += 1;
+                eprintln!("cosim bench: the C echo node did not start ({e}); retrying");
+                std::thread::sleep(std::time::Duration::from_millis(100));
+            }
+            Err(e) => bail!("the C echo node does not start: {e}"),
+        }
+    }
     Ok(exe)
 }
 
