@@ -496,6 +496,11 @@ enum Cmd {
 /// Commands gathered before they go to the thread without waiting for
 /// [`RecorderThread::commit`] (a long wait gathers heartbeats).
 const BATCH: usize = 64;
+/// Message bytes gathered before they go to the thread at once (large fields).
+const BATCH_BYTES: usize = 8 << 20;
+/// The least time between two hand-overs at window ends ([`RecorderThread::window_end`]):
+/// short windows go over several at a time, one wake-up of the thread for them all.
+const HANDOVER: std::time::Duration = std::time::Duration::from_millis(1);
 
 /// Commands queued for the recorder thread before the window loop waits for it (a full queue
 /// holds the loop back: nothing is ever dropped).
@@ -503,16 +508,21 @@ const QUEUE: usize = 4096;
 
 /// The recorder on a thread of its own (issue 22): the window loop hands it each message's
 /// bytes through a bounded queue and goes on, so MCAP writes, compression and flushes never
-/// delay an `Advance`. The messages of a window go over in one batch at its end (one wake-up
-/// of the thread per window, not one per message). Buffers come back through a pool, so
+/// delay an `Advance`. The messages of a window go over in one batch at its end, or of several
+/// windows where they are shorter than [`HANDOVER`] (one wake-up of the thread for them, not
+/// one per message). Buffers come back through a pool, so
 /// steady state allocates nothing.
 /// Order is kept (one queue, one writer); [`RecorderThread::flush`] and
 /// [`RecorderThread::finish`] wait until everything queued before them is written.
 pub struct RecorderThread {
     tx: Option<std::sync::mpsc::SyncSender<Cmd>>,
     pool: std::sync::mpsc::Receiver<Vec<u8>>,
-    /// Commands gathered for the next hand-over ([`RecorderThread::commit`]).
+    /// Commands gathered for the next hand-over ([`RecorderThread::commit`]), and the
+    /// message bytes among them.
     batch: Vec<Cmd>,
+    batch_bytes: usize,
+    /// When the last hand-over happened.
+    handed: std::time::Instant,
     /// Emptied batch vectors coming back from the thread.
     batches: std::sync::mpsc::Receiver<Vec<Cmd>>,
     handle: Option<std::thread::JoinHandle<anyhow::Result<(u64, u64)>>>,
@@ -585,6 +595,8 @@ impl RecorderThread {
             tx: Some(tx),
             pool,
             batch: Vec::with_capacity(BATCH),
+            batch_bytes: 0,
+            handed: std::time::Instant::now(),
             batches,
             handle: Some(handle),
             topics: HashMap::new(),
@@ -601,8 +613,11 @@ impl RecorderThread {
 
     /// Gather `cmd` for the next hand-over; a full batch goes at once.
     fn push(&mut self, cmd: Cmd) -> anyhow::Result<()> {
+        if let Cmd::Write { data, .. } = &cmd {
+            self.batch_bytes += data.len();
+        }
         self.batch.push(cmd);
-        if self.batch.len() >= BATCH {
+        if self.batch.len() >= BATCH || self.batch_bytes >= BATCH_BYTES {
             self.commit()?;
         }
         Ok(())
@@ -619,7 +634,19 @@ impl RecorderThread {
             .try_recv()
             .unwrap_or_else(|_| Vec::with_capacity(BATCH));
         let cmds = std::mem::replace(&mut self.batch, next);
+        self.batch_bytes = 0;
+        self.handed = std::time::Instant::now();
         self.send(Cmd::Batch(cmds))
+    }
+
+    /// At a window's end: [`RecorderThread::flush_if_older`] once the last hand-over is
+    /// [`HANDOVER`] old, else nothing (the next window's end, a full batch or an idle wait
+    /// hands the window over).
+    pub fn window_end(&mut self, age: std::time::Duration) -> anyhow::Result<()> {
+        if self.handed.elapsed() < HANDOVER {
+            return Ok(());
+        }
+        self.flush_if_older(age)
     }
 
     fn topic(&mut self, topic: &str) -> std::sync::Arc<str> {

@@ -356,6 +356,12 @@ impl<'a> Coord<'a> {
     }
 
     fn send(&mut self, i: usize, m: &Message) -> Result<(), Fault> {
+        self.send_ringing(i, m, true)
+    }
+
+    /// [`Coord::send`], waking the node only if `ring` (a batch of `Advance`s goes quietly and
+    /// rings once, [`Coord::ring`]).
+    fn send_ringing(&mut self, i: usize, m: &Message, ring: bool) -> Result<(), Fault> {
         self.seq += 1;
         encode_into(&mut self.buf, &self.run, "coordinator", self.seq, m).map_err(|e| Fault {
             node: self.nodes[i].name.clone(),
@@ -363,9 +369,23 @@ impl<'a> Coord<'a> {
         })?;
         let topic = topic::down(&self.run, &self.nodes[i].name);
         let _ = self.rec.message(&topic, self.sim_t, &self.buf);
-        self.nodes[i].down.send(&self.buf).map_err(|e| Fault {
+        let down = &mut self.nodes[i].down;
+        if ring {
+            down.send(&self.buf)
+        } else {
+            down.send_quiet(&self.buf)
+        }
+        .map_err(|e| Fault {
             node: self.nodes[i].name.clone(),
             reason: format!("send failed: {e}"),
+        })
+    }
+
+    /// Wake node `i` for what was sent to it quietly.
+    fn ring(&mut self, i: usize) -> Result<(), Fault> {
+        self.nodes[i].down.ring().map_err(|e| Fault {
+            node: self.nodes[i].name.clone(),
+            reason: format!("waking the node failed: {e}"),
         })
     }
 
@@ -1409,20 +1429,96 @@ fn window_span(case: &Case, k: u64, windows: u64) -> (f64, f64) {
     (t0, t1)
 }
 
-/// Windows in flight at most (the one awaited included): `COSIM_WINDOWS_AHEAD`, default
-/// [`WINDOWS_AHEAD`]; 1 is the lockstep schedule (each Advance after the last window's audit).
-fn windows_ahead() -> u64 {
+/// Windows in flight at most (the one awaited included), fixed by `COSIM_WINDOWS_AHEAD`
+/// (1 to [`MAX_AHEAD`]; 1 is the lockstep schedule, each Advance after the last window's
+/// audit); `None`: chosen by [`Ahead`].
+fn windows_ahead_fixed() -> Option<u64> {
     std::env::var("COSIM_WINDOWS_AHEAD")
         .ok()
         .and_then(|s| s.parse::<u64>().ok())
-        .unwrap_or(WINDOWS_AHEAD)
-        .clamp(1, 3)
+        .map(|a| a.clamp(1, MAX_AHEAD))
 }
 
-/// Default of [`windows_ahead`]: the awaited window and the next one. More gains nothing on
-/// a serial chain (the nodes wait for each other's data anyway) and fills the queues of the
-/// control topics (`transport::shm::SUBSCRIBER_BUFFER`).
+/// The fewest windows in flight by default: the awaited window and the next one, so the
+/// nodes never wait for the audit or the recorder.
 pub const WINDOWS_AHEAD: u64 = 2;
+/// The most windows in flight: the control topics queue them
+/// (`transport::shm::CONTROL_BUFFER`), and a stop request lets them end first.
+pub const MAX_AHEAD: u64 = 8;
+/// How much wall time the windows in flight may span (see [`Ahead`]).
+const AHEAD_SPAN: Duration = Duration::from_millis(2);
+
+/// How many windows may be in flight: [`WINDOWS_AHEAD`] for long windows, up to
+/// [`MAX_AHEAD`] for windows so short that that many still take under [`AHEAD_SPAN`] of wall
+/// time (the mean spacing of completed windows). Sent in batches (the next ones go out when
+/// half have ended), short windows cost the coordinator one wake-up of each node per batch
+/// instead of one per window; the span bounds how long a stop request or a checkpoint waits for
+/// the windows already sent.
+struct Ahead {
+    fixed: Option<u64>,
+    /// When the last window completed, and the mean spacing of completions (s).
+    last: Option<Instant>,
+    spacing: f64,
+    measured: u32,
+    /// The sum of the allowed counts at each completion, and the completions (their mean
+    /// goes to `summary.json`).
+    allowed_sum: u64,
+    completions: u64,
+}
+
+impl Ahead {
+    fn new() -> Self {
+        Self::with_fixed(windows_ahead_fixed())
+    }
+
+    fn with_fixed(fixed: Option<u64>) -> Self {
+        Ahead {
+            fixed,
+            last: None,
+            spacing: 0.0,
+            measured: 0,
+            allowed_sum: 0,
+            completions: 0,
+        }
+    }
+
+    /// The mean number of windows allowed in flight over the completed windows.
+    fn mean(&self) -> f64 {
+        self.allowed_sum as f64 / self.completions.max(1) as f64
+    }
+
+    /// A window completed now.
+    fn completed(&mut self) {
+        let now = Instant::now();
+        let dt = self.last.map(|l| now.duration_since(l).as_secs_f64());
+        self.last = Some(now);
+        self.completed_after(dt);
+    }
+
+    /// A window completed `dt` seconds after the last one (`None`: the first).
+    fn completed_after(&mut self, dt: Option<f64>) {
+        if let Some(dt) = dt {
+            // A running mean over the first windows, then exponential (1/8): a slow stretch
+            // (output, a checkpoint) lowers the count for a while.
+            self.measured = self.measured.saturating_add(1);
+            let w = 1.0 / f64::from(self.measured.min(8));
+            self.spacing += w * (dt - self.spacing);
+        }
+        self.allowed_sum += self.count();
+        self.completions += 1;
+    }
+
+    fn count(&self) -> u64 {
+        if let Some(a) = self.fixed {
+            return a;
+        }
+        if self.measured < 4 || self.spacing <= 0.0 {
+            return WINDOWS_AHEAD;
+        }
+        let fit = (AHEAD_SPAN.as_secs_f64() / self.spacing) as u64;
+        fit.clamp(WINDOWS_AHEAD, MAX_AHEAD)
+    }
+}
 
 /// Whether the window after the last one sent may start before the awaited window's end:
 /// not when that end decides something about it — a checkpoint there (nothing may run past
@@ -1445,6 +1541,7 @@ fn may_run_ahead(
 
 /// Send window `k`'s `Advance` to every node still running, in the coupling graph's order,
 /// after the decouplings due before it; returns whether the window checkpoints.
+/// `quiet`: the nodes are not woken ([`Coord::ring`] them after the batch).
 fn send_window(
     c: &mut Coord,
     order_idx: &[usize],
@@ -1452,6 +1549,7 @@ fn send_window(
     active: &mut Vec<usize>,
     k: u64,
     stop_after: bool,
+    quiet: bool,
 ) -> Result<bool, Fault> {
     let case = c.case;
     let windows = window_count(case);
@@ -1473,7 +1571,7 @@ fn send_window(
         if c.nodes[i].finished.is_some() {
             continue;
         }
-        c.send(
+        c.send_ringing(
             i,
             &Message::Advance(Advance {
                 window: k,
@@ -1482,6 +1580,7 @@ fn send_window(
                 write_output,
                 checkpoint,
             }),
+            !quiet,
         )?;
     }
     c.prof.lap(Phase::Advance, sending);
@@ -1489,7 +1588,7 @@ fn send_window(
 }
 
 /// Send the windows after `sent` up to `upto` while [`may_run_ahead`] allows, noting each in
-/// `in_flight` (window, whether it checkpoints).
+/// `in_flight` (window, whether it checkpoints): quietly, then each node is woken once.
 fn run_ahead(
     c: &mut Coord,
     order_idx: &[usize],
@@ -1499,10 +1598,20 @@ fn run_ahead(
     sent: &mut u64,
     upto: u64,
 ) -> Result<(), Fault> {
+    let before = *sent;
     while *sent < upto && may_run_ahead(c, decoupled, in_flight.back().is_some_and(|w| w.1)) {
-        let ck = send_window(c, order_idx, decoupled, active, *sent + 1, false)?;
+        let ck = send_window(c, order_idx, decoupled, active, *sent + 1, false, true)?;
         in_flight.push_back((*sent + 1, ck));
         *sent += 1;
+    }
+    if *sent > before {
+        let ringing = Instant::now();
+        for &i in order_idx {
+            if c.nodes[i].finished.is_none() {
+                c.ring(i)?;
+            }
+        }
+        c.prof.lap(Phase::Advance, ringing);
     }
     Ok(())
 }
@@ -1669,44 +1778,58 @@ fn drive(
     c.prof = Profile::default();
     c.prof.start();
     // Windows whose Advance is out and whose Done is not yet all in: (window, checkpoint).
-    let mut in_flight: VecDeque<(u64, bool)> = VecDeque::with_capacity(8);
-    let ahead = windows_ahead();
+    let mut in_flight: VecDeque<(u64, bool)> = VecDeque::with_capacity(MAX_AHEAD as usize + 1);
+    let mut ahead = Ahead::new();
     let mut sent = first - 1;
-    // The windows after the last one sent, up to the one given, while they may run ahead.
-    macro_rules! send_ahead {
-        ($upto:expr) => {
-            run_ahead(
-                c,
-                &order_idx,
-                &mut decoupled,
-                &mut active,
-                &mut in_flight,
-                &mut sent,
-                $upto,
-            )?
+    // Once no more than half of the windows allowed in flight are left after window
+    // `completed`, the windows after the last one sent up to that count, while they may run
+    // ahead (one batch: each node is woken once for it).
+    macro_rules! top_up {
+        ($completed:expr) => {
+            let (done, n) = ($completed, ahead.count());
+            if sent - done <= n / 2 {
+                run_ahead(
+                    c,
+                    &order_idx,
+                    &mut decoupled,
+                    &mut active,
+                    &mut in_flight,
+                    &mut sent,
+                    (done + n).min(windows),
+                )?
+            }
         };
     }
     for k in first..=windows {
         let (_, t1) = window_span(case, k, windows);
         c.window = k;
         if sent < k {
-            let ck = send_window(c, &order_idx, &mut decoupled, &mut active, k, stop_after)?;
+            let ck = send_window(
+                c,
+                &order_idx,
+                &mut decoupled,
+                &mut active,
+                k,
+                stop_after,
+                false,
+            )?;
             in_flight.push_back((k, ck));
             sent = k;
         }
         // Pipelining: the next windows' Advances go out now, so that the nodes go on while
         // this one is audited and recorded; only where nothing decided at this window's end
         // can change them (module doc).
-        send_ahead!((k + ahead - 1).min(windows));
+        top_up!(k - 1);
         c.sim_t = c.sim_t.max(t1);
         c.wait_all(&active, "Done", None, |n| n.done.is_some_and(|d| d >= k))?;
         let checkpoint = in_flight.pop_front().is_some_and(|w| w.1);
+        ahead.completed();
         // The window after the next goes out now, before this one's audit and records: the
         // driver finishes its next window while the responder computes, and then needs it
         // (the coordinator's own work per window would otherwise stand in its way). Not past
         // a checkpoint at this window: it is complete only once saved below.
-        if ahead > 1 && !checkpoint {
-            send_ahead!((k + ahead).min(windows));
+        if ahead.count() > 1 && !checkpoint {
+            top_up!(k);
         }
         let auditing = Instant::now();
         // Reports of later windows that came in meanwhile wait for their own audit.
@@ -1834,7 +1957,7 @@ fn drive(
             save_checkpoint(c, out, &a, &decoupled, k, t1, loop_s)?;
         }
         // Completed windows reach the disk (a killed cosim leaves them recoverable).
-        let _ = c.rec.flush_if_older(Duration::from_millis(20));
+        let _ = c.rec.window_end(Duration::from_millis(20));
         c.prof.lap(Phase::Flush, flushing);
         // A stop signal ends the run here, at the window boundary; with checkpoints, after
         // one more window that checkpoints, so that a restart continues from where it stopped.
@@ -1853,7 +1976,8 @@ fn drive(
     c.progress.finish();
     let loop_s = loop_before + loop_start.elapsed().as_secs_f64();
     c.prof.stop();
-    let breakdown = c.prof.per_window(c.completed.saturating_sub(first - 1));
+    let mut breakdown = c.prof.per_window(c.completed.saturating_sub(first - 1));
+    breakdown["windows_in_flight"] = ahead.mean().into();
     // A node publishes its last window's data before its Done, but on another topic: that
     // data may still be queued here. Record it before the nodes go (a quiet 50 ms, at most
     // 2 s), so the recording holds every message of every window.
@@ -2049,6 +2173,43 @@ mod tests {
 
     /// `BUILTIN_KEYS` (what a dotted scalar name may not nest under) lists exactly the keys
     /// the serializer writes besides the scalars: a key added to one and not the other fails.
+    #[test]
+    fn windows_in_flight_fill_the_span_between_two_and_eight() {
+        let spaced = |dt: f64| {
+            let mut a = Ahead::with_fixed(None);
+            a.completed_after(None);
+            assert_eq!(a.count(), 2, "before any spacing is known");
+            for _ in 0..20 {
+                a.completed_after(Some(dt));
+            }
+            a.count()
+        };
+        // 2 ms of windows in flight: 2 ms / 100 µs = 20, at most 8; 2 ms / 350 µs = 5.7;
+        // 2 ms / 900 µs = 2.2; 2 ms / 10 ms = 0.2, at least 2.
+        assert_eq!(spaced(100e-6), 8);
+        assert_eq!(spaced(350e-6), 5);
+        assert_eq!(spaced(900e-6), 2);
+        assert_eq!(spaced(10e-3), 2);
+        // A slow stretch after fast windows lowers the count within a few windows.
+        let mut a = Ahead::with_fixed(None);
+        for _ in 0..20 {
+            a.completed_after(Some(100e-6));
+        }
+        assert_eq!(a.count(), 8);
+        for _ in 0..20 {
+            a.completed_after(Some(5e-3));
+        }
+        assert_eq!(a.count(), 2);
+        assert_eq!(a.completions, 40);
+        // A fixed count (COSIM_WINDOWS_AHEAD) is kept whatever the spacing.
+        let mut f = Ahead::with_fixed(Some(1));
+        for _ in 0..10 {
+            f.completed_after(Some(1e-6));
+        }
+        assert_eq!(f.count(), 1);
+        assert_eq!(f.mean(), 1.0);
+    }
+
     #[test]
     fn builtin_keys_are_the_keys_of_a_report_without_scalars() {
         let r = StepReport::default();

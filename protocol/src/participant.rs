@@ -579,9 +579,18 @@ struct Wire {
 
 impl Wire {
     fn send_up(&mut self, m: &Message) -> anyhow::Result<()> {
+        self.send_up_ringing(m, true)
+    }
+
+    /// [`Wire::send_up`], waking the coordinator only if `ring` ([`Publisher::send_quiet`]).
+    fn send_up_ringing(&mut self, m: &Message, ring: bool) -> anyhow::Result<()> {
         let seq = self.seq.fetch_add(1, Ordering::Relaxed);
         encode_into(&mut self.buf, &self.run, &self.me, seq, m)?;
-        self.up.send(&self.buf)?;
+        if ring {
+            self.up.send(&self.buf)?;
+        } else {
+            self.up.send_quiet(&self.buf)?;
+        }
         Ok(())
     }
 
@@ -1249,7 +1258,18 @@ fn node_loop(
                 substeps += report.substeps;
                 progress.window.store(window, Ordering::Relaxed);
                 progress.substeps.store(substeps, Ordering::Relaxed);
-                w.send_up(&Message::Done(Done { window, report }))?;
+                // The coordinator is woken by every second Done, and by any Done after which
+                // this node holds fewer than two further windows: then the coordinator must
+                // act soon (send the next windows, checkpoint, decouple). In between it reads
+                // this Done with the next one: one wake-up of the coordinator less per window
+                // (its data topics queue `SUBSCRIBER_BUFFER` windows, so it still reads them
+                // in time).
+                let held = pending_cmd
+                    .iter()
+                    .filter(|m| matches!(m, Message::Advance(_)))
+                    .count();
+                let ring = window.is_multiple_of(2) || held < 2;
+                w.send_up_ringing(&Message::Done(Done { window, report }), ring)?;
                 continue;
             }
         }

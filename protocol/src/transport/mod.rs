@@ -95,6 +95,22 @@ pub trait Publisher: Send {
             .map_err(|e| TransportError::Encode(e.to_string()))?;
         self.send(scratch)
     }
+
+    /// Send without waking the readers: on shared memory no bell rings, so a reader asleep in
+    /// `recv` takes the message when something else wakes it (a later send, a [`ring`]).
+    /// For messages nobody waits on alone — the `Advance`s of a batch before its [`ring`], a
+    /// `Done` the coordinator reads with a later one. Transports whose every delivery wakes
+    /// the reader (zenoh, local) send as usual.
+    ///
+    /// [`ring`]: Publisher::ring
+    fn send_quiet(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+        self.send(bytes)
+    }
+
+    /// Wake the readers for what was sent quietly; a no-op where every send wakes them.
+    fn ring(&mut self) -> Result<(), TransportError> {
+        Ok(())
+    }
 }
 
 pub trait Transport {

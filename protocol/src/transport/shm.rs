@@ -1,7 +1,9 @@
 //! iceoryx2 shared-memory transport (ARCHITECTURE §6, §9): one iceoryx2 node per endpoint,
 //! one publish-subscribe service of `[u8]` per topic (dynamically sized, power-of-two
 //! segments, no silent overflow), and one event "bell" per endpoint that every publisher rings
-//! after a send, so `recv` sleeps in the kernel instead of spinning.
+//! after a send, so `recv` sleeps in the kernel instead of spinning. A quiet send rings no
+//! bell (`Publisher::send_quiet`): a wake-up costs both processes a context switch, and a
+//! batch of messages needs one.
 //!
 //! Every file a run creates carries the prefix `cx_<run>_` (see [`prefix`]), which is what
 //! [`cleanup_run`] sweeps after a crash.
@@ -28,8 +30,23 @@ use std::time::{Duration, Instant};
 type Svc = ipc_threadsafe::Service;
 type Factory = PubSubFactory<Svc, [u8], ()>;
 
-/// Messages a subscriber can queue before its publishers block (no silent overflow).
+/// Messages a subscriber of a data topic can queue before its publishers block (no silent
+/// overflow): each sample may be a large field, and the publisher preallocates its pool for it.
 pub const SUBSCRIBER_BUFFER: usize = 4;
+/// The same for control topics (`Advance`, `Done`, heartbeats: small messages): deep enough
+/// for the coordinator's batch of windows in flight ([`queue_depth`]).
+pub const CONTROL_BUFFER: usize = 20;
+
+/// How many messages a subscriber of `topic` queues: [`CONTROL_BUFFER`] for the control
+/// topics (`…/cmd`, `…/ctrl`), [`SUBSCRIBER_BUFFER`] for the rest. Every endpoint derives it
+/// from the name alone, so all of them open a topic's service with the same settings.
+pub fn queue_depth(topic: &str) -> usize {
+    if topic.ends_with("/cmd") || topic.ends_with("/ctrl") {
+        CONTROL_BUFFER
+    } else {
+        SUBSCRIBER_BUFFER
+    }
+}
 /// Samples a subscriber holds at once (`recv` releases each before taking the next).
 const SUBSCRIBER_BORROWED: usize = 2;
 /// Publishers per topic: the owner, a heartbeat thread and a test injector fit.
@@ -126,7 +143,7 @@ fn open_topic(node: &Node<Svc>, topic: &str) -> Result<Factory, TransportError> 
         .max_publishers(MAX_PUBLISHERS)
         .max_subscribers(MAX_SUBSCRIBERS)
         .max_nodes(MAX_NODES)
-        .subscriber_max_buffer_size(SUBSCRIBER_BUFFER)
+        .subscriber_max_buffer_size(queue_depth(topic))
         .subscriber_max_borrowed_samples(SUBSCRIBER_BORROWED)
         .history_size(0)
         .enable_safe_overflow(false)
@@ -257,6 +274,7 @@ impl ShmPublisher {
         len: usize,
         fill: &mut Fill,
         start: Instant,
+        ring: bool,
     ) -> Result<usize, TransportError> {
         // All preallocated samples are in flight only while a reader lags behind: wait for
         // it (backpressure), never drop.
@@ -290,22 +308,31 @@ impl ShmPublisher {
         // above and `fill` wrote all `len` message bytes (its contract; it failed otherwise).
         let sample = unsafe { sample.assume_init() };
         let delivered = sample.send().map_err(|e| self.err(format!("{e:?}")))?;
+        if ring {
+            self.ring_bells()?;
+        }
+        Ok(delivered)
+    }
+
+    fn ring_bells(&self) -> Result<(), TransportError> {
         for bell in &self.bells {
             bell.notify()
                 .map_err(|e| self.err(format!("ringing a reader: {e:?}")))?;
         }
-        Ok(delivered)
+        Ok(())
     }
 }
 
 impl ShmPublisher {
-    /// Send one message of `len` bytes written by `fill` (again for a resend).
-    fn send_with(&mut self, len: usize, fill: &mut Fill) -> Result<(), TransportError> {
+    /// Send one message of `len` bytes written by `fill` (again for a resend), ringing the
+    /// readers' bells if `ring` (a resend always rings: the reader must connect).
+    fn send_with(&mut self, len: usize, fill: &mut Fill, ring: bool) -> Result<(), TransportError> {
         let start = Instant::now();
         let mut pause = Duration::from_micros(50);
         self.seq += 1;
+        let mut ring = ring;
         loop {
-            let delivered = self.send_once(len, fill, start)?;
+            let delivered = self.send_once(len, fill, start, ring)?;
             // iceoryx2 drops a sample for a subscriber that has not yet connected to this
             // publisher (it connects on its next receive) once that subscriber's buffer is
             // full. Detect it and send again after the bell has woken the reader; readers
@@ -322,16 +349,36 @@ impl ShmPublisher {
             }
             std::thread::sleep(pause);
             pause = (pause * 2).min(Duration::from_millis(5));
+            ring = true;
         }
     }
 }
 
 impl Publisher for ShmPublisher {
     fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
-        self.send_with(bytes.len(), &mut |dst| {
-            dst.write_copy_of_slice(bytes);
-            Ok(())
-        })
+        self.send_with(
+            bytes.len(),
+            &mut |dst| {
+                dst.write_copy_of_slice(bytes);
+                Ok(())
+            },
+            true,
+        )
+    }
+
+    fn send_quiet(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+        self.send_with(
+            bytes.len(),
+            &mut |dst| {
+                dst.write_copy_of_slice(bytes);
+                Ok(())
+            },
+            false,
+        )
+    }
+
+    fn ring(&mut self) -> Result<(), TransportError> {
+        self.ring_bells()
     }
 
     /// Encodes straight into the loaned sample: the message's only copy on this side.
@@ -345,10 +392,14 @@ impl Publisher for ShmPublisher {
     ) -> Result<(), TransportError> {
         let len = codec::encoded_len(run, sender, message)
             .map_err(|e| self.err(format!("cannot encode: {e}")))?;
-        self.send_with(len, &mut |dst| {
-            codec::encode_into_uninit(dst, run, sender, seq, message)
-                .map_err(|e| TransportError::Encode(e.to_string()))
-        })
+        self.send_with(
+            len,
+            &mut |dst| {
+                codec::encode_into_uninit(dst, run, sender, seq, message)
+                    .map_err(|e| TransportError::Encode(e.to_string()))
+            },
+            true,
+        )
     }
 }
 
@@ -358,6 +409,7 @@ impl Transport for ShmTransport {
         topic: &str,
         readers: &[String],
     ) -> Result<Box<dyn Publisher>, TransportError> {
+        let depth = queue_depth(topic);
         let publisher = self
             .topic(topic)?
             .publisher_builder()
@@ -368,7 +420,7 @@ impl Transport for ShmTransport {
             // bounded by one reader's buffer + borrowed + the one being written; preallocating
             // the worst case of iceoryx2 (subscribers × (buffer + borrowed)) would multiply
             // /dev/shm use by the number of subscribers.
-            .override_sample_preallocation(|_| SUBSCRIBER_BUFFER + SUBSCRIBER_BORROWED + 1)
+            .override_sample_preallocation(move |_| depth + SUBSCRIBER_BORROWED + 1)
             .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
             .set_backpressure_handler(|info: &BackpressureInfo| {
                 if info.elapsed_time > SEND_TIMEOUT || super::sends_abandoned() {
@@ -406,7 +458,7 @@ impl Transport for ShmTransport {
         let sub = self
             .topic(topic)?
             .subscriber_builder()
-            .buffer_size(SUBSCRIBER_BUFFER)
+            .buffer_size(queue_depth(topic))
             .create()
             .map_err(|e| TransportError::Setup(format!("subscriber on '{topic}': {e:?}")))?;
         self.subs.push(ShmSubscriber {
