@@ -3,13 +3,15 @@
 //! loop. Two tables: the participant round trip (the Rust `echo` node drives, the responder is
 //! the same node in Rust, in Python on the `cosim` package, or in C on the participant
 //! library; 1 KiB each way) and the split bar's window on each transport, in lockstep and
-//! pipelined (`COSIM_WINDOWS_AHEAD` 1 and 2), split into the nodes' compute and everything
+//! pipelined (`COSIM_WINDOWS_AHEAD` 1 and 2, and unset: the coordinator's choice), split into the nodes' compute and everything
 //! beyond it, with a third table of where the window goes (the coordinator's phases from
 //! `summary.json` `window_breakdown`, each node's compute, coupling wait and idle time).
 //!
-//! A window's time is the wall-clock spacing of consecutive `/cosim/balance` records in the
-//! recording (the coordinator writes one when every node has reported the window done); the
-//! first tenth of each run is left out as warm-up.
+//! A window's time is the wall-clock spacing of `/cosim/balance` records in the recording
+//! (their publish time: when the coordinator audited the window, every node having reported
+//! it done), taken over blocks of 8 consecutive windows (the coordinator audits several at
+//! a time when windows are short), so each sample is the mean window of a block; the first
+//! tenth of each run's blocks is left out as warm-up.
 
 use anyhow::{Context, anyhow, bail};
 use serde::Serialize;
@@ -24,6 +26,10 @@ const ECHO_C: &str = include_str!("../echo/echo_node.c");
 const HEADER: &str = include_str!("../../participant-c/include/cosim_participant.h");
 /// The split bar as the README runs it.
 const SPLIT_BAR: &str = include_str!("../../examples/split_bar.toml");
+
+/// Windows per timed block: a sample is the mean window time over this many consecutive
+/// windows.
+const BLOCK: usize = 8;
 
 /// The participant round trip moves this many bytes each way (128 points, one f64 each).
 const ECHO_BYTES: usize = 1024;
@@ -40,7 +46,8 @@ pub struct WindowRow {
     pub bytes: Option<usize>,
     /// `cosim run`s measured (alternating with the other rows of the table).
     pub runs: usize,
-    /// Windows whose time entered the statistics (all runs, warm-up left out).
+    /// Windows whose time entered the statistics (all runs, warm-up left out; blocks of
+    /// [`BLOCK`] windows, one sample each).
     pub windows: usize,
     pub median_us: f64,
     pub p10_us: f64,
@@ -52,8 +59,9 @@ pub struct WindowRow {
     /// Window-loop time per window beyond both nodes' compute (`window_loop_s / windows` −
     /// compute; the serial schedule runs the nodes one after the other).
     pub beyond_compute_us: Option<f64>,
-    /// Windows the coordinator lets run at once (`COSIM_WINDOWS_AHEAD`; 1 = lockstep), split
-    /// bar rows.
+    /// Windows the coordinator lets run at once on split bar rows (`COSIM_WINDOWS_AHEAD`;
+    /// 1 = lockstep); `None` on a split bar row: its own choice (the default; the mean it chose
+    /// is the breakdown's `windows_in_flight`).
     pub windows_ahead: Option<u64>,
     /// Where the window's time goes, µs per window (mean over runs): the coordinator's
     /// phases (`summary.json` `window_breakdown`), then each node's compute, coupling wait
@@ -160,7 +168,7 @@ fn measure(
             node: name.to_string(),
             bytes: Some(ECHO_BYTES),
             runs: size.runs,
-            windows: dts.len(),
+            windows: dts.len() * BLOCK,
             median_us: median * 1e6,
             p10_us: p10 * 1e6,
             p90_us: p90 * 1e6,
@@ -181,26 +189,35 @@ fn measure(
     let window = split_bar_window()?;
     let end = format!("run.end_time={:e}", window * size.split_bar_windows as f64);
     // Each transport in lockstep (each Advance after the last window's audit, as before
-    // issue 22) and pipelined (the default).
-    let transports = [("shm", 1u64), ("shm", 2), ("zenoh", 1), ("zenoh", 2)];
+    // issue 22), with two windows in flight, and as the coordinator chooses (`None`, the
+    // default: up to 8 in flight, sent in batches).
+    let transports = [
+        ("shm", Some(1u64)),
+        ("shm", Some(2)),
+        ("shm", None),
+        ("zenoh", Some(1)),
+        ("zenoh", Some(2)),
+        ("zenoh", None),
+    ];
     let mut times: Vec<Vec<f64>> = vec![Vec::new(); transports.len()];
     let mut compute = vec![0.0; transports.len()];
     let mut beyond = vec![0.0; transports.len()];
     let mut parts: Vec<Vec<(String, f64)>> = vec![Vec::new(); transports.len()];
     for r in 0..size.runs {
         for (i, (t, ahead)) in transports.iter().enumerate() {
-            let out = dir.join(format!("out-split-{t}-{ahead}-{r}"));
+            let label = ahead.map_or("auto".to_string(), |a| a.to_string());
+            let out = dir.join(format!("out-split-{t}-{label}-{r}"));
             let tr = format!("run.transport=\"{t}\"");
-            let ahead_s = ahead.to_string();
+            let ahead_env = [("COSIM_WINDOWS_AHEAD", label.as_str())];
             let (dts, summary) = run_case(
                 cosim,
                 &split,
                 &out,
                 &["--set", &end, "--set", &tr],
-                &[("COSIM_WINDOWS_AHEAD", &ahead_s)],
+                if ahead.is_some() { &ahead_env } else { &[] },
                 size.split_bar_windows,
             )
-            .with_context(|| format!("split bar on {t}, {ahead} window(s) ahead"))?;
+            .with_context(|| format!("split bar on {t}, windows in flight: {label}"))?;
             times[i].extend(dts);
             let (c, b) = compute_split(&summary)?;
             compute[i] += c / size.runs as f64;
@@ -221,14 +238,14 @@ fn measure(
             node: "rust".into(),
             bytes: None,
             runs: size.runs,
-            windows: times[i].len(),
+            windows: times[i].len() * BLOCK,
             median_us: median * 1e6,
             p10_us: p10 * 1e6,
             p90_us: p90 * 1e6,
             ratio_to_rust: None,
             compute_us: Some(compute[i] * 1e6),
             beyond_compute_us: Some(beyond[i] * 1e6),
-            windows_ahead: Some(*ahead),
+            windows_ahead: *ahead,
             breakdown: std::mem::take(&mut parts[i]),
         });
     }
@@ -375,6 +392,8 @@ fn run_case(
         .arg(out)
         .arg("--quiet")
         .args(extra)
+        // The schedule is the row's: a setting of the caller's shell does not leak in.
+        .env_remove("COSIM_WINDOWS_AHEAD")
         .envs(env.iter().copied())
         .env("COSIM_LOG", "warn")
         .stdout(Stdio::null())
@@ -397,7 +416,13 @@ fn run_case(
         );
     }
     t.sort_unstable();
-    let dts: Vec<f64> = t.windows(2).map(|w| (w[1] - w[0]) as f64 * 1e-9).collect();
+    // The coordinator audits windows in batches (several in flight, woken every second
+    // window), so one spacing says little: each sample is the mean of a block of BLOCK.
+    let dts: Vec<f64> = t
+        .windows(BLOCK + 1)
+        .step_by(BLOCK)
+        .map(|w| (w[BLOCK] - w[0]) as f64 * 1e-9 / BLOCK as f64)
+        .collect();
     let skip = dts.len() / 10;
     let summary = std::fs::read(out.join("summary.json"))
         .ok()
@@ -536,7 +561,7 @@ pub fn table(rows: &[WindowRow], missing: &[Missing], round_trip_1k: &[(String, 
             s,
             "| {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} |",
             r.transport,
-            r.windows_ahead.map_or("–".into(), |a| a.to_string()),
+            r.windows_ahead.map_or("auto".into(), |a| a.to_string()),
             r.runs,
             r.windows,
             r.median_us,
@@ -552,7 +577,8 @@ pub fn table(rows: &[WindowRow], missing: &[Missing], round_trip_1k: &[(String, 
     if let Some(first) = split.first() {
         let _ = writeln!(
             s,
-            "\nWhere a split bar window goes (columns: transport × windows in flight, 1 = lockstep; \
+            "\nWhere a split bar window goes (columns: transport × windows in flight, 1 = lockstep, \
+             auto = the coordinator's choice, its mean in the row windows in flight; \
              µs per window, mean over runs; the coordinator's phases, \
              then each node's compute, coupling wait and idle time; the serial chain overlaps \
              them, so they do not add up to the window):\n"
@@ -564,7 +590,7 @@ pub fn table(rows: &[WindowRow], missing: &[Missing], round_trip_1k: &[(String, 
                 head,
                 " {} × {} |",
                 r.transport,
-                r.windows_ahead.unwrap_or(1)
+                r.windows_ahead.map_or("auto".into(), |a| a.to_string())
             );
             rule.push_str("---:|");
         }

@@ -157,6 +157,19 @@ impl Recorder {
         sim_t: f64,
         data: &[u8],
     ) -> anyhow::Result<()> {
+        self.write_at(topic, json, sim_t, data, now_ns())
+    }
+
+    /// [`Recorder::write`] with the publish time given: when the coordinator saw the message,
+    /// not when a thread wrote it.
+    fn write_at(
+        &mut self,
+        topic: &str,
+        json: Option<(&str, &serde_json::Value)>,
+        sim_t: f64,
+        data: &[u8],
+        publish_ns: u64,
+    ) -> anyhow::Result<()> {
         let id = self.channel(topic, json)?;
         let seq = {
             let e = self.channels.get_mut(topic).map(|e| &mut e.1);
@@ -173,7 +186,7 @@ impl Recorder {
                 channel_id: id,
                 sequence: seq,
                 log_time: sim_ns(sim_t),
-                publish_time: now_ns(),
+                publish_time: publish_ns,
             },
             data,
         )?;
@@ -198,8 +211,20 @@ impl Recorder {
         sim_t: f64,
         v: &serde_json::Value,
     ) -> anyhow::Result<()> {
+        self.json_at(topic, schema_name, sim_t, v, now_ns())
+    }
+
+    /// [`Recorder::json`] with the publish time given.
+    fn json_at(
+        &mut self,
+        topic: &str,
+        schema_name: &str,
+        sim_t: f64,
+        v: &serde_json::Value,
+        publish_ns: u64,
+    ) -> anyhow::Result<()> {
         let data = serde_json::to_vec(v)?;
-        self.write(topic, Some((schema_name, v)), sim_t, &data)
+        self.write_at(topic, Some((schema_name, v)), sim_t, &data, publish_ns)
     }
 
     /// Close the current chunk and push it to disk.
@@ -477,6 +502,8 @@ enum Cmd {
         topic: std::sync::Arc<str>,
         sim_t: f64,
         data: Vec<u8>,
+        /// When the window loop handed it in (the record's publish time, ns since 1970).
+        at: u64,
     },
     /// A JSON document that may open a channel or add keys to its schema.
     Json {
@@ -484,6 +511,7 @@ enum Cmd {
         schema: String,
         sim_t: f64,
         doc: serde_json::Value,
+        at: u64,
     },
     FlushIfOlder(std::time::Duration),
     /// Close the current chunk; answer once it is written.
@@ -548,8 +576,13 @@ impl RecorderThread {
                     }
                 };
                 let mut one = |cmd: Cmd, rec: &mut Recorder| match cmd {
-                    Cmd::Write { topic, sim_t, data } => {
-                        if let Err(e) = rec.write(&topic, None, sim_t, &data) {
+                    Cmd::Write {
+                        topic,
+                        sim_t,
+                        data,
+                        at,
+                    } => {
+                        if let Err(e) = rec.write_at(&topic, None, sim_t, &data, at) {
                             warn(e);
                         }
                         let _ = back.try_send(data);
@@ -559,8 +592,9 @@ impl RecorderThread {
                         schema,
                         sim_t,
                         doc,
+                        at,
                     } => {
-                        if let Err(e) = rec.json(&topic, &schema, sim_t, &doc) {
+                        if let Err(e) = rec.json_at(&topic, &schema, sim_t, &doc, at) {
                             warn(e);
                         }
                     }
@@ -670,7 +704,12 @@ impl RecorderThread {
         let mut data = self.buffer();
         data.extend_from_slice(bytes);
         let topic = self.topic(topic);
-        self.push(Cmd::Write { topic, sim_t, data })
+        self.push(Cmd::Write {
+            topic,
+            sim_t,
+            data,
+            at: now_ns(),
+        })
     }
 
     /// [`Recorder::json`] on the thread.
@@ -695,6 +734,7 @@ impl RecorderThread {
             schema: schema_name.to_string(),
             sim_t,
             doc: v.clone(),
+            at: now_ns(),
         })
     }
 
@@ -726,7 +766,12 @@ impl RecorderThread {
         let mut data = self.buffer();
         serde_json::to_writer(&mut data, doc)?;
         let topic = self.topic(topic);
-        self.push(Cmd::Write { topic, sim_t, data })
+        self.push(Cmd::Write {
+            topic,
+            sim_t,
+            data,
+            at: now_ns(),
+        })
     }
 
     /// Close the current chunk once it is older than `age` (on the thread; returns at once).
