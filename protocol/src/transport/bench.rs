@@ -1,7 +1,8 @@
 //! Transport benchmark: the round trip of one coupling window as the coordinator sees it.
 //! Per round the coordinator encodes and sends an `Advance` envelope to an echo endpoint,
-//! which answers with a `Fields` envelope carrying the payload (n bytes of f64) and then a
-//! `Done`; the coordinator checks both with the full codec, reading the payload where it
+//! which answers with a `Fields` envelope carrying the payload (n bytes of f64), without
+//! waking it (as a node's data reaches the coordinator), and then a `Done` that wakes it;
+//! the coordinator checks both with the full codec, reading the payload where it
 //! lies ([`crate::codec::decode_fields_view`]). The table gives the median (and p10/p90) over
 //! the measured rounds next to the median time of one plain memcpy of the payload bytes, the
 //! floor any transport that copies the data has to pay, and (shared memory) a raw iceoryx2
@@ -333,11 +334,12 @@ fn echo_loop(t: &mut dyn Transport, run: &str, me: &str) -> Result<(), BenchErro
                     d.window = a.window;
                 }
                 // As a node sends its coupling data (participant runtime): in place where
-                // the transport allows.
-                for m in [&answer, &done] {
-                    seq += 1;
-                    up.send_message(run, me, seq, m, &mut buf)?;
-                }
+                // the transport allows, and without waking the coordinator, which the `Done`
+                // after it wakes (the runtime's data topics ring the peer only).
+                seq += 1;
+                up.send_message_quiet(run, me, seq, &answer, &mut buf)?;
+                seq += 1;
+                up.send_message(run, me, seq, &done, &mut buf)?;
             }
             Message::Finish(_) => return Ok(()),
             _ => {}

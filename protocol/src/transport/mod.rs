@@ -107,6 +107,20 @@ pub trait Publisher: Send {
         self.send(bytes)
     }
 
+    /// [`Publisher::send_message`] without waking the readers ([`Publisher::send_quiet`]).
+    fn send_message_quiet(
+        &mut self,
+        run: &str,
+        sender: &str,
+        seq: u64,
+        message: &crate::message::Message,
+        scratch: &mut Vec<u8>,
+    ) -> Result<(), TransportError> {
+        crate::codec::encode_into(scratch, run, sender, seq, message)
+            .map_err(|e| TransportError::Encode(e.to_string()))?;
+        self.send_quiet(scratch)
+    }
+
     /// Wake the readers for what was sent quietly; a no-op where every send wakes them.
     fn ring(&mut self) -> Result<(), TransportError> {
         Ok(())

@@ -354,6 +354,29 @@ impl ShmPublisher {
     }
 }
 
+impl ShmPublisher {
+    /// Encode `message` straight into a loaned sample and send it, ringing if `ring`.
+    fn encode_and_send(
+        &mut self,
+        run: &str,
+        sender: &str,
+        seq: u64,
+        message: &Message,
+        ring: bool,
+    ) -> Result<(), TransportError> {
+        let len = codec::encoded_len(run, sender, message)
+            .map_err(|e| self.err(format!("cannot encode: {e}")))?;
+        self.send_with(
+            len,
+            &mut |dst| {
+                codec::encode_into_uninit(dst, run, sender, seq, message)
+                    .map_err(|e| TransportError::Encode(e.to_string()))
+            },
+            ring,
+        )
+    }
+}
+
 impl Publisher for ShmPublisher {
     fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
         self.send_with(
@@ -390,16 +413,18 @@ impl Publisher for ShmPublisher {
         message: &Message,
         _scratch: &mut Vec<u8>,
     ) -> Result<(), TransportError> {
-        let len = codec::encoded_len(run, sender, message)
-            .map_err(|e| self.err(format!("cannot encode: {e}")))?;
-        self.send_with(
-            len,
-            &mut |dst| {
-                codec::encode_into_uninit(dst, run, sender, seq, message)
-                    .map_err(|e| TransportError::Encode(e.to_string()))
-            },
-            true,
-        )
+        self.encode_and_send(run, sender, seq, message, true)
+    }
+
+    fn send_message_quiet(
+        &mut self,
+        run: &str,
+        sender: &str,
+        seq: u64,
+        message: &Message,
+        _scratch: &mut Vec<u8>,
+    ) -> Result<(), TransportError> {
+        self.encode_and_send(run, sender, seq, message, false)
     }
 }
 
