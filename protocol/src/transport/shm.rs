@@ -137,18 +137,41 @@ fn open_bell(
         .map_err(|e| TransportError::Setup(format!("bell '{name}': {e:?}")))
 }
 
+/// Open (or create) `topic`'s service with [`queue_depth`]. A service created by a build
+/// whose control topics queued fewer messages ([`SUBSCRIBER_BUFFER`]) is opened as it is:
+/// ports then use its depth ([`depth_of`]), so a run mixing builds is slower, not refused.
 fn open_topic(node: &Node<Svc>, topic: &str) -> Result<Factory, TransportError> {
-    node.service_builder(&service_name(topic)?)
-        .publish_subscribe::<[u8]>()
-        .max_publishers(MAX_PUBLISHERS)
-        .max_subscribers(MAX_SUBSCRIBERS)
-        .max_nodes(MAX_NODES)
-        .subscriber_max_buffer_size(queue_depth(topic))
-        .subscriber_max_borrowed_samples(SUBSCRIBER_BORROWED)
-        .history_size(0)
-        .enable_safe_overflow(false)
-        .open_or_create()
-        .map_err(|e| TransportError::Setup(format!("topic '{topic}': {e:?}")))
+    use iceoryx2::service::builder::publish_subscribe::{
+        PublishSubscribeOpenError as Open, PublishSubscribeOpenOrCreateError as OpenOrCreate,
+    };
+    let name = service_name(topic)?;
+    let open = |depth: usize| {
+        node.service_builder(&name)
+            .publish_subscribe::<[u8]>()
+            .max_publishers(MAX_PUBLISHERS)
+            .max_subscribers(MAX_SUBSCRIBERS)
+            .max_nodes(MAX_NODES)
+            .subscriber_max_buffer_size(depth)
+            .subscriber_max_borrowed_samples(SUBSCRIBER_BORROWED)
+            .history_size(0)
+            .enable_safe_overflow(false)
+            .open_or_create()
+            .map_err(|e| (e, TransportError::Setup(format!("topic '{topic}': {e:?}"))))
+    };
+    let wanted = queue_depth(topic);
+    match open(wanted) {
+        Err((
+            OpenOrCreate::PublishSubscribeOpenError(Open::DoesNotSupportRequestedMinBufferSize),
+            _,
+        )) if wanted > SUBSCRIBER_BUFFER => open(SUBSCRIBER_BUFFER).map_err(|e| e.1),
+        r => r.map_err(|e| e.1),
+    }
+}
+
+/// The queue depth ports of `topic` use: [`queue_depth`], or less where the service was
+/// created with less ([`open_topic`]).
+fn depth_of(service: &Factory, topic: &str) -> usize {
+    queue_depth(topic).min(service.static_config().subscriber_max_buffer_size())
 }
 
 /// Every sample starts with the publisher's tag and the message's sequence number (u64 LE
@@ -434,9 +457,9 @@ impl Transport for ShmTransport {
         topic: &str,
         readers: &[String],
     ) -> Result<Box<dyn Publisher>, TransportError> {
-        let depth = queue_depth(topic);
-        let publisher = self
-            .topic(topic)?
+        let service = self.topic(topic)?;
+        let depth = depth_of(service, topic);
+        let publisher = service
             .publisher_builder()
             .initial_max_slice_len(INITIAL_SLICE)
             .allocation_strategy(AllocationStrategy::PowerOfTwo)
@@ -480,10 +503,10 @@ impl Transport for ShmTransport {
     }
 
     fn subscribe(&mut self, topic: &str) -> Result<TopicId, TransportError> {
-        let sub = self
-            .topic(topic)?
+        let service = self.topic(topic)?;
+        let sub = service
             .subscriber_builder()
-            .buffer_size(queue_depth(topic))
+            .buffer_size(depth_of(service, topic))
             .create()
             .map_err(|e| TransportError::Setup(format!("subscriber on '{topic}': {e:?}")))?;
         self.subs.push(ShmSubscriber {
