@@ -1,8 +1,6 @@
 //! zenoh transport (ARCHITECTURE §6, §9, §11): the coordinator's session is a zenoh router
 //! listening on loopback (or where the case says), every node is a client connected to it, so
-//! all traffic passes the router; on one host (loopback only) the nodes are peers that
-//! connect to each other through gossip, so coupling data skips the router. Multicast
-//! scouting is off. Subscriptions feed one channel, so `recv`
+//! all traffic passes the router. Scouting is off. Subscriptions feed one channel, so `recv`
 //! waits on all topics at once; liveliness tokens under `cosim/<run>/alive/<endpoint>` let the
 //! coordinator see a node die (its socket closes) within milliseconds.
 
@@ -64,31 +62,10 @@ fn config(spec: &TransportSpec) -> Result<Config, TransportError> {
         c.insert_json5(key, value)
             .map_err(|e| TransportError::Setup(format!("zenoh config {key} = {value}: {e}")))
     };
-    // On one host (every locator on loopback) the nodes are peers that learn each other's
-    // locators from the router (gossip) and connect directly, so coupling data takes one hop
-    // instead of two through the router; across hosts they stay clients of the router.
-    let local = |l: &[String]| !l.is_empty() && l.iter().all(|e| e.starts_with("tcp/127.0.0.1:"));
-    let p2p = local(&spec.listen) || local(&spec.connect);
-    let (mode, listen) = if mode == "client" && p2p {
-        ("peer", vec!["tcp/127.0.0.1:0".to_string()])
-    } else {
-        (mode, spec.listen.clone())
-    };
     set(&mut c, "mode", &format!("{mode:?}"))?;
     set(&mut c, "scouting/multicast/enabled", "false")?;
-    set(
-        &mut c,
-        "scouting/gossip/enabled",
-        if p2p { "true" } else { "false" },
-    )?;
-    if p2p {
-        set(
-            &mut c,
-            "scouting/gossip/autoconnect",
-            r#"{ router: [], peer: ["router", "peer"] }"#,
-        )?;
-    }
-    set(&mut c, "listen/endpoints", &json_list(&listen))?;
+    set(&mut c, "scouting/gossip/enabled", "false")?;
+    set(&mut c, "listen/endpoints", &json_list(&spec.listen))?;
     set(&mut c, "connect/endpoints", &json_list(&spec.connect))?;
     // Site-specific settings (TLS, interfaces, timeouts, ...): `key=json5;key=json5` in
     // COSIM_ZENOH_CONFIG, applied on top of the above.
