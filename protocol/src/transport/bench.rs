@@ -1,9 +1,9 @@
 //! Transport benchmark: the round trip of one coupling window as the coordinator sees it.
 //! Per round the coordinator encodes and sends an `Advance` envelope to an echo endpoint,
-//! which answers with a `Fields` envelope carrying the payload (n bytes of f64), without
-//! waking it (as a node's data reaches the coordinator), and then a `Done` that wakes it;
-//! the coordinator checks both with the full codec, reading the payload where it
-//! lies ([`crate::codec::decode_fields_view`]). The table gives the median (and p10/p90) over
+//! which answers with a `Fields` envelope carrying the payload (n bytes of f64) on a data
+//! topic, without waking it (as a node's data reaches the coordinator), and then a `Done`
+//! that wakes it; the coordinator checks both with the full codec, reading the payload where
+//! it lies ([`crate::codec::decode_fields_view`]). The table gives the median (and p10/p90) over
 //! the measured rounds next to the median time of one plain memcpy of the payload bytes, the
 //! floor any transport that copies the data has to pay, and (shared memory) a raw iceoryx2
 //! round trip of the same bytes (the `Advance` down, the `Fields` envelope up), the floor of
@@ -29,6 +29,8 @@ use thiserror::Error;
 pub const ECHO_SPEC_ENV: &str = "COSIM_BENCH_ECHO_SPEC";
 /// Payload sizes of the standard table: 1 KiB, 64 KiB, 1 MiB, 8 MiB.
 pub const DEFAULT_SIZES: [usize; 4] = [1 << 10, 1 << 16, 1 << 20, 8 << 20];
+/// The coupling the payload travels on (its data topic: `topic::data(run, "bench", "echo")`).
+const BENCH_COUPLING: &str = "bench";
 /// The echo side's endpoint name.
 pub const ECHO_ENDPOINT: &str = "echo";
 const COORDINATOR: &str = "coordinator";
@@ -297,6 +299,12 @@ pub fn echo_spec_from_env() -> Result<TransportSpec, BenchError> {
 fn echo_loop(t: &mut dyn Transport, run: &str, me: &str) -> Result<(), BenchError> {
     t.subscribe(&topic::down(run, me))?;
     let mut up = t.publisher(&topic::up(run, me), &[COORDINATOR.to_string()])?;
+    // The payload goes on a data topic, as a node's coupling data does (its queue depth and
+    // sample pool are a data topic's).
+    let mut data = t.publisher(
+        &topic::data(run, BENCH_COUPLING, me),
+        &[COORDINATOR.to_string()],
+    )?;
     let mut answer = payload(0, Vec::new());
     let mut done = Message::Done(Done {
         window: 0,
@@ -337,7 +345,7 @@ fn echo_loop(t: &mut dyn Transport, run: &str, me: &str) -> Result<(), BenchErro
                 // the transport allows, and without waking the coordinator, which the `Done`
                 // after it wakes (the runtime's data topics ring the peer only).
                 seq += 1;
-                up.send_message_quiet(run, me, seq, &answer, &mut buf)?;
+                data.send_message_quiet(run, me, seq, &answer, &mut buf)?;
                 seq += 1;
                 up.send_message(run, me, seq, &done, &mut buf)?;
             }
@@ -409,7 +417,7 @@ fn await_window(
 /// The benchmarks' window data: one `Fields` message of coupling `bench` holding `values`.
 fn payload(window: u64, values: Vec<f64>) -> Message {
     Message::Fields(Fields {
-        coupling: "bench".into(),
+        coupling: BENCH_COUPLING.into(),
         window,
         time: 0.0,
         fields: vec![Field {
@@ -443,6 +451,7 @@ fn drive(
     rounds: usize,
 ) -> Result<Vec<BenchRow>, BenchError> {
     t.subscribe(&topic::up(run, ECHO_ENDPOINT))?;
+    t.subscribe(&topic::data(run, BENCH_COUPLING, ECHO_ENDPOINT))?;
     let mut down = t.publisher(
         &topic::down(run, ECHO_ENDPOINT),
         &[ECHO_ENDPOINT.to_string()],
