@@ -345,7 +345,7 @@ fn echo_loop(t: &mut dyn Transport, run: &str, me: &str) -> Result<(), BenchErro
                 // the transport allows, and without waking the coordinator, which the `Done`
                 // after it wakes (the runtime's data topics ring the peer only).
                 seq += 1;
-                data.send_message_quiet(run, me, seq, &answer, &mut buf)?;
+                data.send_message_ringing(run, me, seq, &answer, &mut buf, false)?;
                 seq += 1;
                 up.send_message(run, me, seq, &done, &mut buf)?;
             }

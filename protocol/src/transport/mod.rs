@@ -91,9 +91,7 @@ pub trait Publisher: Send {
         message: &crate::message::Message,
         scratch: &mut Vec<u8>,
     ) -> Result<(), TransportError> {
-        crate::codec::encode_into(scratch, run, sender, seq, message)
-            .map_err(|e| TransportError::Encode(e.to_string()))?;
-        self.send(scratch)
+        self.send_message_ringing(run, sender, seq, message, scratch, true)
     }
 
     /// Send without waking the readers: on shared memory no bell rings, so a reader asleep in
@@ -107,18 +105,24 @@ pub trait Publisher: Send {
         self.send(bytes)
     }
 
-    /// [`Publisher::send_message`] without waking the readers ([`Publisher::send_quiet`]).
-    fn send_message_quiet(
+    /// [`Publisher::send_message`], waking the readers only if `ring`
+    /// ([`Publisher::send_quiet`]). Transports that encode in place override this one.
+    fn send_message_ringing(
         &mut self,
         run: &str,
         sender: &str,
         seq: u64,
         message: &crate::message::Message,
         scratch: &mut Vec<u8>,
+        ring: bool,
     ) -> Result<(), TransportError> {
         crate::codec::encode_into(scratch, run, sender, seq, message)
             .map_err(|e| TransportError::Encode(e.to_string()))?;
-        self.send_quiet(scratch)
+        if ring {
+            self.send(scratch)
+        } else {
+            self.send_quiet(scratch)
+        }
     }
 
     /// Wake the readers for what was sent quietly; a no-op where every send wakes them.

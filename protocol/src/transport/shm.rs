@@ -378,13 +378,40 @@ impl ShmPublisher {
 }
 
 impl ShmPublisher {
-    /// Encode `message` straight into a loaned sample and send it, ringing if `ring`.
-    fn encode_and_send(
+    /// Send `bytes` as one message, ringing the readers if `ring`.
+    fn send_bytes(&mut self, bytes: &[u8], ring: bool) -> Result<(), TransportError> {
+        self.send_with(
+            bytes.len(),
+            &mut |dst| {
+                dst.write_copy_of_slice(bytes);
+                Ok(())
+            },
+            ring,
+        )
+    }
+}
+
+impl Publisher for ShmPublisher {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+        self.send_bytes(bytes, true)
+    }
+
+    fn send_quiet(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+        self.send_bytes(bytes, false)
+    }
+
+    fn ring(&mut self) -> Result<(), TransportError> {
+        self.ring_bells()
+    }
+
+    /// Encodes straight into the loaned sample: the message's only copy on this side.
+    fn send_message_ringing(
         &mut self,
         run: &str,
         sender: &str,
         seq: u64,
         message: &Message,
+        _scratch: &mut Vec<u8>,
         ring: bool,
     ) -> Result<(), TransportError> {
         let len = codec::encoded_len(run, sender, message)
@@ -397,57 +424,6 @@ impl ShmPublisher {
             },
             ring,
         )
-    }
-}
-
-impl Publisher for ShmPublisher {
-    fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
-        self.send_with(
-            bytes.len(),
-            &mut |dst| {
-                dst.write_copy_of_slice(bytes);
-                Ok(())
-            },
-            true,
-        )
-    }
-
-    fn send_quiet(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
-        self.send_with(
-            bytes.len(),
-            &mut |dst| {
-                dst.write_copy_of_slice(bytes);
-                Ok(())
-            },
-            false,
-        )
-    }
-
-    fn ring(&mut self) -> Result<(), TransportError> {
-        self.ring_bells()
-    }
-
-    /// Encodes straight into the loaned sample: the message's only copy on this side.
-    fn send_message(
-        &mut self,
-        run: &str,
-        sender: &str,
-        seq: u64,
-        message: &Message,
-        _scratch: &mut Vec<u8>,
-    ) -> Result<(), TransportError> {
-        self.encode_and_send(run, sender, seq, message, true)
-    }
-
-    fn send_message_quiet(
-        &mut self,
-        run: &str,
-        sender: &str,
-        seq: u64,
-        message: &Message,
-        _scratch: &mut Vec<u8>,
-    ) -> Result<(), TransportError> {
-        self.encode_and_send(run, sender, seq, message, false)
     }
 }
 
@@ -827,4 +803,69 @@ fn live_nodes_after_cleanup(run: &str) -> usize {
         return 1;
     }
     alive
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::message::topic;
+    use crate::transport::TransportKind;
+
+    /// A control topic whose service an older build created with 4 places per queue is opened
+    /// at that depth (not refused), and carries messages in order both ways of sending.
+    #[test]
+    fn a_control_topic_created_with_the_old_depth_is_opened_at_it() {
+        let run = format!("depth{}", std::process::id());
+        let topic = topic::down(&run, "a");
+        assert_eq!(queue_depth(&topic), CONTROL_BUFFER);
+        let config = run_config(&run).expect("config");
+        let old_node = NodeBuilder::new()
+            .config(&config)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<Svc>()
+            .expect("node");
+        let old = old_node
+            .service_builder(&service_name(&topic).expect("name"))
+            .publish_subscribe::<[u8]>()
+            .max_publishers(MAX_PUBLISHERS)
+            .max_subscribers(MAX_SUBSCRIBERS)
+            .max_nodes(MAX_NODES)
+            .subscriber_max_buffer_size(SUBSCRIBER_BUFFER)
+            .subscriber_max_borrowed_samples(SUBSCRIBER_BORROWED)
+            .history_size(0)
+            .enable_safe_overflow(false)
+            .create()
+            .expect("the old build's service");
+        let spec = TransportSpec {
+            kind: TransportKind::Shm,
+            run: run.clone(),
+            endpoint: "a".into(),
+            listen: vec![],
+            connect: vec![],
+        };
+        let mut t = ShmTransport::open(&spec).expect("transport");
+        t.subscribe(&topic).expect("opened at the old depth");
+        let mut p = t.publisher(&topic, &["a".to_string()]).expect("publisher");
+        for i in 0..SUBSCRIBER_BUFFER as u8 {
+            if i % 2 == 0 {
+                p.send(&[i]).expect("send");
+            } else {
+                p.send_quiet(&[i]).expect("quiet send");
+            }
+        }
+        p.ring().expect("ring");
+        let mut got = Vec::new();
+        while t
+            .recv(Duration::from_millis(50), &mut |_, b| got.push(b.to_vec()))
+            .expect("recv")
+        {}
+        let want: Vec<Vec<u8>> = (0..SUBSCRIBER_BUFFER as u8).map(|i| vec![i]).collect();
+        assert_eq!(got, want);
+        assert_eq!(
+            old.static_config().subscriber_max_buffer_size(),
+            SUBSCRIBER_BUFFER
+        );
+        drop((p, t, old, old_node));
+        cleanup_run(&run);
+    }
 }
