@@ -67,6 +67,9 @@ pub struct Profile {
     /// Allocations on this thread when the window loop started (None: not counted).
     allocs_at_start: Option<u64>,
     allocs: Option<u64>,
+    /// Of those, made inside the transport (iceoryx2 allocates a small shared state for every
+    /// sample it loans; zenoh allocates per message).
+    transport_allocs: u64,
 }
 
 impl Default for Profile {
@@ -75,6 +78,7 @@ impl Default for Profile {
             ns: [0; Phase::ALL.len()],
             allocs_at_start: None,
             allocs: None,
+            transport_allocs: 0,
         }
     }
 }
@@ -91,6 +95,11 @@ impl Profile {
             (Some(a), Some(b)) => Some(b - a),
             _ => None,
         };
+    }
+
+    /// Count `n` of this thread's allocations as the transport's.
+    pub fn add_transport_allocs(&mut self, n: u64) {
+        self.transport_allocs += n;
     }
 
     /// Add the time since `since` to `phase`; returns now, for the next phase.
@@ -117,10 +126,18 @@ impl Profile {
         for p in Phase::ALL {
             m.insert(p.key().into(), (self.seconds(p) * 1e6 / w).into());
         }
+        // The window loop's own (bookkeeping, audit, reports, recording), and the transport's.
         m.insert(
             "allocations_per_window".into(),
-            self.allocs
-                .map_or(serde_json::Value::Null, |a| (a as f64 / w).into()),
+            self.allocs.map_or(serde_json::Value::Null, |a| {
+                (a.saturating_sub(self.transport_allocs) as f64 / w).into()
+            }),
+        );
+        m.insert(
+            "transport_allocations_per_window".into(),
+            self.allocs.map_or(serde_json::Value::Null, |_| {
+                (self.transport_allocs as f64 / w).into()
+            }),
         );
         serde_json::Value::Object(m)
     }
@@ -161,6 +178,11 @@ unsafe impl GlobalAlloc for CountingAlloc {
         // SAFETY: forwarded with the caller's guarantees.
         unsafe { System.realloc(ptr, layout, new_size) }
     }
+}
+
+/// Allocations made by this thread so far (0 when [`CountingAlloc`] is not installed).
+pub fn allocations_now() -> u64 {
+    ALLOCS.try_with(|c| c.get()).unwrap_or(0)
 }
 
 /// Allocations made by this thread so far; None when [`CountingAlloc`] is not installed

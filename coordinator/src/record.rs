@@ -533,6 +533,11 @@ const HANDOVER: std::time::Duration = std::time::Duration::from_millis(1);
 /// Commands queued for the recorder thread before the window loop waits for it (a full queue
 /// holds the loop back: nothing is ever dropped).
 const QUEUE: usize = 4096;
+/// Message buffers in the pool before the first message, and their capacity: a recorder
+/// thread lagging by a few hundred messages (a busy machine) finds them there instead of the
+/// window loop allocating new ones.
+const POOLED: usize = 512;
+const POOLED_BYTES: usize = 512;
 
 /// The recorder on a thread of its own (issue 22): the window loop hands it each message's
 /// bytes through a bounded queue and goes on, so MCAP writes, compression and flushes never
@@ -566,6 +571,12 @@ impl RecorderThread {
         let (tx, rx) = std::sync::mpsc::sync_channel::<Cmd>(QUEUE);
         let (back, pool) = std::sync::mpsc::sync_channel::<Vec<u8>>(QUEUE);
         let (batches_back, batches) = std::sync::mpsc::sync_channel::<Vec<Cmd>>(4);
+        for _ in 0..POOLED {
+            let _ = back.try_send(Vec::with_capacity(POOLED_BYTES));
+        }
+        for _ in 0..4 {
+            let _ = batches_back.try_send(Vec::with_capacity(BATCH));
+        }
         let handle = std::thread::Builder::new()
             .name("cosim-recorder".into())
             .spawn(move || -> anyhow::Result<(u64, u64)> {

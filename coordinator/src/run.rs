@@ -99,6 +99,8 @@ struct NodeRt {
     ahead: VecDeque<(u64, StepReport)>,
     /// The recording's channel of its per-window reports: `/cosim/node/<name>`.
     report_topic: String,
+    /// The topic of what the coordinator sends it (its recording channel).
+    down_topic: String,
 }
 
 /// A node's report of one window as recorded on `/cosim/node/<name>` (schema
@@ -206,6 +208,13 @@ struct Coord<'a> {
     pending: Vec<usize>,
     /// When [`Coord::check_health`] last ran in [`Coord::wait_all`].
     health_at: Instant,
+    /// Per node, the report of its `Done` being received, read in place
+    /// (`codec::decode_done_into`), then swapped with the node's: once the node's scalar
+    /// names have been seen, the window loop allocates nothing for it.
+    inbox: Vec<StepReport>,
+    /// Per node, its reports returned from `NodeRt::ahead` once audited, reused for the next
+    /// ones.
+    spare: Vec<Vec<StepReport>>,
 }
 
 /// How often [`Coord::wait_all`] checks the nodes' health while messages keep arriving.
@@ -213,11 +222,15 @@ const HEALTH_EVERY: Duration = Duration::from_millis(2);
 
 /// A message as [`Coord::pump_one`] received it.
 enum Got {
-    /// Decoded in full.
-    Full(Result<Envelope, codec::CodecError>),
+    /// Decoded in full: the message if it came from the topic's node and run, else the sender
+    /// and run it claims.
+    Full(Result<Result<Message, (String, String)>, codec::CodecError>),
     /// Peer data checked in place (no lagrange hub reads it): whether it came from the topic's
     /// node and run, else the sender and run it claims.
     Fields(Result<(), (String, String)>),
+    /// A `Done`, its report read into `Coord::done`: its window if it came from the topic's
+    /// node and run, else the sender and run it claims.
+    Done(Result<u64, (String, String)>),
 }
 
 /// What a lagrange hub takes from a side.
@@ -367,15 +380,19 @@ impl<'a> Coord<'a> {
             node: self.nodes[i].name.clone(),
             reason: format!("cannot encode {}: {e}", m.type_name()),
         })?;
-        let topic = topic::down(&self.run, &self.nodes[i].name);
-        let _ = self.rec.message(&topic, self.sim_t, &self.buf);
+        let _ = self
+            .rec
+            .message(&self.nodes[i].down_topic, self.sim_t, &self.buf);
         let down = &mut self.nodes[i].down;
-        if ring {
+        let a0 = crate::profile::allocations_now();
+        let r = if ring {
             down.send(&self.buf)
         } else {
             down.send_quiet(&self.buf)
-        }
-        .map_err(|e| Fault {
+        };
+        self.prof
+            .add_transport_allocs(crate::profile::allocations_now() - a0);
+        r.map_err(|e| Fault {
             node: self.nodes[i].name.clone(),
             reason: format!("send failed: {e}"),
         })
@@ -495,36 +512,53 @@ impl<'a> Coord<'a> {
         // lies: a large field is never copied out of the transport's buffer.
         let in_place = self.hubs.is_empty();
         let (run, nodes) = (self.run.as_str(), &self.nodes);
+        let inbox = &mut self.inbox;
         let entered = Instant::now();
         let (mut in_cb, mut recorded) = (0u64, 0u64);
+        // Allocations in the transport's receive, its callback (ours) excepted.
+        let (a0, mut cb_allocs) = (crate::profile::allocations_now(), 0u64);
         let r = self.t.recv(timeout, &mut |id, bytes| {
             let cb = Instant::now();
-            let (dec, fields_window) =
-                if in_place && codec::header(bytes).is_ok_and(|h| h.kind == codec::FIELDS_KIND) {
-                    match codec::decode_fields_view(bytes) {
-                        Ok(v) => {
-                            let owner = topics.get(id).map(|(_, t)| match t {
-                                Topic::Up(i) | Topic::Data(i) => *i,
-                            });
-                            let claimed = (v.run == run
-                                && owner.is_some_and(|i| nodes[i].name == v.sender))
-                            .then_some(())
-                            .ok_or_else(|| (v.sender.to_string(), v.run.to_string()));
-                            (Got::Fields(claimed), Some(v.window))
-                        }
-                        Err(e) => (Got::Full(Err(e)), None),
+            let cb_a0 = crate::profile::allocations_now();
+            let kind = codec::header(bytes).map(|h| h.kind).ok();
+            let owner = topics.get(id).map(|(_, t)| match t {
+                Topic::Up(i) | Topic::Data(i) => *i,
+            });
+            let claimed = |sender: &str, r: &str| {
+                (r == run && owner.is_some_and(|i| nodes[i].name == sender))
+                    .then_some(())
+                    .ok_or_else(|| (sender.to_string(), r.to_string()))
+            };
+            let (dec, fields_window) = if let Some(report) = owner
+                .and_then(|i| inbox.get_mut(i))
+                .filter(|_| kind == Some(codec::DONE_KIND))
+            {
+                // Every node's Done, every window: its report is read in place.
+                match codec::decode_done_into(bytes, report) {
+                    Ok(h) => (Got::Done(claimed(h.sender, h.run).map(|_| h.window)), None),
+                    Err(e) => (Got::Full(Err(e)), None),
+                }
+            } else if in_place && kind == Some(codec::FIELDS_KIND) {
+                match codec::decode_fields_head(bytes) {
+                    Ok(v) => (Got::Fields(claimed(v.sender, v.run)), Some(v.window)),
+                    Err(e) => (Got::Full(Err(e)), None),
+                }
+            } else {
+                // Run and sender stay in the bytes: a heartbeat allocates nothing.
+                match codec::decode_ref(bytes) {
+                    Ok(e) => {
+                        let w = match &e.message {
+                            Message::Fields(f) => Some(f.window),
+                            _ => None,
+                        };
+                        (
+                            Got::Full(Ok(claimed(e.sender, e.run).map(|_| e.message))),
+                            w,
+                        )
                     }
-                } else {
-                    let dec = codec::decode(bytes);
-                    let w = match &dec {
-                        Ok(Envelope {
-                            message: Message::Fields(f),
-                            ..
-                        }) => Some(f.window),
-                        _ => None,
-                    };
-                    (Got::Full(dec), w)
-                };
+                    Err(e) => (Got::Full(Err(e)), None),
+                }
+            };
             let keep = fields_window.is_none_or(|w| every <= 1 || w % every == 0);
             let r0 = Instant::now();
             if keep && let Some((name, _)) = topics.get(id) {
@@ -533,7 +567,10 @@ impl<'a> Coord<'a> {
             got = Some((id, dec));
             recorded += r0.elapsed().as_nanos() as u64;
             in_cb += cb.elapsed().as_nanos() as u64;
+            cb_allocs += crate::profile::allocations_now() - cb_a0;
         });
+        let transport = crate::profile::allocations_now() - a0 - cb_allocs;
+        self.prof.add_transport_allocs(transport);
         let blocked = (entered.elapsed().as_nanos() as u64).saturating_sub(in_cb);
         self.prof.add_ns(Phase::Blocked, blocked);
         self.prof.add_ns(Phase::RecordMessages, recorded);
@@ -566,23 +603,37 @@ impl<'a> Coord<'a> {
                 n.last_seen = Instant::now();
                 return Ok(true);
             }
+            Got::Done(claimed) => {
+                let n = &mut self.nodes[owner];
+                match claimed {
+                    Err((sender, run)) => {
+                        return Err(Fault {
+                            node: n.name.clone(),
+                            reason: format!(
+                                "message on {tname} claims sender '{sender}' of run '{run}'"
+                            ),
+                        });
+                    }
+                    Ok(w) => {
+                        n.last_seen = Instant::now();
+                        let (inbox, spare) = (&mut self.inbox[owner], &mut self.spare[owner]);
+                        take_done(n, w, self.window, inbox, spare);
+                        return Ok(true);
+                    }
+                }
+            }
         };
-        let env = dec.map_err(|e| Fault {
+        let claimed = dec.map_err(|e| Fault {
             node: self.nodes[owner].name.clone(),
             reason: format!("malformed message on {tname}: {e}"),
         })?;
         let n = &mut self.nodes[owner];
-        if env.sender != n.name || env.run != self.run {
-            return Err(Fault {
-                node: n.name.clone(),
-                reason: format!(
-                    "message on {tname} claims sender '{}' of run '{}'",
-                    env.sender, env.run
-                ),
-            });
-        }
+        let message = claimed.map_err(|(sender, run)| Fault {
+            node: n.name.clone(),
+            reason: format!("message on {tname} claims sender '{sender}' of run '{run}'"),
+        })?;
         n.last_seen = Instant::now();
-        match env.message {
+        match message {
             Message::Hello(h) => {
                 if h.protocol_version != codec::PROTOCOL_VERSION {
                     return Err(Fault {
@@ -629,24 +680,14 @@ impl<'a> Coord<'a> {
                     }
                 }
             }
-            Message::Done(d) => {
-                let ahead = d.window > self.window;
-                n.done = Some(d.window);
-                n.waiting_since = None;
-                n.substeps += d.report.substeps;
-                n.idle_s += d.report.idle_s;
-                n.wall_s += d.report.wall_s;
-                n.wait_s += d.report.coupling_wait_s;
-                if d.window == 0 {
-                    n.initial_energy =
-                        d.report.kinetic_energy + d.report.internal_energy + d.report.dissipated();
-                    n.initial_momentum = d.report.momentum;
-                }
-                if ahead {
-                    n.ahead.push_back((d.window, d.report));
-                } else {
-                    n.report = d.report;
-                }
+            Message::Done(mut d) => {
+                take_done(
+                    n,
+                    d.window,
+                    self.window,
+                    &mut d.report,
+                    &mut self.spare[owner],
+                );
             }
             Message::Heartbeat(h) => {
                 if !h.waiting {
@@ -812,6 +853,37 @@ impl<'a> Coord<'a> {
 /// Wait for the remote nodes to join (ARCHITECTURE §6): as long as a person needs, up to
 /// `run.join_timeout`, naming who is still missing every few seconds. The local nodes wait
 /// meanwhile (they are alive; only their exit or lost connection is a fault).
+/// A node's `Done` of `window` (its report in `report`) while the coordinator is at window
+/// `at`: the node's totals, and the report as the node's current one, or queued when it is of
+/// a later window (pipelining). `report` is swapped, not moved: it comes back holding a
+/// report's buffers (the replaced one, or a spare), so reading the next `Done` into it
+/// allocates nothing.
+fn take_done(
+    n: &mut NodeRt,
+    window: u64,
+    at: u64,
+    report: &mut StepReport,
+    spare: &mut Vec<StepReport>,
+) {
+    n.done = Some(window);
+    n.waiting_since = None;
+    n.substeps += report.substeps;
+    n.idle_s += report.idle_s;
+    n.wall_s += report.wall_s;
+    n.wait_s += report.coupling_wait_s;
+    if window == 0 {
+        n.initial_energy = report.kinetic_energy + report.internal_energy + report.dissipated();
+        n.initial_momentum = report.momentum;
+    }
+    if window > at {
+        let mut queued = spare.pop().unwrap_or_default();
+        std::mem::swap(&mut queued, report);
+        n.ahead.push_back((window, queued));
+    } else {
+        std::mem::swap(&mut n.report, report);
+    }
+}
+
 fn wait_for_joins(c: &mut Coord, remote: &[usize]) -> Result<(), Fault> {
     const NOTE_EVERY: Duration = Duration::from_secs(5);
     let limit = c.case.run.join_timeout;
@@ -1095,6 +1167,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             finished: None,
             ahead: VecDeque::with_capacity(4),
             report_topic: format!("/cosim/node/{}", n.name),
+            down_topic: topic::down(&run_id, &n.name),
         });
     }
     let mut c = Coord {
@@ -1120,6 +1193,10 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         last_recv_ns: (0, 0),
         pending: Vec::with_capacity(case.nodes.len()),
         health_at: Instant::now(),
+        inbox: vec![StepReport::default(); case.nodes.len()],
+        spare: (0..case.nodes.len())
+            .map(|_| Vec::with_capacity(MAX_AHEAD as usize + 1))
+            .collect(),
     };
     let started = Instant::now();
     let result = drive(&mut c, &out, &order, &listen, opts);
@@ -1833,10 +1910,10 @@ fn drive(
         }
         let auditing = Instant::now();
         // Reports of later windows that came in meanwhile wait for their own audit.
-        for n in &mut c.nodes {
+        for (n, spare) in c.nodes.iter_mut().zip(&mut c.spare) {
             while n.ahead.front().is_some_and(|(w, _)| *w <= k) {
                 if let Some((_, r)) = n.ahead.pop_front() {
-                    n.report = r;
+                    spare.push(std::mem::replace(&mut n.report, r));
                 }
             }
         }

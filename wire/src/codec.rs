@@ -3,8 +3,9 @@
 //! body (`config::standard()`) of run, sender and message. Decoding checks every header field and
 //! the exact body length before bincode sees a byte, and caps allocations, so no input panics.
 
-use crate::message::Message;
+use crate::message::{Message, StepReport};
 use bincode::config;
+use serde::de::{DeserializeSeed, Deserializer, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -53,10 +54,20 @@ struct BodyRef<'a> {
 }
 
 #[derive(Deserialize)]
-struct Body {
-    run: String,
-    sender: String,
+struct Body<'a> {
+    run: &'a str,
+    sender: &'a str,
     message: Message,
+}
+
+/// An envelope whose run and sender borrow the received bytes ([`decode_ref`]): a message
+/// without strings of its own (a heartbeat, say) is read without allocating.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EnvelopeRef<'a> {
+    pub run: &'a str,
+    pub sender: &'a str,
+    pub seq: u64,
+    pub message: Message,
 }
 
 /// Header fields readable without decoding the body (used by the recorder).
@@ -221,6 +232,16 @@ pub fn header(bytes: &[u8]) -> Result<Header, CodecError> {
 
 /// Decode a whole envelope. Never panics; every malformed input is an error.
 pub fn decode(bytes: &[u8]) -> Result<Envelope, CodecError> {
+    decode_ref(bytes).map(|e| Envelope {
+        run: e.run.to_string(),
+        sender: e.sender.to_string(),
+        seq: e.seq,
+        message: e.message,
+    })
+}
+
+/// [`decode`] with the run and sender left in `bytes`. Never panics.
+pub fn decode_ref(bytes: &[u8]) -> Result<EnvelopeRef<'_>, CodecError> {
     let h = header(bytes)?;
     let body = &bytes[HEADER_LEN..];
     // The limit bounds every length prefix inside the body, so a forged vector length
@@ -237,7 +258,7 @@ pub fn decode(bytes: &[u8]) -> Result<Envelope, CodecError> {
             body: b.message.kind(),
         });
     }
-    Ok(Envelope {
+    Ok(EnvelopeRef {
         run: b.run,
         sender: b.sender,
         seq: h.seq,
@@ -302,16 +323,125 @@ impl<'a> FieldView<'a> {
 
 /// The body of an envelope holding `Message::Fields`, field by field as bincode lays it out:
 /// the enum's variant index is a varint like a `u32`, then the `Fields` struct.
+/// `F` holds the fields: a vector of views, or [`CheckedFields`].
 #[derive(Deserialize)]
-struct FieldsBody<'a> {
+#[serde(bound(deserialize = "F: Deserialize<'de>"))]
+struct FieldsBody<'a, F> {
     run: &'a str,
     sender: &'a str,
     variant: u32,
     coupling: &'a str,
     window: u64,
     time: f64,
-    #[serde(borrow)]
-    fields: Vec<FieldView<'a>>,
+    fields: F,
+}
+
+/// The fields of a `Fields` body checked as they are read (each a whole number of f64
+/// values), and not kept: [`decode_fields_head`] allocates nothing.
+struct CheckedFields;
+
+impl<'de> Deserialize<'de> for CheckedFields {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_seq(CheckedFields)
+    }
+}
+
+impl<'de> Visitor<'de> for CheckedFields {
+    type Value = CheckedFields;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("fields")
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, mut s: A) -> Result<Self, A::Error> {
+        while let Some(f) = s.next_element::<FieldView<'de>>()? {
+            whole_values(&f).map_err(serde::de::Error::custom)?;
+        }
+        Ok(CheckedFields)
+    }
+}
+
+/// A field's bytes must be a whole number of f64 values.
+fn whole_values(f: &FieldView) -> Result<(), String> {
+    if f.bytes.len().is_multiple_of(8) {
+        return Ok(());
+    }
+    Err(format!(
+        "field '{}': {} bytes is not a whole number of f64 values",
+        f.name,
+        f.bytes.len()
+    ))
+}
+
+/// The header and body of a `Fields` envelope, checked as [`decode`] checks them.
+fn read_fields<'a, F: Deserialize<'a>>(
+    bytes: &'a [u8],
+) -> Result<(Header, FieldsBody<'a, F>), CodecError> {
+    let (h, body) = header_of_kind(bytes, FIELDS_KIND)?;
+    let cfg = config::standard().with_limit::<MAX_BODY>();
+    let (b, used): (FieldsBody<F>, usize) = bincode::serde::borrow_decode_from_slice(body, cfg)
+        .map_err(|e| CodecError::Body(e.to_string()))?;
+    body_read(&h, b.variant, FIELDS_VARIANT, used, body.len())?;
+    Ok((h, b))
+}
+
+/// The checked header of a message that must be of `kind`, and its body.
+fn header_of_kind(bytes: &[u8], kind: u8) -> Result<(Header, &[u8]), CodecError> {
+    let h = header(bytes)?;
+    if h.kind != kind {
+        return Err(CodecError::KindMismatch {
+            header: h.kind,
+            body: kind,
+        });
+    }
+    Ok((h, &bytes[HEADER_LEN..]))
+}
+
+/// A body read up to `used` of its `len` bytes holds the variant the header announced
+/// (`expected`) and nothing after it.
+fn body_read(
+    h: &Header,
+    variant: u32,
+    expected: u32,
+    used: usize,
+    len: usize,
+) -> Result<(), CodecError> {
+    if variant != expected {
+        return Err(CodecError::KindMismatch {
+            header: h.kind,
+            body: u8::try_from(variant + 1).unwrap_or(u8::MAX),
+        });
+    }
+    if used != len {
+        return Err(CodecError::Trailing(len - used));
+    }
+    Ok(())
+}
+
+/// What [`decode_fields_head`] reads of a `Fields` envelope: all but the values.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FieldsHead<'a> {
+    pub run: &'a str,
+    pub sender: &'a str,
+    pub seq: u64,
+    pub coupling: &'a str,
+    pub window: u64,
+    pub time: f64,
+}
+
+/// Check a `Fields` envelope as [`decode_fields_view`] does, keeping only its routing and
+/// window (the coordinator records peer data it does not read, every window): nothing is
+/// allocated. Never panics.
+pub fn decode_fields_head(bytes: &[u8]) -> Result<FieldsHead<'_>, CodecError> {
+    let (h, b) = read_fields::<CheckedFields>(bytes)?;
+    Ok(FieldsHead {
+        run: b.run,
+        sender: b.sender,
+        seq: h.seq,
+        coupling: b.coupling,
+        window: b.window,
+        time: b.time,
+    })
 }
 
 /// `Message::Fields`'s variant index in the enum (its declaration order).
@@ -322,32 +452,9 @@ pub const FIELDS_KIND: u8 = 7;
 /// Read a `Fields` envelope in place; any other message, or malformed bytes, is an error.
 /// Never panics.
 pub fn decode_fields_view(bytes: &[u8]) -> Result<FieldsView<'_>, CodecError> {
-    let h = header(bytes)?;
-    if h.kind != FIELDS_KIND {
-        return Err(CodecError::KindMismatch {
-            header: h.kind,
-            body: FIELDS_KIND,
-        });
-    }
-    let body = &bytes[HEADER_LEN..];
-    let cfg = config::standard().with_limit::<MAX_BODY>();
-    let (b, used): (FieldsBody, usize) = bincode::serde::borrow_decode_from_slice(body, cfg)
-        .map_err(|e| CodecError::Body(e.to_string()))?;
-    if b.variant != FIELDS_VARIANT {
-        return Err(CodecError::KindMismatch {
-            header: h.kind,
-            body: u8::try_from(b.variant + 1).unwrap_or(u8::MAX),
-        });
-    }
-    if used != body.len() {
-        return Err(CodecError::Trailing(body.len() - used));
-    }
-    if let Some(f) = b.fields.iter().find(|f| !f.bytes.len().is_multiple_of(8)) {
-        return Err(CodecError::Body(format!(
-            "field '{}': {} bytes is not a whole number of f64 values",
-            f.name,
-            f.bytes.len()
-        )));
+    let (h, b) = read_fields::<Vec<FieldView>>(bytes)?;
+    for f in &b.fields {
+        whole_values(f).map_err(CodecError::Body)?;
     }
     Ok(FieldsView {
         run: b.run,
@@ -358,6 +465,169 @@ pub fn decode_fields_view(bytes: &[u8]) -> Result<FieldsView<'_>, CodecError> {
         time: b.time,
         fields: b.fields,
     })
+}
+
+/// The routing of a `Done` envelope read by [`decode_done_into`]; its report went into the
+/// caller's `StepReport`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DoneHead<'a> {
+    pub run: &'a str,
+    pub sender: &'a str,
+    pub seq: u64,
+    pub window: u64,
+}
+
+/// `Message::Done`'s variant index in the enum (its declaration order).
+const DONE_VARIANT: u32 = 7;
+/// `Message::Done`'s kind in the header.
+pub const DONE_KIND: u8 = 8;
+
+/// Read a `Done` envelope, its report into `report` in place (issue 22: the coordinator reads
+/// a `Done` from every node every window). The report's scalars vector and their names keep
+/// their buffers, so once `report` has held a report with the same scalar names nothing is
+/// allocated. The header, kind, lengths and trailing bytes are checked exactly as [`decode`]
+/// checks them; `report` holds the decoded report only on success. Never panics.
+pub fn decode_done_into<'a>(
+    bytes: &'a [u8],
+    report: &mut StepReport,
+) -> Result<DoneHead<'a>, CodecError> {
+    let (h, body) = header_of_kind(bytes, DONE_KIND)?;
+    let cfg = config::standard().with_limit::<MAX_BODY>();
+    let ((run, sender, variant, window), used) =
+        bincode::serde::seed_decode_from_slice(DoneSeed(report), body, cfg)
+            .map_err(|e| CodecError::Body(e.to_string()))?;
+    body_read(&h, variant, DONE_VARIANT, used, body.len())?;
+    Ok(DoneHead {
+        run,
+        sender,
+        seq: h.seq,
+        window,
+    })
+}
+
+/// The body of a `Done` envelope as bincode lays it out (run, sender, the enum's variant
+/// index, then the `Done` struct), its report read into the target.
+struct DoneSeed<'r>(&'r mut StepReport);
+
+/// The number of elements a reader may ask of a bincode tuple: bincode ignores it.
+const ANY_LEN: usize = usize::MAX;
+
+fn missing<E: serde::de::Error>(what: &str) -> E {
+    E::custom(format_args!("the body ends before {what}"))
+}
+
+impl<'de> DeserializeSeed<'de> for DoneSeed<'_> {
+    type Value = (&'de str, &'de str, u32, u64);
+
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
+        d.deserialize_tuple(ANY_LEN, self)
+    }
+}
+
+impl<'de> Visitor<'de> for DoneSeed<'_> {
+    type Value = (&'de str, &'de str, u32, u64);
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a Done envelope body")
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, mut s: A) -> Result<Self::Value, A::Error> {
+        let run: &str = s.next_element()?.ok_or_else(|| missing("the run"))?;
+        let sender: &str = s.next_element()?.ok_or_else(|| missing("the sender"))?;
+        let variant: u32 = s.next_element()?.ok_or_else(|| missing("the kind"))?;
+        if variant != DONE_VARIANT {
+            return Ok((run, sender, variant, 0));
+        }
+        let window: u64 = s.next_element()?.ok_or_else(|| missing("the window"))?;
+        s.next_element_seed(ReportSeed(self.0))?
+            .ok_or_else(|| missing("the report"))?;
+        Ok((run, sender, variant, window))
+    }
+}
+
+/// A `StepReport` read into an existing one, field by field in declaration order (the
+/// test `done_read_in_place_equals_decode` fails if a field is added here and not there).
+struct ReportSeed<'r>(&'r mut StepReport);
+
+impl<'de> DeserializeSeed<'de> for ReportSeed<'_> {
+    type Value = ();
+
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_tuple(ANY_LEN, self)
+    }
+}
+
+impl<'de> Visitor<'de> for ReportSeed<'_> {
+    type Value = ();
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a step report")
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, mut s: A) -> Result<(), A::Error> {
+        let r = self.0;
+        fn next<'de, T: Deserialize<'de>, A: SeqAccess<'de>>(
+            s: &mut A,
+            what: &str,
+        ) -> Result<T, A::Error> {
+            s.next_element()?.ok_or_else(|| missing(what))
+        }
+        r.kinetic_energy = next(&mut s, "kinetic_energy")?;
+        r.internal_energy = next(&mut s, "internal_energy")?;
+        r.external_work = next(&mut s, "external_work")?;
+        r.interface_work = next(&mut s, "interface_work")?;
+        r.momentum = next(&mut s, "momentum")?;
+        r.momentum_gross = next(&mut s, "momentum_gross")?;
+        r.external_impulse = next(&mut s, "external_impulse")?;
+        r.applied_impulse = next(&mut s, "applied_impulse")?;
+        r.interface_impulse = next(&mut s, "interface_impulse")?;
+        r.substeps = next(&mut s, "substeps")?;
+        r.wall_s = next(&mut s, "wall_s")?;
+        r.coupling_wait_s = next(&mut s, "coupling_wait_s")?;
+        r.idle_s = next(&mut s, "idle_s")?;
+        s.next_element_seed(ScalarsSeed(&mut r.scalars))?
+            .ok_or_else(|| missing("the scalars"))
+    }
+}
+
+/// Named scalars read into an existing vector: a name equal to the one already in its place
+/// is left alone, another overwrites that place's `String` (its buffer reused).
+struct ScalarsSeed<'r>(&'r mut Vec<(String, f64)>);
+
+impl<'de> DeserializeSeed<'de> for ScalarsSeed<'_> {
+    type Value = ();
+
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_seq(self)
+    }
+}
+
+impl<'de> Visitor<'de> for ScalarsSeed<'_> {
+    type Value = ();
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("named scalars")
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, mut s: A) -> Result<(), A::Error> {
+        let v = self.0;
+        let mut n = 0;
+        while let Some((name, x)) = s.next_element::<(&str, f64)>()? {
+            match v.get_mut(n) {
+                Some(slot) => {
+                    if slot.0 != name {
+                        slot.0.clear();
+                        slot.0.push_str(name);
+                    }
+                    slot.1 = x;
+                }
+                None => v.push((name.to_string(), x)),
+            }
+            n += 1;
+        }
+        v.truncate(n);
+        Ok(())
+    }
 }
 
 #[cfg(test)]
@@ -390,6 +660,96 @@ mod tests {
             let mut long = vec![std::mem::MaybeUninit::<u8>::uninit(); n + 1];
             assert!(encode_into_uninit(&mut long, "run-1", "left", 42, &m).is_err());
         }
+    }
+
+    /// A `Done` read into an existing report gives what the full decode gives, whatever the
+    /// report held before (no scalars, more, fewer, other names); a report with the same
+    /// names keeps their buffers (no allocation); other kinds, cut, extended or relabelled
+    /// bytes are errors.
+    #[test]
+    fn done_read_in_place_equals_decode() {
+        let report = StepReport {
+            kinetic_energy: 1.5,
+            internal_energy: -2.25,
+            external_work: 3.0e-7,
+            interface_work: 4.0,
+            momentum: [5.0, 6.0, -7.0],
+            momentum_gross: 8.5,
+            external_impulse: [9.0, 10.0, 11.0],
+            applied_impulse: 12.0,
+            interface_impulse: [13.0, -14.0, 15.0],
+            substeps: 16,
+            wall_s: 17.0,
+            coupling_wait_s: 18.0,
+            idle_s: 19.0,
+            scalars: vec![("tip".into(), 20.0), ("plastic_work".into(), 21.0)],
+        };
+        let m = Message::Done(Done {
+            window: 77,
+            report: report.clone(),
+        });
+        let bytes = encode("run-9", "right", 5, &m).unwrap();
+        let full = decode(&bytes).unwrap();
+        assert_eq!(full.message, m);
+        let held = [
+            StepReport::default(),
+            StepReport {
+                scalars: vec![("a".into(), 1.0), ("b".into(), 2.0), ("c".into(), 3.0)],
+                ..StepReport::default()
+            },
+            StepReport {
+                scalars: vec![("x".into(), 1.0)],
+                ..report.clone()
+            },
+        ];
+        for mut r in held {
+            let h = decode_done_into(&bytes, &mut r).unwrap();
+            assert_eq!(
+                h,
+                DoneHead {
+                    run: "run-9",
+                    sender: "right",
+                    seq: 5,
+                    window: 77
+                }
+            );
+            assert_eq!(r, report);
+            // Again into itself: the names are kept where they lie.
+            let at: Vec<*const u8> = r.scalars.iter().map(|(n, _)| n.as_ptr()).collect();
+            decode_done_into(&bytes, &mut r).unwrap();
+            assert_eq!(r, report);
+            let again: Vec<*const u8> = r.scalars.iter().map(|(n, _)| n.as_ptr()).collect();
+            assert_eq!(at, again);
+        }
+        let mut r = StepReport::default();
+        // Another kind in the header, or another message under a forged Done header.
+        let fields = encode("run-9", "right", 5, &sample()).unwrap();
+        assert!(matches!(
+            decode_done_into(&fields, &mut r),
+            Err(CodecError::KindMismatch { .. })
+        ));
+        let beat = Message::Heartbeat(Heartbeat {
+            window: 3,
+            substeps: 4,
+            waiting: false,
+        });
+        let mut forged = encode("run-9", "right", 5, &beat).unwrap();
+        forged[6] = DONE_KIND;
+        assert!(decode_done_into(&forged, &mut r).is_err());
+        // Every cut is refused (the header's length no longer matches, or the body ends).
+        for n in 0..bytes.len() {
+            assert!(decode_done_into(&bytes[..n], &mut r).is_err(), "cut at {n}");
+        }
+        // A byte more, with the header's length saying so: trailing bytes.
+        let mut longer = bytes.clone();
+        longer.push(0);
+        let len = (longer.len() - HEADER_LEN) as u32;
+        longer[8..12].copy_from_slice(&len.to_le_bytes());
+        assert_eq!(
+            decode_done_into(&longer, &mut r),
+            Err(CodecError::Trailing(1))
+        );
+        assert_eq!(decode(&longer).err(), Some(CodecError::Trailing(1)));
     }
 
     /// Reading a `Fields` envelope in place gives what the full decode gives, value for
@@ -457,6 +817,45 @@ mod tests {
             decode_fields_view(&longer),
             Err(CodecError::Trailing(1))
         ));
+        // The head checks what the view checks, keeping only the routing and the window.
+        let head = decode_fields_head(&bytes).unwrap();
+        assert_eq!(
+            head,
+            FieldsHead {
+                run: "run7",
+                sender: "left",
+                seq: 9,
+                coupling: "mid",
+                window: 42,
+                time: 1.5e-3
+            }
+        );
+        assert!(matches!(
+            decode_fields_head(&done),
+            Err(CodecError::KindMismatch { .. })
+        ));
+        for n in 0..bytes.len() {
+            assert!(decode_fields_head(&bytes[..n]).is_err(), "cut at {n}");
+        }
+        assert_eq!(decode_fields_head(&longer), Err(CodecError::Trailing(1)));
+        // A field of 7 bytes (the last value cut, its length and the header's adjusted) is
+        // refused by all three readers.
+        let one = encode("run7", "left", 9, &sample()).unwrap();
+        let mut odd = one.clone();
+        odd.pop();
+        let at = odd.len() - 24;
+        assert_eq!(
+            odd[at], 24,
+            "the values' length prefix (3 values, 24 bytes)"
+        );
+        odd[at] = 23;
+        let n = (odd.len() - HEADER_LEN) as u32;
+        odd[8..12].copy_from_slice(&n.to_le_bytes());
+        assert!(decode(&odd).is_err());
+        let why = decode_fields_view(&odd).unwrap_err().to_string();
+        assert!(why.contains("23 bytes is not a whole number"), "{why}");
+        let why = decode_fields_head(&odd).unwrap_err().to_string();
+        assert!(why.contains("23 bytes is not a whole number"), "{why}");
     }
 
     fn sample() -> Message {

@@ -5,5 +5,8 @@
 pub mod codec;
 pub mod message;
 
-pub use codec::{CodecError, Envelope, PROTOCOL_VERSION, decode, encode};
+pub use codec::{
+    CodecError, Envelope, EnvelopeRef, PROTOCOL_VERSION, decode, decode_done_into, decode_ref,
+    encode,
+};
 pub use message::*;
