@@ -310,6 +310,11 @@ pub struct Row {
     pub working_set_bytes: Option<u64>,
     pub setup_s: f64,
     pub note: String,
+    /// 2-thread CPU rows: the speed-up over 1 thread as the median of paired samples (a
+    /// 1-thread and a 2-thread sample of the same problem taken back to back, so drift in the
+    /// machine's speed shifts both alike), and the number of pairs.
+    pub paired_speedup: Option<f64>,
+    pub pairs: Option<usize>,
 }
 
 impl Row {
@@ -581,6 +586,8 @@ impl Ctx {
             working_set_bytes: p.working_set,
             setup_s: p.setup_s,
             note: String::new(),
+            paired_speedup: None,
+            pairs: None,
         };
         println!(
             "{:>18} {:>5} {:<28} {:>12.4} ms/step {:>10.3} M {}/s {:>8.2} ns/update",
@@ -617,9 +624,26 @@ impl Ctx {
                 items.push((c, None, acc));
             }
         }
+        // The CPU pools of a problem take their samples in pairs, one after the other (which
+        // goes first alternates): the speed-up of 2 threads is the median of the pairs' ratios.
+        for (c, case) in cases.iter_mut().enumerate() {
+            let mine: Vec<usize> = (0..items.len())
+                .filter(|&i| items[i].0 == c && items[i].1.is_some())
+                .collect();
+            let n = mine.iter().map(|&i| items[i].2.target).max().unwrap_or(0);
+            for s in 0..n {
+                for k in 0..mine.len() {
+                    let i = mine[if s % 2 == 0 { k } else { mine.len() - 1 - k }];
+                    let (_, dev, acc) = &mut items[i];
+                    if let Some(j) = dev {
+                        self.pools[*j].install(|| acc.take(&mut case.cpu, 1))?;
+                    }
+                }
+            }
+        }
         let rounds = plan.rounds.max(1);
         for r in 0..rounds {
-            for (c, dev, acc) in items.iter_mut() {
+            for (c, dev, acc) in items.iter_mut().filter(|it| it.1.is_none()) {
                 let case = &mut cases[*c];
                 // this round's share of the samples
                 let upto = (acc.target * (r + 1)).div_ceil(rounds);
@@ -643,6 +667,26 @@ impl Ctx {
                 Some(j) => {
                     let n = self.pools[*j].current_num_threads();
                     self.push(p, "cpu", Some(n), acc.timing());
+                    // Pair this pool's samples with the 1-thread pool's of the same problem.
+                    let one = items
+                        .iter()
+                        .find(|it| it.0 == *c && it.1.is_some_and(|k| k != *j))
+                        .filter(|it| {
+                            it.1.is_some_and(|k| self.pools[k].current_num_threads() == 1)
+                        });
+                    if let (Some((_, _, a1)), Some(row)) = (one, self.rows.last_mut()) {
+                        let mut r: Vec<f64> = a1
+                            .samples
+                            .iter()
+                            .zip(&acc.samples)
+                            .map(|(a, b)| a / b)
+                            .collect();
+                        r.sort_by(f64::total_cmp);
+                        if !r.is_empty() {
+                            row.paired_speedup = Some(median(&r));
+                            row.pairs = Some(r.len());
+                        }
+                    }
                 }
                 None => self.push(p, "gpu", None, acc.timing()),
             }
@@ -1359,17 +1403,24 @@ pub fn markdown(rep: &Report) -> String {
         {
             let _ = writeln!(
                 sp,
-                "| {} | {} | {:.2} |",
+                "| {} | {} | {:.2} | {} |",
                 r.kernel,
                 r.problem,
-                r1.median_step_s / r.median_step_s
+                r1.median_step_s / r.median_step_s,
+                match (r.paired_speedup, r.pairs) {
+                    (Some(x), Some(n)) => format!("{x:.2} ({n} pairs)"),
+                    _ => "—".into(),
+                }
             );
         }
     }
     if !sp.is_empty() {
         let _ = writeln!(
             s,
-            "\nSpeed-up of 2 threads over 1:\n\n| kernel | problem | speed-up |\n|---|---|---:|\n{sp}"
+            "\nSpeed-up of 2 threads over 1: the ratio of the two rows' medians, and the median of \
+             the ratios of paired samples (a 1-thread and a 2-thread sample of the problem taken \
+             back to back, so a drift in the machine's speed shifts both alike):\n\n\
+             | kernel | problem | speed-up (medians) | speed-up (paired) |\n|---|---|---:|---:|\n{sp}"
         );
     }
     if !rep.skipped.is_empty() {
@@ -1695,6 +1746,8 @@ mod tests {
             working_set_bytes: ws,
             setup_s: 0.0,
             note: String::new(),
+            paired_speedup: None,
+            pairs: None,
         }
     }
 

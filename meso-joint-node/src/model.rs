@@ -431,17 +431,8 @@ impl Model {
         match self.p.smoothing {
             Smoothing::Consistent => {
                 // Kinematic particles (supports, rigid bodies, coupling) do not scatter their
-                // reaction forces: their motion is imposed.
-                let (f, kind) = (&self.f, &self.kind);
-                self.acc.par_iter_mut().enumerate().for_each(|(k, a)| {
-                    *a = if kind[k] == Kind::Free {
-                        f[k]
-                    } else {
-                        [0.0; 3]
-                    };
-                });
-                self.clock.lap(Phase::Mask);
-                scatter_consistent(rows, &self.acc, &self.mh, dt, &mut self.vh);
+                // reaction forces: their motion is imposed (masked inside the scatter).
+                scatter_consistent(rows, &self.f, &self.kind, &self.mh, dt, &mut self.vh);
                 self.clock.lap(Phase::Scatter);
                 gather_consistent(rows, &self.vh, &mut self.v);
             }
@@ -963,14 +954,28 @@ impl Model {
 
 /// Scatter-type update of the unsmoothed velocity (eq. 10–11) with the consistent kernel:
 /// `v̂_J += Δt/m̂_J Σ_K ψ_K(X_J) f_K` (`= Δt Σ_K φ_K(X_J) a_K` with `m_K = m̂_K`), the exact
-/// transpose of [`gather_consistent`]; `ψ_K(X_J)` is the row-ordered `psi_t`.
-pub fn scatter_consistent(rows: &Rows, f: &[[f64; 3]], mh: &[f64], dt: f64, vh: &mut [[f64; 3]]) {
+/// transpose of [`gather_consistent`]; `ψ_K(X_J)` is the row-ordered `psi_t`. Only free
+/// particles' forces are scattered: a kinematic one's counts as zero (the same sums as a
+/// masked copy of the forces, without the pass that made it).
+pub fn scatter_consistent(
+    rows: &Rows,
+    f: &[[f64; 3]],
+    kind: &[Kind],
+    mh: &[f64],
+    dt: f64,
+    vh: &mut [[f64; 3]],
+) {
     let (offsets, cols, psi_t) = (&rows.offsets, &rows.cols, &rows.psi_t);
     vh.par_iter_mut().enumerate().for_each(|(j, v)| {
         let mut s = [0.0; 3];
         let r = offsets[j]..offsets[j + 1];
         for (&c, &w) in cols[r.clone()].iter().zip(&psi_t[r]) {
-            let a = &f[c as usize];
+            let c = c as usize;
+            let a = &if kind[c] == Kind::Free {
+                f[c]
+            } else {
+                [0.0; 3]
+            };
             s[0] += w * a[0];
             s[1] += w * a[1];
             s[2] += w * a[2];

@@ -8,7 +8,8 @@ use std::time::Instant;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u8)]
 pub enum Phase {
-    /// Forces of the free particles into the scatter's input (parallel).
+    /// Forces of the free particles into the scatter's input (the Shepard kernel's pass;
+    /// the consistent scatter masks them as it reads them).
     Mask,
     /// Scatter update of the unsmoothed velocity (eq. 10–11, parallel).
     Scatter,
