@@ -15,7 +15,10 @@
 //! Each CPU kernel runs in a rayon pool of 1 and of 2 threads built here (not through
 //! `RAYON_NUM_THREADS`). A measurement is: one warm-up step, one step to estimate the cost,
 //! then at least five timed samples of `k` steps each (`k` chosen so that a sample lasts a
-//! few milliseconds); the time per step is the median over the samples. The cost growth of a
+//! few milliseconds); the time per step is the median over the samples. The 1- and 2-thread
+//! samples of a problem are taken back to back in pairs (which pool goes first alternates),
+//! and the 2-thread row also gives the median of the pairs' ratios: on a machine whose speed
+//! drifts, a better speed-up than the ratio of two medians taken at different times. The cost growth of a
 //! size is its time per update divided by that of the smallest size of the same kernel and
 //! device: 1 for a linear-cost kernel. The note column is computed from the data: a
 //! least-squares fit `t_step = a + b · updates` separates a fixed per-step cost `a` (thread

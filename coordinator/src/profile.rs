@@ -70,6 +70,9 @@ pub struct Profile {
     /// Of those, made inside the transport (iceoryx2 allocates a small shared state for every
     /// sample it loans; zenoh allocates per message).
     transport_allocs: u64,
+    /// Of those, buffers made for the recorder while its thread lagged behind the loop by
+    /// more than its pool holds (a busy machine).
+    recorder_lag_allocs: u64,
 }
 
 impl Default for Profile {
@@ -79,6 +82,7 @@ impl Default for Profile {
             allocs_at_start: None,
             allocs: None,
             transport_allocs: 0,
+            recorder_lag_allocs: 0,
         }
     }
 }
@@ -95,6 +99,11 @@ impl Profile {
             (Some(a), Some(b)) => Some(b - a),
             _ => None,
         };
+    }
+
+    /// Count `n` of this thread's allocations as made for a lagging recorder.
+    pub fn add_recorder_lag_allocs(&mut self, n: u64) {
+        self.recorder_lag_allocs += n;
     }
 
     /// Count `n` of this thread's allocations as the transport's.
@@ -126,11 +135,19 @@ impl Profile {
         for p in Phase::ALL {
             m.insert(p.key().into(), (self.seconds(p) * 1e6 / w).into());
         }
-        // The window loop's own (bookkeeping, audit, reports, recording), and the transport's.
+        // The window loop's own (bookkeeping, audit, reports, recording), the transport's,
+        // and the recorder's buffers made while its thread lagged.
+        let apart = self.transport_allocs + self.recorder_lag_allocs;
         m.insert(
             "allocations_per_window".into(),
             self.allocs.map_or(serde_json::Value::Null, |a| {
-                (a.saturating_sub(self.transport_allocs) as f64 / w).into()
+                (a.saturating_sub(apart) as f64 / w).into()
+            }),
+        );
+        m.insert(
+            "recorder_lag_allocations_per_window".into(),
+            self.allocs.map_or(serde_json::Value::Null, |_| {
+                (self.recorder_lag_allocs as f64 / w).into()
             }),
         );
         m.insert(

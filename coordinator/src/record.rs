@@ -533,11 +533,14 @@ const HANDOVER: std::time::Duration = std::time::Duration::from_millis(1);
 /// Commands queued for the recorder thread before the window loop waits for it (a full queue
 /// holds the loop back: nothing is ever dropped).
 const QUEUE: usize = 4096;
-/// Message buffers in the pool before the first message, and their capacity: a recorder
-/// thread lagging by a few hundred messages (a busy machine) finds them there instead of the
-/// window loop allocating new ones.
-const POOLED: usize = 512;
-const POOLED_BYTES: usize = 512;
+/// Message buffers in the pool before the first message, and their capacity (a node's
+/// report as JSON is about 600 bytes): a recorder thread lagging by a thousand messages (a
+/// busy machine) finds them there instead of the window loop allocating new ones.
+const POOLED: usize = 1024;
+const POOLED_BYTES: usize = 1024;
+/// Emptied batch vectors kept for reuse (and made before the first window): as many as may
+/// be on their way to the thread while it lags.
+const BATCHES: usize = 64;
 
 /// The recorder on a thread of its own (issue 22): the window loop hands it each message's
 /// bytes through a bounded queue and goes on, so MCAP writes, compression and flushes never
@@ -563,6 +566,9 @@ pub struct RecorderThread {
     topics: HashMap<String, std::sync::Arc<str>>,
     /// Keys each JSON topic's channel lists, as far as this side has sent them.
     json_keys: HashMap<String, std::collections::BTreeSet<String>>,
+    /// Buffers and batch vectors made because the pool was empty: the thread lagged behind
+    /// the window loop by more than the pool holds (one allocation each).
+    pub lag_allocations: u64,
 }
 
 impl RecorderThread {
@@ -570,11 +576,11 @@ impl RecorderThread {
     pub fn spawn(mut rec: Recorder) -> anyhow::Result<Self> {
         let (tx, rx) = std::sync::mpsc::sync_channel::<Cmd>(QUEUE);
         let (back, pool) = std::sync::mpsc::sync_channel::<Vec<u8>>(QUEUE);
-        let (batches_back, batches) = std::sync::mpsc::sync_channel::<Vec<Cmd>>(4);
+        let (batches_back, batches) = std::sync::mpsc::sync_channel::<Vec<Cmd>>(BATCHES);
         for _ in 0..POOLED {
             let _ = back.try_send(Vec::with_capacity(POOLED_BYTES));
         }
-        for _ in 0..4 {
+        for _ in 0..BATCHES {
             let _ = batches_back.try_send(Vec::with_capacity(BATCH));
         }
         let handle = std::thread::Builder::new()
@@ -646,6 +652,7 @@ impl RecorderThread {
             handle: Some(handle),
             topics: HashMap::new(),
             json_keys: HashMap::new(),
+            lag_allocations: 0,
         })
     }
 
@@ -674,10 +681,10 @@ impl RecorderThread {
         if self.batch.is_empty() {
             return Ok(());
         }
-        let next = self
-            .batches
-            .try_recv()
-            .unwrap_or_else(|_| Vec::with_capacity(BATCH));
+        let next = self.batches.try_recv().unwrap_or_else(|_| {
+            self.lag_allocations += 1;
+            Vec::with_capacity(BATCH)
+        });
         let cmds = std::mem::replace(&mut self.batch, next);
         self.batch_bytes = 0;
         self.handed = std::time::Instant::now();
@@ -705,7 +712,10 @@ impl RecorderThread {
 
     /// A buffer from the pool (or a new one while the pool is empty), cleared.
     fn buffer(&mut self) -> Vec<u8> {
-        let mut b = self.pool.try_recv().unwrap_or_default();
+        let mut b = self.pool.try_recv().unwrap_or_else(|_| {
+            self.lag_allocations += 1;
+            Vec::with_capacity(POOLED_BYTES)
+        });
         b.clear();
         b
     }

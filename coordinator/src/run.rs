@@ -228,8 +228,8 @@ enum Got {
     /// Peer data checked in place (no lagrange hub reads it): whether it came from the topic's
     /// node and run, else the sender and run it claims.
     Fields(Result<(), (String, String)>),
-    /// A `Done`, its report read into `Coord::done`: its window if it came from the topic's
-    /// node and run, else the sender and run it claims.
+    /// A `Done`, its report read into the node's `Coord::inbox`: its window if it came from
+    /// the topic's node and run, else the sender and run it claims.
     Done(Result<u64, (String, String)>),
 }
 
@@ -1854,6 +1854,7 @@ fn drive(
     c.in_windows = true;
     c.prof = Profile::default();
     c.prof.start();
+    let lag0 = c.rec.lag_allocations;
     // Windows whose Advance is out and whose Done is not yet all in: (window, checkpoint).
     let mut in_flight: VecDeque<(u64, bool)> = VecDeque::with_capacity(MAX_AHEAD as usize + 1);
     let mut ahead = Ahead::new();
@@ -2052,6 +2053,7 @@ fn drive(
     }
     c.progress.finish();
     let loop_s = loop_before + loop_start.elapsed().as_secs_f64();
+    c.prof.add_recorder_lag_allocs(c.rec.lag_allocations - lag0);
     c.prof.stop();
     let mut breakdown = c.prof.per_window(c.completed.saturating_sub(first - 1));
     breakdown["windows_in_flight"] = ahead.mean().into();
