@@ -400,7 +400,11 @@ impl<'a> Coord<'a> {
 
     /// Wake node `i` for what was sent to it quietly.
     fn ring(&mut self, i: usize) -> Result<(), Fault> {
-        self.nodes[i].down.ring().map_err(|e| Fault {
+        let a0 = crate::profile::allocations_now();
+        let r = self.nodes[i].down.ring();
+        self.prof
+            .add_transport_allocs(crate::profile::allocations_now() - a0);
+        r.map_err(|e| Fault {
             node: self.nodes[i].name.clone(),
             reason: format!("waking the node failed: {e}"),
         })
