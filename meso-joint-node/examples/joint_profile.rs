@@ -18,7 +18,7 @@ fn main() -> anyhow::Result<()> {
         let arg = |i: usize, d: usize| -> anyhow::Result<usize> {
             std::env::args().nth(i).map_or(Ok(d), |s| Ok(s.parse()?))
         };
-        return pairs(arg(1, 40)?, arg(3, 30)?);
+        return pairs(arg(1, 40)?, arg(3, 30)?.max(1));
     }
     let a: Vec<usize> = std::env::args()
         .skip(1)

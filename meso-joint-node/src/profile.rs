@@ -8,9 +8,6 @@ use std::time::Instant;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u8)]
 pub enum Phase {
-    /// Forces of the free particles into the scatter's input (the Shepard kernel's pass;
-    /// the consistent scatter masks them as it reads them).
-    Mask,
     /// Scatter update of the unsmoothed velocity (eq. 10–11, parallel).
     Scatter,
     /// Gather smoothing of the velocity (eq. 2–6, parallel).
@@ -32,8 +29,7 @@ pub enum Phase {
 }
 
 impl Phase {
-    pub const ALL: [Phase; 10] = [
-        Phase::Mask,
+    pub const ALL: [Phase; 9] = [
         Phase::Scatter,
         Phase::Gather,
         Phase::Kinematic,
@@ -47,7 +43,6 @@ impl Phase {
 
     pub fn name(self) -> &'static str {
         match self {
-            Phase::Mask => "mask forces",
             Phase::Scatter => "scatter v̂",
             Phase::Gather => "gather v",
             Phase::Kinematic => "rigid/BC/coupled",

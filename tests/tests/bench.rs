@@ -110,6 +110,14 @@ fn quick_suite_covers_every_kernel_with_consistent_numbers() {
             r["samples"].as_u64().unwrap_or(0) >= 5,
             "{what}: fewer than 5 samples"
         );
+        // A 2-thread CPU row pairs each of its samples with a 1-thread sample of the same
+        // problem taken beside it: as many pairs as samples, and a positive median ratio.
+        if r["device"] == "cpu" && r["threads"].as_u64() == Some(2) {
+            assert_eq!(r["pairs"].as_u64(), r["samples"].as_u64(), "{what}: pairs");
+            assert!(f("paired_speedup") > 0.0, "{what}: paired speed-up");
+        } else {
+            assert!(r["paired_speedup"].is_null(), "{what}: paired speed-up");
+        }
         // Kernels run in this process also carry their CPU time (the transports do not).
         if r["kernel"] != "transport" {
             assert!(f("cpu_ns_per_update") > 0.0, "{what}: no CPU time");

@@ -545,8 +545,9 @@ impl<'de> Visitor<'de> for DoneSeed<'_> {
     }
 }
 
-/// A `StepReport` read into an existing one, field by field in declaration order (the
-/// test `done_read_in_place_equals_decode` fails if a field is added here and not there).
+/// A `StepReport` read into an existing one, field by field in declaration order. A field
+/// added to `StepReport` and not here leaves its bytes unread: the read fails with trailing
+/// bytes, and so does the test `done_read_in_place_equals_decode`.
 struct ReportSeed<'r>(&'r mut StepReport);
 
 impl<'de> DeserializeSeed<'de> for ReportSeed<'_> {
