@@ -538,6 +538,7 @@ fn validate(case: &std::path::Path, variant: Option<&str>, sets: &[String], json
     let mut doc = json!({
         "ok": true, "case": case, "variant": variant, "nodes": [], "variants": [],
         "couplings": c.couplings.len(), "windows": windows(&c), "order": order,
+        "warnings": c.warnings,
     });
     if !json {
         println!(
@@ -548,6 +549,9 @@ fn validate(case: &std::path::Path, variant: Option<&str>, sets: &[String], json
             windows(&c),
             order.join(" → ")
         );
+        for w in &c.warnings {
+            println!("  warning: {w}");
+        }
     }
     for n in &c.nodes {
         if let Some(a) = doc["nodes"].as_array_mut() {
@@ -1009,7 +1013,20 @@ fn run_case(c: &config::Case, opts: &run::RunOptions) -> i32 {
     if let Err(e) = protocol::stop::install(&[libc::SIGINT, libc::SIGTERM]) {
         eprintln!("cosim: cannot handle stop signals: {e}");
     }
+    for w in &c.warnings {
+        eprintln!("cosim: warning: {w}");
+    }
     match run::run(c, opts) {
+        Ok(Ok(o)) if o.diverged.is_some() => {
+            if let Some(d) = &o.diverged {
+                eprintln!(
+                    "cosim: {} diverged: {d}; output in {}",
+                    c.run.name,
+                    o.output.display()
+                );
+            }
+            crate::guard::EXIT_DIVERGED
+        }
         Ok(Ok(o)) if o.interrupted.is_some() => {
             let sig = o.interrupted.unwrap_or(libc::SIGINT);
             eprintln!(
@@ -1047,6 +1064,11 @@ fn run_case(c: &config::Case, opts: &run::RunOptions) -> i32 {
                 o.summary["wall_s"].as_f64().unwrap_or(0.0),
                 o.output.display()
             );
+            for w in o.summary["warnings"].as_array().into_iter().flatten() {
+                if let Some(w) = w.as_str().filter(|w| w.starts_with("balance: ")) {
+                    eprintln!("cosim: warning: {w}");
+                }
+            }
             0
         }
         Ok(Err(f)) => {

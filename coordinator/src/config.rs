@@ -61,6 +61,11 @@ pub struct RunConfig {
     pub checkpoint_every: u64,
     /// Which field pictures the run draws when it ends.
     pub pictures: Pictures,
+    /// The divergence guard: a run whose total energy exceeds `energy_bound` times its
+    /// initial energy plus the external work, plus `energy_floor` (J), is stopped as
+    /// diverged; 0 turns the bound off (non-finite values still stop it).
+    pub energy_bound: f64,
+    pub energy_floor: f64,
 }
 
 /// `run.pictures`: the field pictures a finished run draws from its VTK series.
@@ -90,6 +95,8 @@ pub struct NodeConfig {
     pub interfaces: Option<Vec<String>>,
     /// Per interface (as `interfaces`), the fields it provides and accepts.
     pub fields: Vec<(Vec<String>, Vec<String>)>,
+    /// Where its explicit integrator does not choose its own step, from its `--describe`.
+    pub window_limits: Vec<protocol::WindowLimit>,
 }
 
 #[derive(Debug, Clone)]
@@ -121,6 +128,19 @@ impl CouplingConfig {
             self.sides.iter().collect()
         }
     }
+
+    /// [`CouplingConfig::members`], each with its key in the coupling's table (`driver`,
+    /// `responder`, `sides[k]`).
+    pub fn keyed_members(&self) -> Vec<(String, &(String, String))> {
+        let keys: Vec<String> = if self.sides.is_empty() {
+            vec!["driver".into(), "responder".into()]
+        } else {
+            (0..self.sides.len())
+                .map(|k| format!("sides[{k}]"))
+                .collect()
+        };
+        keys.into_iter().zip(self.members()).collect()
+    }
 }
 
 /// Decoupling rule of a coupling: at a time, or when a node's reported quantity reaches a
@@ -147,6 +167,9 @@ pub struct Case {
     pub couplings: Vec<CouplingConfig>,
     /// Names of the `[variants.NAME]` of the case (`cosim run --variant NAME`).
     pub variants: Vec<String>,
+    /// What validation found close to a limit without refusing it (an explicit step within
+    /// 5 % of its stable one); `cosim validate` and `cosim run` print them.
+    pub warnings: Vec<String>,
 }
 
 const RUN_KEYS: &[&str] = &[
@@ -166,6 +189,8 @@ const RUN_KEYS: &[&str] = &[
     "record_every",
     "checkpoint_every",
     "pictures",
+    "energy_bound",
+    "energy_floor",
 ];
 const NODE_KEYS: &[&str] = &["solver", "model", "params", "remote"];
 const COUPLING_KEYS: &[&str] = &[
@@ -444,6 +469,22 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             ));
         }
     };
+    let energy_bound = get_f64(&run_t, p, "energy_bound")?.unwrap_or(crate::guard::DEFAULT_FACTOR);
+    if !(energy_bound == 0.0 || energy_bound.is_finite() && energy_bound > 1.0) {
+        return Err(err(
+            "run.energy_bound",
+            format!(
+                "must be > 1 (a multiple of the initial energy plus the external work), or 0 to turn the bound off, got {energy_bound}"
+            ),
+        ));
+    }
+    let energy_floor = get_f64(&run_t, p, "energy_floor")?.unwrap_or(crate::guard::DEFAULT_FLOOR);
+    if !(energy_floor.is_finite() && energy_floor >= 0.0) {
+        return Err(err(
+            "run.energy_floor",
+            format!("must be ≥ 0 J, got {energy_floor}"),
+        ));
+    }
 
     // Nodes.
     let nodes_t = match doc.get("nodes") {
@@ -518,6 +559,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             remote,
             interfaces: None,
             fields: Vec::new(),
+            window_limits: Vec::new(),
         });
     }
 
@@ -635,6 +677,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             responder_fields: get_strings(t, &p, "responder_fields")?.unwrap_or(rf),
         });
     }
+    check_one_coupling_per_interface(&couplings)?;
     for (i, c) in couplings.iter().enumerate() {
         if c.kind != CouplingKind::Lagrange {
             continue;
@@ -708,13 +751,102 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             record_every,
             checkpoint_every,
             pictures,
+            energy_bound,
+            energy_floor,
         },
         nodes,
         couplings,
         variants,
+        warnings: Vec::new(),
     };
     check_solvers(&mut case)?;
     Ok(case)
+}
+
+/// Share of its largest stable step from which an explicit step is warned of.
+const NEAR_LIMIT: f64 = 0.95;
+
+/// Refuse a window at which a lagrange side's explicit integrator, whose steps per window are
+/// fixed, would step beyond its largest stable step (it would blow up within a few windows),
+/// naming `run.window`, the largest window that works and the substeps that would; warn of
+/// one within 5 % of it. A node that sub-cycles at its own stable step states no limit.
+fn check_stability(case: &Case) -> Result<Vec<String>, ConfigError> {
+    use protocol::LimitApplies;
+    let window = case.run.window;
+    let mut warnings = Vec::new();
+    for (i, c) in case.couplings.iter().enumerate() {
+        if c.kind != CouplingKind::Lagrange {
+            continue;
+        }
+        let gs4_or_ph = c.method != Some(scheme::lagrange::Method::Gc);
+        for (node, _) in &c.sides {
+            let Some(n) = case.nodes.iter().find(|n| &n.name == node) else {
+                continue;
+            };
+            for l in &n.window_limits {
+                let holds = match l.applies {
+                    LimitApplies::LagrangeSide => true,
+                    LimitApplies::LagrangeSideGs4OrPh => gs4_or_ph,
+                };
+                if !holds || !(l.max_step > 0.0) {
+                    continue;
+                }
+                let step = window / l.substeps.max(1) as f64;
+                let ratio = step / l.max_step;
+                let what = format!(
+                    "node '{node}' (a side of the lagrange coupling couplings[{i}] '{}') steps {} {} time{} per window: at run.window = {window:e} s a step is {step:.4e} s, {ratio:.3} × its largest stable step {:.4e} s",
+                    c.name,
+                    l.integrator,
+                    l.substeps,
+                    if l.substeps == 1 { "" } else { "s" },
+                    l.max_step,
+                );
+                if ratio > 1.0 + 1e-12 {
+                    let fix = match &l.key {
+                        Some(k) => format!(
+                            "; or set nodes.{node}.{k} = {}",
+                            (window / l.max_step - 1e-9).ceil().max(1.0)
+                        ),
+                        None => String::new(),
+                    };
+                    return Err(err(
+                        "run.window",
+                        format!(
+                            "{what}: unstable. The largest run.window that works is {:.6e} s{fix}",
+                            l.max_window()
+                        ),
+                    ));
+                }
+                if ratio > NEAR_LIMIT {
+                    warnings.push(format!(
+                        "{what}: within {:.0} % of the limit, stable only while nothing stiffens it",
+                        (1.0 - NEAR_LIMIT) * 100.0
+                    ));
+                }
+            }
+        }
+    }
+    Ok(warnings)
+}
+
+/// Refuse an interface that two couplings take: each would apply its own loads and count its
+/// own interface work, so the run would move and book the same interface twice.
+fn check_one_coupling_per_interface(couplings: &[CouplingConfig]) -> Result<(), ConfigError> {
+    let mut taken: BTreeMap<&(String, String), (usize, &str)> = BTreeMap::new();
+    for (i, c) in couplings.iter().enumerate() {
+        for (key, m) in c.keyed_members() {
+            if let Some((j, other)) = taken.insert(m, (i, &c.name)) {
+                return Err(err(
+                    format!("couplings[{i}].{key}"),
+                    format!(
+                        "interface {}.{} is already coupled by couplings[{j}] ('{other}'): an interface takes one coupling",
+                        m.0, m.1
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Ask every node executable found on this host to describe itself (in parallel): its own
@@ -736,8 +868,10 @@ fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
                 .map(|i| (i.provides.clone(), i.accepts.clone()))
                 .collect();
             n.interfaces = Some(d.interfaces.into_iter().map(|i| i.name).collect());
+            n.window_limits = d.window_limits;
         }
     }
+    case.warnings = check_stability(case)?;
     check_interfaces(case, |node| {
         case.nodes
             .iter()
@@ -778,12 +912,7 @@ fn check_interfaces(
     offered: impl Fn(&str) -> Option<Vec<String>>,
 ) -> Result<(), ConfigError> {
     for (i, c) in case.couplings.iter().enumerate() {
-        let keys: Vec<String> = if c.sides.is_empty() {
-            vec!["driver".into(), "responder".into()]
-        } else {
-            (0..c.sides.len()).map(|k| format!("sides[{k}]")).collect()
-        };
-        for (key, (node, iface)) in keys.iter().zip(c.members()) {
+        for (key, (node, iface)) in c.keyed_members() {
             if let Some(list) = offered(node)
                 && !list.iter().any(|x| x == iface)
             {

@@ -8,6 +8,7 @@ pub mod config;
 pub mod describe;
 pub mod export;
 pub mod fields;
+pub mod guard;
 pub mod lagrange;
 pub mod nest;
 pub mod params;

@@ -62,6 +62,8 @@ pub struct Outcome {
     pub summary: serde_json::Value,
     /// The stop signal that ended the run early (summary status "interrupted").
     pub interrupted: Option<i32>,
+    /// Why the run was stopped as diverged (summary status "diverged").
+    pub diverged: Option<crate::guard::Diverged>,
 }
 
 enum Topic {
@@ -196,6 +198,9 @@ struct Coord<'a> {
     in_windows: bool,
     /// The stop signal that ends the run, once acted on.
     interrupted: Option<i32>,
+    /// The divergence guard, and why it stopped the run.
+    guard: crate::guard::Guard,
+    diverged: Option<crate::guard::Diverged>,
     /// The bar or progress lines of the window loop; messages go through it.
     progress: Progress,
     /// The lagrange couplings (the interface problems solved here) and their publishers.
@@ -1191,6 +1196,8 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         completed: 0,
         in_windows: false,
         interrupted: None,
+        guard: crate::guard::Guard::new(case.run.energy_bound, case.run.energy_floor),
+        diverged: None,
         progress: Progress::quiet(),
         hubs,
         prof: Profile::default(),
@@ -1224,6 +1231,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
     }
     let wall = started.elapsed().as_secs_f64();
     let (interrupted, completed) = (c.interrupted, c.completed);
+    let diverged = c.diverged.clone();
     let Coord {
         rec,
         t,
@@ -1298,6 +1306,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
                 output: out,
                 summary,
                 interrupted,
+                diverged: diverged.clone(),
             }))
         }
         Err(f) if interrupted.is_some() => {
@@ -1317,6 +1326,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
                 output: out,
                 summary,
                 interrupted,
+                diverged: diverged.clone(),
             }))
         }
         Err(f) => {
@@ -1842,6 +1852,7 @@ fn drive(
         Some(st) => {
             resume(c, st, &all)?;
             a = st.audit.clone();
+            c.guard.resume(a.rows.iter().map(|r| r.external_work));
             decoupled = st.decoupled.clone();
             active.retain(|&i| c.nodes[i].finished.is_none());
             (st.window + 1, st.loop_s)
@@ -1903,7 +1914,19 @@ fn drive(
         // can change them (module doc).
         top_up!(k - 1);
         c.sim_t = c.sim_t.max(t1);
-        c.wait_all(&active, "Done", None, |n| n.done.is_some_and(|d| d >= k))?;
+        if let Err(f) = c.wait_all(&active, "Done", None, |n| n.done.is_some_and(|d| d >= k)) {
+            // A node about to send a non-finite value says so and leaves: the run diverged.
+            let Some(mut d) = protocol::diverged::Divergence::parse(&f.reason) else {
+                return Err(f);
+            };
+            // The quantity alone: the node's log is in the output folder.
+            if let Some(at) = d.what.find(" (its log: ") {
+                d.what.truncate(at);
+            }
+            let t = window_span(case, d.window.clamp(1, windows), windows).1;
+            c.diverged = Some(c.guard.from_node(&f.node, d, t));
+            break;
+        }
         let checkpoint = in_flight.pop_front().is_some_and(|w| w.1);
         ahead.completed();
         // The window after the next goes out now, before this one's audit and records: the
@@ -2032,6 +2055,17 @@ fn drive(
         }
         a.rows.push(row);
         let flushing = c.prof.lap(Phase::Reports, reporting);
+        let nodes = c.nodes.iter().map(|n| crate::guard::NodeWindow {
+            name: &n.name,
+            report: &n.report,
+            initial_energy: n.initial_energy,
+        });
+        if let Err(d) = c.guard.window(k, t1, nodes, e0, wext) {
+            c.diverged = Some(d);
+            c.completed = k;
+            let _ = c.rec.window_end(Duration::from_millis(20));
+            break;
+        }
         c.progress.window(k, t1);
         c.completed = k;
         if checkpoint {
@@ -2069,24 +2103,31 @@ fn drive(
         match c.pump_one(Duration::from_millis(50)) {
             Ok(true) => {}
             Ok(false) => break,
+            // Nodes a diverged run left behind may fail in the windows after (their peer gone).
+            Err(_) if c.diverged.is_some() => break,
             Err(f) => return Err(f),
         }
     }
-    let end_reason = match c.interrupted {
-        Some(sig) => format!(
+    let end_reason = match (&c.interrupted, &c.diverged) {
+        (_, Some(d)) => format!("the run diverged: {d}"),
+        (Some(sig), None) => format!(
             "interrupted by {} after window {}",
-            stop::name(sig),
+            stop::name(*sig),
             c.completed
         ),
-        None => "end time reached".into(),
+        (None, None) => "end time reached".into(),
     };
     for i in active.clone() {
-        c.send(
+        let sent = c.send(
             i,
             &Message::Finish(Finish {
                 reason: end_reason.clone(),
             }),
-        )?;
+        );
+        // A diverged node may be gone already.
+        if c.diverged.is_none() {
+            sent?;
+        }
     }
     // Let the nodes exit on their own.
     let deadline = Instant::now() + Duration::from_secs(10);
@@ -2169,9 +2210,24 @@ fn drive(
         })
         .collect();
     let reached_t = a.rows.last().map_or(0.0, |r| r.time);
+    // Energy the methods created, short of the divergence bound: the mark of a slowly
+    // growing instability (a window near the coupling's limit) that a user must see.
+    let created = if a.energy_scale > 0.0 {
+        a.worst_e_resid / a.energy_scale
+    } else {
+        0.0
+    };
+    let balance_warning = (created > crate::guard::CREATED_WARNING).then(|| {
+        format!(
+            "balance: the numerical methods created {:.1} % of the largest energy or work (energy residual {:+.4e} J); a healthy run creates almost none: the coupling or an integrator may be near its stability limit (try a smaller run.window)",
+            created * 100.0,
+            a.worst_e_resid
+        )
+    });
     Ok(json!({
         "run": c.run,
-        "status": if c.interrupted.is_some() { "interrupted" } else { "finished" },
+        "status": if c.diverged.is_some() { "diverged" } else if c.interrupted.is_some() { "interrupted" } else { "finished" },
+        "divergence": c.diverged.as_ref().map(crate::guard::Diverged::to_json),
         "signal": c.interrupted.map(stop::name),
         "window_reached": c.completed,
         "time_reached": reached_t,
@@ -2183,10 +2239,16 @@ fn drive(
         "windows": windows,
         "nodes": nodes_json,
         // Every node's warnings, "node: text" (also per node above, and in the log).
-        "warnings": c
-            .nodes
+        "warnings": case
+            .warnings
             .iter()
-            .flat_map(|n| n.warnings.iter().map(move |w| format!("{}: {w}", n.name)))
+            .map(|w| format!("case: {w}"))
+            .chain(balance_warning)
+            .chain(
+                c.nodes
+                    .iter()
+                    .flat_map(|n| n.warnings.iter().map(move |w| format!("{}: {w}", n.name))),
+            )
             .collect::<Vec<_>>(),
         "couplings": couplings,
         // What the run costs beyond its slowest node's own work: the coupling overhead on
@@ -2218,6 +2280,11 @@ fn drive(
             // positive energy they created.
             "max_energy_residual": a.worst_e_resid,
             "energy_scale": a.energy_scale,
+            // The divergence guard's reading: the largest total energy over its budget
+            // (initial energy plus the largest external work so far), against
+            // run.energy_bound.
+            "max_energy_over_budget": c.guard.worst_ratio(),
+            "energy_bound": case.run.energy_bound,
             "max_energy_residual_relative": if a.energy_scale > 0.0 {
                 a.worst_e_resid / a.energy_scale
             } else {

@@ -33,6 +33,10 @@ pub struct NodeDescriptionJson {
     pub stable_dt: Option<f64>,
     pub interfaces: Vec<InterfaceDescription>,
     pub warnings: Vec<String>,
+    /// Where its explicit integrator does not choose its own step: the largest stable
+    /// window, and when that holds (absent: none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub window_limits: Vec<crate::solver::WindowLimit>,
 }
 
 /// Why the node refused: `key` is relative to the node (`model`, `params.young`,
@@ -113,6 +117,7 @@ pub fn describe(
                     })
                     .collect(),
                 warnings: s.warnings(),
+                window_limits: s.window_limits(),
             };
             (DescribeAnswer::Description(json), 0)
         }

@@ -4,6 +4,7 @@
 
 pub mod checkpoint;
 pub mod describe;
+pub mod diverged;
 pub mod mapping;
 pub mod params;
 pub mod participant;

@@ -72,6 +72,9 @@ pub enum EngineError {
     Solver(#[from] SolverError),
     #[error("coupling {coupling}: {reason}")]
     Coupling { coupling: String, reason: String },
+    /// A non-finite value in what the node was about to send (never sent).
+    #[error(transparent)]
+    Diverged(#[from] crate::diverged::Divergence),
 }
 
 impl NodeEngine {
@@ -327,12 +330,15 @@ impl NodeEngine {
                         })?,
                 );
             }
-            msgs.push(Fields {
+            let f = Fields {
                 coupling: l.b.coupling.clone(),
                 window,
                 time,
                 fields,
-            });
+            };
+            // The divergence rule: a non-finite value never leaves the node.
+            crate::diverged::check_fields(&f)?;
+            msgs.push(f);
         }
         Ok(msgs)
     }
@@ -361,7 +367,19 @@ impl NodeEngine {
     /// Advance one window; returns the report and the fields to send.
     pub fn advance(&mut self, w: &Window) -> Result<(StepReport, Vec<Fields>), EngineError> {
         self.fill_inbox(w.index)?;
-        let report = self.solver.advance(w, &self.inbox, &mut self.outbox)?;
+        let report = match self.solver.advance(w, &self.inbox, &mut self.outbox) {
+            // The solver saw its state become unphysical itself: the run diverged, as when a
+            // non-finite value was about to leave.
+            Err(SolverError::Diverged { time, reason }) => {
+                return Err(crate::diverged::Divergence {
+                    window: w.index,
+                    what: format!("{reason} (t = {time:e} s)"),
+                }
+                .into());
+            }
+            r => r?,
+        };
+        crate::diverged::check_report(w.index, &report)?;
         let msgs = self.drain_outbox(w.index, w.t1)?;
         Ok((report, msgs))
     }
@@ -499,7 +517,7 @@ impl NodeEngine {
             components: 1,
             values,
         };
-        Ok(Fields {
+        let f = Fields {
             coupling,
             window,
             time,
@@ -508,7 +526,9 @@ impl NodeEngine {
                 vec(lagrange::wire::V_START, v_start),
                 vec(lagrange::wire::V_FREE, v_free),
             ],
-        })
+        };
+        crate::diverged::check_fields(&f)?;
+        Ok(f)
     }
 }
 
@@ -1169,6 +1189,7 @@ fn node_loop(
             }
             set_up = true;
             let mut report = engine.solver.initial_report()?;
+            crate::diverged::check_report(0, &report)?;
             report.wall_s = t0.elapsed().as_secs_f64();
             let describe_after = Message::Describe(Describe {
                 model: engine.solver.describe().model,
@@ -1353,6 +1374,11 @@ fn lagrange_wait(
             Some(Incoming::Cmd(Message::Abort(a))) => {
                 tracing::info!("aborted by the coordinator: {}", a.reason);
                 return Ok(Some(3));
+            }
+            // The run ended while this side waited (a diverged peer): no multipliers follow.
+            Some(Incoming::Cmd(Message::Finish(f))) => {
+                tracing::info!("finished while waiting for multipliers: {}", f.reason);
+                return Ok(Some(0));
             }
             Some(Incoming::Cmd(m)) => pending_cmd.push_back(m),
             Some(Incoming::Data(Message::Fields(f))) => engine.receive(f)?,

@@ -52,6 +52,42 @@ pub struct Window {
     pub write_output: bool,
 }
 
+/// Where a node's explicit integrator cannot choose its own step, the largest window it is
+/// stable at (`NODE --describe` states it, so that `cosim validate` refuses an unstable
+/// set-up before anything runs). A node that sub-cycles at its own stable step has none.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct WindowLimit {
+    /// When the limit holds.
+    pub applies: LimitApplies,
+    /// The integrator, in words (`central differences`).
+    pub integrator: String,
+    /// Its steps per window where the limit holds.
+    pub substeps: u64,
+    /// The largest step it takes (s): its critical step, or the share of it that its
+    /// parameters allow.
+    pub max_step: f64,
+    /// The node parameter that sets `substeps`, relative to the node (`params.substeps`);
+    /// None when only the window can change.
+    pub key: Option<String>,
+}
+
+impl WindowLimit {
+    /// The largest stable window: `substeps` largest steps.
+    pub fn max_window(&self) -> f64 {
+        self.substeps as f64 * self.max_step
+    }
+}
+
+/// When a [`WindowLimit`] holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LimitApplies {
+    /// As a side of a lagrange coupling, whatever its method.
+    LagrangeSide,
+    /// As a side of a lagrange coupling with the `gs4` or `ph` method.
+    LagrangeSideGs4OrPh,
+}
+
 /// What a solver is and what it offers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NodeDescription {
@@ -247,6 +283,13 @@ pub trait Solver: Send {
     ) -> Option<&mut dyn crate::scheme::lagrange::LagrangeSide> {
         let _ = interface;
         None
+    }
+
+    /// Where this solver's explicit integrator takes a step it does not choose itself, the
+    /// largest window it is stable at ([`WindowLimit`]); none by default (a solver that
+    /// sub-cycles at its own stable step).
+    fn window_limits(&self) -> Vec<WindowLimit> {
+        Vec::new()
     }
 
     /// Conditions the user should know about that do not stop the run, e.g. a GPU adapter

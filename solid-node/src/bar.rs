@@ -13,7 +13,7 @@ use mechanics::time::{Gs4, Gs4Error, IntegratorSpec, LinearSystem, State, Steppe
 use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
 use protocol::scheme::{self, sync_force};
 use protocol::{Binding, InterfaceMesh, Solver, SolverError, SolverResult, StepReport, Window};
-use protocol::{Inbox, InterfaceInfo, NodeDescription, Outbox};
+use protocol::{Inbox, InterfaceInfo, LimitApplies, NodeDescription, Outbox, WindowLimit};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -509,6 +509,22 @@ impl Solver for Bar {
 
     fn stable_dt(&self) -> f64 {
         self.p.courant * self.critical_dt()
+    }
+
+    fn window_limits(&self) -> Vec<WindowLimit> {
+        // A lagrange side with its substeps given steps window / substeps, whatever its
+        // stable step; an implicit integrator has no limit.
+        let explicit = self.gs4.as_ref().is_none_or(|g| g.coef.explicit);
+        match self.p.substeps {
+            Some(n) if explicit => vec![WindowLimit {
+                applies: LimitApplies::LagrangeSide,
+                integrator: "central differences".into(),
+                substeps: n as u64,
+                max_step: self.critical_dt(),
+                key: Some("params.substeps".into()),
+            }],
+            _ => Vec::new(),
+        }
     }
 
     fn lagrange_side(&mut self, interface: &str) -> Option<&mut dyn LagrangeSide> {

@@ -18,7 +18,7 @@ use mechanics::time::{
 };
 use protocol::scheme;
 use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
-use protocol::{Binding, Inbox, Outbox};
+use protocol::{Binding, Inbox, LimitApplies, Outbox, WindowLimit};
 use protocol::{
     InterfaceInfo, InterfaceMesh, NodeDescription, Solver, SolverError, SolverResult, StepReport,
     Window,
@@ -789,6 +789,19 @@ impl Solver for Fem2d {
 
     fn stable_dt(&self) -> f64 {
         self.step_limit()
+    }
+
+    fn window_limits(&self) -> Vec<WindowLimit> {
+        match self.p.substeps {
+            Some(n) if self.coef.explicit => vec![WindowLimit {
+                applies: LimitApplies::LagrangeSide,
+                integrator: "central differences".into(),
+                substeps: n as u64,
+                max_step: self.critical,
+                key: Some("params.substeps".into()),
+            }],
+            _ => Vec::new(),
+        }
     }
 
     fn advance(

@@ -46,8 +46,8 @@ fn split(n1: usize, n2: usize, periods: f64) -> (Vec<(f64, f64)>, f64) {
     split_with(n1, n2, periods, false)
 }
 
-fn split_with(n1: usize, n2: usize, periods: f64, in_place: bool) -> (Vec<(f64, f64)>, f64) {
-    let c = (200e9f64 / 7860.0).sqrt();
+/// The two halves, set up and coupled: (left, the driver; right, the responder).
+fn coupled(n1: usize, n2: usize) -> (NodeEngine, NodeEngine) {
     let left = bar(&format!(
         "length = 0.5\nelements = {n1}\nyoung = 200e9\ndensity = 7860.0\narea = 1e-4\nload_end = \"none\"\ncourant = 1.0\ninterfaces = {{ tip = \"right\" }}"
     ));
@@ -69,6 +69,12 @@ fn split_with(n1: usize, n2: usize, periods: f64, in_place: bool) -> (Vec<(f64, 
     }
     assert!(l.ready(0));
     l.setup().unwrap();
+    (l, r)
+}
+
+fn split_with(n1: usize, n2: usize, periods: f64, in_place: bool) -> (Vec<(f64, f64)>, f64) {
+    let c = (200e9f64 / 7860.0).sqrt();
+    let (mut l, mut r) = coupled(n1, n2);
     let window = 0.5 * (0.5 / n1 as f64) / c;
     let end = periods * 4.0 / c;
     let n = ((end / window) - 1e-9).ceil() as u64;
@@ -157,4 +163,62 @@ fn fields_read_in_place_give_the_same_run() {
         .receive_view(&codec::decode_fields_view(&bytes).unwrap())
         .unwrap_err();
     assert!(e.to_string().contains("elsewhere"), "{e}");
+}
+
+/// At ten times its window the kinematic exchange is unstable and the halves' motion grows
+/// without bound. The runtime never lets a non-finite value out: the half that would send
+/// one fails with a divergence naming the window and the field, and what went out before
+/// was finite.
+#[test]
+fn a_half_that_blows_up_is_stopped_before_it_sends_a_non_finite_value() {
+    let c = (200e9f64 / 7860.0).sqrt();
+    let (mut l, mut r) = coupled(100, 300);
+    let window = 10.0 * 0.5 * (0.5 / 100.0) / c;
+    // One half's window, its outputs handed to the other: how many messages went out.
+    let step = |from: &mut NodeEngine, to: &mut NodeEngine, k: u64| {
+        let (_, out) = from.advance(&Window {
+            index: k,
+            t0: (k - 1) as f64 * window,
+            t1: k as f64 * window,
+            write_output: false,
+        })?;
+        let n = out.len();
+        for f in out {
+            assert!(
+                f.fields
+                    .iter()
+                    .all(|x| x.values.iter().all(|v| v.is_finite()))
+            );
+            to.receive(f).unwrap();
+        }
+        Ok::<usize, protocol::participant::EngineError>(n)
+    };
+    let mut sent = 0usize;
+    let mut failure = None;
+    for k in 1..=100_000u64 {
+        match step(&mut l, &mut r, k).and_then(|n| Ok(n + step(&mut r, &mut l, k)?)) {
+            Ok(n) => sent += n,
+            Err(e) => {
+                failure = Some((k, e));
+                break;
+            }
+        }
+    }
+    let (k, e) = failure.expect("the unstable exchange never blew up");
+    println!("window {k}: {e} ({sent} messages sent before)");
+    assert!(sent > 10, "{sent}");
+    match e {
+        protocol::participant::EngineError::Diverged(d) => {
+            assert_eq!(d.window, k);
+            // A quantity named, and what it became.
+            assert!(
+                d.what.ends_with(" is inf")
+                    || d.what.contains(" is NaN")
+                    || d.what.contains(" is inf at point"),
+                "{}",
+                d.what
+            );
+        }
+        other => panic!("not a divergence: {other}"),
+    }
 }

@@ -36,7 +36,7 @@ use protocol::{
     Binding, CouplingKind, InterfaceInfo, InterfaceMesh, NodeDescription, Role, Solver,
     SolverError, SolverResult, StepReport, Window,
 };
-use protocol::{BuildOptions, Inbox, Outbox};
+use protocol::{BuildOptions, Inbox, LimitApplies, Outbox, WindowLimit};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -1633,6 +1633,29 @@ impl Solver for PdSolver {
 
     fn stable_dt(&self) -> f64 {
         self.dt()
+    }
+
+    fn window_limits(&self) -> Vec<WindowLimit> {
+        // As a lagrange side (`lagrange_side_for`): `substeps` steps of at most the stable
+        // step, or, without them, one step per window of at most `cfl` of it under gs4 and
+        // ph (gc then takes as many as it needs).
+        let integrator = "central differences (velocity Verlet)".to_string();
+        vec![match self.params.substeps {
+            Some(n) => WindowLimit {
+                applies: LimitApplies::LagrangeSide,
+                integrator,
+                substeps: n as u64,
+                max_step: self.body.stable_dt(),
+                key: Some("params.substeps".into()),
+            },
+            None => WindowLimit {
+                applies: LimitApplies::LagrangeSideGs4OrPh,
+                integrator,
+                substeps: 1,
+                max_step: self.dt(),
+                key: None,
+            },
+        }]
     }
 
     fn lagrange_side(&mut self, interface: &str) -> Option<&mut dyn LagrangeSide> {
