@@ -499,3 +499,40 @@ fn bar_chain_gs4_interface_energy_is_second_order_and_of_either_sign() {
         }
     }
 }
+
+/// A `bar-1d` interface may join both ends ("left+right", points in that order) and then
+/// holds one multiplier per end; an end named twice, or a fixed end in it, is refused by
+/// key.
+#[test]
+fn a_bar_interface_joins_both_ends_in_the_order_named() {
+    let bar = |extra: &str| {
+        let text = format!(
+            "x0 = 0.3\nlength = 0.3\nelements = 6\nyoung = 200e9\ndensity = 7860.0\n\
+             area = 1e-4\nload_end = \"none\"\n{extra}"
+        );
+        solid_node::bar::Bar::from_params(&text.parse::<toml::Table>().expect("toml"))
+    };
+    let b = bar("fixed = \"none\"\ninterfaces = { cuts = \"right+left\" }\n").expect("bar");
+    let d = b.describe();
+    assert_eq!(d.interfaces.len(), 1);
+    assert_eq!(d.interfaces[0].points, 2);
+    let mesh = b.interface("cuts").expect("mesh");
+    let x: Vec<f64> = mesh.positions.iter().map(|p| p[0]).collect();
+    assert_eq!(x, vec![0.6, 0.3]);
+    let s = b
+        .subdomain("cuts", 1.0, 3, 1e-6, 1, CouplingMethod::Gs4)
+        .expect("subdomain");
+    assert_eq!(s.multiplier_ids(), &[3, 4]);
+    let e = bar("fixed = \"none\"\ninterfaces = { cuts = \"left+left\" }\n")
+        .err()
+        .map(|e| e.to_string())
+        .unwrap_or_default();
+    assert!(e.contains("interfaces.cuts") && e.contains("twice"), "{e}");
+    let fixed = bar("fixed = \"left\"\ninterfaces = { cuts = \"left+right\" }\n").expect("bar");
+    let e = fixed
+        .subdomain("cuts", 1.0, 0, 1e-6, 1, CouplingMethod::Gs4)
+        .err()
+        .map(|e| e.to_string())
+        .unwrap_or_default();
+    assert!(e.contains("cuts") && e.contains("fixed end"), "{e}");
+}
