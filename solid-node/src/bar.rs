@@ -666,10 +666,7 @@ impl Solver for Bar {
         self.internal_force();
         for c in &self.coupled {
             let i = self.node(c.end);
-            let x_ref = match c.end {
-                End::Left => self.p.x0,
-                End::Right => self.p.x0 + self.p.length,
-            };
+            let x_ref = self.end_position(c.end);
             if c.follows {
                 out.put(&c.interface, "force", 3, 1)
                     .copy_from_slice(&[self.f[i], 0.0, 0.0]);
