@@ -1,7 +1,8 @@
 //! The 1-D elastic bar (`bar-1d`): a lumped-mass spring chain advanced by central
 //! differences. For a one-spacing horizon this is also the peridynamic bar operator of
 //! seed 001 §5.2 (eq. 196–201). Either end may be fixed, loaded by a step force, or be a
-//! coupling interface (ARCHITECTURE §5, kinematic: driver or responder).
+//! coupling interface (kinematic: driver or responder). In a lagrange coupling one interface
+//! may join both ends ("left+right"): the bar is then a middle subdomain of a chain.
 //!
 //! Time stepping (central difference, velocities at half steps):
 //! `a_n = M⁻¹ (f_int(u_n) + f_ext + f_coupling)`, `v_{n+1/2} = v_{n-1/2} + Δt a_n`,
@@ -59,7 +60,9 @@ pub struct BarParams {
     /// Fraction of the critical step used (≤ 1).
     #[serde(default = "default_courant")]
     pub courant: f64,
-    /// Interface names → end ("left" | "right").
+    /// Interface names → end ("left" | "right"), or both ends in one interface
+    /// ("left+right": the middle subdomain of a chain in a lagrange coupling, its points
+    /// in that order).
     #[serde(default)]
     pub interfaces: BTreeMap<String, String>,
     /// Time integrator. Absent: central differences with half-step velocities (above).
@@ -127,6 +130,24 @@ fn parse_end(key: &str, s: &str, allow_none: bool) -> SolverResult<Option<End>> 
             ),
         )),
     }
+}
+
+/// An interface's ends: "left", "right", or both joined with "+" (each at most once).
+fn parse_ends(key: &str, s: &str) -> SolverResult<Vec<End>> {
+    let mut ends = Vec::with_capacity(2);
+    for part in s.split('+') {
+        let Some(end) = parse_end(key, part.trim(), false)? else {
+            continue;
+        };
+        if ends.contains(&end) {
+            return Err(SolverError::config(
+                key,
+                format!("names the {part} end twice, got \"{s}\""),
+            ));
+        }
+        ends.push(end);
+    }
+    Ok(ends)
 }
 
 fn check_positive(key: &str, v: f64) -> SolverResult<()> {
@@ -201,7 +222,8 @@ pub struct Bar {
 /// The bar as one subdomain of a lagrange coupling: the runtime steps it.
 struct LagrangeBar {
     interface: String,
-    end: End,
+    /// The interface's ends, in the order of its points and multipliers.
+    ends: Vec<End>,
     side: SubdomainSide,
     dof: Vec<Option<usize>>,
 }
@@ -246,7 +268,7 @@ impl Bar {
             ));
         }
         for (name, end) in &p.interfaces {
-            parse_end(&format!("interfaces.{name}"), end, false)?;
+            parse_ends(&format!("interfaces.{name}"), end)?;
         }
         let coef = match &p.integrator {
             Some(spec) => Some(
@@ -310,15 +332,33 @@ impl Bar {
         }
     }
 
-    fn end_of(&self, interface: &str) -> SolverResult<End> {
+    /// The ends an interface joins, in the order its case names them.
+    fn ends_of(&self, interface: &str) -> SolverResult<Vec<End>> {
         let s = self.p.interfaces.get(interface).ok_or_else(|| {
             SolverError::interface(
                 interface,
                 "no such interface on this bar (see params.interfaces)",
             )
         })?;
-        parse_end(&format!("interfaces.{interface}"), s, false)?
-            .ok_or_else(|| SolverError::interface(interface, "not an end"))
+        parse_ends(&format!("interfaces.{interface}"), s)
+    }
+
+    /// The one end of an interface a kinematic coupling drives.
+    fn end_of(&self, interface: &str) -> SolverResult<End> {
+        match self.ends_of(interface)?.as_slice() {
+            [end] => Ok(*end),
+            _ => Err(SolverError::interface(
+                interface,
+                "joins both ends, which only a lagrange coupling takes (a middle subdomain)",
+            )),
+        }
+    }
+
+    fn end_position(&self, end: End) -> f64 {
+        match end {
+            End::Left => self.p.x0,
+            End::Right => self.p.x0 + self.p.length,
+        }
     }
 
     /// Spring-chain internal force on every node, into `self.f`.
@@ -399,10 +439,10 @@ impl Solver for Bar {
             interfaces: self
                 .p
                 .interfaces
-                .keys()
-                .map(|name| InterfaceInfo {
+                .iter()
+                .map(|(name, ends)| InterfaceInfo {
                     name: name.clone(),
-                    points: 1,
+                    points: ends.split('+').count(),
                     provides: vec![
                         "position".into(),
                         "velocity".into(),
@@ -426,12 +466,12 @@ impl Solver for Bar {
     }
 
     fn interface(&self, name: &str) -> SolverResult<InterfaceMesh> {
-        let end = self.end_of(name)?;
-        let x = match end {
-            End::Left => self.p.x0,
-            End::Right => self.p.x0 + self.p.length,
-        };
-        Ok(InterfaceMesh::points(vec![[x, 0.0, 0.0]]))
+        Ok(InterfaceMesh::points(
+            self.ends_of(name)?
+                .into_iter()
+                .map(|e| [self.end_position(e), 0.0, 0.0])
+                .collect(),
+        ))
     }
 
     fn setup(&mut self, bindings: &[Binding], inbox: &Inbox, out: &mut Outbox) -> SolverResult<()> {
@@ -452,7 +492,8 @@ impl Solver for Bar {
             _ => {
                 return Err(SolverError::interface(
                     &lagrange[0].interface,
-                    "a bar in a lagrange coupling takes no other coupling",
+                    "a bar in a lagrange coupling takes no other coupling (a middle bar of a \
+                     chain joins both ends in one interface, \"left+right\")",
                 ));
             }
         }
@@ -641,10 +682,7 @@ impl Solver for Bar {
         self.internal_force();
         for c in &self.coupled {
             let i = self.node(c.end);
-            let x_ref = match c.end {
-                End::Left => self.p.x0,
-                End::Right => self.p.x0 + self.p.length,
-            };
+            let x_ref = self.end_position(c.end);
             if c.follows {
                 out.put(&c.interface, "force", 3, 1)
                     .copy_from_slice(&[self.f[i], 0.0, 0.0]);
@@ -856,45 +894,48 @@ impl Bar {
 }
 
 impl Bar {
-    /// Builds the bar's subdomain for the lagrange coupling `b` (seed 003 §4): the system
-    /// step and method from the coordinator's request, this bar's own integrator (central
-    /// difference when none is given) and `substeps` per system step.
-    fn setup_lagrange(&mut self, b: &Binding, inbox: &Inbox) -> SolverResult<()> {
-        let (method, window) = lwire::request(inbox, &b.interface)?;
-        let end = self.end_of(&b.interface)?;
-        if self.fixed == Some(end) {
-            return Err(SolverError::interface(
-                &b.interface,
-                "is the fixed end and cannot be coupled",
-            ));
+    /// This bar as one subdomain of a lagrange coupling (seed 003 §4.1) at the system step
+    /// `window`, taking `substeps` steps of its own integrator (central differences when none
+    /// is given) per system step: one multiplier per end of `interface` (in the order the
+    /// interface names them, the first `first_lambda`), with sign `sign` in B. The subdomain
+    /// keeps ∫ R dt of the support's reaction (its probe 0).
+    pub fn subdomain(
+        &self,
+        interface: &str,
+        sign: f64,
+        first_lambda: usize,
+        window: f64,
+        substeps: usize,
+        method: CouplingMethod,
+    ) -> SolverResult<Subdomain> {
+        let ends = self.ends_of(interface)?;
+        let (sys, dof) = self.linear_system();
+        let mut iface = Vec::with_capacity(ends.len());
+        for (k, &end) in ends.iter().enumerate() {
+            let d = match dof[self.node(end)] {
+                Some(d) if self.fixed != Some(end) => d,
+                _ => {
+                    return Err(SolverError::interface(
+                        interface,
+                        "is the fixed end and cannot be coupled",
+                    ));
+                }
+            };
+            iface.push(InterfaceDof {
+                dof: d,
+                sign,
+                lambda: first_lambda + k,
+            });
         }
         let coef = match self.gs4.as_ref() {
             Some(g) => g.coef,
             None => Gs4::central_difference(),
-        };
-        let substeps = match self.p.substeps {
-            Some(m) => m,
-            None => (window / self.stable_dt() - 1e-9).ceil().max(1.0) as usize,
-        };
-        let (sys, dof) = self.linear_system();
-        let Some(d) = dof[self.node(end)] else {
-            return Err(SolverError::interface(&b.interface, "is a fixed node"));
         };
         let mut shape = vec![0.0; sys.len()];
         if let Some(dl) = self.load.and_then(|e| dof[self.node(e)]) {
             shape[dl] = 1.0;
         }
         let (f0, ramp, time) = (self.p.tip_force, self.p.ramp, self.p.ramp_time);
-        let method = match method {
-            Method::Gs4 => CouplingMethod::Gs4,
-            Method::Gc => CouplingMethod::Gc,
-            Method::Ph => CouplingMethod::Ph,
-        };
-        let iface = vec![InterfaceDof {
-            dof: d,
-            sign: 1.0,
-            lambda: 0,
-        }];
         // The support's reaction on the bar, R = −k u of the fixed node's neighbour (a probe:
         // the subdomain keeps ∫ R dt over its corrected substeps).
         let mut reaction = vec![0.0; sys.len()];
@@ -904,7 +945,7 @@ impl Bar {
                 reaction[dn] = -self.k;
             }
         }
-        let sub = Subdomain::new(
+        Subdomain::new(
             sys,
             coef,
             window,
@@ -915,13 +956,30 @@ impl Bar {
             Box::new(move |t| f0 * ramp.factor(t, time)),
         )
         .and_then(|s| s.with_probes(reaction))
-        .map_err(|e| SolverError::config("integrator", e.to_string()))?;
+        .map_err(|e| SolverError::config("integrator", e.to_string()))
+    }
+
+    /// Builds the bar's subdomain for the lagrange coupling `b` (seed 003 §4): the system
+    /// step and method from the coordinator's request, `substeps` per system step (as many
+    /// as the stable step needs when absent).
+    fn setup_lagrange(&mut self, b: &Binding, inbox: &Inbox) -> SolverResult<()> {
+        let (method, window) = lwire::request(inbox, &b.interface)?;
+        let substeps = match self.p.substeps {
+            Some(m) => m,
+            None => (window / self.stable_dt() - 1e-9).ceil().max(1.0) as usize,
+        };
+        let method = match method {
+            Method::Gs4 => CouplingMethod::Gs4,
+            Method::Gc => CouplingMethod::Gc,
+            Method::Ph => CouplingMethod::Ph,
+        };
+        let sub = self.subdomain(&b.interface, 1.0, 0, window, substeps, method)?;
         self.s.a = vec![0.0; self.s.u.len()];
         self.lagrange = Some(LagrangeBar {
             interface: b.interface.clone(),
-            end,
+            ends: self.ends_of(&b.interface)?,
             side: SubdomainSide(sub),
-            dof,
+            dof: self.linear_system().1,
         });
         Ok(())
     }
@@ -957,7 +1015,8 @@ impl Bar {
         };
         self.s.external_impulse = load_impulse + sub.probe_integral.first().unwrap_or(&0.0);
         self.s.applied_impulse = load_impulse.abs();
-        self.s.interface_impulse = sub.interface_impulse.first().copied().unwrap_or(0.0);
+        // Along x at every end: the interface's impulse is their sum.
+        self.s.interface_impulse = sub.interface_impulse.iter().sum();
         self.s.time = w.t1;
         let substeps = sub.substeps() as u64;
         let (ke, ie, p) = self.energies();
@@ -970,7 +1029,18 @@ impl Bar {
         if let Some(i) = load {
             push("tip", i, &self.s);
         }
-        push(&l.interface, self.node(l.end), &self.s);
+        match l.ends.as_slice() {
+            [end] => push(&l.interface, self.node(*end), &self.s),
+            ends => {
+                for &end in ends {
+                    let side = match end {
+                        End::Left => "left",
+                        End::Right => "right",
+                    };
+                    push(&format!("{}_{side}", l.interface), self.node(end), &self.s);
+                }
+            }
+        }
         Ok(StepReport {
             kinetic_energy: ke,
             internal_energy: ie,

@@ -320,3 +320,245 @@ pub mod split_bar {
         (e, count)
     }
 }
+
+/// A chain of three `bar-1d` subdomains (`examples/split_bar_chain.toml`, small variant):
+/// steel, A = 1e-4 m², L = 1 m, the left bar [0, 0.3] m fixed at x = 0 (30 elements, average
+/// acceleration, one step per system step), the middle bar [0.3, 0.6] m with both ends in one
+/// interface (60 elements, central differences, four steps) and the right bar [0.6, 1] m
+/// (40 elements, average acceleration, two steps) loaded at its end by F₀ along the C³ ramp
+/// over three transits of the whole bar; and the same mesh as one domain, the reference.
+pub mod bar_chain {
+    use super::SubdomainSide;
+    use crate::bar::{Bar, chain_system};
+    use mechanics::time::{CouplingMethod, Design, Gs4, State, Stepper};
+    use protocol::scheme::lagrange::{LagrangeScheme, LagrangeSide, Method};
+
+    pub const YOUNG: f64 = 200e9;
+    pub const DENSITY: f64 = 7860.0;
+    pub const AREA: f64 = 1e-4;
+    pub const F0: f64 = 1000.0;
+    /// (from, to, elements) of each bar.
+    pub const BARS: [(f64, f64, usize); 3] = [(0.0, 0.3, 30), (0.3, 0.6, 60), (0.6, 1.0, 40)];
+    /// Steps per system step of each bar.
+    pub const SUBSTEPS: [usize; 3] = [1, 4, 2];
+    /// The sampled quantities: u and v at both cuts (cut 1 from the left bar, cut 2 from the
+    /// middle one) and at the tip, and both multipliers as the force on the part left of
+    /// their cut (N).
+    pub const NAMES: [&str; 8] = [
+        "u_cut1", "v_cut1", "u_cut2", "v_cut2", "u_tip", "v_tip", "λ_cut1", "λ_cut2",
+    ];
+
+    pub fn wave_speed() -> f64 {
+        (YOUNG / DENSITY).sqrt()
+    }
+    /// The left bar's element transit time h/c: the coarsest system step (s).
+    pub fn transit() -> f64 {
+        (BARS[0].1 - BARS[0].0) / BARS[0].2 as f64 / wave_speed()
+    }
+    /// T of the load ramp: three transits of the whole bar (s).
+    pub fn ramp_time() -> f64 {
+        3.0 / wave_speed()
+    }
+    /// System steps at `transit()` to t = 2T.
+    pub fn steps0() -> usize {
+        (2.0 * ramp_time() / transit()).round() as usize
+    }
+
+    /// One series per name of [`NAMES`], sampled every system step from t = 0.
+    #[derive(Debug, Clone)]
+    pub struct Histories {
+        pub dt: f64,
+        pub series: Vec<Vec<f64>>,
+    }
+
+    impl Histories {
+        fn new(dt: f64) -> Self {
+            Histories {
+                dt,
+                series: vec![Vec::new(); NAMES.len()],
+            }
+        }
+        fn push(&mut self, row: [f64; 8]) {
+            for (s, v) in self.series.iter_mut().zip(row) {
+                s.push(v);
+            }
+        }
+    }
+
+    /// The cut force on the part left of a cut at node g whose left element is `h` long:
+    /// m a_g + k (u_g − u_{g−1}) with that element's half mass and stiffness (N).
+    fn cut_force(h: f64, s: &State, g: usize) -> f64 {
+        0.5 * DENSITY * AREA * h * s.a[g] + YOUNG * AREA / h * (s.u[g] - s.u[g - 1])
+    }
+
+    fn h(k: usize) -> f64 {
+        (BARS[k].1 - BARS[k].0) / BARS[k].2 as f64
+    }
+
+    /// The whole bar on one mesh (nodes as `bar-1d` places them) in average acceleration at
+    /// step `dt`, `steps` steps, sampled every `every`.
+    pub fn single(dt: f64, steps: usize, every: usize) -> Result<Histories, String> {
+        let mut x = Vec::new();
+        for (k, &(from, _, n)) in BARS.iter().enumerate() {
+            x.extend((usize::from(k > 0)..=n).map(|i| from + i as f64 * h(k)));
+        }
+        let (sys, dof) = chain_system(&x, YOUNG, DENSITY, AREA, &[0]);
+        let node = |i: usize| dof[i].ok_or_else(|| format!("node {i} is held"));
+        let (g1, g2) = (node(BARS[0].2)?, node(BARS[0].2 + BARS[1].2)?);
+        let tip = sys.len() - 1;
+        let coef = Gs4::u0(Design {
+            rho1: 1.0,
+            rho2: 1.0,
+            rho_s: 0.0,
+        });
+        let mut stepper = Stepper::new(coef, dt, &sys).map_err(|e| e.to_string())?;
+        let mut s = State::zeros(sys.len());
+        let mut f = vec![0.0; sys.len()];
+        let mut out = Histories::new(dt * every as f64);
+        let sample = |s: &State, out: &mut Histories| {
+            out.push([
+                s.u[g1],
+                s.v[g1],
+                s.u[g2],
+                s.v[g2],
+                s.u[tip],
+                s.v[tip],
+                cut_force(h(0), s, g1),
+                cut_force(h(1), s, g2),
+            ]);
+        };
+        sample(&s, &mut out);
+        for n in 0..steps {
+            // Average acceleration balances the load at the step end (W₁ = 1).
+            f[tip] = F0 * crate::bar::Ramp::Septic.factor((n + 1) as f64 * dt, ramp_time());
+            stepper.step(&sys, &mut s, &f);
+            if (n + 1) % every == 0 {
+                sample(&s, &mut out);
+            }
+        }
+        Ok(out)
+    }
+
+    /// Bar `k` as `bar-1d` builds it from a case file's params, implicit (average
+    /// acceleration) or explicit (central differences).
+    fn bar(k: usize, implicit: bool, params: &str) -> Result<Bar, String> {
+        let (from, to, n) = BARS[k];
+        let text = format!(
+            "x0 = {from}\nlength = {}\nelements = {n}\nyoung = {YOUNG}\ndensity = {DENSITY}\n\
+             area = {AREA}\nintegrator = {{ scheme = \"gs4\", design = \"U0(1,1,0)\", \
+             implicit = {implicit} }}\n{params}",
+            to - from
+        );
+        let table = text.parse::<toml::Table>().map_err(|e| e.to_string())?;
+        Bar::from_params(&table).map_err(|e| e.to_string())
+    }
+
+    /// The chain coupled by `method` at system step `dt` for `steps` steps (each bar at its
+    /// [`SUBSTEPS`], the middle one explicit): the histories and ΔE_Γ = −Σᵢ Wᵢ after each
+    /// step (J).
+    pub fn chain(method: Method, dt: f64, steps: usize) -> Result<(Histories, Vec<f64>), String> {
+        chain_with(method, [true, false, true], SUBSTEPS, dt, steps)
+    }
+
+    /// [`chain`] with each bar implicit or not and at `substeps` per system step.
+    pub fn chain_with(
+        method: Method,
+        implicit: [bool; 3],
+        substeps: [usize; 3],
+        dt: f64,
+        steps: usize,
+    ) -> Result<(Histories, Vec<f64>), String> {
+        let cm = match method {
+            Method::Gs4 => CouplingMethod::Gs4,
+            Method::Gc => CouplingMethod::Gc,
+            Method::Ph => CouplingMethod::Ph,
+        };
+        let outer = "fixed = \"none\"\nload_end = \"none\"\n";
+        let bars = [
+            bar(
+                0,
+                implicit[0],
+                "fixed = \"left\"\nload_end = \"none\"\ninterfaces = { cut = \"right\" }\n",
+            )?,
+            bar(
+                1,
+                implicit[1],
+                &format!("{outer}interfaces = {{ cuts = \"left+right\" }}\n"),
+            )?,
+            bar(
+                2,
+                implicit[2],
+                &format!(
+                    "fixed = \"none\"\ntip_force = {F0}\nramp = \"septic\"\nramp_time = {}\n\
+                     interfaces = {{ cut = \"left\" }}\n",
+                    ramp_time()
+                ),
+            )?,
+        ];
+        // +1 on the middle bar, −1 on the outer ones: λ is the force on the middle bar; the
+        // middle bar's multipliers are its left end's (cut 1) then its right end's (cut 2).
+        let side = |k: usize, name: &str, sign: f64, first: usize| {
+            bars[k]
+                .subdomain(name, sign, first, dt, substeps[k], cm)
+                .map(SubdomainSide)
+                .map_err(|e| e.to_string())
+        };
+        let mut s1 = side(0, "cut", -1.0, 0)?;
+        let mut s2 = side(1, "cuts", 1.0, 0)?;
+        let mut s3 = side(2, "cut", -1.0, 1)?;
+        let mut scheme = {
+            let mut sides: [&mut dyn LagrangeSide; 3] = [&mut s1, &mut s2, &mut s3];
+            LagrangeScheme::new(method, 2, &mut sides).map_err(|e| e.to_string())?
+        };
+        let (g1, g2, tip) = (BARS[0].2 - 1, BARS[1].2, BARS[2].2);
+        let mut out = Histories::new(dt);
+        let mut energy = Vec::with_capacity(steps + 1);
+        let sample = |s: [&SubdomainSide; 3], lam: &[f64], out: &mut Histories| {
+            let (a, b, c) = (&s[0].0.state, &s[1].0.state, &s[2].0.state);
+            out.push([
+                a.u[g1], a.v[g1], b.u[g2], b.v[g2], c.u[tip], c.v[tip], -lam[0], lam[1],
+            ]);
+        };
+        sample([&s1, &s2, &s3], scheme.lambda(), &mut out);
+        energy.push(0.0);
+        for _ in 0..steps {
+            let mut sides: [&mut dyn LagrangeSide; 3] = [&mut s1, &mut s2, &mut s3];
+            scheme.step(&mut sides).map_err(|e| e.to_string())?;
+            sample([&s1, &s2, &s3], scheme.lambda(), &mut out);
+            energy.push(-(s1.interface_work() + s2.interface_work() + s3.interface_work()));
+        }
+        Ok((out, energy))
+    }
+
+    /// Per series: the largest difference over the samples of `a` that coincide with
+    /// samples of `reference` (a's interval a whole multiple of the reference's), divided by
+    /// the reference's largest magnitude, NaN if any value is NaN; and that series' own count
+    /// of samples compared.
+    pub fn errors(a: &Histories, reference: &Histories) -> Vec<(f64, usize)> {
+        let ratio = (a.dt / reference.dt).round() as usize;
+        a.series
+            .iter()
+            .zip(&reference.series)
+            .map(|(x, r)| {
+                let scale = r.iter().fold(0.0f64, |m, v| nan_max(m, v.abs()));
+                let mut e = 0.0f64;
+                let mut n = 0;
+                for (k, xv) in x.iter().enumerate() {
+                    let Some(y) = r.get(k * ratio) else { break };
+                    e = nan_max(e, (xv - y).abs() / scale);
+                    n += 1;
+                }
+                (e, n)
+            })
+            .collect()
+    }
+
+    /// max that keeps NaN (`f64::max` drops it, so a NaN error would pass).
+    pub fn nan_max(a: f64, b: f64) -> f64 {
+        if a.is_nan() || b.is_nan() {
+            f64::NAN
+        } else {
+            a.max(b)
+        }
+    }
+}
