@@ -1,6 +1,6 @@
-//! One writer per output folder. `cosim run`, `cosim restart` and `cosim replay` hold an
-//! advisory lock on `<folder>/.cosim.lock` for as long as they write there, so that a second
-//! process refuses the folder, naming the live one, instead of mixing its files with it.
+//! One run per output folder. `cosim run` and `cosim restart` hold an advisory lock on
+//! `<folder>/.cosim.lock` for as long as they write there, so that a second run, a restart or
+//! a replay refuses the folder, naming the live run, instead of mixing its files with it.
 //!
 //! The lock is the kernel's `flock` (through `std::fs::File::try_lock`, no crate needed): it
 //! belongs to the open file, which the kernel closes when the process ends however it ends,

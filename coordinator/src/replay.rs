@@ -666,7 +666,6 @@ pub fn replay(path: &Path, node: &str, opts: &ReplayOptions) -> anyhow::Result<R
             out.display()
         );
     }
-    let _lock = crate::lock::acquire(&out, &crate::lock::command_line())?;
     // The log of this replay only (a node's log is appended to: a restarted run keeps its
     // killed run's lines).
     let log = out.join(format!("{node}.log"));
