@@ -666,6 +666,7 @@ pub fn replay(path: &Path, node: &str, opts: &ReplayOptions) -> anyhow::Result<R
             out.display()
         );
     }
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     // The log of this replay only (a node's log is appended to: a restarted run keeps its
     // killed run's lines).
     let log = out.join(format!("{node}.log"));
