@@ -203,6 +203,31 @@ pub fn latest(run_dir: &Path) -> anyhow::Result<(CoordState, Vec<String>)> {
     )
 }
 
+/// Refuse to restart the run in `run_dir` when it finished and `case` ends no later: its
+/// last checkpoint lies before the end, and continuing from it would only run its last
+/// windows again. A run without a summary (killed) or stopped early may continue.
+pub fn check_not_finished(run_dir: &Path, case: &Case) -> Result<(), String> {
+    let Ok(text) = std::fs::read_to_string(run_dir.join("summary.json")) else {
+        return Ok(());
+    };
+    let Ok(summary) = serde_json::from_str::<serde_json::Value>(&text) else {
+        return Ok(());
+    };
+    if summary["status"] != "finished" {
+        return Ok(());
+    }
+    let reached = summary["window_reached"].as_u64().unwrap_or(0);
+    if crate::run::window_count(case) > reached {
+        return Ok(());
+    }
+    let t = summary["time_reached"]
+        .as_f64()
+        .unwrap_or(case.run.end_time);
+    Err(format!(
+        "the run finished at t = {t:e} s (window {reached}); give a later end time with --set run.end_time=… to continue it"
+    ))
+}
+
 /// Refuse to continue the run of `st` with `case` when it changed what the state depends on;
 /// the error names what differs.
 pub fn check_compatible(case: &Case, st: &CoordState) -> Result<(), String> {

@@ -58,7 +58,8 @@ pub enum Cmd {
         variant: Option<String>,
         /// Replace the results of an earlier run in the output directory (they are deleted
         /// first; the folders of other variants inside it are kept). Without it, an output
-        /// directory holding anything but such folders is refused.
+        /// directory holding anything but such folders is refused. A directory a run is still
+        /// writing into is refused either way (it holds that run's lock, .cosim.lock).
         #[arg(long, conflicts_with = "restart")]
         overwrite: bool,
         /// Continue the run in this directory from its last checkpoint complete on every
@@ -68,8 +69,17 @@ pub enum Cmd {
         restart: Option<PathBuf>,
     },
     /// Continue the run in RUN_DIR from its last checkpoint complete on every node, with the
-    /// case exactly as it ran (`cosim run CASE --restart RUN_DIR` to change its end time).
-    Restart { run_dir: PathBuf },
+    /// case as it ran. A run that finished is continued only to a later end time
+    /// (`--set run.end_time=T`). The recording goes on in run.1.mcap, run.2.mcap, ...; each
+    /// node's log goes on in RUN_DIR/NODE.log after a line marking the restart.
+    Restart {
+        run_dir: PathBuf,
+        /// Change the case as it ran before continuing it: run.KEY=VALUE (e.g.
+        /// run.end_time=2e-3); what a checkpoint depends on (nodes, parameters, window,
+        /// couplings) must stay as it was (repeatable).
+        #[arg(long = "set")]
+        sets: Vec<String>,
+    },
     /// Check a case file (and every variant) without starting anything.
     Validate {
         case: PathBuf,
@@ -85,7 +95,10 @@ pub enum Cmd {
         #[arg(long)]
         json: bool,
     },
-    /// Summarise a recording (RUN.mcap, or the run's output folder).
+    /// Summarise a recording (RUN.mcap, or the run's output folder), after checking its bytes:
+    /// a file that is not MCAP is "not a recording", one that fails its chunk or section CRCs
+    /// is "corrupt at byte N" (both exit 1); one cut short by a killed run reads as
+    /// INCOMPLETE, as far as its complete chunks go.
     Info {
         recording: PathBuf,
         /// Print the summary as one JSON document (nodes, couplings, windows, channels, the
@@ -152,7 +165,13 @@ pub enum Cmd {
     /// a run still running is never touched.
     Clean,
     /// Launch one node's executable alone, feed it its recorded inputs window by window, and
-    /// compare what it sends with what the recording holds (exit 1 when incomplete).
+    /// compare what it sends with what the recording holds.
+    ///
+    /// Exit status: 0 the outputs are bit-identical to the recording over every recorded
+    /// window; 3 some replayed output differs from the recorded one; 1 the replay could not
+    /// run or could not compare every recorded window (a recording cut short or damaged, a
+    /// node that failed or stopped early), with nothing compared differing; 2 a command-line
+    /// error.
     Replay {
         /// RUN.mcap, or the run's output folder.
         recording: PathBuf,
@@ -167,7 +186,9 @@ pub enum Cmd {
         /// Run id of the replay (namespaces its shared memory; default: a fresh one).
         #[arg(long)]
         run_id: Option<String>,
-        /// Directory for the node's log and output (default: replay-NODE beside the recording).
+        /// Directory for the node's log and output (default: replay-NODE beside the
+        /// recording). A folder holding a run's results (its run.mcap or summary.json) is
+        /// refused: the replayed node's log and frames would overwrite the run's own.
         #[arg(long, short)]
         output: Option<PathBuf>,
         /// Relative drift of the interface motion that triggers a warning.
@@ -457,7 +478,7 @@ pub fn load_variant_text(
 }
 
 /// Whether `dir` holds a run of its own (a variant's output inside the base case's).
-fn holds_a_run(dir: &std::path::Path) -> bool {
+pub(crate) fn holds_a_run(dir: &std::path::Path) -> bool {
     dir.join("summary.json").exists() || dir.join("run.mcap").exists()
 }
 
@@ -472,6 +493,10 @@ fn prepare_output(out: &std::path::Path, overwrite: bool) -> Result<(), String> 
     let mut stale = Vec::new();
     for e in entries.flatten() {
         let p = e.path();
+        // The lock this process holds on the folder is not a result.
+        if e.file_name() == crate::lock::LOCK_FILE {
+            continue;
+        }
         if !(p.is_dir() && holds_a_run(&p)) {
             stale.push(p);
         }
@@ -862,10 +887,21 @@ pub fn main_with(cli: Cli) -> i32 {
                     return 2;
                 }
             };
+            // Held until the run ends: no other cosim writes into the folder meanwhile.
+            let folder = restart
+                .clone()
+                .or_else(|| output.clone())
+                .unwrap_or_else(|| c.run.output.clone());
+            let _lock = match crate::lock::acquire(&folder, &crate::lock::command_line()) {
+                Ok(l) => l,
+                Err(e) => {
+                    eprintln!("cosim: {e}");
+                    return 2;
+                }
+            };
             let (restart, output) = match restart {
                 None => {
-                    let out = output.clone().unwrap_or_else(|| c.run.output.clone());
-                    if let Err(e) = prepare_output(&out, overwrite) {
+                    if let Err(e) = prepare_output(&folder, overwrite) {
                         eprintln!("cosim: {e}");
                         return 2;
                     }
@@ -897,7 +933,14 @@ pub fn main_with(cli: Cli) -> i32 {
             };
             run_case(&c, &opts)
         }
-        Cmd::Restart { run_dir } => {
+        Cmd::Restart { run_dir, sets } => {
+            let _lock = match crate::lock::acquire(&run_dir, &crate::lock::command_line()) {
+                Ok(l) => l,
+                Err(e) => {
+                    eprintln!("cosim restart: {e}");
+                    return 2;
+                }
+            };
             let (st, skipped) = match crate::checkpoint::latest(&run_dir) {
                 Ok(x) => x,
                 Err(e) => {
@@ -908,14 +951,21 @@ pub fn main_with(cli: Cli) -> i32 {
             for s in skipped {
                 eprintln!("cosim restart: skipped the checkpoint of {s}");
             }
-            let c = match config::parse(&st.case_text, std::path::Path::new(&st.case_path)) {
+            let c = match load_variant_text(
+                &st.case_text,
+                std::path::Path::new(&st.case_path),
+                None,
+                &sets,
+            ) {
                 Ok(c) => c,
                 Err(e) => {
                     eprintln!("cosim restart: the run's case ({}): {e}", st.case_path);
                     return 2;
                 }
             };
-            if let Err(e) = crate::checkpoint::check_compatible(&c, &st) {
+            if let Err(e) = crate::checkpoint::check_not_finished(&run_dir, &c)
+                .and_then(|()| crate::checkpoint::check_compatible(&c, &st))
+            {
                 eprintln!("cosim restart: {e}");
                 return 2;
             }
@@ -980,7 +1030,7 @@ pub fn main_with(cli: Cli) -> i32 {
                             }
                         }
                     }
-                    if r.incomplete.is_empty() { 0 } else { 1 }
+                    r.exit_code()
                 }
                 Err(e) => {
                     eprintln!("cosim replay: {e:#}");
@@ -998,6 +1048,7 @@ fn restart_state(
     c: &config::Case,
     dir: &std::path::Path,
 ) -> anyhow::Result<crate::checkpoint::CoordState> {
+    crate::checkpoint::check_not_finished(dir, c).map_err(|e| anyhow::anyhow!(e))?;
     let (st, skipped) = crate::checkpoint::latest(dir)?;
     for s in skipped {
         eprintln!("cosim: skipped the checkpoint of {s}");

@@ -418,11 +418,12 @@ pub fn render(
     if let Some(c) = choice {
         check_choice(&frames, c)?;
     }
-    let root = BitMapBackend::new(png, SIZE).into_drawing_area();
-    draw(&root, &frames, choice, t_drawn)?;
-    root.present()
-        .with_context(|| format!("cannot write {}", png.display()))?;
-    Ok(t_drawn)
+    crate::plot::png_whole(png, |tmp| {
+        let root = BitMapBackend::new(tmp, SIZE).into_drawing_area();
+        draw(&root, &frames, choice, t_drawn)?;
+        root.present()?;
+        Ok(t_drawn)
+    })
 }
 
 /// The last frame of each node alone into `RUN/fields_<node>.png`, where more than one node

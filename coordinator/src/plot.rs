@@ -171,6 +171,41 @@ pub fn line_chart(
     y_label: &str,
     series: &[Series],
 ) -> anyhow::Result<()> {
+    png_whole(path, |tmp| {
+        line_chart_into(tmp, title, x_label, y_label, series)
+    })
+}
+
+/// Draw a picture whole or not at all: `draw` writes it to a hidden file beside `path`
+/// (ending `.png` too: the encoder picks the format by the extension), renamed over `path`
+/// once written. On a full disk neither a truncated nor an empty picture is left, and the
+/// error names `path`.
+pub fn png_whole<T>(
+    path: &Path,
+    draw: impl FnOnce(&Path) -> anyhow::Result<T>,
+) -> anyhow::Result<T> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}.part.png"));
+    let drawn = draw(&tmp).and_then(|v| {
+        std::fs::rename(&tmp, path)?;
+        Ok(v)
+    });
+    drawn.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        e.context(format!("cannot write {}", path.display()))
+    })
+}
+
+fn line_chart_into(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+) -> anyhow::Result<()> {
     if series.iter().all(|s| s.points.is_empty()) {
         bail!("{title}: nothing to plot");
     }

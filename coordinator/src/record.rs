@@ -11,7 +11,7 @@ use mcap::records::MessageHeader;
 use mcap::{Compression, WriteOptions, Writer};
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
-use std::io::BufWriter;
+use std::io::{BufWriter, Write};
 use std::path::Path;
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
@@ -31,6 +31,8 @@ pub const BINCODE_ENCODING: &str = "bincode";
 
 pub struct Recorder {
     w: Writer<BufWriter<File>>,
+    /// The file, named in every write error (a full disk says which file it stopped).
+    path: std::path::PathBuf,
     bincode_schema: u16,
     /// Topic → (channel id, sequence, the keys its schema lists: JSON channels only).
     channels: HashMap<String, (u16, u32, BTreeMap<String, &'static str>)>,
@@ -93,6 +95,7 @@ impl Recorder {
         )?;
         Ok(Recorder {
             w,
+            path: path.to_path_buf(),
             bincode_schema,
             channels: HashMap::new(),
             last_flush: Instant::now(),
@@ -245,7 +248,12 @@ impl Recorder {
 
     /// Write summary and footer.
     pub fn finish(mut self) -> anyhow::Result<()> {
-        self.w.finish()?;
+        let path = self.path.clone();
+        let cannot = || format!("cannot write {}", path.display());
+        self.w.finish().with_context(cannot)?;
+        // The last buffered bytes are written here, not when the buffer is dropped, where
+        // an error (a full disk) would be lost.
+        self.w.into_inner().flush().with_context(cannot)?;
         Ok(())
     }
 }
@@ -460,8 +468,11 @@ fn flat_report(data: &[u8]) -> Option<Vec<u8>> {
 
 fn read_segment(path: &Path, json_only: bool) -> anyhow::Result<(Vec<Recorded>, bool)> {
     let buf = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    // Not a recording, or a damaged one, is refused here, before a misread byte reaches a
+    // reader; a file cut short is read as far as its complete chunks go.
+    let checked = crate::integrity::check(path, &buf)?;
     let mut out = Vec::new();
-    let mut complete = true;
+    let mut complete = checked.complete;
     let stream = mcap::MessageStream::new(&buf).context("not an MCAP file")?;
     for m in stream {
         match m {
@@ -586,10 +597,15 @@ impl RecorderThread {
         let handle = std::thread::Builder::new()
             .name("cosim-recorder".into())
             .spawn(move || -> anyhow::Result<(u64, u64)> {
-                let mut warned = false;
+                let path = rec.path.clone();
+                // The first failure is warned of at once and ends `finish` with an error: a
+                // recording that lost messages (a full disk) is not a recording of the run.
+                let mut failed: Option<anyhow::Error> = None;
                 let mut warn = |e: anyhow::Error| {
-                    if !std::mem::replace(&mut warned, true) {
+                    if failed.is_none() {
+                        let e = e.context(format!("cannot write {}", path.display()));
                         tracing::warn!("recording: {e:#}");
+                        failed = Some(e);
                     }
                 };
                 let mut one = |cmd: Cmd, rec: &mut Recorder| match cmd {
@@ -621,7 +637,10 @@ impl RecorderThread {
                         }
                     }
                     Cmd::Flush(done) => {
-                        let _ = done.send(rec.flush().map_err(|e| format!("{e:#}")));
+                        let _ = done
+                            .send(rec.flush().map_err(|e| {
+                                format!("cannot write {}: {e:#}", rec.path.display())
+                            }));
                     }
                     // Batches are never nested (`RecorderThread::push`).
                     Cmd::Batch(_) => {}
@@ -638,8 +657,11 @@ impl RecorderThread {
                     }
                 }
                 let counts = (rec.messages, rec.bytes);
-                rec.finish()?;
-                Ok(counts)
+                let finished = rec.finish();
+                if let Some(e) = failed {
+                    return Err(e);
+                }
+                finished.map(|()| counts)
             })
             .context("starting the recorder thread")?;
         Ok(RecorderThread {

@@ -101,7 +101,25 @@ pub struct ReplayReport {
     pub drift: Option<(u64, String, f64)>,
 }
 
+/// `cosim replay`'s exit status when the replayed outputs differ from the recorded ones: apart
+/// from 1 (the replay could not run, or could not compare every recorded window) so that a
+/// regression suite tells a changed result from a broken set-up.
+pub const EXIT_DIFFER: i32 = 3;
+
 impl ReplayReport {
+    /// The exit status of `cosim replay`: 0 when bit-identical; [`EXIT_DIFFER`] when a
+    /// compared value differs (whether or not every window could be compared: a difference
+    /// is a finding); 1 when nothing compared differs but the comparison is incomplete.
+    pub fn exit_code(&self) -> i32 {
+        if !self.all_equal {
+            EXIT_DIFFER
+        } else if self.bit_identical() {
+            0
+        } else {
+            1
+        }
+    }
+
     /// Every recorded window was compared, nothing was missing, and every value matched.
     pub fn bit_identical(&self) -> bool {
         self.incomplete.is_empty()
@@ -639,7 +657,24 @@ pub fn replay(path: &Path, node: &str, opts: &ReplayOptions) -> anyhow::Result<R
             .unwrap_or(Path::new("."))
             .join(format!("replay-{node}")),
     };
+    // The replayed node writes `<out>/<node>.log` and `<out>/<node>/`, the very names a run
+    // gives its own log and frames: a run's folder, live or finished, is no place for them.
+    crate::lock::check_free(&out)?;
+    if crate::cli::holds_a_run(&out) {
+        bail!(
+            "{} holds a run's results (run.mcap or summary.json), whose node log and frames the replay would overwrite: leave out --output (the replay goes to replay-{node} beside the recording) or name another folder",
+            out.display()
+        );
+    }
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+    // The log of this replay only (a node's log is appended to: a restarted run keeps its
+    // killed run's lines).
+    let log = out.join(format!("{node}.log"));
+    match std::fs::remove_file(&log) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => bail!("cannot remove the previous replay's {}: {e}", log.display()),
+    }
     let welcome = Welcome {
         run: run.clone(),
         model: rep.model.clone(),
@@ -892,8 +927,9 @@ pub struct RunInfo {
     pub run: String,
     pub end_time: Option<f64>,
     pub window: Option<f64>,
-    pub schedule: String,
-    pub transport: String,
+    /// As the recorded case says; `None` where the recording holds no case.
+    pub schedule: Option<String>,
+    pub transport: Option<String>,
     pub nodes: Vec<NodeInfo>,
     pub couplings: Vec<CouplingInfo>,
     pub windows_completed: u64,
@@ -938,10 +974,13 @@ pub fn run_info(path: &Path) -> anyhow::Result<RunInfo> {
         .collect();
     let dec = decode_all(&msgs);
     let (mut end_time, mut window) = (None, None);
-    let (mut schedule, mut transport) = ("serial".to_string(), "shm".to_string());
+    let (mut schedule, mut transport) = (None, None);
     if let Ok((case, _)) = case_of(&msgs)
         && let Some(run) = case.get("run").and_then(|r| r.as_table())
     {
+        // What a case leaves out is the default it ran with.
+        schedule = Some("serial".to_string());
+        transport = Some("shm".to_string());
         let num = |k: &str| {
             run.get(k)
                 .and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
@@ -949,10 +988,10 @@ pub fn run_info(path: &Path) -> anyhow::Result<RunInfo> {
         end_time = num("end_time");
         window = num("window");
         if let Some(v) = run.get("schedule").and_then(|v| v.as_str()) {
-            schedule = v.to_string();
+            schedule = Some(v.to_string());
         }
         if let Some(v) = run.get("transport").and_then(|v| v.as_str()) {
-            transport = v.to_string();
+            transport = Some(v.to_string());
         }
     }
     let run = dec.first().map(|d| d.env.run.clone()).unwrap_or_default();
@@ -1051,15 +1090,18 @@ pub fn info(path: &Path) -> anyhow::Result<String> {
             i.segments.len() - 1
         )?;
     }
-    let opt = |x: Option<f64>| x.map(|v| v.to_string()).unwrap_or_default();
-    writeln!(
-        s,
-        "case       end_time {} s, window {} s, schedule {}, transport {}",
-        opt(i.end_time),
-        opt(i.window),
-        i.schedule,
-        i.transport
-    )?;
+    match (&i.schedule, &i.transport) {
+        (Some(schedule), Some(transport)) => {
+            let opt = |x: Option<f64>| x.map(|v| v.to_string()).unwrap_or_default();
+            writeln!(
+                s,
+                "case       end_time {} s, window {} s, schedule {schedule}, transport {transport}",
+                opt(i.end_time),
+                opt(i.window),
+            )?
+        }
+        _ => writeln!(s, "case       not in the recording")?,
+    }
     writeln!(s, "run        {}", i.run)?;
     writeln!(s, "nodes")?;
     for n in &i.nodes {

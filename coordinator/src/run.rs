@@ -273,8 +273,25 @@ fn die_with_parent(cmd: &mut Command) {
     }
 }
 
+/// Append to a node's log the line that marks where a restart from the checkpoint of
+/// `window` begins (the killed run's lines above it are kept).
+fn mark_restart(log: &Path, window: u64, segment: &Path) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut f = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(log)
+        .with_context(|| format!("cannot open {}", log.display()))?;
+    writeln!(
+        f,
+        "---- cosim restart from the checkpoint of window {window}; recording {} ----",
+        segment.file_name().unwrap_or_default().to_string_lossy()
+    )
+    .with_context(|| format!("cannot write {}", log.display()))
+}
+
 /// Start node `name` of run `run` from its executable, as `cosim run` and `cosim replay` do:
-/// its stdout and stderr go to `log`, and it dies with this process. `connect` is the zenoh
+/// its stdout and stderr are appended to `log`, and it dies with this process. `connect` is the zenoh
 /// endpoint to join, where the transport needs one.
 pub(crate) fn spawn_node(
     exe: &Path,
@@ -284,7 +301,11 @@ pub(crate) fn spawn_node(
     connect: Option<&str>,
     log: &Path,
 ) -> Result<Child, String> {
-    let out = std::fs::File::create(log).map_err(|e| format!("cannot create its log: {e}"))?;
+    let out = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(log)
+        .map_err(|e| format!("cannot open its log {}: {e}", log.display()))?;
     let err = out.try_clone().map_err(|e| e.to_string())?;
     let mut cmd = Command::new(exe);
     cmd.args(["--run", run, "--node", name, "--transport", kind.as_str()]);
@@ -1059,13 +1080,30 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         .unwrap_or_else(|| case.run.output.clone());
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     let segment = match restart {
-        // A restart continues the recording in the next segment (read as one run).
-        Some(_) => crate::checkpoint::next_segment(&out),
+        // A restart continues the recording in the next segment (read as one run), and each
+        // node's log after a line that marks where.
+        Some(st) => {
+            let segment = crate::checkpoint::next_segment(&out);
+            for n in case.nodes.iter().filter(|n| !n.remote) {
+                mark_restart(&out.join(format!("{}.log", n.name)), st.window, &segment)?;
+            }
+            segment
+        }
         None => {
-            // A new run: what an earlier run in this directory left for restarts goes.
+            // A new run: what an earlier run in this directory left for restarts goes, and
+            // the node logs a restart would have appended to.
             for p in record::segments(&out.join("run.mcap")).iter().skip(1) {
                 std::fs::remove_file(p)
                     .with_context(|| format!("cannot remove {}", p.display()))?;
+            }
+            for n in &case.nodes {
+                let log = out.join(format!("{}.log", n.name));
+                match std::fs::remove_file(&log) {
+                    Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                        return Err(e).with_context(|| format!("cannot remove {}", log.display()));
+                    }
+                    _ => {}
+                }
             }
             let ck = out.join("checkpoints");
             if ck.exists() {
@@ -1240,7 +1278,19 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         hubs,
         ..
     } = c;
-    let (messages, bytes) = rec.finish()?;
+    // A recording that could not be written (a full disk) fails the run, whose summary is
+    // still written where it can be.
+    let (outcome, (messages, bytes)) = match (outcome, rec.finish()) {
+        (o, Ok(counts)) => (o, counts),
+        (Err(f), Err(_)) => (Err(f), (0, 0)),
+        (Ok(_), Err(e)) => (
+            Err(Fault {
+                node: "coordinator".into(),
+                reason: format!("recording: {e:#}"),
+            }),
+            (0, 0),
+        ),
+    };
     // Every port of this process goes before the sweep, which only runs once no participant
     // of the run is alive.
     drop(nodes);
@@ -1298,10 +1348,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
                     summary["frame_pictures"] = json!(files.len());
                 }
             }
-            std::fs::write(
-                out.join("summary.json"),
-                serde_json::to_string_pretty(&summary)?,
-            )?;
+            write_summary(&out, &summary)?;
             Ok(Ok(Outcome {
                 output: out,
                 summary,
@@ -1318,10 +1365,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
                 "reason": f.reason, "wall_s": wall,
                 "recording": { "path": out.join("run.mcap"), "messages": messages, "bytes": bytes },
             });
-            std::fs::write(
-                out.join("summary.json"),
-                serde_json::to_string_pretty(&summary)?,
-            )?;
+            write_summary(&out, &summary)?;
             Ok(Ok(Outcome {
                 output: out,
                 summary,
@@ -1331,13 +1375,21 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         }
         Err(f) => {
             let summary = json!({ "run": run_id, "status": "failed", "fault": { "node": f.node, "reason": f.reason }, "wall_s": wall });
-            let _ = std::fs::write(
-                out.join("summary.json"),
-                serde_json::to_string_pretty(&summary)?,
-            );
+            // The fault is what the user must hear; a summary that cannot be written too (the
+            // disk that ended the run is full) is said beside it.
+            if let Err(e) = write_summary(&out, &summary) {
+                tracing::warn!("{e:#}");
+            }
             Ok(Err(f))
         }
     }
+}
+
+/// `<out>/summary.json`, whole or not at all (never a truncated or empty file).
+fn write_summary(out: &Path, summary: &serde_json::Value) -> anyhow::Result<()> {
+    let path = out.join("summary.json");
+    node_kit::whole::write(&path, serde_json::to_string_pretty(summary)?.as_bytes())
+        .map_err(anyhow::Error::from)
 }
 
 /// Restore every node from its checkpoint of window `st.window` (after set-up), then the

@@ -32,7 +32,12 @@ impl Frame<'_> {
     }
 
     fn export(&self, ext: &str, order: ByteOrder, data: DataSet) -> std::io::Result<PathBuf> {
-        std::fs::create_dir_all(self.dir)?;
+        std::fs::create_dir_all(self.dir).map_err(|e| {
+            std::io::Error::new(
+                e.kind(),
+                format!("cannot create {}: {e}", self.dir.display()),
+            )
+        })?;
         let file = self.file(ext);
         let vtk = Vtk {
             version: Version::new(if ext == "vtk" { (4, 2) } else { (1, 0) }),
@@ -42,8 +47,16 @@ impl Frame<'_> {
             data,
         };
         let path = self.dir.join(&file);
-        vtk.export(&path)
-            .map_err(|e| std::io::Error::other(format!("writing {file}: {e}")))?;
+        // Serialised in memory first: vtkio's own export writes through a `BufWriter` whose
+        // last flush error is lost on drop, which leaves a truncated frame on a full disk.
+        let mut bytes = Vec::new();
+        if ext == "vtk" {
+            vtk.write_legacy(&mut bytes)
+        } else {
+            vtk.write_xml(&mut bytes)
+        }
+        .map_err(|e| std::io::Error::other(format!("encoding {}: {e}", path.display())))?;
+        crate::whole::write(&path, &bytes)?;
         add_to_series(self, &file)?;
         Ok(path)
     }
@@ -173,10 +186,10 @@ fn add_to_series(frame: &Frame, file: &str) -> std::io::Result<()> {
     }
     text.push_str("  </Collection>\n</VTKFile>\n");
     // Whole or not at all: a reader never sees half a series.
-    let pvd = frame.dir.join(format!("{}.pvd", frame.stem));
-    let tmp = frame.dir.join(format!(".{}.pvd.tmp", frame.stem));
-    std::fs::write(&tmp, text)?;
-    std::fs::rename(tmp, pvd)
+    crate::whole::write(
+        &frame.dir.join(format!("{}.pvd", frame.stem)),
+        text.as_bytes(),
+    )
 }
 
 #[cfg(test)]

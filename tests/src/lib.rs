@@ -296,6 +296,17 @@ pub fn replay_node(
     run_id: &str,
     extra: &[&str],
 ) -> (bool, String, String) {
+    let (code, out, err) = replay_status(mcap, node, run_id, extra);
+    (code == Some(0), out, err)
+}
+
+/// `cosim replay` of `node`: (exit code, stdout, stderr).
+pub fn replay_status(
+    mcap: &Path,
+    node: &str,
+    run_id: &str,
+    extra: &[&str],
+) -> (Option<i32>, String, String) {
     let mut args = vec![
         "replay",
         mcap.to_str().unwrap(),
@@ -307,7 +318,7 @@ pub fn replay_node(
     args.extend_from_slice(extra);
     let o = cosim(&args);
     (
-        o.status.success(),
+        o.status.code(),
         String::from_utf8_lossy(&o.stdout).to_string(),
         String::from_utf8_lossy(&o.stderr).to_string(),
     )
@@ -545,4 +556,86 @@ pub fn build_c_bar(exe: &Path) -> Option<PathBuf> {
     }
     assert!(status.is_ok_and(|s| s.success()), "bar.c does not compile");
     Some(exe.to_path_buf())
+}
+
+/// Wait until the recording of the live run `child` shows `n` windows in its balance channel
+/// (its chunks reach the disk at window boundaries): an event on recorded progress, not a
+/// fixed sleep. Panics if the run exits first or `limit` passes; returns the windows seen.
+pub fn wait_for_windows(
+    mcap: &Path,
+    n: usize,
+    limit: std::time::Duration,
+    child: &mut std::process::Child,
+) -> usize {
+    let start = std::time::Instant::now();
+    loop {
+        if let Ok(Some(s)) = child.try_wait() {
+            panic!("the run exited ({s}) before its recording showed {n} windows");
+        }
+        // A file still being written may not be readable yet: ask again.
+        let seen = coordinator::record::read_json(mcap)
+            .map(|(msgs, _)| msgs.iter().filter(|m| m.topic == "/cosim/balance").count())
+            .unwrap_or(0);
+        if seen >= n {
+            return seen;
+        }
+        assert!(
+            start.elapsed() < limit,
+            "{}: {seen} of {n} windows after {limit:?}",
+            mcap.display()
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+}
+
+/// Send signal `sig` to our own child process.
+pub fn signal_child(child: &std::process::Child, sig: i32) {
+    // SAFETY: kill with the pid of our own child and a valid signal number.
+    let rc = unsafe { libc::kill(child.id() as i32, sig) };
+    assert_eq!(rc, 0, "kill failed");
+}
+
+/// Every file under `dir` (recursively) with its bytes, by path relative to `dir`, but for
+/// the names in `except`.
+pub fn files_under(dir: &Path, except: &[&str]) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut todo = vec![dir.to_path_buf()];
+    while let Some(d) = todo.pop() {
+        for e in std::fs::read_dir(&d).expect("a readable folder").flatten() {
+            let p = e.path();
+            if except.iter().any(|x| e.file_name() == *x) {
+                continue;
+            }
+            if p.is_dir() {
+                todo.push(p);
+            } else {
+                let rel = p.strip_prefix(dir).expect("under dir").to_path_buf();
+                match std::fs::read(&p) {
+                    Ok(bytes) => {
+                        out.insert(rel, bytes);
+                    }
+                    // Gone since the listing: a live run's file written under a temporary
+                    // name and renamed.
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                    Err(e) => panic!("{}: {e}", p.display()),
+                }
+            }
+        }
+    }
+    out
+}
+
+/// SIGKILL the `cosim` of run `id`, as the OOM killer would, and wait until its nodes, which
+/// watch their parent, are gone too.
+pub fn kill_cosim(child: &mut std::process::Child, id: &str) {
+    signal_child(child, libc::SIGKILL);
+    let _ = child.wait();
+    let t = std::time::Instant::now();
+    while !live_processes(id).is_empty() && t.elapsed() < std::time::Duration::from_secs(10) {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    assert!(
+        live_processes(id).is_empty(),
+        "the killed run's nodes live on"
+    );
 }

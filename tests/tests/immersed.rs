@@ -197,9 +197,13 @@ fn both_nodes_of_the_chamber_replay_bit_identically() {
     // Another solid model against the recorded blast: compared over every window, and it
     // differs.
     let (_, id) = scratch("rp-chamber-rk");
-    let (ok, out, err) = replay_node(&mcap, "bar", &id, &["--set", "model=pd-rk-ba"]);
+    let (code, out, err) = replay_status(&mcap, "bar", &id, &["--set", "model=pd-rk-ba"]);
     println!("{out}{err}");
-    assert!(ok, "{err}");
+    assert_eq!(
+        code,
+        Some(3),
+        "outputs that differ have their own exit code: {err}"
+    );
     assert!(!out.contains("bit-identical"), "{out}");
     assert!(out.contains("outputs differ"), "{out}");
     let (compared, recorded, fields, ..) = replay_counts(&out);

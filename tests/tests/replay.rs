@@ -1,6 +1,7 @@
 //! `cosim replay` (ARCHITECTURE §7): the node's executable is launched as a real process and fed
 //! its recorded inputs. Same executable → bit-identical over every recorded window (counted
-//! from the recording independently of the replay); a changed parameter → a difference report;
+//! from the recording independently of the replay), exit 0; a changed parameter → a
+//! difference report and exit 3;
 //! a cut recording or a node killed mid-replay → an error, with nothing left behind.
 
 use cosim_tests::*;
@@ -55,7 +56,7 @@ fn any_executable_replays_the_node() {
 fn a_changed_parameter_reports_differences_and_drift() {
     let (dir, id) = scratch("rp-young");
     let csv = dir.join("report.csv");
-    let (ok, out, err) = replay_node(
+    let (code, out, err) = replay_status(
         recorded(),
         "right",
         &id,
@@ -69,7 +70,12 @@ fn a_changed_parameter_reports_differences_and_drift() {
         ],
     );
     println!("{out}{err}");
-    assert!(ok, "a complete comparison with differences succeeds: {err}");
+    // Its own exit code: a regression suite tells a changed result from a broken replay.
+    assert_eq!(
+        code,
+        Some(3),
+        "a complete comparison with differences: {err}"
+    );
     assert!(!out.contains("bit-identical"), "{out}");
     assert!(out.contains("outputs differ"), "{out}");
     let (compared, recorded_n, fields, ..) = replay_counts(&out);
@@ -98,9 +104,9 @@ fn a_changed_parameter_reports_differences_and_drift() {
     nothing_left(&id);
     // The driver's motion is what the recorded responder saw: changing the driver drifts it.
     let (_, id) = scratch("rp-drift");
-    let (ok, out, err) = replay_node(recorded(), "left", &id, &["--set", "young=210e9"]);
+    let (code, out, err) = replay_status(recorded(), "left", &id, &["--set", "young=210e9"]);
     println!("{out}{err}");
-    assert!(ok, "{err}");
+    assert_eq!(code, Some(3), "{err}");
     assert!(err.contains("drifted"), "no drift warning: {err}");
 }
 
