@@ -117,9 +117,29 @@ impl Guard {
         }
     }
 
-    /// A restarted run's guard: the external work of the windows before its checkpoint.
-    pub fn resume(&mut self, work: impl Iterator<Item = f64>) {
-        self.work = work.fold(self.work, |m, w| m.max(w.abs()));
+    /// A restarted run's guard: the windows before its checkpoint, (window, end time, total
+    /// energy, external work) as audited, read again, so that it continues as the run
+    /// would have.
+    pub fn resume(&mut self, rows: impl Iterator<Item = (u64, f64, f64, f64)>, e0: f64) {
+        for (window, time, e, wext) in rows {
+            self.energy(window, time, e, e0, wext);
+        }
+    }
+
+    /// Takes window `window`'s total energy `e` into the budget, the worst ratio and the
+    /// stretch over budget; returns the bound and the budget.
+    fn energy(&mut self, window: u64, time: f64, e: f64, e0: f64, wext: f64) -> (f64, f64) {
+        self.work = self.work.max(wext.abs());
+        let budget = e0.abs() + self.work;
+        if budget + self.floor > 0.0 {
+            self.worst = self.worst.max(e.abs() / (budget + self.floor));
+        }
+        if e.abs() > (1.0 + OVER_BUDGET) * budget + self.floor {
+            self.over_since.get_or_insert((window, time));
+        } else {
+            self.over_since = None;
+        }
+        (self.factor * budget + self.floor, budget)
     }
 
     /// The largest ratio of the total energy to its budget (|E₀| + max |W_ext|, plus the
@@ -163,17 +183,7 @@ impl Guard {
         }
         let energy = |r: &StepReport| r.kinetic_energy + r.internal_energy + r.dissipated();
         let e: f64 = nodes.clone().map(|n| energy(n.report)).sum();
-        self.work = self.work.max(wext.abs());
-        let budget = e0.abs() + self.work;
-        if budget + self.floor > 0.0 {
-            self.worst = self.worst.max(e.abs() / (budget + self.floor));
-        }
-        if e.abs() > (1.0 + OVER_BUDGET) * budget + self.floor {
-            self.over_since.get_or_insert((window, time));
-        } else {
-            self.over_since = None;
-        }
-        let bound = self.factor * budget + self.floor;
+        let (bound, _) = self.energy(window, time, e, e0, wext);
         if self.factor > 0.0 && e.abs() > bound {
             // The node whose energy grew the most since set-up carries the blame.
             let worst = nodes

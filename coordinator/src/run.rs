@@ -1904,7 +1904,7 @@ fn drive(
         Some(st) => {
             resume(c, st, &all)?;
             a = st.audit.clone();
-            c.guard.resume(a.rows.iter().map(|r| r.external_work));
+
             decoupled = st.decoupled.clone();
             active.retain(|&i| c.nodes[i].finished.is_none());
             (st.window + 1, st.loop_s)
@@ -1912,6 +1912,13 @@ fn drive(
         None => (1, 0.0),
     };
     let e0: f64 = c.nodes.iter().map(|n| n.initial_energy).sum();
+    // A restart's guard reads the audited windows before its checkpoint again.
+    c.guard.resume(
+        a.rows
+            .iter()
+            .map(|r| (r.window, r.time, r.energy, r.external_work)),
+        e0,
+    );
     let every = case.run.checkpoint_every;
     // A stop was requested: checkpoint the next window and stop there.
     let mut stop_after = false;

@@ -280,6 +280,7 @@ const EXAMPLES: &[(&str, &[&str])] = &[
     ("shock_bubble", &[]),
     ("single_joint", &["small"]),
     ("split_bar", &["python", "c"]),
+    ("split_bar_chain", &["small"]),
     ("split_bar_lagrange", &[]),
 ];
 
