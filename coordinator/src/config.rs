@@ -788,7 +788,8 @@ fn check_stability(case: &Case) -> Result<Vec<String>, ConfigError> {
                     LimitApplies::LagrangeSide => true,
                     LimitApplies::LagrangeSideGs4OrPh => gs4_or_ph,
                 };
-                if !holds || !(l.max_step > 0.0) {
+                // A limit without a positive step (NaN included) states nothing to check.
+                if !holds || l.max_step.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                     continue;
                 }
                 let step = window / l.substeps.max(1) as f64;

@@ -301,7 +301,7 @@ fn window_of(doc: &toml::Table, variant: Option<&str>) -> f64 {
         .flatten()
         .filter_map(|s| s.as_str()?.strip_prefix("run.window="))
         .filter_map(|w| w.trim().parse().ok())
-        .last()
+        .next_back()
         .unwrap_or(base)
 }
 
