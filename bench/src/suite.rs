@@ -1,16 +1,16 @@
-//! `cosim bench`: every benchmark of the project in one command (issue 8, must-show 3).
+//! `cosim bench`: every benchmark of the project in one command.
 //!
 //! Kernels and their units (one update = the unit of work the issues define):
 //! * `transport` — one window round trip (Advance → Fields → Done) per transport; one update
 //!   is one payload byte (`protocol::transport::bench`).
-//! * `fluid` — one full SSP-RK3 step of one cell (issue 3) on the 2-D cylindrical blast
+//! * `fluid` — one full SSP-RK3 step of one cell on the 2-D cylindrical blast
 //!   (`fluid_node::setup::benchmark_blast_case`), CPU and GPU (`fluid_node::gpu::GpuEuler`);
 //!   `fluid-3d` the same on the 3-D spherical blast of n³ cells, CPU only.
 //! * `pd-bond`, `pd-correspondence` — one particle–family-member pair processed in one
-//!   velocity-Verlet step (forces, damage check, integration; issue 4) on an n³ cubic block,
+//!   velocity-Verlet step (forces, damage check, integration) on an n³ cubic block,
 //!   δ = 3.015 Δx; `pd-bond` also on the GPU (`solid_node::pd::gpu::GpuBondBody`).
-//! * `shell` — one element processed in one explicit step (issue 5) of an n × n elastic plate.
-//! * `joint` — one MC-SPG particle advanced one step (issue 6) in an n³ block pulled apart.
+//! * `shell` — one element processed in one explicit step of an n × n elastic plate.
+//! * `joint` — one MC-SPG particle advanced one step in an n³ block pulled apart.
 //!
 //! Each CPU kernel runs in a rayon pool of 1 and of 2 threads built here (not through
 //! `RAYON_NUM_THREADS`). A measurement is: one warm-up step, one step to estimate the cost,
@@ -104,7 +104,7 @@ fn sizes(kernel: &str, quick: bool) -> Vec<usize> {
         ("transport", true) => vec![1 << 10, 1 << 16],
         ("fluid", false) => vec![100, 200, 400, 800],
         ("fluid", true) => vec![16, 32],
-        // 54³ has the cells of 400² (issue 22: 3-D per-cell throughput against 2-D)
+        // 54³ has the cells of 400² (3-D per-cell throughput against 2-D)
         ("fluid-3d", false) => vec![24, 34, 44, 54],
         ("fluid-3d", true) => vec![8, 12],
         ("pd-bond" | "pd-correspondence", false) => vec![16, 23, 31, 40],

@@ -188,8 +188,7 @@ fn measure(
     std::fs::write(&split, SPLIT_BAR)?;
     let window = split_bar_window()?;
     let end = format!("run.end_time={:e}", window * size.split_bar_windows as f64);
-    // Each transport in lockstep (each Advance after the last window's audit, as before
-    // issue 22), with two windows in flight, and as the coordinator chooses (`None`, the
+    // Each transport in lockstep (each Advance after the last window's audit, as the loop first did), with two windows in flight, and as the coordinator chooses (`None`, the
     // default: up to 8 in flight, sent in batches).
     let transports = [
         ("shm", Some(1u64)),

@@ -1,4 +1,4 @@
-//! The coordinator's side of checkpoints and restarts (ARCHITECTURE §9, PROTOCOL.md §7): its
+//! The coordinator's side of checkpoints and restarts (docs/architecture.md, PROTOCOL.md §7): its
 //! own state at a checkpoint (audit accumulators, per-node totals, decouplings, histories),
 //! the choice of the last checkpoint complete on every node, and the check that a case may
 //! continue a run.

@@ -1,4 +1,4 @@
-//! Case files (ARCHITECTURE §8): parse, then validate everything that can be checked before
+//! Case files (docs/architecture.md): parse, then validate everything that can be checked before
 //! any process starts. Every error names the key path and the reason, e.g.
 //! `run.window: must be > 0 and ≤ run.end_time (0.001), got 0`.
 
@@ -728,7 +728,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
     {
         return Err(err(
             "run.schedule".to_string(),
-            format!("{why} couplings[{i}] (ARCHITECTURE §5); use \"serial\""),
+            format!("{why} couplings[{i}] (docs/architecture.md); use \"serial\""),
         ));
     }
     let mut case = Case {
@@ -889,7 +889,7 @@ fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
 }
 
 /// Check remote node `node`, which was not described before the run, by the interfaces of
-/// its `Describe` at the handshake (issue 18 must-show 5): every coupling it is a member of
+/// its `Describe` at the handshake: every coupling it is a member of
 /// must find its interface and the fields the scheme needs, refused as before the run.
 pub fn check_joined(
     case: &Case,
@@ -934,7 +934,7 @@ fn check_interfaces(
     Ok(())
 }
 
-/// One field list a coupling member must offer (the scheme's declaration, ARCHITECTURE §5).
+/// One field list a coupling member must offer (the scheme's declaration, docs/architecture.md).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Need<'a> {
     /// The key that sets the list (`driver_fields`, `sides[1]`, ...).
@@ -981,7 +981,7 @@ pub fn required_fields(c: &CouplingConfig) -> Vec<Need<'_>> {
 }
 
 /// Refuse a coupling whose node does not provide or accept a field its scheme needs, by the
-/// node's own description (issue 18 must-show 5): the key, the coupling, the node, the field.
+/// node's own description: the key, the coupling, the node, the field.
 /// `fields` gives what a node's interface provides and accepts (None: not known yet, a remote
 /// node checked when it joins).
 fn check_fields<'d>(

@@ -1,7 +1,7 @@
 //! Validation through the node executables: `NODE --describe --model M --node N` for every
 //! node whose executable is on this host, all at once, each with a timeout. The answers name
 //! a bad parameter's key (`nodes.N.params.<key>`) and list each node's interfaces; the
-//! coordinator builds no solver itself (ARCHITECTURE §2, PROTOCOL.md "Node command line").
+//! coordinator builds no solver itself (docs/architecture.md, PROTOCOL.md "Node command line").
 
 use crate::config::{ConfigError, NodeConfig};
 use protocol::describe::{DescribeAnswer, NodeDescriptionJson, parse_answer};

@@ -1,4 +1,4 @@
-//! The coordinator's end of `kind = "lagrange"` couplings (seed 003 §4, ARCHITECTURE §5.3):
+//! The coordinator's end of `kind = "lagrange"` couplings (seed 003 §4, docs/architecture.md.3):
 //! collects every side's set-up and interface mesh, ties the sides' matching interface points
 //! with multipliers, and drives `protocol::scheme::lagrange::LagrangeScheme` from the sides'
 //! messages, answering each solved step with the multipliers (the wire:

@@ -1,4 +1,4 @@
-//! The cosim coordinator (the master of ARCHITECTURE §1): case config, launcher and window
+//! The cosim coordinator (the master of docs/architecture.md): case config, launcher and window
 //! scheduler, MCAP recorder, replay and the `cosim` command line. It owns the clock, the
 //! schedule, the recording and the failure handling; it never does physics.
 

@@ -1,4 +1,4 @@
-//! PNG line charts (plotters, ARCHITECTURE §10): the plots `cosim run` writes next to the
+//! PNG line charts (plotters, docs/architecture.md): the plots `cosim run` writes next to the
 //! recording (every node's energies and named scalars over time), and `cosim plot`, which
 //! draws one series of several runs on one figure (e.g. a quantity at three resolutions).
 //!

@@ -1,4 +1,4 @@
-//! Where a window's wall time goes on the coordinator's side (issue 22): time per phase of
+//! Where a window's wall time goes on the coordinator's side: time per phase of
 //! the window loop and the heap allocations made on its thread, reported per window in
 //! `summary.json` (`window_breakdown`) and by `cosim bench --only window`.
 //!

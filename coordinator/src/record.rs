@@ -1,4 +1,4 @@
-//! MCAP recorder (ARCHITECTURE §7): one channel per topic carrying the exact envelope bytes
+//! MCAP recorder (docs/architecture.md): one channel per topic carrying the exact envelope bytes
 //! (message encoding `bincode`, schema `cosim.Envelope` whose data is the Rust source of the
 //! message types), plus JSON channels (schema encoding `jsonschema`, listing every key their
 //! messages carry) with per-window metrics for Foxglove. A message's log time is the
@@ -553,7 +553,7 @@ const POOLED_BYTES: usize = 1024;
 /// be on their way to the thread while it lags.
 const BATCHES: usize = 64;
 
-/// The recorder on a thread of its own (issue 22): the window loop hands it each message's
+/// The recorder on a thread of its own: the window loop hands it each message's
 /// bytes through a bounded queue and goes on, so MCAP writes, compression and flushes never
 /// delay an `Advance`. The messages of a window go over in one batch at its end, or of several
 /// windows where they are shorter than [`HANDOVER`] (one wake-up of the thread for them, not

@@ -1,4 +1,4 @@
-//! `cosim replay` and `cosim info` (ARCHITECTURE §7). Replay launches one node's executable as
+//! `cosim replay` and `cosim info` (docs/architecture.md). Replay launches one node's executable as
 //! a real node process on a fresh shared-memory run, plays the coordinator and every peer of
 //! that node from the recording (Welcome, peer meshes and fields, Advance, Decouple, Finish),
 //! and compares what the node sends with what the original node sent, window by window.

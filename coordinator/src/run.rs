@@ -1,12 +1,12 @@
 //! `cosim run`: launch the nodes, handshake, drive the windows, record everything, audit
-//! energy and momentum per window, and end cleanly whatever happens (ARCHITECTURE §1, §9).
+//! energy and momentum per window, and end cleanly whatever happens (docs/architecture.md).
 //!
 //! Within a window the coordinator sends `Advance` to every node in the coupling graph's
 //! order and waits for every `Done`; the serial data dependencies (a responder needs its
 //! driver's motion of the same window) are enforced by the nodes themselves, which wait for
 //! their inputs, so the same loop serves the serial and the parallel schedules.
 //!
-//! The coordinator is kept off the window's critical path (issue 22): the next window's
+//! The coordinator is kept off the window's critical path: the next window's
 //! `Advance` goes out before the last window is audited and recorded (two windows in flight,
 //! [`WINDOWS_AHEAD`]), so the nodes exchange peer to peer and never wait for the audit or
 //! the recorder; it waits where a window's end decides the next (checkpoint, decoupling rule,
@@ -880,7 +880,7 @@ impl<'a> Coord<'a> {
     }
 }
 
-/// Wait for the remote nodes to join (ARCHITECTURE §6): as long as a person needs, up to
+/// Wait for the remote nodes to join (docs/architecture.md): as long as a person needs, up to
 /// `run.join_timeout`, naming who is still missing every few seconds. The local nodes wait
 /// meanwhile (they are alive; only their exit or lost connection is a fault).
 /// A node's `Done` of `window` (its report in `report`) while the coordinator is at window
@@ -1893,7 +1893,7 @@ fn drive(
         .map_err(|e| fault("coordinator", format!("recording: {e:#}")))?;
     let windows = window_count(case);
     let order_idx: Vec<usize> = order.iter().filter_map(|n| c.node_idx(n)).collect();
-    // The audit (ARCHITECTURE §5) so far: restored from the checkpoint on a restart.
+    // The audit (docs/architecture.md) so far: restored from the checkpoint on a restart.
     let mut a = crate::checkpoint::Audit::default();
     // Decouplings (seed 000 §4): (window, time, reason) per coupling once it happened.
     let mut decoupled: Vec<Option<(u64, f64, String)>> = vec![None; case.couplings.len()];
@@ -2004,7 +2004,7 @@ fn drive(
                 }
             }
         }
-        // Audit (ARCHITECTURE §5): momentum against external impulse, energy against work.
+        // Audit (docs/architecture.md): momentum against external impulse, energy against work.
         let mut p = [0.0; 3];
         let mut p0 = [0.0; 3];
         let mut jx = [0.0; 3];

@@ -6,7 +6,7 @@
  * a lumped-mass spring chain advanced by central differences,
  *     a_n = M^-1 (f_int(u_n) + f_ext + f_coupling),  v_{n+1/2} = v_{n-1/2} + dt a_n,
  *     u_{n+1} = u_n + dt v_{n+1/2},
- * with the same parameters, interfaces and coupling behaviour (ARCHITECTURE §5, kinematic:
+ * with the same parameters, interfaces and coupling behaviour (docs/architecture.md, kinematic:
  * driver or responder). Build: `make -C examples/external` (after `cargo build --release`).
  */
 #include <math.h>

@@ -5,7 +5,7 @@ The same discretisation as the built-in `solid-node` model `bar-1d` (solid-node/
 a lumped-mass spring chain advanced by central differences,
     a_n = M^-1 (f_int(u_n) + f_ext + f_coupling),  v_{n+1/2} = v_{n-1/2} + dt a_n,
     u_{n+1} = u_n + dt v_{n+1/2},
-with the same parameters, interfaces and coupling behaviour (ARCHITECTURE §5, kinematic:
+with the same parameters, interfaces and coupling behaviour (docs/architecture.md, kinematic:
 driver or responder), so a run with this node as the right half of the split bar gives the
 built-in results. `cosim run` starts it as `bar.py --run RUN --node NAME --transport shm`.
 """

@@ -1,4 +1,4 @@
-//! GPU throughput of the fluid step (issue 8): cell-updates per second (one full SSP-RK3 step
+//! GPU throughput of the fluid step: cell-updates per second (one full SSP-RK3 step
 //! of one cell = one update) on the 2-D cylindrical blast — p 10 in r < 0.1, 0.1 outside,
 //! ρ 1, γ 1.4, unit square, outflow — at several grid sizes, on the device the environment
 //! gives (`WGPU_BACKEND=vulkan` → lavapipe here), next to the CPU path on the same problem

@@ -1,4 +1,4 @@
-//! Solver-only throughput (issue #3, must-show 8): cell-updates per second (one full SSP-RK3
+//! Solver-only throughput: cell-updates per second (one full SSP-RK3
 //! step of one cell = one update) on the 2-D cylindrical blast — p 10 in r < 0.1, 0.1
 //! outside, ρ 1, γ 1.4, unit square, 400×400 — at 1 and 2 threads (rayon pools built here;
 //! `RAYON_NUM_THREADS` is not needed). Also checks the two runs are bit-identical.

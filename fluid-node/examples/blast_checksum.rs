@@ -1,4 +1,4 @@
-//! Bit-level fingerprint of the benchmark case (2-D cylindrical blast, issue #3 must-show 8)
+//! Bit-level fingerprint of the benchmark case (2-D cylindrical blast)
 //! after a number of SSP-RK3 steps: prints an FNV-1a hash of every conserved value's bits, so
 //! two builds of the kernels can be compared for bit-identical results, plus the run time.
 //! Run: `cargo run --release -p fluid-node --example blast_checksum -- [n] [steps]

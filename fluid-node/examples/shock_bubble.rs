@@ -1,4 +1,4 @@
-//! Shock–helium-bubble interaction at full resolution (seed 002 §5.1; must-show 6). Loads
+//! Shock–helium-bubble interaction at full resolution (seed 002 §5.1). Loads
 //! the case file (first argument, default `examples/shock_bubble.toml`), builds the fluid
 //! node from `[nodes.gas.params]` through `fluid_node::factory`'s model, runs it in-process
 //! window by window, tracks the bubble's upstream and downstream edges on the symmetry axis

@@ -1,5 +1,5 @@
 //! Responder side of the immersed fluid–particle coupling (seed 002 §3, eq. 31–35;
-//! ARCHITECTURE §5 "immersed"). Each window the solid sends particle positions, velocities
+//! docs/architecture.md "immersed"). Each window the solid sends particle positions, velocities
 //! and volumes; cells are classified as fluid, interface (holds particles, has a fluid face
 //! neighbour) or solid (holds particles, no fluid neighbour). Interface cells carry the mean
 //! particle velocity (eq. 31); solid cells next to the gas take neighbour averages (eq. 32)

@@ -594,7 +594,7 @@ pub fn from_toml_str(text: &str) -> SolverResult<Fluid> {
     build(&parse(&t)?)
 }
 
-/// The parameter table (TOML text) of the benchmark case of issue #3: the 2-D cylindrical
+/// The parameter table (TOML text) of the benchmark case: the 2-D cylindrical
 /// blast, p 10 in r < 0.1 and 0.1 outside, ρ 1, γ 1.4, on the unit square with `n`×`n` cells
 /// and outflow boundaries. Shared by the CPU and GPU benchmarks and the checksum example.
 pub fn benchmark_blast_case(n: usize) -> String {
@@ -641,7 +641,7 @@ pub fn benchmark_blast_case_3d(n: usize) -> String {
         )
 }
 
-/// The parameter table (TOML text) of Sod's shock tube (PHYSICS.md "Fluid node"): γ 1.4,
+/// The parameter table (TOML text) of Sod's shock tube (the README's case sections "Fluid node"): γ 1.4,
 /// (ρ, u, p) = (1, 0, 1) left of x 0.5 and (0.125, 0, 0.1) right of it, `n` cells on [0, 1],
 /// outflow ends, the given TVD limiter. Shared by the verification and GPU tests.
 pub fn sod_case(n: usize, limiter: &str) -> String {

@@ -1,4 +1,4 @@
-//! The `Solver` implementation of the fluid node (ARCHITECTURE §3): sub-cycles the
+//! The `Solver` implementation of the fluid node (docs/architecture.md): sub-cycles the
 //! CFL-limited SSP-RK3 step to the window end, answers the immersed coupling as responder
 //! (inputs `position`, `velocity`, `volume`; output window-averaged `force`), reports
 //! energies, momentum and impulses, writes VTK and probe histories.

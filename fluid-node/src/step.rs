@@ -4,7 +4,7 @@
 //! the three-stage SSP Runge–Kutta scheme of Shu & Osher (seed 002 eq. 35 uses its weights).
 //! rayon parallelises over rows; every reduction is per row then in row order.
 //!
-//! Throughput (issue #3 must-show 8): the row kernels are compiled for SSE2, AVX2 and
+//! Throughput: the row kernels are compiled for SSE2, AVX2 and
 //! AVX-512 and chosen at run time (`simd.rs`, bit-identical results); each cell's limited
 //! slope is computed once for both of its faces; and a 2-D stage without an immersed body
 //! runs fused per block of rows (x and y fluxes into row-local scratch, then the update),

@@ -1,4 +1,4 @@
-//! Bad input is refused with the key path (must-show 9), and a state that goes negative
+//! Bad input is refused with the key path, and a state that goes negative
 //! during a run stops the node with the cell, the time and the variable.
 
 use fluid_node::factory;

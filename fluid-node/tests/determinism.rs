@@ -1,4 +1,4 @@
-//! Deterministic results for any thread count (STYLE.md, issue #3): a 2-D two-material
+//! Deterministic results for any thread count: a 2-D two-material
 //! shock run gives bit-identical states on 1 and 2 rayon threads; every instruction set the
 //! row kernels can be compiled for (`fluid_node::simd`) gives bit-identical states too.
 

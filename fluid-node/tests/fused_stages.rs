@@ -1,5 +1,5 @@
 //! The fused RK stages (fluxes and update per block of rows, no flux array in memory) give
-//! the unfused stages' results bit for bit (issue 22 item 4): every conserved variable of
+//! the unfused stages' results bit for bit: every conserved variable of
 //! every cell, the boundary impulse and work, and, with an immersed body, the forces on the
 //! particles and the node's report, after every window — on 2-D and 3-D grids, one and two
 //! materials, every limiter, on 1 and 2 threads; and a step that breaks the state fails with

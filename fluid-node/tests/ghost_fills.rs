@@ -1,4 +1,4 @@
-//! The coupled step's ghost fill (issue 22 must-show 2): after the solid-cell fills, only the
+//! The coupled step's ghost fill: after the solid-cell fills, only the
 //! rows whose x ghosts copy a cell the body changed are filled again
 //! (`immersed::refill_x_ghosts`). On bodies that move into and out of reach of the x ends of
 //! the domain (wall, outflow and periodic ends, 2-D and 3-D), the primitives with every ghost

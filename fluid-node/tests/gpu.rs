@@ -1,4 +1,4 @@
-//! GPU path of the fluid node against the CPU path (issue 8, must-show 1): the same model,
+//! GPU path of the fluid node against the CPU path: the same model,
 //! built once by the CPU set-up, advanced to the same final time by `EulerSolver::advance_to`
 //! and by `gpu::GpuEuler::advance_to`; every conserved variable must agree within 1e-10 of
 //! that variable's largest magnitude (f64 kernels), with the same step count, the same final

@@ -1,4 +1,4 @@
-//! Immersed coupling with a moving body (issue #3: "refill cells that a moving solid
+//! Immersed coupling with a moving body ("refill cells that a moving solid
 //! leaves"; seed 002 §3, eq. 32): a slab of particles (x in [1.0, 1.1] at the start, the full
 //! channel height) moves at U = 0.3 to the right through gas at rest (ρ 1, p 1, γ 1.4) in a
 //! closed channel [0, 2.4] (h = 0.01), fed window by window through the `Solver` interface

@@ -1,4 +1,4 @@
-//! Immersed coupling in-process (must-show 7; seed 002 §3 eq. 31–35): a heavy rigid wall of
+//! Immersed coupling in-process (seed 002 §3 eq. 31–35): a heavy rigid wall of
 //! particles at rest, fed window by window through the `Solver` interface as a solid node
 //! would, reflects an incident Ms 1.5 shock with p5/p1 within 5 % of the rigid-wall value
 //! 5.4253, and every window the momentum the gas loses equals the impulse the particles

@@ -1,4 +1,4 @@
-//! Two-material interface advected at constant velocity and pressure (PHYSICS.md,
+//! Two-material interface advected at constant velocity and pressure (the README's case sections,
 //! must-show 5): with the five-equation model and the Johnsen–Colonius α update the
 //! pressure and velocity stay constant to 1e-6 relative — here air/helium and air/water
 //! (stiffened gas) in 1-D, and air/helium on a diagonal in 2-D, over a full period.

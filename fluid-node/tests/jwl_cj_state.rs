@@ -1,4 +1,4 @@
-//! JWL detonation products, TNT (PHYSICS.md): the Hugoniot from E0 meets the Rayleigh line
+//! JWL detonation products, TNT (the README's case sections): the Hugoniot from E0 meets the Rayleigh line
 //! at the Chapman–Jouguet state V/V0 0.7317, p 21.0 GPa, D 6929 m/s — within 0.5 %. Also
 //! checks the EOS's sound speed against a finite-difference isentrope derivative.
 

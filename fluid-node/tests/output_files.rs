@@ -1,4 +1,4 @@
-//! Output files (issue #3 build list: "VTK output (`vtkio`) of ρ, p, u, T, material
+//! Output files ("VTK output (`vtkio`) of ρ, p, u, T, material
 //! fraction; probe time histories to CSV").
 //!
 //! 1. A 2-D air/water grid (regions aligned with cell faces, so every cell holds one

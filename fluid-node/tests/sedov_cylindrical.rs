@@ -1,6 +1,6 @@
-//! Sedov blast, 2-D cylindrical (a line source on a 2-D grid; PHYSICS.md allows it), γ 1.4,
+//! Sedov blast, 2-D cylindrical (a line source on a 2-D grid; the README's case sections allows it), γ 1.4,
 //! ρ0 1: E = α ρ0 R⁴/t² with α = 0.98407 per unit length, from integrating the similarity
-//! equations (`common::sedov_alpha`; the same integration gives PHYSICS.md's spherical
+//! equations (`common::sedov_alpha`; the same integration gives the README's case sections's spherical
 //! 0.851072, checked here). Checks the shock radius at t = 1 within 3 % and the symmetry
 //! between quadrants (mirror in x, y and the diagonal) to round-off.
 

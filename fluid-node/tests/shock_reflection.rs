@@ -1,4 +1,4 @@
-//! Normal shock reflection from a rigid wall, γ 1.4 (PHYSICS.md): the pressure behind the
+//! Normal shock reflection from a rigid wall, γ 1.4 (the README's case sections): the pressure behind the
 //! reflected shock over the pressure ahead of the incident one, p5/p1 = 5.4253 (Ms 1.5) and
 //! 15.0 (Ms 2), within 2 % on a 400-cell grid. Incident state from the Rankine–Hugoniot
 //! relations; the run ends when the exact reflected shock has travelled 0.25 from the wall.

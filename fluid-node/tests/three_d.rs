@@ -1,4 +1,4 @@
-//! The 3-D path of the solver (issue #3: "2-D and 3-D structured-grid Euler solver").
+//! The 3-D path of the solver ("2-D and 3-D structured-grid Euler solver").
 //!
 //! 1. Sod along x, y and z of a 3-D grid (100 cells along the tube, 4×4 across, walls on
 //!    the sides): the three runs and all 16 lines of each give the same tube profile to
@@ -8,7 +8,7 @@
 //!    ~0.9 that is ≈ 3.5 % at 100 cells, and the 3-D step is smaller — its CFL rate adds the
 //!    transverse c/Δx — which only lowers the error).
 //! 2. Spherical Sedov blast, γ 1.4, ρ0 1: energy E = α ρ0 R⁵/t² with α = 0.851072
-//!    (PHYSICS.md; `common::sedov_alpha(3, 1.4)`) in the cells of [-h, h]³, so the shock
+//!    (the README's case sections; `common::sedov_alpha(3, 1.4)`) in the cells of [-h, h]³, so the shock
 //!    should stand at R = 1 at t = 1.
 //!    a. Full cube [-1.2, 1.2]³ at 24³ to t = 0.5: the eight octants are mirror images and
 //!    the axes permutations of each other to round-off; mass, energy and (zero) momentum

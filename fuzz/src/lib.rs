@@ -1,4 +1,4 @@
-//! Fuzz targets for everything that reads input from outside (issue 20): the message decoder
+//! Fuzz targets for everything that reads input from outside: the message decoder
 //! (`wire::decode` on arbitrary bytes and on mutated valid messages), the case parser with
 //! `--set` overrides (the coordinator's `load_variant_text`), and the parameter decoder and
 //! set-up of every node model (describe-only, as `NODE --describe` runs it). Each target

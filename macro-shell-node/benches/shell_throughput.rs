@@ -1,4 +1,4 @@
-//! Throughput of the shell engine (issue #5 must-show 7): element-cycles per second (one
+//! Throughput of the shell engine: element-cycles per second (one
 //! element processed in one step, node pass included) on a 200 × 200 elastic plate.
 //! Run with `RAYON_NUM_THREADS=1` and `=2`: `cargo bench -p macro-shell-node`.
 //! Plain timing (harness = false): the figure of merit is a rate, not a per-call latency.

@@ -1,4 +1,4 @@
-//! Full-resolution frequency runs (issue #5 must-show 2 and 3):
+//! Full-resolution frequency runs:
 //! `cargo run --release -p macro-shell-node --example cantilever` runs all three studies;
 //! `... -- NX NY [beam]` one cantilever mesh; `... -- plate N` one plate mesh.
 //!

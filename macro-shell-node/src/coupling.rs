@@ -1,5 +1,5 @@
 //! The driver side of the kinematic shell–joint coupling (seed 004 §3.2, Fig. 4; eq. 29–33;
-//! ARCHITECTURE §5, kinematic): per interface, the shell nodes under a joint's coupling
+//! docs/architecture.md, kinematic): per interface, the shell nodes under a joint's coupling
 //! surface and the shell quads there (the joint projects its particles onto them, eq. 29–32).
 //!
 //! * set-up: the responder's coupling mass (1 per node) is added to the interface nodes, its

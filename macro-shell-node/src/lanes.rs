@@ -1,5 +1,5 @@
 //! The elastic BLT kernel of `element::element_step` on four elements at once ("lanes"), for
-//! the throughput of the element pass (issue #5 must-show 7). Every lane runs exactly the
+//! the throughput of the element pass. Every lane runs exactly the
 //! operations of the scalar kernel in the same order (IEEE add, sub, mul, div and sqrt are
 //! exact per lane, and nothing is fused), so the results are bit-identical to the scalar
 //! path — `tests::four_lanes_equal_the_scalar_kernel` checks it. Only the elastic material

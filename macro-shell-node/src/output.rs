@@ -1,4 +1,4 @@
-//! Output for ParaView and plots (ARCHITECTURE §10): one `.vtu` per written window with
+//! Output for ParaView and plots (docs/architecture.md): one `.vtu` per written window with
 //! displacement, velocity and rotation per node, and per element the mid-surface stress, the
 //! von Mises stress at the top/bottom points, membrane forces, equivalent plastic strain and
 //! thickness (written with vtkio), plus a `.pvd` series; and the reaction-force histories of

@@ -1057,7 +1057,7 @@ impl Model {
     }
 }
 
-/// The benchmark plate (issue 5): a 1 × 1 m, 10 mm elastic steel plate of `n × n` elements
+/// The benchmark plate: a 1 × 1 m, 10 mm elastic steel plate of `n × n` elements
 /// with `nip` through-thickness points, clamped along x = 0 and set vibrating by a transverse
 /// velocity 0.1 x². Shared by the crate's benchmark and `cosim bench`.
 pub fn benchmark_plate(n: usize, nip: usize) -> SolverResult<crate::ShellSolver> {

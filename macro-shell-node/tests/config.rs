@@ -1,4 +1,4 @@
-//! Configuration and plumbing (issue #5 must-show 8): bad input refused with the key named,
+//! Configuration and plumbing: bad input refused with the key named,
 //! the case-file shape parsed through the node's factory, determinism across thread counts,
 //! support reactions consistent with momentum, VTK and CSV output written.
 #![allow(clippy::needless_range_loop)]

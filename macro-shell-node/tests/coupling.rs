@@ -1,4 +1,4 @@
-//! The driver side of the kinematic coupling (issue #5 must-show 6), driven through the
+//! The driver side of the kinematic coupling, driven through the
 //! `Solver` trait by an in-process stand-in responder: a linear spring (and torsion spring)
 //! per interface node to its reference position, plus a constant preload. The shell's
 //! momentum change must equal the impulse it received, to round-off.

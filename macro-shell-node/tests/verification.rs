@@ -1,4 +1,4 @@
-//! Verification of the BLT shell against closed forms (issue #5 must-show 1–5): membrane patch
+//! Verification of the BLT shell against closed forms: membrane patch
 //! test on a distorted mesh, energy conservation of free vibration, zero strain under rigid
 //! rotation, cantilever and simply supported plate frequencies, J2 strip beyond yield.
 #![allow(clippy::needless_range_loop)]

@@ -75,7 +75,7 @@ impl DamageModel for NoDamage {
 }
 
 /// Prototype microelastic brittle: a bond breaks for good once its stretch exceeds s0.
-/// s0 = √(5 G0 / (9 K δ)) in 3-D (PHYSICS.md, Silling & Askari 2005).
+/// s0 = √(5 G0 / (9 K δ)) in 3-D (the README's case sections, Silling & Askari 2005).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CriticalStretch {
     pub critical_stretch: f64,

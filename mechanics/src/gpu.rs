@@ -1,4 +1,4 @@
-//! Shared GPU plumbing for the solver nodes' compute paths (issue 8; seed 002 §4 runs its FVM
+//! Shared GPU plumbing for the solver nodes' compute paths (seed 002 §4 runs its FVM
 //! and SPH kernels on one GPU): device acquisition through wgpu, the arithmetic precision
 //! (f64 where the adapter has `SHADER_F64`, otherwise f32 with a warning), error scopes that
 //! turn wgpu validation / out-of-memory / internal errors into `Err` instead of a panic, and

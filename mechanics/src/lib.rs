@@ -1,4 +1,4 @@
-//! What several solvers share (ARCHITECTURE §2): constitutive updates (J2 plasticity with
+//! What several solvers share (docs/architecture.md): constitutive updates (J2 plasticity with
 //! isotropic and kinematic hardening, in 3-D and plane stress), damage laws, meshfree
 //! kernels, neighbour search in compressed rows, explicit time-step helpers, 2-D bilinear
 //! finite elements, the GS4-II time integrators and the small tensor algebra (on nalgebra).

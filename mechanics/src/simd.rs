@@ -1,5 +1,5 @@
 //! Run-time choice of the instruction set for hot row kernels, shared by the solver nodes
-//! (first written in fluid-node for issue #3 must-show 8, throughput; moved here so
+//! (first written in fluid-node for throughput; moved here so
 //! solid-node and fluid-node use one copy). Each kernel is written once as an `#[inline(always)]` body over
 //! slices and compiled three times: baseline x86-64 (SSE2), AVX2 and AVX-512, so its loops
 //! vectorise 2, 4 or 8 doubles wide; [`multiversion!`] generates the dispatching wrapper.

@@ -1,4 +1,4 @@
-//! Time per phase of the MC-SPG step (issue 22): `joint_profile N THREADS STEPS [EPS_CRIT]`
+//! Time per phase of the MC-SPG step: `joint_profile N THREADS STEPS [EPS_CRIT]`
 //! advances the benchmark block of N³ particles STEPS steps in a pool of THREADS threads and
 //! prints the throughput, each phase's time per step and share (`meso_joint_node::profile`)
 //! and a hash of the final state's bits (to compare builds and thread counts). EPS_CRIT

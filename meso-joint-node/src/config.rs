@@ -125,7 +125,7 @@ impl CouplingRegion {
     }
 }
 
-/// The responder side of a kinematic coupling (ARCHITECTURE §5; seed 004 eq. 29–33).
+/// The responder side of a kinematic coupling (docs/architecture.md; seed 004 eq. 29–33).
 ///
 /// The node works in its own layout, one point per coupling particle: the participant
 /// runtime maps the driver's shell-node motion onto the particles with the shell's shape

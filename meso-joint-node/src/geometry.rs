@@ -92,7 +92,7 @@ pub fn bolted_plates(
     s
 }
 
-/// The benchmark block (issue 6): `n³` particles of 1 mm steel (J2 with kinematic hardening,
+/// The benchmark block: `n³` particles of 1 mm steel (J2 with kinematic hardening,
 /// support 2 h, consistent smoothing, re-anchoring every 100 steps), pulled apart at 1 m/s by
 /// its top and bottom two layers, initial forces computed. Shared by the crate's benchmark
 /// and `cosim bench`.

@@ -1,4 +1,4 @@
-//! VTK output for ParaView (ARCHITECTURE §10): the particles as vertex cells with
+//! VTK output for ParaView (docs/architecture.md): the particles as vertex cells with
 //! displacement, velocity, effective plastic strain and broken-bond fraction, written with
 //! the node kit (binary `.vtu` frames, exact f64, and the `joint.pvd` series).
 

@@ -1,4 +1,4 @@
-//! Wall time per phase of the MC-SPG step (issue 22), off unless enabled: the joint kernel's
+//! Wall time per phase of the MC-SPG step, off unless enabled: the joint kernel's
 //! 2-thread scaling is judged phase by phase (which phases run in parallel, which serially);
 //! `examples/joint_profile.rs` prints the shares.
 

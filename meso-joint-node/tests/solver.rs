@@ -1,4 +1,4 @@
-//! The `mc-spg` Solver: bad input refused with the key named (must-show 6), and the
+//! The `mc-spg` Solver: bad input refused with the key named, and the
 //! responder side of the kinematic coupling driven by an in-process stand-in shell driver
 //! (seed 004 eq. 29–33): set-up mass mapped with Wᵀ, constraint forces equal to the reactions
 //! of the same motion imposed as velocity supports, interface power identical on both sides.

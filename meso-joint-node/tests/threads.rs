@@ -1,4 +1,4 @@
-//! The MC-SPG step gives the same bits on any number of threads (issue 22: the joint kernel's
+//! The MC-SPG step gives the same bits on any number of threads (the joint kernel's
 //! 2-thread scaling must not buy speed with reordered sums): a block pulled apart with every
 //! stretched bond breaking (eq. 15–17, rows rebuilt and detached) and re-anchored every few
 //! steps, for each smoothing, stepped in pools of 1, 2 and 3 threads.

@@ -1,4 +1,4 @@
-//! The node kit (ARCHITECTURE §2, §10): plumbing every built-in node shares beside the
+//! The node kit (docs/architecture.md): plumbing every built-in node shares beside the
 //! participant runtime of `protocol` (which holds the params decoder and the checkpoint
 //! container). Here: one VTK writer and its ParaView `.pvd` series, used by all four nodes,
 //! files written whole or not at all (`whole`), and the device choice (`device`,

@@ -1,4 +1,4 @@
-//! One VTK writer for every node (ARCHITECTURE §10): a frame per output window written with
+//! One VTK writer for every node (docs/architecture.md): a frame per output window written with
 //! vtkio in binary, exact f64 — `<stem>_<window>.vtu` (XML unstructured grid), or legacy
 //! `.vtk` for a rectilinear grid (meshio cannot read XML `.vtr`) — and the `<stem>.pvd` series
 //! listing every frame once, by window. Frames come in window order within a run, so a frame

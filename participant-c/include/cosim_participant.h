@@ -64,7 +64,7 @@ typedef enum CosimCellKind {
 } CosimCellKind;
 
 /*
- The coupling kinds of ARCHITECTURE §5.
+ The coupling kinds of docs/architecture.md.
  */
 typedef enum CosimCouplingKind {
   COSIM_COUPLING_KIND_KINEMATIC = 0,
@@ -73,7 +73,7 @@ typedef enum CosimCouplingKind {
 } CosimCouplingKind;
 
 /*
- Which side of a coupling this node is on (ARCHITECTURE §5).
+ Which side of a coupling this node is on (docs/architecture.md).
  */
 typedef enum CosimRole {
   /*
@@ -111,7 +111,7 @@ typedef struct CosimWindow {
 } CosimWindow;
 
 /*
- What `advance` reports (SI units; ARCHITECTURE §3). The runtime zeroes it before each
+ What `advance` reports (SI units; docs/architecture.md). The runtime zeroes it before each
  call; named scalars go through `cosim_report_scalar`.
  */
 typedef struct CosimStepReport {

@@ -25,7 +25,7 @@ use std::os::unix::ffi::OsStringExt;
 /// Version of this ABI; a vtable built against another version is refused.
 pub const COSIM_ABI_VERSION: u32 = 1;
 
-/// Which side of a coupling this node is on (ARCHITECTURE §5).
+/// Which side of a coupling this node is on (docs/architecture.md).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CosimRole {
@@ -35,7 +35,7 @@ pub enum CosimRole {
     Responder = 1,
 }
 
-/// The coupling kinds of ARCHITECTURE §5.
+/// The coupling kinds of docs/architecture.md.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CosimCouplingKind {
@@ -90,7 +90,7 @@ pub struct CosimBinding {
     pub peer_interface: *const c_char,
 }
 
-/// What `advance` reports (SI units; ARCHITECTURE §3). The runtime zeroes it before each
+/// What `advance` reports (SI units; docs/architecture.md). The runtime zeroes it before each
 /// call; named scalars go through `cosim_report_scalar`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq)]

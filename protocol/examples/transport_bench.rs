@@ -1,4 +1,4 @@
-//! Transport benchmark (ARCHITECTURE §6): the round trip of one coupling window over shm,
+//! Transport benchmark (docs/architecture.md): the round trip of one coupling window over shm,
 //! zenoh and the in-process transport, each against a real echo process (this example
 //! re-executed with `--echo`).
 //!

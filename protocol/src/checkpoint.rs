@@ -1,4 +1,4 @@
-//! Checkpoints of a run (ARCHITECTURE §9): the one container every node's state is written in
+//! Checkpoints of a run (docs/architecture.md): the one container every node's state is written in
 //! by the participant runtime (never by the node itself), its place in the run directory, and
 //! the serde helpers a node uses to turn its state into the payload. PROTOCOL.md §7.
 //!

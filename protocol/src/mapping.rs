@@ -1,4 +1,4 @@
-//! Interface mapping between non-matching meshes (ARCHITECTURE §5, "Mapping").
+//! Interface mapping between non-matching meshes (docs/architecture.md, "Mapping").
 //!
 //! The wire carries interface data in the *driver's* layout. The responder builds an
 //! interpolation matrix `W` (one row per responder point, columns over driver points) and uses

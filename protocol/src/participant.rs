@@ -2,7 +2,7 @@
 //! a node process and an in-process replay:
 //!
 //! * [`NodeEngine`]: couplings, the per-coupling input buffers (which window's data feeds which
-//!   window, ARCHITECTURE §5), interface mapping (`v_r = W v_d`, `f_d = Wᵀ f_r`) and the calls
+//!   window, docs/architecture.md), interface mapping (`v_r = W v_d`, `f_d = Wᵀ f_r`) and the calls
 //!   into the solver. No I/O.
 //! * [`node_main`]: the process around it: command line, transport, handshake, heartbeat
 //!   thread, the window loop, and clean failure (a `Failed` message, then a non-zero exit).
@@ -208,7 +208,7 @@ impl NodeEngine {
         scheme::of(l.b.kind).input_window(l.b.role, l.b.input_lag, l.until, window)
     }
 
-    /// End coupling `coupling` before window `window` (ARCHITECTURE §5, seed 000 §4): the
+    /// End coupling `coupling` before window `window` (docs/architecture.md, seed 000 §4): the
     /// peer's outputs of earlier windows are still consumed (a lagged input in flight), later
     /// ones are neither expected nor sent, and the solver is told it goes on alone.
     pub fn decouple(&mut self, coupling: &str, window: u64) -> Result<(), EngineError> {

@@ -1,4 +1,4 @@
-//! The `Solver` trait (ARCHITECTURE §3): what every node implements. It is independent of any
+//! The `Solver` trait (docs/architecture.md): what every node implements. It is independent of any
 //! transport, so the participant runtime, the replay tool and unit tests all drive a solver
 //! the same way, in-process.
 //!
@@ -215,7 +215,7 @@ impl FieldSet {
     }
 }
 
-/// The contract every node implements (ARCHITECTURE §3).
+/// The contract every node implements (docs/architecture.md).
 pub trait Solver: Send {
     fn describe(&self) -> NodeDescription;
 

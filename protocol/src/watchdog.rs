@@ -1,4 +1,4 @@
-//! A node's watch on its coordinator (ARCHITECTURE §9): whatever ends the coordinator, even
+//! A node's watch on its coordinator (docs/architecture.md): whatever ends the coordinator, even
 //! SIGKILL, its nodes stop within a second and remove their shared memory. A node launched by
 //! `cosim` asks the kernel for SIGTERM when its parent dies and checks its parent pid; a node
 //! that joined from elsewhere follows the coordinator's liveliness through the transport.

@@ -1,4 +1,4 @@
-//! Interface mapping on non-matching meshes (ARCHITECTURE §5, "Mapping"): the interface power
+//! Interface mapping on non-matching meshes (docs/architecture.md, "Mapping"): the interface power
 //! `Σ f_d·v_d = Σ f_r·v_r` to round-off, total force preserved (rows of `W` sum to one), moment
 //! preserved when the responder lies on a planar driver, and exact reproduction of linear fields
 //! by the consistent map on line, triangle and (distorted) quad meshes.

@@ -1,4 +1,4 @@
-//! The coupling schemes' contracts (ARCHITECTURE §5): each kind's input lags and serial order,
+//! The coupling schemes' contracts (docs/architecture.md): each kind's input lags and serial order,
 //! and the sync-force node side's mapping (`v_r = W v_d`, `f_d = Wᵀ f_r`) against values worked
 //! out by hand for a responder point halfway along the driver's one-cell line, and the
 //! responder's following of the driver's motion through a window (`sync_force::Follow`)

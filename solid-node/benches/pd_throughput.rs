@@ -1,4 +1,4 @@
-//! Throughput benchmark (issue #4, must-show 7): bond-updates per second for pd-bond and
+//! Throughput benchmark: bond-updates per second for pd-bond and
 //! pd-correspondence on a 31 × 31 × 31 cubic block (29,791 particles), δ = 3.015 Δx
 //! (122-member interior families, 3,244,494 bonds), 100 full time steps (forces, damage
 //! check, velocity-Verlet integration); pd-rk-ba (order 2) on the same block for reference.

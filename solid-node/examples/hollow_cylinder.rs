@@ -1,4 +1,4 @@
-//! Seed 000 §3.2 brittle hollow cylinder (issue #4 must-show 6), loaded by a prescribed
+//! Seed 000 §3.2 brittle hollow cylinder, loaded by a prescribed
 //! internal pressure pulse instead of the detonation gas: inner radius 7 cm, outer 10 cm,
 //! E 200 GPa, ν 0.29, ρ 7870 kg/m³, brittle von Mises damage σ_cr = 3 GPa, pd-correspondence
 //! in plane strain; the set-up is [`solid_node::pd::cases::HollowCylinder`], run through the

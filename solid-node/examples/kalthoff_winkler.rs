@@ -1,4 +1,4 @@
-//! Kalthoff–Winkler plate (PHYSICS.md "Solid node"; issue #4 must-show 5), 2-D plane stress,
+//! Kalthoff–Winkler plate (the README's case sections "Solid node"), 2-D plane stress,
 //! pd-bond, the set-up of [`solid_node::pd::cases::KalthoffWinkler`]: 100 × 200 mm maraging
 //! steel plate (E 191 GPa, ρ 8000 kg/m³, ν = 1/3 fixed by the model, h 9 mm), two 50 mm edge
 //! notches 50 mm apart, the edge between them driven at 16 m/s, G0 = 22.17 kJ/m² (critical

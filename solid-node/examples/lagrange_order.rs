@@ -1,5 +1,5 @@
 //! Observed order of the Lagrange-multiplier multi-time-step coupling on the split bar
-//! (seed 003 §4–§5, issue 18): u, v, a at the interface and at the tip and λ, for the methods
+//! (seed 003 §4–§5): u, v, a at the interface and at the tip and λ, for the methods
 //! gs4, gc and ph, step ratios m = 1 (the single-domain integrator), 2, 3, 4, 8, under three
 //! halvings of the system step, against a single-domain run of the same mesh with a 128 times
 //! smaller step, and the energy the interface dissipated (−Σ of the interface work on every

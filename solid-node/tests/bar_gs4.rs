@@ -1,4 +1,4 @@
-//! `bar-1d` with a GS4-II integrator (issue 18): the `integrator` table is decoded strictly
+//! `bar-1d` with a GS4-II integrator: the `integrator` table is decoded strictly
 //! and refused with its key path, and a fixed–free bar under a step end load F oscillates
 //! about the static solution FL/EA with amplitude FL/EA (the exact triangle wave between 0
 //! and 2FL/EA, period 4L/c).

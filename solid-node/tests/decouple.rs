@@ -1,4 +1,4 @@
-//! Decoupling of the immersed coupling (seed 000 §4, ARCHITECTURE §5): after the coordinator
+//! Decoupling of the immersed coupling (seed 000 §4, docs/architecture.md): after the coordinator
 //! ends the coupling the body applies the force still in flight (sent by the gas before the
 //! end, arriving one window late), sends nothing more, and goes on as a free body whose
 //! momentum no longer changes. A kinematic coupling cannot be ended this way.

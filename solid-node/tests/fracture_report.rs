@@ -1,4 +1,4 @@
-//! The per-window fracture scalars of the peridynamic node (issue 7: damaged particle count,
+//! The per-window fracture scalars of the peridynamic node (damaged particle count,
 //! fragments, where damage first appeared, largest von Mises stress): checked against
 //! closed forms (von Mises of simple stress states, distances on the lattice) and against
 //! the node's own independent measurements (damage indices, connected components).

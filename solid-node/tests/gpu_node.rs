@@ -1,11 +1,11 @@
-//! `device = "gpu"` through the node's `Solver` trait (issue 8, must-show 1: the PD bar wave
+//! `device = "gpu"` through the node's `Solver` trait (the PD bar wave
 //! on GPU and CPU within 1e-10 relative). A plane-strain steel bar (60 × 6 particles, Δx 1 mm,
 //! δ 3.015 Δx) with its left quarter launched at 5 m/s against a held right end (prescribed
 //! velocity 0: a compression wave that reflects), an immersed interface on every particle
 //! receiving a different, non-uniform force each window (as from a gas), advanced over 6
 //! windows by the factory-built node on "cpu" and on "gpu"; the interface outputs (positions
 //! as displacements, velocities) and the report (momentum, kinetic energy, interface work and
-//! impulse, support impulse, centre-of-mass displacement, von Mises stress, and since issue 20
+//! impulse, support impulse, centre-of-mass displacement, von Mises stress, and
 //! the strain energy, plastic work and the residual of the node's energy balance) must agree
 //! within 1e-10 of their magnitude, for pd-bond and pd-correspondence; a yielding
 //! pd-correspondence bar within 10× the CPU's own one-ulp sensitivity. The CPU path itself is
@@ -285,9 +285,9 @@ fn compare(model: &str, yield_stress: Option<f64>) {
     match yield_stress {
         None => {
             assert!(plastic.iter().all(|&w| w == 0.0), "{plastic:?}");
-            // Issue 8 asks 1e-10. With displacement-based kinematics (session 4) the worst
+            // The bound asked of the device path is 1e-10. With displacement-based kinematics (session 4) the worst
             // measured on lavapipe is 2.4e-13 (pd-correspondence displacement; velocity was
-            // 6.5e-11 before): held to 1e-11, the energies (issue 20) too.
+            // 6.5e-11 before): held to 1e-11, the energies too.
             assert!(worst.iter().all(|(_, e)| *e <= 1e-11), "{worst:?}");
         }
         Some(_) => {
@@ -319,7 +319,7 @@ fn correspondence_bar_wave_gpu_matches_cpu_through_the_node() {
     compare("pd-correspondence", None);
 }
 
-/// Issue 20: the plastic work accumulated on the device per step, and the strain energy of a
+/// the plastic work accumulated on the device per step, and the strain energy of a
 /// yielded bar, equal the CPU path's.
 #[test]
 fn plastic_correspondence_bar_energies_gpu_match_cpu_through_the_node() {

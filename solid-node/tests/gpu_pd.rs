@@ -1,4 +1,4 @@
-//! GPU path of `pd-bond` against the CPU path (issue 8, must-show 1): the free-free bar of
+//! GPU path of `pd-bond` against the CPU path: the free-free bar of
 //! pd_verification.rs's long-wave test (plane-stress strip, fundamental mode v = V cos(πx/L)),
 //! advanced by `Body::step` on the CPU and by `GpuBondBody::steps` on the device with the
 //! same dt; displacements, velocities and forces must agree within 1e-10 of their largest

@@ -1,4 +1,4 @@
-//! Checkpoints of a lagrange coupling in process (issue 19, seed 003 §4): the split bar as two
+//! Checkpoints of a lagrange coupling in process (seed 003 §4): the split bar as two
 //! subdomains (average acceleration | central differences in 4 substeps, `gs4`) stopped after
 //! some system steps, its sides' states (`LagrangeSide::save_state`) and the interface
 //! problem's multipliers taken, then set up afresh, restored and run on: bit-identical to the

@@ -165,7 +165,7 @@ fn gc_is_first_order_where_gs4_is_second() {
     for (name, left, right) in pairs() {
         let (gc, gc_energy) = study(Method::Gc, left, right);
         let (gs4, gs4_energy) = study(Method::Gs4, left, right);
-        // The interface energy (issue 18 must-show 4): gc dissipates (ΔE_Γ > 0 at every
+        // The interface energy: gc dissipates (ΔE_Γ > 0 at every
         // step) and halves it with the step; gs4's shrinks four times per halving.
         println!("{name}: ΔE_Γ gc {gc_energy:?}, gs4 {gs4_energy:?}");
         assert!(

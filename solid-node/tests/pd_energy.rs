@@ -1,4 +1,4 @@
-//! The peridynamic node's energies (issue 20): the strain energy of a uniformly stretched
+//! The peridynamic node's energies: the strain energy of a uniformly stretched
 //! block against the continuum closed form and against Clapeyron's theorem (U = ½ Σ F·u for
 //! a linear response), kinetic + strain energy conserved by velocity Verlet to its second
 //! order, and the energy released by breaking bonds equal to what they stored.
@@ -306,7 +306,7 @@ fn stretch_then_jump(s: &mut PdSolver) {
 fn damage_releases_what_the_correspondence_models_stored() {
     // Each model with a critical stretch against its twin without damage, through the same
     // loading: the twin's strain energy is what the body stored with every bond intact;
-    // the damaged body keeps some of it and releases the rest (issue 20).
+    // the damaged body keeps some of it and releases the rest.
     let damage = "damage = { kind = \"critical_stretch\", critical_stretch = 0.01 }";
     for model in ["pd-correspondence", "pd-rk-ba"] {
         let mut intact = solver(model, "");
@@ -389,7 +389,7 @@ fn torn_block(model: &str, speed: f64, cfl: f64, steps: usize) -> ([f64; 3], usi
 
 #[test]
 fn a_torn_block_balances_energy_with_the_released_energy_for_every_model() {
-    // Issue 20: the energy balance of a breaking body closes as pd-bond's does once the
+    // the energy balance of a breaking body closes as pd-bond's does once the
     // released energy is counted. A block torn apart at ±100 m/s (the bonds across its
     // middle break within a few steps), the same time span at cfl 0.4 and 0.1: with the
     // released energy the largest error of E falls with the step (the integrator's error;

@@ -1,5 +1,5 @@
-//! Fracture must-shows of issue #4 at test resolution: the Kalthoff–Winkler crack angle
-//! (must-show 5; experiment ≈ 70°, accepted 65–72°) and the seed 000 §3.2 brittle hollow
+//! Fracture checks at test resolution: the Kalthoff–Winkler crack angle
+//! (experiment ≈ 70°, accepted 65–72°) and the seed 000 §3.2 brittle hollow
 //! cylinder under an internal pressure pulse (must-show 6: cracks start at the inner face,
 //! the ring breaks into fragments). Full resolution: `examples/kalthoff_winkler.rs`,
 //! `examples/hollow_cylinder.rs`.

@@ -1,9 +1,9 @@
-//! Displacement-based kinematics (issue 8 must-show 2, session 4): the force models form bond
+//! Displacement-based kinematics: the force models form bond
 //! deformations from η = u_j − u_i against the reference bond ξ, so a body far from the
 //! origin keeps full precision at small strain. A 6×6×6 block (Δx 1 mm, δ 3.015Δx) whose
 //! reference coordinates are offset by 1e3 m (ulp 1.1e-13 m) is stretched uniformly by
 //! ε = 1e-9 along x (bond elongations ~1e-12 m, ten ulps of the absolute position):
-//! * pd-bond (Silling 2000, PHYSICS.md): every particle's force equals Σ_j c_ij s_ij ŷ_ij with
+//! * pd-bond (Silling 2000, the README's case sections): every particle's force equals Σ_j c_ij s_ij ŷ_ij with
 //!   the closed-form stretch of a uniformly stretched bond,
 //!   s = (2ε + ε²)n_x² / (√(1 + (2ε + ε²)n_x²) + 1), to 1e-9 of the largest force. The old
 //!   formula, c (1/|ξ| − 1/|y|) y with y from the absolute positions, is evaluated beside it

@@ -1,4 +1,4 @@
-//! Verification of pd-rk-ba (seed 000 App. A; issue #4): RK gradient patch tests of order 1
+//! Verification of pd-rk-ba (seed 000 App. A): RK gradient patch tests of order 1
 //! and 2 (A.1–A.8) on regular and jittered particle sets, interior and boundary; long-wave
 //! speed of a free bar against √(E/ρ); linear momentum of a free, fracturing body; thread-
 //! count independence; selection by name through the node factory.

@@ -1,4 +1,4 @@
-//! The peridynamic `Solver`: config validation names the key (issue #4 must-show 8), and the
+//! The peridynamic `Solver`: config validation names the key, and the
 //! coupling sides against an in-process stand-in peer (immersed provider, kinematic
 //! responder and driver), checkpoints, and the VTK frame read back.
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
@@ -419,7 +419,7 @@ fn read_vtu(path: &std::path::Path) -> (Vec<f64>, Arrays) {
     (f64s(piece.points), arrays)
 }
 
-/// The node's VTK frame (issue #4: "VTK output of displacement, velocity, stress, plastic
+/// The node's VTK frame ("VTK output of displacement, velocity, stress, plastic
 /// strain and damage per particle"), read back with vtkio: every array equals the solver's
 /// state bit for bit, for a correspondence body that is yielding and breaking bonds.
 #[test]

@@ -1,5 +1,5 @@
-//! Verification of the peridynamic models against closed forms and conservation laws
-//! (issue #4 must-show 1–4): patch test, zero-energy mode, elastic constants, long-wave
+//! Verification of the peridynamic models against closed forms and conservation laws:
+//! patch test, zero-energy mode, elastic constants, long-wave
 //! speed, J2 radial return, momentum, damage irreversibility, determinism.
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
 // `!(x > 0.0)` is deliberate: it also rejects NaN.

@@ -1,4 +1,4 @@
-//! `cosim bench` end to end (issue 8): the suite on tiny problems (`--quick`) writes a
+//! `cosim bench` end to end: the suite on tiny problems (`--quick`) writes a
 //! bench.json that parses, names every selected kernel on the CPU at 1 and 2 threads (and on
 //! the GPU, or says why not), and whose numbers are consistent with each other: throughput ×
 //! median time per step = updates per step, time per update = median time / updates, cost
@@ -153,7 +153,7 @@ fn quick_suite_covers_every_kernel_with_consistent_numbers() {
     assert_eq!(unit("joint").as_deref(), Some("particle-updates"));
     assert!(j["fits"].as_array().is_some_and(|f| !f.is_empty()));
     // The pd block's bonds per step are the lattice count: Σ over offsets d ≠ 0 with
-    // |d| ≤ 3.015 of Π_k (n − |d_k|) (this formula gives issue 4's 3,244,494 for n = 31).
+    // |d| ≤ 3.015 of Π_k (n − |d_k|) (this formula gives 3,244,494 for n = 31).
     for n in [6u64, 8] {
         let mut count = 0;
         for a in -3i64..=3 {

@@ -1,4 +1,4 @@
-//! Blast on fracturing solids end to end (issue 7, seed 000 §3.2–3.3 and §4): the small
+//! Blast on fracturing solids end to end (seed 000 §3.2–3.3 and §4): the small
 //! variants of `examples/brittle_cylinder.toml` (a brittle ring around a charge) and
 //! `examples/ductile_square.toml` (a ductile hollow square around a charge), each a gas node
 //! and a peridynamic node as real processes coupled by the immersed coupling, plus the square

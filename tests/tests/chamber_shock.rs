@@ -1,4 +1,4 @@
-//! Chamber detonation, coarse level (issue 7 must-show 1): the blast wave reaches the right
+//! Chamber detonation, coarse level: the blast wave reaches the right
 //! wall's centre (point 2) when its own measured speed predicts, and reflects there.
 //!
 //! * Speed: arrival times (first rise of 2 kPa, interpolated between windows) at two

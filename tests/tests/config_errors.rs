@@ -1,5 +1,5 @@
 //! Bad case files are refused before any process starts: exit code 2 and one line naming the
-//! key path and the reason (ARCHITECTURE §9, STYLE "Errors and input").
+//! key path and the reason (docs/architecture.md, STYLE "Errors and input").
 
 use cosim_tests::*;
 
@@ -167,7 +167,7 @@ fn bad_solver_parameter_is_named() {
 
 #[test]
 fn parallel_schedule_is_refused_for_a_kinematic_coupling() {
-    // ARCHITECTURE §5: lagging the constraint force by a window is unstable.
+    // docs/architecture.md: lagging the constraint force by a window is unstable.
     refused(
         "parallel",
         |s| s.replace("window = 1e-6", "window = 1e-6\nschedule = \"parallel\""),
@@ -409,7 +409,7 @@ fn bad_fem_2d_parameters_are_named() {
     }
 }
 
-/// The good case's coupling as a lagrange coupling (issue 18), the lines of `[[couplings]]`
+/// The good case's coupling as a lagrange coupling, the lines of `[[couplings]]`
 /// replaced by `coupling`.
 fn lagrange(text: &str, coupling: &str) -> String {
     let head = text
@@ -506,7 +506,7 @@ fn lagrange_coupling_keys_are_checked() {
     );
 }
 
-/// Issue 18 must-show 5: a coupling whose node does not provide or accept a field its scheme
+/// a coupling whose node does not provide or accept a field its scheme
 /// needs is refused before anything starts, naming the coupling, the node and the field.
 #[test]
 fn a_field_the_scheme_needs_and_the_node_lacks_is_refused() {
@@ -576,7 +576,7 @@ fn a_field_the_scheme_needs_and_the_node_lacks_is_refused() {
     );
 }
 
-/// A lagrange side on the device path (issue 19: it could neither set up nor checkpoint) is
+/// A lagrange side on the device path (it could neither set up nor checkpoint) is
 /// refused by `cosim validate` before anything starts, naming the node's `device` key — the
 /// notched specimen with its ligament on the GPU (plane strain, which the device kernels take).
 #[test]

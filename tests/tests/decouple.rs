@@ -1,4 +1,4 @@
-//! Decoupling (issue 7, ARCHITECTURE §5, seed 000 §4): once enough impulse has reached the
+//! Decoupling (docs/architecture.md, seed 000 §4): once enough impulse has reached the
 //! solid, the immersed coupling ends, the fluid node is finished and the solid goes on alone.
 //! Run on the small chamber: decoupled at half time (by time, then by a reported quantity),
 //! the bar must keep exactly the impulse the gas gave it up to the decoupling — including the

@@ -1,4 +1,4 @@
-//! The project's documents hold up in a fresh clone (issue 21): every relative link of
+//! The project's documents hold up in a fresh clone: every relative link of
 //! README.md, PROTOCOL.md and docs/*.md names a file the repository tracks (an anchor, a
 //! heading of it), no link leaves the repository, and the licences the crates declare are
 //! there.

@@ -1,4 +1,4 @@
-//! Solvers of our users' own, through the participant libraries (ARCHITECTURE §1: the node is
+//! Solvers of our users' own, through the participant libraries (docs/architecture.md: the node is
 //! the unit of extension): the 1-D bar written in Python (`examples/external/bar.py`, package
 //! `cosim` from `python/`) and in C (`examples/external/bar.c` on `participant-c`) runs as the
 //! right half of the split bar exactly as the built-in `bar-1d` does — the tip follows the

@@ -1,4 +1,4 @@
-//! Failure handling (ARCHITECTURE §9): a node killed mid-run, a node that stops answering,
+//! Failure handling (docs/architecture.md): a node killed mid-run, a node that stops answering,
 //! and a malformed message on a data topic each end the run within 5 s with one line naming
 //! the node and the reason, no surviving child, no shared memory left, and a readable
 //! recording holding every window completed before the fault.

@@ -1,4 +1,4 @@
-//! Fault campaigns on the example cases (ARCHITECTURE §9, issue 19 must-shows 2 and 3):
+//! Fault campaigns on the example cases (docs/architecture.md):
 //! `cosim` SIGKILLed at 20 random times during a small chamber run, and a random node of the
 //! small crash tube (11 processes) SIGKILLed at 20 random times on shared memory and on
 //! zenoh. Each kill must land mid-run; the draws come from a seeded generator whose seed is

@@ -1,4 +1,4 @@
-//! The GPU path in a coupled run (issue 8, must-show 2): the small variant of
+//! The GPU path in a coupled run: the small variant of
 //! `examples/chamber_detonation.toml` (a gas node and a peridynamic bar node as real processes,
 //! immersed coupling) run with the gas on `device = "cpu"` and on `device = "gpu"`
 //! (`--set gas.device="gpu"`), and compared field by field, window by window: every field of
@@ -255,7 +255,7 @@ fn f32_on_request_warns_in_the_summary_and_tracks_the_cpu_run() {
         let own = s["nodes"][node]["warnings"]
             .as_array()
             .expect("node warnings");
-        // only the f32 warning: the bar's GPU path reports its energies (issue 20)
+        // only the f32 warning: the bar's GPU path reports its energies
         assert_eq!(own.len(), 1, "{node}: {own:?}");
     }
     assert!(
@@ -301,7 +301,7 @@ fn balance_series(mcap: &Path, key: &str) -> Vec<(u64, f64)> {
         .collect()
 }
 
-/// Issue 20: the bar's energies on the GPU path (strain energy reduced on the device each
+/// the bar's energies on the GPU path (strain energy reduced on the device each
 /// window) close the run's energy balance as the CPU path's do. The small chamber with the
 /// bar (pd-correspondence) on `device = "gpu"` against the all-CPU run: the bar's strain
 /// energy and plastic work window by window within 1e-10 of the run's largest strain

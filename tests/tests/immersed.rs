@@ -1,4 +1,4 @@
-//! The immersed coupling end to end (issue 7, ARCHITECTURE §5): the small variant of
+//! The immersed coupling end to end (docs/architecture.md): the small variant of
 //! `examples/chamber_detonation.toml` — a gas node and a peridynamic bar node as real processes
 //! over shared memory. Momentum must cross the interface exactly: what the gas gives the
 //! particles in window w is what the bar receives in window w + 1 (the coupling lag), to
@@ -64,7 +64,7 @@ fn the_impulse_the_gas_gives_is_what_the_bar_receives_every_window() {
     assert!(r <= 1e-12, "momentum residual {r:e}");
 }
 
-/// The energy line of the coupled run (issue 20 must-show 1): the bar reports its strain
+/// The energy line of the coupled run: the bar reports its strain
 /// energy and the gas books the gas its cells lose to the solid, so the residual is what the
 /// schemes and the coupling dissipate, bounded.
 #[test]

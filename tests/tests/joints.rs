@@ -1,9 +1,9 @@
 //! Seed 004's shell–joint cases end to end through `cosim run` (issues 6 and 7): a
 //! `macro-shell-node` (model `blt-shell`) drives `meso-joint-node`s (model `mc-spg`) through
-//! the kinematic coupling (ARCHITECTURE §5, serial schedule), at the small variants of
+//! the kinematic coupling (docs/architecture.md, serial schedule), at the small variants of
 //! `examples/coupon_*.toml`, `examples/single_joint.toml` and `examples/crash_tube.toml`.
 //!
-//! * Coupon (seed 004 §4.1, issue 6 must-show 4): the two-scale force on the pulled end
+//! * Coupon (seed 004 §4.1): the two-scale force on the pulled end
 //!   agrees with the single-scale (all-SPG) one to 5 % of the peak at every window up to the
 //!   single-scale peak; both peaks are the net-section yield force σy·A = 1 GPa × 32 mm² =
 //!   32 kN within 3 % (with E_t = 1 GPa the engineering force peaks at ~0.5 % plastic strain,

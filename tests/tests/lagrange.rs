@@ -1,4 +1,4 @@
-//! `kind = "lagrange"` through `cosim run` (issue 18, seed 003 §4–§5): the split bar of
+//! `kind = "lagrange"` through `cosim run` (seed 003 §4–§5): the split bar of
 //! examples/split_bar_lagrange.toml, each half its own node with its own integrator and step,
 //! the interface problem solved by the coordinator. Step ratio 1 reproduces the single-domain
 //! bar; for m = 2 (implicit | implicit) and m = 4 (implicit | explicit) `gs4` is second order
@@ -279,7 +279,7 @@ fn gs4_is_second_order_and_gc_first_through_cosim_run() {
             );
             measured += 1;
         }
-        // ΔE_Γ (must-show 4): gc dissipates and halves it with the step, gs4's falls four
+        // ΔE_Γ: gc dissipates and halves it with the step, gs4's falls four
         // times per halving.
         println!("{tag}: ΔE_Γ gc {gc_energy:?}, gs4 {gs4_energy:?}");
         if !energy {
@@ -305,7 +305,7 @@ fn gs4_is_second_order_and_gc_first_through_cosim_run() {
     assert_eq!(energies, 1);
 }
 
-/// Issue 18 must-show 2: an explicit–implicit pair with the explicit side exactly at its
+/// an explicit–implicit pair with the explicit side exactly at its
 /// Courant limit (right half central differences, 3 substeps of h_left/c: Δt = h_right/c)
 /// runs stable through `cosim run` to the end of the ramp, for gs4 and gc, and stays close to
 /// the single-domain reference (gs4 closer than gc); the gc run's explicit side replays

@@ -1,4 +1,4 @@
-//! `cosim params` (issue 21): every model's parameters listed from the JSON Schema its node
+//! `cosim params`: every model's parameters listed from the JSON Schema its node
 //! derives from the types it decodes them into. The schema covers every parameter the
 //! example cases use, refuses what validation refuses (unknown keys), and the copies
 //! published for editors in docs/schema/ are the ones the nodes print.

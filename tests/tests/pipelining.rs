@@ -1,4 +1,4 @@
-//! The coordinator's pipelined window schedule (issue 22): with the next window's `Advance`
+//! The coordinator's pipelined window schedule: with the next window's `Advance`
 //! out before the last one is audited, the split bar is the same run as in lockstep — the same
 //! coupling data and reports every window, the same balance — its recording holds every
 //! window in order, it replays bit-identically, and its summary says where the time went.
@@ -153,7 +153,7 @@ fn the_default_schedule_records_every_window() {
         .expect("windows_in_flight");
     assert!((2.0..=8.0).contains(&mean), "windows in flight: {mean}");
     assert_replays_bit_identically(&out.join("run.mcap"), "right", "default-right");
-    // The window loop allocates nothing per window (issue 22): the same case cut to a quarter
+    // The window loop allocates nothing per window: the same case cut to a quarter
     // of its windows makes as many allocations in its window loop, give or take one per four
     // of the windows it lacks (measured: 0.03–0.04 per window on a loaded 2-core machine,
     // what a lagging recorder thread or a longer run's heartbeats add). What both make is the warm-up's (the first reports of each

@@ -1,4 +1,4 @@
-//! Recording and `cosim info` on a real split-bar run (ARCHITECTURE §7); replay is in
+//! Recording and `cosim info` on a real split-bar run (docs/architecture.md); replay is in
 //! `replay.rs`.
 
 use cosim_tests::*;

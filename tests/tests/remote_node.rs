@@ -142,7 +142,7 @@ fn join_with(cmd: &[String], token: Option<&str>) -> std::process::Output {
         .unwrap()
 }
 
-/// The README's several-hosts flow (issue 19 must-show 4) with the remote node started
+/// The README's several-hosts flow with the remote node started
 /// long after `cosim` printed its command: 6 s, six times both the heartbeat timeout and the
 /// start timeout (1 s each; the issue's 60 s scaled down with them; `COSIM_TEST_JOIN_DELAY=60`
 /// runs it with the issue's 60 s and the default timeouts). The local node waits,
@@ -198,7 +198,7 @@ fn a_remote_node_may_join_after_the_heartbeat_timeout() {
     nothing_left(&id);
 }
 
-/// Issue 18 must-show 5 for a node checked only when it joins: the remote node's executable
+/// The field check for a node checked only when it joins: the remote node's executable
 /// is not on this host, so `cosim` cannot describe it before the run; its `Describe` at the
 /// handshake shows that its interface does not accept the field the coupling asks the
 /// responder to take, and the run is refused before any window, naming the coupling, node,

@@ -1,4 +1,4 @@
-//! `cosim replay` (ARCHITECTURE §7): the node's executable is launched as a real process and fed
+//! `cosim replay` (docs/architecture.md): the node's executable is launched as a real process and fed
 //! its recorded inputs. Same executable → bit-identical over every recorded window (counted
 //! from the recording independently of the replay), exit 0; a changed parameter → a
 //! difference report and exit 3;

@@ -1,4 +1,4 @@
-//! The command line as our users drive it (issue 21): a rerun into the same output folder is
+//! The command line as our users drive it: a rerun into the same output folder is
 //! refused unless `--overwrite`, which clears what the earlier run left (so the `.pvd` series
 //! list exactly the new run's frames) and keeps the folders of other variants; `--set
 //! NODE.model=` and `--set NODE.solver=` swap a node's model or executable; `--set` reaches a
@@ -85,7 +85,7 @@ fn a_rerun_needs_overwrite_and_then_lists_only_its_own_frames() {
     nothing_left(&id);
 }
 
-/// Issue 21 must-show 6: the chamber's bar swapped to `pd-rk-ba` from the command line.
+/// the chamber's bar swapped to `pd-rk-ba` from the command line.
 #[test]
 fn set_swaps_a_node_model_and_executable() {
     let (dir, id) = scratch("swap-model");

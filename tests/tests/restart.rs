@@ -1,4 +1,4 @@
-//! Checkpoint and restart of a whole run (ARCHITECTURE §9, README "Restart a run"): a run
+//! Checkpoint and restart of a whole run (docs/architecture.md, README "Restart a run"): a run
 //! with `run.checkpoint_every` whose `cosim` is SIGKILLed mid-run, then `cosim restart`, ends
 //! bit-identical to an uninterrupted run — the final state (every node's last VTK frame), the
 //! balance in summary.json, every node report and every coupling message after the restart
@@ -552,7 +552,7 @@ fn crash_tube_interrupted_by_sigint_and_sigterm_restarts_bit_identically() {
     );
 }
 
-/// Issue 19 must-show 1 at the issue's size (minutes: run by hand with `--ignored`): `case`'s
+/// A killed run restarted bit-identically at full size (minutes: run by hand with `--ignored`): `case`'s
 /// `variant` with checkpoints every 10 windows, cosim SIGKILLed about 5 windows after the
 /// checkpoint of window 30 (after window 35), restarted from window 30 (`changed`: a setting
 /// the restart must refuse): bit-identical to the uninterrupted run.
@@ -613,7 +613,7 @@ fn split_bar_with_a_c_half_killed_and_restarted_is_bit_identical() {
     external_half_killed_and_restarted(&dir, &id, &bar);
 }
 
-/// A lagrange coupling (issue 18): each side's subdomain (state, clock, last multipliers,
+/// A lagrange coupling: each side's subdomain (state, clock, last multipliers,
 /// audit sums) and the coordinator's interface problem (window, multipliers) continue from
 /// the checkpoint — the split bar as two bar-1d subdomains (average acceleration | central
 /// differences in 4 substeps), to 600 windows.

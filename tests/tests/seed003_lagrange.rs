@@ -1,4 +1,4 @@
-//! Seed 003 §5.1–§5.3 as coupled `fem-2d` subdomains through `cosim run` (issue 18): the
+//! Seed 003 §5.1–§5.3 as coupled `fem-2d` subdomains through `cosim run`: the
 //! small variants of `examples/seed003_wave_split.toml` (explicit | implicit and implicit |
 //! implicit, m = 2), `seed003_cantilever_split.toml` (implicit m = 2, and implicit |
 //! explicit) and `seed003_three.toml` (three subdomains, one coupling) each match the
@@ -283,7 +283,7 @@ fn three_subdomains_match_the_monolithic_mesh_and_gs4_is_second_order() {
     assert!(gs4_order[2] >= 1.9, "gs4 ΔE_Γ order {gs4_order:?}");
 }
 
-/// Issue 18 must-show 2 on seed 003 §5.1: subdomain 1 in central differences exactly at its
+/// On seed 003 §5.1: subdomain 1 in central differences exactly at its
 /// critical step bound (two steps of the bound per window), subdomain 2 in average
 /// acceleration at the window (m = 2), runs stable for gs4 and gc and stays close to the
 /// monolithic mesh, gs4 closer than gc. The load rises over 1 ms (C³): a step load on this
@@ -341,7 +341,7 @@ fn explicit_side_at_its_critical_step_is_stable() {
     assert!(worst[0] < worst[1], "gs4 {:e}, gc {:e}", worst[0], worst[1]);
 }
 
-/// Seed 003 §5.4 (issue 18 must-show 3): the notched specimen, fem-2d | pd-correspondence |
+/// Seed 003 §5.4: the notched specimen, fem-2d | pd-correspondence |
 /// pd-correspondence in one coupling, small variant (load ramped over 4 ms, 8 ms), against
 /// the same three subdomains at a tenth of the step (m = 1 everywhere): within 1 % in uy at A,
 /// B and C, for gs4 (every side at the system step) and for gc with the particles at four

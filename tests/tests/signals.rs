@@ -1,4 +1,4 @@
-//! Stopping on request and surviving the coordinator's death (ARCHITECTURE §9): SIGINT and
+//! Stopping on request and surviving the coordinator's death (docs/architecture.md): SIGINT and
 //! SIGTERM to `cosim` end the run at a window boundary within 2 s with status "interrupted",
 //! a finalised recording and nothing left behind; SIGKILL of `cosim` at random times leaves
 //! no node alive 2 s later, a recoverable recording, and no shared memory after `cosim clean`

@@ -1,5 +1,5 @@
-//! Verification of the kinematic coupling on the split elastic bar (seed 001 §5.2; ARCHITECTURE
-//! §5): exact triangle-wave tip response, equality with the single-node run, sub-cycling
+//! Verification of the kinematic coupling on the split elastic bar (seed 001 §5.2; docs/architecture.md
+//! "Couplings"): exact triangle-wave tip response, equality with the single-node run, sub-cycling
 //! stability, and the first-order momentum balance, each through real node processes.
 
 use cosim_tests::*;

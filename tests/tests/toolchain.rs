@@ -1,4 +1,4 @@
-//! The users' toolchain on a real run (issue 21): `cosim export` to numpy, CSV and Parquet, checked
+//! The users' toolchain on a real run: `cosim export` to numpy, CSV and Parquet, checked
 //! against the recording read with the official MCAP reader; `cosim info --json` through
 //! `python3 -m json.tool`; the field picture `cosim run` draws (`fields.png`) shows the
 //! chamber's pressure and the bar where the case puts it; the Python package's `open_run`

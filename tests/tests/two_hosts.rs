@@ -1,4 +1,4 @@
-//! Several hosts (issue 7): two network namespaces joined by a veth pair stand for two
+//! Several hosts: two network namespaces joined by a veth pair stand for two
 //! machines. `cosim` and the bar (solid node) run in one, the gas (fluid node) joins from the
 //! other over zenoh with the printed command and token, and the coupled run gives the same
 //! numbers, bit for bit, as the same case with both nodes on one host.

@@ -1,4 +1,4 @@
-//! The node kit's VTK output (issue 19 must-show 6, issue 21 must-show 5): every built-in
+//! The node kit's VTK output: every built-in
 //! node — fluid, peridynamic and bar solids, shell, joint — writes its frames through one
 //! writer, and each node's `.pvd` series opens in meshio with a t = 0 frame (the state after
 //! set-up, displacement zero), every frame once, in time order.

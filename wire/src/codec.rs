@@ -266,7 +266,7 @@ pub fn decode_ref(bytes: &[u8]) -> Result<EnvelopeRef<'_>, CodecError> {
     })
 }
 
-/// The `Fields` message of an envelope read in place (issue 22): strings and values borrow the
+/// The `Fields` message of an envelope read in place: strings and values borrow the
 /// received bytes (a shared-memory sample), so a large field is never copied out of it. The
 /// header, lengths, kind and trailing bytes are checked exactly as [`decode`] checks them.
 #[derive(Debug, Clone, PartialEq)]
@@ -482,7 +482,7 @@ const DONE_VARIANT: u32 = 7;
 /// `Message::Done`'s kind in the header.
 pub const DONE_KIND: u8 = 8;
 
-/// Read a `Done` envelope, its report into `report` in place (issue 22: the coordinator reads
+/// Read a `Done` envelope, its report into `report` in place (the coordinator reads
 /// a `Done` from every node every window). The report's scalars vector and their names keep
 /// their buffers, so once `report` has held a report with the same scalar names nothing is
 /// allocated. The header, kind, lengths and trailing bytes are checked exactly as [`decode`]

@@ -13,7 +13,7 @@ pub enum Role {
     Responder,
 }
 
-/// The coupling kinds of ARCHITECTURE §5.
+/// The coupling kinds of docs/architecture.md.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum CouplingKind {
@@ -62,7 +62,7 @@ pub struct Hello {
     pub model: String,
     pub pid: u32,
     pub capabilities: Vec<String>,
-    /// Token a remote node presents (ARCHITECTURE §11); empty for launched nodes.
+    /// Token a remote node presents (docs/architecture.md); empty for launched nodes.
     pub token: String,
 }
 
@@ -109,7 +109,7 @@ pub struct Describe {
     pub warnings: Vec<String>,
 }
 
-/// Interface cell shapes for mapping (ARCHITECTURE §5, "Mapping").
+/// Interface cell shapes for mapping (docs/architecture.md, "Mapping").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum CellKind {
     Line,
@@ -270,7 +270,7 @@ impl Fields {
     }
 }
 
-/// What a node reports after each window (ARCHITECTURE §3).
+/// What a node reports after each window (docs/architecture.md).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct StepReport {
     pub kinetic_energy: f64,

@@ -1,4 +1,4 @@
-// Single-material ideal-gas Euler step on the device (issue 8; seed 002 §2.3–§2.4, Fig. 4):
+// Single-material ideal-gas Euler step on the device (seed 002 §2.3–§2.4, Fig. 4):
 // primitive recovery, ghost fill, MUSCL + HLLC fluxes, SSP-RK3 stage update (seed 002 eq. 35
 // weights), boundary impulse, and the CFL reduction. Every formula mirrors fluid-node's CPU
 // kernels (step.rs, riemann/hllc.rs, limiter.rs, boundary.rs) operation by operation, so the

@@ -1,4 +1,4 @@
-// Immersed-particle operations of the fluid step on the device (issue 8 must-show 2; seed 002
+// Immersed-particle operations of the fluid step on the device (seed 002
 // §3, eq. 31–35), appended to euler.wgsl when the model has an [immersed] interface. They
 // mirror fluid-node/src/immersed.rs operation by operation:
 //   im_fill    fill_solid_prims: solid cells next to the gas take the mean primitive state of

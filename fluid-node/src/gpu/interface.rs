@@ -1,5 +1,5 @@
-//! The immersed coupling (seed 002 §3, eq. 31–35; ARCHITECTURE §5 "immersed") with the fluid
-//! state on the device (issue 8 must-show 2). The per-stage work — solid-cell primitives
+//! The immersed coupling (seed 002 §3, eq. 31–35; docs/architecture.md "immersed") with the fluid
+//! state on the device. The per-stage work — solid-cell primitives
 //! (eq. 32), moving-wall fluxes, projection of interface cells onto the particle velocity
 //! (eq. 31, 33) and the particle impulses (eq. 34–35) — runs in `immersed.wgsl` inside the
 //! step batches. The per-window work — classification of cells, refill of cells the solid

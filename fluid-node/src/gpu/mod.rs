@@ -1,4 +1,4 @@
-//! GPU path of the fluid node (issue 8; seed 002 §2.3–§2.4 and §4: the whole FVM step on the
+//! GPU path of the fluid node (seed 002 §2.3–§2.4 and §4: the whole FVM step on the
 //! device). [`GpuEuler`] takes a CPU-built [`Fluid`] (same grid, initial state, boundaries,
 //! limiter, CFL number), uploads its conserved state once, and runs the complete time loop on
 //! the device — primitive recovery, ghost fill, MUSCL + HLLC fluxes, the three SSP-RK3 stages,

@@ -1,5 +1,4 @@
-//! The immersed coupling with the state on the device against the CPU path (issue 8
-//! must-show 2, in process): the same `EulerSolver` built with `device = "cpu"` and
+//! The immersed coupling with the state on the device against the CPU path (in process): the same `EulerSolver` built with `device = "cpu"` and
 //! `device = "gpu"`, fed the same particle data window by window through the `Solver`
 //! interface as a solid node would. A disc of particles moves diagonally through a 2-D box
 //! while a blast wave from a high-pressure circle hits it, so every immersed operation runs:

@@ -115,7 +115,7 @@ pub fn solver(text: &str) -> EulerSolver {
 /// Sedov energy constant α(ν, γ) with E = α ρ0 R^{ν+2} / t² (ν = 1 planar, both sides;
 /// 2 cylindrical, per unit length; 3 spherical), by RK4 integration of the strong-shock
 /// similarity equations from the shock (ξ = 1) to the centre. Checked against the
-/// spherical γ 1.4 value 0.851072 of PHYSICS.md.
+/// spherical γ 1.4 value 0.851072 of the README's case sections.
 pub fn sedov_alpha(nu: usize, g: f64) -> f64 {
     let nuf = nu as f64;
     let d = 2.0 / (nuf + 2.0);

@@ -1,4 +1,4 @@
-//! The immersed boundary scheme (`kind = "immersed"`, ARCHITECTURE §5.2): the driver (the
+//! The immersed boundary scheme (`kind = "immersed"`, docs/architecture.md.2): the driver (the
 //! solid) sends its particles' motion and volume, the responder (the fluid) immerses them in
 //! its grid as they are (no interface mapping) and sends back the force on each particle. It
 //! can end before the run: the solid goes on alone (seed 000 §4).

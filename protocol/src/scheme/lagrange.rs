@@ -1,4 +1,4 @@
-//! The Lagrange-multiplier multi-time-step coupling (seed 003 §4–§5; ARCHITECTURE §5.3):
+//! The Lagrange-multiplier multi-time-step coupling (seed 003 §4–§5; docs/architecture.md.3):
 //! N ≥ 2 subdomains, each with its own integrator and step, tied by velocity continuity
 //! Σᵢ Bᵢ vᵢ = 0 on matching interface nodes. This module solves the interface problem — in
 //! one place, with no solver crate — and fixes what each subdomain's side must do
@@ -36,7 +36,7 @@ pub const PROVIDES: &[&str] = &["velocity", "lagrange_operator"];
 /// Fields every side's interface must accept: the multipliers are forces on it.
 pub const ACCEPTS: &[&str] = &["force"];
 
-/// The scheme's contract (ARCHITECTURE §5.3): every side exchanges with the coordinator,
+/// The scheme's contract (docs/architecture.md.3): every side exchanges with the coordinator,
 /// which solves the interface problem; nothing is lagged and no side waits for another.
 pub struct Lagrange;
 

@@ -1,6 +1,6 @@
 //! Coupling schemes, one module each, holding what is particular to the scheme: its field
 //! contract, the coordinator's schedule for it (input lags, same-window order) and its node
-//! side (what each side sends, what it does with what arrives; ARCHITECTURE §5).
+//! side (what each side sends, what it does with what arrives; docs/architecture.md).
 //!
 //! * [`sync_force`]: `kind = "kinematic"`, the kinematic sync-force scheme (§5.1);
 //! * [`immersed`]: `kind = "immersed"`, the immersed boundary scheme (§5.2);
@@ -162,7 +162,7 @@ pub fn of(kind: CouplingKind) -> &'static dyn Scheme {
     }
 }
 
-/// The driver/responder input rule (ARCHITECTURE §5): at set-up the driver waits for its
+/// The driver/responder input rule (docs/architecture.md): at set-up the driver waits for its
 /// responder's set-up fields (the kinematic coupling's mass and stiffness) and the responder
 /// sets up at once, whatever the schedule (in `parallel` both sides lag, and both waiting
 /// would deadlock); window `window` consumes the peer's window `window - input_lag`, unless

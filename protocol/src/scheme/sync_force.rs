@@ -1,4 +1,4 @@
-//! The kinematic sync-force scheme (`kind = "kinematic"`, ARCHITECTURE §5.1): the driver
+//! The kinematic sync-force scheme (`kind = "kinematic"`, docs/architecture.md.1): the driver
 //! sends its interface motion, the responder follows it and sends back the interface force,
 //! which reaches the driver at the next sync time. A responder whose interface differs from
 //! the driver's maps motion with `v_r = W v_d` and its loads with `f_d = Wᵀ f_r`. Within a

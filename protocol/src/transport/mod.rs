@@ -1,4 +1,4 @@
-//! Transports (ARCHITECTURE §6): one trait, three implementations chosen by the case config.
+//! Transports (docs/architecture.md): one trait, three implementations chosen by the case config.
 //! A transport moves opaque byte messages (encoded envelopes) on named topics; each process
 //! opens one transport as one *endpoint* (its node name, or `coordinator`) and receives
 //! everything it subscribed to through a single `recv`, which blocks without spinning.

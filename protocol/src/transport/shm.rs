@@ -1,4 +1,4 @@
-//! iceoryx2 shared-memory transport (ARCHITECTURE §6, §9): one iceoryx2 node per endpoint,
+//! iceoryx2 shared-memory transport (docs/architecture.md): one iceoryx2 node per endpoint,
 //! one publish-subscribe service of `[u8]` per topic (dynamically sized, power-of-two
 //! segments, no silent overflow), and one event "bell" per endpoint that every publisher rings
 //! after a send, so `recv` sleeps in the kernel instead of spinning. A quiet send rings no

@@ -1,4 +1,4 @@
-//! zenoh transport (ARCHITECTURE §6, §9, §11): the coordinator's session is a zenoh router
+//! zenoh transport (docs/architecture.md): the coordinator's session is a zenoh router
 //! listening on loopback (or where the case says), every node is a client connected to it, so
 //! all traffic passes the router. Scouting is off. Subscriptions feed one channel, so `recv`
 //! waits on all topics at once; liveliness tokens under `cosim/<run>/alive/<endpoint>` let the

@@ -1,4 +1,4 @@
-//! pd-bond: the prototype microelastic brittle bond-based model (Silling 2000; PHYSICS.md):
+//! pd-bond: the prototype microelastic brittle bond-based model (Silling 2000; the README's case sections):
 //! pairwise force density c·s·ŷ with micromodulus c = 18K/(πδ⁴) (3-D), 9E/(πhδ³) (2-D plane
 //! stress), 48E/(5πhδ³) (2-D plane strain), and bonds that break for good above the
 //! critical stretch s0. Surface correction by the energy method (Madenci & Oterkus 2014
@@ -51,7 +51,7 @@ pub struct BondModel {
     records: Vec<crate::pd::avx512::Record>,
 }
 
-/// Micromodulus c for the dimension (PHYSICS.md "Solid node").
+/// Micromodulus c for the dimension (the README's case sections "Solid node").
 pub fn micromodulus(dim: Dim, young: f64, horizon: f64, thickness: f64) -> f64 {
     match dim {
         // ν = 1/4: K = E / (3(1 − 2ν)) = 2E/3; c = 18K/(πδ⁴)
@@ -274,7 +274,7 @@ const CHUNK: usize = 64;
 const _: () = assert!(CHUNK.is_multiple_of(LANES));
 
 /// The bond force loop: for particle `i`, f_i = Σ_j c_ij s/|y| y (= c s ŷ V_j; Silling 2000,
-/// PHYSICS.md), breaking bonds with s > s0 first. The stretch is formed from the displacements
+/// the README's case sections), breaking bonds with s > s0 first. The stretch is formed from the displacements
 /// (see [`stretch_over_len`]): one sqrt and one division per bond. ξ = X_j − X_i is formed
 /// from the reference positions (bit for bit `Bonds::xi`, which is built the same way): the
 /// neighbour's X is in cache next to its u, where streaming `Bonds::xi` doubled the memory

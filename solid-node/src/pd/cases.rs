@@ -1,5 +1,5 @@
 //! Reference fracture set-ups shared by the examples and their coarse test variants
-//! (PHYSICS.md "Solid node"): the Kalthoff–Winkler plate (issue #4 must-show 5).
+//! (the README's case sections "Solid node"): the Kalthoff–Winkler plate.
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
 // `!(x > 0.0)` is deliberate: it also rejects NaN.
 #![allow(
@@ -252,7 +252,7 @@ pressure_pulse = {{ surface = "inner", center = [0.0, 0.0, 0.0], inner_radius = 
     }
 }
 
-/// The benchmark block of issue 4 and `cosim bench`: an `n³` cubic lattice, Δx 1 mm,
+/// The benchmark block of `cosim bench`: an `n³` cubic lattice, Δx 1 mm,
 /// δ = 3.015 Δx (122-member interior families), steel (E 200 GPa, ρ 7850, J2 σy 500 MPa,
 /// H 1 GPa for the correspondence models), critical stretch 0.01 so the damage check runs,
 /// and a smooth non-trivial velocity field so every bond does real work.

@@ -346,7 +346,7 @@ impl<D: DamageModel> Correspondence<D> {
     }
 
     /// Books the strain energy that this evaluation's bond damage took from the families it
-    /// touched (issue 20): for every row whose intact fractions changed since the last
+    /// touched: for every row whose intact fractions changed since the last
     /// booking, [`point_energy`] with the fractions before less that with the fractions
     /// now, at the same displacements and stress, is released; strain energy + released
     /// energy is then unchanged by damage. (The stabilisation part can grow when a family

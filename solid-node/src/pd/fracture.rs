@@ -1,4 +1,4 @@
-//! Fracture measurements on a particle body (issue #4 must-show 5 and 6): the direction of a
+//! Fracture measurements on a particle body: the direction of a
 //! crack grown from a notch tip (least-squares line through the tip fitted to the damaged
 //! particles), fragments (connected components over unbroken bonds), and the critical stretch
 //! that makes the lattice's energy per unit crack area equal a given fracture energy G0

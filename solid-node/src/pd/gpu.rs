@@ -1,4 +1,4 @@
-//! GPU path of the `pd-bond` body (issue 8): the bond force loop of `bond.rs` (Silling 2000,
+//! GPU path of the `pd-bond` body: the bond force loop of `bond.rs` (Silling 2000,
 //! pairwise force c·s·ŷ with breaking above s0; seed 000 App. A, seed 001 eq. 183) and the
 //! velocity-Verlet step of `integrate.rs`, device-resident. [`GpuCorrBody`] does the same for
 //! the `pd-correspondence` force state (seed 001 eq. 180–189, rate-form J2 of seed 000
@@ -95,13 +95,13 @@ fn kick_drift(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
     }
 }
 
-// The window report (issue 8: per window only the interface arrays and reduced scalars cross
+// The window report (per window only the interface arrays and reduced scalars cross
 // to the host). `energy`: one thread per particle writes its strain energy (`energy_at`, the
 // CPU model's per-particle term of `strain_energy`) to pv[26n + i]. `report`: one thread per
 // chunk of CHUNK particles sums, in index order, the node's report terms (solver.rs): kinetic
 // energy ½ρV|v|², momentum ρVv (3), gross momentum ρV|v|, Σ V u (3), the largest von Mises
 // stress and plastic strain (`vm_at`, `eqp_at`), the strain energy and the plastic work
-// (issue 20), into rg[NR c..NR c + NR]; the host adds the chunks in order. `gather`: for the
+// into rg[NR c..NR c + NR]; the host adds the chunks in order. `gather`: for the
 // listed particles gi[1..=gi[0]], position, velocity, external work and internal impulse (10
 // reals each) after the chunk sums. All are deterministic.
 const CHUNK: u32 = 256u;
@@ -1323,7 +1323,7 @@ impl GpuCorrBody {
 
 // ------------------------------------------------------------------ the node's device body
 
-/// The body of a `pd-bond` / `pd-correspondence` node when `device = "gpu"` (issue 8): the
+/// The body of a `pd-bond` / `pd-correspondence` node when `device = "gpu"`: the
 /// device copy owns the time stepping and the state for the whole run. Per window the held
 /// external force goes up ([`DeviceBody::advance`]) and, at the window end, only the window
 /// report comes back ([`DeviceBody::finish`]): the node's report scalars reduced on the device
@@ -1603,7 +1603,7 @@ impl DeviceBody {
     }
 }
 
-/// `pd-correspondence` on the device against the CPU (issue 8, must-show 1, the PD bar
+/// `pd-correspondence` on the device against the CPU (the PD bar
 /// wave): the free-free steel strip of pd_verification.rs's long-wave test (plane strain,
 /// Δx 1 mm, δ 3.015 Δx) in its fundamental mode v = V cos(πx/L), advanced by `Body::step` on
 /// the CPU and by `GpuCorrBody::steps` with the same dt; displacements, velocities, forces and

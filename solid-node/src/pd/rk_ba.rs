@@ -454,7 +454,7 @@ impl<D: DamageModel> RkBa<D> {
     }
 
     /// Books the strain energy that this step's bond damage took from the rows it touched
-    /// (issue 20): at the stresses and positions of the step, the row's energy
+    /// at the stresses and positions of the step, the row's energy
     /// ([`row_energy`]) with the influences before the damage (this step's ω) less that with
     /// the influences after it (W renormalised, as the next gradient pass forms it) is
     /// released, so strain energy + released energy is unchanged by damage. The energy is

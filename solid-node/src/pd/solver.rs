@@ -1,9 +1,9 @@
 //! The `Solver` implementation of the peridynamic node: set-up (config → validated body and
 //! model), the window loop with sub-cycling at the stable step, boundary conditions, and
-//! the coupling sides (ARCHITECTURE §5): immersed provider (send position, velocity, volume;
+//! the coupling sides (docs/architecture.md): immersed provider (send position, velocity, volume;
 //! apply the received window-averaged force over the next window) and kinematic driver and
 //! responder (seed 004 eq. 29–33, seed 001 §5.1: boundary-layer particles moved by a driver).
-//! With `device = "gpu"` (issue 8) the body's time stepping runs on the device
+//! With `device = "gpu"` the body's time stepping runs on the device
 //! ([`DeviceBody`]); what the device kernels do not implement is refused at set-up.
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
 // `!(x > 0.0)` is deliberate: it also rejects NaN.
@@ -130,7 +130,7 @@ pub struct PdParams {
     /// smaller ones are `debris_particles`.
     #[serde(default = "default_fragment_min_size")]
     pub fragment_min_size: usize,
-    /// "cpu" (default) or "gpu" (pd-bond and pd-correspondence; issue 8).
+    /// "cpu" (default) or "gpu" (pd-bond and pd-correspondence).
     #[serde(default)]
     pub device: Option<String>,
     /// Arithmetic of the GPU kernels: "f64" (default: f64 where the adapter has
@@ -158,7 +158,7 @@ fn default_fragment_min_size() -> usize {
 /// half of its family cut off, as for a particle on a crack through its family's centre.
 pub const DAMAGED_INDEX: f64 = 0.5;
 
-/// Where and when damage first appeared (issue 7: "cracks start from the re-entrant
+/// Where and when damage first appeared ("cracks start from the re-entrant
 /// corners"): reference position of the most damaged particle of the first window with any
 /// φ > 0, how many particles were damaged then, and the distances of all of them to the
 /// nearest inner corner of a hollow-square body / from the axis of a hollow-cylinder body
@@ -344,7 +344,7 @@ pub const MAX_LATTICE_POINTS: f64 = 2e8;
 /// before it is built. 5·10⁷ bonds are about 4·10⁵ particles in 3-D or 1.8·10⁶ in 2-D at
 /// δ = 3.015 Δx. Set-up takes about 57 bytes of host memory a bond for pd-bond and
 /// pd-correspondence and 216 for pd-rk-ba (peak resident set of `solid-node --describe` on
-/// 20³ and 40³ blocks, issue 20): 3 to 11 GB at the default, which a 16 GB host holds, built
+/// 20³ and 40³ blocks): 3 to 11 GB at the default, which a 16 GB host holds, built
 /// in seconds. The examples hold under 10⁶ bonds.
 pub const DEFAULT_MAX_BONDS: u64 = 50_000_000;
 
@@ -1002,7 +1002,7 @@ impl PdSolver {
         (big, debris)
     }
 
-    /// The window's fracture and stress scalars (issue 7): with a damage model,
+    /// The window's fracture and stress scalars: with a damage model,
     /// `damaged_particles` (φ ≥ [`DAMAGED_INDEX`]), `cracked_particles` (φ > 0), `fragments`
     /// (components of ≥ `fragment_min_size` particles) and `debris_particles`, and from the
     /// first window with damage on, where it first appeared ([`FirstDamage`]); with a stress,
@@ -1408,7 +1408,7 @@ fn gpu_supports(model: &str, dim: Dim, p: &PdParams) -> Result<(), String> {
     Ok(())
 }
 
-/// The device copy of a freshly built `body` on `ctx` (issue 8).
+/// The device copy of a freshly built `body` on `ctx`.
 fn device_body(
     ctx: Arc<GpuContext>,
     model: &str,
