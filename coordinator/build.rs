@@ -14,10 +14,14 @@ fn main() {
     println!("cargo:rustc-env=COSIM_GIT_COMMIT={commit}");
     // Rebuild when HEAD moves (a commit, a checkout); in a worktree .git is a file.
     let git = std::path::Path::new("../.git");
+    // Only files that exist: cargo counts a missing one as changed and would run this script,
+    // and compile the coordinator, on every build (a clone without packed refs).
     if git.is_dir() {
-        println!("cargo:rerun-if-changed=../.git/HEAD");
-        println!("cargo:rerun-if-changed=../.git/refs/heads");
-        println!("cargo:rerun-if-changed=../.git/packed-refs");
+        for f in ["HEAD", "refs/heads", "packed-refs"] {
+            if git.join(f).exists() {
+                println!("cargo:rerun-if-changed=../.git/{f}");
+            }
+        }
     }
     println!("cargo:rerun-if-changed=build.rs");
 }
