@@ -587,36 +587,54 @@ impl Transport for ShmTransport {
 /// management file, and a process killed mid-creation can leave half-made segments).
 ///
 /// Call it when no process of the run is running (the coordinator does so before launching
-/// nodes and after they have all exited); while a node of the run is alive the file sweep is
-/// skipped, so a live run is never damaged. Returns the number of dead nodes cleaned up.
+/// nodes and after they have all exited); while a node of the run is alive (still listed so
+/// after a second) the file sweep is skipped and the living nodes are named in a warning, so a
+/// live run is never damaged. Returns the number of dead nodes cleaned up.
 pub fn cleanup_run(run: &str) -> usize {
     quiet_logs();
     let Ok(config) = run_config(run) else {
         return 0;
     };
     let mut cleaned = 0;
-    let mut alive = 0;
-    let listed = Node::<Svc>::list(&config, |state| {
-        match state {
-            NodeState::Dead(d) => {
-                let id = *d.id();
-                match d.try_remove_stale_resources() {
-                    Ok(()) => cleaned += 1,
-                    Err(e) => tracing::warn!("iceoryx2 cleanup of dead node {id:?} failed: {e:?}"),
+    // A process that has just been reaped can still be listed alive for a moment; give the
+    // list a second to agree before leaving the files in place.
+    let deadline = Instant::now() + Duration::from_secs(1);
+    loop {
+        let mut alive = Vec::new();
+        let listed = Node::<Svc>::list(&config, |state| {
+            match state {
+                NodeState::Dead(d) => {
+                    let id = *d.id();
+                    match d.try_remove_stale_resources() {
+                        Ok(()) => cleaned += 1,
+                        Err(e) => {
+                            tracing::warn!("iceoryx2 cleanup of dead node {id:?} failed: {e:?}")
+                        }
+                    }
                 }
+                NodeState::Alive(v) => alive.push(v.details().as_ref().map_or_else(
+                    || format!("{:?}", v.id()),
+                    |d| d.name().as_str().to_string(),
+                )),
+                NodeState::Inaccessible(_) | NodeState::Undefined(_) => {}
             }
-            NodeState::Alive(_) => alive += 1,
-            NodeState::Inaccessible(_) | NodeState::Undefined(_) => {}
+            CallbackProgression::Continue
+        });
+        if let Err(e) = listed {
+            tracing::warn!("listing the iceoryx2 nodes of run '{run}' failed: {e:?}");
         }
-        CallbackProgression::Continue
-    });
-    if let Err(e) = listed {
-        tracing::warn!("listing the iceoryx2 nodes of run '{run}' failed: {e:?}");
+        if alive.is_empty() {
+            sweep_files(run);
+            return cleaned;
+        }
+        if Instant::now() >= deadline {
+            tracing::warn!(
+                "shared memory of run '{run}' left in place: its nodes {alive:?} are alive"
+            );
+            return cleaned;
+        }
+        std::thread::sleep(Duration::from_millis(50));
     }
-    if alive == 0 {
-        sweep_files(run);
-    }
-    cleaned
 }
 
 /// Files in /dev/shm that belong to `run` (by prefix).
