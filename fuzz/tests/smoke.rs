@@ -66,8 +66,26 @@ fn every_node_params_decoder_never_panics() {
             panic!("{}: the seed table builds: {e}", m.name);
         }
     }
+    // Per model, not pooled: every model's decoder must see inputs it accepts and inputs it
+    // refuses, or its deeper checks went unfuzzed.
+    let tally = std::cell::RefCell::new(vec![(0u32, 0u32); MODELS.len()]);
     let (ok, err) = run("params", params_input(), |(m, t)| {
-        params_target(&MODELS[*m], t)
+        let accepted = params_target(&MODELS[*m], t);
+        let mut tally = tally.borrow_mut();
+        if accepted {
+            tally[*m].0 += 1;
+        } else {
+            tally[*m].1 += 1;
+        }
+        accepted
     });
     assert!(ok > 0 && err > 0, "params: {ok} accepted, {err} refused");
+    for (m, &(ok, err)) in MODELS.iter().zip(tally.borrow().iter()) {
+        eprintln!("params {}: {ok} accepted, {err} refused", m.name);
+        assert!(
+            ok > 0 && err > 0,
+            "params {}: {ok} accepted, {err} refused",
+            m.name
+        );
+    }
 }

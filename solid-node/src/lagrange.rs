@@ -291,7 +291,9 @@ pub mod split_bar {
     /// Largest difference over the samples of `a` that coincide with samples of `reference`
     /// (a's sample interval is a whole multiple of the reference's), per quantity:
     /// [u, v, a at the interface, u, v, a at the tip, λ], each divided by the reference's
-    /// largest magnitude. Also returns the number of samples compared.
+    /// largest magnitude; a NaN difference makes that quantity's error NaN. Also returns the
+    /// fewest samples compared over the seven quantities, so a series that is short or missing
+    /// shows in the count.
     pub fn errors(a: &Histories, reference: &Histories) -> ([f64; 7], usize) {
         let ratio = (a.dt / reference.dt).round() as usize;
         let series = |h: &Histories| -> [Vec<f64>; 7] {
@@ -307,17 +309,19 @@ pub mod split_bar {
         };
         let (sa, sr) = (series(a), series(reference));
         let mut e = [0.0f64; 7];
-        let mut count = 0;
+        let mut fewest = usize::MAX;
         for k in 0..7 {
             let scale = sr[k].iter().fold(0.0f64, |m, x| m.max(x.abs()));
-            count = 0;
+            let mut count = 0;
             for (n, x) in sa[k].iter().enumerate() {
                 let Some(y) = sr[k].get(n * ratio) else { break };
-                e[k] = e[k].max((x - y).abs() / scale);
+                let d = (x - y).abs() / scale;
+                e[k] = if d.is_nan() { f64::NAN } else { e[k].max(d) };
                 count += 1;
             }
+            fewest = fewest.min(count);
         }
-        (e, count)
+        (e, fewest)
     }
 }
 

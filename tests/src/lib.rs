@@ -223,13 +223,23 @@ pub fn amplitude() -> f64 {
     2.0 * 1e3 * 1.0 / (200e9 * 1e-4)
 }
 
-/// Largest |tip − exact| / amplitude over a series.
+/// The larger of `a` and `b`, NaN if either is: a fold with it (`.fold(0.0, max_nan)`) keeps a
+/// NaN error or peak visible, where `f64::max` would drop it and let a comparison pass.
+pub fn max_nan(a: f64, b: f64) -> f64 {
+    if a.is_nan() || b.is_nan() {
+        f64::NAN
+    } else {
+        a.max(b)
+    }
+}
+
+/// Largest |tip − exact| / amplitude over a series (NaN if any sample is).
 pub fn tip_error(series: &[(f64, f64)]) -> f64 {
     assert!(!series.is_empty(), "no tip displacement was recorded");
     series
         .iter()
         .map(|&(t, u)| (u - exact_tip(t)).abs() / amplitude())
-        .fold(0.0, f64::max)
+        .fold(0.0, max_nan)
 }
 
 /// Files in /dev/shm whose name contains `needle`.

@@ -187,6 +187,13 @@ fn cosim_killed_at_20_random_times_during_a_chamber_run() {
         killed.len()
     );
     println!("{bounded} of {KILLS} kills came after a complete checkpoint");
+    // Kills fall uniformly over the first 80 % of a 240-window run checkpointed every 10
+    // windows: most land after a checkpoint, so the recovery bound above was really tested
+    // (fewer than a quarter would mean the draws missed the run).
+    assert!(
+        bounded >= KILLS / 4,
+        "seed {seed}: only {bounded} of {KILLS} kills came after a complete checkpoint"
+    );
     // The next run removes whatever the killed runs left in shared memory.
     let (dir, id2) = scratch("ch-next");
     let next = split_bar_case(&dir, 10, 30, 0.5, "shm", 0.5);
@@ -221,6 +228,7 @@ fn crash_tube_node_kills(transport: &str, tag: &str) {
     const SPAN_S: f64 = 3.0;
     println!("{transport}: seed {seed} (COSIM_TEST_SEED repeats it)");
     let mut clean = 0;
+    let mut in_windows = 0;
     for k in 0..TRIES {
         if clean == KILLS {
             break;
@@ -269,7 +277,7 @@ fn crash_tube_node_kills(transport: &str, tag: &str) {
         );
         assert!(
             shm_files(&id).is_empty(),
-            "{what}: left in /dev/shm: {:?}",
+            "{what}: left in /dev/shm: {:?}; cosim said: {stderr}",
             shm_files(&id)
         );
         let mcap = out.join("run.mcap");
@@ -281,6 +289,9 @@ fn crash_tube_node_kills(transport: &str, tag: &str) {
             "{what}: recorded windows not 1..=n: {windows:?}"
         );
         assert_eq!(summary(&out)["status"], "failed", "{what}");
+        if !windows.is_empty() {
+            in_windows += 1;
+        }
         clean += 1;
         println!(
             "{transport} kill {clean}: {victim} at {after:?}, cosim exit {status} after {took:?}, {} windows recorded",
@@ -290,6 +301,13 @@ fn crash_tube_node_kills(transport: &str, tag: &str) {
     assert_eq!(
         clean, KILLS,
         "seed {seed}: only {clean} of {TRIES} draws killed a node mid-run"
+    );
+    // "windows 1..=n" holds trivially for a kill during set-up: most kills must have come
+    // after recorded windows for it to have been tested.
+    println!("{transport}: {in_windows} of {KILLS} kills came after recorded windows");
+    assert!(
+        in_windows >= KILLS / 2,
+        "seed {seed}: only {in_windows} of {KILLS} kills came after a recorded window"
     );
 }
 

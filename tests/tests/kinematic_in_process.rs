@@ -112,17 +112,20 @@ fn split_with(n1: usize, n2: usize, periods: f64, in_place: bool) -> (Vec<(f64, 
 }
 
 #[test]
-fn in_process_split_bar_matches_the_prototype_numbers() {
-    // tools/split_bar_prototype.py: tip error 0.5 % and momentum error 2.5e-4 at ratio 3.
+fn in_process_split_bar_matches_the_prototype_to_one_percent() {
+    // tools/split_bar_prototype.py, an independent model of the scheme in numpy, prints for
+    // N1 = 100 at ratio 3 over two periods: tip error/amplitude 0.00533 against the exact
+    // triangle wave, momentum error/impulse 0.000254 (three digits: 1 % holds the rounding).
     let (tip, mom) = split(100, 300, 2.0);
+    assert!(tip.len() > 100, "{} windows", tip.len());
     let err = tip_error(&tip);
     println!("ratio 3: tip error {err:.4e}, momentum imbalance {mom:.4e}");
-    assert!(err < 0.02);
-    assert!(mom < 5e-4);
+    assert!((err / 0.00533 - 1.0).abs() < 0.01, "tip error {err:e}");
+    assert!((mom / 0.000254 - 1.0).abs() < 0.01, "momentum {mom:e}");
 }
 
 #[test]
-fn in_process_equal_meshes_are_exact_at_ratio_one() {
+fn in_process_equal_meshes_balance_momentum_to_round_off() {
     let (tip, mom) = split(100, 100, 1.0);
     println!(
         "ratio 1: tip error {:.4e}, momentum imbalance {mom:.4e}",

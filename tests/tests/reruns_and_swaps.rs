@@ -101,6 +101,31 @@ fn set_swaps_a_node_model_and_executable() {
     let s = summary(&out);
     assert_eq!(s["nodes"]["bar"]["model"], "pd-rk-ba", "{}", s["nodes"]);
     assert_eq!(s["status"], "finished");
+    // The node really ran the other model, not just the summary's echo of the case: the bar's
+    // recorded energies are those of a case file that names pd-rk-ba itself, bit for bit,
+    // and differ from the unswapped run's.
+    let text = std::fs::read_to_string(&case).unwrap();
+    assert_eq!(text.matches("model = \"pd-correspondence\"").count(), 1);
+    let edited = dir.join("rk-ba.toml");
+    std::fs::write(
+        &edited,
+        text.replace("model = \"pd-correspondence\"", "model = \"pd-rk-ba\""),
+    )
+    .unwrap();
+    let series = |case: &std::path::Path, tag: &str, extra: &[&str]| {
+        let out = dir.join(tag);
+        let mut args = vec!["--variant", "small"];
+        args.extend_from_slice(extra);
+        let o = run_case(case, &out, &format!("{id}-{tag}"), &args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        node_series(&out.join("run.mcap"), "bar", "internal_energy")
+    };
+    let swapped = node_series(&out.join("run.mcap"), "bar", "internal_energy");
+    let written = series(&edited, "written", &[]);
+    let default = series(&case, "default", &[]);
+    assert!(swapped.len() > 10, "{} windows", swapped.len());
+    assert_eq!(swapped, written, "--set and the case file give other runs");
+    assert_ne!(swapped, default, "the swapped run is the unswapped one");
 
     // The right half's executable, named by an absolute path.
     let (dir, id) = scratch("swap-exe");

@@ -12,7 +12,9 @@
 use cosim_tests::*;
 use protocol::{Message, StepReport};
 use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 /// Node reports per (node, window), timings zeroed or dropped (wall-clock, not physics).
@@ -377,7 +379,6 @@ fn ctrl_c_checkpoints_where_it_stops_and_the_restart_continues() {
         &reference,
         &[],
         (libc::SIGINT, "SIGINT", 130),
-        Duration::from_millis(700),
         "restart-sigint-s",
     );
 }
@@ -420,37 +421,66 @@ fn chamber_small_on_the_gpu_killed_and_restarted_is_bit_identical() {
 }
 
 /// Must-show 5: `sig` (SIGINT or SIGTERM, `name`, exit `code`) to `cosim` mid-run of `case`
-/// with checkpoints on (far apart: the one the restart uses is the one the stop wrote), once
-/// every node runs and `after` has passed: exit `code` within 2 s, status "interrupted", a
-/// recording the official reader opens without recovery holding windows 1..=reached, no
-/// process or shared memory left; then `cosim restart` continues to the end of the
-/// uninterrupted run in `reference`, bit-identically.
+/// with checkpoints on (far apart: the one the restart uses is the one the stop wrote), as
+/// soon as its progress lines say it reached half the windows of the uninterrupted run in
+/// `reference` (an event of the run, not a wall-clock guess): exit `code` within 2 s, status
+/// "interrupted", a recording the official reader opens without recovery holding windows
+/// 1..=reached, no process or shared memory left; then `cosim restart` continues to the end
+/// of the reference run, bit-identically.
 fn interrupt_and_restart(
     case: &Path,
     reference: &Path,
     extra: &[&str],
     (sig, name, code): (i32, &str, i32),
-    after: Duration,
     tag: &str,
 ) {
     let (dir, id) = scratch(tag);
     let out = dir.join("stopped");
-    let mut args = extra.to_vec();
-    args.extend_from_slice(&["--set", "run.checkpoint_every=1000000"]);
-    let mut child = spawn_cosim_with(case, &out, &id, &args);
-    let nodes: Vec<String> = summary(reference)["nodes"]
-        .as_object()
-        .expect("nodes in summary.json")
-        .keys()
-        .cloned()
-        .collect();
+    let windows = summary(reference)["windows"].as_u64().unwrap();
+    let half = windows / 2;
+    // Not quiet, with a progress line after every window: a reader thread follows them.
+    let mut child = Command::new(bin("cosim"))
+        .args([
+            "run",
+            case.to_str().unwrap(),
+            "--output",
+            out.to_str().unwrap(),
+        ])
+        .args(["--run-id", &id, "--set", "run.checkpoint_every=1000000"])
+        .args(extra)
+        .env("COSIM_LOG", "warn")
+        .env("COSIM_PROGRESS_EVERY", "1e-9")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("cosim starts");
+    let (tx, rx) = std::sync::mpsc::channel();
+    let stderr = child.stderr.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut text = String::new();
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            if let Some(k) = line
+                .split(", window ")
+                .nth(1)
+                .and_then(|r| r.split(' ').next())
+                .and_then(|k| k.parse::<u64>().ok())
+            {
+                let _ = tx.send(k);
+            }
+            text.push_str(&line);
+            text.push('\n');
+        }
+        text
+    });
     let t = Instant::now();
-    while !nodes.iter().all(|n| node_pid(&id, n).is_some()) {
-        assert!(t.elapsed() < Duration::from_secs(60), "nodes never started");
-        assert!(child.try_wait().unwrap().is_none(), "cosim ended early");
-        std::thread::sleep(Duration::from_millis(5));
+    loop {
+        match rx.recv_timeout(Duration::from_secs(60)) {
+            Ok(k) if k >= half => break,
+            Ok(_) => {}
+            Err(e) => panic!("{tag}: no progress line of window {half} within 60 s: {e}"),
+        }
+        assert!(t.elapsed() < Duration::from_secs(120), "{tag}: too slow");
     }
-    std::thread::sleep(after);
     let t = Instant::now();
     // SAFETY: kill with the pid of our own child and a valid signal number.
     assert_eq!(unsafe { libc::kill(child.id() as i32, sig) }, 0);
@@ -459,10 +489,10 @@ fn interrupt_and_restart(
     if status.is_none() {
         let _ = child.kill();
     }
-    let o = child.wait_with_output().unwrap();
-    let stderr = String::from_utf8_lossy(&o.stderr);
+    let _ = child.wait();
+    let stderr = reader.join().expect("stderr reader");
     let status = status.unwrap_or_else(|| panic!("cosim still running 2 s after {name}"));
-    println!("{tag}: {status} after {took:?}: {stderr}");
+    println!("{tag}: {status} after {took:?} (sent at window ≥ {half} of {windows})");
     assert_eq!(status.code(), Some(code), "{stderr}");
     assert!(
         stderr.contains(&format!("interrupted by {name}")),
@@ -472,9 +502,8 @@ fn interrupt_and_restart(
     assert_eq!(s["status"], "interrupted");
     assert_eq!(s["signal"], name);
     let reached = s["window_reached"].as_u64().unwrap();
-    let windows = summary(reference)["windows"].as_u64().unwrap();
     assert!(
-        reached > 0 && reached < windows,
+        reached >= half && reached < windows,
         "stopped after window {reached} of {windows}: the scenario is void"
     );
     let mcap = out.join("run.mcap");
@@ -503,7 +532,7 @@ fn interrupt_and_restart(
 }
 
 /// Runs `case` uninterrupted, then stops it with SIGINT and with SIGTERM and restarts each.
-fn interrupted_both_ways(case: &Path, extra: &[&str], after: Duration, tag: &str) {
+fn interrupted_both_ways(case: &Path, extra: &[&str], tag: &str) {
     let (dir, id) = scratch(tag);
     let reference = dir.join("reference");
     let o = run_case(case, &reference, &id, extra);
@@ -517,7 +546,6 @@ fn interrupted_both_ways(case: &Path, extra: &[&str], after: Duration, tag: &str
             &reference,
             extra,
             (sig, name, code),
-            after,
             &format!("{tag}-{code}"),
         );
     }
@@ -529,7 +557,6 @@ fn chamber_interrupted_by_sigint_and_sigterm_restarts_bit_identically() {
     interrupted_both_ways(
         &workspace_root().join("examples/chamber_detonation.toml"),
         &["--variant", "small", "--set", "run.end_time=1.2e-3"],
-        Duration::from_millis(500),
         "int-ch",
     );
 }
@@ -547,7 +574,6 @@ fn crash_tube_interrupted_by_sigint_and_sigterm_restarts_bit_identically() {
             "--set",
             "run.output_every=50",
         ],
-        Duration::from_millis(2500),
         "int-ct",
     );
 }

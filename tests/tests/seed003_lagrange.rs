@@ -222,6 +222,7 @@ fn three_subdomains_match_the_monolithic_mesh_and_gs4_is_second_order() {
     for (method, dt0) in STUDY_DT0 {
         let mut errors = vec![Vec::new(); points.len()];
         let mut de = Vec::new();
+        let mut residuals = Vec::new();
         for level in 0..4 {
             let dt = dt0 / (1 << level) as f64;
             let ratio = (dt / finest).round() as usize;
@@ -247,15 +248,24 @@ fn three_subdomains_match_the_monolithic_mesh_and_gs4_is_second_order() {
                 errors[p].push(e);
             }
             check_audit(&tag, &out);
-            de.push(audit(&out).2);
+            let (_, residual, interface) = audit(&out);
+            de.push(interface);
+            residuals.push(residual.abs());
         }
+        // The audit's energy residual is a discretisation error too: it falls at every
+        // halving (measured: gs4 5.3e-2 to 4.2e-5, gc 2.6e-2 to 2.0e-3 of the largest energy).
+        assert!(
+            residuals.windows(2).all(|w| w[1] < w[0]),
+            "{method}: energy residuals {residuals:?} do not fall with the step"
+        );
         for (p, (_, point)) in points.iter().enumerate() {
             let o = orders(&errors[p]);
             println!("{method} {point}: errors {:?}, orders {o:.3?}", errors[p]);
             for (l, x) in o.iter().enumerate() {
-                if method == "gs4" {
-                    assert!(*x >= 1.9, "gs4 {point} halving {l}: order {x:.3}");
-                }
+                // gs4 is second order; gc first, approached from above (measured 1.45-1.59,
+                // 1.23-1.29, 1.07-1.08): every halving is checked, not only the last.
+                let least = if method == "gs4" { 1.9 } else { 0.9 };
+                assert!(*x >= least, "{method} {point} halving {l}: order {x:.3}");
                 measured += 1;
             }
             if method == "gc" {
