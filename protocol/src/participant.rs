@@ -321,7 +321,16 @@ impl NodeEngine {
                 continue;
             }
             let mut fields = Vec::new();
+            let setup_only = sch.setup_sends(l.b.role);
             for f in self.outbox.fields_of(&l.b.interface) {
+                // Set-up data (a kinematic responder's mass and stiffness) goes once, at
+                // set-up, unless the binding asks for it every window.
+                if window > 0
+                    && setup_only.contains(&f.name.as_str())
+                    && !l.b.sends.iter().any(|s| *s == f.name)
+                {
+                    continue;
+                }
                 fields.push(
                     sch.send(l.b.role, l.map.as_ref(), f, &mut self.scratch)
                         .map_err(|reason| EngineError::Coupling {
