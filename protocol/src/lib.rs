@@ -6,6 +6,7 @@ pub mod checkpoint;
 pub mod describe;
 pub mod diverged;
 pub mod mapping;
+pub mod memory;
 pub mod params;
 pub mod participant;
 pub mod scheme;

@@ -598,3 +598,83 @@ fn a_lagrange_side_on_the_gpu_is_refused_at_validation() {
     assert!(err.contains("nodes.notch.params.device"), "{err}");
     assert!(err.contains("couplings[0]") && err.contains("cpu"), "{err}");
 }
+
+/// MemAvailable of /proc/meminfo in bytes, read here independently of the node.
+fn mem_available() -> f64 {
+    let text = std::fs::read_to_string("/proc/meminfo").expect("/proc/meminfo");
+    let kb: f64 = text
+        .lines()
+        .find_map(|l| l.strip_prefix("MemAvailable:"))
+        .and_then(|v| v.trim().strip_suffix("kB"))
+        .and_then(|v| v.trim().parse().ok())
+        .expect("MemAvailable in kB");
+    kb * 1024.0
+}
+
+/// The numbers `N` of each `(N bytes)` in `line`, in order.
+fn byte_counts(line: &str) -> Vec<f64> {
+    line.split('(')
+        .filter_map(|s| s.split_once(" bytes)"))
+        .filter_map(|(n, _)| n.parse().ok())
+        .collect()
+}
+
+/// A fluid of 30,000 × 30,000 cells (the chamber's gas; more on a host with over 72 GB
+/// available) is refused by `cosim validate` and `cosim run` before the node allocates its
+/// state: exit 2 at once, one line naming the key `nodes.gas.params.grid.cells`, the bytes the
+/// state needs (at least its conserved values alone, 30,000² cells × 5 values × 8 bytes =
+/// 36 GB) and the memory available.
+#[test]
+fn a_grid_larger_than_the_memory_is_refused_by_its_key() {
+    let case = workspace_root().join("examples/chamber_detonation.toml");
+    let (dir, id) = scratch("huge-grid");
+    let out = dir.join("out");
+    // 30,000² as found; larger on a host with more than twice its 36 GB available.
+    let side = (2.0 * mem_available() / 40.0).sqrt().ceil().max(30_000.0);
+    let set = format!("gas.grid.cells=[{side}, {side}, 1]");
+    let conserved = side * side * 5.0 * 8.0;
+    for cmd in ["validate", "run"] {
+        let start = std::time::Instant::now();
+        let mut args = vec![cmd, case.to_str().unwrap(), "--set", &set];
+        if cmd == "run" {
+            args.extend([
+                "--output",
+                out.to_str().unwrap(),
+                "--run-id",
+                &id,
+                "--quiet",
+            ]);
+        }
+        let o = cosim(&args);
+        let took = start.elapsed();
+        let err = String::from_utf8_lossy(&o.stderr);
+        println!("{cmd} ({took:?}): {err}");
+        assert_eq!(o.status.code(), Some(2), "{cmd}: {err}");
+        let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+        assert_eq!(lines.len(), 1, "{cmd}: one line expected: {err}");
+        let line = lines[0];
+        assert!(line.contains("nodes.gas.params.grid.cells"), "{line}");
+        assert!(line.contains("MemAvailable"), "{line}");
+        let counts = byte_counts(line);
+        assert_eq!(counts.len(), 2, "needed and available bytes: {line}");
+        assert!(
+            counts[0] >= conserved,
+            "needs {} < {conserved}: {line}",
+            counts[0]
+        );
+        // Available memory moves while the test runs (the other tests): within 25 %.
+        let avail = mem_available();
+        assert!(
+            (counts[1] - avail).abs() < 0.25 * avail,
+            "available {} vs {avail} read here: {line}",
+            counts[1]
+        );
+        // Refused before allocating: no 36 GB to fault in, no abort, seconds not minutes.
+        assert!(
+            took < std::time::Duration::from_secs(20),
+            "{cmd} took {took:?}"
+        );
+        assert!(!out.exists(), "{cmd}: output written before refusing");
+    }
+    assert!(processes_with(&format!("--run {id}")).is_empty());
+}
