@@ -148,12 +148,12 @@ pub fn describe_main(
             (None, Some(k)) => format!("{k}: "),
             (_, None) => String::new(),
         };
-        eprintln!("{binary}: {at}{}", e.reason);
+        crate::log_line!("{binary}: {at}{}", e.reason);
     }
     match serde_json::to_string(&answer) {
         Ok(s) => println!("{s}"),
         Err(e) => {
-            eprintln!("{binary}: cannot encode the description: {e}");
+            crate::log_line!("{binary}: cannot encode the description: {e}");
             return EXIT_FAILED;
         }
     }
