@@ -35,18 +35,18 @@ fn check_fits_in(key: &str, bytes: u128, how: &str, available: Option<u64>) -> S
         Some(a) if bytes > a as u128 => Err(SolverError::config(
             key,
             format!(
-                "needs {} ({how}) but only {} of memory is available (MemAvailable in /proc/meminfo)",
-                human(bytes),
-                human(a as u128)
+                "needs {bytes} bytes ({:.1} GB: {how}) but only {a} bytes ({:.1} GB) of memory are available (MemAvailable in /proc/meminfo)",
+                gb(bytes),
+                gb(a as u128)
             ),
         )),
         _ => Ok(()),
     }
 }
 
-/// `36.0 GB (36000000000 bytes)`: decimal units, and the exact count.
-fn human(bytes: u128) -> String {
-    format!("{:.1} GB ({bytes} bytes)", bytes as f64 / 1e9)
+/// Decimal gigabytes.
+fn gb(bytes: u128) -> f64 {
+    bytes as f64 / 1e9
 }
 
 #[cfg(test)]
@@ -68,10 +68,10 @@ mod tests {
             .expect_err("refused");
         let text = e.to_string();
         assert!(
-            text.starts_with("grid.cells: needs 3.0 GB (3000000001 bytes)"),
+            text.starts_with("grid.cells: needs 3000000001 bytes (3.0 GB: cells)"),
             "{text}"
         );
-        assert!(text.contains("only 3.0 GB (3000000000 bytes)"), "{text}");
+        assert!(text.contains("only 3000000000 bytes (3.0 GB)"), "{text}");
         assert!(check_fits_in("grid.cells", 3_000_000_000, "cells", Some(3_000_000_000)).is_ok());
         assert!(check_fits_in("grid.cells", u128::MAX, "cells", None).is_ok());
     }
