@@ -97,6 +97,8 @@ pub struct NodeConfig {
     pub fields: Vec<(Vec<String>, Vec<String>)>,
     /// Where its explicit integrator does not choose its own step, from its `--describe`.
     pub window_limits: Vec<protocol::WindowLimit>,
+    /// Interface point positions (m) by interface name, from its `--describe` (those it gave).
+    pub positions: BTreeMap<String, Vec<[f64; 3]>>,
 }
 
 #[derive(Debug, Clone)]
@@ -116,6 +118,9 @@ pub struct CouplingConfig {
     /// `driver` and `responder`), and the method; empty and None otherwise.
     pub sides: Vec<(String, String)>,
     pub method: Option<protocol::scheme::lagrange::Method>,
+    /// How far apart the matched points of a kinematic coupling's two sides may lie, as a
+    /// fraction of the interface's point spacing ([`point_spacing`]).
+    pub point_tolerance: f64,
 }
 
 impl CouplingConfig {
@@ -204,6 +209,7 @@ const COUPLING_KEYS: &[&str] = &[
     "decouple_when",
     "sides",
     "method",
+    "point_tolerance",
 ];
 
 fn check_keys(t: &toml::Table, prefix: &str, allowed: &[&str]) -> Result<(), ConfigError> {
@@ -560,6 +566,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             interfaces: None,
             fields: Vec::new(),
             window_limits: Vec::new(),
+            positions: BTreeMap::new(),
         });
     }
 
@@ -664,8 +671,16 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
                 "only an immersed coupling can be decoupled (the solid goes on alone, seed 000 §4)",
             ));
         }
+        let point_tolerance = get_f64(t, &p, "point_tolerance")?.unwrap_or(DEFAULT_POINT_TOLERANCE);
+        if !(point_tolerance.is_finite() && point_tolerance > 0.0) {
+            return Err(err(
+                format!("{p}point_tolerance"),
+                format!("must be a number > 0, got {point_tolerance}"),
+            ));
+        }
         let (df, rf) = default_fields(kind);
         couplings.push(CouplingConfig {
+            point_tolerance,
             sides,
             method,
             decouple,
@@ -850,6 +865,87 @@ fn check_one_coupling_per_interface(couplings: &[CouplingConfig]) -> Result<(), 
     Ok(())
 }
 
+/// Default of `couplings[i].point_tolerance`: matched points may lie a thousandth of the
+/// interface's point spacing apart (two meshes of one line or surface agree to round-off).
+pub const DEFAULT_POINT_TOLERANCE: f64 = 1e-3;
+
+/// The length the distance between matched points is judged against: the interface's mean
+/// point spacing along its extent (the diagonal of the bounding box of both sides' points
+/// over their count less one), or 1 m for a single point, which has no extent.
+pub fn point_spacing(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    let n = a.len().max(b.len());
+    if n < 2 {
+        return 1.0;
+    }
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for x in a.iter().chain(b) {
+        for d in 0..3 {
+            lo[d] = lo[d].min(x[d]);
+            hi[d] = hi[d].max(x[d]);
+        }
+    }
+    let diagonal = (0..3).map(|d| (hi[d] - lo[d]).powi(2)).sum::<f64>().sqrt();
+    diagonal / (n - 1) as f64
+}
+
+/// Refuse a kinematic coupling whose sides hold as many points each (a point-to-point
+/// binding) but a responder point lies farther from its nearest driver point (the point the
+/// runtime's nearest-point mapping would tie it to) than `point_tolerance` of the interface's
+/// point spacing: the coupling would tie points that are not the same (a shifted node or
+/// mesh). Checked where both nodes gave their positions; sides of different counts are
+/// non-matching meshes, mapped by design.
+fn check_coincident(case: &Case) -> Result<(), ConfigError> {
+    for (i, c) in case.couplings.iter().enumerate() {
+        if c.kind != CouplingKind::Kinematic {
+            continue;
+        }
+        let at = |(node, iface): &(String, String)| {
+            case.nodes
+                .iter()
+                .find(|n| &n.name == node)
+                .and_then(|n| n.positions.get(iface))
+        };
+        let (Some(d), Some(r)) = (at(&c.driver), at(&c.responder)) else {
+            continue;
+        };
+        if d.len() != r.len() || d.is_empty() {
+            continue;
+        }
+        let limit = c.point_tolerance * point_spacing(d, r);
+        let dist =
+            |p: &[f64; 3], q: &[f64; 3]| (0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f64>().sqrt();
+        for (k, q) in r.iter().enumerate() {
+            // The nearest driver point; a NaN distance is never within the limit.
+            let (j, gap) = d.iter().map(|p| dist(p, q)).enumerate().fold(
+                (0, f64::INFINITY),
+                |best, (j, g)| {
+                    if g < best.1 || g.is_nan() {
+                        (j, g)
+                    } else {
+                        best
+                    }
+                },
+            );
+            if gap.is_nan() || gap > limit {
+                return Err(err(
+                    format!("couplings[{i}]"),
+                    format!(
+                        "coupling '{}': point {k} of {}.{} at {q:?} is {gap:.4e} m from the nearest point ({j}) of {}.{} at {:?}, more than point_tolerance = {} × the interface's point spacing = {limit:.4e} m: the two sides do not coincide (a shifted node or mesh?)",
+                        c.name,
+                        c.responder.0,
+                        c.responder.1,
+                        c.driver.0,
+                        c.driver.1,
+                        d[j],
+                        c.point_tolerance
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Ask every node executable found on this host to describe itself (in parallel): its own
 /// validation names a bad parameter, and its interfaces let us check the couplings before
 /// anything is launched. A remote node not on this host is checked when it joins.
@@ -870,8 +966,10 @@ fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
                 .collect();
             n.interfaces = Some(d.interfaces.into_iter().map(|i| i.name).collect());
             n.window_limits = d.window_limits;
+            n.positions = d.positions;
         }
     }
+    check_coincident(case)?;
     case.warnings = check_stability(case)?;
     check_interfaces(case, |node| {
         case.nodes

@@ -211,8 +211,12 @@ struct Coord<'a> {
     last_recv_ns: (u64, u64),
     /// [`Coord::wait_all`]'s list of the nodes still awaited.
     pending: Vec<usize>,
-    /// When [`Coord::check_health`] last ran in [`Coord::wait_all`].
+    /// When [`Coord::check_health`] last ran: a longer gap than [`OWN_STALL`] of the heartbeat
+    /// timeout is the coordinator's own stall.
     health_at: Instant,
+    /// The coordinator's own stalls seen (`summary.json`: `coordinator_stalls`): how many, and
+    /// the longest (s).
+    own_stalls: (u64, f64),
     /// Per node, the report of its `Done` being received, read in place
     /// (`codec::decode_done_into`), then swapped with the node's: once the node's scalar
     /// names have been seen, the window loop allocates nothing for it.
@@ -224,6 +228,15 @@ struct Coord<'a> {
 
 /// How often [`Coord::wait_all`] checks the nodes' health while messages keep arriving.
 const HEALTH_EVERY: Duration = Duration::from_millis(2);
+
+/// The share of `run.heartbeat_timeout` that the coordinator may go without looking at the
+/// nodes before the gap counts as its own stall (not scheduled on a busy machine, stopped by
+/// SIGSTOP, a suspended laptop, a long write). Health is looked at every few milliseconds
+/// while waiting, so a gap of this size never happens in a run that is being served.
+const OWN_STALL: f64 = 0.5;
+
+/// At most this many queued messages are read before a node is judged silent.
+const QUEUED_MAX: usize = 4096;
 
 /// A message as [`Coord::pump_one`] received it.
 enum Got {
@@ -436,8 +449,37 @@ impl<'a> Coord<'a> {
         })
     }
 
+    /// Forgive the nodes the silence the coordinator was not awake to observe: when it has not
+    /// looked at them for [`OWN_STALL`] of the heartbeat timeout or longer, the nodes' beats
+    /// of that time are still queued, unread, and their clocks start again now.
+    /// Only while nodes are judged by their beats (`beating`): before the Welcome the gap is
+    /// the launch.
+    fn forgive_own_stall(&mut self, beating: bool) {
+        let now = Instant::now();
+        let gap = now.saturating_duration_since(self.health_at).as_secs_f64();
+        self.health_at = now;
+        let timeout = self.case.run.heartbeat_timeout;
+        if !beating || gap < OWN_STALL * timeout {
+            return;
+        }
+        for n in &mut self.nodes {
+            n.last_seen = now;
+            if let Some(w) = n.waiting_since.as_mut() {
+                *w = now;
+            }
+        }
+        self.own_stalls.0 += 1;
+        self.own_stalls.1 = self.own_stalls.1.max(gap);
+        let msg = format!(
+            "cosim: the coordinator itself did not run for {gap:.1} s during window {} (a busy machine, a stopped process, a suspend): no node is blamed for that silence (run.heartbeat_timeout = {timeout} s)",
+            self.window
+        );
+        tracing::warn!("{msg}");
+    }
+
     /// Check children and heartbeats; returns the first fault.
     fn check_health(&mut self, waiting_on: &[usize]) -> Result<(), Fault> {
+        self.forgive_own_stall(!waiting_on.is_empty());
         let timeout = Duration::from_secs_f64(self.case.run.heartbeat_timeout);
         for i in 0..self.nodes.len() {
             let n = &mut self.nodes[i];
@@ -465,6 +507,17 @@ impl<'a> Coord<'a> {
                     node: name,
                     reason: format!("{why} during window {}{log}", self.window),
                 });
+            }
+        }
+        // Beats may wait unread behind the coordinator's own work: read them before judging.
+        if waiting_on
+            .iter()
+            .any(|&i| self.nodes[i].last_seen.elapsed() > timeout)
+        {
+            for _ in 0..QUEUED_MAX {
+                if !self.pump_one(Duration::ZERO)? {
+                    break;
+                }
             }
         }
         for &i in waiting_on {
@@ -834,7 +887,6 @@ impl<'a> Coord<'a> {
             // every message (a window brings several): faults are judged in seconds.
             if t.duration_since(self.health_at) >= HEALTH_EVERY {
                 self.check_health(if beating { &pending } else { &[] })?;
-                self.health_at = t;
             }
             self.prof.lap(Phase::Health, t);
             if let Some((l, why)) = limit
@@ -1242,6 +1294,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         last_recv_ns: (0, 0),
         pending: Vec::with_capacity(case.nodes.len()),
         health_at: Instant::now(),
+        own_stalls: (0, 0.0),
         inbox: vec![StepReport::default(); case.nodes.len()],
         spare: (0..case.nodes.len())
             .map(|_| Vec::with_capacity(MAX_AHEAD as usize + 1))
@@ -1824,10 +1877,11 @@ fn drive(
     )?;
     wait_for_joins(c, &remote)?;
     // Every node's silence so far was spent waiting for the others: the heartbeat clock
-    // starts with the Welcome (nodes beat from then on).
+    // starts with the Welcome (nodes beat from then on), and so does the coordinator's own.
     for n in &mut c.nodes {
         n.last_seen = Instant::now();
     }
+    c.health_at = Instant::now();
     for (i, n) in case.nodes.iter().enumerate() {
         let w = Message::Welcome(Welcome {
             run: c.run.clone(),
@@ -2315,6 +2369,8 @@ fn drive(
         "window_loop_s": loop_s,
         // The coordinator's side of a window (this process only: a restart's segment).
         "window_breakdown": breakdown,
+        // Gaps in which the coordinator itself did not run (no node was blamed for them).
+        "coordinator_stalls": { "count": c.own_stalls.0, "longest_s": c.own_stalls.1 },
         "coupling_overhead": if loop_s > 0.0 {
             1.0 - c.nodes.iter().map(|n| n.wall_s).fold(0.0, f64::max) / loop_s
         } else {

@@ -459,6 +459,16 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
             ));
         }
     }
+    // Before a byte of state is allocated: the arrays below (conserved, its copy, primitive,
+    // next primitive: nv values a cell; a flux of nv + 1 values a cell per direction) must fit
+    // in memory, or a large grid is refused by its key instead of aborting the allocator.
+    let cells = grid.rows() as u128 * grid.mx() as u128;
+    let values = (4 * nv + grid.nd * (nv + 1)) as u128;
+    protocol::memory::check_fits(
+        "grid.cells",
+        cells * values * 8,
+        &format!("{cells} cells with ghosts × {values} f64 values of state"),
+    )?;
     let phases: Vec<Phase> = mats.iter().cloned().map(Phase::new).collect();
     let total = grid.rows() * nv * grid.mx();
     let mut f = Fluid {

@@ -6,6 +6,7 @@ use crate::message::InterfaceDescription;
 use crate::participant::BoxedFactory;
 use crate::solver::{BuildOptions, SolverError};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::io::Read;
 use std::path::Path;
 
@@ -37,7 +38,16 @@ pub struct NodeDescriptionJson {
     /// window, and when that holds (absent: none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub window_limits: Vec<crate::solver::WindowLimit>,
+    /// Each interface's point positions (m), by interface name, for interfaces of at most
+    /// [`MAX_DESCRIBED_POINTS`] points (absent: none given): the coordinator refuses coupled
+    /// points that do not coincide before anything starts.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub positions: BTreeMap<String, Vec<[f64; 3]>>,
 }
+
+/// The most points of an interface whose positions a description carries: enough for every
+/// point-to-point interface, while a large immersed point cloud stays out of the JSON.
+pub const MAX_DESCRIBED_POINTS: usize = 10_000;
 
 /// Why the node refused: `key` is relative to the node (`model`, `params.young`,
 /// `params.materials.air.gamma`; `params` for the table as a whole), null when the failure
@@ -101,6 +111,12 @@ pub fn describe(
         Ok(s) => {
             let d = s.describe();
             let dt = s.stable_dt();
+            let positions = d
+                .interfaces
+                .iter()
+                .filter(|i| i.points <= MAX_DESCRIBED_POINTS)
+                .filter_map(|i| Some((i.name.clone(), s.interface(&i.name).ok()?.positions)))
+                .collect();
             let json = NodeDescriptionJson {
                 binary: binary.to_string(),
                 model: d.model,
@@ -118,6 +134,7 @@ pub fn describe(
                     .collect(),
                 warnings: s.warnings(),
                 window_limits: s.window_limits(),
+                positions,
             };
             (DescribeAnswer::Description(json), 0)
         }
@@ -148,12 +165,12 @@ pub fn describe_main(
             (None, Some(k)) => format!("{k}: "),
             (_, None) => String::new(),
         };
-        eprintln!("{binary}: {at}{}", e.reason);
+        crate::log_line!("{binary}: {at}{}", e.reason);
     }
     match serde_json::to_string(&answer) {
         Ok(s) => println!("{s}"),
         Err(e) => {
-            eprintln!("{binary}: cannot encode the description: {e}");
+            crate::log_line!("{binary}: cannot encode the description: {e}");
             return EXIT_FAILED;
         }
     }

@@ -2,10 +2,21 @@
 //! that carry them (iceoryx2 shared memory, zenoh, in-process), the `Solver` trait every node
 //! implements, the participant runtime that runs a `Solver` as a node, and interface mapping.
 
+/// `eprintln!` that cannot panic. A node's stderr is its log file: on a full disk the write
+/// fails, and `eprintln!` would turn the message into a panic that hides it; this drops it.
+#[macro_export]
+macro_rules! log_line {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
 pub mod checkpoint;
 pub mod describe;
 pub mod diverged;
 pub mod mapping;
+pub mod memory;
 pub mod params;
 pub mod participant;
 pub mod scheme;

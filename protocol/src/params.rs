@@ -32,7 +32,7 @@ pub fn schemas() -> Option<&'static Schemas> {
 /// stdout; exit 0, or 2 for an unknown model or a binary without schemas.
 pub fn schema_main(binary: &str, model: Option<&str>) -> i32 {
     let Some(s) = schemas() else {
-        eprintln!("{binary}: this node publishes no parameter schema");
+        crate::log_line!("{binary}: this node publishes no parameter schema");
         return 2;
     };
     let doc = match model {
@@ -40,7 +40,7 @@ pub fn schema_main(binary: &str, model: Option<&str>) -> i32 {
         Some(m) => match (s.schema)(m) {
             Some(v) => v,
             None => {
-                eprintln!(
+                crate::log_line!(
                     "{binary}: unknown model '{m}' (this node has: {})",
                     s.models.join(", ")
                 );

@@ -744,7 +744,7 @@ pub fn node_main_with(
     let parent = match watchdog::arm_parent_death() {
         Ok(p) => p,
         Err(e) => {
-            eprintln!("{binary} {}: {e}", args.node);
+            crate::log_line!("{binary} {}: {e}", args.node);
             return 1;
         }
     };
@@ -764,7 +764,7 @@ pub fn node_main_with(
     let code = match run_node(binary, factory, &args, parent) {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("{binary} {}: {e:#}", args.node);
+            crate::log_line!("{binary} {}: {e:#}", args.node);
             watchdog::stop().map_or(1, |s| s.exit_code())
         }
     };
@@ -865,7 +865,7 @@ fn run_node(
         match recv_one(&mut w, None, Duration::from_secs(60))? {
             Some(Incoming::Cmd(Message::Welcome(wl))) => break wl,
             Some(Incoming::Cmd(Message::Reject(r))) => {
-                eprintln!("{binary} {}: rejected: {}", args.node, r.reason);
+                crate::log_line!("{binary} {}: rejected: {}", args.node, r.reason);
                 return Ok(2);
             }
             Some(Incoming::Cmd(Message::Abort(a))) => {

@@ -20,7 +20,9 @@ pub enum SolverError {
     /// The state became unphysical (negative density, NaN, ...): where and when.
     #[error("diverged at t = {time:e}: {reason}")]
     Diverged { time: f64, reason: String },
-    #[error("{0}")]
+    /// Transparent: the I/O error is the message, not also its source (a chain printed with
+    /// `{:#}` would say it twice).
+    #[error(transparent)]
     Io(#[from] std::io::Error),
     #[error("{0}")]
     Other(String),
@@ -323,3 +325,17 @@ impl BuildOptions {
 /// Builds a solver from its model name and TOML parameter table; each node binary has one.
 pub type SolverFactory =
     fn(model: &str, params: &toml::Table, opts: &BuildOptions) -> SolverResult<Box<dyn Solver>>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An I/O error says its text once, however the chain is printed.
+    #[test]
+    fn an_io_error_is_said_once() {
+        let e = SolverError::from(std::io::Error::other("No space left on device"));
+        assert_eq!(e.to_string(), "No space left on device");
+        let chain = format!("{:#}", anyhow::Error::from(e));
+        assert_eq!(chain, "No space left on device");
+    }
+}

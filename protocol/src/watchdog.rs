@@ -133,7 +133,7 @@ fn watch(parent: Option<u32>, peer: Option<PeerWatch>) {
         if let Some(t) = stopping {
             if t.elapsed() > GRACE && !DONE.load(Ordering::SeqCst) {
                 let s = stop().unwrap_or(Stop::CoordinatorGone(String::new()));
-                eprintln!(
+                crate::log_line!(
                     "cosim node: {}; still busy {} ms later, exiting now",
                     s.reason(),
                     GRACE.as_millis()

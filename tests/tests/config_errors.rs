@@ -26,6 +26,7 @@ solver = "solid-node"
 model = "bar-1d"
 [nodes.right.params]
 length = 0.5
+x0 = 0.5
 elements = 10
 young = 200e9
 density = 7860.0
@@ -231,6 +232,7 @@ solver = "solid-node"
 model = "bar-1d"
 [variants.split.nodes.far.params]
 length = 1.0
+x0 = 0.5
 elements = 20
 young = 200e9
 density = 7860.0
@@ -597,4 +599,180 @@ fn a_lagrange_side_on_the_gpu_is_refused_at_validation() {
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("nodes.notch.params.device"), "{err}");
     assert!(err.contains("couplings[0]") && err.contains("cpu"), "{err}");
+}
+
+/// MemAvailable of /proc/meminfo in bytes, read here independently of the node.
+fn mem_available() -> f64 {
+    let text = std::fs::read_to_string("/proc/meminfo").expect("/proc/meminfo");
+    let kb: f64 = text
+        .lines()
+        .find_map(|l| l.strip_prefix("MemAvailable:"))
+        .and_then(|v| v.trim().strip_suffix("kB"))
+        .and_then(|v| v.trim().parse().ok())
+        .expect("MemAvailable in kB");
+    kb * 1024.0
+}
+
+/// `cosim ARGS`, refused with exit 2 and one line: the line, and how long it took.
+fn refused_in_one_line(args: &[&str]) -> (String, std::time::Duration) {
+    let start = std::time::Instant::now();
+    let o = cosim(args);
+    let took = start.elapsed();
+    let err = String::from_utf8_lossy(&o.stderr);
+    println!("{} ({took:?}): {err}", args[0]);
+    assert_eq!(o.status.code(), Some(2), "{}: {err}", args[0]);
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "{}: one line expected: {err}", args[0]);
+    (lines[0].to_string(), took)
+}
+
+/// The numbers `N` of each `N bytes` in `line`, in order.
+fn byte_counts(line: &str) -> Vec<f64> {
+    let words: Vec<&str> = line.split_whitespace().collect();
+    words
+        .windows(2)
+        .filter(|w| w[1] == "bytes")
+        .filter_map(|w| w[0].parse().ok())
+        .collect()
+}
+
+/// A fluid of 30,000 × 30,000 cells (the chamber's gas; more on a host with over 72 GB
+/// available) is refused by `cosim validate` and `cosim run` before the node allocates its
+/// state: exit 2 at once, one line naming the key `nodes.gas.params.grid.cells`, the bytes the
+/// state needs (at least its conserved values alone, 30,000² cells × 5 values × 8 bytes =
+/// 36 GB) and the memory available.
+#[test]
+fn a_grid_larger_than_the_memory_is_refused_by_its_key() {
+    let case = workspace_root().join("examples/chamber_detonation.toml");
+    let (dir, id) = scratch("huge-grid");
+    let out = dir.join("out");
+    // 30,000² as found; larger on a host with more than twice its 36 GB available.
+    let side = (2.0 * mem_available() / 40.0).sqrt().ceil().max(30_000.0);
+    let set = format!("gas.grid.cells=[{side}, {side}, 1]");
+    let conserved = side * side * 5.0 * 8.0;
+    for cmd in ["validate", "run"] {
+        let mut args = vec![cmd, case.to_str().unwrap(), "--set", &set];
+        if cmd == "run" {
+            args.extend([
+                "--output",
+                out.to_str().unwrap(),
+                "--run-id",
+                &id,
+                "--quiet",
+            ]);
+        }
+        let (line, took) = refused_in_one_line(&args);
+        let line = line.as_str();
+        assert!(line.contains("nodes.gas.params.grid.cells"), "{line}");
+        assert!(line.contains("MemAvailable"), "{line}");
+        let counts = byte_counts(line);
+        assert_eq!(counts.len(), 2, "needed and available bytes: {line}");
+        assert!(
+            counts[0] >= conserved,
+            "needs {} < {conserved}: {line}",
+            counts[0]
+        );
+        // Available memory moves while the test runs (the other tests): within 25 %.
+        let avail = mem_available();
+        assert!(
+            (counts[1] - avail).abs() < 0.25 * avail,
+            "available {} vs {avail} read here: {line}",
+            counts[1]
+        );
+        // Refused before allocating: no 36 GB to fault in, no abort, seconds not minutes.
+        assert!(
+            took < std::time::Duration::from_secs(20),
+            "{cmd} took {took:?}"
+        );
+        assert!(!out.exists(), "{cmd}: output written before refusing");
+    }
+    assert!(processes_with(&format!("--run {id}")).is_empty());
+}
+
+/// Coupled points that do not coincide are refused by `cosim validate` and `cosim run`: the
+/// right bar shifted 0.2 m away from the left bar's tip (x0 = 0.7 where the tip is at 0.5)
+/// names the coupling, both nodes and interfaces, the point and the distance; a shift within
+/// the tolerance (1e-4 m, under 1e-3 of the 1 m scale of a single point) validates, and a
+/// `point_tolerance` raised above the shift lets the shifted case through.
+#[test]
+fn coupled_points_apart_are_refused() {
+    refused_naming(
+        "shifted",
+        |s| s.replace("x0 = 0.5", "x0 = 0.7"),
+        &[
+            "couplings[0]",
+            "right.root",
+            "left.tip",
+            "point 0",
+            "2.0000e-1 m",
+            "point_tolerance",
+        ],
+    );
+    let validates = |tag: &str, edit: &dyn Fn(&str) -> String| {
+        let (dir, _) = scratch(tag);
+        let case = dir.join("case.toml");
+        let text = edit(GOOD).replace("OUT", dir.join("out").to_str().unwrap());
+        std::fs::write(&case, text).unwrap();
+        let v = cosim(&["validate", case.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&v.stderr).to_string();
+        (v.status.code(), err)
+    };
+    let (code, err) = validates("near", &|s| s.replace("x0 = 0.5", "x0 = 0.5001"));
+    assert_eq!(code, Some(0), "a 1e-4 m gap is within the default: {err}");
+    let (code, err) = validates("loose", &|s| {
+        s.replace("x0 = 0.5", "x0 = 0.7").replace(
+            "responder = \"right.root\"",
+            "responder = \"right.root\"\npoint_tolerance = 0.25",
+        )
+    });
+    assert_eq!(code, Some(0), "point_tolerance 0.25 admits 0.2 m: {err}");
+    let (code, err) = validates("bad-tolerance", &|s| {
+        s.replace(
+            "responder = \"right.root\"",
+            "responder = \"right.root\"\npoint_tolerance = -1.0",
+        )
+    });
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("couplings[0].point_tolerance"), "{err}");
+}
+
+/// A peridynamic body whose bonds would not fit in memory is refused before they are built,
+/// even with `max_bonds` raised past them: the chamber's bar at a spacing that gives more than
+/// twice the available memory in bonds at the fewest bytes a bond takes (57), refused naming
+/// `nodes.bar.params.spacing` and both byte counts.
+#[test]
+fn a_body_whose_bonds_exceed_the_memory_is_refused_by_its_key() {
+    let case = workspace_root().join("examples/chamber_detonation.toml");
+    // The bar is 0.2 × 0.1 m in plane strain: 0.02 / s² particles with about π·3.015² ≈ 28.6
+    // neighbours each at a horizon of 3.015 spacings.
+    let avail = mem_available();
+    let spacing = (0.02 * 28.6 * 57.0 / (2.0 * avail)).sqrt().max(1.1e-5);
+    let bonds = 0.02 / (spacing * spacing) * 28.6;
+    assert!(
+        bonds * 57.0 > avail,
+        "this host has {avail} bytes available, more than the finest lattice's bonds need"
+    );
+    let sets = [
+        format!("bar.spacing={spacing:e}"),
+        format!("bar.horizon={:e}", 3.015 * spacing),
+        "bar.max_bonds=1000000000000".to_string(),
+    ];
+    let mut args = vec!["validate", case.to_str().unwrap()];
+    for s in &sets {
+        args.extend(["--set", s.as_str()]);
+    }
+    let (err, took) = refused_in_one_line(&args);
+    assert!(err.contains("nodes.bar.params.spacing"), "{err}");
+    // First what it needs, last what is available (between them: the bytes a bond takes).
+    let counts = byte_counts(&err);
+    assert!(counts.len() >= 2, "needed and available bytes: {err}");
+    let counts = [counts[0], counts[counts.len() - 1]];
+    // The node counts the lattice's own family (28 neighbours inside 3.015 spacings, against
+    // the disc's 28.6 here): at least 0.8 of this estimate, and over what is available.
+    assert!(
+        counts[0] > counts[1] && counts[0] > 0.8 * bonds * 57.0,
+        "needs {} for about {bonds:e} bonds: {err}",
+        counts[0]
+    );
+    assert!(took < std::time::Duration::from_secs(60), "took {took:?}");
 }

@@ -28,6 +28,7 @@ solver = "solid-node"
 model = "bar-1d"
 [nodes.right.params]
 length = 0.5
+x0 = 0.5
 elements = 10
 young = 200e9
 density = 7860.0

@@ -352,18 +352,31 @@ fn default_max_bonds() -> u64 {
     DEFAULT_MAX_BONDS
 }
 
-/// Refuses a body whose bonds would exceed `max_bonds`, before anything is allocated:
-/// `particles` × the full family of the horizon (capped at the other particles), an upper
-/// estimate (surface particles have smaller families). The key named is `horizon` when the
-/// family is far past the usual few spacings (δ > 6 Δx), else `spacing`.
+/// The fewest bytes of memory a bond takes (of the models: 57 to 216).
+const BOND_BYTES_MIN: u64 = 57;
+
+/// Refuses a body whose bonds would exceed `max_bonds`, or the memory available on this host
+/// at [`BOND_BYTES_MIN`] each, before anything is allocated: `particles` × the full family of
+/// the horizon (capped at the other particles), an upper estimate (surface particles have
+/// smaller families). The key named is `horizon` when the family is far past the usual few
+/// spacings (δ > 6 Δx), else `spacing`.
 fn bond_budget(p: &PdParams, particles: usize, three_d: bool) -> SolverResult<()> {
     let family = full_family(p.horizon, p.spacing, three_d).min((particles - 1) as f64);
     let bonds = particles as f64 * family;
-    if bonds <= p.max_bonds as f64 {
-        return Ok(());
-    }
     let ratio = p.horizon / p.spacing;
     let key = if ratio > 6.0 { "horizon" } else { "spacing" };
+    if bonds <= p.max_bonds as f64 {
+        // Within the budget, but maybe not within this host's memory: the cheapest model's
+        // bytes a bond, before the bonds are built.
+        return protocol::memory::check_fits(
+            key,
+            (bonds * BOND_BYTES_MIN as f64) as u128,
+            &format!(
+                "about {bonds:.3e} bonds of {particles} particles at spacing {} and horizon {}, at least {BOND_BYTES_MIN} bytes each",
+                p.spacing, p.horizon
+            ),
+        );
+    }
     cfg(
         key,
         format!(
