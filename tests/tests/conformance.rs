@@ -8,7 +8,6 @@
 
 use cosim_tests::*;
 use std::collections::BTreeMap;
-use std::path::Path;
 
 /// The rules PROTOCOL.md section 9 lists, by name.
 const RULES: [&str; 12] = [
@@ -26,41 +25,49 @@ const RULES: [&str; 12] = [
     "cleanup",
 ];
 
-/// The right half of examples/split_bar.toml, coupled at its `root`, with `extra` lines.
-fn right_half(dir: &Path, extra: &str) -> std::path::PathBuf {
-    let p = dir.join("right.toml");
-    std::fs::write(
-        &p,
-        format!(
-            "length = 0.5\nx0 = 0.5\nelements = 300\nyoung = 200e9\ndensity = 7860.0\narea = 1e-4\n\
-             fixed = \"none\"\ntip_force = 1000.0\nload_end = \"right\"\ncourant = 0.5\n\
-             interfaces = {{ root = \"left\" }}\n{extra}\n"
-        ),
-    )
-    .expect("write params");
-    p
-}
+/// The parameters of the right half of examples/split_bar.toml, coupled at its `root`.
+const RIGHT_HALF: &str = "length = 0.5\nx0 = 0.5\nelements = 300\nyoung = 200e9\n\
+    density = 7860.0\narea = 1e-4\nfixed = \"none\"\ntip_force = 1000.0\n\
+    load_end = \"right\"\ncourant = 0.5\ninterfaces = { root = \"left\" }\n";
 
-/// `cosim conformance` of `command` as the bar's right half; returns the exit code, each
-/// rule's tag (PASS, FAIL or ----) and reason, and the whole output.
+/// The parameters of its left half, which drives the coupling at its `tip`.
+const LEFT_HALF: &str = "length = 0.5\nelements = 100\nyoung = 200e9\ndensity = 7860.0\n\
+    area = 1e-4\nfixed = \"left\"\nload_end = \"none\"\ncourant = 1.0\n\
+    interfaces = { tip = \"right\" }\n";
+
+/// `cosim conformance` of `command` as the bar's right half, its parameters with `extra`
+/// lines; returns the exit code, each rule's tag (PASS, FAIL or ----) and reason, and the
+/// whole output.
 fn conformance(
     tag: &str,
     extra: &str,
     command: &[&str],
 ) -> (Option<i32>, BTreeMap<String, (String, String)>, String) {
+    conformance_as(tag, &format!("{RIGHT_HALF}{extra}\n"), &[], command)
+}
+
+/// `cosim conformance` of `command` with the parameters `params` and the options `options`.
+fn conformance_as(
+    tag: &str,
+    params: &str,
+    options: &[&str],
+    command: &[&str],
+) -> (Option<i32>, BTreeMap<String, (String, String)>, String) {
     let (dir, _) = scratch(tag);
-    let params = right_half(&dir, extra);
+    let params_file = dir.join("params.toml");
+    std::fs::write(&params_file, params).expect("write params");
     let out = dir.join("out");
     let mut args = vec![
         "conformance",
         "--model",
         "bar-1d",
         "--params",
-        params.to_str().unwrap(),
+        params_file.to_str().unwrap(),
         "--output",
         out.to_str().unwrap(),
-        "--",
     ];
+    args.extend(options);
+    args.push("--");
     args.extend(command);
     let o = cosim(&args);
     let text = format!(
@@ -124,6 +131,38 @@ fn the_built_in_bar_passes_every_rule() {
     assert_all_pass(code, &rules, &text);
     // The checkpoint rule read the node's file back: of window 3 (the one before the last).
     assert!(rules["checkpoint"].1.contains("window 3 saved"), "{text}");
+}
+
+#[test]
+fn the_built_in_bar_passes_every_rule_as_the_driver() {
+    let (code, rules, text) = conformance_as(
+        "conf-driver",
+        LEFT_HALF,
+        &["--role", "driver"],
+        &["solid-node"],
+    );
+    assert_all_pass(code, &rules, &text);
+    assert!(text.contains("as the kinematic driver node"), "{text}");
+    // Coupled at the left half's tip, whose one point the peer's mesh copies.
+    assert!(
+        rules["describe"].1.contains("interface 'tip' of 1 points"),
+        "{text}"
+    );
+}
+
+#[test]
+fn a_bad_role_is_a_command_line_error() {
+    let o = cosim(&[
+        "conformance",
+        "--model",
+        "bar-1d",
+        "--role",
+        "sideways",
+        "--",
+        "solid-node",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--role sideways: driver or responder"));
 }
 
 #[test]
