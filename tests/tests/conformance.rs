@@ -43,12 +43,20 @@ fn conformance(
     extra: &str,
     command: &[&str],
 ) -> (Option<i32>, BTreeMap<String, (String, String)>, String) {
-    conformance_as(tag, &format!("{RIGHT_HALF}{extra}\n"), &[], command)
+    conformance_as(
+        tag,
+        "bar-1d",
+        &format!("{RIGHT_HALF}{extra}\n"),
+        &[],
+        command,
+    )
 }
 
-/// `cosim conformance` of `command` with the parameters `params` and the options `options`.
+/// `cosim conformance` of `command` as model `model` with the parameters `params` and the
+/// options `options`.
 fn conformance_as(
     tag: &str,
+    model: &str,
     params: &str,
     options: &[&str],
     command: &[&str],
@@ -60,7 +68,7 @@ fn conformance_as(
     let mut args = vec![
         "conformance",
         "--model",
-        "bar-1d",
+        model,
         "--params",
         params_file.to_str().unwrap(),
         "--output",
@@ -137,6 +145,7 @@ fn the_built_in_bar_passes_every_rule() {
 fn the_built_in_bar_passes_every_rule_as_the_driver() {
     let (code, rules, text) = conformance_as(
         "conf-driver",
+        "bar-1d",
         LEFT_HALF,
         &["--role", "driver"],
         &["solid-node"],
@@ -148,6 +157,25 @@ fn the_built_in_bar_passes_every_rule_as_the_driver() {
         rules["describe"].1.contains("interface 'tip' of 1 points"),
         "{text}"
     );
+}
+
+#[test]
+fn a_peridynamic_body_passes_every_rule_as_the_immersed_driver() {
+    // The steel bar of examples/chamber_detonation.toml: 60 × 30 particles, all coupled.
+    let params = "dimension = \"plane_strain\"\nthickness = 0.0035\n\
+        spacing = 3.3333333333333335e-3\nhorizon = 1.005e-2\ndensity = 7870.0\nyoung = 200e9\n\
+        poisson = 0.29\nyield_stress = 0.4e9\niso_hardening = 0.1e9\n\
+        bodies = [{ shape = \"box\", min = [0.1, 0.15, 0.0], max = [0.3, 0.25, 0.0035] }]\n\
+        interfaces = [{ name = \"particles\", select = \"all\" }]\n";
+    let (code, rules, text) = conformance_as(
+        "conf-immersed",
+        "pd-correspondence",
+        params,
+        &["--kind", "immersed", "--role", "driver"],
+        &["solid-node"],
+    );
+    assert_all_pass(code, &rules, &text);
+    assert!(rules["mesh"].1.contains("1800 points"), "{text}");
 }
 
 #[test]
