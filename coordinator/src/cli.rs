@@ -257,6 +257,15 @@ pub enum Cmd {
         #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
         args: Vec<String>,
     },
+    /// Check a node executable, in any language, against PROTOCOL.md: drive it through
+    /// `--describe`, handshake, set-up, a few windows, heartbeats, a checkpoint and `Finish`
+    /// against a peer that cosim plays (the node's own interface as its mesh, a small constant
+    /// velocity, zero loads), and print PASS or FAIL per rule with its section and reason:
+    /// `cosim conformance --model bar-1d --params right.toml -- python3 bar.py`.
+    ///
+    /// Exit status: 0 every rule passes; 1 a rule fails or was not reached; 2 a command-line
+    /// error.
+    Conformance(ConformanceArgs),
 }
 
 /// Load a case and apply `node.key=value` overrides; errors are (key, reason).
@@ -1039,6 +1048,124 @@ pub fn main_with(cli: Cli) -> i32 {
             }
         }
         Cmd::Bench { args } => bench(&args),
+        Cmd::Conformance(args) => conformance(args),
+    }
+}
+
+/// `cosim conformance`'s command line.
+#[derive(Debug, clap::Args)]
+pub struct ConformanceArgs {
+    /// The model inside the executable, as in a case's `nodes.NAME.model`.
+    #[arg(long)]
+    model: String,
+    /// The node's parameters: a TOML file holding the body of `[nodes.NAME.params]`.
+    #[arg(long)]
+    params: Option<PathBuf>,
+    /// The interface to couple (default: the first the node describes).
+    #[arg(long)]
+    interface: Option<String>,
+    /// The coupling kind: kinematic or immersed.
+    #[arg(long, default_value = "kinematic")]
+    kind: String,
+    /// The node's role, driver or responder; cosim plays the other.
+    #[arg(long, default_value = "responder")]
+    role: String,
+    /// Windows to run after the set-up (a checkpoint is asked in the one before the last).
+    #[arg(long, default_value_t = 4)]
+    windows: u64,
+    /// The window (s); default: the node's stable step.
+    #[arg(long)]
+    window: Option<f64>,
+    /// Directory for the node's log, output and checkpoint (default: a fresh one under
+    /// the system's temporary directory).
+    #[arg(long, short)]
+    output: Option<PathBuf>,
+    /// The node's command: an executable (a path, or a name beside cosim) and its own
+    /// arguments.
+    #[arg(required = true, last = true)]
+    command: Vec<String>,
+}
+
+/// `cosim conformance`: check the node, print a line per rule; returns the exit code.
+fn conformance(a: ConformanceArgs) -> i32 {
+    use crate::conformance::{self, Options};
+    use protocol::{CouplingKind, Role};
+    let kind = match a.kind.as_str() {
+        "kinematic" => CouplingKind::Kinematic,
+        "immersed" => CouplingKind::Immersed,
+        k => {
+            eprintln!("cosim conformance: --kind {k}: kinematic or immersed");
+            return 2;
+        }
+    };
+    let role = match a.role.as_str() {
+        "driver" => Role::Driver,
+        "responder" => Role::Responder,
+        r => {
+            eprintln!("cosim conformance: --role {r}: driver or responder");
+            return 2;
+        }
+    };
+    let params = match &a.params {
+        None => toml::Table::new(),
+        Some(p) => match std::fs::read_to_string(p)
+            .map_err(|e| e.to_string())
+            .and_then(|t| toml::from_str::<toml::Table>(&t).map_err(|e| e.to_string()))
+        {
+            Ok(t) => t,
+            Err(e) => {
+                eprintln!("cosim conformance: --params {}: {e}", p.display());
+                return 2;
+            }
+        },
+    };
+    if a.windows < 2 {
+        eprintln!("cosim conformance: --windows must be at least 2 (one holds the checkpoint)");
+        return 2;
+    }
+    let output = a
+        .output
+        .unwrap_or_else(|| std::env::temp_dir().join(crate::run::pick_run_id("cosim-conformance")));
+    let o = Options {
+        command: a.command,
+        model: a.model,
+        params,
+        interface: a.interface,
+        kind,
+        role,
+        windows: a.windows,
+        window: a.window,
+        output,
+    };
+    println!(
+        "cosim conformance: `{}` (model {}) as the {} {} node, {} windows; its log: {}",
+        o.command.join(" "),
+        o.model,
+        a.kind,
+        a.role,
+        o.windows,
+        o.output.join("node.log").display()
+    );
+    match conformance::check(&o) {
+        Ok(verdicts) => {
+            for v in &verdicts {
+                println!("{v}");
+            }
+            let passed = verdicts
+                .iter()
+                .filter(|v| v.outcome == conformance::Outcome::Pass)
+                .count();
+            println!("{passed} of {} rules pass", verdicts.len());
+            if conformance::all_pass(&verdicts) {
+                0
+            } else {
+                1
+            }
+        }
+        Err(e) => {
+            eprintln!("cosim conformance: {e:#}");
+            1
+        }
     }
 }
 

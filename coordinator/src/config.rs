@@ -95,6 +95,8 @@ pub struct NodeConfig {
     pub interfaces: Option<Vec<String>>,
     /// Per interface (as `interfaces`), the fields it provides and accepts.
     pub fields: Vec<(Vec<String>, Vec<String>)>,
+    /// Per interface (as `interfaces`), its number of points.
+    pub points: Vec<u64>,
     /// Where its explicit integrator does not choose its own step, from its `--describe`.
     pub window_limits: Vec<protocol::WindowLimit>,
     /// Interface point positions (m) by interface name, from its `--describe` (those it gave).
@@ -565,6 +567,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Case, ConfigError> {
             remote,
             interfaces: None,
             fields: Vec::new(),
+            points: Vec::new(),
             window_limits: Vec::new(),
             positions: BTreeMap::new(),
         });
@@ -964,6 +967,7 @@ fn check_solvers(case: &mut Case) -> Result<(), ConfigError> {
                 .iter()
                 .map(|i| (i.provides.clone(), i.accepts.clone()))
                 .collect();
+            n.points = d.interfaces.iter().map(|i| i.points).collect();
             n.interfaces = Some(d.interfaces.into_iter().map(|i| i.name).collect());
             n.window_limits = d.window_limits;
             n.positions = d.positions;

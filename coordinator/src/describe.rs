@@ -38,7 +38,9 @@ pub fn describe_nodes(
                     .clone()
                     .or_else(|| crate::config::resolve_exe(&n.solver, case_dir));
                 s.spawn(move || match exe {
-                    Some(exe) => describe_one(&exe, n, timeout),
+                    Some(exe) => {
+                        describe_one(&exe, &[], n, timeout).map(|d| Checked::Described(Box::new(d)))
+                    }
                     None => Ok(Checked::WhenItJoins),
                 })
             })
@@ -59,8 +61,14 @@ pub fn describe_nodes(
     results.into_iter().collect()
 }
 
-/// Run `exe --describe` for node `n`, its params on stdin, and read its answer.
-fn describe_one(exe: &Path, n: &NodeConfig, timeout: Duration) -> Result<Checked, ConfigError> {
+/// Run `exe args… --describe` for node `n` (`args`: the command's own arguments, as
+/// `cosim conformance` is given them), its params on stdin, and read its answer.
+pub fn describe_one(
+    exe: &Path,
+    args: &[String],
+    n: &NodeConfig,
+    timeout: Duration,
+) -> Result<NodeDescriptionJson, ConfigError> {
     let at = |k: &str| format!("nodes.{}.{k}", n.name);
     let fail = |reason: String| ConfigError {
         key: at("solver"),
@@ -72,6 +80,7 @@ fn describe_one(exe: &Path, n: &NodeConfig, timeout: Duration) -> Result<Checked
     })?;
     let shown = exe.display();
     let mut child = Command::new(exe)
+        .args(args)
         .args(["--describe", "--model", &n.model, "--node", &n.name])
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
@@ -124,9 +133,7 @@ fn describe_one(exe: &Path, n: &NodeConfig, timeout: Duration) -> Result<Checked
     let stdout = out.join().unwrap_or_default();
     let stderr = err.join().unwrap_or_default();
     match parse_answer(&stdout) {
-        Some(DescribeAnswer::Description(d)) if status.success() => {
-            Ok(Checked::Described(Box::new(d)))
-        }
+        Some(DescribeAnswer::Description(d)) if status.success() => Ok(d),
         Some(DescribeAnswer::Error(e)) => Err(ConfigError {
             key: e
                 .key

@@ -5,6 +5,8 @@
 pub mod checkpoint;
 pub mod cli;
 pub mod config;
+pub mod conformance;
+pub mod contract;
 pub mod describe;
 pub mod export;
 pub mod fields;

@@ -281,11 +281,12 @@ fn needed(b: &Binding, until: Option<u64>, window: u64) -> Option<u64> {
     protocol::scheme::driver_responder_input(b.role, b.input_lag, until, window)
 }
 
-/// The replayed node process and the transport the replay plays its coordinator and peers on.
-struct Session {
+/// One node process and the transport on which `cosim replay` and `cosim conformance` play
+/// its coordinator and peers.
+pub(crate) struct Session {
     t: Box<dyn Transport>,
-    run: String,
-    node: String,
+    pub(crate) run: String,
+    pub(crate) node: String,
     child: Option<Child>,
     down: Box<dyn Publisher>,
     /// One publisher per binding of the node, on the peer's data topic.
@@ -303,15 +304,117 @@ struct Session {
     /// Whether the node has been welcomed (and so sends heartbeats).
     beating: bool,
     waiting_since: Option<Instant>,
-    window: u64,
-    hello: bool,
-    described: bool,
-    done: Option<(u64, StepReport)>,
+    pub(crate) window: u64,
+    pub(crate) hello: bool,
+    /// The node's `Describe`s, in order.
+    pub(crate) describes: Vec<Describe>,
+    pub(crate) done: Option<(u64, StepReport)>,
+    /// The windows of the node's `Done`s, in order.
+    pub(crate) dones: Vec<u64>,
     /// The node's fields as they arrive, compared by the caller.
-    arrived: Vec<Fields>,
+    pub(crate) arrived: Vec<Fields>,
+    /// The node's meshes as they arrive.
+    pub(crate) meshes: Vec<Mesh>,
+    /// Heartbeats received, and the longest time between two (from the `Welcome` on).
+    pub(crate) beats: u64,
+    pub(crate) longest_gap: Duration,
+    last_beat: Option<Instant>,
+    /// Why [`Session::check_health`] gave up on the node: it exited, or went silent.
+    pub(crate) gone: Option<Gone>,
+}
+
+/// How a node was lost while a [`Session`] waited for it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Gone {
+    Exited,
+    Silent,
 }
 
 impl Session {
+    /// Launch `exe args…` as node `node` of a fresh shared-memory run `run`, with the
+    /// coordinator's and the peers' ports of `bindings` open on this side, its log in `log`;
+    /// it is given up on after the heartbeat and stall timeouts.
+    pub(crate) fn launch(
+        exe: &Path,
+        args: &[String],
+        run: &str,
+        node: &str,
+        bindings: &[Binding],
+        log: PathBuf,
+        (heartbeat_timeout, stall_timeout): (Duration, Duration),
+    ) -> anyhow::Result<Session> {
+        let spec = TransportSpec {
+            kind: TransportKind::Shm,
+            run: run.to_string(),
+            endpoint: "coordinator".into(),
+            listen: vec![],
+            connect: vec![],
+        };
+        let mut t = transport::open(&spec).context("cannot open the transport")?;
+        let up = t.subscribe(&topic::up(run, node))?;
+        let mut outs = Vec::new();
+        let mut peers = Vec::new();
+        let me = vec![node.to_string()];
+        for b in bindings {
+            let tp = topic::data(run, &b.coupling, node);
+            outs.push(t.subscribe(&tp)?);
+            t.subscribe(&tp)?;
+            let pub_ = t.publisher(&topic::data(run, &b.coupling, &b.peer), &me)?;
+            peers.push((b.coupling.clone(), pub_));
+        }
+        let down = t.publisher(&topic::down(run, node), &me)?;
+        let child = spawn_node(exe, args, run, node, TransportKind::Shm, None, &log)
+            .map_err(|e| anyhow::anyhow!("node '{node}': {e}"))?;
+        Ok(Session {
+            t,
+            run: run.to_string(),
+            node: node.to_string(),
+            child: Some(child),
+            down,
+            peers,
+            up,
+            outs,
+            buf: Vec::new(),
+            seq: 0,
+            log,
+            heartbeat_timeout,
+            stall_timeout,
+            last_seen: Instant::now(),
+            beating: false,
+            waiting_since: None,
+            window: 0,
+            hello: false,
+            describes: Vec::new(),
+            done: None,
+            dones: Vec::new(),
+            arrived: Vec::new(),
+            meshes: Vec::new(),
+            beats: 0,
+            longest_gap: Duration::ZERO,
+            last_beat: None,
+            gone: None,
+        })
+    }
+
+    /// Send `welcome` (the heartbeat clock starts), wait up to 60 s for the node's
+    /// `Describe`, and send the set-up command (`Advance{0}`).
+    pub(crate) fn welcome_and_set_up(&mut self, welcome: &Welcome) -> anyhow::Result<()> {
+        self.send_down(&Message::Welcome(welcome.clone()))?;
+        self.beating = true;
+        self.last_seen = Instant::now();
+        self.last_beat = Some(self.last_seen);
+        self.wait("Describe", Some(Duration::from_secs(60)), |s| {
+            !s.describes.is_empty()
+        })?;
+        self.send_down(&Message::Advance(Advance {
+            window: 0,
+            t0: 0.0,
+            t1: 0.0,
+            write_output: false,
+            checkpoint: false,
+        }))
+    }
+
     fn fault(&self, reason: impl std::fmt::Display) -> anyhow::Error {
         anyhow::anyhow!(
             "node '{}': {reason} (its log: {})",
@@ -320,7 +423,7 @@ impl Session {
         )
     }
 
-    fn send_down(&mut self, m: &Message) -> anyhow::Result<()> {
+    pub(crate) fn send_down(&mut self, m: &Message) -> anyhow::Result<()> {
         self.seq += 1;
         encode_into(&mut self.buf, &self.run, "coordinator", self.seq, m)?;
         self.down
@@ -329,7 +432,7 @@ impl Session {
     }
 
     /// Send a recorded peer message on binding `i`, from the peer.
-    fn send_peer(&mut self, i: usize, peer: &str, m: &Message) -> anyhow::Result<()> {
+    pub(crate) fn send_peer(&mut self, i: usize, peer: &str, m: &Message) -> anyhow::Result<()> {
         self.seq += 1;
         encode_into(&mut self.buf, &self.run, peer, self.seq, m)?;
         let p = &mut self.peers[i];
@@ -339,7 +442,7 @@ impl Session {
     }
 
     /// Receive and act on one message; returns whether one arrived.
-    fn pump(&mut self, timeout: Duration) -> anyhow::Result<bool> {
+    pub(crate) fn pump(&mut self, timeout: Duration) -> anyhow::Result<bool> {
         let mut got = None;
         self.t.recv(timeout, &mut |id, bytes| {
             got = Some((id, codec::decode(bytes)));
@@ -370,12 +473,19 @@ impl Session {
                 }
                 self.hello = true;
             }
-            Message::Describe(_) if is_up => self.described = true,
+            Message::Describe(d) if is_up => self.describes.push(d),
             Message::Done(d) if is_up => {
                 self.waiting_since = None;
+                self.dones.push(d.window);
                 self.done = Some((d.window, d.report));
             }
             Message::Heartbeat(h) if is_up => {
+                let now = Instant::now();
+                if let Some(t) = self.last_beat {
+                    self.longest_gap = self.longest_gap.max(now - t);
+                }
+                self.last_beat = Some(now);
+                self.beats += 1;
                 if !h.waiting {
                     self.waiting_since = None;
                 } else if self.waiting_since.is_none() {
@@ -384,7 +494,7 @@ impl Session {
             }
             Message::Failed(f) if is_up => return Err(self.fault(f.reason)),
             Message::Fields(f) if !is_up => self.arrived.push(f),
-            Message::Mesh(_) if !is_up => {}
+            Message::Mesh(m) if !is_up => self.meshes.push(m),
             other => {
                 return Err(self.fault(format!("unexpected {}", other.type_name())));
             }
@@ -402,6 +512,7 @@ impl Session {
             while Instant::now() < until {
                 self.pump(Duration::from_millis(10))?;
             }
+            self.gone = Some(Gone::Exited);
             return Err(anyhow::anyhow!(
                 "node '{}': {} during window {}{}",
                 self.node,
@@ -412,6 +523,7 @@ impl Session {
         }
         // Heartbeats start with the Welcome; before it the Hello has its own limit.
         if self.beating && self.last_seen.elapsed() > self.heartbeat_timeout {
+            self.gone = Some(Gone::Silent);
             return Err(self.fault(format!(
                 "no heartbeat for {:.1} s (timeout {} s) during window {}",
                 self.last_seen.elapsed().as_secs_f64(),
@@ -433,7 +545,7 @@ impl Session {
     }
 
     /// Pump until `pred` holds, failing on a fault or after `limit`.
-    fn wait(
+    pub(crate) fn wait(
         &mut self,
         what: &str,
         limit: Option<Duration>,
@@ -453,7 +565,7 @@ impl Session {
     }
 
     /// Wait for `Done` of `window`; returns its report.
-    fn done(&mut self, window: u64) -> anyhow::Result<StepReport> {
+    pub(crate) fn done(&mut self, window: u64) -> anyhow::Result<StepReport> {
         self.wait(&format!("Done of window {window}"), None, |s| {
             s.done.as_ref().is_some_and(|d| d.0 == window)
         })?;
@@ -466,7 +578,7 @@ impl Session {
     /// End the node: `Finish` after a replay that went through (it exits on its own), `Abort`
     /// after a fault; killed if it has not exited in time. Then no process of the replay
     /// remains. Returns how the node ended.
-    fn stop(&mut self, finish: bool) -> Option<String> {
+    pub(crate) fn stop(&mut self, finish: bool) -> Option<String> {
         let m = if finish {
             Message::Finish(Finish {
                 reason: "end of the replay".into(),
@@ -711,52 +823,19 @@ fn open_and_drive(
     out: &Path,
     tolerance: f64,
 ) -> anyhow::Result<()> {
-    let spec = TransportSpec {
-        kind: TransportKind::Shm,
-        run: run.to_string(),
-        endpoint: "coordinator".into(),
-        listen: vec![],
-        connect: vec![],
-    };
-    let mut t = transport::open(&spec).context("cannot open the transport")?;
-    let up = t.subscribe(&topic::up(run, node))?;
-    let mut outs = Vec::new();
-    let mut peers = Vec::new();
-    let me = vec![node.to_string()];
-    for b in &welcome.bindings {
-        let tp = topic::data(run, &b.coupling, node);
-        outs.push(t.subscribe(&tp)?);
-        t.subscribe(&tp)?;
-        let pub_ = t.publisher(&topic::data(run, &b.coupling, &b.peer), &me)?;
-        peers.push((b.coupling.clone(), pub_));
-    }
-    let down = t.publisher(&topic::down(run, node), &me)?;
     let log = out.join(format!("{node}.log"));
-    let child = spawn_node(&rep.exe, run, node, TransportKind::Shm, None, &log)
-        .map_err(|e| anyhow::anyhow!("node '{node}': {e}"))?;
-    let mut s = Session {
-        t,
-        run: run.to_string(),
-        node: node.to_string(),
-        child: Some(child),
-        down,
-        peers,
-        up,
-        outs,
-        buf: Vec::new(),
-        seq: 0,
+    let mut s = Session::launch(
+        &rep.exe,
+        &[],
+        run,
+        node,
+        &welcome.bindings,
         log,
-        heartbeat_timeout: Duration::from_secs_f64(p.heartbeat_timeout),
-        stall_timeout: Duration::from_secs_f64(p.stall_timeout),
-        last_seen: Instant::now(),
-        beating: false,
-        waiting_since: None,
-        window: 0,
-        hello: false,
-        described: false,
-        done: None,
-        arrived: Vec::new(),
-    };
+        (
+            Duration::from_secs_f64(p.heartbeat_timeout),
+            Duration::from_secs_f64(p.stall_timeout),
+        ),
+    )?;
     let mut cmp = Comparer {
         recorded: &p.outputs,
         seen: BTreeSet::new(),
@@ -795,17 +874,7 @@ fn drive(
 ) -> anyhow::Result<()> {
     let bindings = &welcome.bindings;
     s.wait("Hello", Some(Duration::from_secs(30)), |s| s.hello)?;
-    s.send_down(&Message::Welcome(welcome.clone()))?;
-    s.beating = true;
-    s.last_seen = Instant::now();
-    s.wait("Describe", Some(Duration::from_secs(60)), |s| s.described)?;
-    s.send_down(&Message::Advance(Advance {
-        window: 0,
-        t0: 0.0,
-        t1: 0.0,
-        write_output: false,
-        checkpoint: false,
-    }))?;
+    s.welcome_and_set_up(welcome)?;
     for (i, m) in &p.peer_meshes {
         s.send_peer(*i, &bindings[*i].peer, &Message::Mesh(m.clone()))?;
     }

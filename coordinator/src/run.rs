@@ -13,6 +13,7 @@
 //! lagrange hub, stop request). Reports of a window ahead are kept until its own audit.
 
 use crate::config::{self, Case};
+use crate::contract::Contract;
 use crate::profile::{Phase, Profile};
 use crate::progress::Progress;
 use crate::record::{self, Recorder, RecorderThread};
@@ -182,6 +183,11 @@ struct Coord<'a> {
     token: String,
     t: Box<dyn Transport>,
     topics: Vec<(String, Topic)>,
+    /// Per topic (as `topics`), what its node's `Fields` must hold on a data topic that is
+    /// not a lagrange side's.
+    contracts: Vec<Option<Contract>>,
+    /// In [`Coord::culprit`]: reading what is queued behind a `Failed`.
+    draining: bool,
     nodes: Vec<NodeRt>,
     /// The recorder, on its own thread: recording never holds the window loop up.
     rec: RecorderThread,
@@ -303,11 +309,13 @@ fn mark_restart(log: &Path, window: u64, segment: &Path) -> anyhow::Result<()> {
     .with_context(|| format!("cannot write {}", log.display()))
 }
 
-/// Start node `name` of run `run` from its executable, as `cosim run` and `cosim replay` do:
-/// its stdout and stderr are appended to `log`, and it dies with this process. `connect` is the zenoh
-/// endpoint to join, where the transport needs one.
+/// Start node `name` of run `run` from its executable, as `cosim run`, `cosim replay` and
+/// `cosim conformance` do: `exe args… --run …` (`args`: the command's own arguments, e.g. a
+/// script an interpreter runs); its stdout and stderr are appended to `log`, and it dies with
+/// this process. `connect` is the zenoh endpoint to join, where the transport needs one.
 pub(crate) fn spawn_node(
     exe: &Path,
+    args: &[String],
     run: &str,
     name: &str,
     kind: TransportKind,
@@ -321,6 +329,7 @@ pub(crate) fn spawn_node(
         .map_err(|e| format!("cannot open its log {}: {e}", log.display()))?;
     let err = out.try_clone().map_err(|e| e.to_string())?;
     let mut cmd = Command::new(exe);
+    cmd.args(args);
     cmd.args(["--run", run, "--node", name, "--transport", kind.as_str()]);
     if let Some(endpoint) = connect {
         cmd.args(["--connect", endpoint]);
@@ -589,6 +598,9 @@ impl<'a> Coord<'a> {
         let mut got: Option<(TopicId, Got)> = None;
         let rec = &mut self.rec;
         let topics = &self.topics;
+        let contracts = &self.contracts;
+        // The first breach of a `Fields` against its contract (only then is anything written).
+        let mut breach: Option<String> = None;
         let sim_t = self.sim_t;
         let every = self.case.run.record_every;
         // Peer data nobody here consumes (no lagrange hub) is checked and recorded where it
@@ -622,8 +634,18 @@ impl<'a> Coord<'a> {
                     Err(e) => (Got::Full(Err(e)), None),
                 }
             } else if in_place && kind == Some(codec::FIELDS_KIND) {
-                match codec::decode_fields_head(bytes) {
-                    Ok(v) => (Got::Fields(claimed(v.sender, v.run)), Some(v.window)),
+                let contract = contracts.get(id).and_then(Option::as_ref);
+                let mut check = contract.map(Contract::check);
+                let head = codec::decode_fields_each(bytes, &mut |f| {
+                    if let Some(c) = check.as_mut() {
+                        c.field(f.name, f.components, f.len());
+                    }
+                });
+                match head {
+                    Ok(v) => {
+                        breach = check.and_then(|c| c.finish(v.window).err());
+                        (Got::Fields(claimed(v.sender, v.run)), Some(v.window))
+                    }
                     Err(e) => (Got::Full(Err(e)), None),
                 }
             } else {
@@ -631,7 +653,16 @@ impl<'a> Coord<'a> {
                 match codec::decode_ref(bytes) {
                     Ok(e) => {
                         let w = match &e.message {
-                            Message::Fields(f) => Some(f.window),
+                            Message::Fields(f) => {
+                                if let Some(c) = contracts.get(id).and_then(Option::as_ref) {
+                                    let mut check = c.check();
+                                    for x in &f.fields {
+                                        check.field(&x.name, x.components, x.values.len());
+                                    }
+                                    breach = check.finish(f.window).err();
+                                }
+                                Some(f.window)
+                            }
                             _ => None,
                         };
                         (
@@ -683,6 +714,12 @@ impl<'a> Coord<'a> {
                         ),
                     });
                 }
+                if let Some(reason) = breach {
+                    return Err(Fault {
+                        node: n.name.clone(),
+                        reason,
+                    });
+                }
                 n.last_seen = Instant::now();
                 return Ok(true);
             }
@@ -715,6 +752,12 @@ impl<'a> Coord<'a> {
             node: n.name.clone(),
             reason: format!("message on {tname} claims sender '{sender}' of run '{run}'"),
         })?;
+        if let Some(reason) = breach {
+            return Err(Fault {
+                node: n.name.clone(),
+                reason,
+            });
+        }
         n.last_seen = Instant::now();
         match message {
             Message::Hello(h) => {
@@ -753,6 +796,12 @@ impl<'a> Coord<'a> {
                         node: n.name.clone(),
                         reason: format!("refused at the handshake: {e}"),
                     })?;
+                    // Its interfaces size the data of the couplings it drives.
+                    for c in self.contracts.iter_mut().flatten() {
+                        for i in &d.interfaces {
+                            c.learn(&n.name, i);
+                        }
+                    }
                 }
                 n.described += 1;
                 n.stable_dt = d.stable_dt;
@@ -785,10 +834,11 @@ impl<'a> Coord<'a> {
                     .as_deref()
                     .map(|l| format!(" (its log: {})", l.display()))
                     .unwrap_or_default();
-                return Err(Fault {
+                let failed = Fault {
                     node: n.name.clone(),
                     reason: format!("{}{log}", f.reason),
-                });
+                };
+                return Err(self.culprit(failed));
             }
             Message::Mesh(m) => {
                 let name = n.name.clone();
@@ -806,6 +856,27 @@ impl<'a> Coord<'a> {
             }
         }
         Ok(true)
+    }
+
+    /// The fault to report for node `failed`'s `Failed`: a node often fails on what a peer
+    /// sent it, and the peer's breaking `Fields` may still be queued here (another topic).
+    /// What is queued is read for a moment; a breach found there names the node at fault.
+    fn culprit(&mut self, failed: Fault) -> Fault {
+        if self.draining {
+            return failed;
+        }
+        self.draining = true;
+        let deadline = Instant::now() + Duration::from_millis(100);
+        let mut found = None;
+        while found.is_none() && Instant::now() < deadline {
+            match self.pump_one(Duration::from_millis(10)) {
+                Err(f) if f.reason.starts_with(crate::contract::BREACH) => found = Some(f),
+                Err(_) | Ok(false) => break,
+                Ok(true) => {}
+            }
+        }
+        self.draining = false;
+        found.unwrap_or(failed)
     }
 
     /// A side's mesh or fields on a lagrange coupling: to its hub, and what the hub answers
@@ -1206,12 +1277,14 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
     // Nodes that joined from elsewhere watch this token: it goes when cosim dies.
     t.declare_alive()?;
     let mut topics = Vec::new();
+    let mut contracts = Vec::new();
     let order = config::window_order(case).map_err(|e| anyhow::anyhow!("{e}"))?;
     let idx = |n: &str| case.nodes.iter().position(|x| x.name == n).unwrap_or(0);
     for (i, n) in case.nodes.iter().enumerate() {
         let tp = topic::up(&run_id, &n.name);
         t.subscribe(&tp)?;
         topics.push((tp, Topic::Up(i)));
+        contracts.push(None);
     }
     let mut hubs = Vec::new();
     for c in &case.couplings {
@@ -1224,10 +1297,18 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             )?;
             hubs.push((crate::lagrange::Hub::new(c, case.run.window), p));
         }
-        for (side, _) in c.members() {
+        for (k, (side, _)) in c.members().into_iter().enumerate() {
             let tp = topic::data(&run_id, &c.name, side);
             t.subscribe(&tp)?;
             topics.push((tp, Topic::Data(idx(side))));
+            // Members are the driver, then the responder, where there is a contract.
+            let role = if k == 0 {
+                Role::Driver
+            } else {
+                Role::Responder
+            };
+            contracts
+                .push((c.kind != CouplingKind::Lagrange).then(|| Contract::in_case(case, c, role)));
         }
     }
     let token = format!("{:016x}", {
@@ -1275,6 +1356,8 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         token,
         t,
         topics,
+        contracts,
+        draining: false,
         nodes,
         rec,
         buf: Vec::new(),
@@ -1848,7 +1931,7 @@ fn drive(
         let Some(exe) = &n.exe else { continue };
         let connect = (case.run.transport == TransportKind::Zenoh).then_some(listen);
         let log = out.join(format!("{}.log", n.name));
-        let child = spawn_node(exe, &c.run, &n.name, case.run.transport, connect, &log)
+        let child = spawn_node(exe, &[], &c.run, &n.name, case.run.transport, connect, &log)
             .map_err(|e| fault(&n.name, e))?;
         c.nodes[i].child = Some(child);
         c.nodes[i].log = Some(log);

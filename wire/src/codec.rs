@@ -323,7 +323,7 @@ impl<'a> FieldView<'a> {
 
 /// The body of an envelope holding `Message::Fields`, field by field as bincode lays it out:
 /// the enum's variant index is a varint like a `u32`, then the `Fields` struct.
-/// `F` holds the fields: a vector of views, or [`CheckedFields`].
+/// `F` holds the fields: a vector of views.
 #[derive(Deserialize)]
 #[serde(bound(deserialize = "F: Deserialize<'de>"))]
 struct FieldsBody<'a, F> {
@@ -334,31 +334,6 @@ struct FieldsBody<'a, F> {
     window: u64,
     time: f64,
     fields: F,
-}
-
-/// The fields of a `Fields` body checked as they are read (each a whole number of f64
-/// values), and not kept: [`decode_fields_head`] allocates nothing.
-struct CheckedFields;
-
-impl<'de> Deserialize<'de> for CheckedFields {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        d.deserialize_seq(CheckedFields)
-    }
-}
-
-impl<'de> Visitor<'de> for CheckedFields {
-    type Value = CheckedFields;
-
-    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        f.write_str("fields")
-    }
-
-    fn visit_seq<A: SeqAccess<'de>>(self, mut s: A) -> Result<Self, A::Error> {
-        while let Some(f) = s.next_element::<FieldView<'de>>()? {
-            whole_values(&f).map_err(serde::de::Error::custom)?;
-        }
-        Ok(CheckedFields)
-    }
 }
 
 /// A field's bytes must be a whole number of f64 values.
@@ -433,7 +408,21 @@ pub struct FieldsHead<'a> {
 /// window (the coordinator records peer data it does not read, every window): nothing is
 /// allocated. Never panics.
 pub fn decode_fields_head(bytes: &[u8]) -> Result<FieldsHead<'_>, CodecError> {
-    let (h, b) = read_fields::<CheckedFields>(bytes)?;
+    decode_fields_each(bytes, &mut |_| {})
+}
+
+/// [`decode_fields_head`], handing each field to `each` as it is read (its name, components
+/// and values in place; the fields before a decoding error included): a reader checks what
+/// a `Fields` holds without keeping it, allocating nothing. Never panics.
+pub fn decode_fields_each<'a>(
+    bytes: &'a [u8],
+    each: &mut dyn FnMut(&FieldView<'a>),
+) -> Result<FieldsHead<'a>, CodecError> {
+    let (h, body) = header_of_kind(bytes, FIELDS_KIND)?;
+    let cfg = config::standard().with_limit::<MAX_BODY>();
+    let (b, used) = bincode::serde::seed_decode_from_slice(FieldsSeed(each), body, cfg)
+        .map_err(|e| CodecError::Body(e.to_string()))?;
+    body_read(&h, b.variant, FIELDS_VARIANT, used, body.len())?;
     Ok(FieldsHead {
         run: b.run,
         sender: b.sender,
@@ -442,6 +431,84 @@ pub fn decode_fields_head(bytes: &[u8]) -> Result<FieldsHead<'_>, CodecError> {
         window: b.window,
         time: b.time,
     })
+}
+
+/// The body of a `Fields` envelope as bincode lays it out (run, sender, the enum's variant
+/// index, then the `Fields` struct), each field handed to the callback and not kept.
+struct FieldsSeed<'f, 'a>(&'f mut dyn FnMut(&FieldView<'a>));
+
+/// What [`FieldsSeed`] keeps of a `Fields` body: all but the fields.
+struct FieldsRouting<'a> {
+    run: &'a str,
+    sender: &'a str,
+    variant: u32,
+    coupling: &'a str,
+    window: u64,
+    time: f64,
+}
+
+impl<'a> DeserializeSeed<'a> for FieldsSeed<'_, 'a> {
+    type Value = FieldsRouting<'a>;
+
+    fn deserialize<D: Deserializer<'a>>(self, d: D) -> Result<Self::Value, D::Error> {
+        d.deserialize_tuple(ANY_LEN, self)
+    }
+}
+
+impl<'a> Visitor<'a> for FieldsSeed<'_, 'a> {
+    type Value = FieldsRouting<'a>;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a Fields envelope body")
+    }
+
+    fn visit_seq<A: SeqAccess<'a>>(self, mut s: A) -> Result<Self::Value, A::Error> {
+        let mut b = FieldsRouting {
+            run: s.next_element()?.ok_or_else(|| missing("the run"))?,
+            sender: s.next_element()?.ok_or_else(|| missing("the sender"))?,
+            variant: s.next_element()?.ok_or_else(|| missing("the kind"))?,
+            coupling: "",
+            window: 0,
+            time: 0.0,
+        };
+        if b.variant != FIELDS_VARIANT {
+            return Ok(b);
+        }
+        b.coupling = s.next_element()?.ok_or_else(|| missing("the coupling"))?;
+        b.window = s.next_element()?.ok_or_else(|| missing("the window"))?;
+        b.time = s.next_element()?.ok_or_else(|| missing("the time"))?;
+        s.next_element_seed(EachField(self.0))?
+            .ok_or_else(|| missing("the fields"))?;
+        Ok(b)
+    }
+}
+
+/// The fields of a `Fields` body, each checked to be a whole number of f64 values and
+/// handed to the callback.
+struct EachField<'f, 'a>(&'f mut dyn FnMut(&FieldView<'a>));
+
+impl<'a> DeserializeSeed<'a> for EachField<'_, 'a> {
+    type Value = ();
+
+    fn deserialize<D: Deserializer<'a>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_seq(self)
+    }
+}
+
+impl<'a> Visitor<'a> for EachField<'_, 'a> {
+    type Value = ();
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("fields")
+    }
+
+    fn visit_seq<A: SeqAccess<'a>>(self, mut s: A) -> Result<(), A::Error> {
+        while let Some(f) = s.next_element::<FieldView<'a>>()? {
+            whole_values(&f).map_err(serde::de::Error::custom)?;
+            (self.0)(&f);
+        }
+        Ok(())
+    }
 }
 
 /// `Message::Fields`'s variant index in the enum (its declaration order).

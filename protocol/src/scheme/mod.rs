@@ -153,6 +153,33 @@ pub trait Scheme: Sync {
     }
 }
 
+/// Values per point of the field names the schemes exchange (PROTOCOL.md 5.3, `Field`):
+/// vectors have 3 components whatever the model's dimension (a bar's force is `[f, 0, 0]`),
+/// scalars 1. A receiver sizes its inputs by them, so a sender must keep to them.
+pub const FIELD_COMPONENTS: &[(&str, u32)] = &[
+    ("position", 3),
+    ("velocity", 3),
+    ("displacement", 3),
+    ("acceleration", 3),
+    ("rotation", 3),
+    ("normal", 3),
+    ("angular_velocity", 3),
+    ("force", 3),
+    ("moment", 3),
+    ("mass", 1),
+    ("stiffness", 1),
+    ("volume", 1),
+];
+
+/// The components per point of field `name` by [`FIELD_COMPONENTS`] (None: a name outside
+/// it, whose sender says how many).
+pub fn components_of(name: &str) -> Option<u32> {
+    FIELD_COMPONENTS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|&(_, c)| c)
+}
+
 /// The scheme of a coupling kind.
 pub fn of(kind: CouplingKind) -> &'static dyn Scheme {
     match kind {

@@ -1,0 +1,659 @@
+//! `cosim conformance -- NODE_COMMAND [ARGS…]`: one node executable, in any language, driven
+//! through a whole short run against a peer that `cosim` plays itself, and held to the rules
+//! of PROTOCOL.md one by one (its section 9 lists them). The node is launched, welcomed and
+//! fed as `cosim replay` does it (`replay::Session`), with a scripted peer instead of a
+//! recorded one: the peer's mesh is the node's own interface, its motion a small constant
+//! velocity, its loads zero. Each rule ends PASS, FAIL (with the reason) or not reached
+//! (an earlier failure ended the drive).
+
+use crate::config::{self, CouplingConfig, NodeConfig};
+use crate::contract::Contract;
+use crate::replay::{Gone, Session};
+use crate::run::pick_run_id;
+use protocol::scheme;
+use protocol::*;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// What `cosim conformance` is asked to check.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// The node's command: an executable (a path, or a name beside `cosim`) and its own
+    /// arguments (e.g. `python3 bar.py`).
+    pub command: Vec<String>,
+    pub model: String,
+    /// The node's parameter table (`[nodes.NAME.params]` of a case).
+    pub params: toml::Table,
+    /// The interface to couple (default: the first the node describes).
+    pub interface: Option<String>,
+    pub kind: CouplingKind,
+    /// The node's role; `cosim` plays the other.
+    pub role: Role,
+    pub windows: u64,
+    /// The window (s); default: the node's stable step, or 1 µs if it states none.
+    pub window: Option<f64>,
+    /// Where the node's log, output and checkpoint go.
+    pub output: PathBuf,
+}
+
+/// How a rule ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Outcome {
+    Pass,
+    Fail,
+    /// An earlier failure ended the drive before the rule could be checked.
+    NotReached,
+}
+
+/// One rule of PROTOCOL.md and how the node fared.
+#[derive(Debug, Clone)]
+pub struct Verdict {
+    /// The section of PROTOCOL.md that states it.
+    pub section: &'static str,
+    pub rule: &'static str,
+    pub outcome: Outcome,
+    pub reason: String,
+}
+
+impl std::fmt::Display for Verdict {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        let tag = match self.outcome {
+            Outcome::Pass => "PASS",
+            Outcome::Fail => "FAIL",
+            Outcome::NotReached => "----",
+        };
+        write!(
+            f,
+            "{tag}  {:<16} {}: {}",
+            self.section, self.rule, self.reason
+        )
+    }
+}
+
+/// The rules, in the order a run meets them: (name, section).
+const RULES: [(&str, &str); 12] = [
+    ("describe", "§2 --describe"),
+    ("hello", "§4.2 item 2"),
+    ("welcome-describe", "§4.2 item 4"),
+    ("mesh", "§4.2 item 6"),
+    ("set-up", "§4.2 item 6"),
+    ("fields-match-binding", "§5.3 Fields"),
+    ("finite-values", "§4.4 Divergence"),
+    ("windows-in-order", "§4.2 items 7-8"),
+    ("heartbeat", "§4.4 Heartbeat"),
+    ("checkpoint", "§4.5"),
+    ("finish", "§4.2 item 9"),
+    ("cleanup", "§3 Cleanup"),
+];
+
+/// The heartbeat period the node is given (ms), and the longest gap tolerated between two
+/// beats: ten periods (a loaded machine delays a thread; a node that stops beating is found
+/// by the heartbeat timeout of 3 s, as `cosim run` finds it).
+const HEARTBEAT_MS: u64 = 100;
+const LONGEST_GAP: Duration = Duration::from_millis(10 * HEARTBEAT_MS);
+/// How long the peer idles after each window: heartbeats must go on while the node waits.
+const IDLE: Duration = Duration::from_millis(250);
+/// The peer's constant velocity along x (m/s): small, so any solid follows it.
+const PEER_VELOCITY: [f64; 3] = [1e-3, 0.0, 0.0];
+
+/// The verdicts being gathered.
+struct Sheet(Vec<Verdict>);
+
+impl Sheet {
+    fn new() -> Sheet {
+        Sheet(
+            RULES
+                .iter()
+                .map(|&(rule, section)| Verdict {
+                    section,
+                    rule,
+                    outcome: Outcome::NotReached,
+                    reason: "not reached".into(),
+                })
+                .collect(),
+        )
+    }
+
+    fn set(&mut self, rule: &str, outcome: Outcome, reason: impl Into<String>) {
+        if let Some(v) = self.0.iter_mut().find(|v| v.rule == rule) {
+            // A rule broken once stays broken.
+            if v.outcome != Outcome::Fail {
+                v.outcome = outcome;
+                v.reason = reason.into();
+            }
+        }
+    }
+
+    fn pass(&mut self, rule: &str, reason: impl Into<String>) {
+        self.set(rule, Outcome::Pass, reason);
+    }
+
+    fn fail(&mut self, rule: &str, reason: impl Into<String>) {
+        self.set(rule, Outcome::Fail, reason);
+    }
+
+    fn outcome(&self, rule: &str) -> Outcome {
+        self.0
+            .iter()
+            .find(|v| v.rule == rule)
+            .map_or(Outcome::NotReached, |v| v.outcome)
+    }
+}
+
+/// Whether every rule passed.
+pub fn all_pass(verdicts: &[Verdict]) -> bool {
+    verdicts.iter().all(|v| v.outcome == Outcome::Pass)
+}
+
+/// Drive the node of `o` through a short run and check it; one verdict per rule of
+/// [`RULES`]. An error is `cosim`'s own trouble (no transport), not the node's.
+pub fn check(o: &Options) -> anyhow::Result<Vec<Verdict>> {
+    let mut sheet = Sheet::new();
+    let Some((program, args)) = o.command.split_first() else {
+        anyhow::bail!("no node command given");
+    };
+    let exe = config::resolve_exe(program, Path::new(".")).unwrap_or_else(|| program.into());
+    std::fs::create_dir_all(&o.output)?;
+    let node = NodeConfig {
+        name: "node".into(),
+        solver: program.clone(),
+        exe: Some(exe.clone()),
+        model: o.model.clone(),
+        params: o.params.clone(),
+        remote: false,
+        interfaces: None,
+        fields: Vec::new(),
+        points: Vec::new(),
+        window_limits: Vec::new(),
+    };
+    let d =
+        match crate::describe::describe_one(&exe, args, &node, crate::describe::DESCRIBE_TIMEOUT) {
+            Ok(d) => d,
+            Err(e) => {
+                sheet.fail("describe", format!("{}: {}", e.key, e.reason));
+                return Ok(sheet.0);
+            }
+        };
+    let Some(iface) = d
+        .interfaces
+        .iter()
+        .find(|i| o.interface.as_ref().is_none_or(|n| *n == i.name))
+    else {
+        sheet.fail(
+            "describe",
+            format!(
+                "no interface {} among those described",
+                o.interface.as_deref().unwrap_or("at all")
+            ),
+        );
+        return Ok(sheet.0);
+    };
+    let coupling = coupling_of(o, &iface.name);
+    let needs = config::required_fields(&coupling);
+    let lacking: Vec<String> = needs
+        .iter()
+        .filter(|n| n.member.0 == "node")
+        .flat_map(|n| {
+            let have = if n.provide {
+                &iface.provides
+            } else {
+                &iface.accepts
+            };
+            let verb = if n.provide { "provide" } else { "accept" };
+            n.fields
+                .iter()
+                .filter(|f| !have.contains(f))
+                .map(move |f| format!("does not {verb} '{f}'"))
+        })
+        .collect();
+    if lacking.is_empty() {
+        sheet.pass(
+            "describe",
+            format!(
+                "model '{}', interface '{}' of {} points, stable step {}",
+                d.model,
+                iface.name,
+                iface.points,
+                d.stable_dt
+                    .map_or_else(|| "none".to_string(), |s| format!("{s:e} s"))
+            ),
+        );
+    } else {
+        sheet.fail(
+            "describe",
+            format!(
+                "interface '{}' as the {} {}: {}",
+                iface.name,
+                o.kind.as_str(),
+                role_name(o.role),
+                lacking.join(", ")
+            ),
+        );
+        return Ok(sheet.0);
+    }
+    let window = o.window.or(d.stable_dt).unwrap_or(1e-6);
+    let drive = Drive {
+        o,
+        binding: binding_of(o, &coupling),
+        contract: Contract::of(&coupling, o.role, true, Some(iface.points), &iface.provides),
+        described: iface.clone(),
+        window,
+        checkpoint_at: o.windows.saturating_sub(1).max(1),
+    };
+    let run = pick_run_id("conformance");
+    let mut s = Session::launch(
+        &exe,
+        args,
+        &run,
+        "node",
+        std::slice::from_ref(&drive.binding),
+        o.output.join("node.log"),
+        (Duration::from_secs(3), Duration::from_secs(30)),
+    )?;
+    let went = drive.run(&mut s, &mut sheet);
+    let ended = s.stop(went.is_ok());
+    match (went, ended) {
+        (Ok(()), Some(how)) if how == "exited with status 0" => {
+            sheet.pass("finish", "Finish answered by exit status 0");
+        }
+        (Ok(()), how) => sheet.fail(
+            "finish",
+            format!(
+                "after Finish the node {}",
+                how.as_deref().unwrap_or("was gone")
+            ),
+        ),
+        (Err(e), _) => {
+            let e = format!("{e:#}");
+            match s.gone {
+                Some(Gone::Silent) => sheet.fail("heartbeat", e),
+                Some(Gone::Exited) => sheet.fail("finish", format!("ended before Finish: {e}")),
+                None => {
+                    let at = RULES
+                        .iter()
+                        .map(|r| r.0)
+                        .find(|r| sheet.outcome(r) == Outcome::NotReached)
+                        .unwrap_or("finish");
+                    sheet.fail(at, e);
+                }
+            }
+        }
+    }
+    let finished = sheet.outcome("finish") == Outcome::Pass;
+    drop(s);
+    // Only what the node left is left: cosim's own ports went with the session. iceoryx2's
+    // management file of the run's configuration is no process's: the sweep after every run
+    // removes it.
+    let left: Vec<PathBuf> = protocol::transport::shm::shm_files(&run)
+        .into_iter()
+        .filter(|p| !p.to_string_lossy().ends_with(".global_mgmt"))
+        .collect();
+    protocol::transport::cleanup(protocol::transport::TransportKind::Shm, &run);
+    if finished {
+        if left.is_empty() {
+            sheet.pass("cleanup", "nothing of the run left in /dev/shm");
+        } else {
+            let names: Vec<String> = left.iter().map(|p| p.display().to_string()).collect();
+            sheet.fail(
+                "cleanup",
+                format!("left after its exit: {}", names.join(", ")),
+            );
+        }
+    }
+    Ok(sheet.0)
+}
+
+/// The coupling the node is checked in: its interface on the side of its role, `cosim`'s
+/// peer (named `peer`, on an interface of the same name) on the other, the scheme's fields.
+fn coupling_of(o: &Options, iface: &str) -> CouplingConfig {
+    let me = ("node".to_string(), iface.to_string());
+    let peer = ("peer".to_string(), iface.to_string());
+    let (driver, responder) = match o.role {
+        Role::Driver => (me, peer),
+        Role::Responder => (peer, me),
+    };
+    let (driver_fields, responder_fields) = config::default_fields(o.kind);
+    CouplingConfig {
+        name: "conformance".into(),
+        kind: o.kind,
+        driver,
+        responder,
+        driver_fields,
+        responder_fields,
+        decouple: Default::default(),
+        sides: Vec::new(),
+        method: None,
+    }
+}
+
+/// The node's binding in `c`, as `cosim run` would give it (serial schedule).
+fn binding_of(o: &Options, c: &CouplingConfig) -> Binding {
+    let (me, peer, sends, receives) = match o.role {
+        Role::Driver => (
+            &c.driver,
+            &c.responder,
+            &c.driver_fields,
+            &c.responder_fields,
+        ),
+        Role::Responder => (
+            &c.responder,
+            &c.driver,
+            &c.responder_fields,
+            &c.driver_fields,
+        ),
+    };
+    Binding {
+        coupling: c.name.clone(),
+        kind: c.kind,
+        interface: me.1.clone(),
+        role: o.role,
+        peer: peer.0.clone(),
+        peer_interface: peer.1.clone(),
+        sends: sends.clone(),
+        receives: receives.clone(),
+        input_lag: scheme::of(c.kind).input_lag(o.role, true),
+    }
+}
+
+fn role_name(r: Role) -> &'static str {
+    match r {
+        Role::Driver => "driver",
+        Role::Responder => "responder",
+    }
+}
+
+/// One drive of the node through handshake, set-up, windows, a checkpoint and `Finish`.
+struct Drive<'a> {
+    o: &'a Options,
+    binding: Binding,
+    contract: Contract,
+    /// The interface as `--describe` gave it.
+    described: InterfaceDescription,
+    window: f64,
+    checkpoint_at: u64,
+}
+
+impl Drive<'_> {
+    fn run(&self, s: &mut Session, sheet: &mut Sheet) -> anyhow::Result<()> {
+        let o = self.o;
+        let started = Instant::now();
+        s.wait("Hello", Some(Duration::from_secs(60)), |s| s.hello)?;
+        sheet.pass(
+            "hello",
+            format!(
+                "Hello after {:.2} s, protocol {}",
+                started.elapsed().as_secs_f64(),
+                codec::PROTOCOL_VERSION
+            ),
+        );
+        let run_dir = &o.output;
+        s.welcome_and_set_up(&Welcome {
+            run: s.run.clone(),
+            model: o.model.clone(),
+            params_toml: toml::to_string(&o.params)?,
+            bindings: vec![self.binding.clone()],
+            output_dir: run_dir.join("node").display().to_string(),
+            heartbeat_ms: HEARTBEAT_MS,
+        })?;
+        self.check_describe(&s.describes[0], sheet);
+        s.wait("Mesh", Some(Duration::from_secs(60)), |s| {
+            !s.meshes.is_empty()
+        })?;
+        let mesh = s.meshes[0].mesh.clone();
+        self.check_mesh(&s.meshes[0], sheet);
+        let b = &self.binding;
+        s.send_peer(
+            0,
+            &b.peer,
+            &Message::Mesh(Mesh {
+                coupling: b.coupling.clone(),
+                interface: b.peer_interface.clone(),
+                mesh: mesh.clone(),
+            }),
+        )?;
+        let sch = scheme::of(b.kind);
+        let reads_setup = [0, 1]
+            .iter()
+            .any(|&w| sch.input_window(b.role, b.input_lag, None, w) == Some(0));
+        if reads_setup {
+            let f = self.peer_fields(&mesh, 0, 0.0);
+            s.send_peer(0, &b.peer, &Message::Fields(f))?;
+        }
+        s.wait("Done of the set-up", Some(Duration::from_secs(60)), |s| {
+            s.done.as_ref().is_some_and(|d| d.0 == 0)
+        })?;
+        let mut sent = vec![false; o.windows as usize + 1];
+        self.idle(s, sheet, &mut sent)?;
+        if sent[0] && s.describes.len() >= 2 {
+            sheet.pass("set-up", "Fields{0}, a second Describe, Done{0}");
+        } else {
+            sheet.fail(
+                "set-up",
+                format!(
+                    "{}{}",
+                    if sent[0] { "" } else { "no Fields{0}; " },
+                    if s.describes.len() >= 2 {
+                        "".to_string()
+                    } else {
+                        format!("{} Describe(s), 2 expected", s.describes.len())
+                    }
+                ),
+            );
+        }
+        for k in 1..=o.windows {
+            let (t0, t1) = ((k - 1) as f64 * self.window, k as f64 * self.window);
+            s.window = k;
+            s.send_down(&Message::Advance(Advance {
+                window: k,
+                t0,
+                t1,
+                write_output: false,
+                checkpoint: k == self.checkpoint_at,
+            }))?;
+            let f = self.peer_fields(&mesh, k, t1);
+            s.send_peer(0, &b.peer, &Message::Fields(f))?;
+            s.wait(
+                &format!("Done of window {k}"),
+                Some(Duration::from_secs(60)),
+                |s| s.done.as_ref().is_some_and(|d| d.0 == k),
+            )?;
+            if k == self.checkpoint_at {
+                self.check_checkpoint(k, t1, sheet);
+            }
+            self.idle(s, sheet, &mut sent)?;
+        }
+        let expected: Vec<u64> = (0..=o.windows).collect();
+        let missing: Vec<String> = sent
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| !**s)
+            .map(|(k, _)| k.to_string())
+            .collect();
+        if s.dones == expected && missing.is_empty() {
+            sheet.pass(
+                "windows-in-order",
+                format!("Fields and Done for windows 0 to {}", o.windows),
+            );
+        } else {
+            sheet.fail(
+                "windows-in-order",
+                format!(
+                    "Done windows {:?} (expected {expected:?}){}",
+                    s.dones,
+                    if missing.is_empty() {
+                        String::new()
+                    } else {
+                        format!("; no Fields of window(s) {}", missing.join(", "))
+                    }
+                ),
+            );
+        }
+        let gap = s.longest_gap;
+        if s.beats >= 2 && gap <= LONGEST_GAP {
+            sheet.pass(
+                "heartbeat",
+                format!(
+                    "{} heartbeats, at most {:.0} ms apart (period {HEARTBEAT_MS} ms)",
+                    s.beats,
+                    gap.as_secs_f64() * 1e3
+                ),
+            );
+        } else {
+            sheet.fail(
+                "heartbeat",
+                format!(
+                    "{} heartbeats, up to {:.0} ms apart: the period is {HEARTBEAT_MS} ms, {:.0} ms at most tolerated",
+                    s.beats,
+                    gap.as_secs_f64() * 1e3,
+                    LONGEST_GAP.as_secs_f64() * 1e3
+                ),
+            );
+        }
+        if sheet.outcome("fields-match-binding") == Outcome::NotReached {
+            sheet.pass(
+                "fields-match-binding",
+                format!(
+                    "every Fields holds what its binding says ({} points)",
+                    self.described.points
+                ),
+            );
+        }
+        if sheet.outcome("finite-values") == Outcome::NotReached {
+            sheet.pass("finite-values", "every value sent is finite");
+        }
+        Ok(())
+    }
+
+    /// Let the node idle a moment (its heartbeats go on), then check the `Fields` that came
+    /// meanwhile; `sent[k]` marks the windows whose `Fields` arrived.
+    fn idle(&self, s: &mut Session, sheet: &mut Sheet, sent: &mut [bool]) -> anyhow::Result<()> {
+        let until = Instant::now() + IDLE;
+        while Instant::now() < until {
+            s.pump(Duration::from_millis(10))?;
+        }
+        for f in std::mem::take(&mut s.arrived) {
+            if let Some(x) = sent.get_mut(f.window as usize) {
+                *x = true;
+            }
+            self.check_fields(&f, sheet);
+        }
+        Ok(())
+    }
+
+    fn check_describe(&self, d: &Describe, sheet: &mut Sheet) {
+        let want = &self.described;
+        match d.interfaces.iter().find(|i| i.name == want.name) {
+            Some(i) if i == want => sheet.pass(
+                "welcome-describe",
+                format!("interface '{}' as --describe gave it", i.name),
+            ),
+            Some(i) => sheet.fail(
+                "welcome-describe",
+                format!("interface differs from --describe's: {i:?} against {want:?}"),
+            ),
+            None => sheet.fail(
+                "welcome-describe",
+                format!("no interface '{}' in its Describe", want.name),
+            ),
+        }
+    }
+
+    fn check_mesh(&self, m: &Mesh, sheet: &mut Sheet) {
+        let b = &self.binding;
+        let n = m.mesh.len() as u64;
+        if m.coupling == b.coupling && m.interface == b.interface && n == self.described.points {
+            sheet.pass("mesh", format!("interface '{}', {n} points", m.interface));
+        } else {
+            sheet.fail(
+                "mesh",
+                format!(
+                    "Mesh of coupling '{}', interface '{}', {n} points; expected '{}', '{}', {} points",
+                    m.coupling, m.interface, b.coupling, b.interface, self.described.points
+                ),
+            );
+        }
+    }
+
+    fn check_fields(&self, f: &Fields, sheet: &mut Sheet) {
+        let mut check = self.contract.check();
+        for x in &f.fields {
+            check.field(&x.name, x.components, x.values.len());
+        }
+        if let Err(e) = check.finish(f.window) {
+            sheet.fail("fields-match-binding", e);
+        }
+        if let Err(e) = protocol::diverged::check_fields(f) {
+            sheet.fail("finite-values", e.to_string());
+        }
+    }
+
+    fn check_checkpoint(&self, k: u64, t1: f64, sheet: &mut Sheet) {
+        let file = protocol::checkpoint::file(&self.o.output, k, "node");
+        match protocol::checkpoint::Checkpoint::read(&file) {
+            Ok(c) if c.node == "node" && c.window == k && c.time == t1 => sheet.pass(
+                "checkpoint",
+                format!(
+                    "window {k} saved before its Done ({} bytes of state)",
+                    c.payload.len()
+                ),
+            ),
+            Ok(c) => sheet.fail(
+                "checkpoint",
+                format!(
+                    "{} is of node '{}', window {} at t = {:e} s; expected 'node', {k}, {t1:e} s",
+                    file.display(),
+                    c.node,
+                    c.window,
+                    c.time
+                ),
+            ),
+            Err(e) => sheet.fail(
+                "checkpoint",
+                format!("Done of window {k} came, but {}: {e}", file.display()),
+            ),
+        }
+    }
+
+    /// What `cosim`'s peer sends for window `k` (0: set-up, with its set-up fields): per
+    /// point of the node's mesh, the peer's motion (its position moving at
+    /// [`PEER_VELOCITY`] from the mesh, that velocity), zero loads, zero mass and stiffness,
+    /// and any other field as zeros.
+    fn peer_fields(&self, mesh: &InterfaceMesh, k: u64, t: f64) -> Fields {
+        let b = &self.binding;
+        let sch = scheme::of(b.kind);
+        let peer = match b.role {
+            Role::Driver => Role::Responder,
+            Role::Responder => Role::Driver,
+        };
+        let mut names: Vec<&str> = b.receives.iter().map(String::as_str).collect();
+        if k == 0 {
+            names.extend(sch.setup_sends(peer));
+        }
+        let fields = names
+            .into_iter()
+            .map(|name| {
+                let c = scheme::components_of(name).unwrap_or(1);
+                let values = match name {
+                    "position" => mesh
+                        .positions
+                        .iter()
+                        .flat_map(|p| (0..3).map(move |d| p[d] + PEER_VELOCITY[d] * t))
+                        .collect(),
+                    "velocity" => mesh.positions.iter().flat_map(|_| PEER_VELOCITY).collect(),
+                    _ => vec![0.0; mesh.len() * c as usize],
+                };
+                Field {
+                    name: name.to_string(),
+                    components: c,
+                    values,
+                }
+            })
+            .collect();
+        Fields {
+            coupling: b.coupling.clone(),
+            window: k,
+            time: t,
+            fields,
+        }
+    }
+}

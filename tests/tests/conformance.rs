@@ -1,0 +1,279 @@
+//! `cosim conformance -- NODE_COMMAND`: a node is driven through a short run against the peer
+//! cosim plays and held to each rule of PROTOCOL.md (section 9). The built-in bar, the Python
+//! bar and the C bar pass every rule; the built-in bar with one fault (`cosim-faulty`) fails
+//! exactly the rule its fault breaks, and the exit status says so.
+//!
+//! The Python and C bars need the Python package and a C compiler: under `CI=true` a missing
+//! one is a failure, elsewhere the test is skipped with a message.
+
+use cosim_tests::*;
+use std::collections::BTreeMap;
+
+/// The rules PROTOCOL.md section 9 lists, by name.
+const RULES: [&str; 12] = [
+    "describe",
+    "hello",
+    "welcome-describe",
+    "mesh",
+    "set-up",
+    "fields-match-binding",
+    "finite-values",
+    "windows-in-order",
+    "heartbeat",
+    "checkpoint",
+    "finish",
+    "cleanup",
+];
+
+/// The parameters of the right half of examples/split_bar.toml, coupled at its `root`.
+const RIGHT_HALF: &str = "length = 0.5\nx0 = 0.5\nelements = 300\nyoung = 200e9\n\
+    density = 7860.0\narea = 1e-4\nfixed = \"none\"\ntip_force = 1000.0\n\
+    load_end = \"right\"\ncourant = 0.5\ninterfaces = { root = \"left\" }\n";
+
+/// The parameters of its left half, which drives the coupling at its `tip`.
+const LEFT_HALF: &str = "length = 0.5\nelements = 100\nyoung = 200e9\ndensity = 7860.0\n\
+    area = 1e-4\nfixed = \"left\"\nload_end = \"none\"\ncourant = 1.0\n\
+    interfaces = { tip = \"right\" }\n";
+
+/// `cosim conformance` of `command` as the bar's right half, its parameters with `extra`
+/// lines; returns the exit code, each rule's tag (PASS, FAIL or ----) and reason, and the
+/// whole output.
+fn conformance(
+    tag: &str,
+    extra: &str,
+    command: &[&str],
+) -> (Option<i32>, BTreeMap<String, (String, String)>, String) {
+    conformance_as(
+        tag,
+        "bar-1d",
+        &format!("{RIGHT_HALF}{extra}\n"),
+        &[],
+        command,
+    )
+}
+
+/// `cosim conformance` of `command` as model `model` with the parameters `params` and the
+/// options `options`.
+fn conformance_as(
+    tag: &str,
+    model: &str,
+    params: &str,
+    options: &[&str],
+    command: &[&str],
+) -> (Option<i32>, BTreeMap<String, (String, String)>, String) {
+    let (dir, _) = scratch(tag);
+    let params_file = dir.join("params.toml");
+    std::fs::write(&params_file, params).expect("write params");
+    let out = dir.join("out");
+    let mut args = vec![
+        "conformance",
+        "--model",
+        model,
+        "--params",
+        params_file.to_str().unwrap(),
+        "--output",
+        out.to_str().unwrap(),
+    ];
+    args.extend(options);
+    args.push("--");
+    args.extend(command);
+    let o = cosim(&args);
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    println!("{text}");
+    let mut rules = BTreeMap::new();
+    for line in text.lines() {
+        let Some((tag, rest)) = line.split_once("  ") else {
+            continue;
+        };
+        if !["PASS", "FAIL", "----"].contains(&tag) {
+            continue;
+        }
+        // `§… rule: reason`: the rule is the word before the first ": ".
+        let (head, reason) = rest.split_once(": ").expect("rule: reason");
+        let rule = head.split_whitespace().last().expect("a rule name");
+        rules.insert(rule.to_string(), (tag.to_string(), reason.to_string()));
+    }
+    let names: Vec<&str> = rules.keys().map(String::as_str).collect();
+    let mut want = RULES.to_vec();
+    want.sort();
+    assert_eq!(names, want, "{text}");
+    (o.status.code(), rules, text)
+}
+
+fn assert_all_pass(code: Option<i32>, rules: &BTreeMap<String, (String, String)>, text: &str) {
+    for (rule, (tag, reason)) in rules {
+        assert_eq!(tag, "PASS", "{rule}: {reason}");
+    }
+    assert!(text.contains("12 of 12 rules pass"), "{text}");
+    assert_eq!(code, Some(0), "{text}");
+}
+
+/// Every rule but `broken` passes or, after it ended the drive, was not reached; `broken`
+/// fails with a reason holding `why`; the exit status is 1.
+fn assert_fails_only(
+    code: Option<i32>,
+    rules: &BTreeMap<String, (String, String)>,
+    broken: &str,
+    why: &str,
+) {
+    assert_eq!(code, Some(1));
+    let (tag, reason) = &rules[broken];
+    assert_eq!(tag, "FAIL", "{broken}: {reason}");
+    assert!(reason.contains(why), "{broken}: {reason}");
+    for (rule, (tag, reason)) in rules.iter().filter(|r| r.0 != broken) {
+        assert_ne!(tag, "FAIL", "{rule} should not fail: {reason}");
+    }
+    // The handshake comes before any fault a test node has.
+    for rule in ["describe", "hello", "welcome-describe", "mesh", "set-up"] {
+        assert_eq!(rules[rule].0, "PASS", "{rule}: {}", rules[rule].1);
+    }
+}
+
+#[test]
+fn the_built_in_bar_passes_every_rule() {
+    let (code, rules, text) = conformance("conf-builtin", "", &["solid-node"]);
+    assert_all_pass(code, &rules, &text);
+    // The checkpoint rule read the node's file back: of window 3 (the one before the last).
+    assert!(rules["checkpoint"].1.contains("window 3 saved"), "{text}");
+}
+
+#[test]
+fn the_built_in_bar_passes_every_rule_as_the_driver() {
+    let (code, rules, text) = conformance_as(
+        "conf-driver",
+        "bar-1d",
+        LEFT_HALF,
+        &["--role", "driver"],
+        &["solid-node"],
+    );
+    assert_all_pass(code, &rules, &text);
+    assert!(text.contains("as the kinematic driver node"), "{text}");
+    // Coupled at the left half's tip, whose one point the peer's mesh copies.
+    assert!(
+        rules["describe"].1.contains("interface 'tip' of 1 points"),
+        "{text}"
+    );
+}
+
+#[test]
+fn a_peridynamic_body_passes_every_rule_as_the_immersed_driver() {
+    // The steel bar of examples/chamber_detonation.toml: 60 × 30 particles, all coupled.
+    let params = "dimension = \"plane_strain\"\nthickness = 0.0035\n\
+        spacing = 3.3333333333333335e-3\nhorizon = 1.005e-2\ndensity = 7870.0\nyoung = 200e9\n\
+        poisson = 0.29\nyield_stress = 0.4e9\niso_hardening = 0.1e9\n\
+        bodies = [{ shape = \"box\", min = [0.1, 0.15, 0.0], max = [0.3, 0.25, 0.0035] }]\n\
+        interfaces = [{ name = \"particles\", select = \"all\" }]\n";
+    let (code, rules, text) = conformance_as(
+        "conf-immersed",
+        "pd-correspondence",
+        params,
+        &["--kind", "immersed", "--role", "driver"],
+        &["solid-node"],
+    );
+    assert_all_pass(code, &rules, &text);
+    assert!(rules["mesh"].1.contains("1800 points"), "{text}");
+}
+
+#[test]
+fn a_bad_role_is_a_command_line_error() {
+    let o = cosim(&[
+        "conformance",
+        "--model",
+        "bar-1d",
+        "--role",
+        "sideways",
+        "--",
+        "solid-node",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--role sideways: driver or responder"));
+}
+
+#[test]
+fn the_python_bar_passes_every_rule() {
+    if !python_package_or_skip() {
+        return;
+    }
+    let bar = workspace_root().join("examples/external/bar.py");
+    let (code, rules, text) = conformance("conf-python", "", &[bar.to_str().unwrap()]);
+    assert_all_pass(code, &rules, &text);
+}
+
+#[test]
+fn the_c_bar_passes_every_rule() {
+    let Some(bar) = build_c_bar(&workspace_root().join("examples/external/bar-c")) else {
+        return;
+    };
+    let (code, rules, text) = conformance("conf-c", "", &[bar.to_str().unwrap()]);
+    assert_all_pass(code, &rules, &text);
+}
+
+fn faulty(tag: &str, fault: &str) -> (Option<i32>, BTreeMap<String, (String, String)>) {
+    let exe = bin("cosim-faulty");
+    let (code, rules, _) = conformance(
+        tag,
+        &format!("fault = \"{fault}\""),
+        &[exe.to_str().unwrap()],
+    );
+    (code, rules)
+}
+
+#[test]
+fn a_force_of_one_component_fails_the_binding_rule() {
+    let (code, rules) = faulty("conf-components", "components");
+    assert_fails_only(
+        code,
+        &rules,
+        "fields-match-binding",
+        "field 'force' has 1 components per point, expected 3",
+    );
+    // The drive went on to the end: the other rules were all checked.
+    assert!(rules.values().all(|r| r.0 != "----"), "{rules:?}");
+}
+
+#[test]
+fn a_misnamed_field_fails_the_binding_rule() {
+    let (code, rules) = faulty("conf-misnamed", "misnamed");
+    assert_fails_only(
+        code,
+        &rules,
+        "fields-match-binding",
+        "field 'forse' is not one its binding sends",
+    );
+}
+
+#[test]
+fn a_set_up_without_the_force_fails_the_binding_rule() {
+    let (code, rules) = faulty("conf-no-setup-force", "no_setup_force");
+    assert_fails_only(
+        code,
+        &rules,
+        "fields-match-binding",
+        "set-up (window 0) on coupling 'conformance' break its binding (kinematic responder; PROTOCOL.md 4.2, 5.3): field 'force' missing",
+    );
+}
+
+#[test]
+fn a_node_that_stops_beating_fails_the_heartbeat_rule() {
+    let (code, rules) = faulty("conf-silent", "silent");
+    assert_fails_only(code, &rules, "heartbeat", "no heartbeat for 3");
+    assert!(
+        rules["heartbeat"].1.contains("during window 2"),
+        "{rules:?}"
+    );
+}
+
+#[test]
+fn a_node_that_exits_before_finish_fails_the_finish_rule() {
+    let (code, rules) = faulty("conf-early-exit", "early_exit");
+    assert_fails_only(
+        code,
+        &rules,
+        "finish",
+        "ended before Finish: node 'node': exited with status 0 during window 2",
+    );
+}

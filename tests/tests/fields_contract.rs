@@ -1,0 +1,97 @@
+//! The coordinator refuses a `Fields` that does not match its binding: the split bar with
+//! its right half replaced by `cosim-faulty` (the built-in bar with one fault) must end
+//! failed, naming the right half (the sender, not its peer that received the bad data), the
+//! coupling, the window and the field, with what was expected against what came. The
+//! expected counts are the bar's by PROTOCOL.md: its force is a vector of 3 components at
+//! the one point of the left half's interface.
+
+use cosim_tests::*;
+use std::path::Path;
+
+/// The split bar over 16 windows, its right half `cosim-faulty` with `fault`.
+fn faulty_split_bar(dir: &Path, fault: &str) -> std::path::PathBuf {
+    let case = split_bar_case(dir, 100, 300, 0.5, "shm", 0.01);
+    let text = std::fs::read_to_string(&case).expect("read case");
+    let faulty = format!(
+        "[nodes.right]\nsolver = \"{}\"",
+        bin("cosim-faulty").display()
+    );
+    let text = text
+        .replacen("[nodes.right]\nsolver = \"solid-node\"", &faulty, 1)
+        .replacen(
+            "interfaces = { root = \"left\" }",
+            &format!("interfaces = {{ root = \"left\" }}\nfault = \"{fault}\""),
+            1,
+        );
+    assert!(
+        text.contains("cosim-faulty") && text.contains("fault ="),
+        "{text}"
+    );
+    std::fs::write(&case, text).expect("write case");
+    case
+}
+
+/// Runs the case of `fault`; returns cosim's stderr after checking that the run failed with
+/// one fault line, naming the right half.
+fn fails(fault: &str) -> String {
+    let (dir, id) = scratch(&format!("contract-{fault}"));
+    let case = faulty_split_bar(&dir, fault);
+    let out = dir.join("out");
+    let o = run_case(&case, &out, &id, &[]);
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    println!("{err}");
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(summary(&out)["status"], "failed");
+    assert!(err.contains("node 'right': Fields of "), "{err}");
+    assert!(!err.contains("node 'left':"), "the peer is blamed: {err}");
+    nothing_left(&id);
+    err
+}
+
+#[test]
+fn the_bar_without_a_fault_runs_through_the_check() {
+    let (dir, id) = scratch("contract-none");
+    let case = faulty_split_bar(&dir, "none");
+    let out = dir.join("out");
+    let o = run_case(&case, &out, &id, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert_eq!(summary(&out)["status"], "finished");
+}
+
+#[test]
+fn a_force_of_one_component_is_refused_naming_the_sender() {
+    let err = fails("components");
+    // The bar's set-up fields already carry the force (the left half reads it in window 1).
+    assert!(
+        err.contains(
+            "Fields of the set-up (window 0) on coupling 'mid' break its binding (kinematic responder"
+        ),
+        "{err}"
+    );
+    assert!(
+        err.contains("field 'force' has 1 components per point, expected 3"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_misnamed_field_is_refused_naming_the_sender() {
+    let err = fails("misnamed");
+    assert!(
+        err.contains(
+            "field 'forse' is not one its binding sends (it sends: force, mass, stiffness, "
+        ),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_set_up_without_the_force_is_the_responders_fault_not_the_drivers() {
+    let err = fails("no_setup_force");
+    assert!(
+        err.contains("Fields of the set-up (window 0) on coupling 'mid'")
+            && err.contains("field 'force' missing"),
+        "{err}"
+    );
+}
