@@ -165,6 +165,7 @@ pub fn check(o: &Options) -> anyhow::Result<Vec<Verdict>> {
         fields: Vec::new(),
         points: Vec::new(),
         window_limits: Vec::new(),
+        positions: Default::default(),
     };
     let d =
         match crate::describe::describe_one(&exe, args, &node, crate::describe::DESCRIBE_TIMEOUT) {
@@ -323,6 +324,7 @@ fn coupling_of(o: &Options, iface: &str) -> CouplingConfig {
         decouple: Default::default(),
         sides: Vec::new(),
         method: None,
+        point_tolerance: config::DEFAULT_POINT_TOLERANCE,
     }
 }
 

@@ -317,6 +317,7 @@ mod tests {
             decouple: Decouple::default(),
             sides: Vec::new(),
             method: None,
+            point_tolerance: crate::config::DEFAULT_POINT_TOLERANCE,
         }
     }
 

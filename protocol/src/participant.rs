@@ -327,7 +327,7 @@ impl NodeEngine {
                 // set-up, unless the binding asks for it every window.
                 if window > 0
                     && setup_only.contains(&f.name.as_str())
-                    && !l.b.sends.iter().any(|s| *s == f.name)
+                    && !l.b.sends.contains(&f.name)
                 {
                     continue;
                 }
