@@ -26,7 +26,7 @@ static int create(void *user, const char *model, CosimCall *call) {
 
 static int describe(void *user, CosimCall *call) {
     Echo *e = user;
-    return cosim_describe_interface(call, "port", (size_t)e->points, "velocity,force", "velocity,force");
+    return cosim_describe_interface(call, "port", (size_t)e->points, "signal,echo", "signal,echo");
 }
 
 static int interface_mesh(void *user, const char *name, CosimCall *call) {
@@ -56,12 +56,12 @@ static int advance(void *user, const CosimWindow *w, CosimCall *call, CosimStepR
     size_t n = (size_t)e->points;
     if (e->coupled && e->role == COSIM_ROLE_RESPONDER) {
         size_t len = 0;
-        const double *v = cosim_inbox_get(call, "port", "velocity", NULL, &len);
-        double *f = cosim_outbox_put(call, "port", "force", 1, n);
+        const double *v = cosim_inbox_get(call, "port", "signal", NULL, &len);
+        double *f = cosim_outbox_put(call, "port", "echo", 1, n);
         if (!v || !f || len != n) return 1;
         memcpy(f, v, n * sizeof(double));
     } else if (e->coupled) {
-        double *v = cosim_outbox_put(call, "port", "velocity", 1, n);
+        double *v = cosim_outbox_put(call, "port", "signal", 1, n);
         if (!v) return 1;
         for (size_t i = 0; i < n; i++) v[i] = (double)w->index;
     }

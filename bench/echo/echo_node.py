@@ -2,8 +2,8 @@
 """Benchmark helper: the `echo` node of target/release/cosim-echo-node written in Python on
 the `cosim` package, for the participant window benchmark (`cosim bench --only window`, which
 carries this file inside the binary). Interface `port` with `points` points; a
-responder answers each window's `velocity` with the same values as `force`, a driver sends
-`velocity` and takes `force` (one value per point: 128 points are 1 KiB each way)."""
+responder answers each window's `signal` with the same values as `echo`, a driver sends
+`signal` and takes `echo` (one value per point: 128 points are 1 KiB each way)."""
 
 import cosim
 
@@ -19,7 +19,7 @@ class Echo:
         self.role = None
 
     def describe(self):
-        fields = ["velocity", "force"]
+        fields = ["signal", "echo"]
         return {"model": "echo", "interfaces": [
             {"name": "port", "points": self.points, "provides": fields, "accepts": fields}]}
 
@@ -34,9 +34,9 @@ class Echo:
 
     def advance(self, window, inbox, outbox):
         if self.role == "responder":
-            outbox.put("port", "force", self.points)[:] = inbox["port", "velocity"]
+            outbox.put("port", "echo", self.points)[:] = inbox["port", "signal"]
         elif self.role == "driver":
-            outbox.put("port", "velocity", self.points)[:] = window.index
+            outbox.put("port", "signal", self.points)[:] = window.index
         return {"substeps": 1}
 
 

@@ -284,11 +284,11 @@ points = {points}
 
 [[couplings]]
 name = "echo"
-kind = "kinematic"
+kind = "immersed"
 driver = "a.port"
 responder = "b.port"
-driver_fields = ["velocity"]
-responder_fields = ["force"]
+driver_fields = ["signal"]
+responder_fields = ["echo"]
 "#,
         end = windows as f64 * 1e-3,
         rust = rust.display().to_string(),

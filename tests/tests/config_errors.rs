@@ -556,7 +556,8 @@ fn a_field_the_scheme_needs_and_the_node_lacks_is_refused() {
             "provide field 'volume'",
         ],
     );
-    // Lagrange: a side must provide its condensed interface operator; the echo node has none.
+    // Lagrange: a side must provide its interface velocities and condensed operator; the echo
+    // node has neither, and the first missing is named.
     refused_naming(
         "fields-lagrange",
         |t| {
@@ -573,7 +574,7 @@ fn a_field_the_scheme_needs_and_the_node_lacks_is_refused() {
             "couplings[0].sides[1]",
             "'cut'",
             "node 'e'",
-            "'lagrange_operator'",
+            "provide field 'velocity'",
         ],
     );
 }

@@ -262,11 +262,11 @@ panic_at_window = 5
 
 [[couplings]]
 name = "echo"
-kind = "kinematic"
+kind = "immersed"
 driver = "a.port"
 responder = "b.port"
-driver_fields = ["velocity"]
-responder_fields = ["force"]
+driver_fields = ["signal"]
+responder_fields = ["echo"]
 "#
         ),
     )

@@ -1,8 +1,10 @@
 //! Benchmark helper: a node whose solver only passes data through (model `echo`), the Rust
 //! baseline of the participant window benchmark (`cosim bench --only window`). Interface `port` has `points` points (param,
-//! default 128); a responder answers each window's `velocity` with the same values as
-//! `force`, a driver sends `velocity` (its window index) and takes `force`. With one value
-//! per point, 128 points are 1 KiB each way. `panic_at_window = N` makes it panic in window N
+//! default 128); a responder answers each window's `signal` with the same values as
+//! `echo`, a driver sends `signal` (its window index) and takes `echo`. With one value per
+//! point, 128 points are 1 KiB each way. The names are no physical quantity's (whose
+//! component counts the protocol fixes), and the benchmark couples them as an immersed
+//! coupling, which asks for no set-up data. `panic_at_window = N` makes it panic in window N
 //! (the failure tests' panicking node).
 
 use protocol::{
@@ -59,7 +61,7 @@ fn factory(
 
 impl Solver for Echo {
     fn describe(&self) -> NodeDescription {
-        let f = vec!["velocity".to_string(), "force".to_string()];
+        let f = vec!["signal".to_string(), "echo".to_string()];
         NodeDescription {
             model: "echo".into(),
             interfaces: vec![InterfaceInfo {
@@ -106,13 +108,12 @@ impl Solver for Echo {
         }
         match self.role {
             Some(Role::Responder) => {
-                let v = inbox.require(PORT, "velocity", self.points)?;
-                let f = out.put(PORT, "force", 1, self.points);
+                let v = inbox.require(PORT, "signal", self.points)?;
+                let f = out.put(PORT, "echo", 1, self.points);
                 f.copy_from_slice(v);
             }
             Some(Role::Driver) => {
-                out.put(PORT, "velocity", 1, self.points)
-                    .fill(w.index as f64);
+                out.put(PORT, "signal", 1, self.points).fill(w.index as f64);
             }
             None => {}
         }
