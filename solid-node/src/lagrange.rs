@@ -63,8 +63,18 @@ impl LagrangeSide for SubdomainSide {
 /// ω_max), and their sum, ∫ dω/ω^k from 1/Δt, is an error of order Δt^(k−1) in a; the
 /// resolved modes add Δt² ∫ ω^(2−k) dω. `sin²` jumps in F'' (k = 2): a is then first order
 /// even on one domain. The septic ramp jumps in F'''' (k = 4): second order.
+/// The larger of `a` and `b`, NaN if either is: error folds over a run's samples use it, so a
+/// NaN error stays visible where `f64::max` would drop it and let a comparison pass.
+pub fn nan_max(a: f64, b: f64) -> f64 {
+    if a.is_nan() || b.is_nan() {
+        f64::NAN
+    } else {
+        a.max(b)
+    }
+}
+
 pub mod split_bar {
-    use super::SubdomainSide;
+    use super::{SubdomainSide, nan_max};
     use crate::bar::chain_system;
     use mechanics::time::{
         CouplingMethod, Gs4, InterfaceDof, LinearSystem, State, Stepper, Subdomain,
@@ -315,8 +325,7 @@ pub mod split_bar {
             let mut count = 0;
             for (n, x) in sa[k].iter().enumerate() {
                 let Some(y) = sr[k].get(n * ratio) else { break };
-                let d = (x - y).abs() / scale;
-                e[k] = if d.is_nan() { f64::NAN } else { e[k].max(d) };
+                e[k] = nan_max(e[k], (x - y).abs() / scale);
                 count += 1;
             }
             fewest = fewest.min(count);
@@ -332,7 +341,7 @@ pub mod split_bar {
 /// (40 elements, average acceleration, two steps) loaded at its end by F₀ along the C³ ramp
 /// over three transits of the whole bar; and the same mesh as one domain, the reference.
 pub mod bar_chain {
-    use super::SubdomainSide;
+    use super::{SubdomainSide, nan_max};
     use crate::bar::{Bar, chain_system};
     use mechanics::time::{CouplingMethod, Design, Gs4, State, Stepper};
     use protocol::scheme::lagrange::{LagrangeScheme, LagrangeSide, Method};
@@ -555,14 +564,5 @@ pub mod bar_chain {
                 (e, n)
             })
             .collect()
-    }
-
-    /// max that keeps NaN (`f64::max` drops it, so a NaN error would pass).
-    pub fn nan_max(a: f64, b: f64) -> f64 {
-        if a.is_nan() || b.is_nan() {
-            f64::NAN
-        } else {
-            a.max(b)
-        }
     }
 }

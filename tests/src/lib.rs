@@ -223,15 +223,8 @@ pub fn amplitude() -> f64 {
     2.0 * 1e3 * 1.0 / (200e9 * 1e-4)
 }
 
-/// The larger of `a` and `b`, NaN if either is: a fold with it (`.fold(0.0, max_nan)`) keeps a
-/// NaN error or peak visible, where `f64::max` would drop it and let a comparison pass.
-pub fn max_nan(a: f64, b: f64) -> f64 {
-    if a.is_nan() || b.is_nan() {
-        f64::NAN
-    } else {
-        a.max(b)
-    }
-}
+/// A NaN-keeping maximum for error and peak folds (`.fold(0.0, nan_max)`).
+pub use solid_node::lagrange::nan_max;
 
 /// Largest |tip − exact| / amplitude over a series (NaN if any sample is).
 pub fn tip_error(series: &[(f64, f64)]) -> f64 {
@@ -239,7 +232,7 @@ pub fn tip_error(series: &[(f64, f64)]) -> f64 {
     series
         .iter()
         .map(|&(t, u)| (u - exact_tip(t)).abs() / amplitude())
-        .fold(0.0, max_nan)
+        .fold(0.0, nan_max)
 }
 
 /// Files in /dev/shm whose name contains `needle`.

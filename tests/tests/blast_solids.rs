@@ -51,7 +51,7 @@ fn peak(out: &std::path::Path, node: &str, key: &str) -> f64 {
     node_series(&out.join("run.mcap"), node, key)
         .iter()
         .map(|&(_, v)| v)
-        .fold(f64::NEG_INFINITY, max_nan)
+        .fold(f64::NEG_INFINITY, nan_max)
 }
 
 /// Last value of a node scalar.
@@ -76,7 +76,7 @@ fn impulse_mismatch(out: &std::path::Path, solid: &str) -> (f64, f64) {
     let scale = gas
         .iter()
         .map(|(_, j)| j[0].abs().max(j[1].abs()))
-        .fold(0.0f64, max_nan);
+        .fold(0.0f64, nan_max);
     let mut worst: f64 = 0.0;
     for w in 0..gas.len() - 1 {
         assert_eq!(gas[w].0 + 1, sol[w + 1].0);
@@ -135,7 +135,7 @@ fn a_symmetric_blast_balances_momentum_against_the_gross_scale() {
     let ring_gross = node_series(&out.join("run.mcap"), "ring", "momentum_gross")
         .iter()
         .map(|&(_, v)| v)
-        .fold(0.0f64, max_nan);
+        .fold(0.0f64, nan_max);
     assert!(
         ring_gross > 1e-3 && gross >= ring_gross,
         "{ring_gross:e} {gross:e}"
@@ -284,7 +284,7 @@ fn after_decoupling_the_gas_stops_and_the_square_goes_on_alone() {
     // its momentum and received impulse constant to round-off.
     let p = node_vectors(&out.join("run.mcap"), "square", "momentum");
     let j = node_vectors(&out.join("run.mcap"), "square", "interface_impulse");
-    let k_max = sq.iter().map(|s| s.1).fold(0.0, max_nan);
+    let k_max = sq.iter().map(|s| s.1).fold(0.0, nan_max);
     let mass = 7870.0 * (0.16f64 * 0.16 - 0.1 * 0.1) * 0.01;
     let scale = (2.0 * mass * k_max).sqrt();
     let after: Vec<usize> = (0..p.len()).filter(|&w| sq[w].0 > t_dec + 2.0e-6).collect();

@@ -36,7 +36,7 @@ fn peak(s: &[(f64, f64)], from: f64, to: f64) -> f64 {
     s.iter()
         .filter(|(t, _)| *t >= from && *t <= to)
         .map(|&(_, p)| p)
-        .fold(f64::MIN, max_nan)
+        .fold(f64::MIN, nan_max)
 }
 
 #[test]

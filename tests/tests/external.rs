@@ -123,7 +123,7 @@ fn compare_with_builtin(variant: &str) {
             assert_eq!(t, t0);
             (u - u0).abs() / amplitude()
         })
-        .fold(0.0, max_nan);
+        .fold(0.0, nan_max);
     println!(
         "{variant}: largest tip difference from the built-in run {worst:.3e} of the amplitude"
     );

@@ -182,7 +182,7 @@ fn chamber_with_the_gas_on_the_gpu_sends_the_same_coupling_traffic() {
         .iter()
         .filter(|(k, _)| k.3 == "force")
         .flat_map(|(_, v)| v.iter().map(|x| x.abs()))
-        .fold(0.0_f64, max_nan);
+        .fold(0.0_f64, nan_max);
     // not trivially 0 = 0: the blast reached the bar
     assert!(peak_force > 0.0, "no force crossed the interface");
     for q in ["gas/force", "bar/velocity", "bar/position"] {
@@ -203,13 +203,13 @@ fn chamber_with_the_gas_on_the_gpu_sends_the_same_coupling_traffic() {
     let scale = ic
         .iter()
         .flat_map(|(_, j)| j.iter().map(|x| x.abs()))
-        .fold(0.0_f64, max_nan);
+        .fold(0.0_f64, nan_max);
     assert!(scale > 0.0);
     let diff = ic
         .iter()
         .zip(&ig)
         .flat_map(|((_, a), (_, b))| (0..3).map(move |d| (a[d] - b[d]).abs()))
-        .fold(0.0_f64, max_nan);
+        .fold(0.0_f64, nan_max);
     println!("gas interface impulse: largest difference {diff:.3e} of {scale:.3e} N s");
     assert!(diff <= 1e-10 * scale, "{diff:e} vs {scale:e}");
 }
@@ -274,12 +274,12 @@ fn f32_on_request_warns_in_the_summary_and_tracks_the_cpu_run() {
     let a = node_series(&dir.join("cpu/run.mcap"), "bar", "com_displacement_x");
     let b = node_series(&dir.join("f32/run.mcap"), "bar", "com_displacement_x");
     assert_eq!(a.len(), b.len());
-    let peak = a.iter().map(|p| p.1.abs()).fold(0.0f64, max_nan);
+    let peak = a.iter().map(|p| p.1.abs()).fold(0.0f64, nan_max);
     let worst = a
         .iter()
         .zip(&b)
         .map(|(x, y)| (x.1 - y.1).abs())
-        .fold(0.0f64, max_nan);
+        .fold(0.0f64, nan_max);
     println!(
         "bar centre of mass: largest displacement {peak:.4e} m, f32 GPU vs f64 CPU differ by \
          {worst:.3e} m ({:.2e} of it)",
@@ -342,7 +342,7 @@ fn chamber_with_the_bar_on_the_gpu_closes_the_energy_balance_like_the_cpu() {
                 assert_eq!(p.0, q.0, "the same windows");
                 (p.1 - q.1).abs()
             })
-            .fold(0.0_f64, max_nan)
+            .fold(0.0_f64, nan_max)
     };
     let (uc, ug) = (
         node_series(&cmcap, "bar", "internal_energy"),
@@ -353,7 +353,7 @@ fn chamber_with_the_bar_on_the_gpu_closes_the_energy_balance_like_the_cpu() {
         node_series(&gmcap, "bar", "plastic_work"),
     );
     assert!(uc.len() >= 80, "{} windows of the bar", uc.len());
-    let u_max = uc.iter().map(|p| p.1).fold(0.0_f64, max_nan);
+    let u_max = uc.iter().map(|p| p.1).fold(0.0_f64, nan_max);
     let (du, dw) = (worst(&ug, &uc), worst(&wg, &wc));
     let (rc, rg) = (
         balance_series(&cmcap, "energy_residual"),
@@ -368,7 +368,7 @@ fn chamber_with_the_bar_on_the_gpu_closes_the_energy_balance_like_the_cpu() {
         .iter()
         .zip(&rg)
         .map(|(p, q)| (p.1 - q.1).abs())
-        .fold(0.0_f64, max_nan);
+        .fold(0.0_f64, nan_max);
     let (sc, sg) = (summary(&dir.join("cpu")), summary(&dir.join("gpu")));
     let scale = sc["balance"]["energy_scale"]
         .as_f64()

@@ -249,7 +249,7 @@ fn crash_tube_screws_at_joint_3_peak_higher_than_bolts() {
         series(out, j, &format!("force_{j}_a"))
             .iter()
             .map(|p| p.1.abs())
-            .fold(0.0f64, max_nan)
+            .fold(0.0f64, nan_max)
     };
     let mut rows = Vec::new();
     for k in 1..=5 {

@@ -94,7 +94,7 @@ fn a_changed_parameter_reports_differences_and_drift() {
         .skip(1)
         .filter(|l| l.contains(",scalar,tip_displacement,"))
         .map(|l| l.split(',').nth(4).unwrap().parse::<f64>().unwrap())
-        .fold(0.0f64, max_nan);
+        .fold(0.0f64, nan_max);
     // E 200 → 210 GPa: the wave speed changes by 2.4 %, the tip history by far more than
     // round-off by the end of half a period.
     assert!(worst > 1e-3, "largest relative tip difference {worst:e}");

@@ -89,7 +89,7 @@ fn wave_reaches_mid_length_at_the_bar_speed() {
     assert!(n >= 30, "{n} samples");
     assert!((slope - v).abs() < 0.03 * v, "slope {slope} vs {v}");
     assert!(t0.abs() < 0.2 * dt, "start {t0}");
-    let peak = b.iter().map(|&(_, u)| u).fold(f64::NEG_INFINITY, max_nan);
+    let peak = b.iter().map(|&(_, u)| u).fold(f64::NEG_INFINITY, nan_max);
     let exact = 2.0 * p * l / YOUNG;
     println!("B: peak {peak:e}, 2pL/(Eh) = {exact:e}");
     assert!(
