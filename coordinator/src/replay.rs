@@ -508,13 +508,19 @@ impl Session {
             && let Ok(Some(st)) = c.try_wait()
         {
             // A dying node's last words (a Failed message) name the cause: read them first.
+            // Whatever they are (or a transport's complaint about the dead sender), the exit
+            // status is the certain fact and leads the message.
             let until = Instant::now() + Duration::from_millis(100);
+            let mut last_words = String::new();
             while Instant::now() < until {
-                self.pump(Duration::from_millis(10))?;
+                if let Err(e) = self.pump(Duration::from_millis(10)) {
+                    last_words = format!(" ({e:#})");
+                    break;
+                }
             }
             self.gone = Some(Gone::Exited);
             return Err(anyhow::anyhow!(
-                "node '{}': {} during window {}{}",
+                "node '{}': {} during window {}{last_words}{}",
                 self.node,
                 describe_status(st),
                 self.window,
