@@ -53,10 +53,14 @@ pub struct SuiteArgs {
     /// No GPU rows even when an adapter exists.
     #[arg(long)]
     pub no_gpu: bool,
+    /// Also the sizes that fill a data-centre GPU (fluid 1600² and 4096², fluid-3d 128³ and
+    /// 256³, pd-bond 64³), on the GPU only: the host would take minutes per sample there.
+    #[arg(long)]
+    pub large: bool,
 }
 
 /// All kernels, in run order.
-pub const KERNELS: [&str; 8] = [
+pub const KERNELS: [&str; 9] = [
     "transport",
     "window",
     "fluid",
@@ -65,6 +69,7 @@ pub const KERNELS: [&str; 8] = [
     "pd-correspondence",
     "shell",
     "joint",
+    "gpu-profile",
 ];
 
 /// The kernels `--only` selects (aliases expanded), in run order; errors name the bad entry.
@@ -95,6 +100,19 @@ pub fn select(only: &[String]) -> Result<Vec<&'static str>, String> {
         .copied()
         .filter(|k| want.contains(k))
         .collect())
+}
+
+/// The kernels with GPU rows.
+const GPU_KERNELS: [&str; 4] = ["fluid", "fluid-3d", "pd-bond", "gpu-profile"];
+
+/// The sizes `--large` adds (GPU rows only).
+fn large_sizes(kernel: &str) -> Vec<usize> {
+    match kernel {
+        "fluid" => vec![1600, 4096],
+        "fluid-3d" => vec![128, 256],
+        "pd-bond" => vec![64],
+        _ => vec![],
+    }
 }
 
 /// Problem sizes (per-side counts, or payload bytes for the transport) of each kernel.
@@ -410,6 +428,38 @@ pub struct Report {
     pub windows: Vec<crate::window::WindowRow>,
     /// Their tables.
     pub window_table: Option<String>,
+    /// The GPU's own streaming bandwidth (kernel `gpu-profile`).
+    pub bandwidth: Option<BandwidthRow>,
+    /// Each fluid kernel's device time and achieved bandwidth (kernel `gpu-profile`).
+    pub gpu_kernels: Vec<KernelRow>,
+}
+
+/// The device's streaming bandwidth: bytes read plus written per second.
+#[derive(Debug, Clone, Serialize)]
+pub struct BandwidthRow {
+    /// `copy_buffer_to_buffer`.
+    pub copy_bytes_per_s: f64,
+    /// A WGSL kernel copying 16 bytes per invocation (the reference of `fraction`).
+    pub kernel_bytes_per_s: f64,
+    pub buffer_bytes: u64,
+    pub repeats: u32,
+}
+
+/// One kernel of one fluid problem's GPU step, timed on the device's clock.
+#[derive(Debug, Clone, Serialize)]
+pub struct KernelRow {
+    pub problem: String,
+    pub kernel: String,
+    pub dispatches_per_step: u32,
+    /// Device seconds per step (its dispatches, one compute pass each).
+    pub seconds_per_step: f64,
+    /// Bytes it must move at the least per step (each value read or written once).
+    pub bytes_per_step: u64,
+    pub bytes_per_s: f64,
+    /// bytes_per_s / the copy kernel's bandwidth.
+    pub fraction_of_copy: f64,
+    /// Steps timed.
+    pub steps: u32,
 }
 
 // ---------------------------------------------------------------- machine description
@@ -545,6 +595,8 @@ struct Ctx {
     quick: bool,
     pools: Vec<rayon::ThreadPool>,
     gpu: Option<Arc<GpuContext>>,
+    /// The same adapter with f32 kernels, beside f64 ones (fluid rows "gpu-f32").
+    gpu32: Option<Arc<GpuContext>>,
     rows: Vec<Row>,
     skipped: Vec<Skipped>,
 }
@@ -612,19 +664,22 @@ impl Ctx {
     /// `plan.rounds` rounds, and push the rows (sizes in order, CPU threads then GPU).
     fn sweep(&mut self, cases: &mut [Case]) -> anyhow::Result<()> {
         let plan = self.plan;
-        // (case, pool index or None for the GPU)
-        let mut items: Vec<(usize, Option<usize>, Acc)> = Vec::new();
+        // (case, pool index or None for a GPU variant, that variant, samples)
+        let mut items: Vec<(usize, Option<usize>, usize, Acc)> = Vec::new();
         for (c, case) in cases.iter_mut().enumerate() {
             for (j, pool) in self.pools.iter().enumerate() {
+                let Some(cpu) = case.cpu.as_mut() else {
+                    break;
+                };
                 let acc = pool
-                    .install(|| Acc::calibrate(&plan, &mut case.cpu))
+                    .install(|| Acc::calibrate(&plan, cpu))
                     .with_context(|| format!("{} on {} thread(s)", case.p.problem, j + 1))?;
-                items.push((c, Some(j), acc));
+                items.push((c, Some(j), 0, acc));
             }
-            if let Some(g) = case.gpu.as_mut() {
+            for (v, (label, g)) in case.gpu.iter_mut().enumerate() {
                 let acc = Acc::calibrate(&plan, g)
-                    .with_context(|| format!("{} on the GPU", case.p.problem))?;
-                items.push((c, None, acc));
+                    .with_context(|| format!("{} on the {label} path", case.p.problem))?;
+                items.push((c, None, v, acc));
             }
         }
         // The CPU pools of a problem take their samples in pairs, one after the other (which
@@ -633,20 +688,20 @@ impl Ctx {
             let mine: Vec<usize> = (0..items.len())
                 .filter(|&i| items[i].0 == c && items[i].1.is_some())
                 .collect();
-            let n = mine.iter().map(|&i| items[i].2.target).max().unwrap_or(0);
+            let n = mine.iter().map(|&i| items[i].3.target).max().unwrap_or(0);
             for s in 0..n {
                 for k in 0..mine.len() {
                     let i = mine[if s % 2 == 0 { k } else { mine.len() - 1 - k }];
-                    let (_, dev, acc) = &mut items[i];
-                    if let Some(j) = dev {
-                        self.pools[*j].install(|| acc.take(&mut case.cpu, 1))?;
+                    let (_, dev, _, acc) = &mut items[i];
+                    if let (Some(j), Some(cpu)) = (dev, case.cpu.as_mut()) {
+                        self.pools[*j].install(|| acc.take(cpu, 1))?;
                     }
                 }
             }
         }
         let rounds = plan.rounds.max(1);
         for r in 0..rounds {
-            for (c, dev, acc) in items.iter_mut().filter(|it| it.1.is_none()) {
+            for (c, dev, v, acc) in items.iter_mut().filter(|it| it.1.is_none()) {
                 let case = &mut cases[*c];
                 // this round's share of the samples
                 let upto = (acc.target * (r + 1)).div_ceil(rounds);
@@ -655,16 +710,20 @@ impl Ctx {
                     continue;
                 }
                 match dev {
-                    Some(j) => self.pools[*j].install(|| acc.take(&mut case.cpu, count))?,
+                    Some(j) => {
+                        if let Some(cpu) = case.cpu.as_mut() {
+                            self.pools[*j].install(|| acc.take(cpu, count))?;
+                        }
+                    }
                     None => {
-                        if let Some(g) = case.gpu.as_mut() {
+                        if let Some((_, g)) = case.gpu.get_mut(*v) {
                             acc.take(g, count)?;
                         }
                     }
                 }
             }
         }
-        for (c, dev, acc) in &items {
+        for (c, dev, v, acc) in &items {
             let p = &cases[*c].p;
             match dev {
                 Some(j) => {
@@ -677,7 +736,7 @@ impl Ctx {
                         .filter(|it| {
                             it.1.is_some_and(|k| self.pools[k].current_num_threads() == 1)
                         });
-                    if let (Some((_, _, a1)), Some(row)) = (one, self.rows.last_mut()) {
+                    if let (Some((_, _, _, a1)), Some(row)) = (one, self.rows.last_mut()) {
                         let mut r: Vec<f64> = a1
                             .samples
                             .iter()
@@ -691,7 +750,10 @@ impl Ctx {
                         }
                     }
                 }
-                None => self.push(p, "gpu", None, acc.timing()),
+                None => {
+                    let label = cases[*c].gpu.get(*v).map_or("gpu", |g| g.0);
+                    self.push(p, label, None, acc.timing());
+                }
             }
         }
         Ok(())
@@ -702,13 +764,16 @@ impl Ctx {
 /// its GPU step (owning the device state).
 struct Case {
     p: Problem,
-    cpu: StepFn,
-    gpu: Option<StepFn>,
+    /// `None` at the `--large` sizes (GPU only).
+    cpu: Option<StepFn>,
+    /// Its GPU steps: the device label of the row ("gpu", or "gpu-f32" for the f32 kernels
+    /// beside f64 ones) and the step.
+    gpu: Vec<(&'static str, StepFn)>,
 }
 
 /// The fluid step on the 2-D cylindrical blast (`n`² cells), or with `three_d` on the 3-D
-/// spherical blast (`n`³ cells, CPU only).
-fn fluid(cx: &mut Ctx, n: usize, three_d: bool) -> anyhow::Result<Case> {
+/// spherical blast (`n`³ cells); with `gpu_only` no host rows (and the host copy freed).
+fn fluid(cx: &mut Ctx, n: usize, three_d: bool, gpu_only: bool) -> anyhow::Result<Case> {
     use fluid_node::{gpu::GpuEuler, setup, step};
     let t0 = Instant::now();
     let text = if three_d {
@@ -736,29 +801,40 @@ fn fluid(cx: &mut Ctx, n: usize, three_d: bool) -> anyhow::Result<Case> {
         neighbours: None,
         setup_s: t0.elapsed().as_secs_f64(),
     };
-    let mut gpu: Option<StepFn> = None;
-    if let (Some(ctx), false) = (cx.gpu.clone(), three_d) {
+    let mut gpu: Vec<(&'static str, StepFn)> = Vec::new();
+    let devices = [("gpu", cx.gpu.clone()), ("gpu-f32", cx.gpu32.clone())];
+    for (label, ctx) in devices {
+        let Some(ctx) = ctx else { continue };
+        let what = format!("{} at {} ({label})", p.kernel, p.problem);
         match fluid_node::gpu::supports(&f0) {
-            Err(why) => skip(cx, "fluid", &format!("{n}×{n}: {why}")),
-            Ok(()) => {
-                let mut g =
-                    GpuEuler::with_context(ctx, &f0).map_err(|e| anyhow!("GPU fluid: {e}"))?;
-                gpu = Some(Box::new(move |k| {
-                    g.steps_n(k, f64::INFINITY)?;
-                    Ok(())
-                }));
-            }
+            Err(why) => skip(cx, &what, &why),
+            // an adapter limit (the largest binding, 32-bit indices) skips this size's row
+            Ok(()) => match GpuEuler::with_context(ctx, &f0) {
+                Ok(mut g) => {
+                    gpu.push((
+                        label,
+                        Box::new(move |k| {
+                            g.steps_n(k, f64::INFINITY)?;
+                            Ok(())
+                        }),
+                    ));
+                }
+                Err(e) => skip(cx, &what, &e.to_string()),
+            },
         }
+    }
+    if gpu_only {
+        return Ok(Case { p, cpu: None, gpu });
     }
     let mut f = f0;
     Ok(Case {
         p,
-        cpu: Box::new(move |k| {
+        cpu: Some(Box::new(move |k| {
             for _ in 0..k {
                 step::step(&mut f, f64::INFINITY)?;
             }
             Ok(())
-        }),
+        })),
         gpu,
     })
 }
@@ -772,7 +848,7 @@ fn skip(cx: &mut Ctx, kernel: &str, reason: &str) {
     });
 }
 
-fn pd(cx: &mut Ctx, kernel: &'static str, n: usize) -> anyhow::Result<Case> {
+fn pd(cx: &mut Ctx, kernel: &'static str, n: usize, gpu_only: bool) -> anyhow::Result<Case> {
     let t0 = Instant::now();
     let blk = solid_node::pd::cases::benchmark_block(n, kernel).map_err(|e| anyhow!("{e}"))?;
     let (mut b, bond, model_bytes) = (blk.body, blk.bond, blk.model_bytes.unwrap_or(0));
@@ -793,32 +869,38 @@ fn pd(cx: &mut Ctx, kernel: &'static str, n: usize) -> anyhow::Result<Case> {
         setup_s: t0.elapsed().as_secs_f64(),
     };
     let dt = 0.5 * b.stable_dt();
-    let mut gpu: Option<StepFn> = None;
+    let mut gpu: Vec<(&'static str, StepFn)> = Vec::new();
     if let (Some(ctx), Some(model)) = (cx.gpu.clone(), bond) {
         // An adapter limit (e.g. the largest storage binding) skips the GPU row of this size
         // with the reason; the CPU rows are still measured.
         match solid_node::pd::gpu::GpuBondBody::new(ctx.clone(), &b, &model, Some(0.01)) {
             Ok(mut g) => {
-                gpu = Some(Box::new(move |k| {
-                    g.steps(k, dt).map_err(|e| anyhow!("{e}"))?;
-                    ctx.device
-                        .poll(wgpu::PollType::wait_indefinitely())
-                        .map_err(|e| anyhow!("waiting for the device: {e}"))?;
-                    ctx.take_uncaptured("pd-bond steps")
-                        .map_err(|e| anyhow!("{e}"))
-                }));
+                gpu.push((
+                    "gpu",
+                    Box::new(move |k| {
+                        g.steps(k, dt).map_err(|e| anyhow!("{e}"))?;
+                        ctx.device
+                            .poll(wgpu::PollType::wait_indefinitely())
+                            .map_err(|e| anyhow!("waiting for the device: {e}"))?;
+                        ctx.take_uncaptured("pd-bond steps")
+                            .map_err(|e| anyhow!("{e}"))
+                    }),
+                ));
             }
             Err(e) => skip(cx, &format!("{kernel} at {n}³"), &e.to_string()),
         }
     }
+    if gpu_only {
+        return Ok(Case { p, cpu: None, gpu });
+    }
     Ok(Case {
         p,
-        cpu: Box::new(move |k| {
+        cpu: Some(Box::new(move |k| {
             for _ in 0..k {
                 b.step(dt);
             }
             Ok(())
-        }),
+        })),
         gpu,
     })
 }
@@ -843,13 +925,13 @@ fn shell(n: usize) -> anyhow::Result<Case> {
     let dt = step::stable_dt(m);
     Ok(Case {
         p,
-        cpu: Box::new(move |k| {
+        cpu: Some(Box::new(move |k| {
             for _ in 0..k {
                 step::step(&mut s.model, dt)?;
             }
             Ok(())
-        }),
-        gpu: None,
+        })),
+        gpu: Vec::new(),
     })
 }
 
@@ -870,13 +952,13 @@ fn joint(n: usize) -> anyhow::Result<Case> {
     let dt = m.stable_dt();
     Ok(Case {
         p,
-        cpu: Box::new(move |k| {
+        cpu: Some(Box::new(move |k| {
             for _ in 0..k {
                 m.step(dt).map_err(|e| anyhow!("joint step: {e}"))?;
             }
             Ok(())
-        }),
-        gpu: None,
+        })),
+        gpu: Vec::new(),
     })
 }
 
@@ -1019,7 +1101,7 @@ fn fixed_cost_cause(device: &str, threads: Option<usize>) -> &'static str {
     match (device, threads) {
         ("cpu", Some(1)) => "serial per-step work (boundary fill, reductions, loop set-up)",
         ("cpu", _) => "thread fork/join and serial per-step work",
-        ("gpu", _) => "command submission, dispatch and synchronisation",
+        ("gpu" | "gpu-f32", _) => "command submission, dispatch and synchronisation",
         _ => "message latency (wake-up, envelope, control messages)",
     }
 }
@@ -1447,7 +1529,150 @@ pub fn markdown(rep: &Report) -> String {
     if let Some(t) = &rep.window_table {
         let _ = writeln!(s, "\n{t}");
     }
+    if let Some(b) = &rep.bandwidth {
+        let _ = writeln!(
+            s,
+            "\nGPU streaming bandwidth (bytes read + written per second, {} buffer, {} copies): copy engine {:.0} GB/s, copy kernel {:.0} GB/s.",
+            human(b.buffer_bytes),
+            b.repeats,
+            b.copy_bytes_per_s / 1e9,
+            b.kernel_bytes_per_s / 1e9
+        );
+    }
+    if !rep.gpu_kernels.is_empty() {
+        let _ = writeln!(
+            s,
+            "\nGPU fluid kernels, each dispatch in its own timed pass (device clock), per step; bytes are the least each must move:\n\n| problem | kernel | dispatches | µs/step | share | MB/step | GB/s | of copy kernel |\n|---|---|---:|---:|---:|---:|---:|---:|"
+        );
+        let mut by_problem: Vec<&str> = Vec::new();
+        for r in &rep.gpu_kernels {
+            if !by_problem.contains(&r.problem.as_str()) {
+                by_problem.push(&r.problem);
+            }
+        }
+        for prob in by_problem {
+            let rows: Vec<&KernelRow> = rep
+                .gpu_kernels
+                .iter()
+                .filter(|r| r.problem == prob)
+                .collect();
+            let total: f64 = rows.iter().map(|r| r.seconds_per_step).sum();
+            for r in &rows {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} | {:.1} | {:.0} % | {:.2} | {:.0} | {:.0} % |",
+                    r.problem,
+                    r.kernel,
+                    r.dispatches_per_step,
+                    1e6 * r.seconds_per_step,
+                    100.0 * r.seconds_per_step / total,
+                    r.bytes_per_step as f64 / 1e6,
+                    r.bytes_per_s / 1e9,
+                    100.0 * r.fraction_of_copy
+                );
+            }
+            let bytes: u64 = rows.iter().map(|r| r.bytes_per_step).sum();
+            let _ = writeln!(
+                s,
+                "| {prob} | **step** | {} | {:.1} | 100 % | {:.2} | {:.0} | {:.0} % |",
+                rows.iter().map(|r| r.dispatches_per_step).sum::<u32>(),
+                1e6 * total,
+                bytes as f64 / 1e6,
+                bytes as f64 / total / 1e9,
+                rep.bandwidth.as_ref().map_or(f64::NAN, |b| {
+                    100.0 * bytes as f64 / total / b.kernel_bytes_per_s
+                })
+            );
+        }
+    }
     s
+}
+
+/// Kernel `gpu-profile`: the device's copy bandwidth, then each kernel of the fluid step
+/// timed on the device clock at the largest 2-D and 3-D size of the plan.
+fn gpu_profile(cx: &mut Ctx, large: bool) -> anyhow::Result<(BandwidthRow, Vec<KernelRow>)> {
+    let ctx = cx.gpu.clone().ok_or_else(|| anyhow!("no GPU"))?;
+    let (bytes, repeats) = if cx.quick {
+        (16 << 20, 2)
+    } else {
+        (1 << 30, 20)
+    };
+    let bw = ctx.bandwidth(bytes, repeats).map_err(|e| anyhow!("{e}"))?;
+    println!(
+        "       gpu-profile  bandwidth: copy {:.1} GB/s, copy kernel {:.1} GB/s ({} buffer)",
+        bw.copy / 1e9,
+        bw.kernel / 1e9,
+        human(bw.bytes)
+    );
+    let band = BandwidthRow {
+        copy_bytes_per_s: bw.copy,
+        kernel_bytes_per_s: bw.kernel,
+        buffer_bytes: bw.bytes,
+        repeats: bw.repeats,
+    };
+    if !ctx.timestamps {
+        cx.skipped.push(Skipped {
+            kernel: "gpu-profile".into(),
+            device: "gpu".into(),
+            reason: "the adapter has no timestamp queries: no per-kernel times".into(),
+        });
+        return Ok((band, Vec::new()));
+    }
+    let pick = |k: &str| {
+        let mut v = sizes(k, cx.quick);
+        if large {
+            v.extend(large_sizes(k));
+        }
+        v.last().copied().unwrap_or(8)
+    };
+    let mut rows = Vec::new();
+    for (n, three_d) in [(pick("fluid"), false), (pick("fluid-3d"), true)] {
+        let text = if three_d {
+            fluid_node::setup::benchmark_blast_case_3d(n)
+        } else {
+            fluid_node::setup::benchmark_blast_case(n)
+        };
+        let problem = if three_d {
+            format!("blast 3-D {n}³")
+        } else {
+            format!("blast 2-D {n}²")
+        };
+        let f0 = fluid_node::setup::from_toml_str(&text).map_err(|e| anyhow!("{e}"))?;
+        let mut g = match fluid_node::gpu::GpuEuler::with_context(ctx.clone(), &f0) {
+            Ok(g) => g,
+            Err(e) => {
+                skip(cx, &format!("gpu-profile {problem}"), &e.to_string());
+                continue;
+            }
+        };
+        drop(f0);
+        let steps = if cx.quick { 2 } else { 10 };
+        let Some(prof) = g.profile(steps).map_err(|e| anyhow!("{problem}: {e}"))? else {
+            continue;
+        };
+        for k in prof {
+            let rate = k.bytes as f64 / k.seconds.max(1e-12);
+            println!(
+                "       gpu-profile  {problem:<16} {:<10} {:>3} dispatches {:>10.1} µs/step {:>8.1} GB/s {:>5.1} % of copy",
+                k.kernel,
+                k.dispatches,
+                1e6 * k.seconds,
+                rate / 1e9,
+                100.0 * rate / bw.kernel
+            );
+            rows.push(KernelRow {
+                problem: problem.clone(),
+                kernel: k.kernel.to_string(),
+                dispatches_per_step: k.dispatches,
+                seconds_per_step: k.seconds,
+                bytes_per_step: k.bytes,
+                bytes_per_s: rate,
+                fraction_of_copy: rate / bw.kernel,
+                steps,
+            });
+        }
+    }
+    Ok((band, rows))
 }
 
 /// Run the suite; returns the exit code (0: all selected kernels ran; skipped GPU/transport
@@ -1477,7 +1702,7 @@ pub fn suite(args: &SuiteArgs) -> i32 {
             }
         }
     }
-    let wants_gpu = kernels.iter().any(|k| *k == "fluid" || *k == "pd-bond");
+    let wants_gpu = kernels.iter().any(|k| GPU_KERNELS.contains(k));
     let gpu = if !wants_gpu {
         None
     } else if args.no_gpu {
@@ -1508,21 +1733,31 @@ pub fn suite(args: &SuiteArgs) -> i32 {
             }
         }
     };
+    // f32 fluid rows where the f64 ones run in f64 (otherwise the "gpu" rows are f32)
+    let gpu32 = match &gpu {
+        Some(c)
+            if c.precision == mechanics::gpu::Precision::F64
+                && kernels.iter().any(|k| *k == "fluid" || *k == "fluid-3d") =>
+        {
+            GpuContext::with_precision(mechanics::gpu::PrecisionRequest::ForceF32)
+                .ok()
+                .map(Arc::new)
+        }
+        _ => None,
+    };
     let mut cx = Ctx {
         plan: Plan::new(args.quick),
         cores: mach.available_parallelism.max(1),
         quick: args.quick,
         pools,
         gpu,
+        gpu32,
         rows: Vec::new(),
         skipped: Vec::new(),
     };
     if cx.gpu.is_none() && wants_gpu {
         let why = mach.gpu_skipped.clone().unwrap_or_default();
-        for k in kernels
-            .iter()
-            .filter(|k| **k == "fluid" || **k == "pd-bond")
-        {
+        for k in kernels.iter().filter(|k| GPU_KERNELS.contains(k)) {
             cx.skipped.push(Skipped {
                 kernel: (*k).into(),
                 device: "gpu".into(),
@@ -1534,9 +1769,27 @@ pub fn suite(args: &SuiteArgs) -> i32 {
     let mut transport_table = None;
     let mut windows = Vec::new();
     let mut window_table = None;
+    let mut bandwidth = None;
+    let mut gpu_kernels = Vec::new();
     for &k in &kernels {
         if k == "transport" {
             transport_table = transport(&mut cx, &mut errors);
+            continue;
+        }
+        if k == "gpu-profile" {
+            if cx.gpu.is_some() {
+                match gpu_profile(&mut cx, args.large && !args.quick) {
+                    Ok((bw, rows)) => {
+                        bandwidth = Some(bw);
+                        gpu_kernels = rows;
+                    }
+                    Err(e) => {
+                        let msg = format!("gpu-profile: {e:#}");
+                        eprintln!("cosim bench: {msg}");
+                        errors.push(msg);
+                    }
+                }
+            }
             continue;
         }
         if k == "window" {
@@ -1570,11 +1823,17 @@ pub fn suite(args: &SuiteArgs) -> i32 {
         // Set every size up first, then measure them in turn.
         let mut cases = Vec::new();
         let mut failed = false;
-        for n in sizes(k, args.quick) {
+        let large = if args.large && !args.quick && cx.gpu.is_some() {
+            large_sizes(k)
+        } else {
+            Vec::new()
+        };
+        let all = sizes(k, args.quick).into_iter().map(|n| (n, false));
+        for (n, gpu_only) in all.chain(large.into_iter().map(|n| (n, true))) {
             let r = match k {
-                "fluid" => fluid(&mut cx, n, false),
-                "fluid-3d" => fluid(&mut cx, n, true),
-                "pd-bond" | "pd-correspondence" => pd(&mut cx, k, n),
+                "fluid" => fluid(&mut cx, n, false, gpu_only),
+                "fluid-3d" => fluid(&mut cx, n, true, gpu_only),
+                "pd-bond" | "pd-correspondence" => pd(&mut cx, k, n, gpu_only),
                 "shell" => shell(n),
                 "joint" => joint(n),
                 _ => continue,
@@ -1612,6 +1871,8 @@ pub fn suite(args: &SuiteArgs) -> i32 {
         transport_table,
         windows,
         window_table,
+        bandwidth,
+        gpu_kernels,
     };
     match write(&report, &args.output) {
         Ok(md) => {

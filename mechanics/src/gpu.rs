@@ -102,6 +102,9 @@ pub struct GpuContext {
     /// Set when the kernels run in f32: a sentence for the log and `summary.json`.
     pub warning: Option<String>,
     pub limits: wgpu::Limits,
+    /// Timestamp queries are enabled (the adapter has `TIMESTAMP_QUERY`): kernel profiles
+    /// ([`GpuContext::timer`]) can time each dispatch on the device's own clock.
+    pub timestamps: bool,
     /// Errors no scope caught (recorded instead of wgpu's default panic).
     uncaptured: Arc<Mutex<Vec<String>>>,
 }
@@ -179,11 +182,16 @@ impl GpuContext {
             max_compute_workgroups_per_dimension: alimits.max_compute_workgroups_per_dimension,
             ..wgpu::Limits::downlevel_defaults()
         };
-        let required_features = if precision == Precision::F64 {
+        let mut required_features = if precision == Precision::F64 {
             wgpu::Features::SHADER_F64
         } else {
             wgpu::Features::empty()
         };
+        // timestamps cost nothing unless a profile writes them
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        if timestamps {
+            required_features |= wgpu::Features::TIMESTAMP_QUERY;
+        }
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("cosim compute"),
@@ -209,6 +217,7 @@ impl GpuContext {
             precision,
             warning,
             limits,
+            timestamps,
             uncaptured,
         })
     }
@@ -439,6 +448,196 @@ impl GpuContext {
             Err(_) => Err(GpuError("readback callback never ran".into())),
         }?;
         self.take_uncaptured("GPU work")
+    }
+}
+
+/// Device-clock timing of compute passes (needs [`GpuContext::timestamps`]): slot `i` is a
+/// pass that begins with [`GpuTimer::writes`]`(i)`; after the submission, [`GpuTimer::read`]
+/// gives each slot's seconds between the start and the end of its pass.
+pub struct GpuTimer {
+    set: wgpu::QuerySet,
+    resolved: wgpu::Buffer,
+    staging: wgpu::Buffer,
+    slots: u32,
+    period_ns: f64,
+}
+
+/// Most passes one [`GpuTimer`] times (two queries each; wgpu allows 4096 per set).
+pub const TIMER_SLOTS: u32 = 2048;
+
+impl GpuTimer {
+    /// Timestamp writes at the start and the end of the pass of `slot`.
+    pub fn writes(&self, slot: u32) -> wgpu::ComputePassTimestampWrites<'_> {
+        assert!(slot < self.slots, "timer slot {slot} of {}", self.slots);
+        wgpu::ComputePassTimestampWrites {
+            query_set: &self.set,
+            beginning_of_pass_write_index: Some(2 * slot),
+            end_of_pass_write_index: Some(2 * slot + 1),
+        }
+    }
+
+    /// Resolve the first `used` slots into the readback buffer (encode after the passes).
+    pub fn resolve(&self, enc: &mut wgpu::CommandEncoder, used: u32) {
+        let q = 2 * used.min(self.slots);
+        if q == 0 {
+            return;
+        }
+        enc.resolve_query_set(&self.set, 0..q, &self.resolved, 0);
+        enc.copy_buffer_to_buffer(&self.resolved, 0, &self.staging, 0, 8 * q as u64);
+    }
+
+    /// Seconds of each of the first `used` slots (after the submission that resolved them).
+    pub fn read(&self, ctx: &GpuContext, used: u32) -> Result<Vec<f64>, GpuError> {
+        let q = 2 * used.min(self.slots) as usize;
+        if q == 0 {
+            return Ok(Vec::new());
+        }
+        let (tx, rx) = std::sync::mpsc::channel();
+        self.staging
+            .map_async(wgpu::MapMode::Read, ..8 * q as u64, move |r| {
+                let _ = tx.send(r);
+            });
+        ctx.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError(format!("waiting for the device: {e}")))?;
+        match rx.recv() {
+            Ok(Ok(())) => {}
+            Ok(Err(e)) => return Err(GpuError(format!("mapping timestamps: {e}"))),
+            Err(_) => return Err(GpuError("timestamp callback never ran".into())),
+        }
+        let out = {
+            let view = self
+                .staging
+                .get_mapped_range(..8 * q as u64)
+                .map_err(|e| GpuError(format!("mapping timestamps: {e}")))?;
+            view.chunks_exact(16)
+                .map(|c| {
+                    let t0 = u64::from_le_bytes(c[..8].try_into().unwrap_or([0; 8]));
+                    let t1 = u64::from_le_bytes(c[8..].try_into().unwrap_or([0; 8]));
+                    t1.saturating_sub(t0) as f64 * self.period_ns * 1e-9
+                })
+                .collect()
+        };
+        self.staging.unmap();
+        Ok(out)
+    }
+}
+
+/// The device's own streaming bandwidth, bytes moved (read + written) per second.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bandwidth {
+    /// `copy_buffer_to_buffer` (the copy engine or the driver's copy kernel).
+    pub copy: f64,
+    /// A WGSL kernel copying 16 bytes per invocation: the bound a compute kernel can reach.
+    pub kernel: f64,
+    /// Bytes of the buffer copied.
+    pub bytes: u64,
+    /// Copies timed (per way, after one untimed warm-up of each).
+    pub repeats: u32,
+}
+
+impl GpuContext {
+    /// A timer of `slots` passes, or `None` without timestamp queries.
+    pub fn timer(&self, slots: u32) -> Option<GpuTimer> {
+        if !self.timestamps || slots == 0 {
+            return None;
+        }
+        let slots = slots.min(TIMER_SLOTS);
+        let set = self.device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("kernel timer"),
+            ty: wgpu::QueryType::Timestamp,
+            count: 2 * slots,
+        });
+        let bytes = 16 * slots as u64;
+        let resolved = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("timestamps"),
+            size: bytes,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("timestamp readback"),
+            size: bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Some(GpuTimer {
+            set,
+            resolved,
+            staging,
+            slots,
+            period_ns: self.queue.get_timestamp_period() as f64,
+        })
+    }
+
+    /// Measure [`Bandwidth`] on two buffers of `bytes` (rounded down to 16, capped by the
+    /// adapter's largest buffer and storage binding), `repeats` copies each way, timed on
+    /// the host around one submission each (so the figure includes one submission's
+    /// overhead, negligible at the sizes that measure bandwidth).
+    pub fn bandwidth(&self, bytes: u64, repeats: u32) -> Result<Bandwidth, GpuError> {
+        let cap = self
+            .limits
+            .max_buffer_size
+            .min(self.limits.max_storage_buffer_binding_size);
+        let bytes = bytes.min(cap) / 16 * 16;
+        if bytes == 0 || repeats == 0 {
+            return Err(GpuError("bandwidth: nothing to copy".into()));
+        }
+        let src = self.storage("bandwidth src", bytes as usize);
+        let dst = self.storage("bandwidth dst", bytes as usize);
+        let module = self.shader(
+            "copy",
+            "@group(0) @binding(0) var<storage, read> src: array<vec4<u32>>;\n\
+             @group(0) @binding(1) var<storage, read_write> dst: array<vec4<u32>>;\n\
+             @compute @workgroup_size(256)\n\
+             fn copy(@builtin(global_invocation_id) g: vec3<u32>, @builtin(num_workgroups) n: vec3<u32>) {\n\
+                 let i = g.x + g.y * n.x * 256u;\n\
+                 if i < arrayLength(&src) { dst[i] = src[i]; }\n\
+             }\n",
+        )?;
+        let layout = self.bind_layout("copy", &[BufferBinding::Read, BufferBinding::ReadWrite]);
+        let pipe = self.checked("copy pipeline", || {
+            self.pipelines("copy", &[Some(&layout)], &module, &["copy"])
+        })?;
+        let bind = self.bind_group("copy", &layout, &[&src, &dst]);
+        let (x, y) = dispatch_dims(
+            (bytes / 16).div_ceil(256) as u32,
+            self.limits.max_compute_workgroups_per_dimension,
+        );
+        let time = |n: u32, by_kernel: bool| -> Result<f64, GpuError> {
+            let mut enc = self
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("bandwidth"),
+                });
+            for _ in 0..n {
+                if by_kernel {
+                    let mut pass = enc.begin_compute_pass(&Default::default());
+                    pass.set_pipeline(&pipe[0]);
+                    pass.set_bind_group(0, &bind, &[]);
+                    pass.dispatch_workgroups(x, y, 1);
+                } else {
+                    enc.copy_buffer_to_buffer(&src, 0, &dst, 0, bytes);
+                }
+            }
+            let t0 = std::time::Instant::now();
+            self.checked("bandwidth copies", || self.queue.submit(Some(enc.finish())))?;
+            self.device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .map_err(|e| GpuError(format!("waiting for the device: {e}")))?;
+            Ok(t0.elapsed().as_secs_f64())
+        };
+        time(1, false)?;
+        let copy = time(repeats, false)?;
+        time(1, true)?;
+        let kernel = time(repeats, true)?;
+        let moved = 2.0 * bytes as f64 * repeats as f64;
+        Ok(Bandwidth {
+            copy: moved / copy,
+            kernel: moved / kernel,
+            bytes,
+            repeats,
+        })
     }
 }
 

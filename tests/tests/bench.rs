@@ -67,12 +67,18 @@ fn quick_suite_covers_every_kernel_with_consistent_numbers() {
         }
     }
     // GPU rows, or a skip with its reason.
-    for k in ["fluid", "pd-bond"] {
+    for k in ["fluid", "fluid-3d", "pd-bond"] {
         let gpu = has(k, "gpu", None);
         let skip = skipped
             .iter()
             .any(|s| s["kernel"] == k && s["device"] == "gpu" && s["reason"] != "");
         assert!(gpu == 2 || skip, "{k}: neither GPU rows nor a skip reason");
+    }
+    // Where the GPU rows run f64 kernels, the fluid also has f32 rows beside them.
+    if m["gpu"]["precision"] == "f64" {
+        for k in ["fluid", "fluid-3d"] {
+            assert_eq!(has(k, "gpu-f32", None), 2, "{k}: f32 rows");
+        }
     }
     // The transports (local always works; the others run or say why not).
     for t in ["local", "shm", "zenoh"] {
@@ -287,4 +293,73 @@ fn window_kernel_times_participants_and_the_split_bar() {
     }
     assert!(md.contains("Participant window round trip"), "{md}");
     assert!(md.contains("Split bar window"), "{md}");
+}
+
+/// `gpu-profile`: the device's copy bandwidth and each fluid kernel's device time at the
+/// quick sizes. The dispatch counts are the algorithm's: per step one wave-rate pass and the
+/// step's reduction, then per SSP-RK3 stage (3) a ghost fill and a flux pass per direction,
+/// the two-level boundary impulse and the update, the primitives again before stages 2 and
+/// 3, and the clock: 2 + 3·(2·nd + 3) + 2 + 1.
+#[test]
+fn gpu_profile_times_every_fluid_kernel() {
+    let (j, md) = run_suite("gpu-profile");
+    if j["machine"]["gpu"].is_null() {
+        mechanics::gpu::skip_or_fail(
+            "gpu_profile_times_every_fluid_kernel",
+            j["machine"]["gpu_skipped"].as_str().unwrap_or("no GPU"),
+        );
+        return;
+    }
+    let b = &j["bandwidth"];
+    for k in ["copy_bytes_per_s", "kernel_bytes_per_s"] {
+        assert!(b[k].as_f64().is_some_and(|x| x > 0.0), "{k}: {b}");
+    }
+    assert!(md.contains("GPU streaming bandwidth"));
+    let rows = j["gpu_kernels"].as_array().expect("gpu_kernels");
+    let skipped = j["skipped"].as_array().expect("skipped");
+    if rows.is_empty() {
+        assert!(
+            skipped.iter().any(|s| s["kernel"] == "gpu-profile"),
+            "no kernel rows and no reason"
+        );
+        mechanics::gpu::skip_or_fail(
+            "gpu_profile_times_every_fluid_kernel",
+            "the adapter has no timestamp queries",
+        );
+        return;
+    }
+    for (problem, nd) in [("blast 2-D 32²", 2u64), ("blast 3-D 12³", 3)] {
+        let mine: Vec<&Value> = rows.iter().filter(|r| r["problem"] == problem).collect();
+        let dispatches: u64 = mine
+            .iter()
+            .map(|r| r["dispatches_per_step"].as_u64().unwrap_or(0))
+            .sum();
+        assert_eq!(dispatches, 2 + 3 * (2 * nd + 3) + 2 + 1, "{problem}");
+        let fluxes = mine
+            .iter()
+            .filter(|r| r["kernel"].as_str().is_some_and(|k| k.starts_with("flux_")))
+            .count() as u64;
+        assert_eq!(fluxes, nd, "{problem}: one flux kernel per direction");
+        for r in &mine {
+            let what = format!("{problem} {}", r["kernel"]);
+            let (t, bytes, rate) = (
+                r["seconds_per_step"].as_f64().unwrap_or(f64::NAN),
+                r["bytes_per_step"].as_f64().unwrap_or(f64::NAN),
+                r["bytes_per_s"].as_f64().unwrap_or(f64::NAN),
+            );
+            assert!(t > 0.0, "{what}: no device time");
+            assert!(rel(rate * t, bytes) < 1e-9, "{what}: rate × time ≠ bytes");
+            assert_eq!(r["steps"].as_u64(), Some(2), "{what}: steps timed");
+            assert!(md.contains(&format!(
+                "| {problem} | {} |",
+                r["kernel"].as_str().unwrap_or("?")
+            )));
+        }
+        // the cell kernels move bytes; the flux passes move at least the 5 primitives of
+        // every interior cell each
+        let cells = if nd == 2 { 32 * 32 } else { 12 * 12 * 12 };
+        for r in mine.iter().filter(|r| r["kernel"] == "flux_x") {
+            assert!(r["bytes_per_step"].as_u64().unwrap_or(0) >= 3 * 5 * 8 * cells);
+        }
+    }
 }

@@ -4,7 +4,9 @@
 // kernels (step.rs, riemann/hllc.rs, limiter.rs, boundary.rs) operation by operation, so the
 // f64 results agree with the CPU to round-off.
 //
-// `real` is f64 or f32: the host prepends `alias real = f64;` (or f32).
+// `real` is f64 or f32: the host prepends `alias real = f64;` (or f32), and the model's
+// limiter and dimension as constants (`const LIMITER: u32`, `const ND: u32`), so the driver
+// compiles one limiter and only the directions the grid has.
 // Layout: the CPU's row-blocked structure of arrays, value v of cell (row r, x index i) at
 // (r * 5 + v) * mx + i; fluxes of direction d at d * fsize + (same index of the left cell).
 
@@ -31,10 +33,12 @@ const RWG: u32 = 256u;
 fn n(d: u32) -> u32 { return pu.w[0][d]; }
 fn g(d: u32) -> u32 { return pu.w[1][d]; }
 fn m(d: u32) -> u32 { return pu.w[2][d]; }
-fn nd() -> u32 { return pu.w[0][3]; }
-fn limiter() -> u32 { return pu.w[1][3]; }
+fn nd() -> u32 { return ND; }
+fn limiter() -> u32 { return LIMITER; }
 fn fsize() -> u32 { return pu.w[2][3]; }
 fn nparts() -> u32 { return pu.w[3][0]; }
+// workgroups per component of the boundary impulse sum (partials after the wave-rate ones)
+fn iparts() -> u32 { return pu.w[3][1]; }
 // boundary code of direction d, side s: 0 wall/symmetry, 1 outflow, 2 periodic, 3 inflow
 fn bc(d: u32, s: u32) -> u32 { return pu.w[4 + d][s]; }
 
@@ -55,8 +59,9 @@ fn cell_volume() -> real { return pr[44]; }
 // control slots: red[0] time, red[1] t_end (or dt cap), red[2] dt, red[3] rate,
 // red[4..7] boundary impulse, red[7] boundary work; st[0] active, st[1] steps, st[2] substeps, st[3] error,
 // st[4] first bad cell, st[5] stage of the error, st[6] mode, st[7] step target
+// (every error sets st[3] and clears st[0] together: one word says both)
 fn running() -> bool {
-    return atomicLoad(&st[0]) == 1u && atomicLoad(&st[3]) == 0u;
+    return atomicLoad(&st[0]) == 1u;
 }
 
 fn lin(gid: vec3<u32>, nwg: vec3<u32>, wg: u32) -> u32 {
@@ -403,8 +408,6 @@ fn flux_face(id: u32, d: u32) {
     if d == 2u { s = NV * mx() * m(1u); }
     var lq: array<real, 5>;
     var rq: array<real, 5>;
-    var q1: array<real, 5>;
-    var q2: array<real, 5>;
     for (var v = 0u; v < NV; v++) {
         let o = base + v * mx();
         let a0 = prim[o - s];
@@ -416,8 +419,6 @@ fn flux_face(id: u32, d: u32) {
         let dp = a3 - a2;
         lq[v] = a1 + real(0.5) * slope(dm, dc);
         rq[v] = a2 - real(0.5) * slope(dc, dp);
-        q1[v] = a1;
-        q2[v] = a2;
     }
     var fl = face(lq);
     var fr = face(rq);
@@ -425,7 +426,14 @@ fn flux_face(id: u32, d: u32) {
     if fl.ok && fr.ok {
         f = hllc(fl, fr, d);
     } else {
-        // first order where the reconstruction leaves the admissible set
+        // first order where the reconstruction leaves the admissible set (rare: the cell
+        // states are read again rather than kept live through the common path)
+        var q1: array<real, 5>;
+        var q2: array<real, 5>;
+        for (var v = 0u; v < NV; v++) {
+            q1[v] = prim[base + v * mx()];
+            q2[v] = prim[base + v * mx() + s];
+        }
         fl = face(q1);
         fr = face(q2);
         if fl.ok && fr.ok && q1[0] >= real(0.0) && q2[0] >= real(0.0) {
@@ -498,60 +506,117 @@ fn update(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
 
 // ---------------------------------------------------------------- boundary impulse, clock
 
-// the faces of boundary face row r whose domain cell (row rc) is not solid
-fn row_sum(fo: u32, r: u32, rc: u32, v: u32) -> real {
-    var s = -real(0.0);
-    for (var i = g(0u); i < g(0u) + n(0u); i++) {
-        if !is_solid_cell(rc * mx() + i) {
-            s += flux[fo + at(r, v, i)];
+// Boundary face pair f of the domain (faces normal to x first, then y, then z; along each
+// side x fastest, as the cells): the flux of momentum component c (0..3) or of the total energy
+// (c = 3, the variable after the momentum) through the low-side face minus that through the
+// high-side face opposite it, times the face area. A face whose domain cell is solid bounds no
+// gas and counts zero. Pairing the two sides keeps a periodic direction's impulse exactly
+// zero, as on the CPU (its two faces carry the same flux).
+fn boundary_term(f: u32, c: u32) -> real {
+    let v = 1u + c;
+    var t = f;
+    for (var d = 0u; d < nd(); d++) {
+        var cnt: u32;
+        if d == 0u {
+            cnt = n(1u) * n(2u);
+        } else if d == 1u {
+            cnt = n(0u) * n(2u);
+        } else {
+            cnt = n(0u) * n(1u);
         }
+        if t >= cnt {
+            t -= cnt;
+            continue;
+        }
+        let fo = d * fsize();
+        // (face row, face x index, domain cell row, domain cell x index) of each side
+        var lo = vec4<u32>();
+        var hi = vec4<u32>();
+        if d == 0u {
+            let r = row(g(1u) + t % n(1u), g(2u) + t / n(1u));
+            lo = vec4<u32>(r, g(0u) - 1u, r, g(0u));
+            let ih = g(0u) + n(0u) - 1u;
+            hi = vec4<u32>(r, ih, r, ih);
+        } else {
+            let i = g(0u) + t % n(0u);
+            let o = t / n(0u);
+            if d == 1u {
+                lo = vec4<u32>(row(g(1u) - 1u, g(2u) + o), i, row(g(1u), g(2u) + o), i);
+                let rh = row(g(1u) + n(1u) - 1u, g(2u) + o);
+                hi = vec4<u32>(rh, i, rh, i);
+            } else {
+                lo = vec4<u32>(row(g(1u) + o, g(2u) - 1u), i, row(g(1u) + o, g(2u)), i);
+                let rh = row(g(1u) + o, g(2u) + n(2u) - 1u);
+                hi = vec4<u32>(rh, i, rh, i);
+            }
+        }
+        var x = real(0.0);
+        var y = real(0.0);
+        if !is_solid_cell(lo.z * mx() + lo.w) {
+            x = flux[fo + at(lo.x, v, lo.y)];
+        }
+        if !is_solid_cell(hi.z * mx() + hi.w) {
+            y = flux[fo + at(hi.x, v, hi.y)];
+        }
+        return area(d) * (x - y);
     }
-    return s;
+    return real(0.0);
 }
 
-// step.rs boundary_flux(): per momentum component c (0..3) and the total energy (c = 3,
-// the variable after the momentum), the same summation order; a face whose domain cell is
-// solid bounds no gas and is skipped
+fn boundary_pairs() -> u32 {
+    var total = 0u;
+    for (var d = 0u; d < nd(); d++) {
+        if d == 0u {
+            total += n(1u) * n(2u);
+        } else if d == 1u {
+            total += n(0u) * n(2u);
+        } else {
+            total += n(0u) * n(1u);
+        }
+    }
+    return total;
+}
+
+// step.rs boundary_flux(), first level: workgroup (c, p) sums the boundary terms of
+// component c (momentum x, y, z, energy) over every iparts()-th block of RWG face pairs,
+// by a tree, into partial red[16 + nparts + c · iparts + p]
+@compute @workgroup_size(RWG)
+fn impulse(@builtin(local_invocation_index) li: u32, @builtin(workgroup_id) wid: vec3<u32>) {
+    let c = wid.x;
+    let p = wid.y;
+    let total = boundary_pairs();
+    var s = real(0.0);
+    if running() {
+        for (var f = p * RWG + li; f < total; f += iparts() * RWG) {
+            s += boundary_term(f, c);
+        }
+    }
+    sh[li] = s;
+    workgroupBarrier();
+    for (var h = RWG / 2u; h > 0u; h = h / 2u) {
+        if li < h {
+            sh[li] = sh[li] + sh[li + h];
+        }
+        workgroupBarrier();
+    }
+    if li == 0u {
+        red[16u + nparts() + c * iparts() + p] = sh[0];
+    }
+}
+
+// second level: thread c adds the stage's impulse, the partials summed in order (the order
+// differs from the CPU's: agreement to round-off, not bit for bit; a periodic direction
+// stays exactly zero)
 @compute @workgroup_size(4)
-fn impulse(@builtin(local_invocation_index) c: u32) {
+fn impulse_sum(@builtin(local_invocation_index) c: u32) {
     if c >= 4u || !running() {
         return;
     }
-    let v = 1u + c;
-    let dtw = stg.w * red[2];
-    var imp = real(0.0);
-    for (var d = 0u; d < nd(); d++) {
-        var lo = real(0.0);
-        var hi = real(0.0);
-        let fo = d * fsize();
-        if d == 0u {
-            for (var k = g(2u); k < g(2u) + n(2u); k++) {
-                for (var j = g(1u); j < g(1u) + n(1u); j++) {
-                    let r = row(j, k);
-                    if !is_solid_cell(r * mx() + g(0u)) {
-                        lo += flux[fo + at(r, v, g(0u) - 1u)];
-                    }
-                    if !is_solid_cell(r * mx() + g(0u) + n(0u) - 1u) {
-                        hi += flux[fo + at(r, v, g(0u) + n(0u) - 1u)];
-                    }
-                }
-            }
-        } else if d == 1u {
-            for (var k = g(2u); k < g(2u) + n(2u); k++) {
-                let b = row(g(1u) + n(1u) - 1u, k);
-                lo += row_sum(fo, row(g(1u) - 1u, k), row(g(1u), k), v);
-                hi += row_sum(fo, b, b, v);
-            }
-        } else {
-            for (var j = g(1u); j < g(1u) + n(1u); j++) {
-                let b = row(j, g(2u) + n(2u) - 1u);
-                lo += row_sum(fo, row(j, g(2u) - 1u), row(j, g(2u)), v);
-                hi += row_sum(fo, b, b, v);
-            }
-        }
-        imp += dtw * area(d) * (lo - hi);
+    var s = real(0.0);
+    for (var p = 0u; p < iparts(); p++) {
+        s += red[16u + nparts() + c * iparts() + p];
     }
-    red[4u + c] += imp;
+    red[4u + c] += stg.w * red[2] * s;
 }
 
 // advance_to(): time += dt, snapped onto t_end within 1e-12 relative; stop at t_end

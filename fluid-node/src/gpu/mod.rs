@@ -43,6 +43,8 @@ const RWG: u32 = 256;
 const NCTRL: usize = 16;
 /// Status words.
 const NST: usize = 16;
+/// Most workgroups per component of the boundary impulse's first level.
+const IMPULSE_PARTS: usize = 64;
 /// Largest number of steps encoded in one submission.
 const MAX_BATCH: u64 = 256;
 
@@ -165,6 +167,69 @@ fn bc_code(b: &Boundary) -> u32 {
 type Dispatch<'a> =
     dyn Fn(&mut wgpu::ComputePass<'_>, &wgpu::ComputePipeline, usize, (u32, u32)) + 'a;
 
+/// The kernels of a step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kernel {
+    PrimRate,
+    PrimOnly,
+    ReduceDt,
+    Ghost(usize),
+    Flux(usize),
+    Impulse,
+    ImpulseSum,
+    Update,
+    Finish,
+    ImFill,
+    ImWall,
+    ImProject,
+    ImTotal,
+}
+
+impl Kernel {
+    fn name(self) -> &'static str {
+        match self {
+            Kernel::PrimRate => "prim_rate",
+            Kernel::PrimOnly => "prim_only",
+            Kernel::ReduceDt => "reduce_dt",
+            Kernel::Ghost(0) => "ghost_x",
+            Kernel::Ghost(1) => "ghost_y",
+            Kernel::Ghost(_) => "ghost_z",
+            Kernel::Flux(0) => "flux_x",
+            Kernel::Flux(1) => "flux_y",
+            Kernel::Flux(_) => "flux_z",
+            Kernel::Impulse => "impulse",
+            Kernel::ImpulseSum => "impulse_sum",
+            Kernel::Update => "update",
+            Kernel::Finish => "finish",
+            Kernel::ImFill => "im_fill",
+            Kernel::ImWall => "im_wall",
+            Kernel::ImProject => "im_project",
+            Kernel::ImTotal => "im_total",
+        }
+    }
+}
+
+/// One dispatch of a step: which kernel, at which RK stage's uniforms, how many workgroups.
+#[derive(Debug, Clone, Copy)]
+struct Planned {
+    kernel: Kernel,
+    stage: usize,
+    dims: (u32, u32),
+}
+
+/// One kernel's share of a step, measured by [`GpuEuler::profile`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct KernelProfile {
+    /// The entry point in the shader.
+    pub kernel: &'static str,
+    /// Dispatches per step.
+    pub dispatches: u32,
+    /// Device seconds per step (all its dispatches).
+    pub seconds: f64,
+    /// Bytes per step it must move at the least (see `compulsory_bytes`).
+    pub bytes: u64,
+}
+
 struct Pipes {
     prim_rate: wgpu::ComputePipeline,
     prim_only: wgpu::ComputePipeline,
@@ -173,6 +238,7 @@ struct Pipes {
     flux: [wgpu::ComputePipeline; 3],
     update: wgpu::ComputePipeline,
     impulse: wgpu::ComputePipeline,
+    impulse_sum: wgpu::ComputePipeline,
     finish: wgpu::ComputePipeline,
     row_totals: wgpu::ComputePipeline,
 }
@@ -203,6 +269,8 @@ pub struct GpuEuler {
     ghost_n: [u32; 3],
     face_n: [u32; 3],
     max_wg: u32,
+    /// Workgroups per component of the boundary impulse's first level.
+    iparts: u32,
     // host mirror of the device clock
     time: f64,
     steps: u64,
@@ -238,11 +306,13 @@ impl GpuEuler {
         let len = grid.rows() * 5 * mx;
         let rb = p.bytes();
         let max_bind = ctx.limits.max_storage_buffer_binding_size;
-        if (3 * len * rb) as u64 > max_bind {
+        // one flux array per direction (row_totals also uses it as scratch: 8 reals a row)
+        let flux_len = (grid.nd * len).max(8 * grid.rows());
+        if (flux_len * rb) as u64 > max_bind {
             return Err(GpuSetupError::Unsupported(format!(
                 "{:?} cells: the flux array needs {} bytes, more than the adapter's {} per binding",
                 grid.n,
-                3 * len * rb,
+                flux_len * rb,
                 max_bind
             )));
         }
@@ -277,6 +347,12 @@ impl GpuEuler {
         };
         pu[11] = fsize;
         pu[12] = nparts;
+        // boundary impulse: workgroups per component, about 8 face pairs a thread, at most 64
+        let pairs: usize = (0..grid.nd)
+            .map(|d| grid.cells() / grid.n[d])
+            .sum::<usize>();
+        let iparts = pairs.div_ceil(8 * RWG as usize).clamp(1, IMPULSE_PARTS) as u32;
+        pu[13] = iparts;
         // real parameters
         let (inf, maxr, snap, minpos) = match p {
             Precision::F64 => (f64::INFINITY, f64::MAX, 1e-12, f64::MIN_POSITIVE),
@@ -339,14 +415,17 @@ impl GpuEuler {
                 ctx.limits.max_storage_buffers_per_shader_stage
             )));
         }
+        let head = format!(
+            "alias real = {};\nconst LIMITER: u32 = {}u;\nconst ND: u32 = {}u;\n",
+            p.wgsl(),
+            pu[7],
+            grid.nd
+        );
         let src = if immersed {
-            format!("alias real = {};\n{SHADER}\n{IMMERSED_SHADER}", p.wgsl())
+            format!("{head}{SHADER}\n{IMMERSED_SHADER}")
         } else {
             // without an interface no cell is solid
-            format!(
-                "alias real = {};\n{SHADER}\nfn is_solid_cell(c: u32) -> bool {{ return false; }}\n",
-                p.wgsl()
-            )
+            format!("{head}{SHADER}\nfn is_solid_cell(c: u32) -> bool {{ return false; }}\n")
         };
         let module = ctx.shader("euler", &src)?;
         let (bgl, layout, pipes, im_parts) = ctx.checked("building the fluid pipelines", || {
@@ -392,6 +471,7 @@ impl GpuEuler {
                 flux: [mk("flux_x"), mk("flux_y"), mk("flux_z")],
                 update: mk("update"),
                 impulse: mk("impulse"),
+                impulse_sum: mk("impulse_sum"),
                 finish: mk("finish"),
                 row_totals: mk("row_totals"),
             };
@@ -419,8 +499,8 @@ impl GpuEuler {
                 let cons = ctx.storage_init("cons", &reals_to_bytes(p, &f.cons));
                 let cons0 = ctx.storage("cons0", len * rb);
                 let prim = ctx.storage("prim", len * rb);
-                let flux = ctx.storage("flux", 3 * len * rb);
-                let red = ctx.storage("red", (NCTRL + nparts as usize) * rb);
+                let flux = ctx.storage("flux", flux_len * rb);
+                let red = ctx.storage("red", (NCTRL + nparts as usize + 4 * iparts as usize) * rb);
                 let st = ctx.storage("status", NST * 4);
                 let stage = ctx.uniform_init("stages", &stage_bytes);
                 let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -486,6 +566,7 @@ impl GpuEuler {
             ghost_n,
             face_n,
             max_wg,
+            iparts,
             time: f.time,
             steps: f.steps,
             impulse: f.boundary_impulse,
@@ -642,23 +723,7 @@ impl GpuEuler {
     /// The CFL-limited step of the current device state (as `step::stable_dt`): the wave-rate
     /// reduction on the device, one real back. Errors when a cell is inadmissible.
     pub fn stable_dt(&self) -> Result<f64, SolverError> {
-        let p = self.ctx.precision;
-        let mut ctrl = [0.0; NCTRL];
-        ctrl[0] = self.time;
-        ctrl[1] = f64::INFINITY;
-        ctrl[4..7].copy_from_slice(&self.impulse);
-        ctrl[7] = self.work;
-        let mut st = [0u32; NST];
-        st[0] = 1;
-        st[4] = u32::MAX;
-        st[6] = 1;
-        st[7] = 1;
-        self.ctx.upload(&self.red, 0, &reals_to_bytes(p, &ctrl));
-        self.ctx.upload(
-            &self.st,
-            0,
-            &st.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>(),
-        );
+        self.arm(1, f64::INFINITY, 1);
         let (ctrl, st) = self.encode_and_read(|pass, go| {
             go(pass, &self.pipes.prim_rate, 0, self.dims(self.cells, RWG));
             go(pass, &self.pipes.reduce_dt, 0, (1, 1));
@@ -756,7 +821,9 @@ impl GpuEuler {
         Ok(out)
     }
 
-    fn run(&mut self, mode: u32, t_or_cap: f64, target: u64) -> Result<u64, SolverError> {
+    /// Load the control words for a run: clock, end time (mode 0) or step cap and step
+    /// target (mode 1), running totals; no error, the step counters at zero.
+    fn arm(&self, mode: u32, t_or_cap: f64, target: u64) {
         let p = self.ctx.precision;
         let mut ctrl = [0.0; NCTRL];
         ctrl[0] = self.time;
@@ -765,7 +832,6 @@ impl GpuEuler {
         ctrl[7] = self.work;
         let mut st = [0u32; NST];
         st[0] = 1;
-        st[1] = 0;
         st[4] = u32::MAX;
         st[6] = mode;
         st[7] = target.min(u32::MAX as u64) as u32;
@@ -775,6 +841,35 @@ impl GpuEuler {
             0,
             &st.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>(),
         );
+    }
+
+    /// Take the device's clock, totals and substep count (since `arm`, on top of `steps0`)
+    /// into the host mirror; the device's error, if it stopped on one.
+    fn absorb(
+        &mut self,
+        ctrl: &[f64; NCTRL],
+        st: &[u32; NST],
+        steps0: u64,
+    ) -> Result<(), SolverError> {
+        self.time = ctrl[0];
+        self.impulse = [ctrl[4], ctrl[5], ctrl[6]];
+        self.work = ctrl[7];
+        self.steps = steps0 + st[2] as u64;
+        match st[3] {
+            0 => Ok(()),
+            1 => Err(self.bad_cell(st[4], st[5])),
+            _ => Err(SolverError::Diverged {
+                time: self.time,
+                reason: format!(
+                    "no finite stable time step (largest wave rate {:e} 1/s, on the GPU)",
+                    ctrl[3]
+                ),
+            }),
+        }
+    }
+
+    fn run(&mut self, mode: u32, t_or_cap: f64, target: u64) -> Result<u64, SolverError> {
+        self.arm(mode, t_or_cap, target);
         let steps0 = self.steps;
         let mut done = 0u64;
         loop {
@@ -788,30 +883,12 @@ impl GpuEuler {
             let batch = want.clamp(1, MAX_BATCH);
             let (ctrl, st) = self.batch(batch)?;
             let sub = st[2] as u64;
-            let dt_prev = self.time;
-            self.time = ctrl[0];
-            self.impulse = [ctrl[4], ctrl[5], ctrl[6]];
-            self.work = ctrl[7];
-            self.steps = steps0 + sub;
+            let t_prev = self.time;
+            self.absorb(&ctrl, &st, steps0)?;
             if sub > done {
-                self.last_dt = (self.time - dt_prev) / (sub - done) as f64;
+                self.last_dt = (self.time - t_prev) / (sub - done) as f64;
             }
             done = sub;
-            match st[3] {
-                0 => {}
-                1 => {
-                    return Err(self.bad_cell(st[4], st[5]));
-                }
-                _ => {
-                    return Err(SolverError::Diverged {
-                        time: self.time,
-                        reason: format!(
-                            "no finite stable time step (largest wave rate {:e} 1/s, on the GPU)",
-                            ctrl[3]
-                        ),
-                    });
-                }
-            }
             if st[0] == 0 {
                 if mode == 0 {
                     // Landed on t1. The device holds time in its own precision: in f32 it
@@ -832,45 +909,177 @@ impl GpuEuler {
         }
     }
 
+    /// The dispatches of one step in order (the immersed kernels when the interface has
+    /// occupied cells this window).
+    fn plan(&self) -> Vec<Planned> {
+        let active = self.im.as_ref().filter(|im| im.ncells > 0);
+        let mut v = Vec::with_capacity(4 + 3 * (8 + 2 * self.nd));
+        let at = |kernel, stage, threads, wg| Planned {
+            kernel,
+            stage,
+            dims: self.dims(threads, wg),
+        };
+        v.push(at(Kernel::PrimRate, 0, self.cells, RWG));
+        v.push(at(Kernel::ReduceDt, 0, 1, 1));
+        for s in 0..3 {
+            if s > 0 {
+                v.push(at(Kernel::PrimOnly, s, self.cells, RWG));
+            }
+            if let Some(im) = active {
+                v.push(at(Kernel::ImFill, s, im.ncells, WG));
+            }
+            for d in 0..self.nd {
+                v.push(at(Kernel::Ghost(d), s, self.ghost_n[d], WG));
+            }
+            for d in 0..self.nd {
+                v.push(at(Kernel::Flux(d), s, self.face_n[d], WG));
+            }
+            if let Some(im) = active.filter(|im| im.nwalls > 0) {
+                v.push(at(Kernel::ImWall, s, im.nwalls, WG));
+            }
+            v.push(Planned {
+                kernel: Kernel::Impulse,
+                stage: s,
+                dims: (4, self.iparts),
+            });
+            v.push(at(Kernel::ImpulseSum, s, 1, 1));
+            v.push(at(Kernel::Update, s, self.cells, WG));
+            if let Some(im) = active {
+                v.push(at(Kernel::ImProject, s, im.ncells, WG));
+                v.push(at(Kernel::ImTotal, s, 1, 1));
+            }
+        }
+        v.push(at(Kernel::Finish, 0, 1, 1));
+        v
+    }
+
+    fn pipeline(&self, k: Kernel) -> &wgpu::ComputePipeline {
+        let im = || {
+            self.im
+                .as_ref()
+                .expect("immersed kernels planned without an interface")
+        };
+        match k {
+            Kernel::PrimRate => &self.pipes.prim_rate,
+            Kernel::PrimOnly => &self.pipes.prim_only,
+            Kernel::ReduceDt => &self.pipes.reduce_dt,
+            Kernel::Ghost(d) => &self.pipes.ghost[d],
+            Kernel::Flux(d) => &self.pipes.flux[d],
+            Kernel::Impulse => &self.pipes.impulse,
+            Kernel::ImpulseSum => &self.pipes.impulse_sum,
+            Kernel::Update => &self.pipes.update,
+            Kernel::Finish => &self.pipes.finish,
+            Kernel::ImFill => &im().fill,
+            Kernel::ImWall => &im().wall,
+            Kernel::ImProject => &im().project,
+            Kernel::ImTotal => &im().total,
+        }
+    }
+
+    /// The bytes a kernel must move at the least (each value it reads or writes once, as if
+    /// every neighbour's value came from cache): the numerator of its achieved bandwidth.
+    fn compulsory_bytes(&self, d: &Planned) -> u64 {
+        let rb = self.ctx.precision.bytes() as u64;
+        let cells = self.cells as u64;
+        let nd = self.nd as u64;
+        let vals = match d.kernel {
+            // 5 conserved in, 5 primitives out
+            Kernel::PrimRate | Kernel::PrimOnly => 10 * cells,
+            // one value read and one written per thread
+            Kernel::Ghost(g) => 2 * self.ghost_n[g] as u64,
+            // 5 primitives of each cell in, 5 fluxes of each face out
+            Kernel::Flux(f) => 5 * cells + 5 * self.face_n[f] as u64,
+            // fluxes in, U (and U0) in, U out (stage 0 writes U0 instead of reading it)
+            Kernel::Update => (5 * nd + 15) * cells,
+            Kernel::Impulse => {
+                let faces: u64 = (0..self.nd)
+                    .map(|a| 2 * self.face_n[a] as u64 / (self.grid.n[a] as u64 + 1))
+                    .sum();
+                4 * faces
+            }
+            Kernel::ReduceDt => NCTRL as u64 + cells.div_ceil(RWG as u64),
+            _ => 0,
+        };
+        vals * rb
+    }
+
     /// Encode `k` steps in one submission; return the control reals and status words.
     fn batch(&self, k: u64) -> Result<([f64; NCTRL], [u32; NST]), SolverError> {
-        // the immersed kernels, when the interface has occupied cells this window
-        let active = self.im.as_ref().filter(|im| im.ncells > 0);
+        let plan = self.plan();
         self.encode_and_read(|pass, go| {
             for _ in 0..k {
-                go(pass, &self.pipes.prim_rate, 0, self.dims(self.cells, RWG));
-                go(pass, &self.pipes.reduce_dt, 0, (1, 1));
-                for s in 0..3 {
-                    if s > 0 {
-                        go(pass, &self.pipes.prim_only, s, self.dims(self.cells, RWG));
-                    }
-                    if let Some(im) = active {
-                        go(pass, &im.fill, s, self.dims(im.ncells, WG));
-                    }
-                    for d in 0..self.nd {
-                        go(
-                            pass,
-                            &self.pipes.ghost[d],
-                            s,
-                            self.dims(self.ghost_n[d], WG),
-                        );
-                    }
-                    for d in 0..self.nd {
-                        go(pass, &self.pipes.flux[d], s, self.dims(self.face_n[d], WG));
-                    }
-                    if let Some(im) = active.filter(|im| im.nwalls > 0) {
-                        go(pass, &im.wall, s, self.dims(im.nwalls, WG));
-                    }
-                    go(pass, &self.pipes.impulse, s, (1, 1));
-                    go(pass, &self.pipes.update, s, self.dims(self.cells, WG));
-                    if let Some(im) = active {
-                        go(pass, &im.project, s, self.dims(im.ncells, WG));
-                        go(pass, &im.total, s, (1, 1));
-                    }
+                for d in &plan {
+                    go(pass, self.pipeline(d.kernel), d.stage, d.dims);
                 }
-                go(pass, &self.pipes.finish, 0, (1, 1));
             }
         })
+    }
+
+    /// Time each kernel of `steps` steps (after one untimed step) on the device's clock, one
+    /// compute pass per dispatch, and advance the state by those steps (CFL steps, no landing
+    /// on a time). `None` when the adapter has no timestamp queries. The passes add a little
+    /// per dispatch that the batched steps do not pay, so the sum of the rows is an upper
+    /// bound of the step's device time.
+    pub fn profile(&mut self, steps: u32) -> Result<Option<Vec<KernelProfile>>, SolverError> {
+        let plan = self.plan();
+        let per_step = plan.len() as u32;
+        let steps = steps.clamp(1, mechanics::gpu::TIMER_SLOTS / per_step);
+        let Some(timer) = self.ctx.timer(steps * per_step) else {
+            return Ok(None);
+        };
+        self.steps_n(1, f64::INFINITY)?;
+        self.arm(1, f64::INFINITY, steps as u64);
+        let mut enc = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("euler profile"),
+            });
+        let mut slot = 0;
+        for _ in 0..steps {
+            for d in &plan {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some(d.kernel.name()),
+                    timestamp_writes: Some(timer.writes(slot)),
+                });
+                pass.set_pipeline(self.pipeline(d.kernel));
+                pass.set_bind_group(0, &self.bind, &[self.stage_off[d.stage]]);
+                if let Some(im) = &self.im {
+                    pass.set_bind_group(1, &im.bind, &[]);
+                }
+                pass.dispatch_workgroups(d.dims.0, d.dims.1, 1);
+                slot += 1;
+            }
+        }
+        timer.resolve(&mut enc, slot);
+        let (ctrl, st) = self.submit_read(enc)?;
+        let secs = timer.read(&self.ctx, slot).map_err(gpu_err)?;
+        self.absorb(&ctrl, &st, self.steps)?;
+        let mut rows: Vec<KernelProfile> = Vec::new();
+        for (i, d) in plan.iter().cycle().take(slot as usize).enumerate() {
+            let name = d.kernel.name();
+            let bytes = self.compulsory_bytes(d);
+            let row = match rows.iter_mut().find(|r| r.kernel == name) {
+                Some(r) => r,
+                None => {
+                    rows.push(KernelProfile {
+                        kernel: name,
+                        dispatches: 0,
+                        seconds: 0.0,
+                        bytes: 0,
+                    });
+                    rows.last_mut().expect("just pushed")
+                }
+            };
+            row.seconds += secs[i] / steps as f64;
+            row.bytes += bytes;
+            row.dispatches += 1;
+        }
+        for r in &mut rows {
+            r.bytes /= steps as u64;
+            r.dispatches /= steps;
+        }
+        Ok(Some(rows))
     }
 
     /// One compute pass of dispatches (`go(pass, pipeline, RK stage, workgroups)`), then the
@@ -880,8 +1089,6 @@ impl GpuEuler {
         body: impl FnOnce(&mut wgpu::ComputePass<'_>, &Dispatch<'_>),
     ) -> Result<([f64; NCTRL], [u32; NST]), SolverError> {
         let ctx = &self.ctx;
-        let p = ctx.precision;
-        let rb = p.bytes();
         let mut enc = ctx
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -905,6 +1112,17 @@ impl GpuEuler {
             };
             body(&mut pass, &go);
         }
+        self.submit_read(enc)
+    }
+
+    /// Copy the control words behind `enc`'s work, submit, wait and read them.
+    fn submit_read(
+        &self,
+        mut enc: wgpu::CommandEncoder,
+    ) -> Result<([f64; NCTRL], [u32; NST]), SolverError> {
+        let ctx = &self.ctx;
+        let p = ctx.precision;
+        let rb = p.bytes();
         enc.copy_buffer_to_buffer(&self.red, 0, &self.staging, 0, (NCTRL * rb) as u64);
         enc.copy_buffer_to_buffer(
             &self.st,
