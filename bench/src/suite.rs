@@ -41,7 +41,8 @@ pub struct SuiteArgs {
     /// Kernels to run, comma-separated: transport, window (whole coupled windows through
     /// `cosim run`: participant round trip in Rust, Python and C; the split bar per transport),
     /// fluid, fluid-3d, solid (= pd-bond and pd-correspondence), pd-bond, pd-correspondence, shell,
-    /// joint. Default: all.
+    /// joint, gpu-profile (the GPU's copy bandwidth and each fluid kernel's device time).
+    /// Default: all.
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
     /// Tiny problems (2 sizes per kernel) and few repetitions: a smoke run for tests.
