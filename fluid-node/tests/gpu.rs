@@ -318,45 +318,101 @@ fn f32_fallback_is_close_and_warns() {
 
 #[test]
 fn unsupported_models_are_refused_with_a_reason() {
-    let two = r#"
+    // a 1-D bar of 20 cells of `materials`, all of material `fill`
+    let bar = |materials: &str, fill: &str, density: f64, pressure: f64| {
+        format!(
+            "[grid]\ncells = [20, 1, 1]\nlower = [0.0, 0.0, 0.0]\nupper = [1.0, 1.0, 1.0]\n\
+             {materials}\n[[regions]]\nshape = \"all\"\nmaterial = \"{fill}\"\n\
+             density = {density}\npressure = {pressure}\n"
+        )
+    };
+    let refusal = |text: &str| match GpuEuler::new(&setup::from_toml_str(text).expect("valid")) {
+        Err(GpuSetupError::Unsupported(s)) => {
+            println!("refused: {s}");
+            s
+        }
+        Err(e) => panic!("expected Unsupported, got {e}"),
+        Ok(_) => panic!("accepted: {text}"),
+    };
+    let two = bar(
+        "[materials.air]\neos = \"ideal\"\ngamma = 1.4\n\
+         [materials.water]\neos = \"stiffened\"\ngamma = 4.4\np_inf = 6e8",
+        "air",
+        1.0,
+        1e5,
+    );
+    let s = refusal(&two);
+    assert!(s.contains("2 materials"), "{s}");
+    // one JWL material (detonation products alone)
+    let jwl = bar(
+        "[materials.products]\neos = \"jwl\"\na = 3.712e11\nb = 3.231e9\nr1 = 4.15\n\
+         r2 = 0.95\nomega = 0.30\nrho0 = 1630.0\ne0 = 7.0e9",
+        "products",
+        1630.0,
+        1e9,
+    );
+    let s = refusal(&jwl);
+    assert!(s.contains("JWL"), "{s}");
+}
+
+/// Water (stiffened gas, γ 4.4, p∞ 6e8 Pa) on the device: a 1-D water shock tube (1 GPa
+/// against 1 bar, walls) and a 2-D underwater charge (a 0.5 GPa bubble of compressed water,
+/// outflow and wall sides), against the CPU to round-off, totals and boundary impulse included.
+#[test]
+fn water_matches_cpu() {
+    let water = |cells: &str, dims: &str, regions: &str, bcs: &str| {
+        format!(
+            r#"
+        cfl = 0.5
         [grid]
-        cells = [20, 1, 1]
+        cells = {cells}
         lower = [0.0, 0.0, 0.0]
-        upper = [1.0, 1.0, 1.0]
-        [materials.air]
-        eos = "ideal"
-        gamma = 1.4
+        upper = {dims}
         [materials.water]
         eos = "stiffened"
         gamma = 4.4
         p_inf = 6e8
         [[regions]]
         shape = "all"
-        material = "air"
-        density = 1.0
+        material = "water"
+        density = 1000.0
         pressure = 1e5
-    "#;
-    let f = setup::from_toml_str(two).expect("valid case");
-    match GpuEuler::new(&f) {
-        Err(GpuSetupError::Unsupported(s)) => {
-            println!("refused: {s}");
-            assert!(s.contains("2 materials"), "{s}");
-        }
-        Err(e) => panic!("expected Unsupported, got {e}"),
-        Ok(_) => panic!("a two-material model must be refused"),
-    }
-    let stiff = two
-        .replace(
-            "[materials.air]\n        eos = \"ideal\"\n        gamma = 1.4\n",
-            "",
+        {regions}
+        [boundaries]
+        {bcs}
+    "#
         )
-        .replace("material = \"air\"", "material = \"water\"");
-    let f = setup::from_toml_str(&stiff).expect("valid case");
-    match GpuEuler::new(&f) {
-        Err(GpuSetupError::Unsupported(s)) => assert!(s.contains("non-ideal"), "{s}"),
-        Err(e) => panic!("expected Unsupported, got {e}"),
-        Ok(_) => panic!("a stiffened gas must be refused"),
-    }
+    };
+    let tube = water(
+        "[200, 1, 1]",
+        "[1.0, 1.0, 1.0]",
+        r#"[[regions]]
+        shape = "box"
+        lower = [0.0, 0.0, 0.0]
+        upper = [0.5, 1.0, 1.0]
+        material = "water"
+        density = 1200.0
+        pressure = 1e9"#,
+        r#"x_lower = "wall"
+        x_upper = "wall""#,
+    );
+    check_f64("water tube 200", &tube, 1.2e-4);
+    let charge = water(
+        "[48, 40, 1]",
+        "[1.2, 1.0, 1.0]",
+        r#"[[regions]]
+        shape = "sphere"
+        center = [0.4, 0.3, 0.0]
+        radius = 0.15
+        material = "water"
+        density = 1100.0
+        pressure = 5e8"#,
+        r#"x_lower = "outflow"
+        x_upper = "outflow"
+        y_lower = "wall"
+        y_upper = "outflow""#,
+    );
+    check_f64("underwater charge 48x40", &charge, 2e-4);
 }
 
 /// A state the scheme cannot represent (two streams pulling apart at 20× the sound speed

@@ -1,4 +1,4 @@
-// Single-material ideal-gas Euler step on the device (seed 002 §2.3–§2.4, Fig. 4):
+// Single-material Euler step on the device (one ideal or stiffened gas) (seed 002 §2.3–§2.4, Fig. 4):
 // primitive recovery, ghost fill, MUSCL + HLLC fluxes, SSP-RK3 stage update (seed 002 eq. 35
 // weights), boundary impulse, and the CFL reduction. Every formula mirrors fluid-node's CPU
 // kernels (step.rs, riemann/hllc.rs, limiter.rs, boundary.rs) operation by operation, so the
@@ -55,6 +55,8 @@ fn idx(d: u32) -> real { return pr[8u + d]; }
 fn area(d: u32) -> real { return pr[11u + d]; }
 fn inflow(d: u32, s: u32, v: u32) -> real { return pr[14u + (d * 2u + s) * NV + v]; }
 fn cell_volume() -> real { return pr[44]; }
+// p∞ of a stiffened gas (0 for an ideal gas): ρc² = γ (p + p∞), the CPU's rho_c2
+fn p_inf() -> real { return pr[48]; }
 
 // control slots: red[0] time, red[1] t_end (or dt cap), red[2] dt, red[3] rate,
 // red[4..7] boundary impulse, red[7] boundary work; st[0] active, st[1] steps, st[2] substeps, st[3] error,
@@ -96,7 +98,7 @@ fn prim_cell(id: u32) -> real {
     let ww = cons[b + 3u * w] * inv;
     let rhoe = cons[b + 4u * w] - real(0.5) * rho * (u * u + v * v + ww * ww);
     let p = (rhoe - real(1.0) * off()) / inv_g();
-    let cc = gamma() * p / rho;
+    let cc = gamma() * (p + p_inf()) / rho;
     let ok = a >= real(0.0) && rho > real(0.0) && cc > real(0.0) && finite(cc) && finite(p);
     if !ok && running() {
         atomicMin(&st[4], b);
@@ -110,7 +112,7 @@ fn prim_cell(id: u32) -> real {
     prim[b + 3u * w] = ww;
     prim[b + 4u * w] = p;
     // max_rate: the same arithmetic on the stored primitives
-    let c2 = gamma() * p / a;
+    let c2 = gamma() * (p + p_inf()) / a;
     var c = inf();
     if a > real(0.0) && c2 > real(0.0) && finite(c2) {
         c = sqrt(c2);
@@ -320,7 +322,7 @@ fn slope(a: real, b: real) -> real {
 
 struct Face { rho: real, vel: array<real, 3>, p: real, e: real, c: real, ok: bool }
 
-// step.rs flux_line's ideal-gas face state: c = sqrt(γp/ρ), E = (p/Γ + off) + ½ρ|u|²
+// step.rs face_state for one material: c = sqrt(γ(p + p∞)/ρ), E = (p/Γ + off) + ½ρ|u|²
 fn face(q: array<real, 5>) -> Face {
     var f: Face;
     let r = q[0];
@@ -328,7 +330,7 @@ fn face(q: array<real, 5>) -> Face {
     f.rho = r;
     f.vel = array<real, 3>(q[1], q[2], q[3]);
     f.p = p;
-    let c2 = gamma() * p / r;
+    let c2 = gamma() * (p + p_inf()) / r;
     f.ok = r > real(0.0) && c2 > real(0.0) && finite(c2);
     f.c = real(0.0);
     if f.ok {

@@ -6,10 +6,10 @@
 //! operation by operation. Only a few control words cross to the host per batch of steps;
 //! the field crosses only when [`GpuEuler::download`] asks for it.
 //!
-//! Scope: one ideal-gas material, 1-D, 2-D or 3-D, every boundary kind (wall, symmetry,
+//! Scope: one ideal or stiffened-gas material (air, water), 1-D, 2-D or 3-D, every boundary kind (wall, symmetry,
 //! outflow, periodic, inflow), with or without an immersed particle interface (its kernels in
-//! `immersed.wgsl`, its per-window host work in [`interface`]). Multi-material and
-//! stiffened/JWL models are refused with an error that names the reason.
+//! `immersed.wgsl`, its per-window host work in [`interface`]). Multi-material and JWL
+//! models are refused with an error that names the reason.
 
 use crate::boundary::Boundary;
 use crate::diagnostics::Totals;
@@ -98,9 +98,9 @@ pub fn supports(f: &Fluid) -> Result<(), String> {
             f.nmat()
         ));
     }
-    if !matches!(f.phases[0].eos, Material::Ideal(_)) {
+    if eos_constants(&f.phases[0].eos).is_none() {
         return Err(format!(
-            "material '{}' with a non-ideal equation of state (the device kernels are ideal-gas only)",
+            "material '{}' with a JWL equation of state (the device kernels take one ideal or stiffened gas)",
             f.material_names[0]
         ));
     }
@@ -108,6 +108,16 @@ pub fn supports(f: &Fluid) -> Result<(), String> {
         return Err(format!("{} variables per cell (expected 5)", f.nv));
     }
     Ok(())
+}
+
+/// (γ, p∞) of an equation of state the device kernels implement: ideal gas (p∞ = 0) or
+/// stiffened gas, ρc² = γ (p + p∞) (`None`: JWL).
+fn eos_constants(m: &Material) -> Option<(f64, f64)> {
+    match m {
+        Material::Ideal(g) => Some((g.gamma, 0.0)),
+        Material::Stiffened(s) => Some((s.gamma, s.p_inf)),
+        _ => None,
+    }
 }
 
 /// The immersed interface's window outputs on the GPU path, as the CPU path of
@@ -322,8 +332,8 @@ impl GpuEuler {
                 grid.n
             )));
         }
-        let Material::Ideal(gas) = &f.phases[0].eos else {
-            return Err(GpuSetupError::Unsupported("a non-ideal gas".into()));
+        let Some((gamma, p_inf)) = eos_constants(&f.phases[0].eos) else {
+            return Err(GpuSetupError::Unsupported("a JWL material".into()));
         };
         let cells = grid.cells() as u32;
         let nparts = cells.div_ceil(RWG);
@@ -365,7 +375,7 @@ impl GpuEuler {
         };
         let ph = &f.phases[0];
         let mut prs = vec![
-            gas.gamma,
+            gamma,
             ph.inv_g,
             ph.off,
             f.cfl,
@@ -393,6 +403,8 @@ impl GpuEuler {
         prs.push(grid.cell_volume());
         // 45..48: projection weights of the RK stages (seed 002 eq. 35)
         prs.extend_from_slice(&RK3_PROJECTION_WEIGHT);
+        // 48: p∞ of a stiffened gas (0: ideal)
+        prs.push(p_inf);
         // stage uniforms at aligned offsets
         let align = ctx.limits.min_uniform_buffer_offset_alignment.max(32) as usize;
         let mut stage_bytes = vec![0u8; 3 * align];
