@@ -45,7 +45,9 @@ const NCTRL: usize = 16;
 const NST: usize = 16;
 /// Most workgroups per component of the boundary impulse's first level.
 const IMPULSE_PARTS: usize = 64;
-/// Largest number of steps encoded in one submission.
+/// Steps per command buffer within a batch (submitted while the next is encoded).
+const CHUNK: u64 = 8;
+/// Largest number of steps encoded before the host reads the control words.
 const MAX_BATCH: u64 = 256;
 
 /// Why the GPU path cannot run this case.
@@ -1016,15 +1018,55 @@ impl GpuEuler {
     }
 
     /// Encode `k` steps in one submission; return the control reals and status words.
+    ///
+    /// The steps go to the device in command buffers of [`CHUNK`] steps, each submitted as
+    /// soon as it is encoded, so the device runs one while the host encodes the next; only
+    /// the last one waits for the control words.
     fn batch(&self, k: u64) -> Result<([f64; NCTRL], [u32; NST]), SolverError> {
         let plan = self.plan();
-        self.encode_and_read(|pass, go| {
-            for _ in 0..k {
-                for d in &plan {
-                    go(pass, self.pipeline(d.kernel), d.stage, d.dims);
+        let mut left = k;
+        loop {
+            let n = left.min(CHUNK);
+            left -= n;
+            let enc = self.encode_steps(&plan, n);
+            if left == 0 {
+                return self.submit_read(enc);
+            }
+            self.ctx.queue.submit(Some(enc.finish()));
+        }
+    }
+
+    /// `n` steps of `plan` in one compute pass. The interface's group is bound once and the
+    /// solver's group again only where the RK stage (its uniform offset) changes: wgpu keeps
+    /// bindings across pipelines of one layout, and every binding call costs host time.
+    fn encode_steps(&self, plan: &[Planned], n: u64) -> wgpu::CommandEncoder {
+        let mut enc = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("euler steps"),
+            });
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("euler"),
+                timestamp_writes: None,
+            });
+            if let Some(im) = &self.im {
+                pass.set_bind_group(1, &im.bind, &[]);
+            }
+            let mut stage = usize::MAX;
+            for _ in 0..n {
+                for d in plan {
+                    pass.set_pipeline(self.pipeline(d.kernel));
+                    if d.stage != stage {
+                        pass.set_bind_group(0, &self.bind, &[self.stage_off[d.stage]]);
+                        stage = d.stage;
+                    }
+                    pass.dispatch_workgroups(d.dims.0, d.dims.1, 1);
                 }
             }
-        })
+        }
+        enc
     }
 
     /// Time each kernel of `steps` steps (after one untimed step) on the device's clock, one
