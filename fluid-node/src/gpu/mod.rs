@@ -175,10 +175,6 @@ fn bc_code(b: &Boundary) -> u32 {
     }
 }
 
-/// The dispatch helper handed to [`GpuEuler::encode_and_read`]'s body.
-type Dispatch<'a> =
-    dyn Fn(&mut wgpu::ComputePass<'_>, &wgpu::ComputePipeline, usize, (u32, u32)) + 'a;
-
 /// The kernels of a step.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Kernel {
@@ -738,10 +734,19 @@ impl GpuEuler {
     /// reduction on the device, one real back. Errors when a cell is inadmissible.
     pub fn stable_dt(&self) -> Result<f64, SolverError> {
         self.arm(1, f64::INFINITY, 1);
-        let (ctrl, st) = self.encode_and_read(|pass, go| {
-            go(pass, &self.pipes.prim_rate, 0, self.dims(self.cells, RWG));
-            go(pass, &self.pipes.reduce_dt, 0, (1, 1));
-        })?;
+        let plan = [
+            Planned {
+                kernel: Kernel::PrimRate,
+                stage: 0,
+                dims: self.dims(self.cells, RWG),
+            },
+            Planned {
+                kernel: Kernel::ReduceDt,
+                stage: 0,
+                dims: (1, 1),
+            },
+        ];
+        let (ctrl, st) = self.submit_read(self.encode_steps(&plan, 1))?;
         match st[3] {
             0 => Ok(ctrl[2]),
             1 => Err(self.bad_cell(st[4], 0)),
@@ -1134,39 +1139,6 @@ impl GpuEuler {
             r.dispatches /= steps;
         }
         Ok(Some(rows))
-    }
-
-    /// One compute pass of dispatches (`go(pass, pipeline, RK stage, workgroups)`), then the
-    /// control words back to the host.
-    fn encode_and_read(
-        &self,
-        body: impl FnOnce(&mut wgpu::ComputePass<'_>, &Dispatch<'_>),
-    ) -> Result<([f64; NCTRL], [u32; NST]), SolverError> {
-        let ctx = &self.ctx;
-        let mut enc = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("euler steps"),
-            });
-        {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("euler"),
-                timestamp_writes: None,
-            });
-            let go = |pass: &mut wgpu::ComputePass<'_>,
-                      pipe: &wgpu::ComputePipeline,
-                      s: usize,
-                      (x, y): (u32, u32)| {
-                pass.set_pipeline(pipe);
-                pass.set_bind_group(0, &self.bind, &[self.stage_off[s]]);
-                if let Some(im) = &self.im {
-                    pass.set_bind_group(1, &im.bind, &[]);
-                }
-                pass.dispatch_workgroups(x, y, 1);
-            };
-            body(&mut pass, &go);
-        }
-        self.submit_read(enc)
     }
 
     /// Copy the control words behind `enc`'s work, submit, wait and read them.
