@@ -573,7 +573,10 @@ impl GpuContext {
     /// Measure [`Bandwidth`] on two buffers of `bytes` (rounded down to 16, capped by the
     /// adapter's largest buffer and storage binding), `repeats` copies each way, timed on
     /// the host around one submission each (so the figure includes one submission's
-    /// overhead, negligible at the sizes that measure bandwidth).
+    /// overhead, negligible at the sizes that measure bandwidth). The source holds a pattern
+    /// (word i of 16-byte element k: k · 4 + i + 1, never zero); after each way the first,
+    /// middle and last elements of the destination are read back and must equal it, so a
+    /// copy that skipped part of the buffer is an error, not a fast figure.
     pub fn bandwidth(&self, bytes: u64, repeats: u32) -> Result<Bandwidth, GpuError> {
         let cap = self
             .limits
@@ -587,50 +590,97 @@ impl GpuContext {
         let dst = self.storage("bandwidth dst", bytes as usize);
         let module = self.shader(
             "copy",
-            "@group(0) @binding(0) var<storage, read> src: array<vec4<u32>>;\n\
+            "@group(0) @binding(0) var<storage, read_write> src: array<vec4<u32>>;\n\
              @group(0) @binding(1) var<storage, read_write> dst: array<vec4<u32>>;\n\
+             fn at(g: vec3<u32>, n: vec3<u32>) -> u32 { return g.x + g.y * n.x * 256u; }\n\
+             @compute @workgroup_size(256)\n\
+             fn fill(@builtin(global_invocation_id) g: vec3<u32>, @builtin(num_workgroups) n: vec3<u32>) {\n\
+                 let i = at(g, n);\n\
+                 if i < arrayLength(&src) { src[i] = vec4<u32>(4u * i + 1u, 4u * i + 2u, 4u * i + 3u, 4u * i + 4u); }\n\
+             }\n\
              @compute @workgroup_size(256)\n\
              fn copy(@builtin(global_invocation_id) g: vec3<u32>, @builtin(num_workgroups) n: vec3<u32>) {\n\
-                 let i = g.x + g.y * n.x * 256u;\n\
+                 let i = at(g, n);\n\
                  if i < arrayLength(&src) { dst[i] = src[i]; }\n\
              }\n",
         )?;
-        let layout = self.bind_layout("copy", &[BufferBinding::Read, BufferBinding::ReadWrite]);
-        let pipe = self.checked("copy pipeline", || {
-            self.pipelines("copy", &[Some(&layout)], &module, &["copy"])
+        use BufferBinding::ReadWrite;
+        let layout = self.bind_layout("copy", &[ReadWrite, ReadWrite]);
+        let pipes = self.checked("copy pipelines", || {
+            self.pipelines("copy", &[Some(&layout)], &module, &["fill", "copy"])
         })?;
         let bind = self.bind_group("copy", &layout, &[&src, &dst]);
         let (x, y) = dispatch_dims(
             (bytes / 16).div_ceil(256) as u32,
             self.limits.max_compute_workgroups_per_dimension,
         );
-        let time = |n: u32, by_kernel: bool| -> Result<f64, GpuError> {
-            let mut enc = self
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("bandwidth"),
-                });
-            for _ in 0..n {
-                if by_kernel {
-                    let mut pass = enc.begin_compute_pass(&Default::default());
-                    pass.set_pipeline(&pipe[0]);
-                    pass.set_bind_group(0, &bind, &[]);
-                    pass.dispatch_workgroups(x, y, 1);
-                } else {
-                    enc.copy_buffer_to_buffer(&src, 0, &dst, 0, bytes);
-                }
-            }
+        let dispatch = |enc: &mut wgpu::CommandEncoder, pipe: &wgpu::ComputePipeline| {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(pipe);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(x, y, 1);
+        };
+        // (what, the encoded work); the host times the submission and the wait
+        let run = |what: &str, enc: wgpu::CommandEncoder| -> Result<f64, GpuError> {
             let t0 = std::time::Instant::now();
-            self.checked("bandwidth copies", || self.queue.submit(Some(enc.finish())))?;
+            self.checked(what, || self.queue.submit(Some(enc.finish())))?;
             self.device
                 .poll(wgpu::PollType::wait_indefinitely())
                 .map_err(|e| GpuError(format!("waiting for the device: {e}")))?;
+            self.take_uncaptured(what)?;
             Ok(t0.elapsed().as_secs_f64())
         };
-        time(1, false)?;
-        let copy = time(repeats, false)?;
-        time(1, true)?;
-        let kernel = time(repeats, true)?;
+        let encoder = || {
+            self.device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("bandwidth"),
+                })
+        };
+        let mut enc = encoder();
+        dispatch(&mut enc, &pipes[0]);
+        run("bandwidth: filling the source", enc)?;
+        let elements = bytes / 16;
+        let check = |way: &str| -> Result<(), GpuError> {
+            for k in [0, elements / 2, elements - 1] {
+                let got = self.read(&dst, 16 * k, 16)?;
+                let want: Vec<u8> = (1..=4u32)
+                    .flat_map(|i| (4 * k as u32).wrapping_add(i).to_le_bytes())
+                    .collect();
+                if got != want {
+                    return Err(GpuError(format!(
+                        "bandwidth: the {way} left element {k} of {elements} uncopied"
+                    )));
+                }
+            }
+            Ok(())
+        };
+        // each way: one untimed copy, the destination cleared, then the timed copies
+        let time = |by_kernel: bool| -> Result<f64, GpuError> {
+            let way = if by_kernel {
+                "copy kernel"
+            } else {
+                "buffer copy"
+            };
+            let mut seconds = 0.0;
+            for n in [1, repeats] {
+                let mut enc = encoder();
+                enc.clear_buffer(&dst, 0, None);
+                run(way, enc)?;
+                let mut enc = encoder();
+                for _ in 0..n {
+                    if by_kernel {
+                        dispatch(&mut enc, &pipes[1]);
+                    } else {
+                        enc.copy_buffer_to_buffer(&src, 0, &dst, 0, bytes);
+                    }
+                }
+                seconds = run(way, enc)?;
+                check(way)?;
+            }
+            Ok(seconds)
+        };
+        let copy = time(false)?;
+        let kernel = time(true)?;
         let moved = 2.0 * bytes as f64 * repeats as f64;
         Ok(Bandwidth {
             copy: moved / copy,
@@ -771,6 +821,77 @@ mod tests {
 
     /// A device (or a clear reason why not); on a device, y = 2x + y in the negotiated
     /// precision is exact, and a shader error becomes `Err`, not a panic.
+    /// The timer times every pass it was given (a kernel doing real work takes longer than
+    /// nothing); the bandwidth copies the whole buffer each way (it checks the destination
+    /// itself and errs otherwise) and reports positive rates.
+    #[test]
+    fn timer_and_bandwidth() {
+        let ctx = match GpuContext::new() {
+            Ok(c) => c,
+            Err(e) => {
+                skip_or_fail("timer_and_bandwidth", &e.to_string());
+                return;
+            }
+        };
+        let bw = ctx.bandwidth(4 << 20, 3).expect("bandwidth");
+        println!(
+            "{}: copy {:e} B/s, kernel {:e} B/s",
+            ctx.describe(),
+            bw.copy,
+            bw.kernel
+        );
+        assert_eq!((bw.bytes, bw.repeats), (4 << 20, 3));
+        assert!(bw.copy > 0.0 && bw.kernel > 0.0);
+        // a size that is not a whole number of workgroups (the last element still copied)
+        let odd = ctx
+            .bandwidth(16 * 1000 + 7, 1)
+            .expect("bandwidth, odd size");
+        assert_eq!(odd.bytes, 16 * 1000);
+
+        let Some(timer) = ctx.timer(3) else {
+            skip_or_fail(
+                "timer_and_bandwidth",
+                "the adapter has no timestamp queries",
+            );
+            return;
+        };
+        let m = ctx
+            .shader(
+                "spin",
+                "@group(0) @binding(0) var<storage, read_write> y: array<u32>;
+                 @compute @workgroup_size(64) fn main(@builtin(global_invocation_id) g: vec3<u32>) {
+                     var a = g.x;
+                     for (var k = 0u; k < 4096u; k++) { a = a * 1664525u + 1013904223u; }
+                     if g.x < arrayLength(&y) { y[g.x] = a; }
+                 }",
+            )
+            .unwrap();
+        let layout = ctx.bind_layout("spin", &[BufferBinding::ReadWrite]);
+        let pipe = ctx.pipelines("spin", &[Some(&layout)], &m, &["main"]);
+        let y = ctx.storage("y", 4 * 65536);
+        let bind = ctx.bind_group("spin", &layout, &[&y]);
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        for slot in 0..3 {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: None,
+                timestamp_writes: Some(timer.writes(slot)),
+            });
+            pass.set_pipeline(&pipe[0]);
+            pass.set_bind_group(0, &bind, &[]);
+            // slot 0 does no work; slots 1 and 2 spin over 65,536 invocations
+            pass.dispatch_workgroups(if slot == 0 { 0 } else { 1024 }, 1, 1);
+        }
+        timer.resolve(&mut enc, 3);
+        ctx.queue.submit(Some(enc.finish()));
+        let t = timer.read(&ctx, 3).expect("timestamps");
+        println!("pass seconds: {t:?}");
+        assert_eq!(t.len(), 3);
+        assert!(t[1] > 0.0 && t[2] > 0.0, "{t:?}");
+        assert!(t[1] > t[0] && t[2] > t[0], "empty pass not faster: {t:?}");
+        let out = ctx.read(&y, 0, 8).unwrap();
+        assert_ne!(out, vec![0u8; 8], "the spin kernel wrote nothing");
+    }
+
     #[test]
     fn device_axpy_and_caught_errors() {
         let ctx = match GpuContext::new() {
