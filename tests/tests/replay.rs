@@ -193,7 +193,9 @@ fn long_recording() -> &'static PathBuf {
 /// `act` to it, and return the replay's exit status, stdout and stderr, and the seconds from
 /// the stop to its exit; checks that nothing of the replay is left.
 fn interrupted(tag: &str, act: impl FnOnce(i32)) -> (bool, String, String, f64) {
-    let (_, id) = scratch(tag);
+    let (dir, id) = scratch(tag);
+    // Each replay writes to its own folder: the two interrupted replays run side by side.
+    let out = dir.join("replay");
     let mut child = Command::new(bin("cosim"))
         .args([
             "replay",
@@ -202,6 +204,8 @@ fn interrupted(tag: &str, act: impl FnOnce(i32)) -> (bool, String, String, f64) 
             "right",
             "--run-id",
             &id,
+            "-o",
+            out.to_str().unwrap(),
         ])
         .env("COSIM_LOG", "warn")
         .stdout(Stdio::piped())
