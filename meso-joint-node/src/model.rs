@@ -163,6 +163,11 @@ pub struct Model {
     pub bc_impulse: [f64; 3],
     pub coupling_work: f64,
     pub coupling_impulse: [f64; 3],
+    /// The coupled particles' momentum and kinetic energy when last booked (in the mass and
+    /// velocity of the `momentum` sums): what they exchange with the free particles between
+    /// two bookings (the smoothing) crossed the interface too.
+    pub coupled_p: [f64; 3],
+    pub coupled_ke: f64,
     pub max_eps: f64,
     /// Candidate (rigid, other) particle pairs of the bearing contact, refreshed every
     /// `CONTACT_REFRESH` steps from a 2-spacing neighbour search.
@@ -245,6 +250,8 @@ impl Model {
             bc_impulse: [0.0; 3],
             coupling_work: 0.0,
             coupling_impulse: [0.0; 3],
+            coupled_p: [0.0; 3],
+            coupled_ke: 0.0,
             max_eps: 0.0,
             contact_pairs: Vec::new(),
             contact_search: ContactSearch::default(),
@@ -543,18 +550,29 @@ impl Model {
                 }
             }
         }
+        // A coupled particle's mass is its driver's (the shell adds it to its node at set-up
+        // and counts it in its momentum and kinetic energy), so the joint leaves the particle
+        // out of its sums and books what crossed to its free particles: the force its body
+        // exerts on the particle (−f dt, −f·v dt; docs/architecture.md, the kinematic
+        // coupling's booking), and what the particles gave the free ones since the last
+        // booking through the smoothing of the velocities.
+        let (p, ke) = self.coupled_sums();
+        for d in 0..3 {
+            self.coupling_impulse[d] -= p[d] - self.coupled_p[d];
+        }
+        self.coupling_work -= ke - self.coupled_ke;
         for i in 0..self.len() {
             if self.kind[i] == Kind::Coupled {
                 let vel = self.presc[i];
-                let j = self.overwrite_impulse(i, &vel);
                 self.v[i] = vel;
                 self.vh[i] = vel;
                 for d in 0..3 {
                     self.coupling_work -= dt * self.f[i][d] * vel[d];
-                    self.coupling_impulse[d] += j[d] - dt * self.f[i][d];
+                    self.coupling_impulse[d] -= dt * self.f[i][d];
                 }
             }
         }
+        (self.coupled_p, self.coupled_ke) = self.coupled_sums();
         self.clock.lap(Phase::Kinematic);
     }
 
@@ -844,15 +862,40 @@ impl Model {
         }
     }
 
+    /// The coupled particles' momentum and kinetic energy, in the mass and velocity of the
+    /// `momentum` sums; the baseline of their booking once they are marked.
+    pub fn coupled_sums(&self) -> ([f64; 3], f64) {
+        let (m, vel) = match self.p.smoothing {
+            Smoothing::Consistent => (&self.mh, &self.vh),
+            _ => (&self.ms, &self.v),
+        };
+        let (mut p, mut e) = ([0.0; 3], 0.0);
+        for i in (0..self.len()).filter(|&i| self.kind[i] == Kind::Coupled) {
+            let v = &vel[i];
+            for d in 0..3 {
+                p[d] += m[i] * v[d];
+            }
+            e += 0.5 * m[i] * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+        }
+        (p, e)
+    }
+
+    /// The particles whose mass is the joint's in its sums: all but those moved by a
+    /// kinematic coupling's driver (whose mass the driver carries).
+    fn counted(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.len()).filter(|&i| self.kind[i] != Kind::Coupled)
+    }
+
     /// Kinetic energy: `½ Σ m̂ |v̂|²` with the consistent pair (the kinetic energy of the
-    /// discrete Lagrangian, module doc), else with the masses the particles move with.
+    /// discrete Lagrangian, module doc), else with the masses the particles move with; the
+    /// coupled particles left out (their mass is the driver's).
     pub fn kinetic_energy(&self) -> f64 {
         let (m, vel) = match self.p.smoothing {
             Smoothing::Consistent => (&self.mh, &self.vh),
             _ => (&self.ms, &self.v),
         };
         let mut e = 0.0;
-        for i in 0..self.len() {
+        for i in self.counted() {
             let v = &vel[i];
             e += 0.5 * m[i] * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
         }
@@ -863,8 +906,6 @@ impl Model {
     pub fn internal_energy(&self) -> f64 {
         self.eint.iter().sum::<f64>() + self.contact_energy
     }
-    /// Linear momentum: `Σ m̂_J v̂_J` with the consistent pair (the conjugate momentum,
-    /// module doc), `Σ m_I v_I` otherwise (the two agree for `Shepard`).
     /// Momentum change of particle `i` when its velocity is set to `vel`, in the mass and
     /// velocity `momentum` sums.
     fn overwrite_impulse(&self, i: usize, vel: &[f64; 3]) -> [f64; 3] {
@@ -885,7 +926,7 @@ impl Model {
             Smoothing::Consistent => (&self.mh, &self.vh),
             _ => (&self.ms, &self.v),
         };
-        (0..self.len())
+        self.counted()
             .map(|i| {
                 m[i] * (vel[i][0] * vel[i][0] + vel[i][1] * vel[i][1] + vel[i][2] * vel[i][2])
                     .sqrt()
@@ -893,13 +934,16 @@ impl Model {
             .sum()
     }
 
+    /// Linear momentum: `Σ m̂_J v̂_J` with the consistent pair (the conjugate momentum,
+    /// module doc), `Σ m_I v_I` otherwise (the two agree for `Shepard`); the coupled
+    /// particles left out (their mass is the driver's).
     pub fn momentum(&self) -> [f64; 3] {
         let (m, vel) = match self.p.smoothing {
             Smoothing::Consistent => (&self.mh, &self.vh),
             _ => (&self.ms, &self.v),
         };
         let mut p = [0.0; 3];
-        for i in 0..self.len() {
+        for i in self.counted() {
             for d in 0..3 {
                 p[d] += m[i] * vel[i][d];
             }
@@ -914,7 +958,7 @@ impl Model {
             _ => (&self.x, &self.ms, &self.v),
         };
         let mut l = [0.0; 3];
-        for i in 0..self.len() {
+        for i in self.counted() {
             let mv = vec3(&vel[i]) * m[i];
             let c = vec3(&x[i]).cross(&mv);
             for d in 0..3 {

@@ -217,6 +217,7 @@ impl SpgSolver {
                 for &i in &particles {
                     model.kind[i as usize] = Kind::Coupled;
                 }
+                (model.coupled_p, model.coupled_ke) = model.coupled_sums();
                 let n = particles.len();
                 let mut follow = Follow::new(sync_force::Path::Linear, n, 3);
                 for (q, &i) in particles.iter().enumerate() {
@@ -649,6 +650,8 @@ impl Solver for SpgSolver {
                 bc_impulse: m.bc_impulse,
                 coupling_work: m.coupling_work,
                 coupling_impulse: m.coupling_impulse,
+                coupled_p: m.coupled_p,
+                coupled_ke: m.coupled_ke,
                 max_eps: m.max_eps,
                 contact_pairs: m.contact_pairs.clone(),
                 contact_energy: m.contact_energy,
@@ -715,6 +718,8 @@ impl Solver for SpgSolver {
         m.bc_impulse = s.bc_impulse;
         m.coupling_work = s.coupling_work;
         m.coupling_impulse = s.coupling_impulse;
+        m.coupled_p = s.coupled_p;
+        m.coupled_ke = s.coupled_ke;
         m.max_eps = s.max_eps;
         m.contact_pairs = s.contact_pairs;
         m.contact_energy = s.contact_energy;
@@ -801,6 +806,8 @@ struct ModelState {
     bc_impulse: [f64; 3],
     coupling_work: f64,
     coupling_impulse: [f64; 3],
+    coupled_p: [f64; 3],
+    coupled_ke: f64,
     max_eps: f64,
     contact_pairs: Vec<(u32, u32)>,
     contact_energy: f64,
