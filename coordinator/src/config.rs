@@ -1432,6 +1432,24 @@ fn lagrange_sides(
     Ok((sides, Some(method)))
 }
 
+/// The split bar's coupling `mid`, for tests: `left.tip` drives `right.tip` kinematically
+/// with the scheme's default fields.
+#[cfg(test)]
+pub(crate) fn split_bar_coupling() -> CouplingConfig {
+    CouplingConfig {
+        name: "mid".into(),
+        kind: CouplingKind::Kinematic,
+        driver: ("left".into(), "tip".into()),
+        responder: ("right".into(), "tip".into()),
+        driver_fields: vec!["position".into(), "velocity".into()],
+        responder_fields: vec!["force".into()],
+        decouple: Decouple::default(),
+        sides: Vec::new(),
+        method: None,
+        point_tolerance: DEFAULT_POINT_TOLERANCE,
+    }
+}
+
 /// Bindings of one node: its side of every coupling.
 pub fn bindings_of(case: &Case, node: &str) -> Vec<protocol::Binding> {
     let mut v = Vec::new();

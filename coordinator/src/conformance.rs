@@ -71,7 +71,7 @@ impl std::fmt::Display for Verdict {
 }
 
 /// The rules, in the order a run meets them: (name, section).
-const RULES: [(&str, &str); 12] = [
+const RULES: [(&str, &str); 13] = [
     ("describe", "§2 --describe"),
     ("hello", "§4.2 item 2"),
     ("welcome-describe", "§4.2 item 4"),
@@ -79,6 +79,7 @@ const RULES: [(&str, &str); 12] = [
     ("set-up", "§4.2 item 6"),
     ("fields-match-binding", "§5.3 Fields"),
     ("finite-values", "§4.4 Divergence"),
+    ("books-match-fields", "§4.7 Booking"),
     ("windows-in-order", "§4.2 items 7-8"),
     ("heartbeat", "§4.4 Heartbeat"),
     ("checkpoint", "§4.5"),
@@ -233,7 +234,19 @@ pub fn check(o: &Options) -> anyhow::Result<Vec<Verdict>> {
         return Ok(sheet.0);
     }
     let window = o.window.or(d.stable_dt).unwrap_or(1e-6);
+    // The booking rule over the node's own force (a responder's): node 0, the peer 1.
+    let responder = match o.role {
+        Role::Responder => "node",
+        Role::Driver => "peer",
+    };
+    let books = crate::books::Books::new(
+        &["node", "peer"],
+        std::slice::from_ref(&coupling),
+        window,
+        &[Some((0, responder.to_string()))],
+    );
     let drive = Drive {
+        books: std::cell::RefCell::new(books),
         o,
         binding: binding_of(o, &coupling),
         contract: Contract::of(&coupling, o.role, true, Some(iface.points), &iface.provides),
@@ -373,6 +386,8 @@ struct Drive<'a> {
     described: InterfaceDescription,
     window: f64,
     checkpoint_at: u64,
+    /// The booking rule's check: the node's `force` against its booked interface impulse.
+    books: std::cell::RefCell<crate::books::Books>,
 }
 
 impl Drive<'_> {
@@ -425,6 +440,9 @@ impl Drive<'_> {
             s.done.as_ref().is_some_and(|d| d.0 == 0)
         })?;
         let mut sent = vec![false; o.windows as usize + 1];
+        let zero = [0.0; 3];
+        let booked0 = s.done.as_ref().map_or(zero, |d| d.1.interface_impulse);
+        self.books.borrow_mut().begin(1, [booked0, zero].iter());
         self.idle(s, sheet, &mut sent)?;
         if sent[0] && s.describes.len() >= 2 {
             sheet.pass("set-up", "Fields{0}, a second Describe, Done{0}");
@@ -442,6 +460,10 @@ impl Drive<'_> {
                 ),
             );
         }
+        // The impulse scale the booking rule judges against: the node's own interface impulse
+        // (the peer applies no load; the node's own loads may dwarf what a 1 mm/s push gives).
+        let mut scale = 0.0f64;
+        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         for k in 1..=o.windows {
             let (t0, t1) = ((k - 1) as f64 * self.window, k as f64 * self.window);
             s.window = k;
@@ -463,6 +485,17 @@ impl Drive<'_> {
                 self.check_checkpoint(k, t1, sheet);
             }
             self.idle(s, sheet, &mut sent)?;
+            if let Some((_, r)) = &s.done {
+                scale = scale.max(norm(r.interface_impulse));
+                let booked = [r.interface_impulse];
+                let broken = self
+                    .books
+                    .borrow_mut()
+                    .check(k, |i| booked.get(i), scale, |_| false);
+                if let Some((_, why)) = broken {
+                    sheet.fail("books-match-fields", format!("{why} (window {k})"));
+                }
+            }
         }
         let expected: Vec<u64> = (0..=o.windows).collect();
         let missing: Vec<String> = sent
@@ -523,6 +556,19 @@ impl Drive<'_> {
         if sheet.outcome("finite-values") == Outcome::NotReached {
             sheet.pass("finite-values", "every value sent is finite");
         }
+        if sheet.outcome("books-match-fields") == Outcome::NotReached {
+            let judged = self.books.borrow().judged(0);
+            sheet.pass(
+                "books-match-fields",
+                if judged > 0 {
+                    format!(
+                        "over {judged} window(s) its booked interface impulse and the force it sent agree in sign"
+                    )
+                } else {
+                    "nothing to judge: no interface impulse above round-off (the peer applies no load)".to_string()
+                },
+            );
+        }
         Ok(())
     }
 
@@ -538,6 +584,10 @@ impl Drive<'_> {
                 *x = true;
             }
             self.check_fields(&f, sheet);
+            if self.binding.role == Role::Responder {
+                let force = crate::books::force_of(&f.fields);
+                self.books.borrow_mut().force(0, f.window, force);
+            }
         }
         Ok(())
     }

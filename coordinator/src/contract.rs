@@ -304,21 +304,9 @@ impl Check<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::Decouple;
 
     fn kinematic() -> CouplingConfig {
-        CouplingConfig {
-            name: "mid".into(),
-            kind: CouplingKind::Kinematic,
-            driver: ("left".into(), "tip".into()),
-            responder: ("right".into(), "tip".into()),
-            driver_fields: vec!["position".into(), "velocity".into()],
-            responder_fields: vec!["force".into()],
-            decouple: Decouple::default(),
-            sides: Vec::new(),
-            method: None,
-            point_tolerance: crate::config::DEFAULT_POINT_TOLERANCE,
-        }
+        crate::config::split_bar_coupling()
     }
 
     fn verdict(c: &Contract, window: u64, fields: &[(&str, u32, usize)]) -> Result<(), String> {

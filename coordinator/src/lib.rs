@@ -2,11 +2,14 @@
 //! scheduler, MCAP recorder, replay and the `cosim` command line. It owns the clock, the
 //! schedule, the recording and the failure handling; it never does physics.
 
+pub mod books;
 pub mod checkpoint;
 pub mod cli;
+pub mod clock;
 pub mod config;
 pub mod conformance;
 pub mod contract;
+pub mod deadlock;
 pub mod describe;
 pub mod export;
 pub mod fields;

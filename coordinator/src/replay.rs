@@ -304,6 +304,8 @@ pub(crate) struct Session {
     /// Whether the node has been welcomed (and so sends heartbeats).
     beating: bool,
     waiting_since: Option<Instant>,
+    /// When the node was last looked at, and `cosim`'s own stalls seen.
+    own: crate::clock::OwnClock,
     pub(crate) window: u64,
     pub(crate) hello: bool,
     /// The node's `Describe`s, in order.
@@ -382,6 +384,7 @@ impl Session {
             last_seen: Instant::now(),
             beating: false,
             waiting_since: None,
+            own: Default::default(),
             window: 0,
             hello: false,
             describes: Vec::new(),
@@ -401,6 +404,7 @@ impl Session {
     pub(crate) fn welcome_and_set_up(&mut self, welcome: &Welcome) -> anyhow::Result<()> {
         self.send_down(&Message::Welcome(welcome.clone()))?;
         self.beating = true;
+        self.own.restart();
         self.last_seen = Instant::now();
         self.last_beat = Some(self.last_seen);
         self.wait("Describe", Some(Duration::from_secs(60)), |s| {
@@ -526,6 +530,20 @@ impl Session {
                 self.window,
                 log_note(&self.log)
             ));
+        }
+        // A long gap since the last look was cosim's own stall: the node's beats of that time
+        // are still queued, and its clocks start again.
+        let timeout = self.heartbeat_timeout.as_secs_f64();
+        if let Some(gap) = self.own.look(timeout, self.beating) {
+            let now = Instant::now();
+            self.last_seen = now;
+            if let Some(w) = self.waiting_since.as_mut() {
+                *w = now;
+            }
+            tracing::warn!(
+                "cosim: cosim itself did not run for {gap:.1} s during window {} (a busy machine, a stopped process, a suspend): the node is not blamed for that silence (heartbeat timeout {timeout} s)",
+                self.window
+            );
         }
         // Heartbeats start with the Welcome; before it the Hello has its own limit.
         if self.beating && self.last_seen.elapsed() > self.heartbeat_timeout {

@@ -186,6 +186,13 @@ struct Coord<'a> {
     /// Per topic (as `topics`), what its node's `Fields` must hold on a data topic that is
     /// not a lagrange side's.
     contracts: Vec<Option<Contract>>,
+    /// The booking rule's check: the `force` that crossed the interfaces against the nodes'
+    /// booked interface impulse.
+    books: crate::books::Books,
+    /// Per topic (as `topics`), the coupling and side whose data it carries (None: a node's
+    /// up topic), and the last window of `Fields` seen on it.
+    sides: Vec<Option<(usize, String)>>,
+    last_fields: Vec<Option<u64>>,
     /// In [`Coord::culprit`]: reading what is queued behind a `Failed`.
     draining: bool,
     nodes: Vec<NodeRt>,
@@ -217,12 +224,9 @@ struct Coord<'a> {
     last_recv_ns: (u64, u64),
     /// [`Coord::wait_all`]'s list of the nodes still awaited.
     pending: Vec<usize>,
-    /// When [`Coord::check_health`] last ran: a longer gap than [`OWN_STALL`] of the heartbeat
-    /// timeout is the coordinator's own stall.
-    health_at: Instant,
-    /// The coordinator's own stalls seen (`summary.json`: `coordinator_stalls`): how many, and
-    /// the longest (s).
-    own_stalls: (u64, f64),
+    /// When [`Coord::check_health`] last ran, and the coordinator's own stalls seen
+    /// (`summary.json`: `coordinator_stalls`).
+    own: crate::clock::OwnClock,
     /// Per node, the report of its `Done` being received, read in place
     /// (`codec::decode_done_into`), then swapped with the node's: once the node's scalar
     /// names have been seen, the window loop allocates nothing for it.
@@ -234,12 +238,6 @@ struct Coord<'a> {
 
 /// How often [`Coord::wait_all`] checks the nodes' health while messages keep arriving.
 const HEALTH_EVERY: Duration = Duration::from_millis(2);
-
-/// The share of `run.heartbeat_timeout` that the coordinator may go without looking at the
-/// nodes before the gap counts as its own stall (not scheduled on a busy machine, stopped by
-/// SIGSTOP, a suspended laptop, a long write). Health is looked at every few milliseconds
-/// while waiting, so a gap of this size never happens in a run that is being served.
-const OWN_STALL: f64 = 0.5;
 
 /// At most this many queued messages are read before a node is judged silent.
 const QUEUED_MAX: usize = 4096;
@@ -393,6 +391,20 @@ pub(crate) fn describe_status(s: std::process::ExitStatus) -> String {
 }
 
 impl<'a> Coord<'a> {
+    /// The last window of `Fields` seen from `sender` on coupling `coupling` (None: none).
+    fn fields_seen(&self, coupling: &str, sender: &str) -> Option<u64> {
+        let ci = self
+            .case
+            .couplings
+            .iter()
+            .position(|c| c.name == coupling)?;
+        self.sides
+            .iter()
+            .zip(&self.last_fields)
+            .find(|(s, _)| s.as_ref().is_some_and(|(c, n)| *c == ci && n == sender))
+            .and_then(|(_, w)| *w)
+    }
+
     fn node_idx(&self, name: &str) -> Option<usize> {
         self.nodes.iter().position(|n| n.name == name)
     }
@@ -459,26 +471,22 @@ impl<'a> Coord<'a> {
     }
 
     /// Forgive the nodes the silence the coordinator was not awake to observe: when it has not
-    /// looked at them for [`OWN_STALL`] of the heartbeat timeout or longer, the nodes' beats
+    /// looked at them for [`crate::clock::OWN_STALL`] of the heartbeat timeout or longer, the nodes' beats
     /// of that time are still queued, unread, and their clocks start again now.
     /// Only while nodes are judged by their beats (`beating`): before the Welcome the gap is
     /// the launch.
     fn forgive_own_stall(&mut self, beating: bool) {
-        let now = Instant::now();
-        let gap = now.saturating_duration_since(self.health_at).as_secs_f64();
-        self.health_at = now;
         let timeout = self.case.run.heartbeat_timeout;
-        if !beating || gap < OWN_STALL * timeout {
+        let Some(gap) = self.own.look(timeout, beating) else {
             return;
-        }
+        };
+        let now = Instant::now();
         for n in &mut self.nodes {
             n.last_seen = now;
             if let Some(w) = n.waiting_since.as_mut() {
                 *w = now;
             }
         }
-        self.own_stalls.0 += 1;
-        self.own_stalls.1 = self.own_stalls.1.max(gap);
         let msg = format!(
             "cosim: the coordinator itself did not run for {gap:.1} s during window {} (a busy machine, a stopped process, a suspend): no node is blamed for that silence (run.heartbeat_timeout = {timeout} s)",
             self.window
@@ -557,10 +565,32 @@ impl<'a> Coord<'a> {
                 .iter()
                 .map(|&i| self.nodes[i].name.as_str())
                 .collect();
+            // What each waits for, and who owes it: the first such sender is the one named.
+            let mut missing = Vec::new();
+            for &i in waiting_on {
+                let n = &self.nodes[i];
+                let working = n.done.map_or(0, |d| d + 1);
+                let bindings = config::bindings_of(self.case, &n.name);
+                missing.extend(crate::deadlock::missing(
+                    &n.name,
+                    working,
+                    &bindings,
+                    |c, s| self.fields_seen(c, s),
+                ));
+            }
+            let said = if missing.is_empty() {
+                "; every input they wait for was sent, as far as the coordinator saw (lost on its way?)".to_string()
+            } else {
+                let what: Vec<&str> = missing.iter().map(|m| m.what.as_str()).collect();
+                format!(": {}", what.join("; "))
+            };
             return Err(Fault {
-                node: names[0].to_string(),
+                node: missing
+                    .first()
+                    .map_or(names[0], |m| m.sender.as_str())
+                    .to_string(),
                 reason: format!(
-                    "deadlock: {} s during window {} with every running node ({}) waiting for a peer's input",
+                    "deadlock: {} s during window {} with every running node ({}) waiting for a peer's input{said}",
                     self.case.run.stall_timeout,
                     self.window,
                     names.join(", ")
@@ -599,6 +629,9 @@ impl<'a> Coord<'a> {
         let rec = &mut self.rec;
         let topics = &self.topics;
         let contracts = &self.contracts;
+        let books = &mut self.books;
+        // The window of the `Fields` received, on its topic.
+        let mut fields_seen: Option<(usize, u64)> = None;
         // The first breach of a `Fields` against its contract (only then is anything written).
         let mut breach: Option<String> = None;
         let sim_t = self.sim_t;
@@ -636,14 +669,22 @@ impl<'a> Coord<'a> {
             } else if in_place && kind == Some(codec::FIELDS_KIND) {
                 let contract = contracts.get(id).and_then(Option::as_ref);
                 let mut check = contract.map(Contract::check);
+                let booked = books.wants(id);
+                let mut force = ([0.0; 3], 0.0);
                 let head = codec::decode_fields_each(bytes, &mut |f| {
                     if let Some(c) = check.as_mut() {
                         c.field(f.name, f.components, f.len());
+                    }
+                    if booked && f.name == "force" && f.components == 3 {
+                        force = crate::books::sum_force(f.values());
                     }
                 });
                 match head {
                     Ok(v) => {
                         breach = check.and_then(|c| c.finish(v.window).err());
+                        if booked && breach.is_none() {
+                            books.force(id, v.window, force);
+                        }
                         (Got::Fields(claimed(v.sender, v.run)), Some(v.window))
                     }
                     Err(e) => (Got::Full(Err(e)), None),
@@ -661,6 +702,9 @@ impl<'a> Coord<'a> {
                                     }
                                     breach = check.finish(f.window).err();
                                 }
+                                if breach.is_none() && books.wants(id) {
+                                    books.force(id, f.window, crate::books::force_of(&f.fields));
+                                }
                                 Some(f.window)
                             }
                             _ => None,
@@ -673,6 +717,7 @@ impl<'a> Coord<'a> {
                     Err(e) => (Got::Full(Err(e)), None),
                 }
             };
+            fields_seen = fields_window.map(|w| (id, w));
             let keep = fields_window.is_none_or(|w| every <= 1 || w % every == 0);
             let r0 = Instant::now();
             if keep && let Some((name, _)) = topics.get(id) {
@@ -698,6 +743,11 @@ impl<'a> Coord<'a> {
         let Some((id, dec)) = got else {
             return Ok(false);
         };
+        if let Some((t, w)) = fields_seen
+            && let Some(last) = self.last_fields.get_mut(t)
+        {
+            *last = Some(last.map_or(w, |l| l.max(w)));
+        }
         let owner = match self.topics[id].1 {
             Topic::Up(i) | Topic::Data(i) => i,
         };
@@ -956,7 +1006,7 @@ impl<'a> Coord<'a> {
             self.stop_now()?;
             // Children, heartbeats and stalls are looked at every few milliseconds, not after
             // every message (a window brings several): faults are judged in seconds.
-            if t.duration_since(self.health_at) >= HEALTH_EVERY {
+            if self.own.since(t) >= HEALTH_EVERY {
                 self.check_health(if beating { &pending } else { &[] })?;
             }
             self.prof.lap(Phase::Health, t);
@@ -1278,6 +1328,8 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
     t.declare_alive()?;
     let mut topics = Vec::new();
     let mut contracts = Vec::new();
+    // Per topic, the coupling and side whose data it carries (the booking rule's feeds).
+    let mut sides: Vec<Option<(usize, String)>> = Vec::new();
     let order = config::window_order(case).map_err(|e| anyhow::anyhow!("{e}"))?;
     let idx = |n: &str| case.nodes.iter().position(|x| x.name == n).unwrap_or(0);
     for (i, n) in case.nodes.iter().enumerate() {
@@ -1285,9 +1337,10 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         t.subscribe(&tp)?;
         topics.push((tp, Topic::Up(i)));
         contracts.push(None);
+        sides.push(None);
     }
     let mut hubs = Vec::new();
-    for c in &case.couplings {
+    for (ci, c) in case.couplings.iter().enumerate() {
         // A scheme the coordinator solves has a hub here (the lagrange interface problem).
         if protocol::scheme::of(c.kind).coordinator_solved() {
             let readers: Vec<String> = c.sides.iter().map(|s| s.0.clone()).collect();
@@ -1301,6 +1354,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
             let tp = topic::data(&run_id, &c.name, side);
             t.subscribe(&tp)?;
             topics.push((tp, Topic::Data(idx(side))));
+            sides.push(Some((ci, side.to_string())));
             // Members are the driver, then the responder, where there is a contract.
             let role = if k == 0 {
                 Role::Driver
@@ -1357,6 +1411,9 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         t,
         topics,
         contracts,
+        books: crate::books::Books::of(case, &sides),
+        last_fields: vec![None; sides.len()],
+        sides,
         draining: false,
         nodes,
         rec,
@@ -1376,8 +1433,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         prof: Profile::default(),
         last_recv_ns: (0, 0),
         pending: Vec::with_capacity(case.nodes.len()),
-        health_at: Instant::now(),
-        own_stalls: (0, 0.0),
+        own: Default::default(),
         inbox: vec![StepReport::default(); case.nodes.len()],
         spare: (0..case.nodes.len())
             .map(|_| Vec::with_capacity(MAX_AHEAD as usize + 1))
@@ -1964,7 +2020,7 @@ fn drive(
     for n in &mut c.nodes {
         n.last_seen = Instant::now();
     }
-    c.health_at = Instant::now();
+    c.own.restart();
     for (i, n) in case.nodes.iter().enumerate() {
         let w = Message::Welcome(Welcome {
             run: c.run.clone(),
@@ -2056,6 +2112,9 @@ fn drive(
             .map(|r| (r.window, r.time, r.energy, r.external_work)),
         e0,
     );
+    // The booking rule judges the impulse booked from here on.
+    c.books
+        .begin(first, c.nodes.iter().map(|n| &n.report.interface_impulse));
     let every = case.run.checkpoint_every;
     // A stop was requested: checkpoint the next window and stop there.
     let mut stop_after = false;
@@ -2192,6 +2251,19 @@ fn drive(
                 .max(r.applied_impulse)
                 .max(norm(r.external_impulse))
                 .max(norm(r.interface_impulse));
+        }
+        // The booking rule: a node whose books and messages point opposite ways is stopped.
+        let nodes = &c.nodes;
+        if let Some((i, why)) = c.books.check(
+            k,
+            |i| {
+                let n = &nodes[i];
+                n.finished.is_none().then_some(&n.report.interface_impulse)
+            },
+            a.impulse_scale,
+            |ci| decoupled[ci].is_some(),
+        ) {
+            return Err(fault(&c.nodes[i].name, format!("{why} (window {k})")));
         }
         let reporting = c.prof.lap(Phase::Audit, auditing);
         let row = crate::checkpoint::BalanceRow {
@@ -2453,7 +2525,7 @@ fn drive(
         // The coordinator's side of a window (this process only: a restart's segment).
         "window_breakdown": breakdown,
         // Gaps in which the coordinator itself did not run (no node was blamed for them).
-        "coordinator_stalls": { "count": c.own_stalls.0, "longest_s": c.own_stalls.1 },
+        "coordinator_stalls": { "count": c.own.count, "longest_s": c.own.longest },
         "coupling_overhead": if loop_s > 0.0 {
             1.0 - c.nodes.iter().map(|n| n.wall_s).fold(0.0, f64::max) / loop_s
         } else {

@@ -10,7 +10,7 @@ use cosim_tests::*;
 use std::collections::BTreeMap;
 
 /// The rules PROTOCOL.md section 9 lists, by name.
-const RULES: [&str; 12] = [
+const RULES: [&str; 13] = [
     "describe",
     "hello",
     "welcome-describe",
@@ -18,6 +18,7 @@ const RULES: [&str; 12] = [
     "set-up",
     "fields-match-binding",
     "finite-values",
+    "books-match-fields",
     "windows-in-order",
     "heartbeat",
     "checkpoint",
@@ -108,7 +109,7 @@ fn assert_all_pass(code: Option<i32>, rules: &BTreeMap<String, (String, String)>
     for (rule, (tag, reason)) in rules {
         assert_eq!(tag, "PASS", "{rule}: {reason}");
     }
-    assert!(text.contains("12 of 12 rules pass"), "{text}");
+    assert!(text.contains("13 of 13 rules pass"), "{text}");
     assert_eq!(code, Some(0), "{text}");
 }
 
@@ -139,6 +140,18 @@ fn the_built_in_bar_passes_every_rule() {
     assert_all_pass(code, &rules, &text);
     // The checkpoint rule read the node's file back: of window 3 (the one before the last).
     assert!(rules["checkpoint"].1.contains("window 3 saved"), "{text}");
+    assert_books_judged(&rules, &text);
+}
+
+/// The booking rule judged a responder bar's force against its books: pushed at 1 mm/s from
+/// the first window, its interface impulse is above round-off in each of the 4.
+fn assert_books_judged(rules: &BTreeMap<String, (String, String)>, text: &str) {
+    assert!(
+        rules["books-match-fields"].1.contains(
+            "over 4 window(s) its booked interface impulse and the force it sent agree in sign"
+        ),
+        "{text}"
+    );
 }
 
 #[test]
@@ -201,6 +214,7 @@ fn the_python_bar_passes_every_rule() {
     let bar = workspace_root().join("examples/external/bar.py");
     let (code, rules, text) = conformance("conf-python", "", &[bar.to_str().unwrap()]);
     assert_all_pass(code, &rules, &text);
+    assert_books_judged(&rules, &text);
 }
 
 #[test]
@@ -210,6 +224,7 @@ fn the_c_bar_passes_every_rule() {
     };
     let (code, rules, text) = conformance("conf-c", "", &[bar.to_str().unwrap()]);
     assert_all_pass(code, &rules, &text);
+    assert_books_judged(&rules, &text);
 }
 
 fn faulty(tag: &str, fault: &str) -> (Option<i32>, BTreeMap<String, (String, String)>) {
@@ -276,4 +291,24 @@ fn a_node_that_exits_before_finish_fails_the_finish_rule() {
         "finish",
         "ended before Finish: node 'node': exited with status 0 during window 2",
     );
+}
+
+#[test]
+fn a_reversed_force_fails_the_booking_rule() {
+    let (code, rules) = faulty("conf-reversed", "reversed");
+    assert_fails_only(
+        code,
+        &rules,
+        "books-match-fields",
+        "breaks the booking rule (PROTOCOL.md 4.7",
+    );
+    // Named within the drive's 4 windows: at the third of opposite signs (in the first, the
+    // bar's books hold only part of its force, which builds up over its substeps).
+    let why = &rules["books-match-fields"].1;
+    assert!(
+        why.contains("(window 3)") || why.contains("(window 4)"),
+        "{rules:?}"
+    );
+    // Its shape is right: only the booking rule sees the fault.
+    assert_eq!(rules["fields-match-binding"].0, "PASS", "{rules:?}");
 }

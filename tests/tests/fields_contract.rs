@@ -3,14 +3,21 @@
 //! failed, naming the right half (the sender, not its peer that received the bad data), the
 //! coupling, the window and the field, with what was expected against what came. The
 //! expected counts are the bar's by PROTOCOL.md: its force is a vector of 3 components at
-//! the one point of the left half's interface.
+//! the one point of the left half's interface. A force of the right shape sent with its sign
+//! reversed is stopped by the booking rule (PROTOCOL.md 4.7) a few windows after the load's
+//! wave reaches the interface, naming the right half and the rule.
 
 use cosim_tests::*;
 use std::path::Path;
 
 /// The split bar over 16 windows, its right half `cosim-faulty` with `fault`.
 fn faulty_split_bar(dir: &Path, fault: &str) -> std::path::PathBuf {
-    let case = split_bar_case(dir, 100, 300, 0.5, "shm", 0.01);
+    faulty_split_bar_for(dir, fault, 0.01)
+}
+
+/// [`faulty_split_bar`] over `periods` of the bar's period.
+fn faulty_split_bar_for(dir: &Path, fault: &str, periods: f64) -> std::path::PathBuf {
+    let case = split_bar_case(dir, 100, 300, 0.5, "shm", periods);
     let text = std::fs::read_to_string(&case).expect("read case");
     let faulty = format!(
         "[nodes.right]\nsolver = \"{}\"",
@@ -94,4 +101,49 @@ fn a_set_up_without_the_force_is_the_responders_fault_not_the_drivers() {
             && err.contains("field 'force' missing"),
         "{err}"
     );
+}
+
+/// A force sent with its sign reversed has the right shape: only the booking rule sees it.
+/// Half a period of the bar: the load's wave reaches the interface at a quarter (about window
+/// 200 of 800), and the right half is stopped a few windows later, named with the rule, long
+/// before the run's end.
+#[test]
+fn a_reversed_force_is_stopped_naming_the_sender_and_the_rule() {
+    let (dir, id) = scratch("contract-reversed");
+    let case = faulty_split_bar_for(&dir, "reversed", 0.5);
+    let out = dir.join("out");
+    let o = run_case(&case, &out, &id, &[]);
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    println!("{err}");
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    let s = summary(&out);
+    assert_eq!(s["status"], "failed", "{s}");
+    assert!(
+        err.contains("node 'right': on coupling 'mid' breaks the booking rule (PROTOCOL.md 4.7"),
+        "{err}"
+    );
+    assert!(!err.contains("node 'left':"), "the peer is blamed: {err}");
+    // Stopped within a few windows of the wave's arrival, not at the end: the front, spread
+    // ahead by the mesh's dispersion, reaches the interface a little before window 200.
+    let at: u64 = err
+        .split("(window ")
+        .nth(1)
+        .and_then(|t| t.split(')').next())
+        .and_then(|w| w.parse().ok())
+        .expect("the window is named");
+    assert!((150..260).contains(&at), "stopped at window {at}: {err}");
+    nothing_left(&id);
+}
+
+/// The same half period with the bar unchanged passes the booking rule to the end.
+#[test]
+fn the_bar_keeps_the_booking_rule_over_half_a_period() {
+    let (dir, id) = scratch("contract-books");
+    let case = faulty_split_bar_for(&dir, "none", 0.5);
+    let out = dir.join("out");
+    let o = run_case(&case, &out, &id, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert_eq!(summary(&out)["status"], "finished");
+    nothing_left(&id);
 }

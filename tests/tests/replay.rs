@@ -189,14 +189,12 @@ fn long_recording() -> &'static PathBuf {
     })
 }
 
-/// Replay `right` of the long recording, stop its node (SIGSTOP) once it is under way, do
-/// `act` to it, and return the replay's exit status, stdout and stderr, and the seconds from
-/// the stop to its exit; checks that nothing of the replay is left.
-fn interrupted(tag: &str, act: impl FnOnce(i32)) -> (bool, String, String, f64) {
+/// Start replaying `right` of the long recording into a folder of its own (replays run side
+/// by side); returns the `cosim replay` process and its run id.
+fn replay_long(tag: &str) -> (std::process::Child, String) {
     let (dir, id) = scratch(tag);
-    // Each replay writes to its own folder: the two interrupted replays run side by side.
     let out = dir.join("replay");
-    let mut child = Command::new(bin("cosim"))
+    let child = Command::new(bin("cosim"))
         .args([
             "replay",
             long_recording().to_str().unwrap(),
@@ -212,6 +210,14 @@ fn interrupted(tag: &str, act: impl FnOnce(i32)) -> (bool, String, String, f64) 
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
+    (child, id)
+}
+
+/// Replay `right` of the long recording, stop its node (SIGSTOP) once it is under way, do
+/// `act` to it, and return the replay's exit status, stdout and stderr, and the seconds from
+/// the stop to its exit; checks that nothing of the replay is left.
+fn interrupted(tag: &str, act: impl FnOnce(i32)) -> (bool, String, String, f64) {
+    let (mut child, id) = replay_long(tag);
     let start = Instant::now();
     let pid = loop {
         if let Some(&p) = processes_with(&format!("--run {id} --node right")).first() {
@@ -291,5 +297,35 @@ fn a_run_folder_stands_for_its_recording() {
     let (ok, text, err) = replay_node(folder, "left", &id, &["-o", out.to_str().expect("utf-8")]);
     assert!(ok, "{err}");
     assert!(text.contains("bit-identical"), "{text}");
+    nothing_left(&id);
+}
+
+/// `cosim replay` stopped (SIGSTOP) for longer than the recorded heartbeat timeout (3 s)
+/// while its node runs is its own stall, not the node's hang: the replay says so and
+/// finishes bit-identical.
+#[test]
+fn a_replay_stopped_longer_than_the_heartbeat_timeout_blames_no_node() {
+    let (mut child, id) = replay_long("rp-own-stall");
+    let start = Instant::now();
+    while processes_with(&format!("--run {id} --node right")).is_empty() {
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "node never started"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    // Some windows in, then the replay itself stops while its node goes on beating.
+    std::thread::sleep(Duration::from_millis(100));
+    signal_child(&child, libc::SIGSTOP);
+    std::thread::sleep(Duration::from_millis(4000));
+    signal_child(&child, libc::SIGCONT);
+    let status = wait_exit(&mut child, Duration::from_secs(120)).expect("the replay ends");
+    let o = child.wait_with_output().unwrap();
+    let text = String::from_utf8_lossy(&o.stdout).to_string();
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    println!("{status}: {text}{err}");
+    assert!(status.success(), "{err}");
+    assert!(text.contains("bit-identical"), "{text}");
+    assert!(err.contains("cosim itself did not run for"), "{err}");
     nothing_left(&id);
 }

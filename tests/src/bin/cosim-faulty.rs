@@ -6,6 +6,8 @@
 //! * `"components"`: sends its `force` with 1 component per point instead of 3;
 //! * `"misnamed"`: sends its `force` as `forse`;
 //! * `"no_setup_force"`: leaves the `force` out of its set-up `Fields`;
+//! * `"reversed"`: sends its `force` with the sign reversed, booking its interface impulse as
+//!   the bar does (the booking rule of PROTOCOL.md 4.7 is broken);
 //! * `"silent"`: stops (SIGSTOP, every thread: no heartbeat either) at the start of window
 //!   `at` (default 2);
 //! * `"early_exit"`: exits with status 0 at the start of window `at`, before any `Finish`.
@@ -19,6 +21,7 @@ enum Fault {
     Components,
     Misnamed,
     NoSetupForce,
+    Reversed,
     Silent,
     EarlyExit,
 }
@@ -43,6 +46,7 @@ impl Faulty {
                     }
                     Fault::Misnamed => f.name = "forse".into(),
                     Fault::NoSetupForce if window == 0 => continue,
+                    Fault::Reversed => f.values.iter_mut().for_each(|x| *x = -*x),
                     _ => {}
                 }
             }
@@ -114,13 +118,14 @@ fn build(model: &str, params: &toml::Table, opts: &BuildOptions) -> SolverResult
         Some(Some("components")) => Fault::Components,
         Some(Some("misnamed")) => Fault::Misnamed,
         Some(Some("no_setup_force")) => Fault::NoSetupForce,
+        Some(Some("reversed")) => Fault::Reversed,
         Some(Some("silent")) => Fault::Silent,
         Some(Some("early_exit")) => Fault::EarlyExit,
         Some(other) => {
             return Err(SolverError::config(
                 "fault",
                 format!(
-                    "unknown fault {other:?} (none, components, misnamed, no_setup_force, silent, early_exit)"
+                    "unknown fault {other:?} (none, components, misnamed, no_setup_force, reversed, silent, early_exit)"
                 ),
             ));
         }
