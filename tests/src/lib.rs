@@ -40,7 +40,9 @@ static COUNTER: AtomicU32 = AtomicU32::new(0);
 pub fn scratch(tag: &str) -> (PathBuf, String) {
     let n = COUNTER.fetch_add(1, Ordering::Relaxed);
     let id = format!("t{}-{}-{}", std::process::id() % 100_000, n, tag);
-    let id: String = id.chars().take(32).collect();
+    // Run ids are at most 32 characters: 24 here leaves tests room for a suffix of their
+    // own (`{id}-serial`), however many tests the binary has counted.
+    let id: String = id.chars().take(24).collect();
     let dir = std::env::temp_dir().join(format!("cosim-tests/{id}"));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("scratch dir");
