@@ -56,21 +56,3 @@ pub fn mc(a: f64, b: f64) -> f64 {
     let m = (2.0 * a.abs()).min(2.0 * b.abs()).min(c.abs());
     m.copysign(a)
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn limiters_are_tvd_and_symmetric() {
-        for l in [Limiter::Minmod, Limiter::VanLeer, Limiter::Mc] {
-            assert_eq!(l.slope(1.0, -1.0), 0.0);
-            assert_eq!(l.slope(0.3, 0.7), l.slope(0.7, 0.3));
-            // second-order: equal differences give that difference
-            assert!((l.slope(0.5, 0.5) - 0.5).abs() < 1e-15);
-            // TVD region: slope between 0 and 2·min
-            let s = l.slope(0.1, 1.0);
-            assert!(s > 0.0 && s <= 0.2 + 1e-15);
-        }
-    }
-}

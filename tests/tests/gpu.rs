@@ -19,7 +19,7 @@
 //! impulse 1.3e-18 of 2.55e-3 N s.
 //!
 //! The CPU run itself is checked against momentum conservation by immersed.rs, and the GPU
-//! immersed kernels against the CPU ones in process (fluid-node/src/gpu/tests.rs: ≤ 4e-15).
+//! immersed kernels against the CPU ones in process (fluid-node/tests/gpu_immersed.rs: ≤ 4e-15).
 //! Without an adapter (or with f32-only kernels) the test prints why it was skipped and
 //! passes outside CI; under `CI=true` it fails.
 

@@ -29,8 +29,6 @@ use std::fmt;
 use std::sync::Arc;
 
 mod interface;
-#[cfg(test)]
-mod tests;
 
 const SHADER: &str = include_str!("euler.wgsl");
 const IMMERSED_SHADER: &str = include_str!("immersed.wgsl");

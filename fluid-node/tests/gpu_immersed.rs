@@ -12,8 +12,8 @@
 //! adapter (or without f64) the test prints why it was skipped and passes outside CI, and
 //! fails under `CI=true`.
 
-use crate::EulerSolver;
-use crate::immersed::SOLID;
+use fluid_node::EulerSolver;
+use fluid_node::immersed::SOLID;
 use protocol::message::StepReport;
 use protocol::{Field, Inbox, Outbox, Solver, Window};
 
