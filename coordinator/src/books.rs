@@ -58,17 +58,24 @@ struct Feed {
 #[derive(Default, Clone)]
 struct Ledger {
     /// Whether the rule applies to the node (every coupling of it is fed).
+    applies: bool,
+    /// Whether it is still checked (it applies, and none of its couplings has ended).
     checked: bool,
     /// Its couplings (indices into the case's).
     couplings: Vec<usize>,
     /// Its booked interface impulse when the window loop began (N s).
     base: [f64; 3],
+    /// The feeds of its books: (topic, whether it is the responder there).
+    feeds: Vec<(usize, bool)>,
     /// The impulse its couplings' `force` messages imply since then (N s), and its gross
     /// (Σ |f| Δt over points and windows).
     implied: [f64; 3],
     gross: f64,
-    /// Whether every input of the audited window has been taken in.
-    complete: bool,
+    /// Its booked interface impulse since the loop began, of the audited windows not yet
+    /// judged: (window, impulse), at `window % RING`.
+    booked: [Option<(u64, [f64; 3])>; RING],
+    /// The next window to judge, once every force its books of that window hold is here.
+    next: u64,
     /// Audited windows in a row with the two opposite.
     streak: u32,
     /// Audited windows whose impulse was large enough to judge.
@@ -130,9 +137,10 @@ impl Books {
             }
         }
         for l in &mut ledgers {
-            l.checked = !l.couplings.is_empty() && l.couplings.iter().all(|&ci| fed(ci));
+            l.applies = !l.couplings.is_empty() && l.couplings.iter().all(|&ci| fed(ci));
+            l.checked = l.applies;
         }
-        let feeds = topics
+        let feeds: Vec<Option<Feed>> = topics
             .iter()
             .map(|t| {
                 let (ci, side) = t.as_ref()?;
@@ -149,6 +157,12 @@ impl Books {
                 })
             })
             .collect();
+        for (t, f) in feeds.iter().enumerate() {
+            if let Some(f) = f {
+                ledgers[f.responder].feeds.push((t, true));
+                ledgers[f.driver].feeds.push((t, false));
+            }
+        }
         Books {
             window,
             feeds,
@@ -165,6 +179,8 @@ impl Books {
             l.base = *b;
             l.implied = [0.0; 3];
             l.gross = 0.0;
+            l.booked = [None; RING];
+            l.next = first;
             l.streak = 0;
         }
         for f in self.feeds.iter_mut().flatten() {
@@ -177,6 +193,16 @@ impl Books {
     /// How many audited windows of node `node` had an interface impulse large enough to judge.
     pub fn judged(&self, node: usize) -> u64 {
         self.ledgers.get(node).map_or(0, |l| l.judged)
+    }
+
+    /// Per node the rule applies to (its index): the audited windows in which it was judged
+    /// (`summary.json`: `booking_rule`), so a run shows the check had something to check.
+    pub fn judged_nodes(&self) -> impl Iterator<Item = (usize, u64)> + '_ {
+        self.ledgers
+            .iter()
+            .enumerate()
+            .filter(|(_, l)| l.applies)
+            .map(|(i, l)| (i, l.judged))
     }
 
     /// Whether topic `topic` carries a `force` that is booked: [`Books::force`] wants every
@@ -194,49 +220,46 @@ impl Books {
         }
     }
 
-    /// Takes in what the books of window `k` include: the responders' forces of windows up to
-    /// `k`, the drivers' of windows up to `k − 1`. A ledger that waits for a force not yet
-    /// here is not complete for this window; one whose force will never come (a later one
-    /// is here instead) is no longer checked.
-    fn take_in(&mut self, k: u64) {
-        for l in &mut self.ledgers {
-            l.complete = true;
-        }
-        let dt = self.window;
-        for f in self.feeds.iter_mut().flatten() {
-            for (who, next, upto, sign) in [
-                (f.responder, &mut f.next_responder, k, -1.0),
-                (f.driver, &mut f.next_driver, k.saturating_sub(1), 1.0),
-            ] {
-                let l = &mut self.ledgers[who];
-                while *next <= upto {
-                    match f.ring[*next as usize % RING] {
-                        Some((w, sum, gross)) if w == *next => {
-                            for (i, x) in l.implied.iter_mut().zip(sum) {
-                                *i += sign * x * dt;
-                            }
-                            l.gross += gross * dt;
-                            *next += 1;
+    /// Takes in, for the ledger `l`, the forces its books of window `w` hold: its responders'
+    /// up to `w`, its drivers' up to `w − 1`. Returns whether all are here; a force that
+    /// will never come (a later one is here instead) ends the check of the ledger.
+    fn take_in(feeds: &mut [Option<Feed>], l: &mut Ledger, w: u64, dt: f64) -> bool {
+        for &(t, responder) in &l.feeds {
+            let Some(Some(f)) = feeds.get_mut(t) else {
+                continue;
+            };
+            let (next, upto, sign) = if responder {
+                (&mut f.next_responder, w, -1.0)
+            } else {
+                (&mut f.next_driver, w.saturating_sub(1), 1.0)
+            };
+            while *next <= upto {
+                match f.ring[*next as usize % RING] {
+                    Some((at, sum, gross)) if at == *next => {
+                        for (i, x) in l.implied.iter_mut().zip(sum) {
+                            *i += sign * x * dt;
                         }
-                        Some((w, ..)) if w > *next => {
-                            l.checked = false;
-                            break;
-                        }
-                        _ => {
-                            l.complete = false;
-                            break;
-                        }
+                        l.gross += gross * dt;
+                        *next += 1;
                     }
+                    Some((at, ..)) if at > *next => {
+                        l.checked = false;
+                        return false;
+                    }
+                    _ => return false,
                 }
             }
         }
+        true
     }
 
-    /// After the audit of window `k`: every checked node's books since the loop began
-    /// (`booked(i)`: its report's cumulative interface impulse; None: finished) against what
-    /// its messages imply. `scale` is the run's impulse scale, `ended(ci)` whether coupling
-    /// `ci` has ended. The first node whose two have pointed opposite ways for [`STREAK`]
-    /// windows: its index and why.
+    /// After the audit of window `k`: every checked node's books (`booked(i)`: its report's
+    /// cumulative interface impulse; None: finished) are kept, and each window whose forces
+    /// are all here is judged in order, its books since the loop began against what its
+    /// messages imply (a `Fields` read after its window's audit is judged at a later one).
+    /// `scale` is the run's impulse scale, `ended(ci)` whether coupling `ci` has ended. The
+    /// first node whose two have pointed opposite ways for [`STREAK`] windows in a row: its
+    /// index and why, with the window.
     pub fn check<'r>(
         &mut self,
         k: u64,
@@ -244,41 +267,51 @@ impl Books {
         scale: f64,
         ended: impl Fn(usize) -> bool,
     ) -> Option<(usize, String)> {
-        self.take_in(k);
-        let names = &self.names;
+        let (names, dt, feeds) = (&self.names, self.window, &mut self.feeds);
         for (i, l) in self.ledgers.iter_mut().enumerate() {
-            if !l.checked || !l.complete {
+            if !l.checked {
                 continue;
             }
             if l.couplings.iter().any(|&ci| ended(ci)) {
                 l.checked = false;
                 continue;
             }
-            let Some(now) = booked(i) else {
-                continue;
-            };
-            let b = [now[0] - l.base[0], now[1] - l.base[1], now[2] - l.base[2]];
-            let m = l.implied;
-            let (nb, nm) = (norm(b), norm(m));
-            let large = nb.max(nm) > (FLOOR * scale).max(NET * l.gross);
-            l.judged += u64::from(large);
-            let opposite = large && nb.min(nm) > 0.25 * nb.max(nm) && dot(b, m) < -0.5 * nb * nm;
-            l.streak = if opposite { l.streak + 1 } else { 0 };
-            if l.streak >= STREAK {
-                let on: Vec<String> = l
-                    .couplings
-                    .iter()
-                    .map(|&c| format!("'{}'", names[c]))
-                    .collect();
-                return Some((
-                    i,
-                    format!(
-                        "on coupling {} breaks the {RULE}: it booked an interface impulse of {} N s while the forces that crossed its interfaces imply {} N s, the opposite way: the sign of the force it sends (or of its books) is reversed",
-                        on.join(", "),
-                        fmt3(b),
-                        fmt3(m)
-                    ),
-                ));
+            if let Some(now) = booked(i) {
+                let b = [now[0] - l.base[0], now[1] - l.base[1], now[2] - l.base[2]];
+                l.booked[k as usize % RING] = Some((k, b));
+            }
+            while l.next <= k {
+                let w = l.next;
+                if !Self::take_in(feeds, l, w, dt) {
+                    break;
+                }
+                l.next += 1;
+                let Some((_, b)) = l.booked[w as usize % RING].filter(|(at, _)| *at == w) else {
+                    continue;
+                };
+                let m = l.implied;
+                let (nb, nm) = (norm(b), norm(m));
+                let large = nb.max(nm) > (FLOOR * scale).max(NET * l.gross);
+                l.judged += u64::from(large);
+                let opposite =
+                    large && nb.min(nm) > 0.25 * nb.max(nm) && dot(b, m) < -0.5 * nb * nm;
+                l.streak = if opposite { l.streak + 1 } else { 0 };
+                if l.streak >= STREAK {
+                    let on: Vec<String> = l
+                        .couplings
+                        .iter()
+                        .map(|&c| format!("'{}'", names[c]))
+                        .collect();
+                    return Some((
+                        i,
+                        format!(
+                            "on coupling {} breaks the {RULE}: it booked an interface impulse of {} N s while the forces that crossed its interfaces imply {} N s, the opposite way: the sign of the force it sends (or of its books) is reversed (window {w})",
+                            on.join(", "),
+                            fmt3(b),
+                            fmt3(m)
+                        ),
+                    ));
+                }
             }
         }
         None
@@ -431,13 +464,13 @@ mod tests {
 
     #[test]
     fn a_force_late_at_the_audit_waits_and_one_that_never_comes_ends_the_check() {
-        // The responder's force of window 2 is audited before it arrives: its books are not
-        // judged at window 2, and are at window 3 once it is in.
+        // The responder's force of window 2 is audited before it arrives: its books of window
+        // 2 wait, and are judged at window 3's audit, once it is in, beside window 3's.
         let mut books = split_bar();
         books.begin(1, [[0.0; 3], [0.0; 3]].iter());
         books.force(3, 0, one([0.0; 3]));
         books.force(3, 1, one([1.0, 0.0, 0.0]));
-        let booked = |k: f64| [[0.0; 3], [0.1 * k, 0.0, 0.0]];
+        let booked = |k: f64| [[0.0; 3], [-0.1 * k, 0.0, 0.0]];
         let (b1, b2, b3) = (booked(1.0), booked(2.0), booked(3.0));
         assert!(books.check(1, |i| b1.get(i), 1.0, |_| false).is_none());
         assert!(books.check(2, |i| b2.get(i), 1.0, |_| false).is_none());
@@ -445,9 +478,10 @@ mod tests {
         books.force(3, 2, one([1.0, 0.0, 0.0]));
         books.force(3, 3, one([1.0, 0.0, 0.0]));
         assert!(books.check(3, |i| b3.get(i), 1.0, |_| false).is_none());
-        assert_eq!(books.judged(1), 2);
+        assert_eq!(books.judged(1), 3);
         // A restart after window 10: the driver's window 11 takes in window 10's force,
-        // which is not sent again; window 11's comes instead and the driver is let go.
+        // which is not sent again: the driver is not judged (it is let go once a later
+        // force takes that window's place in the ring), the responder is.
         let mut books = split_bar();
         books.begin(11, [[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]].iter());
         books.force(3, 11, one([1.0, 0.0, 0.0]));

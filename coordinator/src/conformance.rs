@@ -493,7 +493,7 @@ impl Drive<'_> {
                     .borrow_mut()
                     .check(k, |i| booked.get(i), scale, |_| false);
                 if let Some((_, why)) = broken {
-                    sheet.fail("books-match-fields", format!("{why} (window {k})"));
+                    sheet.fail("books-match-fields", why);
                 }
             }
         }

@@ -19,20 +19,23 @@ pub struct Missing {
 
 /// The inputs that node `node`, working on window `window` (0: set-up) with `bindings`, has
 /// not had: `last(coupling, sender)` is the last window of `Fields` the coordinator saw
-/// `sender` send on `coupling` (None: none yet). Lagrange sides wait for the coordinator's own
-/// multipliers and are left out.
+/// `sender` send on `coupling` (None: none yet), `until(coupling)` the window before which
+/// the coupling ended (None: it goes on), after which only earlier outputs are consumed.
+/// Lagrange sides wait for the coordinator's own multipliers and are left out.
 pub fn missing(
     node: &str,
     window: u64,
     bindings: &[Binding],
     last: impl Fn(&str, &str) -> Option<u64>,
+    until: impl Fn(&str) -> Option<u64>,
 ) -> Vec<Missing> {
     let mut v = Vec::new();
     for b in bindings {
         if b.peer == scheme::lagrange::wire::PEER {
             continue;
         }
-        let Some(k) = scheme::of(b.kind).input_window(b.role, b.input_lag, None, window) else {
+        let ended = until(&b.coupling);
+        let Some(k) = scheme::of(b.kind).input_window(b.role, b.input_lag, ended, window) else {
             continue;
         };
         let sent = last(&b.coupling, &b.peer);
@@ -87,9 +90,13 @@ mod tests {
         // The split bar, serial: the driver's window 4 consumes the responder's window 3,
         // which never came (the responder stopped sending after window 2).
         let driver = [binding(Role::Driver, "right", 1)];
-        let m = missing("left", 4, &driver, |c, s| {
-            (c == "mid" && s == "right").then_some(2)
-        });
+        let m = missing(
+            "left",
+            4,
+            &driver,
+            |c, s| (c == "mid" && s == "right").then_some(2),
+            |_| None,
+        );
         assert_eq!(
             m,
             vec![Missing {
@@ -98,14 +105,16 @@ mod tests {
             }]
         );
         // Had it come, nothing would be missing.
-        assert!(missing("left", 4, &driver, |_, _| Some(3)).is_empty());
+        assert!(missing("left", 4, &driver, |_, _| Some(3), |_| None).is_empty());
+        // Nor if the coupling ended before window 3: the peer owes nothing after it.
+        assert!(missing("left", 4, &driver, |_, _| Some(2), |_| Some(3)).is_empty());
     }
 
     #[test]
     fn the_set_up_and_a_silent_peer_are_said_as_such() {
         // At set-up the driver waits for its responder's set-up fields.
         let driver = [binding(Role::Driver, "right", 1)];
-        let m = missing("left", 0, &driver, |_, _| None);
+        let m = missing("left", 0, &driver, |_, _| None, |_| None);
         assert_eq!(m.len(), 1);
         assert!(
             m[0].what.ends_with(
@@ -115,20 +124,20 @@ mod tests {
         );
         // The serial responder consumes its driver's motion of the same window.
         let responder = [binding(Role::Responder, "left", 0)];
-        let m = missing("right", 5, &responder, |_, _| Some(4));
+        let m = missing("right", 5, &responder, |_, _| Some(4), |_| None);
         assert_eq!(m[0].sender, "left");
         assert!(
             m[0].what
                 .contains("window 5 on coupling 'mid' from 'left', which sent up to window 4")
         );
         // The responder's set-up needs nothing.
-        assert!(missing("right", 0, &responder, |_, _| None).is_empty());
+        assert!(missing("right", 0, &responder, |_, _| None, |_| None).is_empty());
     }
 
     #[test]
     fn a_lagrange_side_waits_for_the_coordinator_and_is_left_out() {
         let mut b = binding(Role::Driver, scheme::lagrange::wire::PEER, 1);
         b.kind = CouplingKind::Lagrange;
-        assert!(missing("one", 3, &[b], |_, _| None).is_empty());
+        assert!(missing("one", 3, &[b], |_, _| None, |_| None).is_empty());
     }
 }

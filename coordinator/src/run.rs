@@ -193,6 +193,8 @@ struct Coord<'a> {
     /// up topic), and the last window of `Fields` seen on it.
     sides: Vec<Option<(usize, String)>>,
     last_fields: Vec<Option<u64>>,
+    /// Per coupling, the window before which it ended (decoupled), for the deadlock message.
+    until: Vec<Option<u64>>,
     /// In [`Coord::culprit`]: reading what is queued behind a `Failed`.
     draining: bool,
     nodes: Vec<NodeRt>,
@@ -576,6 +578,10 @@ impl<'a> Coord<'a> {
                     working,
                     &bindings,
                     |c, s| self.fields_seen(c, s),
+                    |c| {
+                        let ci = self.case.couplings.iter().position(|x| x.name == c)?;
+                        self.until[ci]
+                    },
                 ));
             }
             let said = if missing.is_empty() {
@@ -1200,6 +1206,7 @@ fn decouple_due(
             }
         }
         decoupled[ci] = Some((k, t0, why));
+        c.until[ci] = Some(k);
         any = true;
     }
     if !any {
@@ -1413,6 +1420,7 @@ pub fn run(case: &Case, opts: &RunOptions) -> anyhow::Result<Result<Outcome, Fau
         contracts,
         books: crate::books::Books::of(case, &sides),
         last_fields: vec![None; sides.len()],
+        until: vec![None; case.couplings.len()],
         sides,
         draining: false,
         nodes,
@@ -2099,6 +2107,9 @@ fn drive(
             a = st.audit.clone();
 
             decoupled = st.decoupled.clone();
+            for (u, d) in c.until.iter_mut().zip(&decoupled) {
+                *u = d.as_ref().map(|d| d.0);
+            }
             active.retain(|&i| c.nodes[i].finished.is_none());
             (st.window + 1, st.loop_s)
         }
@@ -2263,7 +2274,7 @@ fn drive(
             a.impulse_scale,
             |ci| decoupled[ci].is_some(),
         ) {
-            return Err(fault(&c.nodes[i].name, format!("{why} (window {k})")));
+            return Err(fault(&c.nodes[i].name, why));
         }
         let reporting = c.prof.lap(Phase::Audit, auditing);
         let row = crate::checkpoint::BalanceRow {
@@ -2526,6 +2537,12 @@ fn drive(
         "window_breakdown": breakdown,
         // Gaps in which the coordinator itself did not run (no node was blamed for them).
         "coordinator_stalls": { "count": c.own.count, "longest_s": c.own.longest },
+        // Per node the booking rule applies to, the windows it judged (PROTOCOL.md 4.7).
+        "booking_rule": c
+            .books
+            .judged_nodes()
+            .map(|(i, n)| (c.nodes[i].name.clone(), serde_json::json!({ "judged_windows": n })))
+            .collect::<serde_json::Map<_, _>>(),
         "coupling_overhead": if loop_s > 0.0 {
             1.0 - c.nodes.iter().map(|n| n.wall_s).fold(0.0, f64::max) / loop_s
         } else {

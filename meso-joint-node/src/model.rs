@@ -42,6 +42,22 @@ use mechanics::j2::{J2Material, J2State, jaumann_rotate};
 use mechanics::tensor::{self, IDENTITY, Matrix3, Vector3, vec3};
 use rayon::prelude::*;
 
+/// Momentum and kinetic energy of a set of particles, summed.
+#[derive(Default)]
+struct Motion {
+    p: [f64; 3],
+    e: f64,
+}
+
+impl Motion {
+    fn add(&mut self, m: f64, v: &[f64; 3]) {
+        for d in 0..3 {
+            self.p[d] += m * v[d];
+        }
+        self.e += 0.5 * m * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    }
+}
+
 /// What drives a particle's velocity.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[repr(u8)]
@@ -553,17 +569,17 @@ impl Model {
         // A coupled particle's mass is its driver's (the shell adds it to its node at set-up
         // and counts it in its momentum and kinetic energy), so the joint leaves the particle
         // out of its sums and books what crossed to its free particles: the force its body
-        // exerts on the particle (−f dt, −f·v dt; docs/architecture.md, the kinematic
-        // coupling's booking), and what the particles gave the free ones since the last
-        // booking through the smoothing of the velocities.
-        let (p, ke) = self.coupled_sums();
-        for d in 0..3 {
-            self.coupling_impulse[d] -= p[d] - self.coupled_p[d];
-        }
-        self.coupling_work -= ke - self.coupled_ke;
+        // exerts on the particle (−f dt, −f·v dt; PROTOCOL.md 4.7, the kinematic responder's
+        // booking), and what the particles gave the free ones since the last booking through
+        // the smoothing of the velocities (their momentum and energy before this overwrite,
+        // against those after the last one).
+        let (mut before, mut after) = (Motion::default(), Motion::default());
         for i in 0..self.len() {
             if self.kind[i] == Kind::Coupled {
                 let vel = self.presc[i];
+                let (m, v) = self.moving(i);
+                before.add(m, &v);
+                after.add(m, &vel);
                 self.v[i] = vel;
                 self.vh[i] = vel;
                 for d in 0..3 {
@@ -572,7 +588,11 @@ impl Model {
                 }
             }
         }
-        (self.coupled_p, self.coupled_ke) = self.coupled_sums();
+        for d in 0..3 {
+            self.coupling_impulse[d] -= before.p[d] - self.coupled_p[d];
+        }
+        self.coupling_work -= before.e - self.coupled_ke;
+        (self.coupled_p, self.coupled_ke) = (after.p, after.e);
         self.clock.lap(Phase::Kinematic);
     }
 
@@ -865,19 +885,20 @@ impl Model {
     /// The coupled particles' momentum and kinetic energy, in the mass and velocity of the
     /// `momentum` sums; the baseline of their booking once they are marked.
     pub fn coupled_sums(&self) -> ([f64; 3], f64) {
-        let (m, vel) = match self.p.smoothing {
-            Smoothing::Consistent => (&self.mh, &self.vh),
-            _ => (&self.ms, &self.v),
-        };
-        let (mut p, mut e) = ([0.0; 3], 0.0);
+        let mut s = Motion::default();
         for i in (0..self.len()).filter(|&i| self.kind[i] == Kind::Coupled) {
-            let v = &vel[i];
-            for d in 0..3 {
-                p[d] += m[i] * v[d];
-            }
-            e += 0.5 * m[i] * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+            let (m, v) = self.moving(i);
+            s.add(m, &v);
         }
-        (p, e)
+        (s.p, s.e)
+    }
+
+    /// Particle `i`'s mass and velocity in the `momentum` sums.
+    fn moving(&self, i: usize) -> (f64, [f64; 3]) {
+        match self.p.smoothing {
+            Smoothing::Consistent => (self.mh[i], self.vh[i]),
+            _ => (self.ms[i], self.v[i]),
+        }
     }
 
     /// The particles whose mass is the joint's in its sums: all but those moved by a
@@ -909,10 +930,7 @@ impl Model {
     /// Momentum change of particle `i` when its velocity is set to `vel`, in the mass and
     /// velocity `momentum` sums.
     fn overwrite_impulse(&self, i: usize, vel: &[f64; 3]) -> [f64; 3] {
-        let (m, v) = match self.p.smoothing {
-            Smoothing::Consistent => (self.mh[i], self.vh[i]),
-            _ => (self.ms[i], self.v[i]),
-        };
+        let (m, v) = self.moving(i);
         [
             m * (vel[0] - v[0]),
             m * (vel[1] - v[1]),

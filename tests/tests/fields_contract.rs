@@ -144,6 +144,17 @@ fn the_bar_keeps_the_booking_rule_over_half_a_period() {
     let o = run_case(&case, &out, &id, &[]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(0), "{err}");
-    assert_eq!(summary(&out)["status"], "finished");
+    let s = summary(&out);
+    assert_eq!(s["status"], "finished");
+    // The rule had something to judge: both halves, in nearly every window after the load's
+    // wave reached the interface (near window 190 of 800: about 610 windows; measured 602 and
+    // 603). Fewer would mean windows went unjudged.
+    for node in ["left", "right"] {
+        let judged = s["booking_rule"][node]["judged_windows"]
+            .as_u64()
+            .unwrap_or_else(|| panic!("booking_rule.{node} in {s}"));
+        println!("{node}: judged in {judged} windows");
+        assert!(judged >= 590, "{node}: judged in {judged} windows");
+    }
     nothing_left(&id);
 }
