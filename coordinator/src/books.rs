@@ -19,7 +19,7 @@
 //! a node whose input of some window never came (a restart continues from a checkpoint that
 //! holds it).
 
-use crate::config::{Case, CouplingConfig};
+use crate::case::{Case, CouplingConfig};
 use protocol::CouplingKind;
 
 /// Audited windows in a row with opposite signs before a node is stopped.
@@ -351,7 +351,7 @@ mod tests {
     /// The split bar's case: `left` drives `right` on coupling `mid` (kinematic), and two data
     /// topics, the driver's then the responder's, after the two nodes' up topics.
     fn split_bar() -> Books {
-        let mid = crate::config::split_bar_coupling();
+        let mid = crate::case::split_bar_coupling();
         let topics = [
             None,
             None,

@@ -3,45 +3,12 @@
 //! the choice of the last checkpoint complete on every node, and the check that a case may
 //! continue a run.
 
-use crate::config::Case;
+use crate::case::Case;
+use crate::engine::audit::Audit;
 use protocol::StepReport;
 use protocol::checkpoint::{self as ckpt, Checkpoint};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-
-/// One row of the per-window balance (summary.json `balance.per_window`, `/cosim/balance`).
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-pub struct BalanceRow {
-    pub window: u64,
-    pub time: f64,
-    pub momentum: f64,
-    pub external_impulse: f64,
-    pub applied_impulse: f64,
-    pub momentum_imbalance: f64,
-    pub interface_impulse_sum: f64,
-    pub momentum_residual: f64,
-    pub energy: f64,
-    pub external_work: f64,
-    pub interface_work_sum: f64,
-    pub energy_residual: f64,
-}
-
-/// The audit of a run so far: every window's balance and the worst values.
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-pub struct Audit {
-    pub rows: Vec<BalanceRow>,
-    pub worst_p: f64,
-    pub worst_resid: f64,
-    /// Energy not explained by the work done on the system since the start (signed).
-    pub worst_e_resid: f64,
-    /// The largest energy of the run or work done on it.
-    pub energy_scale: f64,
-    /// Largest impulse any node saw (applied, supports and walls, coupling).
-    pub impulse_scale: f64,
-    /// Largest gross momentum (Σ m|v| over the nodes).
-    pub momentum_scale: f64,
-    pub worst_iface_p: f64,
-}
 
 /// What the coordinator keeps of one node across windows.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -125,7 +92,7 @@ pub fn compat_signature(case: &Case) -> String {
 }
 
 /// A node's parameters as its `Welcome` carries them.
-pub fn params_toml(n: &crate::config::NodeConfig) -> String {
+pub fn params_toml(n: &crate::case::NodeConfig) -> String {
     toml::to_string(&n.params).unwrap_or_default()
 }
 
@@ -217,7 +184,7 @@ pub fn check_not_finished(run_dir: &Path, case: &Case) -> Result<(), String> {
         return Ok(());
     }
     let reached = summary["window_reached"].as_u64().unwrap_or(0);
-    if crate::run::window_count(case) > reached {
+    if crate::case::window_count(case) > reached {
         return Ok(());
     }
     let t = summary["time_reached"]
@@ -233,7 +200,7 @@ pub fn check_not_finished(run_dir: &Path, case: &Case) -> Result<(), String> {
 pub fn check_compatible(case: &Case, st: &CoordState) -> Result<(), String> {
     let now = compat_signature(case);
     if now == st.signature {
-        let windows = crate::run::window_count(case);
+        let windows = crate::case::window_count(case);
         if st.window >= windows {
             return Err(format!(
                 "the checkpoint is of window {}, the case ends after window {windows}: nothing to continue (raise run.end_time)",

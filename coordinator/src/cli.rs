@@ -1,7 +1,8 @@
 //! The `cosim` command line: run, validate, info, clean, replay, plot, and bench (which runs
 //! the `cosim-bench` executable).
 
-use crate::{config, replay, run};
+use crate::case::{load_variant, load_variant_text};
+use crate::{case, replay, run};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
@@ -242,6 +243,10 @@ pub enum Cmd {
         #[arg(long)]
         solver: Option<PathBuf>,
     },
+    /// Print the JSON Schema of case files (the one in docs/schema/case.json), for editors
+    /// that complete and check TOML against a schema (e.g. Taplo: a first line
+    /// `#:schema ./case.json` in the case file).
+    Schema,
     /// Print a shell completion script: `cosim completions bash > ~/.local/share/bash-completion/completions/cosim`
     /// (also zsh, fish, elvish, powershell).
     Completions {
@@ -268,229 +273,6 @@ pub enum Cmd {
     Conformance(ConformanceArgs),
 }
 
-/// Load a case and apply `node.key=value` overrides; errors are (key, reason).
-pub fn load_case(
-    path: &std::path::Path,
-    sets: &[String],
-) -> Result<config::Case, config::ConfigError> {
-    load_variant(path, None, sets)
-}
-
-/// `couplings.NAME.KEY=VALUE`: set a key of the `[[couplings]]` entry named NAME (its
-/// `name`, or the default `driver-responder` node pair).
-fn set_coupling(doc: &mut toml::Table, s: &str, rest: &str) -> Result<(), config::ConfigError> {
-    let bad = |reason: String| config::ConfigError {
-        key: format!("--set {s}"),
-        reason,
-    };
-    let (name, kv) = rest
-        .split_once('.')
-        .ok_or_else(|| bad("must be couplings.NAME.KEY=VALUE".into()))?;
-    let list = doc
-        .get_mut("couplings")
-        .and_then(|c| c.as_array_mut())
-        .ok_or_else(|| bad("the case has no [[couplings]]".into()))?;
-    let node_of = |t: &toml::Table, k: &str| -> String {
-        t.get(k)
-            .and_then(|v| v.as_str())
-            .and_then(|v| v.split_once('.'))
-            .map(|(n, _)| n.to_string())
-            .unwrap_or_default()
-    };
-    let mut names = Vec::new();
-    for c in list.iter_mut() {
-        let Some(t) = c.as_table_mut() else { continue };
-        let this = t
-            .get("name")
-            .and_then(|v| v.as_str())
-            .map(str::to_string)
-            .unwrap_or_else(|| format!("{}-{}", node_of(t, "driver"), node_of(t, "responder")));
-        if this == name {
-            return config::apply_sets(t, &[kv.to_string()]);
-        }
-        names.push(this);
-    }
-    Err(bad(format!(
-        "no coupling named '{name}' (the case has {})",
-        names.join(", ")
-    )))
-}
-
-/// `model=NAME`, `solver=EXE` or `remote=BOOL` on a node's own table. A solver path that
-/// exists from the working directory is made absolute (the case file's own paths are
-/// relative to the case file).
-fn set_node_key(node: &mut toml::Table, kv: &str) -> Result<(), config::ConfigError> {
-    let (k, v) = kv.split_once('=').unwrap_or((kv, ""));
-    let (k, v) = (k.trim(), v.trim());
-    let v = v.trim_matches('"');
-    let value = match k {
-        "remote" => toml::Value::Boolean(match v {
-            "true" => true,
-            "false" => false,
-            _ => {
-                return Err(config::ConfigError {
-                    key: format!("--set {kv}"),
-                    reason: "remote must be true or false".into(),
-                });
-            }
-        }),
-        "solver" if v.contains('/') && std::path::Path::new(v).exists() => {
-            let abs = std::path::absolute(v).map_err(|e| config::ConfigError {
-                key: format!("--set {kv}"),
-                reason: e.to_string(),
-            })?;
-            toml::Value::String(abs.display().to_string())
-        }
-        _ if v.is_empty() => {
-            return Err(config::ConfigError {
-                key: format!("--set {kv}"),
-                reason: format!("{k} needs a value"),
-            });
-        }
-        _ => toml::Value::String(v.to_string()),
-    };
-    node.insert(k.to_string(), value);
-    Ok(())
-}
-
-/// A node's `params = "FILE"` read into the table it names (relative to the case file), so
-/// that `--set` can change it.
-fn inline_params_file(
-    params: &mut toml::Value,
-    node: &str,
-    case_dir: &std::path::Path,
-) -> Result<(), config::ConfigError> {
-    let Some(file) = params.as_str() else {
-        return Ok(());
-    };
-    let fp = case_dir.join(file);
-    let bad = |reason: String| config::ConfigError {
-        key: format!("nodes.{node}.params"),
-        reason,
-    };
-    let text = std::fs::read_to_string(&fp)
-        .map_err(|e| bad(format!("cannot read {}: {e}", fp.display())))?;
-    let t: toml::Table =
-        toml::from_str(&text).map_err(|e| bad(format!("{}: {}", fp.display(), e.message())))?;
-    *params = toml::Value::Table(t);
-    Ok(())
-}
-
-/// Load a case, apply the settings of variant `variant` (if any), then `sets`.
-pub fn load_variant(
-    path: &std::path::Path,
-    variant: Option<&str>,
-    sets: &[String],
-) -> Result<config::Case, config::ConfigError> {
-    if sets.is_empty() && variant.is_none() {
-        return config::load(path);
-    }
-    let text = std::fs::read_to_string(path).map_err(|e| config::ConfigError {
-        key: path.display().to_string(),
-        reason: format!("cannot read: {e}"),
-    })?;
-    load_variant_text(&text, path, variant, sets)
-}
-
-/// As [`load_variant`], with the case file's text in hand (`path` names it in errors and
-/// locates what the case refers to).
-pub fn load_variant_text(
-    text: &str,
-    path: &std::path::Path,
-    variant: Option<&str>,
-    sets: &[String],
-) -> Result<config::Case, config::ConfigError> {
-    if sets.is_empty() && variant.is_none() {
-        return config::parse(text, path);
-    }
-    let mut doc: toml::Table = toml::from_str(text).map_err(|e| config::ConfigError {
-        key: path.display().to_string(),
-        reason: e.message().to_string(),
-    })?;
-    let mut all: Vec<String> = Vec::new();
-    if let Some(name) = variant {
-        let v = config::variant_sets(&doc, name)?;
-        config::apply_variant_structure(&mut doc, name)?;
-        // A variant writes beside the others unless it says where.
-        if !v.iter().any(|s| {
-            s.split_once('=')
-                .is_some_and(|(k, _)| k.trim() == "run.output")
-        }) {
-            let base = doc
-                .get("run")
-                .and_then(|r| r.get("output"))
-                .and_then(|o| o.as_str())
-                .unwrap_or("out")
-                .to_string();
-            all.push(format!("run.output={:?}", format!("{base}/{name}")));
-        }
-        all.extend(v);
-    }
-    all.extend(sets.iter().cloned());
-    for s in &all {
-        let (node, rest) = s.split_once('.').ok_or_else(|| config::ConfigError {
-            key: format!("--set {s}"),
-            reason: "must be NODE.KEY=VALUE, NODE.model=NAME, NODE.solver=EXE, run.KEY=VALUE or couplings.NAME.KEY=VALUE".into(),
-        })?;
-        if node == "run" && doc.get("nodes").is_none_or(|n| n.get("run").is_none()) {
-            let t = doc
-                .get_mut("run")
-                .and_then(|r| r.as_table_mut())
-                .ok_or_else(|| config::ConfigError {
-                    key: "run".into(),
-                    reason: "missing [run] table".into(),
-                })?;
-            config::apply_sets(t, &[rest.to_string()])?;
-            continue;
-        }
-        if node == "couplings"
-            && doc
-                .get("nodes")
-                .is_none_or(|n| n.get("couplings").is_none())
-        {
-            set_coupling(&mut doc, s, rest)?;
-            continue;
-        }
-        let table = doc
-            .get_mut("nodes")
-            .and_then(|n| n.get_mut(node))
-            .and_then(|n| n.as_table_mut())
-            .ok_or_else(|| config::ConfigError {
-                key: format!("--set {s}"),
-                reason: format!("unknown node '{node}'"),
-            })?;
-        let key = rest.split_once('=').map_or(rest, |(k, _)| k).trim();
-        if matches!(key, "model" | "solver" | "remote") {
-            // The node itself: swap its model or its executable (a path as typed on the
-            // command line, from the working directory, when it exists there).
-            set_node_key(table, rest)?;
-            continue;
-        }
-        // `NODE.params.KEY` reaches a parameter named like a node key; `NODE.KEY` any other.
-        let rest = rest.strip_prefix("params.").unwrap_or(rest);
-        let case_dir = path.parent().unwrap_or(std::path::Path::new("."));
-        let params = table
-            .entry("params")
-            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-        inline_params_file(params, node, case_dir)?;
-        let t = params.as_table_mut().ok_or_else(|| config::ConfigError {
-            key: format!("nodes.{node}.params"),
-            reason: "must be a table or a file name".into(),
-        })?;
-        config::apply_sets(t, &[rest.to_string()])?;
-    }
-    let text = toml::to_string(&doc).map_err(|e| config::ConfigError {
-        key: "--set".into(),
-        reason: e.to_string(),
-    })?;
-    config::parse(&text, path)
-}
-
-/// Whether `dir` holds a run of its own (a variant's output inside the base case's).
-pub(crate) fn holds_a_run(dir: &std::path::Path) -> bool {
-    dir.join("summary.json").exists() || dir.join("run.mcap").exists()
-}
-
 /// Make `out` ready for a new run: absent or empty is fine; with `overwrite`, whatever an
 /// earlier run left there is deleted (folders holding runs of their own — other variants —
 /// are kept); without it, anything there but such folders is refused, so that two runs'
@@ -506,7 +288,7 @@ fn prepare_output(out: &std::path::Path, overwrite: bool) -> Result<(), String> 
         if e.file_name() == crate::lock::LOCK_FILE {
             continue;
         }
-        if !(p.is_dir() && holds_a_run(&p)) {
+        if !(p.is_dir() && crate::lock::holds_a_run(&p)) {
             stale.push(p);
         }
     }
@@ -549,7 +331,7 @@ fn recording_of(path: &std::path::Path) -> PathBuf {
 /// given) checked without starting anything; exit 2 naming the key of the first error.
 fn validate(case: &std::path::Path, variant: Option<&str>, sets: &[String], json: bool) -> i32 {
     use serde_json::json;
-    let refuse = |e: &config::ConfigError, variant: Option<&str>| {
+    let refuse = |e: &case::ConfigError, variant: Option<&str>| {
         if json {
             println!(
                 "{}",
@@ -567,8 +349,8 @@ fn validate(case: &std::path::Path, variant: Option<&str>, sets: &[String], json
         Ok(c) => c,
         Err(e) => return refuse(&e, variant),
     };
-    let windows = |c: &config::Case| ((c.run.end_time / c.run.window) - 1e-9).ceil();
-    let order = config::window_order(&c).unwrap_or_default();
+    let windows = |c: &case::Case| ((c.run.end_time / c.run.window) - 1e-9).ceil();
+    let order = case::window_order(&c).unwrap_or_default();
     let mut doc = json!({
         "ok": true, "case": case, "variant": variant, "nodes": [], "variants": [],
         "couplings": c.couplings.len(), "windows": windows(&c), "order": order,
@@ -687,6 +469,16 @@ pub fn main_with(cli: Cli) -> i32 {
                 }
             }
         }
+        Cmd::Schema => match serde_json::to_string_pretty(&case::parse::schema()) {
+            Ok(text) => {
+                println!("{text}");
+                0
+            }
+            Err(e) => {
+                eprintln!("cosim: {e}");
+                1
+            }
+        },
         Cmd::Completions { shell } => {
             use clap::CommandFactory;
             clap_complete::generate(shell, &mut Cli::command(), "cosim", &mut std::io::stdout());
@@ -1123,9 +915,9 @@ fn conformance(a: ConformanceArgs) -> i32 {
         eprintln!("cosim conformance: --windows must be at least 2 (one holds the checkpoint)");
         return 2;
     }
-    let output = a
-        .output
-        .unwrap_or_else(|| std::env::temp_dir().join(crate::run::pick_run_id("cosim-conformance")));
+    let output = a.output.unwrap_or_else(|| {
+        std::env::temp_dir().join(crate::launch::pick_run_id("cosim-conformance"))
+    });
     let o = Options {
         command: a.command,
         model: a.model,
@@ -1172,7 +964,7 @@ fn conformance(a: ConformanceArgs) -> i32 {
 /// The state to continue the run in `dir` from with case `c`: its last complete checkpoint,
 /// if the case may continue it.
 fn restart_state(
-    c: &config::Case,
+    c: &case::Case,
     dir: &std::path::Path,
 ) -> anyhow::Result<crate::checkpoint::CoordState> {
     crate::checkpoint::check_not_finished(dir, c).map_err(|e| anyhow::anyhow!(e))?;
@@ -1185,7 +977,7 @@ fn restart_state(
 }
 
 /// Run (or continue) a case with stop signals handled; returns the exit code.
-fn run_case(c: &config::Case, opts: &run::RunOptions) -> i32 {
+fn run_case(c: &case::Case, opts: &run::RunOptions) -> i32 {
     // Ctrl-C and SIGTERM stop the run at the next window boundary (a second Ctrl-C at
     // once), with the recording finalised and shared memory removed.
     if let Err(e) = protocol::stop::install(&[libc::SIGINT, libc::SIGTERM]) {

@@ -6,10 +6,10 @@
 //! velocity, its loads zero. Each rule ends PASS, FAIL (with the reason) or not reached
 //! (an earlier failure ended the drive).
 
-use crate::config::{self, CouplingConfig, NodeConfig};
+use crate::case::{self, CouplingConfig, NodeConfig};
 use crate::contract::Contract;
+use crate::launch::pick_run_id;
 use crate::replay::{Gone, Session};
-use crate::run::pick_run_id;
 use protocol::scheme;
 use protocol::*;
 use std::path::{Path, PathBuf};
@@ -153,7 +153,7 @@ pub fn check(o: &Options) -> anyhow::Result<Vec<Verdict>> {
     let Some((program, args)) = o.command.split_first() else {
         anyhow::bail!("no node command given");
     };
-    let exe = config::resolve_exe(program, Path::new(".")).unwrap_or_else(|| program.into());
+    let exe = crate::launch::resolve_exe(program, Path::new(".")).unwrap_or_else(|| program.into());
     std::fs::create_dir_all(&o.output)?;
     let node = NodeConfig {
         name: "node".into(),
@@ -168,14 +168,18 @@ pub fn check(o: &Options) -> anyhow::Result<Vec<Verdict>> {
         window_limits: Vec::new(),
         positions: Default::default(),
     };
-    let d =
-        match crate::describe::describe_one(&exe, args, &node, crate::describe::DESCRIBE_TIMEOUT) {
-            Ok(d) => d,
-            Err(e) => {
-                sheet.fail("describe", format!("{}: {}", e.key, e.reason));
-                return Ok(sheet.0);
-            }
-        };
+    let d = match crate::case::describe::describe_one(
+        &exe,
+        args,
+        &node,
+        crate::case::describe::DESCRIBE_TIMEOUT,
+    ) {
+        Ok(d) => d,
+        Err(e) => {
+            sheet.fail("describe", format!("{}: {}", e.key, e.reason));
+            return Ok(sheet.0);
+        }
+    };
     let Some(iface) = d
         .interfaces
         .iter()
@@ -191,7 +195,7 @@ pub fn check(o: &Options) -> anyhow::Result<Vec<Verdict>> {
         return Ok(sheet.0);
     };
     let coupling = coupling_of(o, &iface.name);
-    let needs = config::required_fields(&coupling);
+    let needs = case::required_fields(&coupling);
     let lacking: Vec<String> = needs
         .iter()
         .filter(|n| n.member.0 == "node")
@@ -326,7 +330,7 @@ fn coupling_of(o: &Options, iface: &str) -> CouplingConfig {
         Role::Driver => (me, peer),
         Role::Responder => (peer, me),
     };
-    let (driver_fields, responder_fields) = config::default_fields(o.kind);
+    let (driver_fields, responder_fields) = case::default_fields(o.kind);
     CouplingConfig {
         name: "conformance".into(),
         kind: o.kind,
@@ -337,7 +341,7 @@ fn coupling_of(o: &Options, iface: &str) -> CouplingConfig {
         decouple: Default::default(),
         sides: Vec::new(),
         method: None,
-        point_tolerance: config::DEFAULT_POINT_TOLERANCE,
+        point_tolerance: case::DEFAULT_POINT_TOLERANCE,
     }
 }
 

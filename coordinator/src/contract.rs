@@ -9,7 +9,7 @@
 //! Lagrange sides are not covered here: their vectors are sized by the interface problem,
 //! which the coordinator's hub checks as it reads them (`coordinator/src/lagrange.rs`).
 
-use crate::config::{Case, CouplingConfig, Schedule};
+use crate::case::{Case, CouplingConfig, Schedule};
 use protocol::message::{CouplingKind, Role};
 use protocol::scheme;
 
@@ -306,7 +306,7 @@ mod tests {
     use super::*;
 
     fn kinematic() -> CouplingConfig {
-        crate::config::split_bar_coupling()
+        crate::case::split_bar_coupling()
     }
 
     fn verdict(c: &Contract, window: u64, fields: &[(&str, u32, usize)]) -> Result<(), String> {

@@ -4,7 +4,7 @@
 //! messages, answering each solved step with the multipliers (the wire:
 //! `protocol::scheme::lagrange::wire`). No I/O here: `run.rs` publishes what it returns.
 
-use crate::config::CouplingConfig;
+use crate::case::CouplingConfig;
 use protocol::scheme::lagrange::{LagrangeScheme, Method, SideSetup, wire};
 use protocol::{Fields, InterfaceMesh};
 

@@ -3,19 +3,20 @@
 //! schedule, the recording and the failure handling; it never does physics.
 
 pub mod books;
+pub mod case;
 pub mod checkpoint;
 pub mod cli;
 pub mod clock;
-pub mod config;
 pub mod conformance;
 pub mod contract;
 pub mod deadlock;
-pub mod describe;
+pub mod engine;
 pub mod export;
 pub mod fields;
 pub mod guard;
 pub mod integrity;
 pub mod lagrange;
+pub mod launch;
 pub mod lock;
 pub mod nest;
 pub mod params;

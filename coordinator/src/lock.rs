@@ -116,6 +116,11 @@ pub fn command_line() -> String {
     std::env::args().collect::<Vec<_>>().join(" ")
 }
 
+/// Whether `dir` holds a run of its own (a variant's output inside the base case's).
+pub fn holds_a_run(dir: &Path) -> bool {
+    dir.join("summary.json").exists() || dir.join("run.mcap").exists()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -40,13 +40,13 @@ fn ask(exe: &Path, model: Option<&str>) -> anyhow::Result<Value> {
 /// The executables to ask: `solver` if given, else the built-in nodes found beside cosim.
 fn executables(solver: Option<&Path>) -> anyhow::Result<Vec<PathBuf>> {
     if let Some(s) = solver {
-        return crate::config::resolve_exe(&s.to_string_lossy(), Path::new("."))
+        return crate::launch::resolve_exe(&s.to_string_lossy(), Path::new("."))
             .map(|p| vec![p])
             .with_context(|| format!("{}: no such executable", s.display()));
     }
     let found: Vec<PathBuf> = BUILT_IN
         .iter()
-        .filter_map(|n| crate::config::resolve_exe(n, Path::new(".")))
+        .filter_map(|n| crate::launch::resolve_exe(n, Path::new(".")))
         .collect();
     if found.is_empty() {
         bail!("no node executables beside cosim (build them: cargo build --release --workspace)");

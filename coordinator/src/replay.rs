@@ -8,8 +8,8 @@
 //! only when every window the recording holds of the node was compared; anything less (a cut
 //! recording, a node that stops early, a missing field) is reported as incomplete.
 
+use crate::launch::{describe_status, log_note, pick_run_id, spawn_node};
 use crate::record::{self, Recorded};
-use crate::run::{describe_status, log_note, pick_run_id, spawn_node};
 use anyhow::{Context, bail};
 use protocol::codec::{self, encode_into};
 use protocol::participant::is_motion;
@@ -758,11 +758,11 @@ pub fn replay(path: &Path, node: &str, opts: &ReplayOptions) -> anyhow::Result<R
     rep.exe = match &opts.solver {
         Some(s) => {
             let s = s.to_string_lossy();
-            crate::config::resolve_exe(&s, Path::new("."))
+            crate::launch::resolve_exe(&s, Path::new("."))
                 .with_context(|| format!("--solver {s}: no such executable"))?
         }
-        None => crate::config::resolve_exe(&p.solver, &p.case_dir)
-            .or_else(|| crate::config::resolve_exe(&p.solver, Path::new(".")))
+        None => crate::launch::resolve_exe(&p.solver, &p.case_dir)
+            .or_else(|| crate::launch::resolve_exe(&p.solver, Path::new(".")))
             .with_context(|| {
                 format!(
                     "the recorded executable of node '{node}', '{}', is neither beside cosim nor at that path (relative to {}); name one with --solver",
@@ -781,7 +781,7 @@ pub fn replay(path: &Path, node: &str, opts: &ReplayOptions) -> anyhow::Result<R
             None => param_sets.push(s.clone()),
         }
     }
-    crate::config::apply_sets(&mut params, &param_sets).map_err(|e| anyhow::anyhow!("{e}"))?;
+    crate::case::apply_sets(&mut params, &param_sets).map_err(|e| anyhow::anyhow!("{e}"))?;
     let run = opts
         .run_id
         .clone()
@@ -796,7 +796,7 @@ pub fn replay(path: &Path, node: &str, opts: &ReplayOptions) -> anyhow::Result<R
     // The replayed node writes `<out>/<node>.log` and `<out>/<node>/`, the very names a run
     // gives its own log and frames: a run's folder, live or finished, is no place for them.
     crate::lock::check_free(&out)?;
-    if crate::cli::holds_a_run(&out) {
+    if crate::lock::holds_a_run(&out) {
         bail!(
             "{} holds a run's results (run.mcap or summary.json), whose node log and frames the replay would overwrite: leave out --output (the replay goes to replay-{node} beside the recording) or name another folder",
             out.display()

@@ -21,7 +21,8 @@ pub fn wire_target(bytes: &[u8]) -> bool {
 /// The case parser: `text` as a case file, then the `--set` overrides, as `cosim validate`
 /// reads them (no file, no process).
 pub fn case_target(text: &str, sets: &[String]) -> bool {
-    coordinator::cli::load_variant_text(text, std::path::Path::new("fuzz.toml"), None, sets).is_ok()
+    coordinator::case::load_variant_text(text, std::path::Path::new("fuzz.toml"), None, sets)
+        .is_ok()
 }
 
 /// A node model's parameter decoder and set-up on `params`, describe-only (no device).

@@ -47,7 +47,7 @@ fn the_message_decoder_never_panics() {
 
 #[test]
 fn the_case_parser_with_overrides_never_panics() {
-    if let Err(e) = coordinator::cli::load_variant_text(
+    if let Err(e) = coordinator::case::load_variant_text(
         CASE,
         std::path::Path::new("fuzz.toml"),
         None,

@@ -54,14 +54,19 @@ pub fn schema_main(binary: &str, model: Option<&str>) -> i32 {
 
 /// Decode `params` into `T`; an error names the key path inside `params` and the reason.
 pub fn decode<T: DeserializeOwned>(params: &toml::Table) -> SolverResult<T> {
-    serde_path_to_error::deserialize(params.clone()).map_err(|e| {
+    decode_keyed(params).map_err(|(key, reason)| SolverError::config(key, reason))
+}
+
+/// Decode any TOML table into `T` (a node's parameters, the coordinator's case file): on
+/// failure, the full key path of the offending key (`a.b[2].c`) and a readable reason.
+pub fn decode_keyed<T: DeserializeOwned>(table: &toml::Table) -> Result<T, (String, String)> {
+    serde_path_to_error::deserialize(table.clone()).map_err(|e| {
         let mut path = e.path().to_string();
         let message = e.inner().message().to_string();
-        if let Some(inner) = inside_tagged(params, &path, &message) {
+        if let Some(inner) = inside_tagged(table, &path, &message) {
             path = inner;
         }
-        let (key, reason) = explain(&path, &message);
-        SolverError::config(key, reason)
+        explain(&path, &message)
     })
 }
 

@@ -516,17 +516,32 @@ fn need(ok: bool, what: &str, hint: &str) -> bool {
     ok
 }
 
-/// Whether the Python participant package `cosim` (with numpy) imports; if not, skipped
+/// Whether Python module `module` imports (the PyPI package `package`); if not, skipped
 /// outside CI and a failure under `CI=true`.
-pub fn python_package_or_skip() -> bool {
+pub fn python_module_or_skip(module: &str, package: &str) -> bool {
+    python_imports_or_skip(
+        module,
+        &format!("the Python module `{module}`"),
+        &format!("python3 -m pip install {package}"),
+    )
+}
+
+/// Whether `import {modules}` succeeds; `what` and `hint` name it in the skip or failure.
+fn python_imports_or_skip(modules: &str, what: &str, hint: &str) -> bool {
     let ok = Command::new("python3")
-        .args(["-c", "import cosim, numpy"])
+        .args(["-c", &format!("import {modules}")])
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
         .status()
         .is_ok_and(|s| s.success());
-    need(
-        ok,
+    need(ok, what, hint)
+}
+
+/// Whether the Python participant package `cosim` (with numpy) imports; if not, skipped
+/// outside CI and a failure under `CI=true`.
+pub fn python_package_or_skip() -> bool {
+    python_imports_or_skip(
+        "cosim, numpy",
         "the Python package `cosim` (with numpy)",
         "python3 -m pip install ./python",
     )

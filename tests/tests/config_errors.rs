@@ -250,6 +250,7 @@ remove = ["nodes.middle"]
 [variants.clash]
 [variants.clash.nodes.left]
 solver = "solid-node"
+model = "bar-1d"
 
 [variants.dangling]
 remove = ["nodes.right"]

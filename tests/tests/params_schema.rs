@@ -222,18 +222,121 @@ fn the_published_schemas_are_current() {
         assert_eq!(code, 0, "{m}: {err}");
         let live: Value = serde_json::from_str(&out).unwrap();
         assert_eq!(live["additionalProperties"], Value::Bool(false), "{m}");
-        let path = workspace_root()
-            .join("docs/schema")
-            .join(format!("{m}.json"));
-        let published: Value = std::fs::read_to_string(&path)
-            .ok()
-            .and_then(|t| serde_json::from_str(&t).ok())
-            .unwrap_or(Value::Null);
+        same_as_published(&live, &format!("{m}.json"), &format!("params {m} --json"));
+    }
+}
+
+/// `live` is docs/schema/`file`, which `cosim args` writes.
+fn same_as_published(live: &Value, file: &str, args: &str) {
+    let path = workspace_root().join("docs/schema").join(file);
+    let published: Value = std::fs::read_to_string(&path)
+        .ok()
+        .and_then(|t| serde_json::from_str(&t).ok())
+        .unwrap_or(Value::Null);
+    assert!(
+        &published == live,
+        "{} is out of date: ./target/release/cosim {args} > {}",
+        path.display(),
+        path.display()
+    );
+}
+
+/// docs/schema/case.json is what `cosim schema` prints, derived from the types the case is
+/// read into.
+#[test]
+fn the_published_case_schema_is_current() {
+    let (code, out, err) = cosim(&["schema"]);
+    assert_eq!(code, 0, "{err}");
+    let live: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(live["additionalProperties"], Value::Bool(false));
+    same_as_published(&live, "case.json", "schema");
+}
+
+/// Validates TOML files against a JSON Schema with the `jsonschema` package (an independent
+/// validator): prints `PATH: ok` or `PATH: KEY.PATH: message` per file.
+const VALIDATE: &str = r#"
+import json, sys, tomllib
+from jsonschema import Draft202012Validator
+schema = json.load(open(sys.argv[1]))
+Draft202012Validator.check_schema(schema)
+v = Draft202012Validator(schema)
+for p in sys.argv[2:]:
+    doc = tomllib.load(open(p, "rb"))
+    errors = sorted(v.iter_errors(doc), key=lambda e: list(e.absolute_path))
+    if errors:
+        e = errors[0]
+        where = ".".join(str(k) for k in e.absolute_path) or "(top)"
+        print(f"{p}: {where}: {e.message}")
+    else:
+        print(f"{p}: ok")
+"#;
+
+/// Each line of the validator's verdicts on `files`.
+fn schema_verdicts(files: &[std::path::PathBuf]) -> Vec<String> {
+    let schema = workspace_root().join("docs/schema/case.json");
+    let o = Command::new("python3")
+        .arg("-c")
+        .arg(VALIDATE)
+        .arg(&schema)
+        .args(files)
+        .output()
+        .expect("python3");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(str::to_string)
+        .collect()
+}
+
+/// Every example case validates against docs/schema/case.json with an independent validator,
+/// and the schema refuses a misspelt key at any depth, as `cosim validate` does.
+#[test]
+fn the_case_schema_validates_every_example_and_refuses_a_misspelt_key() {
+    if !python_module_or_skip("jsonschema", "jsonschema") {
+        return;
+    }
+    let mut files: Vec<_> = std::fs::read_dir(workspace_root().join("examples"))
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    files.sort();
+    assert!(files.len() >= 18, "{} example cases", files.len());
+    let verdicts = schema_verdicts(&files);
+    assert_eq!(verdicts.len(), files.len(), "{verdicts:?}");
+    for v in &verdicts {
+        assert!(v.ends_with(": ok"), "{v}");
+    }
+    let (dir, _) = scratch("case-schema");
+    let good = std::fs::read_to_string(workspace_root().join("examples/split_bar.toml")).unwrap();
+    let bad = [
+        ("run", good.replace("end_time =", "end_tme =")),
+        (
+            "nodes.left",
+            good.replace("model = \"bar-1d\"", "modl = \"bar-1d\""),
+        ),
+        (
+            "couplings.0",
+            good.replace("kind = \"kinematic\"", "kind = \"kinematic\"\nsid = 1"),
+        ),
+        (
+            "couplings.0.kind",
+            good.replace("kind = \"kinematic\"", "kind = \"glued\""),
+        ),
+    ];
+    let mut paths = Vec::new();
+    for (k, (_, text)) in bad.iter().enumerate() {
+        assert_ne!(text, &good, "edit {k} changed nothing");
+        let p = dir.join(format!("bad{k}.toml"));
+        std::fs::write(&p, text).unwrap();
+        paths.push(p);
+    }
+    let verdicts = schema_verdicts(&paths);
+    assert_eq!(verdicts.len(), bad.len(), "{verdicts:?}");
+    for ((key, _), v) in bad.iter().zip(&verdicts) {
         assert!(
-            published == live,
-            "{} is out of date: ./target/release/cosim params {m} --json > {}",
-            path.display(),
-            path.display()
+            v.contains(&format!(": {key}: ")),
+            "expected a refusal at {key}: {v}"
         );
     }
 }

@@ -3,7 +3,7 @@
 //! a bad parameter's key (`nodes.N.params.<key>`) and list each node's interfaces; the
 //! coordinator builds no solver itself (docs/architecture.md, PROTOCOL.md "Node command line").
 
-use crate::config::{ConfigError, NodeConfig};
+use super::resolved::{ConfigError, NodeConfig};
 use protocol::describe::{DescribeAnswer, NodeDescriptionJson, parse_answer};
 use std::io::{Read, Write};
 use std::path::Path;
@@ -36,7 +36,7 @@ pub fn describe_nodes(
                 let exe = n
                     .exe
                     .clone()
-                    .or_else(|| crate::config::resolve_exe(&n.solver, case_dir));
+                    .or_else(|| crate::launch::resolve_exe(&n.solver, case_dir));
                 s.spawn(move || match exe {
                     Some(exe) => {
                         describe_one(&exe, &[], n, timeout).map(|d| Checked::Described(Box::new(d)))
