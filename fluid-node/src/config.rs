@@ -13,7 +13,7 @@ pub struct Params {
     pub materials: BTreeMap<String, MaterialSpec>,
     /// Initial regions, applied in order (later ones overwrite earlier ones).
     pub regions: Vec<RegionSpec>,
-    /// Boundary condition of each face of the grid (default: walls).
+    /// Boundary condition of each face of the grid (a face not given is an outflow).
     #[serde(default)]
     pub boundaries: BoundariesSpec,
     /// Courant number of the time step (0 < cfl ≤ 1).
@@ -84,7 +84,7 @@ pub struct MaterialSpec {
     pub r2: Option<f64>,
     /// JWL Grüneisen coefficient ω (1).
     pub omega: Option<f64>,
-    /// JWL specific detonation energy e₀ (J/kg).
+    /// JWL detonation energy per unit initial volume e₀ (J/m³; TNT 7.0e9).
     pub e0: Option<f64>,
 }
 

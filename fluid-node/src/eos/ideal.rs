@@ -1,4 +1,4 @@
-//! Ideal gas, `p = (γ - 1) ρ e` (seed 002 eq. 36 uses it for air and helium).
+//! Ideal gas, `p = (γ - 1) ρ e` (seed 002 eq. 12; its eq. 36 uses it for air and helium).
 
 use super::Eos;
 

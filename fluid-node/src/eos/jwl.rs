@@ -1,4 +1,4 @@
-//! JWL equation of state for detonation products (seed 002 eq. 7; the README's case sections TNT constants):
+//! JWL equation of state for detonation products (seed 002 eq. 13; the README's case sections TNT constants):
 //! `p = A (1 - ω/(R1 V)) e^{-R1 V} + B (1 - ω/(R2 V)) e^{-R2 V} + ω ρ e`, `V = ρ0/ρ`, e the
 //! specific internal energy (so ω E/V with E = ρ0 e per initial volume). The Chapman–Jouguet
 //! state is where the Rayleigh line from (V=1, p=0) is tangent to the Hugoniot from E0.

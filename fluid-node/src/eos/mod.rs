@@ -1,4 +1,4 @@
-//! Equations of state behind one trait (seed 002 §2.2, eq. 5–8). Every EOS here is written in
+//! Equations of state behind one trait (seed 002 §2.2, eq. 12–14). Every EOS here is written in
 //! Mie–Grüneisen form `p = p_ref(ρ) + Γ ρ (e - e_ref(ρ))` with a constant Grüneisen
 //! coefficient Γ, so that the pressure of a five-equation mixture in mechanical equilibrium is
 //! linear in p and needs no iteration (Allaire, Clerc & Kokh 2002; seed 002 eq. 28–30 solve
