@@ -35,36 +35,66 @@ pub mod step;
 
 pub use solver::EulerSolver;
 
-use protocol::{BuildOptions, Solver, SolverError, SolverResult};
+use protocol::{BuildOptions, Solver, SolverResult};
+
+use protocol::registry::Model;
 
 /// Builds the solver named `model` from its parameter table, for a run.
 pub fn factory(model: &str, params: &toml::Table) -> SolverResult<Box<dyn Solver>> {
     build(model, params, &BuildOptions::RUN)
 }
 
-/// Builds the solver named `model` from its parameter table as `opts` asks (the node's
-/// registry: one line per model; describe-only opens no GPU).
-/// The models this node offers.
-pub const MODELS: &[&str] = &["euler"];
+/// The models this node offers: name, parameter schema, example parameters, constructor.
+pub const MODELS: &[Model] = &[Model {
+    name: "euler",
+    schema: || serde_json::to_value(schemars::schema_for!(config::Params)).unwrap_or_default(),
+    example: EULER_EXAMPLE,
+    build: |p, o| Ok(Box::new(EulerSolver::build(p, o)?)),
+}];
 
-/// JSON Schema of a model's parameters (`fluid-node --schema --model M`, `cosim params M`): derived
+/// A 12-cell tube of air with a water drop, an inflow and an outflow.
+const EULER_EXAMPLE: &str = r#"
+cfl = 0.5
+[grid]
+cells = [12, 1, 1]
+lower = [0.0, 0.0, 0.0]
+upper = [1.0, 1.0, 1.0]
+[materials.air]
+eos = "ideal"
+gamma = 1.4
+[materials.water]
+eos = "stiffened"
+gamma = 4.4
+p_inf = 6e8
+[[regions]]
+shape = "all"
+material = "air"
+density = 1.0
+pressure = 1.0
+[[regions]]
+shape = "sphere"
+center = [0.5, 0.5, 0.5]
+radius = 0.2
+material = "water"
+density = 1000.0
+pressure = 1.0
+[boundaries]
+x_lower = { kind = "inflow", material = "air", density = 1.5, velocity = [0.3, 0.0, 0.0], pressure = 1.5 }
+x_upper = { kind = "outflow" }
+"#;
+
+/// JSON Schema of a model's parameters (`NODE --schema --model M`, `cosim params M`): derived
 /// from the types the parameters are decoded into, so it lists exactly what is accepted.
 pub fn schema(model: &str) -> Option<serde_json::Value> {
-    (model == "euler")
-        .then(|| serde_json::to_value(schemars::schema_for!(config::Params)).ok())
-        .flatten()
+    protocol::registry::schema(MODELS, model)
 }
 
+/// Builds the solver named `model` from its parameter table as `opts` asks (the node
+/// binary's `SolverFactory`).
 pub fn build(
     model: &str,
     params: &toml::Table,
     opts: &BuildOptions,
 ) -> SolverResult<Box<dyn Solver>> {
-    match model {
-        "euler" => Ok(Box::new(EulerSolver::build(params, opts)?)),
-        other => Err(SolverError::config(
-            "model",
-            format!("unknown model '{other}' (this node has: euler)"),
-        )),
-    }
+    protocol::registry::build(MODELS, model, params, opts)
 }

@@ -3,7 +3,6 @@
 fn main() {
     protocol::params::register_schemas(protocol::params::Schemas {
         models: fluid_node::MODELS,
-        schema: fluid_node::schema,
     });
     std::process::exit(protocol::participant::node_main(
         "fluid-node",

@@ -9,6 +9,7 @@
 
 use proptest::prelude::*;
 use protocol::BuildOptions;
+pub use protocol::registry::Model;
 
 /// The fuzz targets, by name.
 pub const TARGETS: [&str; 3] = ["wire", "case", "params"];
@@ -32,137 +33,23 @@ pub fn params_target(model: &Model, params: &toml::Table) -> bool {
 
 /// As [`params_target`], with the refusal.
 pub fn params_check(model: &Model, params: &toml::Table) -> Result<(), String> {
-    let o = &BuildOptions::DESCRIBE;
-    let r = match model.node {
-        Node::Solid => solid_node::build(model.name, params, o).map(drop),
-        Node::Fluid => fluid_node::build(model.name, params, o).map(drop),
-        Node::Shell => macro_shell_node::build(model.name, params, o).map(drop),
-        Node::Joint => meso_joint_node::build(model.name, params, o).map(drop),
-    };
-    r.map_err(|e| e.to_string())
+    (model.build)(params, &BuildOptions::DESCRIBE)
+        .map(drop)
+        .map_err(|e| e.to_string())
 }
 
-/// Which node crate a model lives in.
-#[derive(Debug, Clone, Copy)]
-pub enum Node {
-    Solid,
-    Fluid,
-    Shell,
-    Joint,
-}
-
-/// A node model and a small valid parameter table for it (the seed the mutations start
-/// from; small, so that an input builds in well under a millisecond).
-#[derive(Debug, Clone, Copy)]
-pub struct Model {
-    pub node: Node,
-    pub name: &'static str,
-    pub base: &'static str,
-}
-
-const PD_BLOCK: &str = r#"
-dimension = "3d"
-spacing = 1e-3
-horizon = 3.015e-3
-density = 7850.0
-young = 200e9
-poisson = 0.25
-bodies = [{ shape = "box", min = [0.0, 0.0, 0.0], max = [0.004, 0.003, 0.003] }]
-holes = [{ shape = "disc", center = [0.002, 0.0015, 0.0], radius = 0.0004 }]
-interfaces = [{ name = "surface", select = "surface" }, { name = "left", select = "all", region = { shape = "box", min = [0.0, 0.0, 0.0], max = [0.0011, 0.003, 0.003] } }]
-initial_velocity = [{ region = { shape = "box", min = [0.0, 0.0, 0.0], max = [0.004, 0.003, 0.003] }, velocity = [1.0, 0.0, 0.0] }]
-damage = { kind = "critical_stretch", critical_stretch = 0.01 }
-"#;
-
-/// Every model of the four node crates, each with its seed table.
-pub const MODELS: [Model; 7] = [
-    Model {
-        node: Node::Solid,
-        name: "bar-1d",
-        base: "length = 0.5\nelements = 10\nyoung = 200e9\ndensity = 7860.0\narea = 1e-4\ntip_force = 1e3\ninterfaces = { tip = \"right\" }\n",
-    },
-    Model {
-        node: Node::Solid,
-        name: "pd-bond",
-        base: PD_BLOCK,
-    },
-    Model {
-        node: Node::Solid,
-        name: "pd-correspondence",
-        base: PD_BLOCK,
-    },
-    Model {
-        node: Node::Solid,
-        name: "pd-rk-ba",
-        base: PD_BLOCK,
-    },
-    Model {
-        node: Node::Fluid,
-        name: "euler",
-        base: r#"
-cfl = 0.5
-[grid]
-cells = [12, 1, 1]
-lower = [0.0, 0.0, 0.0]
-upper = [1.0, 1.0, 1.0]
-[materials.air]
-eos = "ideal"
-gamma = 1.4
-[materials.water]
-eos = "stiffened"
-gamma = 4.4
-p_inf = 6e8
-[[regions]]
-shape = "all"
-material = "air"
-density = 1.0
-pressure = 1.0
-[[regions]]
-shape = "sphere"
-center = [0.5, 0.5, 0.5]
-radius = 0.2
-material = "water"
-density = 1000.0
-pressure = 1.0
-[boundaries]
-x_lower = { kind = "inflow", material = "air", density = 1.5, velocity = [0.3, 0.0, 0.0], pressure = 1.5 }
-x_upper = { kind = "outflow" }
-"#,
-    },
-    Model {
-        node: Node::Shell,
-        name: "blt-shell",
-        base: r#"
-mesh = { kind = "plate", length = 4e-3, width = 3e-3, nx = 4, ny = 3 }
-material = { model = "j2", density = 7850.0, youngs_modulus = 210e9, poisson_ratio = 0.3, yield_stress = 1e9, tangent_modulus = 1e9, kinematic_fraction = 1.0 }
-section = { thickness = 1e-3, integration_points = 3 }
-node_sets = [{ name = "left", box = [-1.0, -1.0, -1.0, 1.0e-4, 1.0, 1.0] }]
-velocity = [{ node_set = "left", x = -0.02, y = 0.0, z = 0.0 }]
-fixed = [{ node_set = "left", dofs = ["rotations"] }]
-element_sets = [{ name = "edge", boxes = [[-1.0, -1.0, -1.0, 1.1e-3, 1.0, 1.0]] }]
-interfaces = [{ name = "edge", element_set = "edge" }]
-"#,
-    },
-    Model {
-        node: Node::Joint,
-        name: "mc-spg",
-        base: r#"
-spacing = 1e-3
-kernel_support = 2e-3
-density = 7850.0
-young = 210e9
-poisson = 0.3
-yield_stress = 0.2e9
-tangent_modulus = 20e9
-eps_crit = 0.1
-velocity_bc = [{ name = "left", velocity = [-0.02, 0.0, 0.0], ramp = 1e-3, region = { lo = [-1.0, -1.0, -1.0], hi = [0.5e-3, 1.0, 1.0] } }]
-[geometry]
-kind = "block"
-origin = [0.0, 0.0, 0.0]
-size = [4e-3, 3e-3, 3e-3]
-"#,
-    },
-];
+/// Every model of the four node crates, as each node's registry lists it, with its example
+/// parameters (the seed the mutations start from; small, so that an input builds in well
+/// under a millisecond).
+pub static MODELS: std::sync::LazyLock<Vec<Model>> = std::sync::LazyLock::new(|| {
+    [
+        solid_node::MODELS,
+        fluid_node::MODELS,
+        macro_shell_node::MODELS,
+        meso_joint_node::MODELS,
+    ]
+    .concat()
+});
 
 /// A case file for the parser: two bars, variants, couplings (the shapes `--set` reaches).
 /// The nodes are remote, so the parser does not start their executables to describe them
@@ -208,7 +95,7 @@ set = ["left.elements=20", "right.elements=20"]
 
 /// The seed table of a model.
 pub fn base_table(m: &Model) -> toml::Table {
-    toml::from_str(m.base).unwrap_or_default()
+    toml::from_str(m.example).unwrap_or_default()
 }
 
 /// Bytes: arbitrary, or one of the golden messages mutated (bytes set, inserted, removed,

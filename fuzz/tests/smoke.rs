@@ -61,7 +61,7 @@ fn the_case_parser_with_overrides_never_panics() {
 
 #[test]
 fn every_node_params_decoder_never_panics() {
-    for m in &MODELS {
+    for m in MODELS.iter() {
         if let Err(e) = params_check(m, &base_table(m)) {
             panic!("{}: the seed table builds: {e}", m.name);
         }

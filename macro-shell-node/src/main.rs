@@ -3,7 +3,6 @@
 fn main() {
     protocol::params::register_schemas(protocol::params::Schemas {
         models: macro_shell_node::MODELS,
-        schema: macro_shell_node::schema,
     });
     std::process::exit(protocol::participant::node_main(
         "macro-shell-node",

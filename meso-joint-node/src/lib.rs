@@ -20,38 +20,56 @@ pub mod profile;
 pub mod shape;
 pub mod solver;
 
-use protocol::{BuildOptions, Solver, SolverError, SolverResult};
+use protocol::{BuildOptions, Solver, SolverResult};
+
+use protocol::registry::Model;
 
 /// Builds the solver named `model` from its parameter table, for a run.
 pub fn factory(model: &str, params: &toml::Table) -> SolverResult<Box<dyn Solver>> {
     build(model, params, &BuildOptions::RUN)
 }
 
-/// Builds the solver named `model` from its parameter table (the node's registry: one line
-/// per model). This node opens no device, so describe-only builds the same solver.
-/// The models this node offers.
-pub const MODELS: &[&str] = &["mc-spg"];
+/// The models this node offers: name, parameter schema, example parameters, constructor.
+pub const MODELS: &[Model] = &[Model {
+    name: "mc-spg",
+    schema: || serde_json::to_value(schemars::schema_for!(config::Params)).unwrap_or_default(),
+    example: SPG_EXAMPLE,
+    build: |p, _| {
+        Ok(Box::new(solver::SpgSolver::new(
+            config::Params::from_table(p)?,
+        )?))
+    },
+}];
+
+/// A 4 × 3 × 3 mm J2 block pulled at one end.
+const SPG_EXAMPLE: &str = r#"
+spacing = 1e-3
+kernel_support = 2e-3
+density = 7850.0
+young = 210e9
+poisson = 0.3
+yield_stress = 0.2e9
+tangent_modulus = 20e9
+eps_crit = 0.1
+velocity_bc = [{ name = "left", velocity = [-0.02, 0.0, 0.0], ramp = 1e-3, region = { lo = [-1.0, -1.0, -1.0], hi = [0.5e-3, 1.0, 1.0] } }]
+[geometry]
+kind = "block"
+origin = [0.0, 0.0, 0.0]
+size = [4e-3, 3e-3, 3e-3]
+"#;
 
 /// JSON Schema of a model's parameters (`meso-joint-node --schema --model M`, `cosim params M`): derived
 /// from the types the parameters are decoded into, so it lists exactly what is accepted.
 pub fn schema(model: &str) -> Option<serde_json::Value> {
-    (model == "mc-spg")
-        .then(|| serde_json::to_value(schemars::schema_for!(config::Params)).ok())
-        .flatten()
+    protocol::registry::schema(MODELS, model)
 }
 
+/// Builds the solver named `model` from its parameter table (this node opens no device, so
+/// describe-only builds the same solver).
 pub fn build(
     model: &str,
     params: &toml::Table,
-    _opts: &BuildOptions,
+    opts: &BuildOptions,
 ) -> SolverResult<Box<dyn Solver>> {
-    match model {
-        "mc-spg" => Ok(Box::new(solver::SpgSolver::new(
-            config::Params::from_table(params)?,
-        )?)),
-        _ => Err(SolverError::config(
-            "model",
-            format!("unknown model '{model}' (known: mc-spg)"),
-        )),
-    }
+    protocol::registry::build(MODELS, model, params, opts)
 }

@@ -3,7 +3,6 @@
 fn main() {
     protocol::params::register_schemas(protocol::params::Schemas {
         models: meso_joint_node::MODELS,
-        schema: meso_joint_node::schema,
     });
     std::process::exit(protocol::participant::node_main(
         "meso-joint-node",

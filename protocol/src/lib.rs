@@ -19,6 +19,7 @@ pub mod mapping;
 pub mod memory;
 pub mod params;
 pub mod participant;
+pub mod registry;
 pub mod scheme;
 pub mod solver;
 pub mod stop;

@@ -8,12 +8,12 @@ use std::sync::OnceLock;
 
 /// The parameter schemas of a node binary's models: JSON Schemas derived (schemars) from the
 /// same types [`decode`] fills, so what `cosim params MODEL` lists is what validation
-/// accepts. A node registers them in `main` before [`crate::participant::node_main`];
-/// `NODE --schema` prints the models, `NODE --schema --model M` the model's schema.
-#[derive(Debug, Clone, Copy)]
+/// accepts. A node registers its model table ([`crate::registry`]) in `main` before
+/// [`crate::participant::node_main`]; `NODE --schema` prints the models, `NODE --schema
+/// --model M` the model's schema.
+#[derive(Clone, Copy)]
 pub struct Schemas {
-    pub models: &'static [&'static str],
-    pub schema: fn(&str) -> Option<serde_json::Value>,
+    pub models: &'static [crate::registry::Model],
 }
 
 static SCHEMAS: OnceLock<Schemas> = OnceLock::new();
@@ -35,14 +35,15 @@ pub fn schema_main(binary: &str, model: Option<&str>) -> i32 {
         crate::log_line!("{binary}: this node publishes no parameter schema");
         return 2;
     };
+    let names = crate::registry::names(s.models);
     let doc = match model {
-        None => serde_json::json!({ "node": binary, "models": s.models }),
-        Some(m) => match (s.schema)(m) {
+        None => serde_json::json!({ "node": binary, "models": names }),
+        Some(m) => match crate::registry::schema(s.models, m) {
             Some(v) => v,
             None => {
                 crate::log_line!(
                     "{binary}: unknown model '{m}' (this node has: {})",
-                    s.models.join(", ")
+                    names.join(", ")
                 );
                 return 2;
             }

@@ -3,7 +3,6 @@
 fn main() {
     protocol::params::register_schemas(protocol::params::Schemas {
         models: solid_node::MODELS,
-        schema: solid_node::schema,
     });
     std::process::exit(protocol::participant::node_main(
         "solid-node",
