@@ -4,6 +4,7 @@
 
 pub mod bar;
 pub mod fem2d;
+pub mod fixtures;
 pub mod lagrange;
 pub mod pd;
 

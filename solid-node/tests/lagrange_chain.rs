@@ -10,8 +10,8 @@ use mechanics::time::{CouplingMethod, LinearSystem, Subdomain};
 use protocol::scheme::lagrange::{LagrangeScheme, LagrangeSide, Method};
 use protocol::{Inbox, Outbox, Solver, Window};
 use solid_node::fem2d::Fem2d;
+use solid_node::fixtures::{bar_chain, nan_max};
 use solid_node::lagrange::SubdomainSide;
-use solid_node::lagrange::{bar_chain, nan_max};
 
 /// Largest |x − y| over the samples of `a` and the reference samples at the same times (the
 /// reference samples `ratio` times as often), divided by the reference's largest magnitude;

@@ -8,8 +8,8 @@
 use mechanics::time::{CouplingMethod, Design, Gs4, InterfaceDof, Subdomain};
 use protocol::scheme::lagrange::{LagrangeScheme, LagrangeSide, Method};
 use solid_node::bar::chain_system;
+use solid_node::fixtures::split_bar::{self, Ramp};
 use solid_node::lagrange::SubdomainSide;
-use solid_node::lagrange::split_bar::{self, Ramp};
 
 fn positions(from: f64, to: f64, elements: usize) -> Vec<f64> {
     let h = (to - from) / elements as f64;

@@ -7,7 +7,7 @@
 
 use mechanics::time::{Design, Gs4};
 use protocol::scheme::lagrange::Method;
-use solid_node::lagrange::split_bar::{self, Half, Histories, Ramp};
+use solid_node::fixtures::split_bar::{self, Half, Histories, Ramp};
 use std::sync::OnceLock;
 
 fn u0(r1: f64, r2: f64, rs: f64) -> Gs4 {

@@ -226,7 +226,7 @@ pub fn amplitude() -> f64 {
 }
 
 /// A NaN-keeping maximum for error and peak folds (`.fold(0.0, nan_max)`).
-pub use solid_node::lagrange::nan_max;
+pub use solid_node::fixtures::nan_max;
 
 /// Largest |tip − exact| / amplitude over a series (NaN if any sample is).
 pub fn tip_error(series: &[(f64, f64)]) -> f64 {

@@ -4,14 +4,14 @@
 //! bar; for m = 2 (implicit | implicit) and m = 4 (implicit | explicit) `gs4` is second order
 //! and `gc` first order over three halvings of the system step, at the interface, the tip and
 //! in λ, against a single-domain run of the same mesh with a 128 times smaller step; every
-//! run agrees with the in-process library path (`solid_node::lagrange::split_bar`) to
+//! run agrees with the in-process library path (`solid_node::fixtures::split_bar`) to
 //! round-off; the interface energy ΔE_Γ in summary.json shrinks at first order for gc and at
 //! second for gs4; a replay of a lagrange side is bit-identical.
 
 use cosim_tests::*;
 use mechanics::time::{Design, Gs4};
 use protocol::scheme::lagrange::Method;
-use solid_node::lagrange::split_bar::{self, Half, Histories, Ramp};
+use solid_node::fixtures::split_bar::{self, Half, Histories, Ramp};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 

@@ -1,14 +1,14 @@
 //! A chain of three `bar-1d` subdomains through `cosim run` (seed 003 §4, §5.3):
 //! `examples/split_bar_chain.toml`'s small variant, whose middle bar has both ends in one
 //! interface. At the case's system step and at half of it the run is the in-process chain
-//! (`solid_node::lagrange::bar_chain`) to round-off, series by series and in its interface
+//! (`solid_node::fixtures::bar_chain`) to round-off, series by series and in its interface
 //! energy; u and v at both cuts and at the tip and the multipliers of both cuts approach the
 //! single-domain bar of the same mesh (average acceleration at 1/128 of the case's step) at
 //! second order; each series has one sample per window; momentum closes.
 
 use cosim_tests::*;
 use protocol::scheme::lagrange::Method;
-use solid_node::lagrange::bar_chain::{self, Histories, NAMES};
+use solid_node::fixtures::bar_chain::{self, Histories, NAMES};
 use std::path::{Path, PathBuf};
 
 /// The small variant's window (h_left/c, s) and its window count to 2T.
