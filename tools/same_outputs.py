@@ -20,8 +20,7 @@ What differs from one run to the next on the same build is left out ("timings as
 times, waits, idle and compute seconds and fractions, the window breakdown, process ids and
 tokens, the recording's size in bytes, and heartbeats (how many a node sends depends on how
 long it computes), and with them the envelopes' sequence numbers and the recording's message
-count, and how many windows the booking rule judged per node (the last window or two are
-judged only if their forces arrived before the final audit). A message a node sends is logged at the coordinator's time of arrival, which depends on
+count. A message a node sends is logged at the coordinator's time of arrival, which depends on
 how far ahead the windows ran: its content is compared, its log time is not. The output
 folder's path is written `<out>` in both.
 Install the reader once: python3 -m pip install mcap
@@ -61,7 +60,7 @@ CASES = {
 # Keys whose values are timings or identities of one process, at any depth.
 TIMING = re.compile(
     r"(^|_)(wall|wait|idle|compute|stalls|pid|token|bytes|fraction|overhead|loop)(_|$)"
-    r"|_us$|_s$|^window_breakdown$|^seq$|^judged_windows$"
+    r"|_us$|_s$|^window_breakdown$|^seq$"
 )
 
 

@@ -72,8 +72,9 @@ struct Ledger {
     implied: [f64; 3],
     gross: f64,
     /// Its booked interface impulse since the loop began, of the audited windows not yet
-    /// judged: (window, impulse), at `window % RING`.
-    booked: [Option<(u64, [f64; 3])>; RING],
+    /// judged, with the run's impulse scale at that audit (which judges the window however
+    /// late its forces arrive): (window, impulse, scale), at `window % RING`.
+    booked: [Option<(u64, [f64; 3], f64)>; RING],
     /// The next window to judge, once every force its books of that window hold is here.
     next: u64,
     /// Audited windows in a row with the two opposite.
@@ -278,7 +279,7 @@ impl Books {
             }
             if let Some(now) = booked(i) {
                 let b = [now[0] - l.base[0], now[1] - l.base[1], now[2] - l.base[2]];
-                l.booked[k as usize % RING] = Some((k, b));
+                l.booked[k as usize % RING] = Some((k, b, scale));
             }
             while l.next <= k {
                 let w = l.next;
@@ -286,7 +287,8 @@ impl Books {
                     break;
                 }
                 l.next += 1;
-                let Some((_, b)) = l.booked[w as usize % RING].filter(|(at, _)| *at == w) else {
+                let Some((_, b, scale)) = l.booked[w as usize % RING].filter(|(at, ..)| *at == w)
+                else {
                     continue;
                 };
                 let m = l.implied;

@@ -46,6 +46,6 @@ pub(crate) fn drive(
     start::hand_shake(c, out)?;
     start::set_up(c)?;
     let w = window::run_windows(c, out, &order, opts)?;
-    window::finish_nodes(c, &w.active)?;
+    window::finish_nodes(c, &w)?;
     Ok(summary::run_summary(c, &w))
 }

@@ -469,19 +469,7 @@ pub(super) fn run_windows(
             e0,
             &mut a,
         );
-        // The booking rule: a node whose books and messages point opposite ways is stopped.
-        let nodes = &c.nodes;
-        if let Some((i, why)) = c.books.check(
-            k,
-            |i| {
-                let n = &nodes[i];
-                n.finished.is_none().then_some(&n.report.interface_impulse)
-            },
-            a.impulse_scale,
-            |ci| decoupled[ci].is_some(),
-        ) {
-            return Err(fault(&c.nodes[i].name, why));
-        }
+        judge_books(c, k, a.impulse_scale, &decoupled)?;
         let reporting = c.prof.lap(Phase::Audit, auditing);
         record_window(c, k, t1, windows, &row);
         let wext = row.external_work;
@@ -583,9 +571,36 @@ pub(super) fn record_window(c: &mut Coord, k: u64, t1: f64, windows: u64, row: &
     }
 }
 
-/// The run's end for the nodes: the last window's data still queued is recorded, every
-/// running node is told to finish and given 10 s to exit on its own.
-pub(super) fn finish_nodes(c: &mut Coord, active: &[usize]) -> Result<(), Fault> {
+/// The booking rule after the audit of window `k` (`scale`: the run's impulse scale so far,
+/// `decoupled`: per coupling, whether it has ended): a node whose books and messages point
+/// opposite ways is stopped.
+fn judge_books(
+    c: &mut Coord,
+    k: u64,
+    scale: f64,
+    decoupled: &[Option<(u64, f64, String)>],
+) -> Result<(), Fault> {
+    let nodes = &c.nodes;
+    match c.books.check(
+        k,
+        |i| {
+            let n = &nodes[i];
+            n.finished.is_none().then_some(&n.report.interface_impulse)
+        },
+        scale,
+        |ci| decoupled[ci].is_some(),
+    ) {
+        Some((i, why)) => Err(fault(&c.nodes[i].name, why)),
+        None => Ok(()),
+    }
+}
+
+/// The run's end for the nodes: the last window's data still queued is recorded (and the
+/// windows whose forces came in after their audit are judged by the booking rule, so that a
+/// run judges every window whose forces all arrived), every running node is told to finish
+/// and given 10 s to exit on its own.
+pub(super) fn finish_nodes(c: &mut Coord, w: &Windows) -> Result<(), Fault> {
+    let active = &w.active;
     // A node publishes its last window's data before its Done, but on another topic: that
     // data may still be queued here. Record it before the nodes go (a quiet 50 ms, at most
     // 2 s), so the recording holds every message of every window.
@@ -599,6 +614,9 @@ pub(super) fn finish_nodes(c: &mut Coord, active: &[usize]) -> Result<(), Fault>
             Err(f) => return Err(f),
         }
     }
+    if c.diverged.is_none() && c.completed > 0 {
+        judge_books(c, c.completed, w.audit.impulse_scale, &w.decoupled)?;
+    }
     let end_reason = match (&c.interrupted, &c.diverged) {
         (_, Some(d)) => format!("the run diverged: {d}"),
         (Some(sig), None) => format!(
@@ -608,7 +626,7 @@ pub(super) fn finish_nodes(c: &mut Coord, active: &[usize]) -> Result<(), Fault>
         ),
         (None, None) => "end time reached".into(),
     };
-    for &i in active {
+    for &i in active.iter() {
         let sent = c.send(
             i,
             &Message::Finish(Finish {
