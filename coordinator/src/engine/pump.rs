@@ -207,6 +207,15 @@ impl Coord<'_> {
             });
         }
         n.last_seen = Instant::now();
+        self.take_message(owner, id, message)
+    }
+
+    /// A whole message `message` from node `owner` on topic `id`, checked for its sender and
+    /// contract: the hand-shake's, a heartbeat, a `Done` read in full, a failure, or a
+    /// lagrange side's data. Ok(true): it was taken.
+    fn take_message(&mut self, owner: usize, id: TopicId, message: Message) -> Result<bool, Fault> {
+        let tname = self.topics[id].0.as_str();
+        let n = &mut self.nodes[owner];
         match message {
             Message::Hello(h) => {
                 if h.protocol_version != codec::PROTOCOL_VERSION {
