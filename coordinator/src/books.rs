@@ -465,6 +465,27 @@ mod tests {
     }
 
     #[test]
+    fn a_late_window_is_judged_against_the_scale_of_its_own_audit() {
+        // Window 1's impulse (0.1 N s) is large against the scale of its audit (1 N s: the
+        // floor is 1e-3 N s) and small against the scale at window 2's audit (1e6 N s: the
+        // floor is 1e3 N s). Its force arrives only after window 2's audit: it is judged then,
+        // against its own scale, so it counts whenever its force arrives.
+        let mut books = split_bar();
+        books.begin(1, [[0.0; 3], [0.0; 3]].iter());
+        books.force(3, 0, one([0.0; 3]));
+        let (b1, b2) = ([[0.0; 3], [-0.1, 0.0, 0.0]], [[0.0; 3], [-0.1, 0.0, 0.0]]);
+        assert!(books.check(1, |i| b1.get(i), 1.0, |_| false).is_none());
+        assert!(books.check(2, |i| b2.get(i), 1e6, |_| false).is_none());
+        assert_eq!(books.judged(1), 0, "window 1 waits for its force");
+        books.force(3, 1, one([1.0, 0.0, 0.0]));
+        books.force(3, 2, one([0.0; 3]));
+        // The check after the last window's data is in (as at the run's end): window 1 is
+        // judged against 1 N s, window 2 (no impulse of its own) against 1e6 N s.
+        assert!(books.check(2, |i| b2.get(i), 1e6, |_| false).is_none());
+        assert_eq!(books.judged(1), 1);
+    }
+
+    #[test]
     fn a_force_late_at_the_audit_waits_and_one_that_never_comes_ends_the_check() {
         // The responder's force of window 2 is audited before it arrives: its books of window
         // 2 wait, and are judged at window 3's audit, once it is in, beside window 3's.

@@ -243,9 +243,8 @@ pub enum Cmd {
         #[arg(long)]
         solver: Option<PathBuf>,
     },
-    /// Print the JSON Schema of case files (the one in docs/schema/case.json), for editors
-    /// that complete and check TOML against a schema (e.g. Taplo: a first line
-    /// `#:schema ./case.json` in the case file).
+    /// Print the JSON Schema (draft 2020-12) of case files, the one in docs/schema/case.json,
+    /// for tools and editors that check TOML against a JSON Schema.
     Schema,
     /// Print a shell completion script: `cosim completions bash > ~/.local/share/bash-completion/completions/cosim`
     /// (also zsh, fish, elvish, powershell).
