@@ -155,88 +155,10 @@ pub fn check(o: &Options) -> anyhow::Result<Vec<Verdict>> {
     };
     let exe = crate::launch::resolve_exe(program, Path::new(".")).unwrap_or_else(|| program.into());
     std::fs::create_dir_all(&o.output)?;
-    let node = NodeConfig {
-        name: "node".into(),
-        solver: program.clone(),
-        exe: Some(exe.clone()),
-        model: o.model.clone(),
-        params: o.params.clone(),
-        remote: false,
-        interfaces: None,
-        fields: Vec::new(),
-        points: Vec::new(),
-        window_limits: Vec::new(),
-        positions: Default::default(),
-    };
-    let d = match crate::case::describe::describe_one(
-        &exe,
-        args,
-        &node,
-        crate::case::describe::DESCRIBE_TIMEOUT,
-    ) {
-        Ok(d) => d,
-        Err(e) => {
-            sheet.fail("describe", format!("{}: {}", e.key, e.reason));
-            return Ok(sheet.0);
-        }
-    };
-    let Some(iface) = d
-        .interfaces
-        .iter()
-        .find(|i| o.interface.as_ref().is_none_or(|n| *n == i.name))
-    else {
-        sheet.fail(
-            "describe",
-            format!(
-                "no interface {} among those described",
-                o.interface.as_deref().unwrap_or("at all")
-            ),
-        );
+    let Some((d, iface)) = described(o, program, &exe, args, &mut sheet) else {
         return Ok(sheet.0);
     };
     let coupling = coupling_of(o, &iface.name);
-    let needs = case::required_fields(&coupling);
-    let lacking: Vec<String> = needs
-        .iter()
-        .filter(|n| n.member.0 == "node")
-        .flat_map(|n| {
-            let have = if n.provide {
-                &iface.provides
-            } else {
-                &iface.accepts
-            };
-            let verb = if n.provide { "provide" } else { "accept" };
-            n.fields
-                .iter()
-                .filter(|f| !have.contains(f))
-                .map(move |f| format!("does not {verb} '{f}'"))
-        })
-        .collect();
-    if lacking.is_empty() {
-        sheet.pass(
-            "describe",
-            format!(
-                "model '{}', interface '{}' of {} points, stable step {}",
-                d.model,
-                iface.name,
-                iface.points,
-                d.stable_dt
-                    .map_or_else(|| "none".to_string(), |s| format!("{s:e} s"))
-            ),
-        );
-    } else {
-        sheet.fail(
-            "describe",
-            format!(
-                "interface '{}' as the {} {}: {}",
-                iface.name,
-                o.kind.as_str(),
-                role_name(o.role),
-                lacking.join(", ")
-            ),
-        );
-        return Ok(sheet.0);
-    }
     let window = o.window.or(d.stable_dt).unwrap_or(1e-6);
     // The booking rule over the node's own force (a responder's): node 0, the peer 1.
     let responder = match o.role {
@@ -254,7 +176,7 @@ pub fn check(o: &Options) -> anyhow::Result<Vec<Verdict>> {
         o,
         binding: binding_of(o, &coupling),
         contract: Contract::of(&coupling, o.role, true, Some(iface.points), &iface.provides),
-        described: iface.clone(),
+        described: iface,
         window,
         checkpoint_at: o.windows.saturating_sub(1).max(1),
     };
@@ -270,6 +192,106 @@ pub fn check(o: &Options) -> anyhow::Result<Vec<Verdict>> {
     )?;
     let went = drive.run(&mut s, &mut sheet);
     let ended = s.stop(went.is_ok());
+    judge_ending(&mut sheet, went, ended, s.gone);
+    let finished = sheet.outcome("finish") == Outcome::Pass;
+    drop(s);
+    judge_cleanup(&mut sheet, &run, finished);
+    Ok(sheet.0)
+}
+
+/// The "describe" rule: the node's description with `o`'s parameters and the interface it
+/// is checked on, which must carry the fields its role needs; None (the rule failed) if not.
+fn described(
+    o: &Options,
+    program: &str,
+    exe: &Path,
+    args: &[String],
+    sheet: &mut Sheet,
+) -> Option<(describe::NodeDescriptionJson, InterfaceDescription)> {
+    let node = NodeConfig {
+        name: "node".into(),
+        solver: program.to_string(),
+        exe: Some(exe.to_path_buf()),
+        model: o.model.clone(),
+        params: o.params.clone(),
+        remote: false,
+        interfaces: None,
+        fields: Vec::new(),
+        points: Vec::new(),
+        window_limits: Vec::new(),
+        positions: Default::default(),
+    };
+    let timeout = crate::case::describe::DESCRIBE_TIMEOUT;
+    let d = match crate::case::describe::describe_one(exe, args, &node, timeout) {
+        Ok(d) => d,
+        Err(e) => {
+            sheet.fail("describe", format!("{}: {}", e.key, e.reason));
+            return None;
+        }
+    };
+    let chosen = |i: &&InterfaceDescription| o.interface.as_ref().is_none_or(|n| *n == i.name);
+    let Some(iface) = d.interfaces.iter().find(chosen).cloned() else {
+        let which = o.interface.as_deref().unwrap_or("at all");
+        sheet.fail(
+            "describe",
+            format!("no interface {which} among those described"),
+        );
+        return None;
+    };
+    let lacking = lacking_fields(&coupling_of(o, &iface.name), &iface);
+    if !lacking.is_empty() {
+        sheet.fail(
+            "describe",
+            format!(
+                "interface '{}' as the {} {}: {}",
+                iface.name,
+                o.kind.as_str(),
+                role_name(o.role),
+                lacking.join(", ")
+            ),
+        );
+        return None;
+    }
+    let stable = d
+        .stable_dt
+        .map_or_else(|| "none".to_string(), |s| format!("{s:e} s"));
+    sheet.pass(
+        "describe",
+        format!(
+            "model '{}', interface '{}' of {} points, stable step {stable}",
+            d.model, iface.name, iface.points
+        ),
+    );
+    Some((d, iface))
+}
+
+/// What the node's interface lacks of the fields the coupling needs it to provide or accept.
+fn lacking_fields(coupling: &CouplingConfig, iface: &InterfaceDescription) -> Vec<String> {
+    case::required_fields(coupling)
+        .iter()
+        .filter(|n| n.member.0 == "node")
+        .flat_map(|n| {
+            let (have, verb) = if n.provide {
+                (&iface.provides, "provide")
+            } else {
+                (&iface.accepts, "accept")
+            };
+            n.fields
+                .iter()
+                .filter(|f| !have.contains(f))
+                .map(move |f| format!("does not {verb} '{f}'"))
+        })
+        .collect()
+}
+
+/// The "finish" rule (or the rule the run broke off in): how the drive `went` and how the
+/// node `ended` once asked to finish, and whether it went silent or exited first (`gone`).
+fn judge_ending(
+    sheet: &mut Sheet,
+    went: anyhow::Result<()>,
+    ended: Option<String>,
+    gone: Option<Gone>,
+) {
     match (went, ended) {
         (Ok(()), Some(how)) if how == "exited with status 0" => {
             sheet.pass("finish", "Finish answered by exit status 0");
@@ -283,7 +305,7 @@ pub fn check(o: &Options) -> anyhow::Result<Vec<Verdict>> {
         ),
         (Err(e), _) => {
             let e = format!("{e:#}");
-            match s.gone {
+            match gone {
                 Some(Gone::Silent) => sheet.fail("heartbeat", e),
                 Some(Gone::Exited) => sheet.fail("finish", format!("ended before Finish: {e}")),
                 None => {
@@ -297,28 +319,30 @@ pub fn check(o: &Options) -> anyhow::Result<Vec<Verdict>> {
             }
         }
     }
-    let finished = sheet.outcome("finish") == Outcome::Pass;
-    drop(s);
-    // Only what the node left is left: cosim's own ports went with the session. iceoryx2's
-    // management file of the run's configuration is no process's: the sweep after every run
-    // removes it.
-    let left: Vec<PathBuf> = protocol::transport::shm::shm_files(&run)
+}
+
+/// The "cleanup" rule, for a node that finished: nothing of run `run` left in shared memory.
+/// Only what the node left is left: cosim's own ports went with the session. iceoryx2's
+/// management file of the run's configuration is no process's: the sweep after every run
+/// removes it.
+fn judge_cleanup(sheet: &mut Sheet, run: &str, finished: bool) {
+    let left: Vec<PathBuf> = protocol::transport::shm::shm_files(run)
         .into_iter()
         .filter(|p| !p.to_string_lossy().ends_with(".global_mgmt"))
         .collect();
-    protocol::transport::cleanup(protocol::transport::TransportKind::Shm, &run);
-    if finished {
-        if left.is_empty() {
-            sheet.pass("cleanup", "nothing of the run left in /dev/shm");
-        } else {
-            let names: Vec<String> = left.iter().map(|p| p.display().to_string()).collect();
-            sheet.fail(
-                "cleanup",
-                format!("left after its exit: {}", names.join(", ")),
-            );
-        }
+    protocol::transport::cleanup(protocol::transport::TransportKind::Shm, run);
+    if !finished {
+        return;
     }
-    Ok(sheet.0)
+    if left.is_empty() {
+        sheet.pass("cleanup", "nothing of the run left in /dev/shm");
+    } else {
+        let names: Vec<String> = left.iter().map(|p| p.display().to_string()).collect();
+        sheet.fail(
+            "cleanup",
+            format!("left after its exit: {}", names.join(", ")),
+        );
+    }
 }
 
 /// The coupling the node is checked in: its interface on the side of its role, `cosim`'s
@@ -396,6 +420,24 @@ struct Drive<'a> {
 
 impl Drive<'_> {
     fn run(&self, s: &mut Session, sheet: &mut Sheet) -> anyhow::Result<()> {
+        let mut sent = vec![false; self.o.windows as usize + 1];
+        let mesh = self.set_up(s, sheet, &mut sent)?;
+        self.windows(s, sheet, &mesh, &mut sent)?;
+        judge_order(s, sheet, &sent, self.o.windows);
+        judge_heartbeat(s, sheet);
+        self.judge_unbroken(sheet);
+        Ok(())
+    }
+
+    /// Hello, Welcome and set-up up to the node's `Done` of window 0, with the "hello",
+    /// "describe" (its second description), "mesh" and "set-up" rules; returns the node's
+    /// interface mesh, which the peer mirrors.
+    fn set_up(
+        &self,
+        s: &mut Session,
+        sheet: &mut Sheet,
+        sent: &mut [bool],
+    ) -> anyhow::Result<InterfaceMesh> {
         let o = self.o;
         let started = Instant::now();
         s.wait("Hello", Some(Duration::from_secs(60)), |s| s.hello)?;
@@ -443,11 +485,10 @@ impl Drive<'_> {
         s.wait("Done of the set-up", Some(Duration::from_secs(60)), |s| {
             s.done.as_ref().is_some_and(|d| d.0 == 0)
         })?;
-        let mut sent = vec![false; o.windows as usize + 1];
         let zero = [0.0; 3];
         let booked0 = s.done.as_ref().map_or(zero, |d| d.1.interface_impulse);
         self.books.borrow_mut().begin(1, [booked0, zero].iter());
-        self.idle(s, sheet, &mut sent)?;
+        self.idle(s, sheet, sent)?;
         if sent[0] && s.describes.len() >= 2 {
             sheet.pass("set-up", "Fields{0}, a second Describe, Done{0}");
         } else {
@@ -464,6 +505,19 @@ impl Drive<'_> {
                 ),
             );
         }
+        Ok(mesh)
+    }
+
+    /// Windows 1 to `o.windows`: Advance, the peer's constant-velocity `Fields`, the node's
+    /// `Done`, a checkpoint asked in one, and the booking rule judged on each.
+    fn windows(
+        &self,
+        s: &mut Session,
+        sheet: &mut Sheet,
+        mesh: &InterfaceMesh,
+        sent: &mut [bool],
+    ) -> anyhow::Result<()> {
+        let (o, b) = (self.o, &self.binding);
         // The impulse scale the booking rule judges against: the node's own interface impulse
         // (the peer applies no load; the node's own loads may dwarf what a 1 mm/s push gives).
         let mut scale = 0.0f64;
@@ -478,7 +532,7 @@ impl Drive<'_> {
                 write_output: false,
                 checkpoint: k == self.checkpoint_at,
             }))?;
-            let f = self.peer_fields(&mesh, k, t1);
+            let f = self.peer_fields(mesh, k, t1);
             s.send_peer(0, &b.peer, &Message::Fields(f))?;
             s.wait(
                 &format!("Done of window {k}"),
@@ -488,7 +542,7 @@ impl Drive<'_> {
             if k == self.checkpoint_at {
                 self.check_checkpoint(k, t1, sheet);
             }
-            self.idle(s, sheet, &mut sent)?;
+            self.idle(s, sheet, sent)?;
             if let Some((_, r)) = &s.done {
                 scale = scale.max(norm(r.interface_impulse));
                 let booked = [r.interface_impulse];
@@ -501,53 +555,11 @@ impl Drive<'_> {
                 }
             }
         }
-        let expected: Vec<u64> = (0..=o.windows).collect();
-        let missing: Vec<String> = sent
-            .iter()
-            .enumerate()
-            .filter(|(_, s)| !**s)
-            .map(|(k, _)| k.to_string())
-            .collect();
-        if s.dones == expected && missing.is_empty() {
-            sheet.pass(
-                "windows-in-order",
-                format!("Fields and Done for windows 0 to {}", o.windows),
-            );
-        } else {
-            sheet.fail(
-                "windows-in-order",
-                format!(
-                    "Done windows {:?} (expected {expected:?}){}",
-                    s.dones,
-                    if missing.is_empty() {
-                        String::new()
-                    } else {
-                        format!("; no Fields of window(s) {}", missing.join(", "))
-                    }
-                ),
-            );
-        }
-        let gap = s.longest_gap;
-        if s.beats >= 2 && gap <= LONGEST_GAP {
-            sheet.pass(
-                "heartbeat",
-                format!(
-                    "{} heartbeats, at most {:.0} ms apart (period {HEARTBEAT_MS} ms)",
-                    s.beats,
-                    gap.as_secs_f64() * 1e3
-                ),
-            );
-        } else {
-            sheet.fail(
-                "heartbeat",
-                format!(
-                    "{} heartbeats, up to {:.0} ms apart: the period is {HEARTBEAT_MS} ms, {:.0} ms at most tolerated",
-                    s.beats,
-                    gap.as_secs_f64() * 1e3,
-                    LONGEST_GAP.as_secs_f64() * 1e3
-                ),
-            );
-        }
+        Ok(())
+    }
+
+    /// The rules nothing broke pass: fields as bound, finite values, the booking rule.
+    fn judge_unbroken(&self, sheet: &mut Sheet) {
         if sheet.outcome("fields-match-binding") == Outcome::NotReached {
             sheet.pass(
                 "fields-match-binding",
@@ -573,7 +585,6 @@ impl Drive<'_> {
                 },
             );
         }
-        Ok(())
     }
 
     /// Let the node idle a moment (its heartbeats go on), then check the `Fields` that came
@@ -711,5 +722,61 @@ impl Drive<'_> {
             time: t,
             fields,
         }
+    }
+}
+
+/// The "windows-in-order" rule: a `Done` of every window 0 to `windows` in order, and a
+/// `Fields` of each (`sent`).
+fn judge_order(s: &Session, sheet: &mut Sheet, sent: &[bool], windows: u64) {
+    let expected: Vec<u64> = (0..=windows).collect();
+    let missing: Vec<String> = sent
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| !**s)
+        .map(|(k, _)| k.to_string())
+        .collect();
+    if s.dones == expected && missing.is_empty() {
+        sheet.pass(
+            "windows-in-order",
+            format!("Fields and Done for windows 0 to {windows}"),
+        );
+    } else {
+        sheet.fail(
+            "windows-in-order",
+            format!(
+                "Done windows {:?} (expected {expected:?}){}",
+                s.dones,
+                if missing.is_empty() {
+                    String::new()
+                } else {
+                    format!("; no Fields of window(s) {}", missing.join(", "))
+                }
+            ),
+        );
+    }
+}
+
+/// The "heartbeat" rule: at least two heartbeats, never further apart than tolerated.
+fn judge_heartbeat(s: &Session, sheet: &mut Sheet) {
+    let gap = s.longest_gap;
+    if s.beats >= 2 && gap <= LONGEST_GAP {
+        sheet.pass(
+            "heartbeat",
+            format!(
+                "{} heartbeats, at most {:.0} ms apart (period {HEARTBEAT_MS} ms)",
+                s.beats,
+                gap.as_secs_f64() * 1e3
+            ),
+        );
+    } else {
+        sheet.fail(
+                "heartbeat",
+                format!(
+                    "{} heartbeats, up to {:.0} ms apart: the period is {HEARTBEAT_MS} ms, {:.0} ms at most tolerated",
+                    s.beats,
+                    gap.as_secs_f64() * 1e3,
+                    LONGEST_GAP.as_secs_f64() * 1e3
+                ),
+            );
     }
 }

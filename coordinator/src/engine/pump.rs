@@ -22,23 +22,25 @@ impl Coord<'_> {
         r
     }
 
+    /// Receive one message (waiting up to `timeout`): read and checked by a [`Reader`] inside
+    /// the transport's callback, recorded there (a `Fields` every `record_every` windows),
+    /// then acted on. Returns whether one arrived.
     pub(super) fn pump_inner(&mut self, timeout: Duration) -> Result<bool, Fault> {
-        let mut got: Option<(TopicId, Got)> = None;
+        let mut read: Option<(TopicId, Read)> = None;
         let rec = &mut self.rec;
-        let topics = &self.topics;
-        let contracts = &self.contracts;
-        let books = &mut self.books;
-        // The window of the `Fields` received, on its topic.
-        let mut fields_seen: Option<(usize, u64)> = None;
-        // The first breach of a `Fields` against its contract (only then is anything written).
-        let mut breach: Option<String> = None;
         let sim_t = self.sim_t;
         let every = self.case.run.record_every;
-        // Peer data nobody here consumes (no lagrange hub) is checked and recorded where it
-        // lies: a large field is never copied out of the transport's buffer.
-        let in_place = self.hubs.is_empty();
-        let (run, nodes) = (self.run.as_str(), &self.nodes);
-        let inbox = &mut self.inbox;
+        let mut reader = Reader {
+            run: self.run.as_str(),
+            nodes: &self.nodes,
+            topics: &self.topics,
+            contracts: &self.contracts,
+            books: &mut self.books,
+            inbox: &mut self.inbox,
+            // Peer data nobody here consumes (no lagrange hub) is checked and recorded where
+            // it lies: a large field is never copied out of the transport's buffer.
+            in_place: self.hubs.is_empty(),
+        };
         let entered = Instant::now();
         let (mut in_cb, mut recorded) = (0u64, 0u64);
         // Allocations in the transport's receive, its callback (ours) excepted.
@@ -46,82 +48,15 @@ impl Coord<'_> {
         let r = self.t.recv(timeout, &mut |id, bytes| {
             let cb = Instant::now();
             let cb_a0 = crate::profile::allocations_now();
-            let kind = codec::header(bytes).map(|h| h.kind).ok();
-            let owner = topics.get(id).map(|(_, t)| match t {
-                Topic::Up(i) | Topic::Data(i) => *i,
-            });
-            let claimed = |sender: &str, r: &str| {
-                (r == run && owner.is_some_and(|i| nodes[i].name == sender))
-                    .then_some(())
-                    .ok_or_else(|| (sender.to_string(), r.to_string()))
-            };
-            let (dec, fields_window) = if let Some(report) = owner
-                .and_then(|i| inbox.get_mut(i))
-                .filter(|_| kind == Some(codec::DONE_KIND))
-            {
-                // Every node's Done, every window: its report is read in place.
-                match codec::decode_done_into(bytes, report) {
-                    Ok(h) => (Got::Done(claimed(h.sender, h.run).map(|_| h.window)), None),
-                    Err(e) => (Got::Full(Err(e)), None),
-                }
-            } else if in_place && kind == Some(codec::FIELDS_KIND) {
-                let contract = contracts.get(id).and_then(Option::as_ref);
-                let mut check = contract.map(Contract::check);
-                let booked = books.wants(id);
-                let mut force = ([0.0; 3], 0.0);
-                let head = codec::decode_fields_each(bytes, &mut |f| {
-                    if let Some(c) = check.as_mut() {
-                        c.field(f.name, f.components, f.len());
-                    }
-                    if booked && f.name == "force" && f.components == 3 {
-                        force = crate::books::sum_force(f.values());
-                    }
-                });
-                match head {
-                    Ok(v) => {
-                        breach = check.and_then(|c| c.finish(v.window).err());
-                        if booked && breach.is_none() {
-                            books.force(id, v.window, force);
-                        }
-                        (Got::Fields(claimed(v.sender, v.run)), Some(v.window))
-                    }
-                    Err(e) => (Got::Full(Err(e)), None),
-                }
-            } else {
-                // Run and sender stay in the bytes: a heartbeat allocates nothing.
-                match codec::decode_ref(bytes) {
-                    Ok(e) => {
-                        let w = match &e.message {
-                            Message::Fields(f) => {
-                                if let Some(c) = contracts.get(id).and_then(Option::as_ref) {
-                                    let mut check = c.check();
-                                    for x in &f.fields {
-                                        check.field(&x.name, x.components, x.values.len());
-                                    }
-                                    breach = check.finish(f.window).err();
-                                }
-                                if breach.is_none() && books.wants(id) {
-                                    books.force(id, f.window, crate::books::force_of(&f.fields));
-                                }
-                                Some(f.window)
-                            }
-                            _ => None,
-                        };
-                        (
-                            Got::Full(Ok(claimed(e.sender, e.run).map(|_| e.message))),
-                            w,
-                        )
-                    }
-                    Err(e) => (Got::Full(Err(e)), None),
-                }
-            };
-            fields_seen = fields_window.map(|w| (id, w));
-            let keep = fields_window.is_none_or(|w| every <= 1 || w % every == 0);
+            let got = reader.read(id, bytes);
+            let keep = got
+                .fields_window
+                .is_none_or(|w| every <= 1 || w % every == 0);
             let r0 = Instant::now();
-            if keep && let Some((name, _)) = topics.get(id) {
+            if keep && let Some((name, _)) = reader.topics.get(id) {
                 let _ = rec.message(name, sim_t, bytes);
             }
-            got = Some((id, dec));
+            read = Some((id, got));
             recorded += r0.elapsed().as_nanos() as u64;
             in_cb += cb.elapsed().as_nanos() as u64;
             cb_allocs += crate::profile::allocations_now() - cb_a0;
@@ -138,76 +73,68 @@ impl Coord<'_> {
                 reason: format!("transport: {e}"),
             });
         }
-        let Some((id, dec)) = got else {
-            return Ok(false);
-        };
-        if let Some((t, w)) = fields_seen
-            && let Some(last) = self.last_fields.get_mut(t)
+        match read {
+            Some((id, got)) => self.act(id, got).map(|()| true),
+            None => Ok(false),
+        }
+    }
+
+    /// Act on message `got` read on topic `id`: a message that claims another sender or
+    /// run, is malformed or breaches its contract is the topic's node's fault; a `Fields`
+    /// checked in place and a `Done` are taken here, anything else by
+    /// [`Coord::take_message`].
+    fn act(&mut self, id: TopicId, got: Read) -> Result<(), Fault> {
+        if let Some(w) = got.fields_window
+            && let Some(last) = self.last_fields.get_mut(id)
         {
             *last = Some(last.map_or(w, |l| l.max(w)));
         }
         let owner = match self.topics[id].1 {
             Topic::Up(i) | Topic::Data(i) => i,
         };
-        let tname = self.topics[id].0.as_str();
-        let dec = match dec {
-            Got::Full(dec) => dec,
+        let message = match got.got {
             Got::Fields(claimed) => {
-                let n = &mut self.nodes[owner];
-                if let Err((sender, run)) = claimed {
-                    return Err(Fault {
-                        node: n.name.clone(),
-                        reason: format!(
-                            "message on {tname} claims sender '{sender}' of run '{run}'"
-                        ),
-                    });
-                }
-                if let Some(reason) = breach {
-                    return Err(Fault {
-                        node: n.name.clone(),
-                        reason,
-                    });
-                }
-                n.last_seen = Instant::now();
-                return Ok(true);
+                claimed.map_err(|c| self.claims(owner, id, c))?;
+                None
             }
             Got::Done(claimed) => {
+                let w = claimed.map_err(|c| self.claims(owner, id, c))?;
                 let n = &mut self.nodes[owner];
-                match claimed {
-                    Err((sender, run)) => {
-                        return Err(Fault {
-                            node: n.name.clone(),
-                            reason: format!(
-                                "message on {tname} claims sender '{sender}' of run '{run}'"
-                            ),
-                        });
-                    }
-                    Ok(w) => {
-                        n.last_seen = Instant::now();
-                        let (inbox, spare) = (&mut self.inbox[owner], &mut self.spare[owner]);
-                        take_done(n, w, self.window, inbox, spare);
-                        return Ok(true);
-                    }
-                }
+                n.last_seen = Instant::now();
+                let (inbox, spare) = (&mut self.inbox[owner], &mut self.spare[owner]);
+                take_done(n, w, self.window, inbox, spare);
+                return Ok(());
+            }
+            Got::Full(dec) => {
+                let claimed = dec.map_err(|e| Fault {
+                    node: self.nodes[owner].name.clone(),
+                    reason: format!("malformed message on {}: {e}", self.topics[id].0),
+                })?;
+                Some(claimed.map_err(|c| self.claims(owner, id, c))?)
             }
         };
-        let claimed = dec.map_err(|e| Fault {
-            node: self.nodes[owner].name.clone(),
-            reason: format!("malformed message on {tname}: {e}"),
-        })?;
-        let n = &mut self.nodes[owner];
-        let message = claimed.map_err(|(sender, run)| Fault {
-            node: n.name.clone(),
-            reason: format!("message on {tname} claims sender '{sender}' of run '{run}'"),
-        })?;
-        if let Some(reason) = breach {
+        if let Some(reason) = got.breach {
             return Err(Fault {
-                node: n.name.clone(),
+                node: self.nodes[owner].name.clone(),
                 reason,
             });
         }
-        n.last_seen = Instant::now();
-        self.take_message(owner, id, message)
+        self.nodes[owner].last_seen = Instant::now();
+        match message {
+            Some(m) => self.take_message(owner, id, m).map(|_| ()),
+            None => Ok(()),
+        }
+    }
+
+    /// Node `owner`'s fault: a message on topic `id` that claims another sender or run.
+    fn claims(&self, owner: usize, id: TopicId, (sender, run): (String, String)) -> Fault {
+        Fault {
+            node: self.nodes[owner].name.clone(),
+            reason: format!(
+                "message on {} claims sender '{sender}' of run '{run}'",
+                self.topics[id].0
+            ),
+        }
     }
 
     /// A whole message `message` from node `owner` on topic `id`, checked for its sender and
@@ -416,5 +343,128 @@ pub(super) fn take_done(
         n.ahead.push_back((window, queued));
     } else {
         std::mem::swap(&mut n.report, report);
+    }
+}
+
+/// What reading a message on the run's topics needs of the coordinator, borrowed apart from
+/// its recorder and transport.
+struct Reader<'a> {
+    run: &'a str,
+    nodes: &'a [NodeRt],
+    topics: &'a [(String, Topic)],
+    contracts: &'a [Option<Contract>],
+    books: &'a mut crate::books::Books,
+    inbox: &'a mut [StepReport],
+    /// Peer data is checked in place, not decoded whole (no lagrange hub reads it).
+    in_place: bool,
+}
+
+/// One message read on a topic.
+struct Read {
+    got: Got,
+    /// A `Fields`'s window.
+    fields_window: Option<u64>,
+    /// The first breach of a `Fields` against its topic's contract.
+    breach: Option<String>,
+}
+
+impl Reader<'_> {
+    /// Read `bytes`, which arrived on topic `id`: a `Done`'s report into the node's inbox, a
+    /// `Fields` checked in place against its contract (or decoded whole for a lagrange hub),
+    /// anything else decoded whole; a `Fields`'s force is booked for the booking rule.
+    fn read(&mut self, id: TopicId, bytes: &[u8]) -> Read {
+        let kind = codec::header(bytes).map(|h| h.kind).ok();
+        let owner = self.topics.get(id).map(|(_, t)| match t {
+            Topic::Up(i) | Topic::Data(i) => *i,
+        });
+        let (run, nodes) = (self.run, self.nodes);
+        let claimed = |sender: &str, r: &str| {
+            (r == run && owner.is_some_and(|i| nodes[i].name == sender))
+                .then_some(())
+                .ok_or_else(|| (sender.to_string(), r.to_string()))
+        };
+        let plain = |got| Read {
+            got,
+            fields_window: None,
+            breach: None,
+        };
+        if let Some(report) = owner
+            .and_then(|i| self.inbox.get_mut(i))
+            .filter(|_| kind == Some(codec::DONE_KIND))
+        {
+            // Every node's Done, every window: its report is read in place.
+            return plain(match codec::decode_done_into(bytes, report) {
+                Ok(h) => Got::Done(claimed(h.sender, h.run).map(|_| h.window)),
+                Err(e) => Got::Full(Err(e)),
+            });
+        }
+        if self.in_place && kind == Some(codec::FIELDS_KIND) {
+            return self.read_fields(id, bytes, claimed);
+        }
+        // Run and sender stay in the bytes: a heartbeat allocates nothing.
+        let e = match codec::decode_ref(bytes) {
+            Ok(e) => e,
+            Err(e) => return plain(Got::Full(Err(e))),
+        };
+        let (mut fields_window, mut breach) = (None, None);
+        if let Message::Fields(f) = &e.message {
+            if let Some(c) = self.contracts.get(id).and_then(Option::as_ref) {
+                let mut check = c.check();
+                for x in &f.fields {
+                    check.field(&x.name, x.components, x.values.len());
+                }
+                breach = check.finish(f.window).err();
+            }
+            if breach.is_none() && self.books.wants(id) {
+                self.books
+                    .force(id, f.window, crate::books::force_of(&f.fields));
+            }
+            fields_window = Some(f.window);
+        }
+        Read {
+            got: Got::Full(Ok(claimed(e.sender, e.run).map(|_| e.message))),
+            fields_window,
+            breach,
+        }
+    }
+
+    /// A `Fields` checked where it lies: its fields against the topic's contract and its
+    /// force summed for the booking rule, nothing copied.
+    fn read_fields(
+        &mut self,
+        id: TopicId,
+        bytes: &[u8],
+        claimed: impl Fn(&str, &str) -> Result<(), (String, String)>,
+    ) -> Read {
+        let contract = self.contracts.get(id).and_then(Option::as_ref);
+        let mut check = contract.map(Contract::check);
+        let booked = self.books.wants(id);
+        let mut force = ([0.0; 3], 0.0);
+        let head = codec::decode_fields_each(bytes, &mut |f| {
+            if let Some(c) = check.as_mut() {
+                c.field(f.name, f.components, f.len());
+            }
+            if booked && f.name == "force" && f.components == 3 {
+                force = crate::books::sum_force(f.values());
+            }
+        });
+        match head {
+            Ok(v) => {
+                let breach = check.and_then(|c| c.finish(v.window).err());
+                if booked && breach.is_none() {
+                    self.books.force(id, v.window, force);
+                }
+                Read {
+                    got: Got::Fields(claimed(v.sender, v.run)),
+                    fields_window: Some(v.window),
+                    breach,
+                }
+            }
+            Err(e) => Read {
+                got: Got::Full(Err(e)),
+                fields_window: None,
+                breach: None,
+            },
+        }
     }
 }

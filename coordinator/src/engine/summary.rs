@@ -18,12 +18,52 @@ pub(crate) fn write_summary(out: &Path, summary: &serde_json::Value) -> anyhow::
 /// `summary.json` of a run that ended its window loop (finished, diverged or stopped).
 pub(super) fn run_summary(c: &Coord, w: &super::window::Windows) -> serde_json::Value {
     let case = c.case;
-    let (a, decoupled, windows, loop_s) = (&w.audit, &w.decoupled, w.windows, w.loop_s);
-    let breakdown = w.breakdown.clone();
-    let applied_final = a.rows.last().map_or(0.0, |r| r.applied_impulse);
+    let (a, windows, loop_s) = (&w.audit, w.windows, w.loop_s);
+    let reached_t = a.rows.last().map_or(0.0, |r| r.time);
+    json!({
+        "run": c.run,
+        "status": if c.diverged.is_some() { "diverged" } else if c.interrupted.is_some() { "interrupted" } else { "finished" },
+        "divergence": c.diverged.as_ref().map(crate::guard::Diverged::to_json),
+        "signal": c.interrupted.map(stop::name),
+        "window_reached": c.completed,
+        "time_reached": reached_t,
+        "case": case.path.display().to_string(),
+        "transport": case.run.transport.as_str(),
+        "schedule": match case.run.schedule { case::Schedule::Serial => "serial", case::Schedule::Parallel => "parallel" },
+        "end_time": case.run.end_time,
+        "window": case.run.window,
+        "windows": windows,
+        "nodes": nodes_doc(c, loop_s),
+        // Every node's warnings, "node: text" (also per node above, and in the log).
+        "warnings": warnings(c, a),
+        "couplings": couplings_doc(c, &w.decoupled),
+        // What the run costs beyond its slowest node's own work: the coupling overhead on
+        // the critical path (exchange, waiting, coordination).
+        "window_loop_s": loop_s,
+        // The coordinator's side of a window (this process only: a restart's segment).
+        "window_breakdown": w.breakdown.clone(),
+        // Gaps in which the coordinator itself did not run (no node was blamed for them).
+        "coordinator_stalls": { "count": c.own.count, "longest_s": c.own.longest },
+        // Per node the booking rule applies to, the windows it judged (PROTOCOL.md 4.7).
+        "booking_rule": c
+            .books
+            .judged_nodes()
+            .map(|(i, n)| (c.nodes[i].name.clone(), serde_json::json!({ "judged_windows": n })))
+            .collect::<serde_json::Map<_, _>>(),
+        "coupling_overhead": if loop_s > 0.0 {
+            1.0 - c.nodes.iter().map(|n| n.wall_s).fold(0.0, f64::max) / loop_s
+        } else {
+            0.0
+        },
+        "balance": balance_doc(c, a),
+    })
+}
+
+/// Per node: its executable and model, step, where its time went (shares of the window
+/// loop's `loop_s`), its warnings and its last report.
+fn nodes_doc(c: &Coord, loop_s: f64) -> BTreeMap<String, serde_json::Value> {
     let mut nodes_json = BTreeMap::new();
-    for (i, n) in c.nodes.iter().enumerate() {
-        let cfg = &case.nodes[i];
+    for (n, cfg) in c.nodes.iter().zip(&c.case.nodes) {
         let of_loop = |x: f64| if loop_s > 0.0 { x / loop_s } else { 0.0 };
         nodes_json.insert(
             n.name.clone(),
@@ -47,7 +87,13 @@ pub(super) fn run_summary(c: &Coord, w: &super::window::Windows) -> serde_json::
             }),
         );
     }
-    let couplings: Vec<serde_json::Value> = case
+    nodes_json
+}
+
+/// Per coupling: its kind, sides, when it decoupled (`decoupled`), and for a lagrange one
+/// its method and the work its sides did.
+fn couplings_doc(c: &Coord, decoupled: &[Option<(u64, f64, String)>]) -> Vec<serde_json::Value> {
+    c.case
         .couplings
         .iter()
         .zip(decoupled)
@@ -59,38 +105,45 @@ pub(super) fn run_summary(c: &Coord, w: &super::window::Windows) -> serde_json::
                 v["decoupled"] = json!({ "before_window": w, "time": t, "reason": why });
             }
             if cp.kind == CouplingKind::Lagrange {
-                let by_side: BTreeMap<String, f64> = cp
-                    .sides
-                    .iter()
-                    .filter_map(|s| {
-                        let i = c.node_idx(&s.0)?;
-                        Some((format!("{}.{}", s.0, s.1), c.nodes[i].report.interface_work))
-                    })
-                    .collect();
-                let work: f64 = by_side.values().sum();
-                v["sides"] = json!(
-                    cp.sides
-                        .iter()
-                        .map(|s| format!("{}.{}", s.0, s.1))
-                        .collect::<Vec<_>>()
-                );
-                v["method"] = json!(
-                    format!(
-                        "{:?}",
-                        cp.method.unwrap_or(protocol::scheme::lagrange::Method::Gs4)
-                    )
-                    .to_lowercase()
-                );
-                // ΔE_Γ = −Σᵢ Wᵢ: ≥ 0 is energy the interface dissipated (J).
-                v["interface_work_by_side"] = json!(by_side);
-                v["interface_energy"] = json!(-work);
+                lagrange_doc(c, cp, &mut v);
             }
             v
         })
+        .collect()
+}
+
+/// A lagrange coupling's method, sides and the work done at its interface into `v`.
+fn lagrange_doc(c: &Coord, cp: &case::CouplingConfig, v: &mut serde_json::Value) {
+    let by_side: BTreeMap<String, f64> = cp
+        .sides
+        .iter()
+        .filter_map(|s| {
+            let i = c.node_idx(&s.0)?;
+            Some((format!("{}.{}", s.0, s.1), c.nodes[i].report.interface_work))
+        })
         .collect();
-    let reached_t = a.rows.last().map_or(0.0, |r| r.time);
-    // Energy the methods created, short of the divergence bound: the mark of a slowly
-    // growing instability (a window near the coupling's limit) that a user must see.
+    let work: f64 = by_side.values().sum();
+    v["sides"] = json!(
+        cp.sides
+            .iter()
+            .map(|s| format!("{}.{}", s.0, s.1))
+            .collect::<Vec<_>>()
+    );
+    v["method"] = json!(
+        format!(
+            "{:?}",
+            cp.method.unwrap_or(protocol::scheme::lagrange::Method::Gs4)
+        )
+        .to_lowercase()
+    );
+    // ΔE_Γ = −Σᵢ Wᵢ: ≥ 0 is energy the interface dissipated (J).
+    v["interface_work_by_side"] = json!(by_side);
+    v["interface_energy"] = json!(-work);
+}
+
+/// The case's warnings, the balance's (energy the methods created, short of the divergence
+/// bound: the mark of a slowly growing instability that a user must see), and every node's.
+fn warnings(c: &Coord, a: &super::audit::Audit) -> Vec<String> {
     let created = if a.energy_scale > 0.0 {
         a.worst_e_resid / a.energy_scale
     } else {
@@ -103,81 +156,52 @@ pub(super) fn run_summary(c: &Coord, w: &super::window::Windows) -> serde_json::
             a.worst_e_resid
         )
     });
+    c.case
+        .warnings
+        .iter()
+        .map(|w| format!("case: {w}"))
+        .chain(balance_warning)
+        .chain(
+            c.nodes
+                .iter()
+                .flat_map(|n| n.warnings.iter().map(move |w| format!("{}: {w}", n.name))),
+        )
+        .collect()
+}
+
+/// The run's balance: the largest momentum and energy residuals against their scales, the
+/// guard's largest energy over budget, and every window's row.
+fn balance_doc(c: &Coord, a: &super::audit::Audit) -> serde_json::Value {
+    let applied_final = a.rows.last().map_or(0.0, |r| r.applied_impulse);
     json!({
-        "run": c.run,
-        "status": if c.diverged.is_some() { "diverged" } else if c.interrupted.is_some() { "interrupted" } else { "finished" },
-        "divergence": c.diverged.as_ref().map(crate::guard::Diverged::to_json),
-        "signal": c.interrupted.map(stop::name),
-        "window_reached": c.completed,
-        "time_reached": reached_t,
-        "case": case.path.display().to_string(),
-        "transport": case.run.transport.as_str(),
-        "schedule": match case.run.schedule { case::Schedule::Serial => "serial", case::Schedule::Parallel => "parallel" },
-        "end_time": case.run.end_time,
-        "window": case.run.window,
-        "windows": windows,
-        "nodes": nodes_json,
-        // Every node's warnings, "node: text" (also per node above, and in the log).
-        "warnings": case
-            .warnings
-            .iter()
-            .map(|w| format!("case: {w}"))
-            .chain(balance_warning)
-            .chain(
-                c.nodes
-                    .iter()
-                    .flat_map(|n| n.warnings.iter().map(move |w| format!("{}: {w}", n.name))),
-            )
-            .collect::<Vec<_>>(),
-        "couplings": couplings,
-        // What the run costs beyond its slowest node's own work: the coupling overhead on
-        // the critical path (exchange, waiting, coordination).
-        "window_loop_s": loop_s,
-        // The coordinator's side of a window (this process only: a restart's segment).
-        "window_breakdown": breakdown,
-        // Gaps in which the coordinator itself did not run (no node was blamed for them).
-        "coordinator_stalls": { "count": c.own.count, "longest_s": c.own.longest },
-        // Per node the booking rule applies to, the windows it judged (PROTOCOL.md 4.7).
-        "booking_rule": c
-            .books
-            .judged_nodes()
-            .map(|(i, n)| (c.nodes[i].name.clone(), serde_json::json!({ "judged_windows": n })))
-            .collect::<serde_json::Map<_, _>>(),
-        "coupling_overhead": if loop_s > 0.0 {
-            1.0 - c.nodes.iter().map(|n| n.wall_s).fold(0.0, f64::max) / loop_s
+        "applied_impulse": applied_final,
+        "max_momentum_imbalance": a.worst_p,
+        "max_momentum_imbalance_relative": if applied_final > 0.0 { a.worst_p / applied_final } else { 0.0 },
+        "max_interface_impulse_sum": a.worst_iface_p,
+        "impulse_scale": a.impulse_scale,
+        "momentum_scale": a.momentum_scale,
+        "max_momentum_residual": a.worst_resid,
+        // Against the larger of the two scales: the largest impulse any node saw, and the
+        // largest gross momentum of the run.
+        "max_momentum_residual_relative": if a.impulse_scale.max(a.momentum_scale) > 0.0 {
+            a.worst_resid / a.impulse_scale.max(a.momentum_scale)
         } else {
             0.0
         },
-        "balance": {
-            "applied_impulse": applied_final,
-            "max_momentum_imbalance": a.worst_p,
-            "max_momentum_imbalance_relative": if applied_final > 0.0 { a.worst_p / applied_final } else { 0.0 },
-            "max_interface_impulse_sum": a.worst_iface_p,
-            "impulse_scale": a.impulse_scale,
-            "momentum_scale": a.momentum_scale,
-            "max_momentum_residual": a.worst_resid,
-            // Against the larger of the two scales: the largest impulse any node saw, and the
-            // largest gross momentum of the run.
-            "max_momentum_residual_relative": if a.impulse_scale.max(a.momentum_scale) > 0.0 {
-                a.worst_resid / a.impulse_scale.max(a.momentum_scale)
-            } else {
-                0.0
-            },
-            // Signed: negative is energy the numerical methods (and couplings) dissipated,
-            // positive energy they created.
-            "max_energy_residual": a.worst_e_resid,
-            "energy_scale": a.energy_scale,
-            // The divergence guard's reading: the largest total energy over its budget
-            // (initial energy plus the largest external work so far), against
-            // run.energy_bound.
-            "max_energy_over_budget": c.guard.worst_ratio(),
-            "energy_bound": case.run.energy_bound,
-            "max_energy_residual_relative": if a.energy_scale > 0.0 {
-                a.worst_e_resid / a.energy_scale
-            } else {
-                0.0
-            },
-            "per_window": a.rows,
+        // Signed: negative is energy the numerical methods (and couplings) dissipated,
+        // positive energy they created.
+        "max_energy_residual": a.worst_e_resid,
+        "energy_scale": a.energy_scale,
+        // The divergence guard's reading: the largest total energy over its budget
+        // (initial energy plus the largest external work so far), against
+        // run.energy_bound.
+        "max_energy_over_budget": c.guard.worst_ratio(),
+        "energy_bound": c.case.run.energy_bound,
+        "max_energy_residual_relative": if a.energy_scale > 0.0 {
+            a.worst_e_resid / a.energy_scale
+        } else {
+            0.0
         },
+        "per_window": a.rows,
     })
 }

@@ -341,118 +341,200 @@ pub(super) fn run_windows(
     order: &[String],
     opts: &RunOptions,
 ) -> Result<Windows, Fault> {
-    let case = c.case;
-    let all: Vec<usize> = (0..c.nodes.len()).collect();
-    let windows = case::window_count(case);
-    let order_idx: Vec<usize> = order.iter().filter_map(|n| c.node_idx(n)).collect();
-    // The audit (docs/architecture.md) so far: restored from the checkpoint on a restart.
-    let mut a = Audit::default();
-    // Decouplings (seed 000 §4): (window, time, reason) per coupling once it happened.
-    let mut decoupled: Vec<Option<(u64, f64, String)>> = vec![None; case.couplings.len()];
-    let mut active: Vec<usize> = all.clone();
-    // A restart continues after its checkpoint's window, from the state the nodes and the
-    // coordinator saved there.
-    let (first, loop_before) = match &opts.restart {
-        Some(st) => {
-            resume(c, st, &all)?;
-            a = st.audit.clone();
-
-            decoupled = st.decoupled.clone();
-            for (u, d) in c.until.iter_mut().zip(&decoupled) {
-                *u = d.as_ref().map(|d| d.0);
-            }
-            active.retain(|&i| c.nodes[i].finished.is_none());
-            (st.window + 1, st.loop_s)
-        }
-        None => (1, 0.0),
-    };
-    let e0: f64 = c.nodes.iter().map(|n| n.initial_energy).sum();
-    // A restart's guard reads the audited windows before its checkpoint again.
-    c.guard.resume(
-        a.rows
-            .iter()
-            .map(|r| (r.window, r.time, r.energy, r.external_work)),
-        e0,
-    );
-    // The booking rule judges the impulse booked from here on.
-    c.books
-        .begin(first, c.nodes.iter().map(|n| &n.report.interface_impulse));
-    let every = case.run.checkpoint_every;
-    // A stop was requested: checkpoint the next window and stop there.
-    let mut stop_after = false;
-    c.progress = Progress::new(windows, case.run.end_time, opts.quiet);
-    c.progress.resume_after(first - 1);
-    let loop_start = Instant::now();
-    c.in_windows = true;
-    c.prof = Profile::default();
-    c.prof.start();
-    let lag0 = c.rec.lag_allocations;
-    // Windows whose Advance is out and whose Done is not yet all in: (window, checkpoint).
-    let mut in_flight: VecDeque<(u64, bool)> = VecDeque::with_capacity(MAX_AHEAD as usize + 1);
-    let mut ahead = Ahead::new();
-    let mut sent = first - 1;
-    // Once no more than half of the windows allowed in flight are left after window
-    // `completed`, the windows after the last one sent up to that count, while they may run
-    // ahead (one batch: each node is woken once for it).
-    macro_rules! top_up {
-        ($completed:expr) => {
-            let (done, n) = ($completed, ahead.count());
-            if sent - done <= n / 2 {
-                run_ahead(
-                    c,
-                    &order_idx,
-                    &mut decoupled,
-                    &mut active,
-                    &mut in_flight,
-                    &mut sent,
-                    (done + n).min(windows),
-                )?
-            }
-        };
-    }
-    for k in first..=windows {
-        let (_, t1) = window_span(case, k, windows);
+    let mut l = Loop::begin(c, order, opts)?;
+    for k in l.first..=l.windows {
+        let (_, t1) = window_span(c.case, k, l.windows);
         c.window = k;
-        if sent < k {
+        if l.sent < k {
             let ck = send_window(
                 c,
-                &order_idx,
-                &mut decoupled,
-                &mut active,
+                &l.order,
+                &mut l.decoupled,
+                &mut l.active,
                 k,
-                stop_after,
+                l.stop_after,
                 false,
             )?;
-            in_flight.push_back((k, ck));
-            sent = k;
+            l.in_flight.push_back((k, ck));
+            l.sent = k;
         }
         // Pipelining: the next windows' Advances go out now, so that the nodes go on while
         // this one is audited and recorded; only where nothing decided at this window's end
         // can change them (module doc).
-        top_up!(k - 1);
+        l.top_up(c, k - 1)?;
         c.sim_t = c.sim_t.max(t1);
-        if let Err(f) = c.wait_all(&active, "Done", None, |n| n.done.is_some_and(|d| d >= k)) {
-            // A node about to send a non-finite value says so and leaves: the run diverged.
-            let Some(mut d) = protocol::diverged::Divergence::parse(&f.reason) else {
-                return Err(f);
-            };
-            // The quantity alone: the node's log is in the output folder.
-            if let Some(at) = d.what.find(" (its log: ") {
-                d.what.truncate(at);
-            }
-            let t = window_span(case, d.window.clamp(1, windows), windows).1;
-            c.diverged = Some(c.guard.from_node(&f.node, d, t));
+        if !l.await_done(c, k)? {
             break;
         }
-        let checkpoint = in_flight.pop_front().is_some_and(|w| w.1);
-        ahead.completed();
+        let checkpoint = l.in_flight.pop_front().is_some_and(|w| w.1);
+        l.ahead.completed();
         // The window after the next goes out now, before this one's audit and records: the
         // driver finishes its next window while the responder computes, and then needs it
         // (the coordinator's own work per window would otherwise stand in its way). Not past
         // a checkpoint at this window: it is complete only once saved below.
-        if ahead.count() > 1 && !checkpoint {
-            top_up!(k);
+        if l.ahead.count() > 1 && !checkpoint {
+            l.top_up(c, k)?;
         }
+        let flushing = l.audit(c, k, t1)?;
+        if !l.within_bounds(c, k, t1) {
+            break;
+        }
+        c.progress.window(k, t1);
+        c.completed = k;
+        if checkpoint {
+            let loop_s = l.loop_before + l.loop_start.elapsed().as_secs_f64();
+            save_checkpoint(c, out, &l.audit, &l.decoupled, k, t1, loop_s)?;
+        }
+        // Completed windows reach the disk (a killed cosim leaves them recoverable).
+        let _ = c.rec.window_end(Duration::from_millis(20));
+        c.prof.lap(Phase::Flush, flushing);
+        // A stop signal ends the run here, at the window boundary; with checkpoints, after
+        // one more window that checkpoints, so that a restart continues from where it stopped.
+        if let Some(sig) = stop::requested() {
+            if l.sent > k {
+                continue; // windows already under way end first, each at its boundary
+            }
+            if l.every > 0 && !checkpoint && !l.stop_after {
+                l.stop_after = true;
+                continue;
+            }
+            c.interrupted = Some(sig);
+            break;
+        }
+    }
+    Ok(l.end(c))
+}
+
+/// The window loop's state between windows.
+struct Loop {
+    /// The nodes' indices in window order.
+    order: Vec<usize>,
+    /// The run's windows, and the first this loop runs (after a restart's checkpoint).
+    windows: u64,
+    first: u64,
+    /// The audit (docs/architecture.md) so far: restored from the checkpoint on a restart.
+    audit: Audit,
+    /// Decouplings: (window, time, reason) per coupling once it happened.
+    decoupled: Vec<Option<(u64, f64, String)>>,
+    /// The nodes still running.
+    active: Vec<usize>,
+    /// The energy after set-up, J.
+    e0: f64,
+    /// Windows whose Advance is out and whose Done is not yet all in: (window, checkpoint).
+    in_flight: VecDeque<(u64, bool)>,
+    ahead: Ahead,
+    /// The last window sent.
+    sent: u64,
+    /// A stop was requested: checkpoint the next window and stop there.
+    stop_after: bool,
+    /// `run.checkpoint_every`.
+    every: u64,
+    /// The loop's wall time before a restart, s, and when this one started.
+    loop_before: f64,
+    loop_start: Instant,
+    /// The recorder's allocations at the start.
+    lag0: u64,
+}
+
+impl Loop {
+    /// The loop's state at its first window: on a restart, the nodes and the coordinator
+    /// restored from the checkpoint; the guard, the booking rule, progress and profile
+    /// started.
+    fn begin(c: &mut Coord, order: &[String], opts: &RunOptions) -> Result<Loop, Fault> {
+        let case = c.case;
+        let all: Vec<usize> = (0..c.nodes.len()).collect();
+        let mut l = Loop {
+            order: order.iter().filter_map(|n| c.node_idx(n)).collect(),
+            windows: case::window_count(case),
+            first: 1,
+            audit: Audit::default(),
+            decoupled: vec![None; case.couplings.len()],
+            active: all.clone(),
+            e0: 0.0,
+            in_flight: VecDeque::with_capacity(MAX_AHEAD as usize + 1),
+            ahead: Ahead::new(),
+            sent: 0,
+            stop_after: false,
+            every: case.run.checkpoint_every,
+            loop_before: 0.0,
+            loop_start: Instant::now(),
+            lag0: 0,
+        };
+        // A restart continues after its checkpoint's window, from the state the nodes and
+        // the coordinator saved there.
+        if let Some(st) = &opts.restart {
+            resume(c, st, &all)?;
+            l.audit = st.audit.clone();
+            l.decoupled = st.decoupled.clone();
+            for (u, d) in c.until.iter_mut().zip(&l.decoupled) {
+                *u = d.as_ref().map(|d| d.0);
+            }
+            l.active.retain(|&i| c.nodes[i].finished.is_none());
+            (l.first, l.loop_before) = (st.window + 1, st.loop_s);
+        }
+        l.sent = l.first - 1;
+        l.e0 = c.nodes.iter().map(|n| n.initial_energy).sum();
+        // A restart's guard reads the audited windows before its checkpoint again.
+        let rows = l.audit.rows.iter();
+        c.guard.resume(
+            rows.map(|r| (r.window, r.time, r.energy, r.external_work)),
+            l.e0,
+        );
+        // The booking rule judges the impulse booked from here on.
+        c.books
+            .begin(l.first, c.nodes.iter().map(|n| &n.report.interface_impulse));
+        c.progress = Progress::new(l.windows, case.run.end_time, opts.quiet);
+        c.progress.resume_after(l.first - 1);
+        l.loop_start = Instant::now();
+        c.in_windows = true;
+        c.prof = Profile::default();
+        c.prof.start();
+        l.lag0 = c.rec.lag_allocations;
+        Ok(l)
+    }
+
+    /// Once no more than half of the windows allowed in flight are left after window
+    /// `completed`, the windows after the last one sent up to that count, while they may run
+    /// ahead (one batch: each node is woken once for it).
+    fn top_up(&mut self, c: &mut Coord, completed: u64) -> Result<(), Fault> {
+        let n = self.ahead.count();
+        if self.sent - completed > n / 2 {
+            return Ok(());
+        }
+        run_ahead(
+            c,
+            &self.order,
+            &mut self.decoupled,
+            &mut self.active,
+            &mut self.in_flight,
+            &mut self.sent,
+            (completed + n).min(self.windows),
+        )
+    }
+
+    /// Wait for every running node's Done of window `k`; false when a node said it was about
+    /// to send a non-finite value and left: the run diverged there.
+    fn await_done(&mut self, c: &mut Coord, k: u64) -> Result<bool, Fault> {
+        let Err(f) = c.wait_all(&self.active, "Done", None, |n| {
+            n.done.is_some_and(|d| d >= k)
+        }) else {
+            return Ok(true);
+        };
+        let Some(mut d) = protocol::diverged::Divergence::parse(&f.reason) else {
+            return Err(f);
+        };
+        // The quantity alone: the node's log is in the output folder.
+        if let Some(at) = d.what.find(" (its log: ") {
+            d.what.truncate(at);
+        }
+        let t = window_span(c.case, d.window.clamp(1, self.windows), self.windows).1;
+        c.diverged = Some(c.guard.from_node(&f.node, d, t));
+        Ok(false)
+    }
+
+    /// Window `k`'s audit, ending at `t1`: the nodes' reports of it, its balance row, the
+    /// booking rule, and its records; returns when the flush phase starts.
+    fn audit(&mut self, c: &mut Coord, k: u64, t1: f64) -> Result<Instant, Fault> {
         let auditing = Instant::now();
         // Reports of later windows that came in meanwhile wait for their own audit.
         for (n, spare) in c.nodes.iter_mut().zip(&mut c.spare) {
@@ -462,67 +544,53 @@ pub(super) fn run_windows(
                 }
             }
         }
-        let row = super::audit::balance(
-            c.nodes.iter().map(|n| (&n.report, n.initial_momentum)),
-            k,
-            t1,
-            e0,
-            &mut a,
-        );
-        judge_books(c, k, a.impulse_scale, &decoupled)?;
+        let reports = c.nodes.iter().map(|n| (&n.report, n.initial_momentum));
+        let row = super::audit::balance(reports, k, t1, self.e0, &mut self.audit);
+        judge_books(c, k, self.audit.impulse_scale, &self.decoupled)?;
         let reporting = c.prof.lap(Phase::Audit, auditing);
-        record_window(c, k, t1, windows, &row);
-        let wext = row.external_work;
-        a.rows.push(row);
-        let flushing = c.prof.lap(Phase::Reports, reporting);
+        record_window(c, k, t1, self.windows, &row);
+        self.audit.rows.push(row);
+        Ok(c.prof.lap(Phase::Reports, reporting))
+    }
+
+    /// Whether window `k`, audited, keeps within the divergence guard's bounds; when not,
+    /// the run diverged there and its records are flushed.
+    fn within_bounds(&mut self, c: &mut Coord, k: u64, t1: f64) -> bool {
+        let wext = self.audit.rows.last().map_or(0.0, |r| r.external_work);
         let nodes = c.nodes.iter().map(|n| crate::guard::NodeWindow {
             name: &n.name,
             report: &n.report,
             initial_energy: n.initial_energy,
         });
-        if let Err(d) = c.guard.window(k, t1, nodes, e0, wext) {
-            c.diverged = Some(d);
-            c.completed = k;
-            let _ = c.rec.window_end(Duration::from_millis(20));
-            break;
-        }
-        c.progress.window(k, t1);
+        let Err(d) = c.guard.window(k, t1, nodes, self.e0, wext) else {
+            return true;
+        };
+        c.diverged = Some(d);
         c.completed = k;
-        if checkpoint {
-            let loop_s = loop_before + loop_start.elapsed().as_secs_f64();
-            save_checkpoint(c, out, &a, &decoupled, k, t1, loop_s)?;
-        }
-        // Completed windows reach the disk (a killed cosim leaves them recoverable).
         let _ = c.rec.window_end(Duration::from_millis(20));
-        c.prof.lap(Phase::Flush, flushing);
-        // A stop signal ends the run here, at the window boundary; with checkpoints, after
-        // one more window that checkpoints, so that a restart continues from where it stopped.
-        if let Some(sig) = stop::requested() {
-            if sent > k {
-                continue; // windows already under way end first, each at its boundary
-            }
-            if every > 0 && !checkpoint && !stop_after {
-                stop_after = true;
-                continue;
-            }
-            c.interrupted = Some(sig);
-            break;
+        false
+    }
+
+    /// What the loop leaves for the summary, its progress and profile closed.
+    fn end(self, c: &mut Coord) -> Windows {
+        c.progress.finish();
+        let loop_s = self.loop_before + self.loop_start.elapsed().as_secs_f64();
+        c.prof
+            .add_recorder_lag_allocs(c.rec.lag_allocations - self.lag0);
+        c.prof.stop();
+        let mut breakdown = c
+            .prof
+            .per_window(c.completed.saturating_sub(self.first - 1));
+        breakdown["windows_in_flight"] = self.ahead.mean().into();
+        Windows {
+            audit: self.audit,
+            decoupled: self.decoupled,
+            active: self.active,
+            windows: self.windows,
+            loop_s,
+            breakdown,
         }
     }
-    c.progress.finish();
-    let loop_s = loop_before + loop_start.elapsed().as_secs_f64();
-    c.prof.add_recorder_lag_allocs(c.rec.lag_allocations - lag0);
-    c.prof.stop();
-    let mut breakdown = c.prof.per_window(c.completed.saturating_sub(first - 1));
-    breakdown["windows_in_flight"] = ahead.mean().into();
-    Ok(Windows {
-        audit: a,
-        decoupled,
-        active,
-        windows,
-        loop_s,
-        breakdown,
-    })
 }
 
 /// Record window `k`'s balance `row`, every running node's report and each lagrange hub's
