@@ -20,7 +20,7 @@
 //! holds it).
 
 use crate::case::{Case, CouplingConfig};
-use protocol::CouplingKind;
+use protocol::scheme;
 
 /// Audited windows in a row with opposite signs before a node is stopped.
 pub const STREAK: u32 = 3;
@@ -122,11 +122,11 @@ impl Books {
         let mut ledgers = vec![Ledger::default(); nodes.len()];
         let fed = |ci: usize| {
             let c = &couplings[ci];
-            matches!(c.kind, CouplingKind::Kinematic | CouplingKind::Immersed)
+            !scheme::of(c.kind).coordinator_solved()
                 && c.responder_fields.iter().any(|f| f == "force")
         };
         for (ci, c) in couplings.iter().enumerate() {
-            let members: Vec<&str> = if c.kind == CouplingKind::Lagrange {
+            let members: Vec<&str> = if scheme::of(c.kind).coordinator_solved() {
                 c.sides.iter().map(|s| s.0.as_str()).collect()
             } else {
                 vec![c.driver.0.as_str(), c.responder.0.as_str()]

@@ -50,7 +50,7 @@ pub struct CoordState {
     /// Wall time of the window loop up to the checkpoint, s.
     pub loop_s: f64,
     /// Each lagrange coupling's interface problem (its window and last multipliers).
-    pub lagrange: Vec<crate::lagrange::HubState>,
+    pub lagrange: Vec<protocol::scheme::lagrange::HubState>,
 }
 
 /// What must not change between a run and its restart: the nodes (names, models,
@@ -84,7 +84,7 @@ pub fn compat_signature(case: &Case) -> String {
             c.decouple
         ));
         // A lagrange coupling's sides and method fix the checkpointed multipliers' meaning.
-        if c.kind == protocol::CouplingKind::Lagrange {
+        if protocol::scheme::of(c.kind).coordinator_solved() {
             s.push_str(&format!(" {:?} {:?}", c.sides, c.method));
         }
     }

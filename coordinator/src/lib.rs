@@ -15,7 +15,6 @@ pub mod export;
 pub mod fields;
 pub mod guard;
 pub mod integrity;
-pub mod lagrange;
 pub mod launch;
 pub mod lock;
 pub mod nest;

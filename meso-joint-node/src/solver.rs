@@ -22,7 +22,7 @@ use crate::model::{Kind, Model, ModelParams, RigidBody};
 use crate::shape::{M3, Rows};
 use mechanics::j2::J2State;
 use mechanics::tensor::{self, Vector3, vec3};
-use protocol::scheme::sync_force::{self, Follow};
+use protocol::scheme::kinematic::{self, Follow};
 use protocol::{
     Binding, Inbox, InterfaceInfo, InterfaceMesh, NodeDescription, Outbox, Solver, SolverError,
     SolverResult, StepReport, Window,
@@ -219,7 +219,7 @@ impl SpgSolver {
                 }
                 (model.coupled_p, model.coupled_ke) = model.coupled_sums();
                 let n = particles.len();
-                let mut follow = Follow::new(sync_force::Path::Linear, n, 3);
+                let mut follow = Follow::new(kinematic::Path::Linear, n, 3);
                 for (q, &i) in particles.iter().enumerate() {
                     follow.set_start(q, &model.x0[i as usize]);
                 }

@@ -10,7 +10,7 @@
 use crate::codec::{self, encode_into};
 use crate::mapping::Mapping;
 use crate::message::*;
-use crate::scheme::{self, lagrange};
+use crate::scheme;
 use crate::solver::{
     BuildOptions, FieldSet, Solver, SolverError, SolverFactory, SolverResult, Window,
 };
@@ -39,10 +39,10 @@ pub fn is_motion(name: &str) -> bool {
 }
 
 /// One coupling of this node, with its input buffer and mapping.
-struct Link {
-    b: Binding,
+pub(crate) struct Link {
+    pub(crate) b: Binding,
     /// Peer fields not consumed yet, oldest first.
-    pending: VecDeque<Fields>,
+    pub(crate) pending: VecDeque<Fields>,
     /// Set for a responder whose interface differs from the driver's layout.
     map: Option<Mapping>,
     /// Number of points on the wire (the driver's layout).
@@ -54,9 +54,9 @@ struct Link {
 /// Couplings, buffers and mapping around a solver; transport-free.
 pub struct NodeEngine {
     pub solver: Box<dyn Solver>,
-    links: Vec<Link>,
+    pub(crate) links: Vec<Link>,
     inbox: FieldSet,
-    outbox: FieldSet,
+    pub(crate) outbox: FieldSet,
     scratch: Vec<f64>,
     /// Consumed peer messages, kept so that the next ones are read into their buffers.
     spare: Vec<Fields>,
@@ -358,18 +358,7 @@ impl NodeEngine {
         let bindings: Vec<Binding> = self.links.iter().map(|l| l.b.clone()).collect();
         self.solver
             .setup(&bindings, &self.inbox, &mut self.outbox)?;
-        for b in bindings.iter().filter(|b| b.kind == CouplingKind::Lagrange) {
-            let Some(side) = self.solver.lagrange_side(&b.interface) else {
-                return Err(EngineError::Coupling {
-                    coupling: b.coupling.clone(),
-                    reason: format!(
-                        "model '{}' takes no lagrange coupling",
-                        self.solver.describe().model
-                    ),
-                });
-            };
-            lagrange::wire::setup_fields(side, &b.interface, &mut self.outbox);
-        }
+        self.lagrange_setup(&bindings)?;
         self.drain_outbox(0, 0.0)
     }
 
@@ -391,13 +380,6 @@ impl NodeEngine {
         crate::diverged::check_report(w.index, &report)?;
         let msgs = self.drain_outbox(w.index, w.t1)?;
         Ok((report, msgs))
-    }
-
-    /// The lagrange coupling of this node (one at most): its link index.
-    fn lagrange_link(&self) -> Option<usize> {
-        self.links
-            .iter()
-            .position(|l| l.b.kind == CouplingKind::Lagrange)
     }
 
     /// The solver's state for a checkpoint: its `save_state`, and with a lagrange coupling
@@ -430,114 +412,6 @@ impl NodeEngine {
             .ok_or_else(|| SolverError::Other("the lagrange side is gone".into()))?
             .load_state(&side)
             .map_err(|e| SolverError::Other(format!("lagrange side '{iface}': {e}")))
-    }
-
-    /// Coupling steps per window of this node's lagrange side (None: no lagrange coupling).
-    pub fn lagrange_steps(&mut self) -> Option<usize> {
-        let i = self.lagrange_link()?;
-        let iface = self.links[i].b.interface.clone();
-        self.solver
-            .lagrange_side(&iface)
-            .map(|s| s.coupling_steps())
-    }
-
-    /// Takes the next multipliers sent to node `me` for `window` (0: the initial ones) out
-    /// of the buffered coordinator messages, skipping those for other sides (and the set-up
-    /// request, used by then); None while they have not arrived.
-    fn lagrange_take(&mut self, me: &str, window: u64) -> Option<(usize, Vec<f64>)> {
-        let i = self.lagrange_link()?;
-        let l = &mut self.links[i];
-        while l.pending.front().is_some_and(|f| f.window <= window) {
-            let f = l.pending.pop_front()?;
-            if f.window < window || lagrange::wire::step_of(&f).is_none() {
-                continue;
-            }
-            if let Some(v) = f.fields.into_iter().find(|x| x.name == me) {
-                return Some((i, v.values));
-            }
-        }
-        None
-    }
-
-    /// Applies the multipliers of `window` sent to node `me` once they are here (window 0:
-    /// the initial ones, else the end of the side's current coupling step); false while
-    /// they have not arrived.
-    pub fn lagrange_correct(&mut self, me: &str, window: u64) -> Result<bool, EngineError> {
-        let Some((i, lambda)) = self.lagrange_take(me, window) else {
-            return Ok(false);
-        };
-        let (coupling, iface) = (
-            self.links[i].b.coupling.clone(),
-            self.links[i].b.interface.clone(),
-        );
-        let bad = |reason: String| EngineError::Coupling {
-            coupling: coupling.clone(),
-            reason,
-        };
-        let side = self
-            .solver
-            .lagrange_side(&iface)
-            .ok_or_else(|| bad("the side is gone".into()))?;
-        let nl = side.multiplier_ids().len();
-        if lambda.len() != nl || !lambda.iter().all(|x| x.is_finite()) {
-            return Err(bad(format!(
-                "multipliers of window {window}: {} values (finite expected) for {nl}",
-                lambda.len()
-            )));
-        }
-        if window == 0 {
-            side.set_initial(&lambda);
-        } else {
-            side.correct(&lambda);
-        }
-        Ok(true)
-    }
-
-    /// The free coupling step `c` of `window` on the lagrange side: the message with its
-    /// interface velocities at the step's start and end, sent at time `time`.
-    pub fn lagrange_free_step(
-        &mut self,
-        c: usize,
-        window: u64,
-        time: f64,
-    ) -> Result<Fields, EngineError> {
-        let Some(i) = self.lagrange_link() else {
-            return Err(EngineError::Coupling {
-                coupling: String::new(),
-                reason: "no lagrange coupling".into(),
-            });
-        };
-        let (coupling, iface) = (
-            self.links[i].b.coupling.clone(),
-            self.links[i].b.interface.clone(),
-        );
-        let Some(side) = self.solver.lagrange_side(&iface) else {
-            return Err(EngineError::Coupling {
-                coupling,
-                reason: "the side is gone".into(),
-            });
-        };
-        let nl = side.multiplier_ids().len();
-        let mut v_start = vec![0.0; nl];
-        let mut v_free = vec![0.0; nl];
-        side.free_step(&mut v_start, &mut v_free);
-        let vec = |name: &str, values: Vec<f64>| Field {
-            name: name.to_string(),
-            components: 1,
-            values,
-        };
-        let f = Fields {
-            coupling,
-            window,
-            time,
-            fields: vec![
-                lagrange::wire::scalar(lagrange::wire::STEP, c as f64),
-                vec(lagrange::wire::V_START, v_start),
-                vec(lagrange::wire::V_FREE, v_free),
-            ],
-        };
-        crate::diverged::check_fields(&f)?;
-        Ok(f)
     }
 }
 

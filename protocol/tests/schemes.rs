@@ -1,11 +1,11 @@
 //! The coupling schemes' contracts (docs/architecture.md): each kind's input lags and serial order,
 //! and the sync-force node side's mapping (`v_r = W v_d`, `f_d = Wᵀ f_r`) against values worked
 //! out by hand for a responder point halfway along the driver's one-cell line, and the
-//! responder's following of the driver's motion through a window (`sync_force::Follow`)
+//! responder's following of the driver's motion through a window (`kinematic::Follow`)
 //! against positions and velocities worked out by hand.
 
 use protocol::mapping::Mapping;
-use protocol::scheme::sync_force::{Follow, Path};
+use protocol::scheme::kinematic::{Follow, Path};
 use protocol::scheme::{self, driver_responder_input};
 use protocol::{CellKind, Cells, CouplingKind, Field, FieldSet, InterfaceMesh, Role};
 
@@ -77,7 +77,7 @@ fn the_driver_responder_input_rule() {
 }
 
 #[test]
-fn sync_force_maps_motion_and_loads_and_refuses_the_wrong_direction() {
+fn kinematic_maps_motion_and_loads_and_refuses_the_wrong_direction() {
     let s = scheme::of(CouplingKind::Kinematic);
     let (driver, own) = meshes();
     assert!(s.needs_peer_mesh());

@@ -12,7 +12,7 @@ use crate::lagrange::SubdomainSide;
 use mechanics::time::{CouplingMethod, InterfaceDof, Subdomain};
 use mechanics::time::{Gs4, Gs4Error, IntegratorSpec, LinearSystem, State, Stepper};
 use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
-use protocol::scheme::{self, sync_force};
+use protocol::scheme::{self, kinematic};
 use protocol::{Binding, InterfaceMesh, Solver, SolverError, SolverResult, StepReport, Window};
 use protocol::{Inbox, InterfaceInfo, LimitApplies, NodeDescription, Outbox, WindowLimit};
 use serde::{Deserialize, Serialize};
@@ -214,7 +214,7 @@ pub struct Bar {
     s: BarState,
     coupled: Vec<Coupled>,
     /// The following ends' path through the window (sync-force responder side).
-    follow: sync_force::Follow,
+    follow: kinematic::Follow,
     gs4: Option<Gs4Path>,
     lagrange: Option<LagrangeBar>,
 }
@@ -304,7 +304,7 @@ impl Bar {
                 a: Vec::new(),
             },
             coupled: Vec::new(),
-            follow: sync_force::Follow::default(),
+            follow: kinematic::Follow::default(),
             gs4: None,
             lagrange: None,
             p,
@@ -544,7 +544,7 @@ impl Solver for Bar {
             }
         }
         let n = self.coupled.iter().filter(|c| c.follows).count();
-        self.follow = sync_force::Follow::new(sync_force::Path::Held, n, 1);
+        self.follow = kinematic::Follow::new(kinematic::Path::Held, n, 1);
         Ok(())
     }
 

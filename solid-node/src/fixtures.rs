@@ -29,7 +29,7 @@ pub mod split_bar {
     use mechanics::time::{
         CouplingMethod, Gs4, InterfaceDof, LinearSystem, State, Stepper, Subdomain,
     };
-    use protocol::scheme::lagrange::{LagrangeScheme, LagrangeSide, Method};
+    use protocol::scheme::lagrange::{InterfaceSolver, LagrangeSide, Method};
 
     pub const YOUNG: f64 = 200e9;
     pub const DENSITY: f64 = 7860.0;
@@ -223,7 +223,7 @@ pub mod split_bar {
         let (mut l, mut r) = (SubdomainSide(l), SubdomainSide(r));
         let mut scheme = {
             let mut sides: [&mut dyn LagrangeSide; 2] = [&mut l, &mut r];
-            LagrangeScheme::new(method, 1, &mut sides).map_err(|e| e.to_string())?
+            InterfaceSolver::new(method, 1, &mut sides).map_err(|e| e.to_string())?
         };
         let mut out = Histories {
             dt: dt_system,
@@ -295,7 +295,7 @@ pub mod bar_chain {
     use crate::bar::{Bar, chain_system};
     use crate::lagrange::SubdomainSide;
     use mechanics::time::{CouplingMethod, Design, Gs4, State, Stepper};
-    use protocol::scheme::lagrange::{LagrangeScheme, LagrangeSide, Method};
+    use protocol::scheme::lagrange::{InterfaceSolver, LagrangeSide, Method};
 
     pub const YOUNG: f64 = 200e9;
     pub const DENSITY: f64 = 7860.0;
@@ -472,7 +472,7 @@ pub mod bar_chain {
         let mut s3 = side(2, "cut", -1.0, 1)?;
         let mut scheme = {
             let mut sides: [&mut dyn LagrangeSide; 3] = [&mut s1, &mut s2, &mut s3];
-            LagrangeScheme::new(method, 2, &mut sides).map_err(|e| e.to_string())?
+            InterfaceSolver::new(method, 2, &mut sides).map_err(|e| e.to_string())?
         };
         let (g1, g2, tip) = (BARS[0].2 - 1, BARS[1].2, BARS[2].2);
         let mut out = Histories::new(dt);

@@ -8,7 +8,7 @@ pub mod fixtures;
 pub mod lagrange;
 pub mod pd;
 
-use protocol::{BuildOptions, Solver, SolverError, SolverResult};
+use protocol::{BuildOptions, Solver, SolverResult};
 
 use protocol::registry::Model;
 
@@ -35,19 +35,19 @@ pub const MODELS: &[Model] = &[
         name: "pd-bond",
         schema: || schema_of::<pd::solver::PdParams>(),
         example: PD_EXAMPLE,
-        build: |p, o| pd_model("pd-bond", p, o),
+        build: |p, o| pd::build(&pd::models::bond::DEF, p, o),
     },
     Model {
         name: "pd-correspondence",
         schema: || schema_of::<pd::solver::PdParams>(),
         example: PD_EXAMPLE,
-        build: |p, o| pd_model("pd-correspondence", p, o),
+        build: |p, o| pd::build(&pd::models::correspondence::DEF, p, o),
     },
     Model {
         name: "pd-rk-ba",
         schema: || schema_of::<pd::solver::PdParams>(),
         example: PD_EXAMPLE,
-        build: |p, o| pd_model("pd-rk-ba", p, o),
+        build: |p, o| pd::build(&pd::models::rk_ba::DEF, p, o),
     },
 ];
 
@@ -84,20 +84,6 @@ damage = { kind = "critical_stretch", critical_stretch = 0.01 }
 /// The JSON Schema of the parameter type `T`.
 fn schema_of<T: schemars::JsonSchema>() -> serde_json::Value {
     serde_json::to_value(schemars::schema_for!(T)).unwrap_or_default()
-}
-
-/// A peridynamic model by name (every name in [`MODELS`] that `pd` builds).
-fn pd_model(
-    model: &str,
-    params: &toml::Table,
-    opts: &BuildOptions,
-) -> SolverResult<Box<dyn Solver>> {
-    pd::build(model, params, opts).unwrap_or_else(|| {
-        Err(SolverError::config(
-            "model",
-            format!("unknown model '{model}'"),
-        ))
-    })
 }
 
 /// JSON Schema of a model's parameters (`solid-node --schema --model M`, `cosim params M`): derived

@@ -9,7 +9,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use mechanics::time::{CouplingMethod, Subdomain};
-use protocol::scheme::lagrange::{LagrangeScheme, LagrangeSide, Method};
+use protocol::scheme::lagrange::{InterfaceSolver, LagrangeSide, Method};
 use protocol::{Inbox, Outbox, Solver, Window};
 use solid_node::fem2d::Fem2d;
 use solid_node::lagrange::SubdomainSide;
@@ -195,7 +195,7 @@ fn split(
     let nl = 2 * (NY + 1);
     let mut scheme = {
         let mut sides: [&mut dyn LagrangeSide; 2] = [&mut l, &mut r];
-        match LagrangeScheme::new(method, nl, &mut sides) {
+        match InterfaceSolver::new(method, nl, &mut sides) {
             Ok(s) => s,
             Err(e) => panic!("{e}"),
         }

@@ -7,7 +7,7 @@
 //! method's theory gives (docs/architecture.md, "Multi-time-step coupling").
 
 use mechanics::time::{CouplingMethod, LinearSystem, Subdomain};
-use protocol::scheme::lagrange::{LagrangeScheme, LagrangeSide, Method};
+use protocol::scheme::lagrange::{InterfaceSolver, LagrangeSide, Method};
 use protocol::{Inbox, Outbox, Solver, Window};
 use solid_node::fem2d::Fem2d;
 use solid_node::fixtures::{bar_chain, nan_max};
@@ -258,7 +258,7 @@ mod cantilever {
         let mut s3 = SubdomainSide(build(&three, "cut", -1.0, PER_CUT, substeps[2]));
         let mut scheme = {
             let mut sides: [&mut dyn LagrangeSide; 3] = [&mut s1, &mut s2, &mut s3];
-            match LagrangeScheme::new(method, 2 * PER_CUT, &mut sides) {
+            match InterfaceSolver::new(method, 2 * PER_CUT, &mut sides) {
                 Ok(s) => s,
                 Err(e) => panic!("{e}"),
             }

@@ -6,7 +6,7 @@
 //! the same through `cosim run` with a SIGKILL.
 
 use mechanics::time::{CouplingMethod, Design, Gs4, InterfaceDof, Subdomain};
-use protocol::scheme::lagrange::{LagrangeScheme, LagrangeSide, Method};
+use protocol::scheme::lagrange::{InterfaceSolver, LagrangeSide, Method};
 use solid_node::bar::chain_system;
 use solid_node::fixtures::split_bar::{self, Ramp};
 use solid_node::lagrange::SubdomainSide;
@@ -77,15 +77,15 @@ fn sides(left_elements: usize) -> (SubdomainSide, SubdomainSide) {
     (left, right)
 }
 
-fn scheme(l: &mut SubdomainSide, r: &mut SubdomainSide) -> LagrangeScheme {
+fn scheme(l: &mut SubdomainSide, r: &mut SubdomainSide) -> InterfaceSolver {
     let mut s: [&mut dyn LagrangeSide; 2] = [l, r];
-    match LagrangeScheme::new(Method::Gs4, 1, &mut s) {
+    match InterfaceSolver::new(Method::Gs4, 1, &mut s) {
         Ok(x) => x,
         Err(e) => panic!("scheme: {e}"),
     }
 }
 
-fn run(sc: &mut LagrangeScheme, l: &mut SubdomainSide, r: &mut SubdomainSide, steps: usize) {
+fn run(sc: &mut InterfaceSolver, l: &mut SubdomainSide, r: &mut SubdomainSide, steps: usize) {
     for _ in 0..steps {
         let mut s: [&mut dyn LagrangeSide; 2] = [&mut *l, &mut *r];
         if let Err(e) = sc.step(&mut s) {
@@ -95,7 +95,7 @@ fn run(sc: &mut LagrangeScheme, l: &mut SubdomainSide, r: &mut SubdomainSide, st
 }
 
 /// Everything that must continue bit for bit: both states, clocks, audit sums and λ.
-fn bits(sc: &LagrangeScheme, l: &SubdomainSide, r: &SubdomainSide) -> Vec<u64> {
+fn bits(sc: &InterfaceSolver, l: &SubdomainSide, r: &SubdomainSide) -> Vec<u64> {
     let mut v: Vec<u64> = sc.lambda().iter().map(|x| x.to_bits()).collect();
     for s in [&l.0, &r.0] {
         let st = s.save();

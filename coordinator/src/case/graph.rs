@@ -3,7 +3,6 @@
 //! interface takes one coupling. Pure functions of the resolved [`Case`].
 
 use super::resolved::{Case, ConfigError, CouplingConfig, Schedule, err};
-use protocol::CouplingKind;
 use protocol::scheme;
 use std::collections::BTreeMap;
 
@@ -51,7 +50,7 @@ pub fn required_fields(c: &CouplingConfig) -> Vec<Need<'_>> {
         provide,
         fields,
     };
-    if c.kind == CouplingKind::Lagrange {
+    if scheme::of(c.kind).coordinator_solved() {
         let (provides, accepts) = scheme::of(c.kind).default_fields();
         let own = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
         return c
@@ -79,7 +78,7 @@ pub fn required_fields(c: &CouplingConfig) -> Vec<Need<'_>> {
 pub fn bindings_of(case: &Case, node: &str) -> Vec<protocol::Binding> {
     let mut v = Vec::new();
     for c in &case.couplings {
-        if c.kind == CouplingKind::Lagrange {
+        if scheme::of(c.kind).coordinator_solved() {
             // Every side exchanges with the coordinator, which solves the interface problem.
             for (n, iface) in c.sides.iter().filter(|s| s.0 == node) {
                 let _ = n;

@@ -255,7 +255,7 @@ fn settle_coupling(
             .ok_or_else(|| err(format!("{p}{key}"), "missing"))?;
         member(&format!("{p}{key}"), v)
     };
-    let (sides, method) = if kind == CouplingKind::Lagrange {
+    let (sides, method) = if scheme::of(kind).coordinator_solved() {
         lagrange_sides(c, &p, &member)?
     } else {
         for (k, given) in [("sides", c.sides.is_some()), ("method", c.method.is_some())] {
@@ -358,7 +358,7 @@ fn check_lagrange(
     couplings: &[CouplingConfig],
 ) -> Result<(), ConfigError> {
     for (i, c) in couplings.iter().enumerate() {
-        if c.kind != CouplingKind::Lagrange {
+        if !scheme::of(c.kind).coordinator_solved() {
             continue;
         }
         let w = run.end_time / run.window;
@@ -387,7 +387,7 @@ fn check_lagrange(
                 ));
             }
             if let Some(j) = couplings[..i].iter().position(|o| {
-                o.kind == CouplingKind::Lagrange && o.sides.iter().any(|s| &s.0 == node)
+                scheme::of(o.kind).coordinator_solved() && o.sides.iter().any(|s| &s.0 == node)
             }) {
                 return Err(err(
                     format!("couplings[{i}].sides[{k}]"),
@@ -428,7 +428,7 @@ fn check_stability(case: &Case) -> Result<Vec<String>, ConfigError> {
     let window = case.run.window;
     let mut warnings = Vec::new();
     for (i, c) in case.couplings.iter().enumerate() {
-        if c.kind != CouplingKind::Lagrange {
+        if !scheme::of(c.kind).coordinator_solved() {
             continue;
         }
         let gs4_or_ph = c.method != Some(scheme::lagrange::Method::Gc);
@@ -510,7 +510,7 @@ pub fn point_spacing(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
 /// non-matching meshes, mapped by design.
 fn check_coincident(case: &Case) -> Result<(), ConfigError> {
     for (i, c) in case.couplings.iter().enumerate() {
-        if c.kind != CouplingKind::Kinematic {
+        if !scheme::of(c.kind).ties_points() {
             continue;
         }
         let at = |(node, iface): &(String, String)| {

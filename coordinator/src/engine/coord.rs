@@ -9,6 +9,7 @@ use crate::profile::Profile;
 use crate::progress::Progress;
 use crate::record::RecorderThread;
 use protocol::codec::{self, encode_into};
+use protocol::scheme::lagrange;
 use protocol::stop;
 use protocol::transport::{Publisher, Transport};
 use protocol::*;
@@ -119,7 +120,7 @@ pub(crate) struct Coord<'a> {
     /// The bar or progress lines of the window loop; messages go through it.
     pub(super) progress: Progress,
     /// The lagrange couplings (the interface problems solved here) and their publishers.
-    pub(super) hubs: Vec<(crate::lagrange::Hub, Box<dyn Publisher>)>,
+    pub(super) hubs: Vec<(lagrange::Hub, Box<dyn Publisher>)>,
     /// Where the window loop's time goes (`summary.json`: `window_breakdown`).
     pub(super) prof: Profile,
     /// The last receive's time blocked and recording (ns), for [`Coord::pump_one`].
@@ -300,10 +301,12 @@ impl<'a> Coord<'a> {
             if protocol::scheme::of(c.kind).coordinator_solved() {
                 let readers: Vec<String> = c.sides.iter().map(|s| s.0.clone()).collect();
                 let p = t.publisher(
-                    &topic::data(&run_id, &c.name, protocol::scheme::lagrange::wire::PEER),
+                    &topic::data(&run_id, &c.name, lagrange::wire::PEER),
                     &readers,
                 )?;
-                hubs.push((crate::lagrange::Hub::new(c, case.run.window), p));
+                let method = c.method.unwrap_or(lagrange::Method::Gs4);
+                let hub = lagrange::Hub::new(&c.name, method, &readers, case.run.window);
+                hubs.push((hub, p));
             }
             for (k, (side, _)) in c.members().into_iter().enumerate() {
                 let tp = topic::data(&run_id, &c.name, side);
@@ -317,7 +320,8 @@ impl<'a> Coord<'a> {
                     Role::Responder
                 };
                 contracts.push(
-                    (c.kind != CouplingKind::Lagrange).then(|| Contract::in_case(case, c, role)),
+                    (!protocol::scheme::of(c.kind).coordinator_solved())
+                        .then(|| Contract::in_case(case, c, role)),
                 );
             }
         }

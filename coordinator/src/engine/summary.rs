@@ -3,7 +3,6 @@
 use super::coord::*;
 use crate::case::{self};
 use protocol::stop;
-use protocol::*;
 use serde_json::json;
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
@@ -104,7 +103,7 @@ fn couplings_doc(c: &Coord, decoupled: &[Option<(u64, f64, String)>]) -> Vec<ser
             if let Some((w, t, why)) = d {
                 v["decoupled"] = json!({ "before_window": w, "time": t, "reason": why });
             }
-            if cp.kind == CouplingKind::Lagrange {
+            if protocol::scheme::of(cp.kind).coordinator_solved() {
                 lagrange_doc(c, cp, &mut v);
             }
             v

@@ -2,23 +2,24 @@
 //! contract, the coordinator's schedule for it (input lags, same-window order) and its node
 //! side (what each side sends, what it does with what arrives; docs/architecture.md).
 //!
-//! * [`sync_force`]: `kind = "kinematic"`, the kinematic sync-force scheme (§5.1);
+//! * [`kinematic`]: `kind = "kinematic"`, the kinematic (sync-force) scheme (§5.1);
 //! * [`immersed`]: `kind = "immersed"`, the immersed boundary scheme (§5.2);
-//! * [`lagrange`]: `kind = "lagrange"`, Lagrange multipliers solved by the coordinator (§5.3).
+//! * [`lagrange`]: `kind = "lagrange"`, Lagrange multipliers solved by the coordinator
+//!   (§5.3): its contract, its node side, its interface solver and the coordinator's hub.
 //!
 //! [`of`] gives a kind's [`Scheme`]; the coordinator's validation and bindings and the
 //! participant runtime ask it instead of matching on the kind.
 
 pub mod immersed;
+pub mod kinematic;
 pub mod lagrange;
-pub mod sync_force;
 
 use crate::mapping::Mapping;
 use crate::solver::FieldSet;
 use wire::message::{CouplingKind, Field, InterfaceMesh, Role};
 
 /// What a coupling scheme fixes. The defaults are the driver/responder contract that
-/// `sync_force` and `immersed` share; a scheme overrides what differs. Every method is
+/// `kinematic` and `immersed` share; a scheme overrides what differs. Every method is
 /// allocation-free except where it builds a message or a mapping.
 pub trait Scheme: Sync {
     /// The fields the driver and the responder send (`driver_fields`, `responder_fields`)
@@ -53,9 +54,18 @@ pub trait Scheme: Sync {
         false
     }
 
-    /// Whether the node's side talks to the coordinator only (its data topic's one reader),
-    /// not to a peer node.
+    /// Whether the coupling joins N ≥ 2 sides (`sides` in the case, each bound as a driver)
+    /// through an interface problem the coordinator solves, rather than a driver and a
+    /// responder: each side talks to the coordinator only (its data topic's one reader), not
+    /// to a peer node; the coordinator keeps the scheme's hub, checkpoints its state and
+    /// checks no field contract on the sides' data (the hub reads it).
     fn coordinator_solved(&self) -> bool {
+        false
+    }
+
+    /// Whether the responder's interface points are tied to the driver's by nearest point,
+    /// so that on equal point counts each pair must coincide.
+    fn ties_points(&self) -> bool {
         false
     }
 
@@ -82,7 +92,7 @@ pub trait Scheme: Sync {
     }
 
     /// Whether the side with `role` moves its interface along its peer's motion
-    /// ([`sync_force::Follow`]) and sends back its interface force, rather than sending its
+    /// ([`kinematic::Follow`]) and sends back its interface force, rather than sending its
     /// motion and taking its peer's loads.
     fn follows(&self, _role: Role) -> bool {
         false
@@ -183,7 +193,7 @@ pub fn components_of(name: &str) -> Option<u32> {
 /// The scheme of a coupling kind.
 pub fn of(kind: CouplingKind) -> &'static dyn Scheme {
     match kind {
-        CouplingKind::Kinematic => &sync_force::SyncForce,
+        CouplingKind::Kinematic => &kinematic::Kinematic,
         CouplingKind::Immersed => &immersed::Immersed,
         CouplingKind::Lagrange => &lagrange::Lagrange,
     }

@@ -324,7 +324,7 @@ fn mass(body: &Body, p: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use crate::pd::solver::PdSolver;
-    use protocol::scheme::lagrange::{LagrangeScheme, LagrangeSide, Method};
+    use protocol::scheme::lagrange::{InterfaceSolver, LagrangeSide, Method};
     use protocol::solver::Solver;
 
     /// A plane-stress pd-correspondence block x in [x0, x1] (lattice columns at x0 … x1,
@@ -452,7 +452,7 @@ mod tests {
             }
             let mut scheme = {
                 let mut sides: [&mut dyn LagrangeSide; 2] = [&mut l, &mut r];
-                match LagrangeScheme::new(method, 2 * tied, &mut sides) {
+                match InterfaceSolver::new(method, 2 * tied, &mut sides) {
                     Ok(s) => s,
                     Err(e) => panic!("{e}"),
                 }
@@ -483,7 +483,7 @@ mod tests {
 
     /// Sets both blocks up as sides of `method` at system step `window` and builds the
     /// interface problem.
-    fn coupled(method: Method, window: f64) -> (PdSolver, PdSolver, LagrangeScheme) {
+    fn coupled(method: Method, window: f64) -> (PdSolver, PdSolver, InterfaceSolver) {
         let (mut l, mut r) = (block(0.0, 0.5, 0.5, false), block(0.5, 1.0, 0.5, true));
         for (s, sign) in [(&mut l, 1.0), (&mut r, -1.0)] {
             if let Err(e) = s.lagrange_side_for("cut", method, window, (0, sign)) {
@@ -493,7 +493,7 @@ mod tests {
         let nl = LagrangeSide::multiplier_ids(&l).len();
         let scheme = {
             let mut sides: [&mut dyn LagrangeSide; 2] = [&mut l, &mut r];
-            match LagrangeScheme::new(method, nl, &mut sides) {
+            match InterfaceSolver::new(method, nl, &mut sides) {
                 Ok(s) => s,
                 Err(e) => panic!("{e}"),
             }
@@ -501,7 +501,7 @@ mod tests {
         (l, r, scheme)
     }
 
-    fn run(sc: &mut LagrangeScheme, l: &mut PdSolver, r: &mut PdSolver, steps: usize) {
+    fn run(sc: &mut InterfaceSolver, l: &mut PdSolver, r: &mut PdSolver, steps: usize) {
         for _ in 0..steps {
             let mut sides: [&mut dyn LagrangeSide; 2] = [&mut *l, &mut *r];
             if let Err(e) = sc.step(&mut sides) {
@@ -512,7 +512,7 @@ mod tests {
 
     /// Everything that must continue bit for bit: λ, both bodies' motion and forces, clocks,
     /// the sides' audit sums.
-    fn bits(sc: &LagrangeScheme, l: &PdSolver, r: &PdSolver) -> Vec<u64> {
+    fn bits(sc: &InterfaceSolver, l: &PdSolver, r: &PdSolver) -> Vec<u64> {
         let mut v: Vec<u64> = sc.lambda().iter().map(|x| x.to_bits()).collect();
         for s in [l, r] {
             let b = &s.body;

@@ -1,6 +1,7 @@
 //! Peridynamic solid models (seed 000 App. A–C, seed 001 ch. 4): particles and families,
-//! the model family behind one trait (`model`), one file per model, the velocity-Verlet
-//! body, VTK output and the `Solver` implementation with its coupling sides.
+//! the model family behind one trait (`model`), one file per model's force law and one per
+//! model's construction from its parameters (`models/`), the velocity-Verlet body, VTK
+//! output and the `Solver` implementation with its coupling sides.
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
 // `!(x > 0.0)` is deliberate: it also rejects NaN.
 #![allow(
@@ -22,79 +23,47 @@ pub mod gpu;
 pub mod integrate;
 pub mod lagrange;
 pub mod model;
+pub mod models;
 pub mod rk_ba;
 pub mod solver;
 
 use protocol::{BuildOptions, Solver, SolverResult};
 
-/// The peridynamic models of this node by config name, for a run; `None` when `model` is
-/// not one.
+/// The peridynamic model named `model` for a run; `None` when `model` is not one.
 pub fn factory(model: &str, params: &toml::Table) -> Option<SolverResult<Box<dyn Solver>>> {
-    build(model, params, &BuildOptions::RUN)
+    let def = models::by_name(model)?;
+    Some(build(def, params, &BuildOptions::RUN))
 }
 
-/// As `factory`, as `opts` asks (describe-only opens no GPU).
+/// Model `def` from its parameter table, as `opts` asks (describe-only opens no GPU).
 pub fn build(
-    model: &str,
+    def: &models::PdModelDef,
     params: &toml::Table,
     opts: &BuildOptions,
-) -> Option<SolverResult<Box<dyn Solver>>> {
-    match model {
-        "pd-bond" | "pd-correspondence" | "pd-rk-ba" => Some(
-            protocol::params::decode(params)
-                .and_then(|p| {
-                    refuse_inapplicable(model, params)?;
-                    solver::PdSolver::build(model, p, opts)
-                })
-                .map(|s| Box::new(s) as Box<dyn Solver>),
-        ),
-        _ => None,
-    }
+) -> SolverResult<Box<dyn Solver>> {
+    protocol::params::decode(params)
+        .and_then(|p| {
+            refuse_inapplicable(def, params)?;
+            solver::PdSolver::build_model(def, p, opts)
+        })
+        .map(|s| Box::new(s) as Box<dyn Solver>)
 }
 
 /// Keys of the parameter table that the chosen model or dimension ignores are refused by
-/// name, so a key meant for another model is not silently dropped: the J2 keys and
-/// `stabilization` (pd-correspondence's zero-energy control) on the elastic bond model,
-/// `rk_order` outside pd-rk-ba, `stabilization` on pd-rk-ba (its bond-associative
-/// stabilization has no constant), hardening without `yield_stress`, `thickness` in 3-D.
-fn refuse_inapplicable(model: &str, params: &toml::Table) -> protocol::SolverResult<()> {
+/// name, so a key meant for another model is not silently dropped: each model's own list
+/// (`PdModelDef::refuses`: the J2 keys and `stabilization` on the elastic bond model,
+/// `rk_order` outside pd-rk-ba, `stabilization` on pd-rk-ba), hardening without
+/// `yield_stress`, `thickness` in 3-D.
+fn refuse_inapplicable(def: &models::PdModelDef, params: &toml::Table) -> SolverResult<()> {
     use protocol::SolverError;
     let has = |k: &str| params.contains_key(k);
     let only = |key: &str, why: &str| Err(SolverError::config(key, why.to_string()));
-    let per_model: &[(&str, &str)] = match model {
-        "pd-bond" => &[
-            (
-                "stabilization",
-                "does not apply to pd-bond (the bond-based model has no zero-energy modes; it is pd-correspondence's)",
-            ),
-            (
-                "rk_order",
-                "does not apply to pd-bond (only pd-rk-ba has an RK gradient order)",
-            ),
-            (
-                "iso_hardening",
-                "does not apply to pd-bond (elastic-brittle; use pd-correspondence or pd-rk-ba for plasticity)",
-            ),
-            (
-                "kin_hardening",
-                "does not apply to pd-bond (elastic-brittle; use pd-correspondence or pd-rk-ba for plasticity)",
-            ),
-        ],
-        "pd-correspondence" => &[(
-            "rk_order",
-            "does not apply to pd-correspondence (only pd-rk-ba has an RK gradient order)",
-        )],
-        _ => &[(
-            "stabilization",
-            "does not apply to pd-rk-ba (its bond-associative stabilization takes no constant; G is pd-correspondence's)",
-        )],
-    };
-    for (k, why) in per_model {
+    for (k, why) in def.refuses {
         if has(k) {
             return only(k, why);
         }
     }
-    if !has("yield_stress") && model != "pd-bond" {
+    if !has("yield_stress") && def.plastic {
         for k in ["iso_hardening", "kin_hardening"] {
             if has(k) {
                 return only(

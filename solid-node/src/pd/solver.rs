@@ -13,25 +13,22 @@
     clippy::too_many_arguments
 )]
 
-use super::bond::{BondModel, implied_poisson};
-use super::correspondence::Correspondence;
 use super::family::{Bonds, full_family, surface_particles};
 use super::geometry::{Shape, lattice, lattice_count};
 use super::gpu::DeviceBody;
 use super::integrate::Body;
 use super::lagrange::ExplicitSide;
-use super::model::{Dim, PdModel};
-use super::rk_ba::RkBa;
+use super::model::Dim;
+use super::models::{ModelInput, PdModelDef};
 use crate::fem2d::History;
 use mechanics::damage::{
     BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain, NoDamage,
 };
-use mechanics::gpu::GpuContext;
 use mechanics::j2::J2Material;
 use node_kit::device::Device;
 use node_kit::vtk::{self, Arrays, Frame};
 use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
-use protocol::scheme::{self, sync_force};
+use protocol::scheme::{self, kinematic};
 use protocol::{
     Binding, CouplingKind, InterfaceInfo, InterfaceMesh, NodeDescription, Role, Solver,
     SolverError, SolverResult, StepReport, Window,
@@ -40,7 +37,6 @@ use protocol::{BuildOptions, Inbox, LimitApplies, Outbox, WindowLimit};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::sync::Arc;
 
 fn default_thickness() -> f64 {
     1.0
@@ -312,7 +308,7 @@ pub struct PdSolver {
     /// The particles that follow a driver's motion, in coupling order, and their path
     /// through the window (sync-force responder side).
     follow_pts: Vec<usize>,
-    follow: sync_force::Follow,
+    follow: kinematic::Follow,
     /// Pressure particles and their outward area vectors (m²).
     pressure_area: Vec<(usize, [f64; 3])>,
     /// Particles with prescribed velocity from the config.
@@ -386,31 +382,6 @@ fn bond_budget(p: &PdParams, particles: usize, three_d: bool) -> SolverResult<()
     )
 }
 
-/// The pd-rk-ba model with damage law `damage`, refused (key `horizon`) when a moment
-/// matrix of the reference configuration is singular; the check runs in the model's own
-/// buffers.
-fn rk_ba<D: DamageModel + 'static>(
-    dim: Dim,
-    order: usize,
-    horizon: f64,
-    material: J2Material,
-    damage: D,
-    k: &super::model::Kinematics,
-    bonds: &Bonds,
-) -> SolverResult<Box<dyn PdModel>> {
-    let mut m = RkBa::new(dim, order, horizon, material, damage, bonds);
-    if let Some(i) = m.singular_particle(k, bonds) {
-        return cfg(
-            "horizon",
-            format!(
-                "too small for rk_order = {order}: the moment matrix is singular at particle {i} (use δ ≥ {}·Δx)",
-                order + 1
-            ),
-        );
-    }
-    Ok(Box::new(m))
-}
-
 /// First bytes of a checkpoint of this node.
 const CHECKPOINT_MAGIC: &[u8] = b"cosim-pd-state-v4";
 
@@ -431,111 +402,25 @@ impl PdSolver {
     /// As `new`, as `opts` asks: describe-only checks `device = "gpu"` against the device
     /// kernels but opens no GPU (the body stays on the host).
     pub fn build(model: &str, p: PdParams, opts: &BuildOptions) -> SolverResult<Self> {
-        let model_name = model.to_string();
-        let dim = match p.dimension.as_str() {
-            "3d" => Dim::Three,
-            "plane_stress" => Dim::PlaneStress,
-            "plane_strain" => Dim::PlaneStrain,
-            other => {
-                return cfg(
-                    "dimension",
-                    format!(
-                        "must be \"3d\", \"plane_stress\" or \"plane_strain\", got \"{other}\""
-                    ),
-                );
-            }
+        let Some(def) = super::models::by_name(model) else {
+            return cfg("model", format!("unknown peridynamic model '{model}'"));
         };
+        Self::build_model(def, p, opts)
+    }
+
+    /// The solver of model `def` from its parameters `p`: the parameters checked, the
+    /// particles laid out and bonded, the model built, then what the parameters place on
+    /// the body (initial and prescribed velocities, a pressure pulse, interfaces, loads,
+    /// probe points) and, with `device = "gpu"`, its device copy.
+    pub fn build_model(def: &PdModelDef, p: PdParams, opts: &BuildOptions) -> SolverResult<Self> {
+        let dim = dimension(&p)?;
         let three_d = dim.three_d();
         let target = Device::parse(p.device.as_deref(), p.precision.as_deref())?;
         let on_gpu = target.is_gpu();
         if on_gpu {
-            gpu_supports(model, dim, &p).map_err(|r| SolverError::config("device", r))?;
+            gpu_supports(def, dim, &p).map_err(|r| SolverError::config("device", r))?;
         }
-        if !(p.spacing.is_finite() && p.spacing > 0.0) {
-            return cfg("spacing", format!("must be > 0, got {}", p.spacing));
-        }
-        if !(p.horizon.is_finite() && p.horizon > p.spacing) {
-            return cfg(
-                "horizon",
-                format!("must exceed the spacing {} (got {})", p.spacing, p.horizon),
-            );
-        }
-        if !(p.density.is_finite() && p.density > 0.0) {
-            return cfg("density", format!("must be > 0, got {}", p.density));
-        }
-        let thickness_ok = p.thickness.is_finite() && p.thickness > 0.0;
-        if !three_d && !thickness_ok {
-            return cfg("thickness", format!("must be > 0, got {}", p.thickness));
-        }
-        if !(p.cfl > 0.0 && p.cfl <= 1.0) {
-            return cfg("cfl", format!("must be in (0, 1], got {}", p.cfl));
-        }
-        if !(p.stabilization.is_finite() && p.stabilization >= 0.0) {
-            return cfg(
-                "stabilization",
-                format!("must be >= 0, got {}", p.stabilization),
-            );
-        }
-        let material = J2Material {
-            young: p.young,
-            poisson: p.poisson,
-            yield_stress: p.yield_stress.unwrap_or(f64::MAX),
-            iso_hardening: p.iso_hardening,
-            kin_hardening: p.kin_hardening,
-        };
-        if let Err((k, r)) = material.validate() {
-            return cfg(&k, r);
-        }
-        if p.bodies.is_empty() {
-            return cfg("bodies", "no body given: the particle set would be empty");
-        }
-        for (n, s) in p.bodies.iter().enumerate() {
-            if let Err(r) = s.check(three_d) {
-                return cfg(&format!("bodies[{n}]"), r);
-            }
-        }
-        let damage: Box<dyn DamageModel> = match &p.damage {
-            None | Some(DamageParams::None {}) => Box::new(NoDamage),
-            Some(DamageParams::CriticalStretch { critical_stretch }) => Box::new(CriticalStretch {
-                critical_stretch: *critical_stretch,
-            }),
-            Some(DamageParams::VonMises { critical_stress }) => Box::new(BrittleVonMises {
-                critical_stress: *critical_stress,
-            }),
-            Some(DamageParams::PlasticStrain {
-                eps_threshold,
-                eps_critical,
-            }) => Box::new(DuctilePlasticStrain {
-                threshold: *eps_threshold,
-                critical: *eps_critical,
-            }),
-        };
-        if let Err((k, r)) = damage.validate() {
-            return cfg(&format!("damage.{k}"), r);
-        }
-        // the lattice points each body's bounding box holds: refuse a body that would not
-        // fit in memory before generating it (an input must not exhaust the host)
-        for (n, s) in p.bodies.iter().enumerate() {
-            let (lo, hi) = s.bounds();
-            let dims = if three_d { 3 } else { 2 };
-            let points: f64 = (0..dims)
-                .map(|d| ((hi[d] - lo[d]) / p.spacing).floor() + 1.0)
-                .product();
-            if !(points <= MAX_LATTICE_POINTS) {
-                return cfg(
-                    &format!("bodies[{n}]"),
-                    format!(
-                        "holds about {points:.3e} lattice points at spacing {}: more than the {MAX_LATTICE_POINTS:.0e} a node takes",
-                        p.spacing
-                    ),
-                );
-            }
-        }
-        let particles = lattice_count(&p.bodies, &p.holes, p.spacing, three_d);
-        if particles == 0 {
-            return cfg("bodies", "the bodies hold no lattice point at this spacing");
-        }
-        bond_budget(&p, particles, three_d)?;
+        let material = check_params(&p, three_d)?;
         let x0 = lattice(&p.bodies, &p.holes, p.spacing, three_d);
         let v = if three_d {
             p.spacing.powi(3)
@@ -544,373 +429,52 @@ impl PdSolver {
         };
         let vol = vec![v; x0.len()];
         let bonds = Bonds::build(&x0, p.horizon);
-        let rest = vec![[0.0; 3]; x0.len()];
-        let k = super::model::Kinematics {
-            x0: &x0,
-            pos: &x0,
-            disp: &rest,
-            vel: &rest,
-            vol: &vol,
-        };
-        let model: Box<dyn PdModel> = match model {
-            "pd-bond" => {
-                let nu = implied_poisson(dim);
-                if (p.poisson - nu).abs() > 1e-9 {
-                    return cfg(
-                        "poisson",
-                        format!(
-                            "pd-bond in {} fixes ν = {nu:.6}, got {}",
-                            p.dimension, p.poisson
-                        ),
-                    );
-                }
-                if p.yield_stress.is_some() {
-                    return cfg(
-                        "yield_stress",
-                        "pd-bond is elastic-brittle; use pd-correspondence for plasticity",
-                    );
-                }
-                let s0 = match &p.damage {
-                    None | Some(DamageParams::None {}) => None,
-                    Some(DamageParams::CriticalStretch { critical_stretch }) => {
-                        Some(*critical_stretch)
-                    }
-                    Some(_) => {
-                        return cfg(
-                            "damage.kind",
-                            "pd-bond supports \"critical_stretch\" or \"none\"",
-                        );
-                    }
-                };
-                Box::new(BondModel::new(
-                    dim,
-                    p.young,
-                    p.horizon,
-                    p.thickness,
-                    s0,
-                    &k,
-                    &bonds,
-                ))
-            }
-            "pd-correspondence" => {
-                let mk = |d| -> Box<dyn PdModel> {
-                    match d {
-                        DamageParams::None {} => Box::new(Correspondence::new(
-                            dim,
-                            material,
-                            p.stabilization,
-                            p.horizon,
-                            p.thickness,
-                            NoDamage,
-                            &k,
-                            &bonds,
-                        )),
-                        DamageParams::CriticalStretch { critical_stretch } => {
-                            Box::new(Correspondence::new(
-                                dim,
-                                material,
-                                p.stabilization,
-                                p.horizon,
-                                p.thickness,
-                                CriticalStretch { critical_stretch },
-                                &k,
-                                &bonds,
-                            ))
-                        }
-                        DamageParams::VonMises { critical_stress } => {
-                            Box::new(Correspondence::new(
-                                dim,
-                                material,
-                                p.stabilization,
-                                p.horizon,
-                                p.thickness,
-                                BrittleVonMises { critical_stress },
-                                &k,
-                                &bonds,
-                            ))
-                        }
-                        DamageParams::PlasticStrain {
-                            eps_threshold,
-                            eps_critical,
-                        } => Box::new(Correspondence::new(
-                            dim,
-                            material,
-                            p.stabilization,
-                            p.horizon,
-                            p.thickness,
-                            DuctilePlasticStrain {
-                                threshold: eps_threshold,
-                                critical: eps_critical,
-                            },
-                            &k,
-                            &bonds,
-                        )),
-                    }
-                };
-                mk(p.damage.clone().unwrap_or(DamageParams::None {}))
-            }
-            "pd-rk-ba" => {
-                if dim == Dim::PlaneStress {
-                    return cfg("dimension", "pd-rk-ba supports \"3d\" and \"plane_strain\"");
-                }
-                if !(p.rk_order == 1 || p.rk_order == 2) {
-                    return cfg("rk_order", format!("must be 1 or 2, got {}", p.rk_order));
-                }
-                let (order, h) = (p.rk_order, p.horizon);
-                match p.damage.clone().unwrap_or(DamageParams::None {}) {
-                    DamageParams::None {} => rk_ba(dim, order, h, material, NoDamage, &k, &bonds)?,
-                    DamageParams::CriticalStretch { critical_stretch } => rk_ba(
-                        dim,
-                        order,
-                        h,
-                        material,
-                        CriticalStretch { critical_stretch },
-                        &k,
-                        &bonds,
-                    )?,
-                    DamageParams::VonMises { critical_stress } => rk_ba(
-                        dim,
-                        order,
-                        h,
-                        material,
-                        BrittleVonMises { critical_stress },
-                        &k,
-                        &bonds,
-                    )?,
-                    DamageParams::PlasticStrain {
-                        eps_threshold,
-                        eps_critical,
-                    } => rk_ba(
-                        dim,
-                        order,
-                        h,
-                        material,
-                        DuctilePlasticStrain {
-                            threshold: eps_threshold,
-                            critical: eps_critical,
-                        },
-                        &k,
-                        &bonds,
-                    )?,
-                }
-            }
-            other => return cfg("model", format!("unknown peridynamic model '{other}'")),
-        };
+        let model = at_rest(&x0, &vol, |k| {
+            (def.build)(&ModelInput {
+                dim,
+                p: &p,
+                material,
+                k,
+                bonds: &bonds,
+            })
+        })?;
         let mut body = Body::new(dim, p.spacing, p.horizon, p.density, x0, vol, bonds, model);
-        for (n, r) in p.initial_velocity.iter().enumerate() {
-            if let Err(e) = r.region.check(three_d) {
-                return cfg(&format!("initial_velocity[{n}].region"), e);
-            }
-            for i in 0..body.len() {
-                if r.region.contains(&body.x0[i], three_d) {
-                    body.vel[i] = r.velocity;
-                }
-            }
-        }
-        let mut bc_particles = Vec::new();
-        for (n, r) in p.prescribed_velocity.iter().enumerate() {
-            if let Err(e) = r.region.check(three_d) {
-                return cfg(&format!("prescribed_velocity[{n}].region"), e);
-            }
-            for i in 0..body.len() {
-                if r.region.contains(&body.x0[i], three_d) {
-                    body.prescribed[i] = 1;
-                    body.vpres[i] = r.velocity;
-                    body.vel[i] = r.velocity;
-                    bc_particles.push(i);
-                }
-            }
-        }
-        bc_particles.sort_unstable();
-        bc_particles.dedup();
-        let mut pressure_area = Vec::new();
-        if let Some(pp) = &p.pressure_pulse {
-            if pp.surface != "inner" {
-                return cfg(
-                    "pressure_pulse.surface",
-                    format!("only \"inner\" is offered, got \"{}\"", pp.surface),
-                );
-            }
-            if !(pp.inner_radius > 0.0 && pp.inner_radius.is_finite()) {
-                return cfg(
-                    "pressure_pulse.inner_radius",
-                    format!("must be > 0, got {}", pp.inner_radius),
-                );
-            }
-            if !(pp.peak.is_finite()) {
-                return cfg("pressure_pulse.peak", "must be finite");
-            }
-            if !(pp.duration > 0.0 && pp.duration.is_finite()) {
-                return cfg(
-                    "pressure_pulse.duration",
-                    format!("must be > 0, got {}", pp.duration),
-                );
-            }
-            if !(pp.rise >= 0.0 && pp.rise < pp.duration) {
-                return cfg(
-                    "pressure_pulse.rise",
-                    format!("must be in [0, duration), got {}", pp.rise),
-                );
-            }
-            // Particles of the first layer outside the inner face; each carries Δx·h (2-D)
-            // or Δx² (3-D) of the face.
-            let a = if three_d {
-                p.spacing * p.spacing
-            } else {
-                p.spacing * p.thickness
-            };
-            for i in 0..body.len() {
-                let dx = body.x0[i][0] - pp.center[0];
-                let dy = body.x0[i][1] - pp.center[1];
-                let r = (dx * dx + dy * dy).sqrt();
-                if r >= pp.inner_radius && r < pp.inner_radius + p.spacing {
-                    pressure_area.push((i, [a * dx / r, a * dy / r, 0.0]));
-                }
-            }
-            if pressure_area.is_empty() {
-                return cfg(
-                    "pressure_pulse.inner_radius",
-                    "no particle lies on this face",
-                );
-            }
-        }
-        let surf = surface_particles(&body.x0, &body.bonds, p.spacing, three_d);
-        let mut interfaces = Vec::new();
-        for (n, ip) in p.interfaces.iter().enumerate() {
-            let base: Vec<usize> = match ip.select.as_str() {
-                "all" => (0..body.len()).collect(),
-                "surface" => surf.clone(),
-                other => {
-                    return cfg(
-                        &format!("interfaces[{n}].select"),
-                        format!("must be \"all\" or \"surface\", got \"{other}\""),
-                    );
-                }
-            };
-            for (k, r) in ip.region.iter().chain(&ip.regions).enumerate() {
-                if let Err(e) = r.check(three_d) {
-                    let key = match ip.region {
-                        Some(_) if k == 0 => format!("interfaces[{n}].region"),
-                        Some(_) => format!("interfaces[{n}].regions[{}]", k - 1),
-                        None => format!("interfaces[{n}].regions[{k}]"),
-                    };
-                    return cfg(&key, e);
-                }
-            }
-            let pts: Vec<usize> = if ip.region.is_none() && ip.regions.is_empty() {
-                base
-            } else {
-                base.into_iter()
-                    .filter(|&i| {
-                        ip.region
-                            .iter()
-                            .chain(&ip.regions)
-                            .any(|r| r.contains(&body.x0[i], three_d))
-                    })
-                    .collect()
-            };
-            if pts.is_empty() {
-                return cfg(&format!("interfaces[{n}]"), "selects no particle");
-            }
-            interfaces.push((ip.name.clone(), pts));
-        }
-        let device = if on_gpu && !opts.describe_only {
-            // the particles whose state crosses to the host every window: the interfaces
-            // and the supports
-            let mut gather: Vec<usize> = interfaces
-                .iter()
-                .flat_map(|(_, pts): &(String, Vec<usize>)| pts.iter().copied())
-                .chain(bc_particles.iter().copied())
-                .collect();
-            gather.sort_unstable();
-            gather.dedup();
-            match target.open(&format!("{model_name} body"))? {
-                Some(ctx) => Some(device_body(
-                    ctx,
-                    &model_name,
-                    dim,
-                    &p,
-                    material,
-                    &body,
-                    &gather,
-                )?),
-                None => None,
-            }
-        } else {
-            None
+        set_initial_velocity(&mut body, &p)?;
+        let bc_particles = prescribe_velocity(&mut body, &p)?;
+        let pressure_area = pressure_faces(&body, &p)?;
+        let interfaces = interfaces_of(&body, &p)?;
+        let device = match on_gpu && !opts.describe_only {
+            true => open_device(
+                def,
+                &target,
+                (dim, &p, material),
+                &body,
+                &interfaces,
+                &bc_particles,
+            )?,
+            false => None,
         };
-        let mut loads = Vec::new();
-        for (n, l) in p.loads.iter().enumerate() {
-            let key = format!("loads[{n}].");
-            if let Err(e) = l.region.check(three_d) {
-                return cfg(&format!("{key}region"), e);
-            }
-            if !l.force.iter().all(|f| f.is_finite()) {
-                return cfg(&format!("{key}force"), "must be finite");
-            }
-            let history = History::parse(&key, &l.history, l.ramp_time)?;
-            let pts: Vec<usize> = (0..body.len())
-                .filter(|&i| l.region.contains(&body.x0[i], three_d))
-                .collect();
-            if pts.is_empty() {
-                return cfg(&format!("{key}region"), "holds no particle");
-            }
-            let share = 1.0 / pts.len() as f64;
-            loads.extend(
-                pts.into_iter()
-                    .map(|i| (i, l.force.map(|f| f * share), history)),
-            );
-        }
+        let loads = loads_of(&body, &p)?;
         if on_gpu && !p.loads.is_empty() {
             return cfg(
                 "device",
                 "\"gpu\" does not support loads: use device = \"cpu\"",
             );
         }
-        let axes: &[&str] = if three_d {
-            &["x", "y", "z"]
-        } else {
-            &["x", "y"]
-        };
-        let mut points = Vec::with_capacity(p.points.len());
-        for (name, at) in &p.points {
-            let key = format!("points.{name}");
-            if at.len() != axes.len() || !at.iter().all(|x| x.is_finite()) {
-                return cfg(
-                    &key,
-                    format!("must be {} finite coordinates, got {at:?}", axes.len()),
-                );
-            }
-            let dist = |i: usize| -> f64 {
-                at.iter()
-                    .enumerate()
-                    .map(|(d, x)| (body.x0[i][d] - x).powi(2))
-                    .sum::<f64>()
-                    .sqrt()
-            };
-            let near = (0..body.len()).min_by(|&a, &b| dist(a).total_cmp(&dist(b)));
-            match near {
-                Some(i) if dist(i) <= 0.5 * p.spacing => {
-                    points.push((axes.iter().map(|a| format!("{name}_u{a}")).collect(), i))
-                }
-                _ => {
-                    return cfg(&key, format!("no particle within half a spacing of {at:?}"));
-                }
-            }
-        }
+        let points = probe_points(&body, &p)?;
         if p.substeps == Some(0) {
             return cfg("substeps", "must be ≥ 1, got 0");
         }
         let n = body.len();
         Ok(PdSolver {
-            model_name,
+            model_name: def.name.to_string(),
             params: p,
             body,
             interfaces,
             coupled: Vec::new(),
             fcouple: vec![[0.0; 3]; n],
             follow_pts: Vec::new(),
-            follow: sync_force::Follow::default(),
+            follow: kinematic::Follow::default(),
             pressure_area,
             bc_particles,
             external_impulse: [0.0; 3],
@@ -1384,19 +948,401 @@ impl LagrangeSide for PdSolver {
     }
 }
 
-/// Why `device = "gpu"` cannot run this configuration (`Err` is the reason, for the key
-/// `device`): the device kernels (gpu.rs) step pd-bond and the pd-correspondence force state
-/// without bond damage, with the external force held over a window.
-fn gpu_supports(model: &str, dim: Dim, p: &PdParams) -> Result<(), String> {
-    let cpu = "use device = \"cpu\"";
-    match model {
-        "pd-bond" | "pd-correspondence" => {}
+/// The particle model's dimension, from `dimension`.
+fn dimension(p: &PdParams) -> SolverResult<Dim> {
+    Ok(match p.dimension.as_str() {
+        "3d" => Dim::Three,
+        "plane_stress" => Dim::PlaneStress,
+        "plane_strain" => Dim::PlaneStrain,
         other => {
-            return Err(format!(
-                "\"gpu\" is offered for pd-bond and pd-correspondence, not {other} (no device kernels): {cpu}"
-            ));
+            return cfg(
+                "dimension",
+                format!("must be \"3d\", \"plane_stress\" or \"plane_strain\", got \"{other}\""),
+            );
+        }
+    })
+}
+
+/// The parameters every model takes, checked (spacing, horizon, density, thickness, step
+/// factor, stabilization, material, bodies, damage), and the bodies' size against what a
+/// node holds; returns the J2 material they give.
+fn check_params(p: &PdParams, three_d: bool) -> SolverResult<J2Material> {
+    if !(p.spacing.is_finite() && p.spacing > 0.0) {
+        return cfg("spacing", format!("must be > 0, got {}", p.spacing));
+    }
+    if !(p.horizon.is_finite() && p.horizon > p.spacing) {
+        return cfg(
+            "horizon",
+            format!("must exceed the spacing {} (got {})", p.spacing, p.horizon),
+        );
+    }
+    if !(p.density.is_finite() && p.density > 0.0) {
+        return cfg("density", format!("must be > 0, got {}", p.density));
+    }
+    let thickness_ok = p.thickness.is_finite() && p.thickness > 0.0;
+    if !three_d && !thickness_ok {
+        return cfg("thickness", format!("must be > 0, got {}", p.thickness));
+    }
+    if !(p.cfl > 0.0 && p.cfl <= 1.0) {
+        return cfg("cfl", format!("must be in (0, 1], got {}", p.cfl));
+    }
+    if !(p.stabilization.is_finite() && p.stabilization >= 0.0) {
+        return cfg(
+            "stabilization",
+            format!("must be >= 0, got {}", p.stabilization),
+        );
+    }
+    let material = J2Material {
+        young: p.young,
+        poisson: p.poisson,
+        yield_stress: p.yield_stress.unwrap_or(f64::MAX),
+        iso_hardening: p.iso_hardening,
+        kin_hardening: p.kin_hardening,
+    };
+    if let Err((k, r)) = material.validate() {
+        return cfg(&k, r);
+    }
+    if p.bodies.is_empty() {
+        return cfg("bodies", "no body given: the particle set would be empty");
+    }
+    for (n, s) in p.bodies.iter().enumerate() {
+        if let Err(r) = s.check(three_d) {
+            return cfg(&format!("bodies[{n}]"), r);
         }
     }
+    let damage: Box<dyn DamageModel> = match &p.damage {
+        None | Some(DamageParams::None {}) => Box::new(NoDamage),
+        Some(DamageParams::CriticalStretch { critical_stretch }) => Box::new(CriticalStretch {
+            critical_stretch: *critical_stretch,
+        }),
+        Some(DamageParams::VonMises { critical_stress }) => Box::new(BrittleVonMises {
+            critical_stress: *critical_stress,
+        }),
+        Some(DamageParams::PlasticStrain {
+            eps_threshold,
+            eps_critical,
+        }) => Box::new(DuctilePlasticStrain {
+            threshold: *eps_threshold,
+            critical: *eps_critical,
+        }),
+    };
+    if let Err((k, r)) = damage.validate() {
+        return cfg(&format!("damage.{k}"), r);
+    }
+    // the lattice points each body's bounding box holds: refuse a body that would not
+    // fit in memory before generating it (an input must not exhaust the host)
+    for (n, s) in p.bodies.iter().enumerate() {
+        let (lo, hi) = s.bounds();
+        let dims = if three_d { 3 } else { 2 };
+        let points: f64 = (0..dims)
+            .map(|d| ((hi[d] - lo[d]) / p.spacing).floor() + 1.0)
+            .product();
+        if !(points <= MAX_LATTICE_POINTS) {
+            return cfg(
+                &format!("bodies[{n}]"),
+                format!(
+                    "holds about {points:.3e} lattice points at spacing {}: more than the {MAX_LATTICE_POINTS:.0e} a node takes",
+                    p.spacing
+                ),
+            );
+        }
+    }
+    let particles = lattice_count(&p.bodies, &p.holes, p.spacing, three_d);
+    if particles == 0 {
+        return cfg("bodies", "the bodies hold no lattice point at this spacing");
+    }
+    bond_budget(p, particles, three_d)?;
+    let particles = lattice_count(&p.bodies, &p.holes, p.spacing, three_d);
+    if particles == 0 {
+        return cfg("bodies", "the bodies hold no lattice point at this spacing");
+    }
+    bond_budget(p, particles, three_d)?;
+    Ok(material)
+}
+
+/// Calls `f` with the kinematics of particles at reference positions `x0` (volumes `vol`)
+/// at rest, as a model is built.
+fn at_rest<R>(x0: &[[f64; 3]], vol: &[f64], f: impl FnOnce(&super::model::Kinematics) -> R) -> R {
+    let rest = vec![[0.0; 3]; x0.len()];
+    f(&super::model::Kinematics {
+        x0,
+        pos: x0,
+        disp: &rest,
+        vel: &rest,
+        vol,
+    })
+}
+
+/// `initial_velocity`: each region's velocity on the particles in it.
+fn set_initial_velocity(body: &mut Body, p: &PdParams) -> SolverResult<()> {
+    let three_d = body.dim.three_d();
+    for (n, r) in p.initial_velocity.iter().enumerate() {
+        if let Err(e) = r.region.check(three_d) {
+            return cfg(&format!("initial_velocity[{n}].region"), e);
+        }
+        for i in 0..body.len() {
+            if r.region.contains(&body.x0[i], three_d) {
+                body.vel[i] = r.velocity;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `prescribed_velocity`: each region's particles held at its velocity; returns them, sorted.
+fn prescribe_velocity(body: &mut Body, p: &PdParams) -> SolverResult<Vec<usize>> {
+    let three_d = body.dim.three_d();
+    let mut bc_particles = Vec::new();
+    for (n, r) in p.prescribed_velocity.iter().enumerate() {
+        if let Err(e) = r.region.check(three_d) {
+            return cfg(&format!("prescribed_velocity[{n}].region"), e);
+        }
+        for i in 0..body.len() {
+            if r.region.contains(&body.x0[i], three_d) {
+                body.prescribed[i] = 1;
+                body.vpres[i] = r.velocity;
+                body.vel[i] = r.velocity;
+                bc_particles.push(i);
+            }
+        }
+    }
+    bc_particles.sort_unstable();
+    bc_particles.dedup();
+    Ok(bc_particles)
+}
+
+/// `pressure_pulse`: the particles of the first layer outside the inner face, each with the
+/// area vector of the face it carries.
+fn pressure_faces(body: &Body, p: &PdParams) -> SolverResult<Vec<(usize, [f64; 3])>> {
+    let three_d = body.dim.three_d();
+    let mut pressure_area = Vec::new();
+    if let Some(pp) = &p.pressure_pulse {
+        if pp.surface != "inner" {
+            return cfg(
+                "pressure_pulse.surface",
+                format!("only \"inner\" is offered, got \"{}\"", pp.surface),
+            );
+        }
+        if !(pp.inner_radius > 0.0 && pp.inner_radius.is_finite()) {
+            return cfg(
+                "pressure_pulse.inner_radius",
+                format!("must be > 0, got {}", pp.inner_radius),
+            );
+        }
+        if !(pp.peak.is_finite()) {
+            return cfg("pressure_pulse.peak", "must be finite");
+        }
+        if !(pp.duration > 0.0 && pp.duration.is_finite()) {
+            return cfg(
+                "pressure_pulse.duration",
+                format!("must be > 0, got {}", pp.duration),
+            );
+        }
+        if !(pp.rise >= 0.0 && pp.rise < pp.duration) {
+            return cfg(
+                "pressure_pulse.rise",
+                format!("must be in [0, duration), got {}", pp.rise),
+            );
+        }
+        // Particles of the first layer outside the inner face; each carries Δx·h (2-D)
+        // or Δx² (3-D) of the face.
+        let a = if three_d {
+            p.spacing * p.spacing
+        } else {
+            p.spacing * p.thickness
+        };
+        for i in 0..body.len() {
+            let dx = body.x0[i][0] - pp.center[0];
+            let dy = body.x0[i][1] - pp.center[1];
+            let r = (dx * dx + dy * dy).sqrt();
+            if r >= pp.inner_radius && r < pp.inner_radius + p.spacing {
+                pressure_area.push((i, [a * dx / r, a * dy / r, 0.0]));
+            }
+        }
+        if pressure_area.is_empty() {
+            return cfg(
+                "pressure_pulse.inner_radius",
+                "no particle lies on this face",
+            );
+        }
+    }
+    Ok(pressure_area)
+}
+
+/// `interfaces`: each interface's name and particles (all or the surface ones, within its
+/// regions).
+fn interfaces_of(body: &Body, p: &PdParams) -> SolverResult<Vec<(String, Vec<usize>)>> {
+    let three_d = body.dim.three_d();
+    let surf = surface_particles(&body.x0, &body.bonds, p.spacing, three_d);
+    let mut interfaces = Vec::new();
+    for (n, ip) in p.interfaces.iter().enumerate() {
+        let base: Vec<usize> = match ip.select.as_str() {
+            "all" => (0..body.len()).collect(),
+            "surface" => surf.clone(),
+            other => {
+                return cfg(
+                    &format!("interfaces[{n}].select"),
+                    format!("must be \"all\" or \"surface\", got \"{other}\""),
+                );
+            }
+        };
+        for (k, r) in ip.region.iter().chain(&ip.regions).enumerate() {
+            if let Err(e) = r.check(three_d) {
+                let key = match ip.region {
+                    Some(_) if k == 0 => format!("interfaces[{n}].region"),
+                    Some(_) => format!("interfaces[{n}].regions[{}]", k - 1),
+                    None => format!("interfaces[{n}].regions[{k}]"),
+                };
+                return cfg(&key, e);
+            }
+        }
+        let pts: Vec<usize> = if ip.region.is_none() && ip.regions.is_empty() {
+            base
+        } else {
+            base.into_iter()
+                .filter(|&i| {
+                    ip.region
+                        .iter()
+                        .chain(&ip.regions)
+                        .any(|r| r.contains(&body.x0[i], three_d))
+                })
+                .collect()
+        };
+        if pts.is_empty() {
+            return cfg(&format!("interfaces[{n}]"), "selects no particle");
+        }
+        interfaces.push((ip.name.clone(), pts));
+    }
+    Ok(interfaces)
+}
+
+/// The device copy of `body` for model `def` (built from `dim`, the parameters and the
+/// material), gathering the interfaces' and the supports' particles to the host every
+/// window; None where `target` opens no device.
+fn open_device(
+    def: &PdModelDef,
+    target: &Device,
+    (dim, p, material): (Dim, &PdParams, J2Material),
+    body: &Body,
+    interfaces: &[(String, Vec<usize>)],
+    bc_particles: &[usize],
+) -> SolverResult<Option<DeviceBody>> {
+    let name = def.name;
+    let bad = |e: String| SolverError::config("device", format!("device = \"gpu\": {e}"));
+    let Some(dd) = &def.device else {
+        return Err(bad(format!("no device kernels for {name}")));
+    };
+    let mut gather: Vec<usize> = interfaces
+        .iter()
+        .flat_map(|(_, pts)| pts.iter().copied())
+        .chain(bc_particles.iter().copied())
+        .collect();
+    gather.sort_unstable();
+    gather.dedup();
+    let Some(ctx) = target.open(&format!("{name} body"))? else {
+        return Ok(None);
+    };
+    let dev = at_rest(&body.x0, &body.vol, |k| {
+        let input = ModelInput {
+            dim,
+            p,
+            material,
+            k,
+            bonds: &body.bonds,
+        };
+        (dd.open)(ctx, &input, body, &gather)
+    })
+    .map_err(|e| bad(e.to_string()))?;
+    let (now, before) = dev.window_bytes();
+    tracing::info!(
+        "{name} on the GPU: {now} bytes read back per window ({} particles, {} gathered; the full state would be {before} bytes)",
+        body.len(),
+        gather.len()
+    );
+    Ok(Some(dev))
+}
+
+/// `loads`: each load's force shared among the particles of its region, with its history.
+fn loads_of(body: &Body, p: &PdParams) -> SolverResult<Vec<(usize, [f64; 3], History)>> {
+    let three_d = body.dim.three_d();
+    let mut loads = Vec::new();
+    for (n, l) in p.loads.iter().enumerate() {
+        let key = format!("loads[{n}].");
+        if let Err(e) = l.region.check(three_d) {
+            return cfg(&format!("{key}region"), e);
+        }
+        if !l.force.iter().all(|f| f.is_finite()) {
+            return cfg(&format!("{key}force"), "must be finite");
+        }
+        let history = History::parse(&key, &l.history, l.ramp_time)?;
+        let pts: Vec<usize> = (0..body.len())
+            .filter(|&i| l.region.contains(&body.x0[i], three_d))
+            .collect();
+        if pts.is_empty() {
+            return cfg(&format!("{key}region"), "holds no particle");
+        }
+        let share = 1.0 / pts.len() as f64;
+        loads.extend(
+            pts.into_iter()
+                .map(|i| (i, l.force.map(|f| f * share), history)),
+        );
+    }
+    Ok(loads)
+}
+
+/// `points`: each probe point's particle (within half a spacing) and its displacement
+/// series' names.
+fn probe_points(body: &Body, p: &PdParams) -> SolverResult<Vec<(Vec<String>, usize)>> {
+    let three_d = body.dim.three_d();
+    let axes: &[&str] = if three_d {
+        &["x", "y", "z"]
+    } else {
+        &["x", "y"]
+    };
+    let mut points = Vec::with_capacity(p.points.len());
+    for (name, at) in &p.points {
+        let key = format!("points.{name}");
+        if at.len() != axes.len() || !at.iter().all(|x| x.is_finite()) {
+            return cfg(
+                &key,
+                format!("must be {} finite coordinates, got {at:?}", axes.len()),
+            );
+        }
+        let dist = |i: usize| -> f64 {
+            at.iter()
+                .enumerate()
+                .map(|(d, x)| (body.x0[i][d] - x).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        let near = (0..body.len()).min_by(|&a, &b| dist(a).total_cmp(&dist(b)));
+        match near {
+            Some(i) if dist(i) <= 0.5 * p.spacing => {
+                points.push((axes.iter().map(|a| format!("{name}_u{a}")).collect(), i))
+            }
+            _ => {
+                return cfg(&key, format!("no particle within half a spacing of {at:?}"));
+            }
+        }
+    }
+    Ok(points)
+}
+
+/// What `device = "gpu"` cannot run of model `def` with parameters `p`, as the reason.
+fn gpu_supports(def: &PdModelDef, dim: Dim, p: &PdParams) -> Result<(), String> {
+    let cpu = "use device = \"cpu\"";
+    let Some(dd) = &def.device else {
+        let with: Vec<&str> = super::models::ALL
+            .iter()
+            .filter(|d| d.device.is_some())
+            .map(|d| d.name)
+            .collect();
+        return Err(format!(
+            "\"gpu\" is offered for {}, not {} (no device kernels): {cpu}",
+            with.join(" and "),
+            def.name
+        ));
+    };
     let kind = match &p.damage {
         None | Some(DamageParams::None {}) => None,
         Some(DamageParams::CriticalStretch { .. }) => Some("critical_stretch"),
@@ -1408,10 +1354,8 @@ fn gpu_supports(model: &str, dim: Dim, p: &PdParams) -> Result<(), String> {
             "\"gpu\" does not support bond damage (damage.kind = \"{kind}\"): the device path has no bond breaking, damage index or fragment report; {cpu}"
         ));
     }
-    if model == "pd-correspondence" && dim == Dim::PlaneStress {
-        return Err(format!(
-            "\"gpu\" does not support dimension = \"plane_stress\" for pd-correspondence (its through-thickness iteration has no device kernel): use plane_strain or 3d, or {cpu}"
-        ));
+    if let Some(why) = (dd.refuses)(dim, p) {
+        return Err(why);
     }
     if p.pressure_pulse.is_some() {
         return Err(format!(
@@ -1419,56 +1363,6 @@ fn gpu_supports(model: &str, dim: Dim, p: &PdParams) -> Result<(), String> {
         ));
     }
     Ok(())
-}
-
-/// The device copy of a freshly built `body` on `ctx`.
-fn device_body(
-    ctx: Arc<GpuContext>,
-    model: &str,
-    dim: Dim,
-    p: &PdParams,
-    material: J2Material,
-    body: &Body,
-    gather: &[usize],
-) -> SolverResult<DeviceBody> {
-    let bad = |e: String| SolverError::config("device", format!("device = \"gpu\": {e}"));
-    // the arguments the body's own model was built with (PdSolver::new)
-    let rest = vec![[0.0; 3]; body.len()];
-    let k = super::model::Kinematics {
-        x0: &body.x0,
-        pos: &body.x0,
-        disp: &rest,
-        vel: &rest,
-        vol: &body.vol,
-    };
-    let dev = match model {
-        "pd-bond" => {
-            let twin = BondModel::new(dim, p.young, p.horizon, p.thickness, None, &k, &body.bonds);
-            DeviceBody::bond(ctx, body, twin, gather)
-        }
-        "pd-correspondence" => {
-            let twin = Correspondence::new(
-                dim,
-                material,
-                p.stabilization,
-                p.horizon,
-                p.thickness,
-                NoDamage,
-                &k,
-                &body.bonds,
-            );
-            DeviceBody::corr(ctx, body, twin, gather)
-        }
-        other => return Err(bad(format!("no device kernels for {other}"))),
-    }
-    .map_err(|e| bad(e.to_string()))?;
-    let (now, before) = dev.window_bytes();
-    tracing::info!(
-        "{model} on the GPU: {now} bytes read back per window ({} particles, {} gathered; the full state would be {before} bytes)",
-        body.len(),
-        gather.len()
-    );
-    Ok(dev)
 }
 
 fn gpu_err(e: mechanics::gpu::GpuError) -> SolverError {
@@ -1640,7 +1534,7 @@ impl Solver for PdSolver {
                 ended: false,
             });
         }
-        self.follow = sync_force::Follow::new(sync_force::Path::Held, self.follow_pts.len(), 3);
+        self.follow = kinematic::Follow::new(kinematic::Path::Held, self.follow_pts.len(), 3);
         Ok(())
     }
 

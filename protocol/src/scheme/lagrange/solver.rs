@@ -1,135 +1,8 @@
-//! The Lagrange-multiplier multi-time-step coupling (seed 003 §4–§5; docs/architecture.md.3):
-//! N ≥ 2 subdomains, each with its own integrator and step, tied by velocity continuity
-//! Σᵢ Bᵢ vᵢ = 0 on matching interface nodes. This module solves the interface problem — in
-//! one place, with no solver crate — and fixes what each subdomain's side must do
-//! ([`LagrangeSide`]): condense its interface response once at set-up, take a free step,
-//! correct with the multipliers it is sent.
-//!
-//! Per system step (the coarsest subdomain's step ΔT) and method:
-//! * `gs4` / `ph`: every side takes its free step over ΔT (its mᵢ substeps, the multipliers
-//!   ramped linearly from λ_n with the unknown increment set to zero) and reports Bᵢ v_free;
-//!   `(Σᵢ Pᵢᵀ Bᵢ Hᵢ Pᵢ) Δλ = −Σᵢ Pᵢᵀ Bᵢ v_free,ᵢ` gives λ_{n+1} = λ_n + Δλ (the multiplier
-//!   at the system time level, seed 003 §4.1), sent back to correct each side.
-//! * `gc` (Gravouil–Combescure): at each step j of the finest subdomain, a side whose own
-//!   step spans rᵢ fine steps contributes its interface velocity interpolated at θ = (j mod
-//!   rᵢ + 1)/rᵢ between its start and its (linked) end,
-//!   `(Σᵢ θᵢ Pᵢᵀ Bᵢ Hᵢ Pᵢ) λ_j = −Σᵢ Pᵢᵀ ((1 − θᵢ) Bᵢ v_start,ᵢ + θᵢ Bᵢ v_free,ᵢ)`,
-//!   and the sides whose step ends at j correct with λ_j.
-//!
-//! The interface matrices depend on the steps only, so they are factorised once (dense LU
-//! with partial pivoting: interfaces are small).
+//! The interface problem the coordinator solves (module doc of `lagrange`): the sides'
+//! condensed operators assembled with signs into the interface matrices, factorised once, and
+//! the multipliers of each system (or fine) step.
 
-use std::str::FromStr;
-use thiserror::Error;
-
-#[derive(Debug, Error, PartialEq)]
-pub enum LagrangeError {
-    #[error("lagrange coupling: {0}")]
-    Setup(String),
-    #[error("lagrange coupling: the interface matrix is singular (pivot {pivot:e} at row {row})")]
-    Singular { row: usize, pivot: f64 },
-}
-
-/// Fields every side's interface must provide: its velocity and its condensed operator
-/// (the handshake checks them against the node's description).
-pub const PROVIDES: &[&str] = &["velocity", "lagrange_operator"];
-/// Fields every side's interface must accept: the multipliers are forces on it.
-pub const ACCEPTS: &[&str] = &["force"];
-
-/// The scheme's contract (docs/architecture.md.3): every side exchanges with the coordinator,
-/// which solves the interface problem; nothing is lagged and no side waits for another.
-pub struct Lagrange;
-
-impl super::Scheme for Lagrange {
-    fn default_fields(&self) -> (&'static [&'static str], &'static [&'static str]) {
-        (PROVIDES, ACCEPTS)
-    }
-
-    fn input_lag(&self, _role: crate::message::Role, _serial: bool) -> u64 {
-        0
-    }
-
-    fn responder_after_driver(&self, _serial: bool) -> bool {
-        false
-    }
-
-    fn coordinator_solved(&self) -> bool {
-        true
-    }
-
-    /// Set-up waits for the coordinator's request; in a window the multipliers are
-    /// exchanged inside it (the runtime's `lagrange_*` steps), not taken as an input.
-    fn input_window(
-        &self,
-        _role: crate::message::Role,
-        _input_lag: u64,
-        _until: Option<u64>,
-        window: u64,
-    ) -> Option<u64> {
-        (window == 0).then_some(0)
-    }
-
-    /// Only the set-up fields go at a window's end; in a window a side sends step by step.
-    fn sends_at_window_end(&self, window: u64) -> bool {
-        window == 0
-    }
-}
-
-/// `method = "gs4" | "gc" | "ph"`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Method {
-    Gs4,
-    Gc,
-    Ph,
-}
-
-impl FromStr for Method {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "gs4" => Ok(Method::Gs4),
-            "gc" => Ok(Method::Gc),
-            "ph" => Ok(Method::Ph),
-            other => Err(format!(
-                "must be \"gs4\", \"gc\" or \"ph\", got \"{other}\""
-            )),
-        }
-    }
-}
-
-/// What a subdomain's node does for the scheme, in the side's local multiplier order. In
-/// process ([`LagrangeScheme::new`]) the vectors are signed (Bᵢ x); through `cosim run` a
-/// side keeps every sign +1 and the coordinator applies the signs (see [`wire`]).
-pub trait LagrangeSide {
-    /// Global multiplier index of each local multiplier.
-    fn multiplier_ids(&self) -> &[usize];
-    /// Coupling steps per system step (1 for gs4/ph; the ratio mᵢ for gc).
-    fn coupling_steps(&self) -> usize;
-    /// Bᵢ Hᵢ, row-major: interface velocity at a coupling step's end per unit multiplier.
-    fn operator(&self) -> &[f64];
-    /// At t = 0: free interface acceleration and Bᵢ M⁻¹ Bᵢᵀ (row-major).
-    fn initial(&mut self, free: &mut [f64], op: &mut [f64]);
-    fn set_initial(&mut self, lambda0: &[f64]);
-    /// Free coupling step: interface velocity at its start and at its end.
-    fn free_step(&mut self, v_start: &mut [f64], v_free: &mut [f64]);
-    /// Correct with the multipliers at the coupling step's end.
-    fn correct(&mut self, lambda: &[f64]);
-    /// Work done on the side by the interface forces since t = 0 (J).
-    fn interface_work(&self) -> f64;
-    /// Its coupling state at a window end, as bytes in its own versioned format, for a
-    /// checkpoint (PROTOCOL.md §4.5): what `free_step` and `correct` carry from one system
-    /// step to the next (the operators are built again at set-up). The runtime calls it
-    /// after the solver's own `save_state`. The default: this side cannot checkpoint, and
-    /// a checkpointed run stops at its first checkpoint with this reason.
-    fn save_state(&self) -> Result<Vec<u8>, String> {
-        Err("this lagrange side cannot save its coupling state".into())
-    }
-    /// Restore what [`Self::save_state`] wrote, after set-up (and after the solver's own
-    /// `load_state`).
-    fn load_state(&mut self, _bytes: &[u8]) -> Result<(), String> {
-        Err("this lagrange side cannot load a coupling state".into())
-    }
-}
+use super::{LagrangeError, LagrangeSide, Method};
 
 /// Dense LU with partial pivoting, factorised once.
 #[derive(Debug, Clone)]
@@ -215,11 +88,11 @@ struct SideBuffers {
 }
 
 /// The coordinator's side: the interface problem and its schedule. Driven either in-process
-/// ([`LagrangeScheme::new`] and [`LagrangeScheme::step`] over [`LagrangeSide`]s) or by
-/// messages ([`LagrangeScheme::from_setups`], then [`LagrangeScheme::offer`] and
-/// [`LagrangeScheme::try_solve`]): both run the same arithmetic in the same order.
+/// ([`InterfaceSolver::new`] and [`InterfaceSolver::step`] over [`LagrangeSide`]s) or by
+/// messages ([`InterfaceSolver::from_setups`], then [`InterfaceSolver::offer`] and
+/// [`InterfaceSolver::try_solve`]): both run the same arithmetic in the same order.
 #[derive(Debug)]
-pub struct LagrangeScheme {
+pub struct InterfaceSolver {
     method: Method,
     /// Fine steps per system step (gc), else 1.
     fine: usize,
@@ -233,7 +106,7 @@ pub struct LagrangeScheme {
     next: usize,
 }
 
-impl LagrangeScheme {
+impl InterfaceSolver {
     /// Set-up in-process: collects each side's condensed operator (already signed, with
     /// global multiplier ids), factorises the interface matrices, solves the initial
     /// multipliers from the acceleration-level constraint and hands them to the sides.
@@ -376,7 +249,7 @@ impl LagrangeScheme {
                 }
             })
             .collect();
-        let mut scheme = LagrangeScheme {
+        let mut scheme = InterfaceSolver {
             method,
             fine,
             problems,
@@ -608,116 +481,6 @@ fn gather(ids: &[usize], signs: &[f64], global: &[f64], local: &mut [f64]) {
     }
 }
 
-/// The scheme on the wire (no message type of its own: `Fields` on the coupling's data
-/// topics, PROTOCOL.md §4.6). A side's node publishes on `cosim/<run>/<coupling>/<node>`,
-/// the coordinator on `cosim/<run>/<coupling>/coordinator`:
-///
-/// 1. coordinator, window 0: [`WINDOW`] (the system step, s) and [`METHOD`] (0 gs4, 1 gc,
-///    2 ph) — the node builds its side (its condensed operator depends on both);
-/// 2. node, window 0: [`DOFS`], [`STEPS`], [`OPERATOR`], [`FREE0`], [`MASS0`] (local,
-///    unsigned: see [`SideSetup`]); the coordinator matches the sides' interface points by
-///    position into multipliers with signs;
-/// 3. coordinator, window 0: [`STEP`] = 0 and one field per side node, named after it,
-///    with its initial multipliers; the node applies them;
-/// 4. every coupling step c of window k: node → [`STEP`] = c, [`V_START`], [`V_FREE`];
-///    coordinator → [`STEP`] = j (the fine step solved), [`LAMBDA`] (global λ, N) and the
-///    multipliers of each side node whose step ends at j, under its name.
-///
-/// gs4 and ph take one exchange per window (each side one coupling step); gc one per step
-/// of the finest side.
-pub mod wire {
-    use crate::message::{Field, Fields};
-    use crate::solver::{FieldSet, SolverError, SolverResult};
-
-    use super::{LagrangeSide, Method};
-
-    pub const WINDOW: &str = "lagrange_window";
-    pub const METHOD: &str = "lagrange_method";
-    pub const DOFS: &str = "lagrange_dofs";
-    pub const STEPS: &str = "lagrange_steps";
-    pub const OPERATOR: &str = "lagrange_operator";
-    pub const FREE0: &str = "lagrange_free0";
-    pub const MASS0: &str = "lagrange_mass0";
-    pub const STEP: &str = "step";
-    pub const V_START: &str = "v_start";
-    pub const V_FREE: &str = "v_free";
-    pub const LAMBDA: &str = "lambda";
-    /// The peer name of every side's binding: the coordinator solves the interface problem.
-    pub const PEER: &str = "coordinator";
-
-    pub fn method_code(m: Method) -> f64 {
-        match m {
-            Method::Gs4 => 0.0,
-            Method::Gc => 1.0,
-            Method::Ph => 2.0,
-        }
-    }
-
-    /// What the coordinator asks of a side at set-up (message 1): the system step and the
-    /// method, from the set-up inbox of `interface`.
-    pub fn request(inbox: &FieldSet, interface: &str) -> SolverResult<(Method, f64)> {
-        let w = inbox.require(interface, WINDOW, 1)?[0];
-        let m = inbox.require(interface, METHOD, 1)?[0];
-        if !(w.is_finite() && w > 0.0) {
-            return Err(SolverError::interface(
-                interface,
-                format!("lagrange system step must be > 0, got {w}"),
-            ));
-        }
-        let method = match m {
-            0.0 => Method::Gs4,
-            1.0 => Method::Gc,
-            2.0 => Method::Ph,
-            other => {
-                return Err(SolverError::interface(
-                    interface,
-                    format!("unknown lagrange method code {other}"),
-                ));
-            }
-        };
-        Ok((method, w))
-    }
-
-    /// Message 1 (coordinator, window 0).
-    pub fn request_fields(coupling: &str, method: Method, window: f64) -> Fields {
-        Fields {
-            coupling: coupling.to_string(),
-            window: 0,
-            time: 0.0,
-            fields: vec![scalar(WINDOW, window), scalar(METHOD, method_code(method))],
-        }
-    }
-
-    pub fn scalar(name: &str, v: f64) -> Field {
-        Field {
-            name: name.to_string(),
-            components: 1,
-            values: vec![v],
-        }
-    }
-
-    /// Message 2 (node, window 0): the side's set-up, into the outbox of `interface`.
-    pub fn setup_fields(side: &mut dyn LagrangeSide, interface: &str, out: &mut FieldSet) {
-        let nl = side.multiplier_ids().len();
-        out.put(interface, DOFS, 1, 1)[0] = nl as f64;
-        out.put(interface, STEPS, 1, 1)[0] = side.coupling_steps() as f64;
-        out.put(interface, OPERATOR, 1, nl * nl)
-            .copy_from_slice(side.operator());
-        let mut free0 = vec![0.0; nl];
-        let mut mass0 = vec![0.0; nl * nl];
-        side.initial(&mut free0, &mut mass0);
-        out.put(interface, FREE0, 1, nl).copy_from_slice(&free0);
-        out.put(interface, MASS0, 1, nl * nl)
-            .copy_from_slice(&mass0);
-    }
-
-    /// The coupling step index of a node's message, or the fine step of a coordinator's.
-    pub fn step_of(f: &Fields) -> Option<usize> {
-        let v = f.get(STEP)?.values.first().copied()?;
-        (v >= 0.0 && v.fract() == 0.0 && v < u32::MAX as f64).then_some(v as usize)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -735,19 +498,6 @@ mod tests {
         }
         let e = DenseLu::new(2, vec![1.0, 2.0, 2.0, 4.0]).unwrap_err();
         assert!(matches!(e, LagrangeError::Singular { row: 1, .. }), "{e}");
-    }
-
-    #[test]
-    fn methods_parse_and_bad_ones_are_named() {
-        assert_eq!("gs4".parse::<Method>(), Ok(Method::Gs4));
-        assert_eq!("gc".parse::<Method>(), Ok(Method::Gc));
-        assert_eq!("ph".parse::<Method>(), Ok(Method::Ph));
-        assert!(
-            "newmark"
-                .parse::<Method>()
-                .unwrap_err()
-                .contains("\"newmark\"")
-        );
     }
 
     #[test]

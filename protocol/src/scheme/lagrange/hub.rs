@@ -1,12 +1,11 @@
-//! The coordinator's end of `kind = "lagrange"` couplings (seed 003 §4, docs/architecture.md.3):
+//! The scheme's coordinator side: the coordinator's end of `kind = "lagrange"` couplings (seed 003 §4, docs/architecture.md.3):
 //! collects every side's set-up and interface mesh, ties the sides' matching interface points
-//! with multipliers, and drives `protocol::scheme::lagrange::LagrangeScheme` from the sides'
+//! with multipliers, and drives the [`InterfaceSolver`] from the sides'
 //! messages, answering each solved step with the multipliers (the wire:
-//! `protocol::scheme::lagrange::wire`). No I/O here: `run.rs` publishes what it returns.
+//! [`wire`]). No I/O here: the coordinator publishes what it returns.
 
-use crate::case::CouplingConfig;
-use protocol::scheme::lagrange::{LagrangeScheme, Method, SideSetup, wire};
-use protocol::{Fields, InterfaceMesh};
+use super::{InterfaceSolver, Method, SideSetup, wire};
+use crate::message::{Field, Fields, InterfaceMesh};
 
 /// Two interface points are the same point when this close, relative to the interface's
 /// extent (at least 1 m).
@@ -33,7 +32,7 @@ pub struct Hub {
     pub sides: Vec<String>,
     meshes: Vec<Option<InterfaceMesh>>,
     setups: Vec<Option<Fields>>,
-    scheme: Option<LagrangeScheme>,
+    scheme: Option<InterfaceSolver>,
     /// System step (window) the sides are in.
     current: u64,
     /// λ at the end of each finished window, oldest first (taken by [`Hub::take_finished`]).
@@ -41,13 +40,15 @@ pub struct Hub {
 }
 
 impl Hub {
-    pub fn new(cp: &CouplingConfig, window: f64) -> Self {
-        let n = cp.sides.len();
+    /// Coupling `coupling` of the side nodes `sides` (in the case's order), solved by
+    /// `method` with the system step `window` (s).
+    pub fn new(coupling: &str, method: Method, sides: &[String], window: f64) -> Self {
+        let n = sides.len();
         Hub {
-            coupling: cp.name.clone(),
-            method: cp.method.unwrap_or(Method::Gs4),
+            coupling: coupling.to_string(),
+            method,
             window,
-            sides: cp.sides.iter().map(|s| s.0.clone()).collect(),
+            sides: sides.to_vec(),
             meshes: vec![None; n],
             setups: vec![None; n],
             scheme: None,
@@ -198,7 +199,7 @@ impl Hub {
             })
             .collect();
         let scheme =
-            LagrangeScheme::from_setups(self.method, n, setups).map_err(|e| e.to_string())?;
+            InterfaceSolver::from_setups(self.method, n, setups).map_err(|e| e.to_string())?;
         let mut fields = vec![
             wire::scalar(wire::STEP, 0.0),
             vector(wire::LAMBDA, scheme.lambda().to_vec()),
@@ -216,8 +217,8 @@ impl Hub {
     }
 }
 
-fn vector(name: &str, values: Vec<f64>) -> protocol::Field {
-    protocol::Field {
+fn vector(name: &str, values: Vec<f64>) -> Field {
+    Field {
         name: name.to_string(),
         components: 1,
         values,

@@ -1,0 +1,51 @@
+//! `pd-rk-ba`: the bond-associative model with reproducing-kernel gradients (its force law:
+//! `pd/rk_ba.rs`). It has no device kernels.
+
+use super::{DamageVisitor, ModelInput, PdModelDef, cfg, with_damage};
+use crate::pd::model::{Dim, PdModel};
+use crate::pd::rk_ba::RkBa;
+use mechanics::damage::DamageModel;
+use protocol::SolverResult;
+
+pub const DEF: PdModelDef = PdModelDef {
+    name: "pd-rk-ba",
+    refuses: &[(
+        "stabilization",
+        "does not apply to pd-rk-ba (its bond-associative stabilization takes no constant; G is pd-correspondence's)",
+    )],
+    plastic: true,
+    build,
+    device: None,
+};
+
+/// The model with the damage law the parameters give, in 3-D or plane strain, refused (key
+/// `horizon`) when a moment matrix of the reference configuration is singular; the check
+/// runs in the model's own buffers.
+fn build(m: &ModelInput) -> SolverResult<Box<dyn PdModel>> {
+    if m.dim == Dim::PlaneStress {
+        return cfg("dimension", "pd-rk-ba supports \"3d\" and \"plane_strain\"");
+    }
+    let order = m.p.rk_order;
+    if !(order == 1 || order == 2) {
+        return cfg("rk_order", format!("must be 1 or 2, got {order}"));
+    }
+    struct Make<'a, 'b>(&'a ModelInput<'b>);
+    impl DamageVisitor<SolverResult<Box<dyn PdModel>>> for Make<'_, '_> {
+        fn visit<D: DamageModel + 'static>(self, damage: D) -> SolverResult<Box<dyn PdModel>> {
+            let m = self.0;
+            let order = m.p.rk_order;
+            let mut model = RkBa::new(m.dim, order, m.p.horizon, m.material, damage, m.bonds);
+            if let Some(i) = model.singular_particle(m.k, m.bonds) {
+                return cfg(
+                    "horizon",
+                    format!(
+                        "too small for rk_order = {order}: the moment matrix is singular at particle {i} (use δ ≥ {}·Δx)",
+                        order + 1
+                    ),
+                );
+            }
+            Ok(Box::new(model))
+        }
+    }
+    with_damage(&m.p.damage, Make(m))
+}
