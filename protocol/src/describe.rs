@@ -3,7 +3,7 @@
 //! validates every node of a case through it; PROTOCOL.md ("Node command line") is the contract.
 
 use crate::message::InterfaceDescription;
-use crate::participant::BoxedFactory;
+use crate::solver::BoxedFactory;
 use crate::solver::{BuildOptions, SolverError};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;

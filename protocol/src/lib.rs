@@ -15,6 +15,8 @@ macro_rules! log_line {
 pub mod checkpoint;
 pub mod describe;
 pub mod diverged;
+pub mod error;
+pub mod fieldset;
 pub mod mapping;
 pub mod memory;
 pub mod params;

@@ -12,7 +12,7 @@ use crate::mapping::Mapping;
 use crate::message::*;
 use crate::scheme;
 use crate::solver::{
-    BuildOptions, FieldSet, Solver, SolverError, SolverFactory, SolverResult, Window,
+    BoxedFactory, BuildOptions, FieldSet, Solver, SolverError, SolverFactory, SolverResult, Window,
 };
 use crate::transport::{self, Publisher, Transport, TransportKind, TransportSpec};
 use crate::{checkpoint, stop, watchdog};
@@ -23,20 +23,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
-/// Fields mapped with `W` (interpolated motion) — every other field is a load mapped with `Wᵀ`.
-pub const MOTION_FIELDS: &[&str] = &[
-    "position",
-    "velocity",
-    "displacement",
-    "acceleration",
-    "rotation",
-    "normal",
-    "angular_velocity",
-];
-
-pub fn is_motion(name: &str) -> bool {
-    MOTION_FIELDS.contains(&name)
-}
+pub use crate::scheme::{MOTION_FIELDS, is_motion};
 
 /// One coupling of this node, with its input buffer and mapping.
 pub(crate) struct Link {
@@ -568,12 +555,6 @@ fn recv_one(
         }
     }
 }
-
-/// A solver factory that owns what it needs: the C participant library's callback table, a
-/// Python object. Called once, after the coordinator's `Welcome` (or for `--describe`, with
-/// [`BuildOptions::DESCRIBE`]).
-pub type BoxedFactory =
-    Box<dyn FnOnce(&str, &toml::Table, &BuildOptions) -> SolverResult<Box<dyn Solver>>>;
 
 /// Entry point of every node binary; returns the process exit code
 /// (0 finished, 1 failed or its coordinator gone, 2 bad invocation or, with `--describe`, a

@@ -5,45 +5,10 @@
 //! Data cross the trait per interface as named flat arrays (`Field`), in the solver's own
 //! point layout: the participant runtime maps between the peer's layout and this one.
 
-use crate::message::{Binding, Field, InterfaceMesh, StepReport};
+pub use crate::error::{SolverError, SolverResult};
+pub use crate::fieldset::{FieldSet, Inbox, Outbox};
+use crate::message::{Binding, InterfaceMesh, StepReport};
 use std::path::Path;
-use thiserror::Error;
-
-#[derive(Debug, Error)]
-pub enum SolverError {
-    /// Bad parameter: the key path and why (`nodes.left.params.elements: must be > 0, got 0`).
-    #[error("{key}: {reason}")]
-    Config { key: String, reason: String },
-    /// A coupling input is missing or has the wrong size.
-    #[error("interface {interface}: {reason}")]
-    Interface { interface: String, reason: String },
-    /// The state became unphysical (negative density, NaN, ...): where and when.
-    #[error("diverged at t = {time:e}: {reason}")]
-    Diverged { time: f64, reason: String },
-    /// Transparent: the I/O error is the message, not also its source (a chain printed with
-    /// `{:#}` would say it twice).
-    #[error(transparent)]
-    Io(#[from] std::io::Error),
-    #[error("{0}")]
-    Other(String),
-}
-
-impl SolverError {
-    pub fn config(key: impl Into<String>, reason: impl Into<String>) -> Self {
-        SolverError::Config {
-            key: key.into(),
-            reason: reason.into(),
-        }
-    }
-    pub fn interface(interface: impl Into<String>, reason: impl Into<String>) -> Self {
-        SolverError::Interface {
-            interface: interface.into(),
-            reason: reason.into(),
-        }
-    }
-}
-
-pub type SolverResult<T> = Result<T, SolverError>;
 
 /// One coupling window `[t0, t1]`; windows count from 1.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -104,117 +69,6 @@ pub struct InterfaceInfo {
     pub points: usize,
     pub provides: Vec<String>,
     pub accepts: Vec<String>,
-}
-
-/// Named per-interface fields, in the solver's own layout. Used both ways: the runtime fills
-/// an `Inbox` before `advance`, the solver fills an `Outbox` during it. Buffers are kept
-/// between windows so a steady run allocates nothing.
-#[derive(Debug, Default, Clone)]
-pub struct FieldSet {
-    entries: Vec<(String, Field)>,
-}
-
-pub type Inbox = FieldSet;
-pub type Outbox = FieldSet;
-
-impl FieldSet {
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// The field `name` of `interface`, if present.
-    pub fn get(&self, interface: &str, name: &str) -> Option<&Field> {
-        self.entries
-            .iter()
-            .find(|(i, f)| i == interface && f.name == name)
-            .map(|(_, f)| f)
-    }
-
-    /// The values of a field that must be there with `len` values.
-    pub fn require(&self, interface: &str, name: &str, len: usize) -> SolverResult<&[f64]> {
-        let f = self.get(interface, name).ok_or_else(|| {
-            SolverError::interface(interface, format!("no '{name}' field received"))
-        })?;
-        if f.values.len() != len {
-            return Err(SolverError::interface(
-                interface,
-                format!("'{name}' has {} values, expected {len}", f.values.len()),
-            ));
-        }
-        Ok(&f.values)
-    }
-
-    /// A writable buffer of `points * components` values for `name` on `interface`, reused
-    /// from the previous window when present (contents then hold the old values).
-    pub fn put(
-        &mut self,
-        interface: &str,
-        name: &str,
-        components: u32,
-        points: usize,
-    ) -> &mut [f64] {
-        let n = points * components as usize;
-        let idx = match self
-            .entries
-            .iter()
-            .position(|(i, f)| i == interface && f.name == name)
-        {
-            Some(i) => i,
-            None => {
-                self.entries.push((
-                    interface.to_string(),
-                    Field {
-                        name: name.to_string(),
-                        components,
-                        values: Vec::with_capacity(n),
-                    },
-                ));
-                self.entries.len() - 1
-            }
-        };
-        let f = &mut self.entries[idx].1;
-        f.components = components;
-        f.values.resize(n, 0.0);
-        &mut f.values
-    }
-
-    /// Insert a whole field.
-    pub fn insert(&mut self, interface: &str, field: Field) {
-        match self
-            .entries
-            .iter_mut()
-            .find(|(i, f)| i == interface && f.name == field.name)
-        {
-            Some(e) => e.1 = field,
-            None => self.entries.push((interface.to_string(), field)),
-        }
-    }
-
-    /// Every field of one interface.
-    pub fn fields_of<'a>(&'a self, interface: &'a str) -> impl Iterator<Item = &'a Field> + 'a {
-        self.entries
-            .iter()
-            .filter(move |(i, _)| i == interface)
-            .map(|(_, f)| f)
-    }
-
-    pub fn iter(&self) -> impl Iterator<Item = (&str, &Field)> {
-        self.entries.iter().map(|(i, f)| (i.as_str(), f))
-    }
-
-    /// Forget every field (keeps nothing; use between runs, not between windows).
-    /// Drop every field of `interface` (a decoupled coupling: nothing stale may linger).
-    pub fn remove_interface(&mut self, interface: &str) {
-        self.entries.retain(|(i, _)| i != interface);
-    }
-
-    pub fn clear(&mut self) {
-        self.entries.clear();
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.entries.is_empty()
-    }
 }
 
 /// The contract every node implements (docs/architecture.md).
@@ -326,16 +180,8 @@ impl BuildOptions {
 pub type SolverFactory =
     fn(model: &str, params: &toml::Table, opts: &BuildOptions) -> SolverResult<Box<dyn Solver>>;
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// An I/O error says its text once, however the chain is printed.
-    #[test]
-    fn an_io_error_is_said_once() {
-        let e = SolverError::from(std::io::Error::other("No space left on device"));
-        assert_eq!(e.to_string(), "No space left on device");
-        let chain = format!("{:#}", anyhow::Error::from(e));
-        assert_eq!(chain, "No space left on device");
-    }
-}
+/// A solver factory that owns what it needs: the C participant library's callback table, a
+/// Python object. Called once, after the coordinator's `Welcome` (or for `--describe`, with
+/// [`BuildOptions::DESCRIBE`]).
+pub type BoxedFactory =
+    Box<dyn FnOnce(&str, &toml::Table, &BuildOptions) -> SolverResult<Box<dyn Solver>>>;

@@ -12,7 +12,6 @@ pub use results::{ExportArgs, InfoArgs, ParamsArgs, PlotArgs, RenderArgs};
 pub use run::{RestartArgs, RunArgs};
 
 use clap::{Parser, Subcommand};
-use std::path::{Path, PathBuf};
 
 #[derive(Debug, Parser)]
 #[command(
@@ -165,25 +164,6 @@ fn outcome(prefix: &str, failed: i32, done: anyhow::Result<String>) -> i32 {
             eprintln!("{prefix}: {e:#}");
             failed
         }
-    }
-}
-
-/// A run folder stands for its recording (`cosim plot` takes either, so do `info` and
-/// `replay`).
-fn recording_of(path: &Path) -> PathBuf {
-    if path.is_dir() {
-        path.join("run.mcap")
-    } else {
-        path.to_path_buf()
-    }
-}
-
-/// The folder of a run given as its folder or its recording.
-fn folder_of(path: &Path) -> PathBuf {
-    if path.is_dir() {
-        path.to_path_buf()
-    } else {
-        path.parent().map(PathBuf::from).unwrap_or_default()
     }
 }
 

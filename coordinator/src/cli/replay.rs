@@ -1,7 +1,7 @@
 //! `cosim replay`: one node driven by its recorded inputs, and the report of how its outputs
 //! compare with the recording.
 
-use super::recording_of;
+use super::results::recording_of;
 use crate::replay::{self, ReplayOptions, ReplayReport};
 use std::path::{Path, PathBuf};
 

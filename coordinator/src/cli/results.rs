@@ -1,7 +1,6 @@
 //! The commands that read a run's results: `info`, `render`, `export`, `plot`, and `params`,
 //! which reads a model's parameter schema. Each returns the text to print or the error.
 
-use super::{folder_of, recording_of};
 use crate::fields::{self, Choice};
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
@@ -281,5 +280,24 @@ pub(super) fn params(a: &ParamsArgs) -> anyhow::Result<String> {
         Ok(serde_json::to_string_pretty(&v)?)
     } else {
         Ok(crate::params::table(m, &exe, &crate::params::rows(&v)))
+    }
+}
+
+/// A run folder stands for its recording (`cosim plot` takes either, so do `info` and
+/// `replay`).
+pub(super) fn recording_of(path: &Path) -> PathBuf {
+    if path.is_dir() {
+        path.join("run.mcap")
+    } else {
+        path.to_path_buf()
+    }
+}
+
+/// The folder of a run given as its folder or its recording.
+pub(super) fn folder_of(path: &Path) -> PathBuf {
+    if path.is_dir() {
+        path.to_path_buf()
+    } else {
+        path.parent().map(PathBuf::from).unwrap_or_default()
     }
 }

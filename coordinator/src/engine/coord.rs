@@ -2,7 +2,6 @@
 //! recorder, audit helpers and lagrange hubs, and what it sends; opened before the nodes
 //! start and closed whatever happened.
 
-use super::window::MAX_AHEAD;
 use crate::case::Case;
 use crate::contract::Contract;
 use crate::profile::Profile;
@@ -138,6 +137,10 @@ pub(crate) struct Coord<'a> {
     /// ones.
     pub(super) spare: Vec<Vec<StepReport>>,
 }
+
+/// The most windows in flight: the control topics queue them
+/// (`transport::shm::CONTROL_BUFFER`), and a stop request lets them end first.
+pub const MAX_AHEAD: u64 = 8;
 
 /// How often [`Coord::wait_all`] checks the nodes' health while messages keep arriving.
 pub(super) const HEALTH_EVERY: Duration = Duration::from_millis(2);

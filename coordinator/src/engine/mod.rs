@@ -25,9 +25,10 @@ pub mod summary;
 mod window;
 
 pub use audit::{Audit, BalanceRow};
+pub use coord::MAX_AHEAD;
 pub(crate) use coord::{Closed, Coord};
 pub use coord::{Fault, RunOptions};
-pub use window::{MAX_AHEAD, WINDOWS_AHEAD};
+pub use window::WINDOWS_AHEAD;
 
 use crate::case;
 use coord::fault;

@@ -145,9 +145,6 @@ pub(super) fn windows_ahead_fixed() -> Option<u64> {
 /// The fewest windows in flight by default: the awaited window and the next one, so the
 /// nodes never wait for the audit or the recorder.
 pub const WINDOWS_AHEAD: u64 = 2;
-/// The most windows in flight: the control topics queue them
-/// (`transport::shm::CONTROL_BUFFER`), and a stop request lets them end first.
-pub const MAX_AHEAD: u64 = 8;
 /// How much wall time the windows in flight may span (see [`Ahead`]).
 pub(super) const AHEAD_SPAN: Duration = Duration::from_millis(2);
 

@@ -3,6 +3,7 @@
 //! opens one transport as one *endpoint* (its node name, or `coordinator`) and receives
 //! everything it subscribed to through a single `recv`, which blocks without spinning.
 
+mod abandon;
 pub mod bench;
 pub mod local;
 pub mod shm;
@@ -13,6 +14,8 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::time::Duration;
 use thiserror::Error;
+
+pub use abandon::{abandon_sends, sends_abandoned};
 
 #[derive(Debug, Error)]
 pub enum TransportError {
@@ -217,19 +220,6 @@ impl PeerWatch {
     pub(crate) fn watched(&self) -> bool {
         Arc::strong_count(&self.0) > 1
     }
-}
-
-static ABANDON: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
-
-/// Make every send that waits for a reader fail at once from now on (the process is leaving
-/// because its coordinator died: a dead reader's full queue would hold it for the send timeout).
-pub fn abandon_sends() {
-    ABANDON.store(true, Ordering::SeqCst);
-}
-
-/// Whether [`abandon_sends`] was called.
-pub fn sends_abandoned() -> bool {
-    ABANDON.load(Ordering::SeqCst)
 }
 
 /// Open an endpoint of the given kind. `local` needs a hub: use [`local::LocalHub::endpoint`].

@@ -306,7 +306,7 @@ impl ShmPublisher {
             match self.publisher.loan_slice_uninit(FRAME_HEADER + len) {
                 Ok(s) => break s,
                 Err(LoanError::OutOfMemory) | Err(LoanError::ExceedsMaxLoans) => {
-                    if super::sends_abandoned() {
+                    if super::abandon::sends_abandoned() {
                         return Err(self.err("abandoned: the process is leaving".into()));
                     }
                     if start.elapsed() > SEND_TIMEOUT {
@@ -361,7 +361,7 @@ impl ShmPublisher {
             // full. Detect it and send again after the bell has woken the reader; readers
             // that already took this sequence number drop the copy.
             if delivered >= self.service.dynamic_config().number_of_subscribers()
-                || super::sends_abandoned()
+                || super::abandon::sends_abandoned()
             {
                 return Ok(());
             }
@@ -447,7 +447,7 @@ impl Transport for ShmTransport {
             .override_sample_preallocation(move |_| depth + SUBSCRIBER_BORROWED + 1)
             .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
             .set_backpressure_handler(|info: &BackpressureInfo| {
-                if info.elapsed_time > SEND_TIMEOUT || super::sends_abandoned() {
+                if info.elapsed_time > SEND_TIMEOUT || super::abandon::sends_abandoned() {
                     BackpressureAction::DiscardDataAndFail
                 } else {
                     BackpressureAction::Retry

@@ -24,6 +24,7 @@ pub mod integrate;
 pub mod lagrange;
 pub mod model;
 pub mod models;
+pub mod params;
 pub mod rk_ba;
 pub mod solver;
 

@@ -20,6 +20,7 @@ use super::integrate::Body;
 use super::lagrange::ExplicitSide;
 use super::model::Dim;
 use super::models::{ModelInput, PdModelDef};
+pub use super::params::*;
 use crate::fem2d::History;
 use mechanics::damage::{
     BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain, NoDamage,
@@ -34,120 +35,7 @@ use protocol::{
     SolverError, SolverResult, StepReport, Window,
 };
 use protocol::{BuildOptions, Inbox, LimitApplies, Outbox, WindowLimit};
-use serde::Deserialize;
-use std::collections::BTreeMap;
 use std::path::Path;
-
-fn default_thickness() -> f64 {
-    1.0
-}
-fn default_stabilization() -> f64 {
-    0.5
-}
-fn default_cfl() -> f64 {
-    0.5
-}
-fn default_rk_order() -> usize {
-    2
-}
-
-/// The parameter table of a peridynamic node (`[nodes.X.params]`).
-#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct PdParams {
-    /// "3d", "plane_stress" or "plane_strain".
-    pub dimension: String,
-    /// Out-of-plane thickness h in 2-D (m).
-    #[serde(default = "default_thickness")]
-    pub thickness: f64,
-    /// Lattice spacing Δx (m).
-    pub spacing: f64,
-    /// Horizon δ (m).
-    pub horizon: f64,
-    /// Mass density ρ (kg/m³).
-    pub density: f64,
-    /// Young's modulus E (Pa).
-    pub young: f64,
-    /// Poisson's ratio ν (pd-bond: 1/4 in 3-D and plane strain, 1/3 in plane stress).
-    pub poisson: f64,
-    /// Initial yield stress (Pa); absent = elastic.
-    #[serde(default)]
-    pub yield_stress: Option<f64>,
-    /// Linear isotropic hardening modulus H_iso (Pa) of the J2 plasticity.
-    #[serde(default)]
-    pub iso_hardening: f64,
-    /// Linear kinematic hardening modulus H_kin (Pa) of the J2 plasticity.
-    #[serde(default)]
-    pub kin_hardening: f64,
-    /// G of seed 001 eq. (186).
-    #[serde(default = "default_stabilization")]
-    pub stabilization: f64,
-    /// Order n of the RK gradient of pd-rk-ba (1 or 2; seed 000 App. A).
-    #[serde(default = "default_rk_order")]
-    pub rk_order: usize,
-    /// Safety factor on the stable step.
-    #[serde(default = "default_cfl")]
-    pub cfl: f64,
-    /// Bond breaking: `{ kind = "critical_stretch", critical_stretch = … }` and the others
-    /// below; absent: no damage.
-    #[serde(default)]
-    pub damage: Option<DamageParams>,
-    /// The shapes filled with particles on the lattice.
-    pub bodies: Vec<Shape>,
-    /// Shapes cut out of the bodies.
-    #[serde(default)]
-    pub holes: Vec<Shape>,
-    /// Initial velocity (m/s) of the particles in a region.
-    #[serde(default)]
-    pub initial_velocity: Vec<RegionVelocity>,
-    /// Velocity (m/s) held by the particles in a region for the whole run (a support or a
-    /// driven grip).
-    #[serde(default)]
-    pub prescribed_velocity: Vec<RegionVelocity>,
-    /// A pressure pulse on the face of a round hole.
-    #[serde(default)]
-    pub pressure_pulse: Option<PressurePulse>,
-    /// Coupling interfaces: named sets of particles.
-    #[serde(default)]
-    pub interfaces: Vec<InterfaceParams>,
-    /// Forces on the particles of regions (a line load on an edge: its total, spread
-    /// equally over the region's particles).
-    #[serde(default)]
-    pub loads: Vec<PdLoad>,
-    /// Named points whose displacement is reported every window (`<name>_ux`, `<name>_uy`,
-    /// and `<name>_uz` in 3-D): the particle at the point, within half a spacing.
-    #[serde(default)]
-    pub points: BTreeMap<String, Vec<f64>>,
-    /// Particle steps per window in a lagrange coupling (absent: as many as the stable step
-    /// needs); gs4 and ph take exactly one (see `pd::lagrange`).
-    #[serde(default)]
-    pub substeps: Option<usize>,
-    /// Smallest connected component (particles) counted in the `fragments` report scalar;
-    /// smaller ones are `debris_particles`.
-    #[serde(default = "default_fragment_min_size")]
-    pub fragment_min_size: usize,
-    /// "cpu" (default) or "gpu" (pd-bond and pd-correspondence).
-    #[serde(default)]
-    pub device: Option<String>,
-    /// Arithmetic of the GPU kernels: "f64" (default: f64 where the adapter has
-    /// `SHADER_F64`, else f32 with a warning) or "f32" (faster on consumer GPUs; about 1e-6
-    /// relative accuracy, with a warning).
-    #[serde(default)]
-    pub precision: Option<String>,
-    /// Most bonds the bodies may hold (both copies of a bond counted), checked before the
-    /// body is built against particles × full family (an upper estimate; a body past it is
-    /// refused naming `spacing`, or `horizon` when δ > 6 Δx). The default, 5·10⁷ (about
-    /// 4·10⁵ particles in 3-D or 1.8·10⁶ in 2-D at δ = 3.015 Δx), keeps a body within about
-    /// 11 GB of memory with every model (about 57 bytes a bond for pd-bond and
-    /// pd-correspondence, 216 for pd-rk-ba); raise it for a larger body on a host with the
-    /// memory.
-    #[serde(default = "default_max_bonds")]
-    pub max_bonds: u64,
-}
-
-fn default_fragment_min_size() -> usize {
-    20
-}
 
 /// Damage index φ (seed 000 App. C: the volume fraction of a particle's family whose bonds
 /// are broken) at or above which a particle counts in the `damaged_particles` report scalar:
@@ -168,122 +56,6 @@ pub struct FirstDamage {
     pub corner_distance: f64,
     /// Smallest and largest radius (m) of the first-damaged particles.
     pub radius: [f64; 2],
-}
-
-#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
-pub enum DamageParams {
-    /// No damage (a struct variant, so that a key given with it is refused: serde ignores
-    /// extra keys on a unit variant of an internally tagged enum).
-    None {},
-    /// A bond breaks when its stretch exceeds `critical_stretch`.
-    CriticalStretch {
-        /// Critical bond stretch s₀ (1).
-        critical_stretch: f64,
-    },
-    /// Bonds of a particle break when its von Mises stress exceeds `critical_stress`.
-    VonMises {
-        /// Critical von Mises stress (Pa).
-        critical_stress: f64,
-    },
-    /// Damage grows with the equivalent plastic strain between the two values.
-    PlasticStrain {
-        /// Equivalent plastic strain at which damage starts (1).
-        eps_threshold: f64,
-        /// Equivalent plastic strain at which bonds are fully broken (1).
-        eps_critical: f64,
-    },
-}
-
-#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct RegionVelocity {
-    /// The particles inside this shape.
-    pub region: Shape,
-    /// Velocity (m/s).
-    pub velocity: [f64; 3],
-}
-
-/// Prescribed internal pressure pulse on the inner face of a round hole about the z axis
-/// through `center` (stand-in for the gas of seed 000 §3.2): p(t) rises linearly from 0 to
-/// `peak` over `rise`, then falls linearly to 0 at `duration` (`rise` = 0: a step down-ramp).
-/// Applied as forces p·A·n on the particles of the first lattice layer outside the face,
-/// A = Δx·h (2-D) or Δx² (3-D) of face per particle, n the outward radial direction.
-#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct PressurePulse {
-    /// Only "inner" (the face of the hole of radius `inner_radius`).
-    #[serde(default = "default_surface")]
-    pub surface: String,
-    /// A point of the hole's axis (m).
-    pub center: [f64; 3],
-    /// Radius of the hole (m).
-    pub inner_radius: f64,
-    /// Peak pressure (Pa).
-    pub peak: f64,
-    /// Rise time (s), ≥ 0 and < duration.
-    #[serde(default)]
-    pub rise: f64,
-    /// Total duration (s).
-    pub duration: f64,
-}
-
-fn default_surface() -> String {
-    "inner".into()
-}
-
-impl PressurePulse {
-    /// p(t).
-    pub fn at(&self, t: f64) -> f64 {
-        if t < 0.0 || t >= self.duration {
-            0.0
-        } else if t < self.rise {
-            self.peak * t / self.rise
-        } else {
-            self.peak * (self.duration - t) / (self.duration - self.rise)
-        }
-    }
-}
-
-#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct InterfaceParams {
-    /// The interface's name (what a coupling's `driver`/`responder` names after the node).
-    pub name: String,
-    /// "all" or "surface"; restricted to `region` when given.
-    #[serde(default = "default_select")]
-    pub select: String,
-    /// Only the particles inside this shape.
-    #[serde(default)]
-    pub region: Option<Shape>,
-    /// Only the particles inside any of these shapes (with `region`: inside it or any of
-    /// these), e.g. both cut edges of the middle subdomain of three in a row.
-    #[serde(default)]
-    pub regions: Vec<Shape>,
-}
-
-/// A force on the particles of a region.
-#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct PdLoad {
-    /// The particles inside this shape carry the load.
-    pub region: Shape,
-    /// Total force [Fx, Fy, Fz] (N), spread equally over them.
-    pub force: [f64; 3],
-    /// "step" (full load from t = 0) or "ramp" (the C³ ramp over `ramp_time`, then held).
-    #[serde(default = "default_history")]
-    pub history: String,
-    /// Ramp duration T (s), for `history = "ramp"`.
-    #[serde(default)]
-    pub ramp_time: Option<f64>,
-}
-
-fn default_history() -> String {
-    "step".into()
-}
-
-fn default_select() -> String {
-    "surface".into()
 }
 
 /// One coupling as this node plays it: its scheme's side (`role`).
@@ -335,18 +107,6 @@ pub struct PdSolver {
 
 /// Most lattice points a body's bounding box may hold (the largest runs here are ~10⁷).
 pub const MAX_LATTICE_POINTS: f64 = 2e8;
-
-/// Default of `max_bonds`: the most bonds (both copies counted) a body may hold, estimated
-/// before it is built. 5·10⁷ bonds are about 4·10⁵ particles in 3-D or 1.8·10⁶ in 2-D at
-/// δ = 3.015 Δx. Set-up takes about 57 bytes of host memory a bond for pd-bond and
-/// pd-correspondence and 216 for pd-rk-ba (peak resident set of `solid-node --describe` on
-/// 20³ and 40³ blocks): 3 to 11 GB at the default, which a 16 GB host holds, built
-/// in seconds. The examples hold under 10⁶ bonds.
-pub const DEFAULT_MAX_BONDS: u64 = 50_000_000;
-
-fn default_max_bonds() -> u64 {
-    DEFAULT_MAX_BONDS
-}
 
 /// The fewest bytes of memory a bond takes (of the models: 57 to 216).
 const BOND_BYTES_MIN: u64 = 57;

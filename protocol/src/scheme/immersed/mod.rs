@@ -3,7 +3,7 @@
 //! its grid as they are (no interface mapping) and sends back the force on each particle. It
 //! can end before the run: the solid goes on alone (seed 000 §4).
 
-use super::Scheme;
+use super::contract::Scheme;
 
 /// What the driver sends by default: its particles' motion and volume.
 pub const DRIVER_FIELDS: &[&str] = &["position", "velocity", "volume"];

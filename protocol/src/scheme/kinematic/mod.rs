@@ -9,10 +9,9 @@ mod follow;
 
 pub use follow::{Follow, Path};
 
-use super::Scheme;
+use super::contract::{Scheme, is_motion};
+use crate::fieldset::FieldSet;
 use crate::mapping::Mapping;
-use crate::participant::is_motion;
-use crate::solver::FieldSet;
 use wire::message::{Field, InterfaceMesh, Role};
 
 /// What the driver sends by default: its interface motion.

@@ -50,7 +50,7 @@ pub const ACCEPTS: &[&str] = &["force"];
 /// which solves the interface problem; nothing is lagged and no side waits for another.
 pub struct Lagrange;
 
-impl super::Scheme for Lagrange {
+impl super::contract::Scheme for Lagrange {
     fn default_fields(&self) -> (&'static [&'static str], &'static [&'static str]) {
         (PROVIDES, ACCEPTS)
     }

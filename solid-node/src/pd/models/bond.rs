@@ -5,7 +5,7 @@ use crate::pd::bond::{BondModel, implied_poisson};
 use crate::pd::gpu::DeviceBody;
 use crate::pd::integrate::Body;
 use crate::pd::model::PdModel;
-use crate::pd::solver::DamageParams;
+use crate::pd::params::DamageParams;
 use mechanics::gpu::{GpuContext, GpuError};
 use protocol::SolverResult;
 use std::sync::Arc;

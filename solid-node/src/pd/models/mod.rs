@@ -12,7 +12,7 @@ use super::family::Bonds;
 use super::gpu::DeviceBody;
 use super::integrate::Body;
 use super::model::{Dim, Kinematics, PdModel};
-use super::solver::{DamageParams, PdParams};
+use super::params::{DamageParams, PdParams};
 use mechanics::damage::{BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain};
 use mechanics::gpu::{GpuContext, GpuError};
 use mechanics::j2::J2Material;
