@@ -93,7 +93,7 @@ impl Ramp {
         match self {
             Ramp::Step => 1.0,
             Ramp::Sin2 => (std::f64::consts::FRAC_PI_2 * x).sin().powi(2),
-            Ramp::Septic => x.powi(4) * (35.0 + x * (-84.0 + x * (70.0 - 20.0 * x))),
+            Ramp::Septic => mechanics::time::septic_ramp(x),
         }
     }
 }

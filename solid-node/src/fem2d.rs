@@ -146,10 +146,7 @@ impl History {
     pub fn at(self, t: f64) -> f64 {
         match self {
             History::Step => 1.0,
-            History::Ramp(period) => {
-                let x = (t / period).clamp(0.0, 1.0);
-                x.powi(4) * (35.0 + x * (-84.0 + x * (70.0 - 20.0 * x)))
-            }
+            History::Ramp(period) => mechanics::time::septic_ramp(t / period),
         }
     }
 }

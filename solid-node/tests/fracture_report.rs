@@ -3,9 +3,10 @@
 //! closed forms (von Mises of simple stress states, distances on the lattice) and against
 //! the node's own independent measurements (damage indices, connected components).
 
+use mechanics::j2::von_mises;
 use protocol::{Inbox, Outbox, Solver, Window};
 use solid_node::pd::geometry::{Shape, lattice};
-use solid_node::pd::solver::{DAMAGED_INDEX, PdSolver, first_damage_of, von_mises};
+use solid_node::pd::solver::{DAMAGED_INDEX, PdSolver, first_damage_of};
 
 #[test]
 fn von_mises_of_simple_stress_states() {

@@ -25,7 +25,7 @@ use crate::fem2d::History;
 use mechanics::damage::{
     BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain, NoDamage,
 };
-use mechanics::j2::J2Material;
+use mechanics::j2::{J2Material, von_mises};
 use node_kit::device::Device;
 use node_kit::vtk::{self, Arrays, Frame};
 use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
@@ -1183,12 +1183,6 @@ pub fn first_damage_of(bodies: &[Shape], x0: &[[f64; 3]], damage: &[f64], t1: f6
             [rmin, rmax]
         },
     }
-}
-
-/// Von Mises equivalent stress of a symmetric stress [xx, yy, zz, yz, xz, xy] (Pa).
-pub fn von_mises(s: &[f64; 6]) -> f64 {
-    let (a, b, c) = (s[0] - s[1], s[1] - s[2], s[2] - s[0]);
-    (0.5 * (a * a + b * b + c * c) + 3.0 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5])).sqrt()
 }
 
 impl Solver for PdSolver {
