@@ -7,7 +7,7 @@
 //! the coupling, the window, the field, and what was expected against what came.
 //!
 //! Lagrange sides are not covered here: their vectors are sized by the interface problem,
-//! which the coordinator's hub checks as it reads them (`coordinator/src/lagrange.rs`).
+//! which the coordinator's hub checks as it reads them (`protocol::scheme::lagrange::Hub`).
 
 use crate::case::{Case, CouplingConfig, Schedule};
 use protocol::message::{CouplingKind, Role};
