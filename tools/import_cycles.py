@@ -7,9 +7,11 @@ A file leans on another when it names an item of the other's module by path: `cr
 in `use` lines or in the code, `super::x` (resolved from the file's own module), and a
 module's own `mod x;` children are not counted as leaning (a parent declares its children).
 A parent naming a child's items (`start::launch` beside `mod start;`) leans on the child, and
-a child's `use super::*` on its parent. A module's re-exports (`pub use child::{Item}`, `pub use other_crate::x`) declare its public face, as
-`mod x;` does, and are not counted either: a file that names `crate::Item` re-exported by the crate
-root leans on the file that defines the item, which the root's re-export does not change. A circle is a set of files each reachable from the others (a strongly connected component
+a child's `use super::*` on its parent. A module's re-exports of its children's items or of another crate's (`pub use child::{Item}`,
+`pub use other_crate::x`) declare its public face, as `mod x;` does, and are not counted either;
+`pub use crate::...` and `pub use super::...` also bring the items into the file's scope, and count.
+The script reads paths only: an `impl` block of a type in another file, and method calls, are not
+seen. A circle is a set of files each reachable from the others (a strongly connected component
 of more than one file). It prints each circle, its files and one reference per edge, and
 exits 1 if there is any. A file's reference to its own module's items, or to its parent
 module's is a child leaning on its parent: counted, since a parent that leans back on the
@@ -62,8 +64,12 @@ def main() -> int:
         cut = text.find("#[cfg(test)]\nmod tests")
         if cut >= 0:
             text = text[:cut]
-        # Re-exports declare, they do not use.
-        text = re.sub(r"\bpub(\([a-z]+\))?\s+use\s+[^;]*;", "", text)
+        # A re-export of a child module's items or of another crate's declares this
+        # module's public face, it does not use them; `pub use crate::...` and
+        # `pub use super::...` bring the items into scope too, and count.
+        text = re.sub(
+            r"\bpub(\([a-z]+\))?\s+use\s+(?!crate::|super::|self::)[^;]*;", "", text
+        )
         # A child module's items named from its parent (`start::launch`), and a child's
         # glob import of its parent (`use super::*`).
         for child in re.findall(r"\bmod\s+([A-Za-z_][A-Za-z0-9_]*)\s*;", text):
