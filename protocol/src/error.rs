@@ -1,5 +1,5 @@
-//! What a solver reports when it cannot go on: a bad parameter, a bad coupling input, a
-//! state become unphysical.
+//! What a solver reports when it cannot go on (a bad parameter, a bad coupling input, a
+//! state become unphysical), and why the participant runtime around it stopped.
 
 use thiserror::Error;
 
@@ -38,6 +38,27 @@ impl SolverError {
 }
 
 pub type SolverResult<T> = Result<T, SolverError>;
+
+/// Why the participant runtime around a solver stopped.
+#[derive(Debug, Error)]
+pub enum EngineError {
+    #[error("{0}")]
+    Solver(#[from] SolverError),
+    #[error("coupling {coupling}: {reason}")]
+    Coupling { coupling: String, reason: String },
+    /// A non-finite value in what the node was about to send (never sent).
+    #[error(transparent)]
+    Diverged(#[from] crate::diverged::Divergence),
+}
+
+impl EngineError {
+    pub fn coupling(coupling: impl Into<String>, reason: impl Into<String>) -> Self {
+        EngineError::Coupling {
+            coupling: coupling.into(),
+            reason: reason.into(),
+        }
+    }
+}
 
 #[cfg(test)]
 mod tests {

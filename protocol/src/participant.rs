@@ -11,6 +11,7 @@ use crate::codec::{self, encode_into};
 use crate::mapping::Mapping;
 use crate::message::*;
 use crate::scheme;
+use crate::scheme::lagrange::node as lagrange;
 use crate::solver::{
     BoxedFactory, BuildOptions, FieldSet, Solver, SolverError, SolverFactory, SolverResult, Window,
 };
@@ -23,6 +24,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
+pub use crate::error::EngineError;
 pub use crate::scheme::{MOTION_FIELDS, is_motion};
 
 /// One coupling of this node, with its input buffer and mapping.
@@ -51,18 +53,6 @@ pub struct NodeEngine {
 
 /// Consumed peer messages kept for reuse (a few per coupling suffice: a window holds one).
 const SPARE: usize = 8;
-
-/// Why the engine stopped.
-#[derive(Debug, thiserror::Error)]
-pub enum EngineError {
-    #[error("{0}")]
-    Solver(#[from] SolverError),
-    #[error("coupling {coupling}: {reason}")]
-    Coupling { coupling: String, reason: String },
-    /// A non-finite value in what the node was about to send (never sent).
-    #[error(transparent)]
-    Diverged(#[from] crate::diverged::Divergence),
-}
 
 impl NodeEngine {
     pub fn new(solver: Box<dyn Solver>, bindings: &[Binding]) -> Self {
@@ -345,7 +335,12 @@ impl NodeEngine {
         let bindings: Vec<Binding> = self.links.iter().map(|l| l.b.clone()).collect();
         self.solver
             .setup(&bindings, &self.inbox, &mut self.outbox)?;
-        self.lagrange_setup(&bindings)?;
+        for b in bindings
+            .iter()
+            .filter(|b| scheme::of(b.kind).coordinator_solved())
+        {
+            lagrange::setup(self.solver.as_mut(), b, &mut self.outbox)?;
+        }
         self.drain_outbox(0, 0.0)
     }
 
@@ -370,35 +365,61 @@ impl NodeEngine {
     }
 
     /// The solver's state for a checkpoint: its `save_state`, and with a lagrange coupling
-    /// the side's coupling state beside it (the pair in bincode, PROTOCOL.md §4.5).
+    /// the side's coupling state beside it.
     pub fn save_state(&mut self) -> SolverResult<Vec<u8>> {
-        let own = self.solver.save_state()?;
-        let Some(i) = self.lagrange_link() else {
-            return Ok(own);
-        };
-        let iface = self.links[i].b.interface.clone();
-        let side = self
-            .solver
-            .lagrange_side(&iface)
-            .ok_or_else(|| SolverError::Other("the lagrange side is gone".into()))?
-            .save_state()
-            .map_err(|e| SolverError::Other(format!("lagrange side '{iface}': {e}")))?;
-        checkpoint::encode_state(&(own, side))
+        match self.lagrange_link() {
+            None => self.solver.save_state(),
+            Some(i) => lagrange::save_state(self.solver.as_mut(), &self.links[i].b),
+        }
     }
 
     /// The inverse of [`Self::save_state`], after set-up.
     pub fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
+        match self.lagrange_link() {
+            None => self.solver.load_state(bytes),
+            Some(i) => lagrange::load_state(self.solver.as_mut(), &self.links[i].b, bytes),
+        }
+    }
+
+    /// The lagrange coupling of this node (one at most): its link index.
+    fn lagrange_link(&self) -> Option<usize> {
+        self.links
+            .iter()
+            .position(|l| scheme::of(l.b.kind).coordinator_solved())
+    }
+
+    /// Coupling steps per window of this node's lagrange side (None: no lagrange coupling).
+    pub fn lagrange_steps(&mut self) -> Option<usize> {
+        let i = self.lagrange_link()?;
+        lagrange::steps(self.solver.as_mut(), &self.links[i].b)
+    }
+
+    /// Applies the multipliers of `window` sent to node `me` once they are here (window 0:
+    /// the initial ones, else the end of the side's current coupling step); false while
+    /// they have not arrived.
+    pub fn lagrange_correct(&mut self, me: &str, window: u64) -> Result<bool, EngineError> {
         let Some(i) = self.lagrange_link() else {
-            return self.solver.load_state(bytes);
+            return Ok(false);
         };
-        let (own, side): (Vec<u8>, Vec<u8>) = checkpoint::decode_state(bytes)?;
-        self.solver.load_state(&own)?;
-        let iface = self.links[i].b.interface.clone();
-        self.solver
-            .lagrange_side(&iface)
-            .ok_or_else(|| SolverError::Other("the lagrange side is gone".into()))?
-            .load_state(&side)
-            .map_err(|e| SolverError::Other(format!("lagrange side '{iface}': {e}")))
+        let Some(lambda) = lagrange::take(&mut self.links[i].pending, me, window) else {
+            return Ok(false);
+        };
+        lagrange::correct(self.solver.as_mut(), &self.links[i].b, window, &lambda)?;
+        Ok(true)
+    }
+
+    /// The free coupling step `c` of `window` on the lagrange side: the message with its
+    /// interface velocities at the step's start and end, sent at time `time`.
+    pub fn lagrange_free_step(
+        &mut self,
+        c: usize,
+        window: u64,
+        time: f64,
+    ) -> Result<Fields, EngineError> {
+        let Some(i) = self.lagrange_link() else {
+            return Err(EngineError::coupling("", "no lagrange coupling"));
+        };
+        lagrange::free_step(self.solver.as_mut(), &self.links[i].b, c, window, time)
     }
 }
 

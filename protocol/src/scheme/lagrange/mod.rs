@@ -20,7 +20,7 @@
 //! with partial pivoting: interfaces are small).
 
 pub mod hub;
-mod node;
+pub(crate) mod node;
 mod side;
 mod solver;
 pub mod wire;

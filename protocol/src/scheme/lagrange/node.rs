@@ -1,145 +1,143 @@
 //! The scheme's node side, as the participant runtime runs it: the side's set-up fields, its
-//! free coupling steps and the corrections with the multipliers the coordinator sends.
+//! free coupling steps, the corrections with the multipliers the coordinator sends and its
+//! part of a checkpoint. Functions over the solver and the coupling's binding; the runtime
+//! finds the binding and its buffered coordinator messages.
 
+use super::LagrangeSide;
 use super::wire;
+use crate::checkpoint;
+use crate::error::{EngineError, SolverError, SolverResult};
+use crate::fieldset::FieldSet;
 use crate::message::{Binding, Field, Fields};
-use crate::participant::{EngineError, NodeEngine};
-use crate::scheme;
+use crate::solver::Solver;
+use std::collections::VecDeque;
 
-impl NodeEngine {
-    /// After the solver's set-up: each lagrange side's set-up fields into the outbox (a
-    /// model without a lagrange side is refused).
-    pub(crate) fn lagrange_setup(&mut self, bindings: &[Binding]) -> Result<(), EngineError> {
-        for b in bindings
-            .iter()
-            .filter(|b| scheme::of(b.kind).coordinator_solved())
-        {
-            let Some(side) = self.solver.lagrange_side(&b.interface) else {
-                return Err(EngineError::Coupling {
-                    coupling: b.coupling.clone(),
-                    reason: format!(
-                        "model '{}' takes no lagrange coupling",
-                        self.solver.describe().model
-                    ),
-                });
-            };
-            wire::setup_fields(side, &b.interface, &mut self.outbox);
+/// The solver's lagrange side on binding `b`'s interface; a model without one is refused.
+fn side_of<'a>(
+    solver: &'a mut dyn Solver,
+    b: &Binding,
+) -> Result<&'a mut dyn LagrangeSide, EngineError> {
+    let model = solver.describe().model;
+    solver.lagrange_side(&b.interface).ok_or_else(|| {
+        EngineError::coupling(
+            &b.coupling,
+            format!("model '{model}' takes no lagrange coupling"),
+        )
+    })
+}
+
+/// After the solver's set-up: the side's set-up fields into the outbox.
+pub fn setup(
+    solver: &mut dyn Solver,
+    b: &Binding,
+    outbox: &mut FieldSet,
+) -> Result<(), EngineError> {
+    wire::setup_fields(side_of(solver, b)?, &b.interface, outbox);
+    Ok(())
+}
+
+/// Coupling steps per window of the side.
+pub fn steps(solver: &mut dyn Solver, b: &Binding) -> Option<usize> {
+    solver
+        .lagrange_side(&b.interface)
+        .map(|s| s.coupling_steps())
+}
+
+/// Takes the next multipliers sent to node `me` for `window` (0: the initial ones) out of the
+/// buffered coordinator messages, skipping those for other sides (and the set-up request,
+/// used by then); None while they have not arrived.
+pub fn take(pending: &mut VecDeque<Fields>, me: &str, window: u64) -> Option<Vec<f64>> {
+    while pending.front().is_some_and(|f| f.window <= window) {
+        let f = pending.pop_front()?;
+        if f.window < window || wire::step_of(&f).is_none() {
+            continue;
         }
-        Ok(())
-    }
-
-    /// The lagrange coupling of this node (one at most): its link index.
-    pub(crate) fn lagrange_link(&self) -> Option<usize> {
-        self.links
-            .iter()
-            .position(|l| scheme::of(l.b.kind).coordinator_solved())
-    }
-
-    /// Coupling steps per window of this node's lagrange side (None: no lagrange coupling).
-    pub fn lagrange_steps(&mut self) -> Option<usize> {
-        let i = self.lagrange_link()?;
-        let iface = self.links[i].b.interface.clone();
-        self.solver
-            .lagrange_side(&iface)
-            .map(|s| s.coupling_steps())
-    }
-
-    /// Takes the next multipliers sent to node `me` for `window` (0: the initial ones) out
-    /// of the buffered coordinator messages, skipping those for other sides (and the set-up
-    /// request, used by then); None while they have not arrived.
-    fn lagrange_take(&mut self, me: &str, window: u64) -> Option<(usize, Vec<f64>)> {
-        let i = self.lagrange_link()?;
-        let l = &mut self.links[i];
-        while l.pending.front().is_some_and(|f| f.window <= window) {
-            let f = l.pending.pop_front()?;
-            if f.window < window || wire::step_of(&f).is_none() {
-                continue;
-            }
-            if let Some(v) = f.fields.into_iter().find(|x| x.name == me) {
-                return Some((i, v.values));
-            }
+        if let Some(v) = f.fields.into_iter().find(|x| x.name == me) {
+            return Some(v.values);
         }
-        None
     }
+    None
+}
 
-    /// Applies the multipliers of `window` sent to node `me` once they are here (window 0:
-    /// the initial ones, else the end of the side's current coupling step); false while
-    /// they have not arrived.
-    pub fn lagrange_correct(&mut self, me: &str, window: u64) -> Result<bool, EngineError> {
-        let Some((i, lambda)) = self.lagrange_take(me, window) else {
-            return Ok(false);
-        };
-        let (coupling, iface) = (
-            self.links[i].b.coupling.clone(),
-            self.links[i].b.interface.clone(),
-        );
-        let bad = |reason: String| EngineError::Coupling {
-            coupling: coupling.clone(),
-            reason,
-        };
-        let side = self
-            .solver
-            .lagrange_side(&iface)
-            .ok_or_else(|| bad("the side is gone".into()))?;
-        let nl = side.multiplier_ids().len();
-        if lambda.len() != nl || !lambda.iter().all(|x| x.is_finite()) {
-            return Err(bad(format!(
+/// Applies the multipliers `lambda` of `window` (window 0: the initial ones, else the end of
+/// the side's current coupling step), refusing a wrong count or a non-finite value.
+pub fn correct(
+    solver: &mut dyn Solver,
+    b: &Binding,
+    window: u64,
+    lambda: &[f64],
+) -> Result<(), EngineError> {
+    let side = side_of(solver, b)?;
+    let nl = side.multiplier_ids().len();
+    if lambda.len() != nl || !lambda.iter().all(|x| x.is_finite()) {
+        return Err(EngineError::coupling(
+            &b.coupling,
+            format!(
                 "multipliers of window {window}: {} values (finite expected) for {nl}",
                 lambda.len()
-            )));
-        }
-        if window == 0 {
-            side.set_initial(&lambda);
-        } else {
-            side.correct(&lambda);
-        }
-        Ok(true)
+            ),
+        ));
     }
+    if window == 0 {
+        side.set_initial(lambda);
+    } else {
+        side.correct(lambda);
+    }
+    Ok(())
+}
 
-    /// The free coupling step `c` of `window` on the lagrange side: the message with its
-    /// interface velocities at the step's start and end, sent at time `time`.
-    pub fn lagrange_free_step(
-        &mut self,
-        c: usize,
-        window: u64,
-        time: f64,
-    ) -> Result<Fields, EngineError> {
-        let Some(i) = self.lagrange_link() else {
-            return Err(EngineError::Coupling {
-                coupling: String::new(),
-                reason: "no lagrange coupling".into(),
-            });
-        };
-        let (coupling, iface) = (
-            self.links[i].b.coupling.clone(),
-            self.links[i].b.interface.clone(),
-        );
-        let Some(side) = self.solver.lagrange_side(&iface) else {
-            return Err(EngineError::Coupling {
-                coupling,
-                reason: "the side is gone".into(),
-            });
-        };
-        let nl = side.multiplier_ids().len();
-        let mut v_start = vec![0.0; nl];
-        let mut v_free = vec![0.0; nl];
-        side.free_step(&mut v_start, &mut v_free);
-        let vec = |name: &str, values: Vec<f64>| Field {
-            name: name.to_string(),
-            components: 1,
-            values,
-        };
-        let f = Fields {
-            coupling,
-            window,
-            time,
-            fields: vec![
-                wire::scalar(wire::STEP, c as f64),
-                vec(wire::V_START, v_start),
-                vec(wire::V_FREE, v_free),
-            ],
-        };
-        crate::diverged::check_fields(&f)?;
-        Ok(f)
-    }
+/// The free coupling step `c` of `window`: the message with the side's interface velocities
+/// at the step's start and end, sent at time `time`.
+pub fn free_step(
+    solver: &mut dyn Solver,
+    b: &Binding,
+    c: usize,
+    window: u64,
+    time: f64,
+) -> Result<Fields, EngineError> {
+    let side = side_of(solver, b)?;
+    let nl = side.multiplier_ids().len();
+    let mut v_start = vec![0.0; nl];
+    let mut v_free = vec![0.0; nl];
+    side.free_step(&mut v_start, &mut v_free);
+    let vec = |name: &str, values: Vec<f64>| Field {
+        name: name.to_string(),
+        components: 1,
+        values,
+    };
+    let f = Fields {
+        coupling: b.coupling.clone(),
+        window,
+        time,
+        fields: vec![
+            wire::scalar(wire::STEP, c as f64),
+            vec(wire::V_START, v_start),
+            vec(wire::V_FREE, v_free),
+        ],
+    };
+    crate::diverged::check_fields(&f)?;
+    Ok(f)
+}
+
+/// The solver's state for a checkpoint: its own `save_state` and the side's coupling state
+/// beside it (the pair in bincode, PROTOCOL.md §4.5).
+pub fn save_state(solver: &mut dyn Solver, b: &Binding) -> SolverResult<Vec<u8>> {
+    let own = solver.save_state()?;
+    let side = solver
+        .lagrange_side(&b.interface)
+        .ok_or_else(|| SolverError::Other("the lagrange side is gone".into()))?
+        .save_state()
+        .map_err(|e| SolverError::Other(format!("lagrange side '{}': {e}", b.interface)))?;
+    checkpoint::encode_state(&(own, side))
+}
+
+/// The inverse of [`save_state`], after set-up.
+pub fn load_state(solver: &mut dyn Solver, b: &Binding, bytes: &[u8]) -> SolverResult<()> {
+    let (own, side): (Vec<u8>, Vec<u8>) = checkpoint::decode_state(bytes)?;
+    solver.load_state(&own)?;
+    solver
+        .lagrange_side(&b.interface)
+        .ok_or_else(|| SolverError::Other("the lagrange side is gone".into()))?
+        .load_state(&side)
+        .map_err(|e| SolverError::Other(format!("lagrange side '{}': {e}", b.interface)))
 }
