@@ -7,7 +7,7 @@
 
 use crate::boundary::Boundary;
 use crate::grid::Grid;
-use crate::immersed::Immersed;
+use crate::immersed::body::Immersed;
 use crate::limiter::Limiter;
 use crate::mixture::Phase;
 use crate::simd::Simd;
