@@ -489,22 +489,7 @@ impl Drive<'_> {
         let booked0 = s.done.as_ref().map_or(zero, |d| d.1.interface_impulse);
         self.books.borrow_mut().begin(1, [booked0, zero].iter());
         self.idle(s, sheet, sent)?;
-        if sent[0] && s.describes.len() >= 2 {
-            sheet.pass("set-up", "Fields{0}, a second Describe, Done{0}");
-        } else {
-            sheet.fail(
-                "set-up",
-                format!(
-                    "{}{}",
-                    if sent[0] { "" } else { "no Fields{0}; " },
-                    if s.describes.len() >= 2 {
-                        "".to_string()
-                    } else {
-                        format!("{} Describe(s), 2 expected", s.describes.len())
-                    }
-                ),
-            );
-        }
+        judge_set_up(s, sheet, sent);
         Ok(mesh)
     }
 
@@ -779,4 +764,19 @@ fn judge_heartbeat(s: &Session, sheet: &mut Sheet) {
                 ),
             );
     }
+}
+/// The set-up's verdict: the node answered with its window-0 fields (`sent[0]`) and a second
+/// `Describe`.
+fn judge_set_up(s: &Session, sheet: &mut Sheet, sent: &[bool]) {
+    if sent[0] && s.describes.len() >= 2 {
+        sheet.pass("set-up", "Fields{0}, a second Describe, Done{0}");
+        return;
+    }
+    let fields = if sent[0] { "" } else { "no Fields{0}; " };
+    let describes = if s.describes.len() >= 2 {
+        String::new()
+    } else {
+        format!("{} Describe(s), 2 expected", s.describes.len())
+    };
+    sheet.fail("set-up", format!("{fields}{describes}"));
 }

@@ -536,65 +536,92 @@ fn plane_view(
     let view = View::fit(lo, hi, PLOT);
     let mut bar = None;
     for f in frames {
-        let Some(g) = &f.grid else { continue };
-        let n = [g[0].len() - 1, g[1].len() - 1, g[2].len().max(2) - 1];
-        let cells = n[0] * n[1] * n[2];
-        let Some(a) = pick(
-            &f.cell_data,
-            &wanted(f, choice, &["pressure", "density"]),
-            cells,
-        ) else {
-            continue;
-        };
-        let k = n[2] / 2;
-        let layer = |i: usize, j: usize| magnitude(a, i + n[0] * (j + n[1] * k));
-        let (vmin, vmax) = range(
-            (0..n[1])
-                .flat_map(|j| (0..n[0]).map(move |i| (i, j)))
-                .map(|(i, j)| layer(i, j)),
-        );
-        for j in 0..n[1] {
-            for i in 0..n[0] {
-                let c = colour((layer(i, j) - vmin) / (vmax - vmin));
-                let (x0, y1) = view.px(g[0][i], g[1][j]);
-                let (x1, y0) = view.px(g[0][i + 1], g[1][j + 1]);
-                root.draw(&Rectangle::new([(x0, y0), (x1, y1)], c.filled()))?;
-            }
+        if let Some(b) = draw_grid_layer(root, f, choice, &view)? {
+            bar = Some(b);
         }
-        bar = Some((caption(&f.node, &a.name), vmin, vmax));
     }
     for f in frames.iter().filter(|f| f.grid.is_none()) {
-        // a chosen point field colours this node's particles with the map and takes the bar
-        let chosen = choice
-            .filter(|c| c.node == f.node)
-            .and_then(|c| pick(&f.point_data, &[c.field], f.points.len()));
-        if let Some(a) = chosen {
-            let (vmin, vmax) = range((0..f.points.len()).map(|i| magnitude(a, i)));
-            let r = if f.points.len() > 20_000 { 1 } else { 2 };
-            for (i, p) in f.points.iter().enumerate() {
-                let c = colour((magnitude(a, i) - vmin) / (vmax - vmin));
-                root.draw(&Circle::new(view.px(p[0], p[1]), r, c.filled()))?;
-            }
-            bar = Some((caption(&f.node, &a.name), vmin, vmax));
-        } else if f.polygons.is_empty() {
-            let r = if f.points.len() > 20_000 { 1 } else { 2 };
-            let damage = pick(&f.point_data, &["damage"], f.points.len());
-            for (i, p) in f.points.iter().enumerate() {
-                let d = damage.map_or(0.0, |a| magnitude(a, i)).clamp(0.0, 1.0);
-                let c = RGBColor(235, (235.0 * (1.0 - d)) as u8, (235.0 * (1.0 - d)) as u8);
-                root.draw(&Circle::new(view.px(p[0], p[1]), r, c.filled()))?;
-            }
-        } else {
-            for poly in &f.polygons {
-                let pts: Vec<(i32, i32)> = poly
-                    .iter()
-                    .map(|&i| view.px(f.points[i][0], f.points[i][1]))
-                    .collect();
-                root.draw(&Polygon::new(pts, RGBColor(90, 90, 90).filled()))?;
-            }
+        if let Some(b) = draw_solid_flat(root, f, choice, &view)? {
+            bar = Some(b);
         }
     }
     Ok(bar)
+}
+
+/// The middle z layer of frame `f`'s grid, its cells coloured by the chosen field, else
+/// pressure, else density: the colour bar, or None where the frame has no grid or no such
+/// field.
+fn draw_grid_layer(
+    root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    f: &Frame,
+    choice: Option<Choice>,
+    view: &View,
+) -> anyhow::Result<Bar> {
+    let Some(g) = &f.grid else { return Ok(None) };
+    let n = [g[0].len() - 1, g[1].len() - 1, g[2].len().max(2) - 1];
+    let cells = n[0] * n[1] * n[2];
+    let Some(a) = pick(
+        &f.cell_data,
+        &wanted(f, choice, &["pressure", "density"]),
+        cells,
+    ) else {
+        return Ok(None);
+    };
+    let k = n[2] / 2;
+    let layer = |i: usize, j: usize| magnitude(a, i + n[0] * (j + n[1] * k));
+    let (vmin, vmax) = range(
+        (0..n[1])
+            .flat_map(|j| (0..n[0]).map(move |i| (i, j)))
+            .map(|(i, j)| layer(i, j)),
+    );
+    for j in 0..n[1] {
+        for i in 0..n[0] {
+            let c = colour((layer(i, j) - vmin) / (vmax - vmin));
+            let (x0, y1) = view.px(g[0][i], g[1][j]);
+            let (x1, y0) = view.px(g[0][i + 1], g[1][j + 1]);
+            root.draw(&Rectangle::new([(x0, y0), (x1, y1)], c.filled()))?;
+        }
+    }
+    Ok(Some((caption(&f.node, &a.name), vmin, vmax)))
+}
+
+/// A solid frame `f` over the grid seen from above: its particles coloured by a chosen point
+/// field (which takes the colour bar), else shaded by damage; a mesh as grey polygons.
+fn draw_solid_flat(
+    root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    f: &Frame,
+    choice: Option<Choice>,
+    view: &View,
+) -> anyhow::Result<Bar> {
+    let chosen = choice
+        .filter(|c| c.node == f.node)
+        .and_then(|c| pick(&f.point_data, &[c.field], f.points.len()));
+    let r = if f.points.len() > 20_000 { 1 } else { 2 };
+    if let Some(a) = chosen {
+        let (vmin, vmax) = range((0..f.points.len()).map(|i| magnitude(a, i)));
+        for (i, p) in f.points.iter().enumerate() {
+            let c = colour((magnitude(a, i) - vmin) / (vmax - vmin));
+            root.draw(&Circle::new(view.px(p[0], p[1]), r, c.filled()))?;
+        }
+        return Ok(Some((caption(&f.node, &a.name), vmin, vmax)));
+    }
+    if f.polygons.is_empty() {
+        let damage = pick(&f.point_data, &["damage"], f.points.len());
+        for (i, p) in f.points.iter().enumerate() {
+            let d = damage.map_or(0.0, |a| magnitude(a, i)).clamp(0.0, 1.0);
+            let c = RGBColor(235, (235.0 * (1.0 - d)) as u8, (235.0 * (1.0 - d)) as u8);
+            root.draw(&Circle::new(view.px(p[0], p[1]), r, c.filled()))?;
+        }
+    } else {
+        for poly in &f.polygons {
+            let pts: Vec<(i32, i32)> = poly
+                .iter()
+                .map(|&i| view.px(f.points[i][0], f.points[i][1]))
+                .collect();
+            root.draw(&Polygon::new(pts, RGBColor(90, 90, 90).filled()))?;
+        }
+    }
+    Ok(None)
 }
 
 /// The solids' surfaces in an oblique view (longest axis across, second longest up, turned
@@ -605,48 +632,83 @@ fn oblique_view(
     frames: &[Frame],
     choice: Option<Choice>,
 ) -> anyhow::Result<Bar> {
-    let all = || frames.iter().flat_map(|f| f.points.iter());
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in all() {
-        for d in 0..3 {
-            lo[d] = lo[d].min(p[d]);
-            hi[d] = hi[d].max(p[d]);
-        }
-    }
-    let mut axes = [0usize, 1, 2];
-    axes.sort_by(|&a, &b| (hi[b] - lo[b]).total_cmp(&(hi[a] - lo[a])));
-    let centre: [f64; 3] = std::array::from_fn(|d| 0.5 * (lo[d] + hi[d]));
-    // a flat body (a 2-D model's particles or mesh) is seen face on
-    let flat = hi[axes[2]] - lo[axes[2]] <= 1e-9 * (hi[axes[0]] - lo[axes[0]]);
-    let (yaw, pitch) = if flat {
-        (0.0, 0.0)
-    } else {
-        (30f64.to_radians(), 20f64.to_radians())
-    };
-    let project = |p: &[f64; 3]| -> [f64; 3] {
-        let (a, b, c) = (
-            p[axes[0]] - centre[axes[0]],
-            p[axes[1]] - centre[axes[1]],
-            p[axes[2]] - centre[axes[2]],
-        );
-        let x = a * yaw.cos() + c * yaw.sin();
-        let z1 = -a * yaw.sin() + c * yaw.cos();
-        let y = b * pitch.cos() - z1 * pitch.sin();
-        let depth = b * pitch.sin() + z1 * pitch.cos();
-        [x, y, depth]
-    };
+    let camera = Oblique::of(frames);
     let mut plo = [f64::INFINITY; 2];
     let mut phi = [f64::NEG_INFINITY; 2];
-    for p in all() {
-        let q = project(p);
+    for p in frames.iter().flat_map(|f| f.points.iter()) {
+        let q = camera.project(p);
         for d in 0..2 {
             plo[d] = plo[d].min(q[d]);
             phi[d] = phi[d].max(q[d]);
         }
     }
     let view = View::fit(plo, phi, PLOT);
-    // Every polygon of every frame with its colour value, drawn far to near.
+    let bar = draw_surfaces(root, frames, choice, &camera, &view)?;
+    draw_particles(root, frames, choice, &camera, &view, bar)
+}
+
+/// The oblique camera over a set of frames: their bounding box's axes by length, its centre,
+/// and the turn and tilt.
+struct Oblique {
+    axes: [usize; 3],
+    centre: [f64; 3],
+    yaw: f64,
+    pitch: f64,
+}
+
+impl Oblique {
+    fn of(frames: &[Frame]) -> Oblique {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in frames.iter().flat_map(|f| f.points.iter()) {
+            for d in 0..3 {
+                lo[d] = lo[d].min(p[d]);
+                hi[d] = hi[d].max(p[d]);
+            }
+        }
+        let mut axes = [0usize, 1, 2];
+        axes.sort_by(|&a, &b| (hi[b] - lo[b]).total_cmp(&(hi[a] - lo[a])));
+        // a flat body (a 2-D model's particles or mesh) is seen face on
+        let flat = hi[axes[2]] - lo[axes[2]] <= 1e-9 * (hi[axes[0]] - lo[axes[0]]);
+        let (yaw, pitch) = if flat {
+            (0.0, 0.0)
+        } else {
+            (30f64.to_radians(), 20f64.to_radians())
+        };
+        Oblique {
+            axes,
+            centre: std::array::from_fn(|d| 0.5 * (lo[d] + hi[d])),
+            yaw,
+            pitch,
+        }
+    }
+
+    /// A point on the picture plane (x, y) and its depth.
+    fn project(&self, p: &[f64; 3]) -> [f64; 3] {
+        let (axes, centre) = (&self.axes, &self.centre);
+        let (a, b, c) = (
+            p[axes[0]] - centre[axes[0]],
+            p[axes[1]] - centre[axes[1]],
+            p[axes[2]] - centre[axes[2]],
+        );
+        let (yaw, pitch) = (self.yaw, self.pitch);
+        let x = a * yaw.cos() + c * yaw.sin();
+        let z1 = -a * yaw.sin() + c * yaw.cos();
+        let y = b * pitch.cos() - z1 * pitch.sin();
+        let depth = b * pitch.sin() + z1 * pitch.cos();
+        [x, y, depth]
+    }
+}
+
+/// Every polygon of every frame with its colour value, drawn far to near; the colour bar of
+/// the chosen node's field, else of the first frame with polygons.
+fn draw_surfaces(
+    root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    frames: &[Frame],
+    choice: Option<Choice>,
+    camera: &Oblique,
+    view: &View,
+) -> anyhow::Result<Bar> {
     let mut faces: Vec<(f64, Vec<[f64; 3]>, f64, usize)> = Vec::new();
     let mut bar_name = None;
     for (fi, f) in frames.iter().enumerate() {
@@ -666,7 +728,7 @@ fn oblique_view(
             f.points.len(),
         );
         for (e, poly) in f.polygons.iter().enumerate() {
-            let q: Vec<[f64; 3]> = poly.iter().map(|&i| project(&f.points[i])).collect();
+            let q: Vec<[f64; 3]> = poly.iter().map(|&i| camera.project(&f.points[i])).collect();
             let depth = q.iter().map(|p| p[2]).sum::<f64>() / q.len() as f64;
             let v = match (cell, point) {
                 (Some(a), _) => magnitude(a, e),
@@ -691,9 +753,20 @@ fn oblique_view(
         let pts: Vec<(i32, i32)> = q.iter().map(|p| view.px(p[0], p[1])).collect();
         root.draw(&Polygon::new(pts, c.filled()))?;
     }
-    let mut bar = bar_name.map(|n| (n, vmin, vmax));
-    // particles, far to near, by the colour map: a chosen field, else damage (or the joint's
-    // broken-bond fraction) on 0..1; the bar goes to the chosen field, else to the first
+    Ok(bar_name.map(|n| (n, vmin, vmax)))
+}
+
+/// The particles of the frames without polygons, far to near, by the colour map: a chosen
+/// field, else damage (or the joint's broken-bond fraction) on 0..1. The bar goes to the
+/// chosen field, else stays `bar` (the surfaces'), else goes to the first fraction drawn.
+fn draw_particles(
+    root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    frames: &[Frame],
+    choice: Option<Choice>,
+    camera: &Oblique,
+    view: &View,
+    mut bar: Bar,
+) -> anyhow::Result<Bar> {
     for f in frames.iter().filter(|f| f.polygons.is_empty()) {
         let n = f.points.len();
         let r = if n > 20_000 { 1 } else { 2 };
@@ -709,11 +782,11 @@ fn oblique_view(
             .points
             .iter()
             .enumerate()
-            .map(|(i, p)| (project(p)[2], i))
+            .map(|(i, p)| (camera.project(p)[2], i))
             .collect();
         order.sort_by(|a, b| b.0.total_cmp(&a.0));
         for (_, i) in order {
-            let q = project(&f.points[i]);
+            let q = camera.project(&f.points[i]);
             let c = match (chosen, fraction) {
                 (Some(a), _) => colour((magnitude(a, i) - vmin) / (vmax - vmin)),
                 (None, Some(a)) => colour(magnitude(a, i).clamp(0.0, 1.0)),

@@ -77,7 +77,7 @@ pub fn check(path: &Path, buf: &[u8]) -> Result<Checked, RecordingError> {
         path: path.to_path_buf(),
         why: why.to_string(),
     };
-    let corrupt = |byte: usize, why: String| RecordingError::Corrupt {
+    let corrupt = |(byte, why): (usize, String)| RecordingError::Corrupt {
         path: path.to_path_buf(),
         byte: byte as u64,
         why,
@@ -94,16 +94,64 @@ pub fn check(path: &Path, buf: &[u8]) -> Result<Checked, RecordingError> {
     } else {
         buf.len()
     };
-    // Pass 1: the records' framing.
+    // Pass 1: the records' framing, and the data section's CRC.
+    let f = frame(buf, end, closed).map_err(corrupt)?;
+    let data_end = f.records.iter().find(|r| r.op == OP_DATA_END);
+    let data_crc = match data_end {
+        Some(r) => data_crc(buf, r).map_err(corrupt)?,
+        None => DataCrc::Absent,
+    };
+    if closed {
+        let footer = closing(&f, end, data_end.is_some()).map_err(corrupt)?;
+        check_summary(path, buf, footer)?;
+    }
+    // Pass 2: each chunk's own CRC, where the data section's CRC does not vouch for them
+    // (and to locate the damage where it failed).
+    let mut chunks_checked = 0;
+    if data_crc != DataCrc::Vouches {
+        for r in f.records.iter().filter(|r| r.op == OP_CHUNK) {
+            chunks_checked += 1;
+            check_chunk(&buf[r.body.clone()]).map_err(|why| {
+                corrupt((
+                    r.at,
+                    format!("the chunk of bytes {}..{} {why}", r.at, r.body.end),
+                ))
+            })?;
+        }
+    }
+    if let DataCrc::Failed(to) = data_crc {
+        return Err(RecordingError::CorruptSection {
+            path: path.to_path_buf(),
+            from: 0,
+            to: to as u64,
+            why: "the data section does not match its CRC (every chunk matches its own: the damage lies outside them)".into(),
+        });
+    }
+    Ok(Checked {
+        complete: closed && !f.cut_short,
+        chunks_checked,
+    })
+}
+
+/// The records between the magic and `end`, as far as their framing holds.
+struct Framing {
+    records: Vec<Record>,
+    /// Where the walk stopped: `end`, or past the footer, or the record cut short.
+    stop: usize,
+    /// The last record runs past the end of a file without the end magic.
+    cut_short: bool,
+}
+
+/// Walks the records of `buf` up to `end`: in a closed file a record running past the end
+/// is corruption (its byte and why), in an open one the file cut short.
+fn frame(buf: &[u8], end: usize, closed: bool) -> Result<Framing, (usize, String)> {
     let mut records = Vec::new();
     let mut cut_short = false;
     let mut at = MAGIC.len();
     while at < end {
         let (op, len) = match (buf.get(at), u64_at(buf, at + 1)) {
             (Some(&op), Some(len)) if at + RECORD_HEAD <= end => (op, len),
-            _ if closed => {
-                return Err(corrupt(at, "a record's header runs past the end".into()));
-            }
+            _ if closed => return Err((at, "a record's header runs past the end".into())),
             _ => {
                 cut_short = true;
                 break;
@@ -115,7 +163,7 @@ pub fn check(path: &Path, buf: &[u8]) -> Result<Checked, RecordingError> {
             .filter(|&e| e <= end);
         let Some(body_end) = body_end else {
             if closed {
-                return Err(corrupt(
+                return Err((
                     at,
                     format!("a record (opcode 0x{op:02x}) of {len} bytes runs past the end"),
                 ));
@@ -124,7 +172,7 @@ pub fn check(path: &Path, buf: &[u8]) -> Result<Checked, RecordingError> {
             break;
         };
         if records.is_empty() && op != OP_HEADER {
-            return Err(corrupt(at, "the first record is not MCAP's header".into()));
+            return Err((at, "the first record is not MCAP's header".into()));
         }
         records.push(Record {
             op,
@@ -137,70 +185,49 @@ pub fn check(path: &Path, buf: &[u8]) -> Result<Checked, RecordingError> {
         }
     }
     if records.is_empty() && !cut_short && closed {
-        return Err(corrupt(MAGIC.len(), "no record".into()));
+        return Err((MAGIC.len(), "no record".into()));
     }
-    // The data section's CRC covers every byte before the data end record.
-    let data_end = records.iter().find(|r| r.op == OP_DATA_END);
-    let mut data_crc_failed = None;
-    let mut data_crc_vouches = false;
-    if let Some(r) = data_end {
-        let saved = u32_at(buf, r.body.start)
-            .ok_or_else(|| corrupt(r.at, "a data end record without its CRC".into()))?;
-        if saved != 0 {
-            if crc32fast::hash(&buf[..r.at]) == saved {
-                data_crc_vouches = true;
-            } else {
-                data_crc_failed = Some(r.at);
-            }
-        }
-    }
-    if closed {
-        let Some(footer) = records.last().filter(|r| r.op == OP_FOOTER) else {
-            return Err(corrupt(
-                at,
-                "the file ends with the magic but no footer".into(),
-            ));
-        };
-        if at != end {
-            return Err(corrupt(
-                at,
-                "bytes between the footer and the end magic".into(),
-            ));
-        }
-        if data_end.is_none() {
-            return Err(corrupt(
-                footer.at,
-                "a footer without a data end record".into(),
-            ));
-        }
-        check_summary(path, buf, footer)?;
-    }
-    // Pass 2: each chunk's own CRC, where the data section's CRC does not vouch for them
-    // (and to locate the damage where it failed).
-    let mut chunks_checked = 0;
-    if !data_crc_vouches {
-        for r in records.iter().filter(|r| r.op == OP_CHUNK) {
-            chunks_checked += 1;
-            check_chunk(&buf[r.body.clone()]).map_err(|why| {
-                corrupt(
-                    r.at,
-                    format!("the chunk of bytes {}..{} {why}", r.at, r.body.end),
-                )
-            })?;
-        }
-    }
-    if let Some(to) = data_crc_failed {
-        return Err(RecordingError::CorruptSection {
-            path: path.to_path_buf(),
-            from: 0,
-            to: to as u64,
-            why: "the data section does not match its CRC (every chunk matches its own: the damage lies outside them)".into(),
-        });
-    }
-    Ok(Checked {
-        complete: closed && !cut_short,
-        chunks_checked,
+    Ok(Framing {
+        records,
+        stop: at,
+        cut_short,
     })
+}
+
+/// What the data end record's CRC (of every byte before it) says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum DataCrc {
+    /// No data end record, or a CRC of 0 (not computed by the writer).
+    Absent,
+    Vouches,
+    /// It does not match: the data section up to this byte is damaged somewhere.
+    Failed(usize),
+}
+
+fn data_crc(buf: &[u8], data_end: &Record) -> Result<DataCrc, (usize, String)> {
+    let saved = u32_at(buf, data_end.body.start)
+        .ok_or_else(|| (data_end.at, "a data end record without its CRC".to_string()))?;
+    Ok(if saved == 0 {
+        DataCrc::Absent
+    } else if crc32fast::hash(&buf[..data_end.at]) == saved {
+        DataCrc::Vouches
+    } else {
+        DataCrc::Failed(data_end.at)
+    })
+}
+
+/// A closed file's end: its footer, right before the end magic, after a data end record.
+fn closing(f: &Framing, end: usize, has_data_end: bool) -> Result<&Record, (usize, String)> {
+    let Some(footer) = f.records.last().filter(|r| r.op == OP_FOOTER) else {
+        return Err((f.stop, "the file ends with the magic but no footer".into()));
+    };
+    if f.stop != end {
+        return Err((f.stop, "bytes between the footer and the end magic".into()));
+    }
+    if !has_data_end {
+        return Err((footer.at, "a footer without a data end record".into()));
+    }
+    Ok(footer)
 }
 
 /// The footer's CRC of the summary section and of its own first fields.

@@ -108,6 +108,26 @@ fn resolve<'a>(root: &'a Value, v: &'a Value) -> &'a Value {
     }
 }
 
+/// The short type of a choice between schemas `alts`: a tagged table (`table, kind = "a" |
+/// "b"`) or the alternatives' types, `or none` where one of them is null.
+fn alternatives(root: &Value, alts: &[Value]) -> String {
+    let (nulls, rest): (Vec<&Value>, Vec<&Value>) = alts
+        .iter()
+        .partition(|a| a.get("type").and_then(Value::as_str) == Some("null"));
+    let tags: Vec<(String, String)> = rest.iter().filter_map(|a| tag_of(root, a)).collect();
+    let mut s = if !tags.is_empty() && tags.len() == rest.len() {
+        let values: Vec<&str> = tags.iter().map(|(_, c)| c.as_str()).collect();
+        format!("table, {} = {}", tags[0].0, values.join(" | "))
+    } else {
+        let inner: Vec<String> = rest.iter().map(|a| kind(root, a)).collect();
+        inner.join(" | ")
+    };
+    if !nulls.is_empty() {
+        s += " or none";
+    }
+    s
+}
+
 /// A short type of a schema: `number`, `integer ≥ 0`, `"a" | "b"`, `[number; 3]`, `table`,
 /// `T or none`.
 fn kind(root: &Value, v: &Value) -> String {
@@ -124,22 +144,7 @@ fn kind(root: &Value, v: &Value) -> String {
     }
     for key in ["anyOf", "oneOf"] {
         if let Some(alts) = v.get(key).and_then(Value::as_array) {
-            let (nulls, rest): (Vec<&Value>, Vec<&Value>) = alts
-                .iter()
-                .partition(|a| a.get("type").and_then(Value::as_str) == Some("null"));
-            let tags: Vec<(String, String)> = rest.iter().filter_map(|a| tag_of(root, a)).collect();
-            let mut s = if !tags.is_empty() && tags.len() == rest.len() {
-                // a tagged table: `table, kind = "a" | "b"`
-                let values: Vec<&str> = tags.iter().map(|(_, c)| c.as_str()).collect();
-                format!("table, {} = {}", tags[0].0, values.join(" | "))
-            } else {
-                let inner: Vec<String> = rest.iter().map(|a| kind(root, a)).collect();
-                inner.join(" | ")
-            };
-            if !nulls.is_empty() {
-                s += " or none";
-            }
-            return s;
+            return alternatives(root, alts);
         }
     }
     let ty = match v.get("type") {
@@ -274,27 +279,32 @@ fn walk(root: &Value, v: &Value, prefix: &str, out: &mut Vec<Row>) {
             default,
             meaning: m,
         });
-        // nested tables (also inside `Option` or beside a plain value) are listed key by key
-        let inner = table_of(root, r).unwrap_or(r);
-        let items = r.get("items").and_then(|i| table_of(root, i));
-        if inner.get("properties").is_some() || inner.get("oneOf").is_some() {
-            walk(root, inner, &key, out);
-        } else if let Some(i) = items {
-            // an array of tables (`[[...bodies]]`): the keys of each entry
-            walk(root, i, &key, out);
-        } else if let Some(ap) = inner.get("additionalProperties").filter(|a| a.is_object()) {
-            // a table of the user's own names (materials, interfaces): one entry per name
-            let entry = format!("{key}.<name>");
-            let a = resolve(root, ap);
-            out.push(Row {
-                key: entry.clone(),
-                kind: kind(root, ap),
-                default: String::new(),
-                meaning: meaning(a),
-            });
-            if a.get("properties").is_some() || a.get("oneOf").is_some() {
-                walk(root, a, &entry, out);
-            }
+        walk_inside(root, r, &key, out);
+    }
+}
+
+/// The rows inside the value at `key` whose schema is `r`: a nested table (also inside an
+/// `Option` or beside a plain value) key by key, an array of tables (`[[...bodies]]`) by the
+/// keys of each entry, a table of the user's own names (materials, interfaces) by one entry
+/// per name.
+fn walk_inside(root: &Value, r: &Value, key: &str, out: &mut Vec<Row>) {
+    let inner = table_of(root, r).unwrap_or(r);
+    let items = r.get("items").and_then(|i| table_of(root, i));
+    if inner.get("properties").is_some() || inner.get("oneOf").is_some() {
+        walk(root, inner, key, out);
+    } else if let Some(i) = items {
+        walk(root, i, key, out);
+    } else if let Some(ap) = inner.get("additionalProperties").filter(|a| a.is_object()) {
+        let entry = format!("{key}.<name>");
+        let a = resolve(root, ap);
+        out.push(Row {
+            key: entry.clone(),
+            kind: kind(root, ap),
+            default: String::new(),
+            meaning: meaning(a),
+        });
+        if a.get("properties").is_some() || a.get("oneOf").is_some() {
+            walk(root, a, &entry, out);
         }
     }
 }

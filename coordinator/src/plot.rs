@@ -199,6 +199,29 @@ pub fn png_whole<T>(
     })
 }
 
+/// The axes of a line chart of `series`: the scale of x and its label (time in s, ms or µs
+/// where x is `t [s]`), and the spans of x (the data exactly: a run starts at t = 0) and of
+/// y.
+fn axes<'a>(series: &[Series], x_label: &'a str) -> (f64, &'a str, (f64, f64), (f64, f64)) {
+    let (xs, x_label) = if x_label == "t [s]" {
+        let (_, t_max) = bounds(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
+        time_scale(t_max)
+    } else {
+        (1.0, x_label)
+    };
+    let xs_of = || {
+        series
+            .iter()
+            .flat_map(move |s| s.points.iter().map(move |p| p.0 * xs))
+    };
+    let (mut x0, mut x1) = bounds(xs_of());
+    if !(x0.is_finite() && x1 > x0) {
+        (x0, x1) = range(xs_of());
+    }
+    let y = range(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
+    (xs, x_label, (x0, x1), y)
+}
+
 fn line_chart_into(
     path: &Path,
     title: &str,
@@ -210,26 +233,7 @@ fn line_chart_into(
         bail!("{title}: nothing to plot");
     }
     let text = font_ready();
-    // time in s, ms or µs; the axis spans the data exactly (a run starts at t = 0)
-    let (xs, x_label) = if x_label == "t [s]" {
-        let (_, t_max) = bounds(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
-        time_scale(t_max)
-    } else {
-        (1.0, x_label)
-    };
-    let (mut x0, mut x1) = bounds(
-        series
-            .iter()
-            .flat_map(|s| s.points.iter().map(|p| p.0 * xs)),
-    );
-    if !(x0.is_finite() && x1 > x0) {
-        (x0, x1) = range(
-            series
-                .iter()
-                .flat_map(|s| s.points.iter().map(|p| p.0 * xs)),
-        );
-    }
-    let (y0, y1) = range(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
+    let (xs, x_label, (x0, x1), (y0, y1)) = axes(series, x_label);
     let y_label = with_unit(y_label);
     let root = BitMapBackend::new(path, (800, 500)).into_drawing_area();
     let draw = |e: &dyn std::fmt::Display| anyhow::anyhow!("plot {}: {e}", path.display());

@@ -582,9 +582,86 @@ pub struct RecorderThread {
     pub lag_allocations: u64,
 }
 
+/// The recorder thread: every command of `rx` applied to `rec` in order, each written
+/// buffer and emptied batch handed back to its pool, then the recording finished. The first
+/// failure is warned of at once and ends `finish` with an error: a recording that lost
+/// messages (a full disk) is not a recording of the run.
+fn serve(
+    mut rec: Recorder,
+    rx: std::sync::mpsc::Receiver<Cmd>,
+    back: std::sync::mpsc::SyncSender<Vec<u8>>,
+    batches_back: std::sync::mpsc::SyncSender<Vec<Cmd>>,
+) -> anyhow::Result<(u64, u64)> {
+    let mut failed: Option<anyhow::Error> = None;
+    let mut one = |cmd: Cmd, rec: &mut Recorder| {
+        if let Err(e) = apply(cmd, rec, &back)
+            && failed.is_none()
+        {
+            let e = e.context(format!("cannot write {}", rec.path.display()));
+            tracing::warn!("recording: {e:#}");
+            failed = Some(e);
+        }
+    };
+    for cmd in rx {
+        match cmd {
+            Cmd::Batch(mut cmds) => {
+                for c in cmds.drain(..) {
+                    one(c, &mut rec);
+                }
+                let _ = batches_back.try_send(cmds);
+            }
+            c => one(c, &mut rec),
+        }
+    }
+    let counts = (rec.messages, rec.bytes);
+    let finished = rec.finish();
+    if let Some(e) = failed {
+        return Err(e);
+    }
+    finished.map(|()| counts)
+}
+
+/// One command (not a batch) applied to the recording; a written buffer goes back to the
+/// pool, and a flush is answered.
+fn apply(
+    cmd: Cmd,
+    rec: &mut Recorder,
+    back: &std::sync::mpsc::SyncSender<Vec<u8>>,
+) -> anyhow::Result<()> {
+    match cmd {
+        Cmd::Write {
+            topic,
+            sim_t,
+            data,
+            at,
+        } => {
+            let written = rec.write_at(&topic, None, sim_t, &data, at);
+            let _ = back.try_send(data);
+            written
+        }
+        Cmd::Json {
+            topic,
+            schema,
+            sim_t,
+            doc,
+            at,
+        } => rec.json_at(&topic, &schema, sim_t, &doc, at),
+        Cmd::FlushIfOlder(age) => rec.flush_if_older(age),
+        Cmd::Flush(done) => {
+            let _ = done.send(
+                rec.flush()
+                    .map_err(|e| format!("cannot write {}: {e:#}", rec.path.display())),
+            );
+            Ok(())
+        }
+        // Batches are never nested (`RecorderThread::push`).
+        Cmd::Batch(_) => Ok(()),
+    }
+}
+
 impl RecorderThread {
     /// Start the thread around `rec`.
-    pub fn spawn(mut rec: Recorder) -> anyhow::Result<Self> {
+    pub fn spawn(rec: Recorder) -> anyhow::Result<Self> {
         let (tx, rx) = std::sync::mpsc::sync_channel::<Cmd>(QUEUE);
         let (back, pool) = std::sync::mpsc::sync_channel::<Vec<u8>>(QUEUE);
         let (batches_back, batches) = std::sync::mpsc::sync_channel::<Vec<Cmd>>(BATCHES);
@@ -596,73 +673,7 @@ impl RecorderThread {
         }
         let handle = std::thread::Builder::new()
             .name("cosim-recorder".into())
-            .spawn(move || -> anyhow::Result<(u64, u64)> {
-                let path = rec.path.clone();
-                // The first failure is warned of at once and ends `finish` with an error: a
-                // recording that lost messages (a full disk) is not a recording of the run.
-                let mut failed: Option<anyhow::Error> = None;
-                let mut warn = |e: anyhow::Error| {
-                    if failed.is_none() {
-                        let e = e.context(format!("cannot write {}", path.display()));
-                        tracing::warn!("recording: {e:#}");
-                        failed = Some(e);
-                    }
-                };
-                let mut one = |cmd: Cmd, rec: &mut Recorder| match cmd {
-                    Cmd::Write {
-                        topic,
-                        sim_t,
-                        data,
-                        at,
-                    } => {
-                        if let Err(e) = rec.write_at(&topic, None, sim_t, &data, at) {
-                            warn(e);
-                        }
-                        let _ = back.try_send(data);
-                    }
-                    Cmd::Json {
-                        topic,
-                        schema,
-                        sim_t,
-                        doc,
-                        at,
-                    } => {
-                        if let Err(e) = rec.json_at(&topic, &schema, sim_t, &doc, at) {
-                            warn(e);
-                        }
-                    }
-                    Cmd::FlushIfOlder(age) => {
-                        if let Err(e) = rec.flush_if_older(age) {
-                            warn(e);
-                        }
-                    }
-                    Cmd::Flush(done) => {
-                        let _ = done
-                            .send(rec.flush().map_err(|e| {
-                                format!("cannot write {}: {e:#}", rec.path.display())
-                            }));
-                    }
-                    // Batches are never nested (`RecorderThread::push`).
-                    Cmd::Batch(_) => {}
-                };
-                for cmd in rx {
-                    match cmd {
-                        Cmd::Batch(mut cmds) => {
-                            for c in cmds.drain(..) {
-                                one(c, &mut rec);
-                            }
-                            let _ = batches_back.try_send(cmds);
-                        }
-                        c => one(c, &mut rec),
-                    }
-                }
-                let counts = (rec.messages, rec.bytes);
-                let finished = rec.finish();
-                if let Some(e) = failed {
-                    return Err(e);
-                }
-                finished.map(|()| counts)
-            })
+            .spawn(move || serve(rec, rx, back, batches_back))
             .context("starting the recorder thread")?;
         Ok(RecorderThread {
             tx: Some(tx),

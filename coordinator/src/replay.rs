@@ -130,12 +130,15 @@ impl ReplayReport {
     }
 }
 
-struct Decoded {
-    topic: String,
-    env: Envelope,
+/// A recorded protocol message, decoded, with its topic.
+pub(crate) struct Decoded {
+    pub(crate) topic: String,
+    pub(crate) env: Envelope,
 }
 
-fn decode_all(msgs: &[Recorded]) -> Vec<Decoded> {
+/// The protocol messages of a recording (its JSON channels and undecodable messages left
+/// out).
+pub(crate) fn decode_all(msgs: &[Recorded]) -> Vec<Decoded> {
     msgs.iter()
         .filter(|m| !m.json)
         .filter_map(|m| {
@@ -148,7 +151,7 @@ fn decode_all(msgs: &[Recorded]) -> Vec<Decoded> {
 }
 
 /// The recorded case: its effective TOML and the path it was read from.
-fn case_of(msgs: &[Recorded]) -> anyhow::Result<(toml::Table, PathBuf)> {
+pub(crate) fn case_of(msgs: &[Recorded]) -> anyhow::Result<(toml::Table, PathBuf)> {
     let m = msgs
         .iter()
         .find(|m| m.topic == "/cosim/case")
@@ -214,7 +217,6 @@ fn plan(msgs: &[Recorded], node: &str) -> anyhow::Result<Plan> {
         .map(|d| d.env.run.clone())
         .context("the recording holds no protocol message")?;
     let down = topic::down(&run, node);
-    let up = topic::up(&run, node);
     let welcome = dec
         .iter()
         .find_map(|d| match &d.env.message {
@@ -222,18 +224,8 @@ fn plan(msgs: &[Recorded], node: &str) -> anyhow::Result<Plan> {
             _ => None,
         })
         .with_context(|| format!("no Welcome to node '{node}' in the recording"))?;
-    let inputs: Vec<String> = welcome
-        .bindings
-        .iter()
-        .map(|b| topic::data(&run, &b.coupling, &b.peer))
-        .collect();
-    let outputs: Vec<String> = welcome
-        .bindings
-        .iter()
-        .map(|b| topic::data(&run, &b.coupling, node))
-        .collect();
     let mut p = Plan {
-        welcome: welcome.clone(),
+        welcome,
         solver,
         case_dir: case_path
             .parent()
@@ -251,27 +243,45 @@ fn plan(msgs: &[Recorded], node: &str) -> anyhow::Result<Plan> {
         outputs: BTreeMap::new(),
         reports: BTreeMap::new(),
     };
-    for d in &dec {
-        let input = inputs.iter().position(|t| *t == d.topic);
-        match &d.env.message {
-            Message::Mesh(m) if input.is_some() => {
-                p.peer_meshes.extend(input.map(|i| (i, m.clone())));
+    p.sort(&dec, node, &run);
+    Ok(p)
+}
+
+impl Plan {
+    /// The recorded messages `dec` of run `run` that concern node `node`, each to its list:
+    /// what its peers sent it, its own outputs, the coordinator's commands and its reports.
+    fn sort(&mut self, dec: &[Decoded], node: &str, run: &str) {
+        let (down, up) = (topic::down(run, node), topic::up(run, node));
+        let bindings = &self.welcome.bindings;
+        let inputs: Vec<String> = bindings
+            .iter()
+            .map(|b| topic::data(run, &b.coupling, &b.peer))
+            .collect();
+        let outputs: Vec<String> = bindings
+            .iter()
+            .map(|b| topic::data(run, &b.coupling, node))
+            .collect();
+        for d in dec {
+            let input = inputs.iter().position(|t| *t == d.topic);
+            match &d.env.message {
+                Message::Mesh(m) if input.is_some() => {
+                    self.peer_meshes.extend(input.map(|i| (i, m.clone())));
+                }
+                Message::Fields(f) if input.is_some() => {
+                    self.peer_fields.extend(input.map(|i| (i, f.clone())));
+                }
+                Message::Fields(f) if outputs.contains(&d.topic) => {
+                    self.outputs.insert(out_key(f), f.clone());
+                }
+                Message::Advance(a) if d.topic == down && a.window > 0 => self.advances.push(*a),
+                Message::Decouple(x) if d.topic == down => self.decouples.push(x.clone()),
+                Message::Done(dn) if d.topic == up && dn.window > 0 => {
+                    self.reports.insert(dn.window, dn.report.clone());
+                }
+                _ => {}
             }
-            Message::Fields(f) if input.is_some() => {
-                p.peer_fields.extend(input.map(|i| (i, f.clone())));
-            }
-            Message::Fields(f) if outputs.contains(&d.topic) => {
-                p.outputs.insert(out_key(f), f.clone());
-            }
-            Message::Advance(a) if d.topic == down && a.window > 0 => p.advances.push(*a),
-            Message::Decouple(x) if d.topic == down => p.decouples.push(x.clone()),
-            Message::Done(dn) if d.topic == up && dn.window > 0 => {
-                p.reports.insert(dn.window, dn.report.clone());
-            }
-            _ => {}
         }
     }
-    Ok(p)
 }
 
 /// The peer output window that window `window` of the node consumes on binding `b`, once
@@ -755,22 +765,7 @@ pub fn replay(path: &Path, node: &str, opts: &ReplayOptions) -> anyhow::Result<R
             rep.recorded_windows, p.planned
         ));
     }
-    rep.exe = match &opts.solver {
-        Some(s) => {
-            let s = s.to_string_lossy();
-            crate::launch::resolve_exe(&s, Path::new("."))
-                .with_context(|| format!("--solver {s}: no such executable"))?
-        }
-        None => crate::launch::resolve_exe(&p.solver, &p.case_dir)
-            .or_else(|| crate::launch::resolve_exe(&p.solver, Path::new(".")))
-            .with_context(|| {
-                format!(
-                    "the recorded executable of node '{node}', '{}', is neither beside cosim nor at that path (relative to {}); name one with --solver",
-                    p.solver,
-                    p.case_dir.display()
-                )
-            })?,
-    };
+    rep.exe = replayed_exe(&p, node, opts)?;
     let mut params: toml::Table = toml::from_str(&p.welcome.params_toml)
         .context("the recorded Welcome's parameters are not TOML")?;
     rep.model = p.welcome.model.clone();
@@ -786,31 +781,7 @@ pub fn replay(path: &Path, node: &str, opts: &ReplayOptions) -> anyhow::Result<R
         .run_id
         .clone()
         .unwrap_or_else(|| pick_run_id(&format!("replay-{node}")));
-    let out = match &opts.output {
-        Some(o) => o.clone(),
-        None => path
-            .parent()
-            .unwrap_or(Path::new("."))
-            .join(format!("replay-{node}")),
-    };
-    // The replayed node writes `<out>/<node>.log` and `<out>/<node>/`, the very names a run
-    // gives its own log and frames: a run's folder, live or finished, is no place for them.
-    crate::lock::check_free(&out)?;
-    if crate::lock::holds_a_run(&out) {
-        bail!(
-            "{} holds a run's results (run.mcap or summary.json), whose node log and frames the replay would overwrite: leave out --output (the replay goes to replay-{node} beside the recording) or name another folder",
-            out.display()
-        );
-    }
-    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
-    // The log of this replay only (a node's log is appended to: a restarted run keeps its
-    // killed run's lines).
-    let log = out.join(format!("{node}.log"));
-    match std::fs::remove_file(&log) {
-        Ok(()) => {}
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-        Err(e) => bail!("cannot remove the previous replay's {}: {e}", log.display()),
-    }
+    let out = replay_folder(path, node, opts)?;
     let welcome = Welcome {
         run: run.clone(),
         model: rep.model.clone(),
@@ -836,6 +807,58 @@ pub fn replay(path: &Path, node: &str, opts: &ReplayOptions) -> anyhow::Result<R
             .push(format!("no window of node '{node}' was replayed"));
     }
     Ok(rep)
+}
+
+/// The executable to replay: `--solver`, else the one the case named for the node (beside
+/// cosim, at its path relative to the case, or relative to here).
+fn replayed_exe(p: &Plan, node: &str, opts: &ReplayOptions) -> anyhow::Result<PathBuf> {
+    match &opts.solver {
+        Some(s) => {
+            let s = s.to_string_lossy();
+            crate::launch::resolve_exe(&s, Path::new("."))
+                .with_context(|| format!("--solver {s}: no such executable"))
+        }
+        None => crate::launch::resolve_exe(&p.solver, &p.case_dir)
+            .or_else(|| crate::launch::resolve_exe(&p.solver, Path::new(".")))
+            .with_context(|| {
+                format!(
+                    "the recorded executable of node '{node}', '{}', is neither beside cosim nor at that path (relative to {}); name one with --solver",
+                    p.solver,
+                    p.case_dir.display()
+                )
+            }),
+    }
+}
+
+/// The replay's folder (`--output`, else `replay-<node>` beside the recording), created, and
+/// without the log of a previous replay. The replayed node writes `<out>/<node>.log` and
+/// `<out>/<node>/`, the very names a run gives its own log and frames: a run's folder, live
+/// or finished, is refused.
+fn replay_folder(path: &Path, node: &str, opts: &ReplayOptions) -> anyhow::Result<PathBuf> {
+    let out = match &opts.output {
+        Some(o) => o.clone(),
+        None => path
+            .parent()
+            .unwrap_or(Path::new("."))
+            .join(format!("replay-{node}")),
+    };
+    crate::lock::check_free(&out)?;
+    if crate::lock::holds_a_run(&out) {
+        bail!(
+            "{} holds a run's results (run.mcap or summary.json), whose node log and frames the replay would overwrite: leave out --output (the replay goes to replay-{node} beside the recording) or name another folder",
+            out.display()
+        );
+    }
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+    // The log of this replay only (a node's log is appended to: a restarted run keeps its
+    // killed run's lines).
+    let log = out.join(format!("{node}.log"));
+    match std::fs::remove_file(&log) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => bail!("cannot remove the previous replay's {}: {e}", log.display()),
+    }
+    Ok(out)
 }
 
 fn open_and_drive(
@@ -917,14 +940,7 @@ fn drive(
             }
             s.send_down(&Message::Decouple(x.clone()))?;
         }
-        let lacking: Vec<String> = bindings
-            .iter()
-            .enumerate()
-            .filter_map(|(i, b)| {
-                let w = needed(b, until[i], k)?;
-                (!held.contains(&(i, w))).then(|| format!("'{}' of window {w}", b.coupling))
-            })
-            .collect();
+        let lacking = lacking(bindings, &until, &held, k);
         if !lacking.is_empty() {
             rep.incomplete.push(format!(
                 "the recording lacks the peer fields {} that window {k} needs; the replay stopped there",
@@ -940,21 +956,7 @@ fn drive(
             sent += 1;
         }
         s.window = k;
-        let t1 = if k > 0 {
-            let a = p
-                .advances
-                .iter()
-                .find(|a| a.window == k)
-                .context("advance vanished")?;
-            s.send_down(&Message::Advance(Advance {
-                write_output: false,
-                checkpoint: false,
-                ..*a
-            }))?;
-            a.t1
-        } else {
-            0.0
-        };
+        let t1 = advance(s, p, k)?;
         let report = s.done(k)?;
         for f in std::mem::take(&mut s.arrived) {
             cmp.fields(rep, &f);
@@ -969,6 +971,44 @@ fn drive(
     let quiet_until = Instant::now() + Duration::from_secs(2);
     while Instant::now() < quiet_until && s.pump(Duration::from_millis(50))? {}
     Ok(())
+}
+
+/// The peer fields (`'COUPLING' of window W`) window `k` of the node needs on each binding
+/// and the recording does not hold (`held`: binding and window of each recorded one), the
+/// couplings decoupled before `until`.
+fn lacking(
+    bindings: &[Binding],
+    until: &[Option<u64>],
+    held: &BTreeSet<(usize, u64)>,
+    k: u64,
+) -> Vec<String> {
+    bindings
+        .iter()
+        .enumerate()
+        .filter_map(|(i, b)| {
+            let w = needed(b, until[i], k)?;
+            (!held.contains(&(i, w))).then(|| format!("'{}' of window {w}", b.coupling))
+        })
+        .collect()
+}
+
+/// Window `k`'s recorded `Advance` sent to the node (no output, no checkpoint): its end
+/// time (0 for the set-up, window 0, which has none).
+fn advance(s: &mut Session, p: &Plan, k: u64) -> anyhow::Result<f64> {
+    if k == 0 {
+        return Ok(0.0);
+    }
+    let a = p
+        .advances
+        .iter()
+        .find(|a| a.window == k)
+        .context("advance vanished")?;
+    s.send_down(&Message::Advance(Advance {
+        write_output: false,
+        checkpoint: false,
+        ..*a
+    }))?;
+    Ok(a.t1)
 }
 
 /// One PNG per reported quantity of the replayed node in `dir`: the recorded and the
@@ -1007,257 +1047,4 @@ pub fn plot(rep: &ReplayReport, node: &str, dir: &Path) -> anyhow::Result<Vec<Pa
         files.push(p);
     }
     Ok(files)
-}
-
-/// What `cosim info` reports on a recording (also its `--json` document).
-#[derive(Debug, serde::Serialize)]
-pub struct RunInfo {
-    pub recording: String,
-    pub bytes: u64,
-    /// False when the writer stopped early (a killed coordinator).
-    pub complete: bool,
-    pub segments: Vec<String>,
-    pub run: String,
-    pub end_time: Option<f64>,
-    pub window: Option<f64>,
-    /// As the recorded case says; `None` where the recording holds no case.
-    pub schedule: Option<String>,
-    pub transport: Option<String>,
-    pub nodes: Vec<NodeInfo>,
-    pub couplings: Vec<CouplingInfo>,
-    pub windows_completed: u64,
-    pub messages: u64,
-    pub channels: Vec<ChannelInfo>,
-    /// The last `/cosim/balance` row as recorded, with the run's largest imbalance and
-    /// residual beside it.
-    pub balance: Option<serde_json::Value>,
-    pub largest_momentum_imbalance: Option<f64>,
-    pub largest_momentum_residual: Option<f64>,
-}
-
-#[derive(Debug, serde::Serialize)]
-pub struct NodeInfo {
-    pub name: String,
-    pub model: String,
-    pub couplings: usize,
-}
-
-#[derive(Debug, serde::Serialize)]
-pub struct CouplingInfo {
-    pub name: String,
-    pub kind: String,
-    pub from: String,
-    pub to: String,
-}
-
-#[derive(Debug, serde::Serialize)]
-pub struct ChannelInfo {
-    pub topic: String,
-    pub messages: u64,
-    pub bytes: u64,
-}
-
-/// Everything `cosim info` says about a recording (and the segments restarts added to it).
-pub fn run_info(path: &Path) -> anyhow::Result<RunInfo> {
-    let (msgs, complete) = record::read_all(path)?;
-    let bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
-    let segments = record::segments(path)
-        .iter()
-        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
-        .collect();
-    let dec = decode_all(&msgs);
-    let (mut end_time, mut window) = (None, None);
-    let (mut schedule, mut transport) = (None, None);
-    if let Ok((case, _)) = case_of(&msgs)
-        && let Some(run) = case.get("run").and_then(|r| r.as_table())
-    {
-        // What a case leaves out is the default it ran with.
-        schedule = Some("serial".to_string());
-        transport = Some("shm".to_string());
-        let num = |k: &str| {
-            run.get(k)
-                .and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
-        };
-        end_time = num("end_time");
-        window = num("window");
-        if let Some(v) = run.get("schedule").and_then(|v| v.as_str()) {
-            schedule = Some(v.to_string());
-        }
-        if let Some(v) = run.get("transport").and_then(|v| v.as_str()) {
-            transport = Some(v.to_string());
-        }
-    }
-    let run = dec.first().map(|d| d.env.run.clone()).unwrap_or_default();
-    let mut nodes = Vec::new();
-    let mut couplings = BTreeMap::new();
-    for d in &dec {
-        if let Message::Welcome(w) = &d.env.message {
-            let node = d.topic.rsplit('/').nth(1).unwrap_or("?").to_string();
-            for b in w.bindings.iter().filter(|b| b.role == Role::Driver) {
-                couplings.insert(
-                    b.coupling.clone(),
-                    CouplingInfo {
-                        name: b.coupling.clone(),
-                        kind: b.kind.as_str().to_string(),
-                        from: format!("{node}.{}", b.interface),
-                        to: format!("{}.{}", b.peer, b.peer_interface),
-                    },
-                );
-            }
-            nodes.push(NodeInfo {
-                name: node,
-                model: w.model.clone(),
-                couplings: w.bindings.len(),
-            });
-        }
-    }
-    let windows_completed = dec
-        .iter()
-        .filter_map(|d| match &d.env.message {
-            Message::Done(dn) => Some(dn.window),
-            _ => None,
-        })
-        .max()
-        .unwrap_or(0);
-    let mut counts: BTreeMap<&str, (u64, u64)> = BTreeMap::new();
-    for m in &msgs {
-        let e = counts.entry(m.topic.as_str()).or_default();
-        e.0 += 1;
-        e.1 += m.data.len() as u64;
-    }
-    let rows: Vec<serde_json::Value> = msgs
-        .iter()
-        .filter(|m| m.topic == "/cosim/balance")
-        .filter_map(|m| serde_json::from_slice(&m.data).ok())
-        .collect();
-    let largest = |key: &str| rows.iter().filter_map(|v| v[key].as_f64()).reduce(f64::max);
-    Ok(RunInfo {
-        recording: path.display().to_string(),
-        bytes,
-        complete,
-        segments,
-        run,
-        end_time,
-        window,
-        schedule,
-        transport,
-        nodes,
-        couplings: couplings.into_values().collect(),
-        windows_completed,
-        messages: msgs.len() as u64,
-        channels: counts
-            .into_iter()
-            .map(|(t, (n, b))| ChannelInfo {
-                topic: t.to_string(),
-                messages: n,
-                bytes: b,
-            })
-            .collect(),
-        largest_momentum_imbalance: largest("momentum_imbalance"),
-        largest_momentum_residual: largest("momentum_residual"),
-        balance: rows.last().cloned(),
-    })
-}
-
-/// `cosim info`: [`run_info`] as text.
-pub fn info(path: &Path) -> anyhow::Result<String> {
-    use std::fmt::Write;
-    let i = run_info(path)?;
-    let mut s = String::new();
-    writeln!(
-        s,
-        "recording  {} ({:.1} kB, {})",
-        i.recording,
-        i.bytes as f64 / 1e3,
-        if i.complete {
-            "complete"
-        } else {
-            "INCOMPLETE: writer stopped early"
-        }
-    )?;
-    if i.segments.len() > 1 {
-        writeln!(
-            s,
-            "segments   {} (restarted {} times, read as one run)",
-            i.segments.join(" + "),
-            i.segments.len() - 1
-        )?;
-    }
-    match (&i.schedule, &i.transport) {
-        (Some(schedule), Some(transport)) => {
-            let opt = |x: Option<f64>| x.map(|v| v.to_string()).unwrap_or_default();
-            writeln!(
-                s,
-                "case       end_time {} s, window {} s, schedule {schedule}, transport {transport}",
-                opt(i.end_time),
-                opt(i.window),
-            )?
-        }
-        _ => writeln!(s, "case       not in the recording")?,
-    }
-    writeln!(s, "run        {}", i.run)?;
-    writeln!(s, "nodes")?;
-    for n in &i.nodes {
-        writeln!(
-            s,
-            "  {:<12} model {:<20} couplings {}",
-            n.name, n.model, n.couplings
-        )?;
-    }
-    writeln!(s, "couplings")?;
-    for c in &i.couplings {
-        writeln!(s, "  {:<12} {} {} → {}", c.name, c.kind, c.from, c.to)?;
-    }
-    writeln!(s, "windows    {} completed", i.windows_completed)?;
-    writeln!(
-        s,
-        "messages   {} in {} channels",
-        i.messages,
-        i.channels.len()
-    )?;
-    for c in &i.channels {
-        writeln!(
-            s,
-            "  {:<48} {:>8} msgs {:>12.1} kB",
-            c.topic,
-            c.messages,
-            c.bytes as f64 / 1e3
-        )?;
-    }
-    if let Some(v) = &i.balance {
-        let f = |k: &str| v[k].as_f64().unwrap_or(0.0);
-        writeln!(s, "balance at window {} (t = {} s)", v["window"], v["time"])?;
-        writeln!(
-            s,
-            "  energy {:.6e} J, external work {:.6e} J, residual {:.3e} J, interface work sum {:.3e} J",
-            f("energy"),
-            f("external_work"),
-            f("energy_residual"),
-            f("interface_work_sum")
-        )?;
-        writeln!(
-            s,
-            "  momentum {:.6e}, external impulse {:.6e}, imbalance {:.3e} N s",
-            f("momentum"),
-            f("external_impulse"),
-            f("momentum_imbalance")
-        )?;
-        let applied = f("applied_impulse");
-        let worst = i.largest_momentum_imbalance.unwrap_or(0.0);
-        if applied > 0.0 {
-            writeln!(
-                s,
-                "  largest momentum imbalance {:.3e} N s = {:.3e} of the applied impulse {:.3e} N s",
-                worst,
-                worst / applied,
-                applied
-            )?;
-        }
-        writeln!(
-            s,
-            "  largest momentum residual (external and in-flight coupling impulse accounted) {:.3e} N s",
-            i.largest_momentum_residual.unwrap_or(0.0)
-        )?;
-    }
-    Ok(s)
 }

@@ -153,6 +153,54 @@ fn open_transport(case: &Case, run_id: &str) -> anyhow::Result<(Box<dyn Transpor
     Ok((t, listen))
 }
 
+/// The plots and pictures of a run closed in `out`, listed in its `summary`. They are a
+/// convenience: a failure to draw them is reported, not fatal. A run stopped on request exits
+/// within the 2 s a scheduler allows and draws none (a crash tube's 200 plots take longer);
+/// its restart draws them for the whole run.
+fn draw(
+    case: &Case,
+    out: &Path,
+    history: &crate::plot::Histories,
+    interrupted: bool,
+    summary: &mut serde_json::Value,
+) {
+    if interrupted {
+        summary["plots"] = json!([]);
+        summary["plots_skipped"] = json!("interrupted: the restart, or `cosim plot`, draws them");
+        tracing::info!("no plots drawn: the run was interrupted");
+        return;
+    }
+    match crate::plot::run_plots(history, out) {
+        Ok(files) => summary["plots"] = json!(files),
+        Err(e) => tracing::warn!("plots of {}: {e:#}", out.display()),
+    }
+    let pictures = case.run.pictures;
+    if pictures == crate::case::Pictures::None || !crate::fields::has_series(out) {
+        return;
+    }
+    let png = out.join("fields.png");
+    match crate::fields::render(out, None, &png, None, None) {
+        Ok(_) => summary["fields"] = json!(png),
+        Err(e) => tracing::warn!("fields picture of {}: {e:#}", out.display()),
+    }
+    // and each node alone where there are several (fields_<node>.png)
+    match crate::fields::render_nodes(out) {
+        Ok(files) => summary["node_fields"] = json!(files),
+        Err(e) => tracing::warn!("node pictures of {}: {e:#}", out.display()),
+    }
+    // run.pictures = "frames": every written frame of each node alone
+    if pictures == crate::case::Pictures::Frames {
+        let mut files = Vec::new();
+        for node in crate::fields::nodes_with_series(out) {
+            match crate::fields::render_all(out, None, Some(&node)) {
+                Ok(list) => files.extend(list.into_iter().map(|(png, _)| png)),
+                Err(e) => tracing::warn!("frames of node {node}: {e:#}"),
+            }
+        }
+        summary["frame_pictures"] = json!(files.len());
+    }
+}
+
 /// The summary of a closed run written to `out` (with its plots and pictures where it
 /// finished), and the outcome the command reports; `wall`: the run's wall time, s.
 fn report(
@@ -183,47 +231,7 @@ fn report(
             if let Some(st) = restart {
                 summary["restarted_from_window"] = json!(st.window);
             }
-            // Plots are a convenience: a failure to draw them is reported, not fatal. A run
-            // stopped on request exits within the 2 s a scheduler allows and draws none (a
-            // crash tube's 200 plots take longer); its restart draws them for the whole run.
-            if interrupted.is_some() {
-                summary["plots"] = json!([]);
-                summary["plots_skipped"] =
-                    json!("interrupted: the restart, or `cosim plot`, draws them");
-                tracing::info!("no plots drawn: the run was interrupted");
-            } else {
-                match crate::plot::run_plots(&history, out) {
-                    Ok(files) => summary["plots"] = json!(files),
-                    Err(e) => tracing::warn!("plots of {}: {e:#}", out.display()),
-                }
-            }
-            let pictures = case.run.pictures;
-            if interrupted.is_none()
-                && pictures != crate::case::Pictures::None
-                && crate::fields::has_series(out)
-            {
-                let png = out.join("fields.png");
-                match crate::fields::render(out, None, &png, None, None) {
-                    Ok(_) => summary["fields"] = json!(png),
-                    Err(e) => tracing::warn!("fields picture of {}: {e:#}", out.display()),
-                }
-                // and each node alone where there are several (fields_<node>.png)
-                match crate::fields::render_nodes(out) {
-                    Ok(files) => summary["node_fields"] = json!(files),
-                    Err(e) => tracing::warn!("node pictures of {}: {e:#}", out.display()),
-                }
-                // run.pictures = "frames": every written frame of each node alone
-                if pictures == crate::case::Pictures::Frames {
-                    let mut files = Vec::new();
-                    for node in crate::fields::nodes_with_series(out) {
-                        match crate::fields::render_all(out, None, Some(&node)) {
-                            Ok(list) => files.extend(list.into_iter().map(|(png, _)| png)),
-                            Err(e) => tracing::warn!("frames of node {node}: {e:#}"),
-                        }
-                    }
-                    summary["frame_pictures"] = json!(files.len());
-                }
-            }
+            draw(case, out, &history, interrupted.is_some(), &mut summary);
             write_summary(out, &summary)?;
             Ok(Ok(Outcome {
                 output: out.to_path_buf(),

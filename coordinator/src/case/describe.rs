@@ -61,6 +61,60 @@ pub fn describe_nodes(
     results.into_iter().collect()
 }
 
+/// `child` given `input` on its stdin and waited for at most `timeout`: its exit status,
+/// stdout and stderr (both read while it works, so that neither fills up and blocks it). Err:
+/// why there is no answer ("did not answer within 5 s"), the child killed.
+fn answer(
+    child: &mut std::process::Child,
+    input: &[u8],
+    timeout: Duration,
+) -> Result<(std::process::ExitStatus, String, String), String> {
+    let pipe = |r: Option<Box<dyn Read + Send>>| {
+        std::thread::spawn(move || {
+            let mut s = String::new();
+            if let Some(mut r) = r {
+                let _ = r.read_to_string(&mut s);
+            }
+            s
+        })
+    };
+    let out = pipe(
+        child
+            .stdout
+            .take()
+            .map(|p| Box::new(p) as Box<dyn Read + Send>),
+    );
+    let err = pipe(
+        child
+            .stderr
+            .take()
+            .map(|p| Box::new(p) as Box<dyn Read + Send>),
+    );
+    if let Some(mut stdin) = child.stdin.take() {
+        // A node that exits without reading (a bad invocation) closes the pipe: its answer
+        // says why, so a write error here is not the story.
+        let _ = stdin.write_all(input);
+    }
+    let start = Instant::now();
+    let status = loop {
+        match child.try_wait() {
+            Ok(Some(st)) => break st,
+            Ok(None) if start.elapsed() > timeout => {
+                let _ = child.kill();
+                let _ = child.wait();
+                return Err(format!("did not answer within {} s", timeout.as_secs()));
+            }
+            Ok(None) => std::thread::sleep(Duration::from_millis(5)),
+            Err(e) => return Err(format!("could not be waited for: {e}")),
+        }
+    };
+    Ok((
+        status,
+        out.join().unwrap_or_default(),
+        err.join().unwrap_or_default(),
+    ))
+}
+
 /// Run `exe args… --describe` for node `n` (`args`: the command's own arguments, as
 /// `cosim conformance` is given them), its params on stdin, and read its answer.
 pub fn describe_one(
@@ -87,51 +141,8 @@ pub fn describe_one(
         .stderr(Stdio::piped())
         .spawn()
         .map_err(|e| fail(format!("cannot start {shown}: {e}")))?;
-    // Read both pipes while the node works, so that neither fills up and blocks it.
-    let pipe = |r: Option<Box<dyn Read + Send>>| {
-        std::thread::spawn(move || {
-            let mut s = String::new();
-            if let Some(mut r) = r {
-                let _ = r.read_to_string(&mut s);
-            }
-            s
-        })
-    };
-    let out = pipe(
-        child
-            .stdout
-            .take()
-            .map(|p| Box::new(p) as Box<dyn Read + Send>),
-    );
-    let err = pipe(
-        child
-            .stderr
-            .take()
-            .map(|p| Box::new(p) as Box<dyn Read + Send>),
-    );
-    if let Some(mut stdin) = child.stdin.take() {
-        // A node that exits without reading (a bad invocation) closes the pipe: its answer
-        // says why, so a write error here is not the story.
-        let _ = stdin.write_all(params.as_bytes());
-    }
-    let start = Instant::now();
-    let status = loop {
-        match child.try_wait() {
-            Ok(Some(st)) => break st,
-            Ok(None) if start.elapsed() > timeout => {
-                let _ = child.kill();
-                let _ = child.wait();
-                return Err(fail(format!(
-                    "`{shown} --describe` did not answer within {} s",
-                    timeout.as_secs()
-                )));
-            }
-            Ok(None) => std::thread::sleep(Duration::from_millis(5)),
-            Err(e) => return Err(fail(format!("waiting for `{shown} --describe`: {e}"))),
-        }
-    };
-    let stdout = out.join().unwrap_or_default();
-    let stderr = err.join().unwrap_or_default();
+    let (status, stdout, stderr) = answer(&mut child, params.as_bytes(), timeout)
+        .map_err(|why| fail(format!("`{shown} --describe` {why}")))?;
     match parse_answer(&stdout) {
         Some(DescribeAnswer::Description(d)) if status.success() => Ok(d),
         Some(DescribeAnswer::Error(e)) => Err(ConfigError {

@@ -81,49 +81,9 @@ fn settle_run(r: &RunSection) -> Result<RunConfig, ConfigError> {
             format!("must be 1–32 characters of [A-Za-z0-9_-], got '{name}'"),
         ));
     }
-    let end_time = r.end_time;
-    if !(end_time.is_finite() && end_time > 0.0) {
-        return Err(err("run.end_time", format!("must be > 0, got {end_time}")));
-    }
-    let window = r.window;
-    if !(window.is_finite() && window > 0.0 && window <= end_time) {
-        return Err(err(
-            "run.window",
-            format!("must be > 0 and ≤ run.end_time ({end_time}), got {window}"),
-        ));
-    }
-    if end_time / window > 1e9 {
-        return Err(err(
-            "run.window",
-            format!("gives {:.3e} windows; at most 1e9", end_time / window),
-        ));
-    }
-    let heartbeat_ms = r.heartbeat_ms.unwrap_or(200);
-    if !(10..=60_000).contains(&heartbeat_ms) {
-        return Err(err(
-            "run.heartbeat_ms",
-            format!("must be in 10..=60000, got {heartbeat_ms}"),
-        ));
-    }
-    let heartbeat_timeout = r.heartbeat_timeout.unwrap_or(3.0);
-    if !(heartbeat_timeout.is_finite() && heartbeat_timeout * 1000.0 > 2.0 * heartbeat_ms as f64) {
-        return Err(err(
-            "run.heartbeat_timeout",
-            format!(
-                "must exceed two heartbeats ({} s), got {heartbeat_timeout}",
-                2.0 * heartbeat_ms as f64 / 1000.0
-            ),
-        ));
-    }
-    let stall_timeout = r.stall_timeout.unwrap_or(30.0);
-    if !(stall_timeout.is_finite() && stall_timeout > heartbeat_timeout) {
-        return Err(err(
-            "run.stall_timeout",
-            format!(
-                "must exceed run.heartbeat_timeout ({heartbeat_timeout} s), got {stall_timeout}"
-            ),
-        ));
-    }
+    let (end_time, window) = run_times(r)?;
+    let (heartbeat_ms, heartbeat_timeout, stall_timeout) = run_liveness(r)?;
+    let (energy_bound, energy_floor) = run_energy_guard(r)?;
     let positive = |key: &str, v: Option<f64>, default: f64| {
         let v = v.unwrap_or(default);
         if v.is_finite() && v > 0.0 {
@@ -132,22 +92,6 @@ fn settle_run(r: &RunSection) -> Result<RunConfig, ConfigError> {
             Err(err(format!("run.{key}"), format!("must be > 0 s, got {v}")))
         }
     };
-    let energy_bound = r.energy_bound.unwrap_or(crate::guard::DEFAULT_FACTOR);
-    if !(energy_bound == 0.0 || energy_bound.is_finite() && energy_bound > 1.0) {
-        return Err(err(
-            "run.energy_bound",
-            format!(
-                "must be > 1 (a multiple of the initial energy plus the external work), or 0 to turn the bound off, got {energy_bound}"
-            ),
-        ));
-    }
-    let energy_floor = r.energy_floor.unwrap_or(crate::guard::DEFAULT_FLOOR);
-    if !(energy_floor.is_finite() && energy_floor >= 0.0) {
-        return Err(err(
-            "run.energy_floor",
-            format!("must be ≥ 0 J, got {energy_floor}"),
-        ));
-    }
     Ok(RunConfig {
         name,
         end_time,
@@ -178,6 +122,83 @@ fn settle_run(r: &RunSection) -> Result<RunConfig, ConfigError> {
         energy_bound,
         energy_floor,
     })
+}
+
+/// `run.end_time` and `run.window`: positive, a window no longer than the run, at most 1e9
+/// windows.
+fn run_times(r: &RunSection) -> Result<(f64, f64), ConfigError> {
+    let end_time = r.end_time;
+    if !(end_time.is_finite() && end_time > 0.0) {
+        return Err(err("run.end_time", format!("must be > 0, got {end_time}")));
+    }
+    let window = r.window;
+    if !(window.is_finite() && window > 0.0 && window <= end_time) {
+        return Err(err(
+            "run.window",
+            format!("must be > 0 and ≤ run.end_time ({end_time}), got {window}"),
+        ));
+    }
+    if end_time / window > 1e9 {
+        return Err(err(
+            "run.window",
+            format!("gives {:.3e} windows; at most 1e9", end_time / window),
+        ));
+    }
+    Ok((end_time, window))
+}
+
+/// `run.heartbeat_ms`, `run.heartbeat_timeout` (more than two beats) and `run.stall_timeout`
+/// (more than the heartbeat timeout), with their defaults.
+fn run_liveness(r: &RunSection) -> Result<(u64, f64, f64), ConfigError> {
+    let heartbeat_ms = r.heartbeat_ms.unwrap_or(200);
+    if !(10..=60_000).contains(&heartbeat_ms) {
+        return Err(err(
+            "run.heartbeat_ms",
+            format!("must be in 10..=60000, got {heartbeat_ms}"),
+        ));
+    }
+    let heartbeat_timeout = r.heartbeat_timeout.unwrap_or(3.0);
+    if !(heartbeat_timeout.is_finite() && heartbeat_timeout * 1000.0 > 2.0 * heartbeat_ms as f64) {
+        return Err(err(
+            "run.heartbeat_timeout",
+            format!(
+                "must exceed two heartbeats ({} s), got {heartbeat_timeout}",
+                2.0 * heartbeat_ms as f64 / 1000.0
+            ),
+        ));
+    }
+    let stall_timeout = r.stall_timeout.unwrap_or(30.0);
+    if !(stall_timeout.is_finite() && stall_timeout > heartbeat_timeout) {
+        return Err(err(
+            "run.stall_timeout",
+            format!(
+                "must exceed run.heartbeat_timeout ({heartbeat_timeout} s), got {stall_timeout}"
+            ),
+        ));
+    }
+    Ok((heartbeat_ms, heartbeat_timeout, stall_timeout))
+}
+
+/// `run.energy_bound` (> 1, or 0 for none) and `run.energy_floor` (≥ 0 J), with their
+/// defaults.
+fn run_energy_guard(r: &RunSection) -> Result<(f64, f64), ConfigError> {
+    let energy_bound = r.energy_bound.unwrap_or(crate::guard::DEFAULT_FACTOR);
+    if !(energy_bound == 0.0 || energy_bound.is_finite() && energy_bound > 1.0) {
+        return Err(err(
+            "run.energy_bound",
+            format!(
+                "must be > 1 (a multiple of the initial energy plus the external work), or 0 to turn the bound off, got {energy_bound}"
+            ),
+        ));
+    }
+    let energy_floor = r.energy_floor.unwrap_or(crate::guard::DEFAULT_FLOOR);
+    if !(energy_floor.is_finite() && energy_floor >= 0.0) {
+        return Err(err(
+            "run.energy_floor",
+            format!("must be ≥ 0 J, got {energy_floor}"),
+        ));
+    }
+    Ok((energy_bound, energy_floor))
 }
 
 /// `[nodes.NAME]`: its name, its parameters (a table, or a file relative to `case_dir`), and
@@ -240,41 +261,7 @@ fn settle_coupling(
 ) -> Result<CouplingConfig, ConfigError> {
     let p = format!("couplings[{i}].");
     let kind = c.kind;
-    let member = |key: &str, s: &str| -> Result<(String, String), ConfigError> {
-        let (n, i) = s
-            .split_once('.')
-            .ok_or_else(|| err(key, format!("must be \"node.interface\", got \"{s}\"")))?;
-        if !nodes.iter().any(|x| x.name == n) {
-            return Err(err(key, format!("unknown node '{n}'")));
-        }
-        Ok((n.to_string(), i.to_string()))
-    };
-    let split = |key: &str, v: &Option<String>| -> Result<(String, String), ConfigError> {
-        let v = v
-            .as_deref()
-            .ok_or_else(|| err(format!("{p}{key}"), "missing"))?;
-        member(&format!("{p}{key}"), v)
-    };
-    let (sides, method) = if scheme::of(kind).coordinator_solved() {
-        lagrange_sides(c, &p, &member)?
-    } else {
-        for (k, given) in [("sides", c.sides.is_some()), ("method", c.method.is_some())] {
-            if given {
-                return Err(err(
-                    format!("{p}{k}"),
-                    "only a lagrange coupling takes it (kind = \"lagrange\")",
-                ));
-            }
-        }
-        (Vec::new(), None)
-    };
-    let (driver, responder) = match sides.as_slice() {
-        [a, b, ..] => (a.clone(), b.clone()),
-        _ => (
-            split("driver", &c.driver)?,
-            split("responder", &c.responder)?,
-        ),
-    };
+    let (sides, method, driver, responder) = settle_members(c, &p, nodes)?;
     if driver.0 == responder.0 {
         return Err(err(
             format!("{p}responder"),
@@ -312,6 +299,61 @@ fn settle_coupling(
         driver_fields: c.driver_fields.clone().unwrap_or(df),
         responder_fields: c.responder_fields.clone().unwrap_or(rf),
     })
+}
+
+/// A coupling's members as `("node", "interface")` pairs: a lagrange coupling's `sides` and
+/// `method` (its first two sides standing for driver and responder), any other's `driver`
+/// and `responder` (and neither `sides` nor `method`). `p`: the coupling's key path.
+#[allow(clippy::type_complexity)]
+fn settle_members(
+    c: &CouplingSection,
+    p: &str,
+    nodes: &[NodeConfig],
+) -> Result<
+    (
+        Vec<(String, String)>,
+        Option<protocol::scheme::lagrange::Method>,
+        (String, String),
+        (String, String),
+    ),
+    ConfigError,
+> {
+    let member = |key: &str, s: &str| -> Result<(String, String), ConfigError> {
+        let (n, i) = s
+            .split_once('.')
+            .ok_or_else(|| err(key, format!("must be \"node.interface\", got \"{s}\"")))?;
+        if !nodes.iter().any(|x| x.name == n) {
+            return Err(err(key, format!("unknown node '{n}'")));
+        }
+        Ok((n.to_string(), i.to_string()))
+    };
+    let split = |key: &str, v: &Option<String>| -> Result<(String, String), ConfigError> {
+        let v = v
+            .as_deref()
+            .ok_or_else(|| err(format!("{p}{key}"), "missing"))?;
+        member(&format!("{p}{key}"), v)
+    };
+    let (sides, method) = if scheme::of(c.kind).coordinator_solved() {
+        lagrange_sides(c, p, &member)?
+    } else {
+        for (k, given) in [("sides", c.sides.is_some()), ("method", c.method.is_some())] {
+            if given {
+                return Err(err(
+                    format!("{p}{k}"),
+                    "only a lagrange coupling takes it (kind = \"lagrange\")",
+                ));
+            }
+        }
+        (Vec::new(), None)
+    };
+    let (driver, responder) = match sides.as_slice() {
+        [a, b, ..] => (a.clone(), b.clone()),
+        _ => (
+            split("driver", &c.driver)?,
+            split("responder", &c.responder)?,
+        ),
+    };
+    Ok((sides, method, driver, responder))
 }
 
 /// A coupling's `decouple_at` and `decouple_when`, which only a scheme that decouples takes.

@@ -77,19 +77,6 @@ pub fn apply_variant_structure(doc: &mut toml::Table, name: &str) -> Result<(), 
     else {
         return Ok(());
     };
-    let coupling_name = |t: &toml::Value| -> String {
-        let node = |k: &str| {
-            t.get(k)
-                .and_then(|v| v.as_str())
-                .and_then(|v| v.split_once('.'))
-                .map(|(n, _)| n.to_string())
-                .unwrap_or_default()
-        };
-        t.get("name")
-            .and_then(|v| v.as_str())
-            .map(str::to_string)
-            .unwrap_or_else(|| format!("{}-{}", node("driver"), node("responder")))
-    };
     if let Some(r) = v.get("remove") {
         let arr = r.as_array().ok_or_else(|| {
             err(
@@ -98,84 +85,112 @@ pub fn apply_variant_structure(doc: &mut toml::Table, name: &str) -> Result<(), 
             )
         })?;
         for (i, item) in arr.iter().enumerate() {
-            let k = format!("{key}.remove[{i}]");
-            let Some((table, what)) = item.as_str().and_then(|s| s.split_once('.')) else {
-                return Err(err(
-                    k,
-                    "must be a \"nodes.NAME\" or \"couplings.NAME\" string",
-                ));
-            };
-            match table {
-                "nodes" => {
-                    let nodes = doc.get_mut("nodes").and_then(|n| n.as_table_mut());
-                    if nodes.and_then(|n| n.remove(what)).is_none() {
-                        return Err(err(k, format!("the case has no node '{what}'")));
-                    }
-                }
-                "couplings" => {
-                    let list = doc.get_mut("couplings").and_then(|c| c.as_array_mut());
-                    let Some(list) = list else {
-                        return Err(err(k, "the case has no [[couplings]]"));
-                    };
-                    let before = list.len();
-                    list.retain(|c| coupling_name(c) != what);
-                    if list.len() == before {
-                        return Err(err(k, format!("the case has no coupling '{what}'")));
-                    }
-                }
-                _ => {
-                    return Err(err(
-                        k,
-                        "must be a \"nodes.NAME\" or \"couplings.NAME\" string",
-                    ));
-                }
-            }
+            remove_one(doc, &format!("{key}.remove[{i}]"), item)?;
         }
     }
     if let Some(n) = v.get("nodes") {
-        let add = n.as_table().ok_or_else(|| {
-            err(
-                format!("{key}.nodes"),
-                "must be a table of [variants.NAME.nodes.X] tables",
-            )
-        })?;
-        let nodes = doc
-            .entry("nodes")
-            .or_insert_with(|| toml::Value::Table(toml::Table::new()))
-            .as_table_mut()
-            .ok_or_else(|| err("nodes", "must be a table"))?;
-        for (node, body) in add {
-            if nodes.contains_key(node) {
-                return Err(err(
-                    format!("{key}.nodes.{node}"),
-                    "the case already has this node (remove it first: remove = [\"nodes.NAME\"])",
-                ));
-            }
-            nodes.insert(node.clone(), body.clone());
-        }
+        add_nodes(doc, &key, n)?;
     }
     if let Some(c) = v.get("couplings") {
-        let add = c.as_array().ok_or_else(|| {
-            err(
-                format!("{key}.couplings"),
-                "must be an array of [[variants.NAME.couplings]] tables",
-            )
-        })?;
-        let list = doc
-            .entry("couplings")
-            .or_insert_with(|| toml::Value::Array(Vec::new()))
-            .as_array_mut()
-            .ok_or_else(|| err("couplings", "must be an array of tables"))?;
-        for (i, cp) in add.iter().enumerate() {
-            let this = coupling_name(cp);
-            if list.iter().any(|c| coupling_name(c) == this) {
-                return Err(err(
-                    format!("{key}.couplings[{i}]"),
-                    format!("the case already has a coupling '{this}' (remove it first)"),
-                ));
+        add_couplings(doc, &key, c)?;
+    }
+    Ok(())
+}
+
+/// A coupling's name in the case document: its `name`, else `DRIVER-RESPONDER`.
+fn coupling_name(t: &toml::Value) -> String {
+    let node = |k: &str| {
+        t.get(k)
+            .and_then(|v| v.as_str())
+            .and_then(|v| v.split_once('.'))
+            .map(|(n, _)| n.to_string())
+            .unwrap_or_default()
+    };
+    t.get("name")
+        .and_then(|v| v.as_str())
+        .map(str::to_string)
+        .unwrap_or_else(|| format!("{}-{}", node("driver"), node("responder")))
+}
+
+/// One entry `item` (at key path `k`) of a variant's `remove` list: the node or coupling it
+/// names leaves the document.
+fn remove_one(doc: &mut toml::Table, k: &str, item: &toml::Value) -> Result<(), ConfigError> {
+    let not_a_name = || err(k, "must be a \"nodes.NAME\" or \"couplings.NAME\" string");
+    let Some((table, what)) = item.as_str().and_then(|s| s.split_once('.')) else {
+        return Err(not_a_name());
+    };
+    match table {
+        "nodes" => {
+            let nodes = doc.get_mut("nodes").and_then(|n| n.as_table_mut());
+            if nodes.and_then(|n| n.remove(what)).is_none() {
+                return Err(err(k, format!("the case has no node '{what}'")));
             }
-            list.push(cp.clone());
         }
+        "couplings" => {
+            let list = doc.get_mut("couplings").and_then(|c| c.as_array_mut());
+            let Some(list) = list else {
+                return Err(err(k, "the case has no [[couplings]]"));
+            };
+            let before = list.len();
+            list.retain(|c| coupling_name(c) != what);
+            if list.len() == before {
+                return Err(err(k, format!("the case has no coupling '{what}'")));
+            }
+        }
+        _ => return Err(not_a_name()),
+    }
+    Ok(())
+}
+
+/// The variant's `[variants.NAME.nodes.X]` tables (`n`) added to the case's nodes; a name
+/// the case already has is refused.
+fn add_nodes(doc: &mut toml::Table, key: &str, n: &toml::Value) -> Result<(), ConfigError> {
+    let add = n.as_table().ok_or_else(|| {
+        err(
+            format!("{key}.nodes"),
+            "must be a table of [variants.NAME.nodes.X] tables",
+        )
+    })?;
+    let nodes = doc
+        .entry("nodes")
+        .or_insert_with(|| toml::Value::Table(toml::Table::new()))
+        .as_table_mut()
+        .ok_or_else(|| err("nodes", "must be a table"))?;
+    for (node, body) in add {
+        if nodes.contains_key(node) {
+            return Err(err(
+                format!("{key}.nodes.{node}"),
+                "the case already has this node (remove it first: remove = [\"nodes.NAME\"])",
+            ));
+        }
+        nodes.insert(node.clone(), body.clone());
+    }
+    Ok(())
+}
+
+/// The variant's `[[variants.NAME.couplings]]` entries (`c`) added to the case's
+/// couplings; a name the case already has is refused.
+fn add_couplings(doc: &mut toml::Table, key: &str, c: &toml::Value) -> Result<(), ConfigError> {
+    let add = c.as_array().ok_or_else(|| {
+        err(
+            format!("{key}.couplings"),
+            "must be an array of [[variants.NAME.couplings]] tables",
+        )
+    })?;
+    let list = doc
+        .entry("couplings")
+        .or_insert_with(|| toml::Value::Array(Vec::new()))
+        .as_array_mut()
+        .ok_or_else(|| err("couplings", "must be an array of tables"))?;
+    for (i, cp) in add.iter().enumerate() {
+        let this = coupling_name(cp);
+        if list.iter().any(|c| coupling_name(c) == this) {
+            return Err(err(
+                format!("{key}.couplings[{i}]"),
+                format!("the case already has a coupling '{this}' (remove it first)"),
+            ));
+        }
+        list.push(cp.clone());
     }
     Ok(())
 }
@@ -273,6 +288,69 @@ fn inline_params_file(
     Ok(())
 }
 
+/// Variant `name`'s structure applied to `doc`, and its `set` list, led by its output folder
+/// beside the others' (`run.output` + `/NAME`) unless it says where.
+fn variant_sets_placed(
+    doc: &mut toml::Table,
+    file: &CaseFile,
+    name: &str,
+) -> Result<Vec<String>, ConfigError> {
+    let v = variant_sets(file, name)?;
+    apply_variant_structure(doc, name)?;
+    let mut all = Vec::new();
+    if !v.iter().any(|s| {
+        s.split_once('=')
+            .is_some_and(|(k, _)| k.trim() == "run.output")
+    }) {
+        let base = doc
+            .get("run")
+            .and_then(|r| r.get("output"))
+            .and_then(|o| o.as_str())
+            .unwrap_or("out")
+            .to_string();
+        all.push(format!("run.output={:?}", format!("{base}/{name}")));
+    }
+    all.extend(v);
+    Ok(all)
+}
+
+/// `--set s` on node `node` (`rest`: what follows `NODE.`): the node's own keys (`model`,
+/// `solver`, `remote`) or one of its parameters, its params file read in first.
+fn set_node(
+    doc: &mut toml::Table,
+    path: &std::path::Path,
+    s: &str,
+    node: &str,
+    rest: &str,
+) -> Result<(), ConfigError> {
+    let table = doc
+        .get_mut("nodes")
+        .and_then(|n| n.get_mut(node))
+        .and_then(|n| n.as_table_mut())
+        .ok_or_else(|| ConfigError {
+            key: format!("--set {s}"),
+            reason: format!("unknown node '{node}'"),
+        })?;
+    let key = rest.split_once('=').map_or(rest, |(k, _)| k).trim();
+    if matches!(key, "model" | "solver" | "remote") {
+        // The node itself: swap its model or its executable (a path as typed on the
+        // command line, from the working directory, when it exists there).
+        return set_node_key(table, rest);
+    }
+    // `NODE.params.KEY` reaches a parameter named like a node key; `NODE.KEY` any other.
+    let rest = rest.strip_prefix("params.").unwrap_or(rest);
+    let case_dir = path.parent().unwrap_or(std::path::Path::new("."));
+    let params = table
+        .entry("params")
+        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+    inline_params_file(params, node, case_dir)?;
+    let t = params.as_table_mut().ok_or_else(|| ConfigError {
+        key: format!("nodes.{node}.params"),
+        reason: "must be a table or a file name".into(),
+    })?;
+    apply_sets(t, &[rest.to_string()])
+}
+
 /// Apply variant `variant` (if any) of the typed case `file`, then `sets`, to its document
 /// `doc` (`path`: the case file, which params files are relative to).
 pub fn apply(
@@ -284,22 +362,7 @@ pub fn apply(
 ) -> Result<(), ConfigError> {
     let mut all: Vec<String> = Vec::new();
     if let Some(name) = variant {
-        let v = variant_sets(file, name)?;
-        apply_variant_structure(doc, name)?;
-        // A variant writes beside the others unless it says where.
-        if !v.iter().any(|s| {
-            s.split_once('=')
-                .is_some_and(|(k, _)| k.trim() == "run.output")
-        }) {
-            let base = doc
-                .get("run")
-                .and_then(|r| r.get("output"))
-                .and_then(|o| o.as_str())
-                .unwrap_or("out")
-                .to_string();
-            all.push(format!("run.output={:?}", format!("{base}/{name}")));
-        }
-        all.extend(v);
+        all = variant_sets_placed(doc, file, name)?;
     }
     all.extend(sets.iter().cloned());
     for s in &all {
@@ -326,33 +389,7 @@ pub fn apply(
             set_coupling(doc, s, rest)?;
             continue;
         }
-        let table = doc
-            .get_mut("nodes")
-            .and_then(|n| n.get_mut(node))
-            .and_then(|n| n.as_table_mut())
-            .ok_or_else(|| ConfigError {
-                key: format!("--set {s}"),
-                reason: format!("unknown node '{node}'"),
-            })?;
-        let key = rest.split_once('=').map_or(rest, |(k, _)| k).trim();
-        if matches!(key, "model" | "solver" | "remote") {
-            // The node itself: swap its model or its executable (a path as typed on the
-            // command line, from the working directory, when it exists there).
-            set_node_key(table, rest)?;
-            continue;
-        }
-        // `NODE.params.KEY` reaches a parameter named like a node key; `NODE.KEY` any other.
-        let rest = rest.strip_prefix("params.").unwrap_or(rest);
-        let case_dir = path.parent().unwrap_or(std::path::Path::new("."));
-        let params = table
-            .entry("params")
-            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-        inline_params_file(params, node, case_dir)?;
-        let t = params.as_table_mut().ok_or_else(|| ConfigError {
-            key: format!("nodes.{node}.params"),
-            reason: "must be a table or a file name".into(),
-        })?;
-        apply_sets(t, &[rest.to_string()])?;
+        set_node(doc, path, s, node, rest)?;
     }
     Ok(())
 }

@@ -114,11 +114,9 @@ pub struct ParamsArgs {
 pub(super) fn info(a: &InfoArgs) -> anyhow::Result<String> {
     let rec = recording_of(&a.recording);
     if a.json {
-        Ok(serde_json::to_string_pretty(&crate::replay::run_info(
-            &rec,
-        )?)?)
+        Ok(serde_json::to_string_pretty(&crate::info::run_info(&rec)?)?)
     } else {
-        crate::replay::info(&rec)
+        crate::info::info(&rec)
     }
 }
 

@@ -38,6 +38,53 @@ pub struct Audit {
     pub worst_iface_p: f64,
 }
 
+/// The nodes' reports summed for the balance of one window.
+struct Sums {
+    /// Momentum now and at the start (a node may begin moving: an inflow, a launched
+    /// block).
+    p: [f64; 3],
+    p0: [f64; 3],
+    /// External and interface impulse since the start.
+    jx: [f64; 3],
+    ji: [f64; 3],
+    /// Energy (kinetic, internal and dissipated: plastic work and broken bonds left the
+    /// elastic store but not the body), external work, interface work, applied impulse.
+    e: f64,
+    wext: f64,
+    wif: f64,
+    applied: f64,
+}
+
+impl Sums {
+    // d indexes five arrays at once
+    #[allow(clippy::needless_range_loop)]
+    fn of<'r>(nodes: impl Iterator<Item = (&'r StepReport, [f64; 3])>) -> Sums {
+        let mut s = Sums {
+            p: [0.0; 3],
+            p0: [0.0; 3],
+            jx: [0.0; 3],
+            ji: [0.0; 3],
+            e: 0.0,
+            wext: 0.0,
+            wif: 0.0,
+            applied: 0.0,
+        };
+        for (r, initial_momentum) in nodes {
+            for d in 0..3 {
+                s.p[d] += r.momentum[d];
+                s.p0[d] += initial_momentum[d];
+                s.jx[d] += r.external_impulse[d];
+                s.ji[d] += r.interface_impulse[d];
+            }
+            s.e += r.kinetic_energy + r.internal_energy + r.dissipated();
+            s.wext += r.external_work;
+            s.wif += r.interface_work;
+            s.applied += r.applied_impulse;
+        }
+        s
+    }
+}
+
 /// Window `k`'s balance (ending at `t1`) from every node's report and initial momentum,
 /// folded into the run's audit `a` (`e0`: the initial energy).
 pub fn balance<'r>(
@@ -47,27 +94,16 @@ pub fn balance<'r>(
     e0: f64,
     a: &mut Audit,
 ) -> BalanceRow {
-    let mut p = [0.0; 3];
-    let mut p0 = [0.0; 3];
-    let mut jx = [0.0; 3];
-    let mut ji = [0.0; 3];
-    let (mut e, mut wext, mut wif, mut applied) = (0.0, 0.0, 0.0, 0.0);
-    for (r, initial_momentum) in nodes.clone() {
-        for d in 0..3 {
-            p[d] += r.momentum[d];
-            // the balance is against the start: a node may begin moving (an inflow, a
-            // launched block)
-            p0[d] += initial_momentum[d];
-            jx[d] += r.external_impulse[d];
-            ji[d] += r.interface_impulse[d];
-        }
-        // dissipated energy (plastic work, broken bonds) left the elastic store but not
-        // the body: it counts on the energy side of the balance
-        e += r.kinetic_energy + r.internal_energy + r.dissipated();
-        wext += r.external_work;
-        wif += r.interface_work;
-        applied += r.applied_impulse;
-    }
+    let Sums {
+        p,
+        p0,
+        jx,
+        ji,
+        e,
+        wext,
+        wif,
+        applied,
+    } = Sums::of(nodes.clone());
     let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
     let dp = [p[0] - p0[0], p[1] - p0[1], p[2] - p0[2]];
     let imb = norm([dp[0] - jx[0], dp[1] - jx[1], dp[2] - jx[2]]);

@@ -16,12 +16,48 @@ pub(super) fn resume(
     st: &crate::checkpoint::CoordState,
     all: &[usize],
 ) -> Result<(), Fault> {
-    let case = c.case;
     let k = st.window;
     c.window = k;
     c.sim_t = st.time;
-    // The interface problems continue from their checkpointed multipliers (set up again
-    // with the sides, before any side steps window k + 1).
+    restore_hubs(c, st)?;
+    for &i in all {
+        c.send(
+            i,
+            &Message::Advance(Advance {
+                window: k,
+                t0: st.time,
+                t1: st.time,
+                write_output: false,
+                checkpoint: true,
+            }),
+        )?;
+    }
+    c.wait_all(all, "restore", None, |n| n.done == Some(k))?;
+    restore_books(c, st)?;
+    replay_commands(c, st)?;
+    c.history = st.history.clone();
+    c.completed = k;
+    c.rec
+        .json(
+            record::RESUMED_TOPIC,
+            "cosim.Resumed",
+            st.time,
+            &json!({ "window": k, "time": st.time }),
+        )
+        .map_err(|e| Fault {
+            node: "coordinator".into(),
+            reason: format!("recording: {e:#}"),
+        })?;
+    eprintln!(
+        "cosim: restarted from the checkpoint of window {k} (t = {:e} s)",
+        st.time
+    );
+    Ok(())
+}
+
+/// The interface problems continue from their checkpointed multipliers (set up again with
+/// the sides, before any side steps the next window).
+fn restore_hubs(c: &mut Coord, st: &crate::checkpoint::CoordState) -> Result<(), Fault> {
     for hs in &st.lagrange {
         let Some((hub, _)) = c.hubs.iter_mut().find(|(h, _)| h.coupling == hs.coupling) else {
             return Err(Fault {
@@ -37,19 +73,12 @@ pub(super) fn resume(
             reason: format!("coupling {}: {e}", hs.coupling),
         })?;
     }
-    for &i in all {
-        c.send(
-            i,
-            &Message::Advance(Advance {
-                window: k,
-                t0: st.time,
-                t1: st.time,
-                write_output: false,
-                checkpoint: true,
-            }),
-        )?;
-    }
-    c.wait_all(all, "restore", None, |n| n.done == Some(k))?;
+    Ok(())
+}
+
+/// What the coordinator kept of each node: its step and time accounts, its last report, its
+/// initial totals and its warnings.
+fn restore_books(c: &mut Coord, st: &crate::checkpoint::CoordState) -> Result<(), Fault> {
     for ns in &st.nodes {
         let Some(i) = c.node_idx(&ns.name) else {
             return Err(Fault {
@@ -68,6 +97,13 @@ pub(super) fn resume(
         n.initial_momentum = ns.initial_momentum;
         n.warnings = ns.warnings.clone();
     }
+    Ok(())
+}
+
+/// The commands that had changed the run before the checkpoint, sent again: the
+/// decouplings to both nodes of each coupling, a `Finish` to each node that had finished.
+fn replay_commands(c: &mut Coord, st: &crate::checkpoint::CoordState) -> Result<(), Fault> {
+    let case = c.case;
     for (ci, d) in st.decoupled.iter().enumerate() {
         let (Some((w, _, why)), Some(cp)) = (d, case.couplings.get(ci)) else {
             continue;
@@ -96,23 +132,6 @@ pub(super) fn resume(
             c.nodes[i].finished = Some(w);
         }
     }
-    c.history = st.history.clone();
-    c.completed = k;
-    c.rec
-        .json(
-            record::RESUMED_TOPIC,
-            "cosim.Resumed",
-            st.time,
-            &json!({ "window": k, "time": st.time }),
-        )
-        .map_err(|e| Fault {
-            node: "coordinator".into(),
-            reason: format!("recording: {e:#}"),
-        })?;
-    eprintln!(
-        "cosim: restarted from the checkpoint of window {k} (t = {:e} s)",
-        st.time
-    );
     Ok(())
 }
 

@@ -167,6 +167,109 @@ pub(super) enum LagIn {
     Fields(Fields),
 }
 
+/// The coordinator's side of the run's topics: one up topic per node, then per coupling the
+/// data topic of each member (with the contract it keeps, where the scheme has one), and a
+/// hub with its publisher for each scheme the coordinator solves.
+struct Wiring {
+    topics: Vec<(String, Topic)>,
+    contracts: Vec<Option<Contract>>,
+    /// Per topic, the coupling and side whose data it carries (the booking rule's feeds).
+    sides: Vec<Option<(usize, String)>>,
+    hubs: Vec<(lagrange::Hub, Box<dyn Publisher>)>,
+}
+
+impl Wiring {
+    fn of(case: &Case, run_id: &str, t: &mut dyn Transport) -> anyhow::Result<Wiring> {
+        let mut w = Wiring {
+            topics: Vec::new(),
+            contracts: Vec::new(),
+            sides: Vec::new(),
+            hubs: Vec::new(),
+        };
+        let idx = |n: &str| case.nodes.iter().position(|x| x.name == n).unwrap_or(0);
+        for (i, n) in case.nodes.iter().enumerate() {
+            let tp = topic::up(run_id, &n.name);
+            t.subscribe(&tp)?;
+            w.topics.push((tp, Topic::Up(i)));
+            w.contracts.push(None);
+            w.sides.push(None);
+        }
+        for (ci, c) in case.couplings.iter().enumerate() {
+            let solved = protocol::scheme::of(c.kind).coordinator_solved();
+            // A scheme the coordinator solves has a hub here (the lagrange interface problem).
+            if solved {
+                let readers: Vec<String> = c.sides.iter().map(|s| s.0.clone()).collect();
+                let p = t.publisher(
+                    &topic::data(run_id, &c.name, lagrange::wire::PEER),
+                    &readers,
+                )?;
+                let method = c.method.unwrap_or(lagrange::Method::Gs4);
+                let hub = lagrange::Hub::new(&c.name, method, &readers, case.run.window);
+                w.hubs.push((hub, p));
+            }
+            for (k, (side, _)) in c.members().into_iter().enumerate() {
+                let tp = topic::data(run_id, &c.name, side);
+                t.subscribe(&tp)?;
+                w.topics.push((tp, Topic::Data(idx(side))));
+                w.sides.push(Some((ci, side.to_string())));
+                // Members are the driver, then the responder, where there is a contract.
+                let role = if k == 0 {
+                    Role::Driver
+                } else {
+                    Role::Responder
+                };
+                w.contracts
+                    .push((!solved).then(|| Contract::in_case(case, c, role)));
+            }
+        }
+        Ok(w)
+    }
+}
+
+/// The run's token, which a remote node presents in its `Hello`: the clock and this
+/// process's id, mixed.
+fn run_token() -> String {
+    let t = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_nanos())
+        .unwrap_or(0);
+    format!(
+        "{:016x}",
+        (t as u64) ^ ((std::process::id() as u64) << 32) ^ 0x9e37_79b9_7f4a_7c15
+    )
+}
+
+impl NodeRt {
+    /// Node `name` before its process starts: nothing heard from it yet.
+    fn new(run_id: &str, name: &str, down: Box<dyn Publisher>) -> NodeRt {
+        NodeRt {
+            name: name.to_string(),
+            child: None,
+            down,
+            last_seen: Instant::now(),
+            waiting_since: None,
+            idle_s: 0.0,
+            hello: false,
+            described: 0,
+            warnings: Vec::new(),
+            stable_dt: 0.0,
+            done: None,
+            report: StepReport::default(),
+            initial_energy: 0.0,
+            initial_momentum: [0.0; 3],
+            substeps: 0,
+            wall_s: 0.0,
+            wait_s: 0.0,
+            exited: None,
+            log: None,
+            finished: None,
+            ahead: VecDeque::with_capacity(4),
+            report_topic: format!("/cosim/node/{name}"),
+            down_topic: topic::down(run_id, name),
+        }
+    }
+}
+
 impl<'a> Coord<'a> {
     /// The last window of `Fields` seen from `sender` on coupling `coupling` (None: none).
     pub(super) fn fields_seen(&self, coupling: &str, sender: &str) -> Option<u64> {
@@ -286,91 +389,24 @@ impl<'a> Coord<'a> {
         mut t: Box<dyn Transport>,
         rec: RecorderThread,
     ) -> anyhow::Result<Coord<'a>> {
-        let mut topics = Vec::new();
-        let mut contracts = Vec::new();
-        // Per topic, the coupling and side whose data it carries (the booking rule's feeds).
-        let mut sides: Vec<Option<(usize, String)>> = Vec::new();
-        let idx = |n: &str| case.nodes.iter().position(|x| x.name == n).unwrap_or(0);
-        for (i, n) in case.nodes.iter().enumerate() {
-            let tp = topic::up(&run_id, &n.name);
-            t.subscribe(&tp)?;
-            topics.push((tp, Topic::Up(i)));
-            contracts.push(None);
-            sides.push(None);
-        }
-        let mut hubs = Vec::new();
-        for (ci, c) in case.couplings.iter().enumerate() {
-            // A scheme the coordinator solves has a hub here (the lagrange interface problem).
-            if protocol::scheme::of(c.kind).coordinator_solved() {
-                let readers: Vec<String> = c.sides.iter().map(|s| s.0.clone()).collect();
-                let p = t.publisher(
-                    &topic::data(&run_id, &c.name, lagrange::wire::PEER),
-                    &readers,
-                )?;
-                let method = c.method.unwrap_or(lagrange::Method::Gs4);
-                let hub = lagrange::Hub::new(&c.name, method, &readers, case.run.window);
-                hubs.push((hub, p));
-            }
-            for (k, (side, _)) in c.members().into_iter().enumerate() {
-                let tp = topic::data(&run_id, &c.name, side);
-                t.subscribe(&tp)?;
-                topics.push((tp, Topic::Data(idx(side))));
-                sides.push(Some((ci, side.to_string())));
-                // Members are the driver, then the responder, where there is a contract.
-                let role = if k == 0 {
-                    Role::Driver
-                } else {
-                    Role::Responder
-                };
-                contracts.push(
-                    (!protocol::scheme::of(c.kind).coordinator_solved())
-                        .then(|| Contract::in_case(case, c, role)),
-                );
-            }
-        }
-        let token = format!("{:016x}", {
-            let t = std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map(|d| d.as_nanos())
-                .unwrap_or(0);
-            (t as u64) ^ ((std::process::id() as u64) << 32) ^ 0x9e37_79b9_7f4a_7c15
-        });
+        let Wiring {
+            topics,
+            contracts,
+            sides,
+            hubs,
+        } = Wiring::of(case, &run_id, t.as_mut())?;
         let mut nodes = Vec::new();
         for n in &case.nodes {
             let down = t.publisher(
                 &topic::down(&run_id, &n.name),
                 std::slice::from_ref(&n.name),
             )?;
-            nodes.push(NodeRt {
-                name: n.name.clone(),
-                child: None,
-                down,
-                last_seen: Instant::now(),
-                waiting_since: None,
-                idle_s: 0.0,
-                hello: false,
-                described: 0,
-                warnings: Vec::new(),
-                stable_dt: 0.0,
-                done: None,
-                report: StepReport::default(),
-                initial_energy: 0.0,
-                initial_momentum: [0.0; 3],
-                substeps: 0,
-                wall_s: 0.0,
-                wait_s: 0.0,
-                exited: None,
-                log: None,
-                finished: None,
-                ahead: VecDeque::with_capacity(4),
-                report_topic: format!("/cosim/node/{}", n.name),
-                down_topic: topic::down(&run_id, &n.name),
-            });
+            nodes.push(NodeRt::new(&run_id, &n.name, down));
         }
         Ok(Coord {
             case,
             run: run_id.clone(),
-            token,
+            token: run_token(),
             t,
             topics,
             contracts,

@@ -35,7 +35,38 @@ impl Coord<'_> {
     /// Check children and heartbeats; returns the first fault.
     pub(super) fn check_health(&mut self, waiting_on: &[usize]) -> Result<(), Fault> {
         self.forgive_own_stall(!waiting_on.is_empty());
-        let timeout = Duration::from_secs_f64(self.case.run.heartbeat_timeout);
+        self.check_exits()?;
+        self.check_beats(waiting_on)?;
+        // Alive but stuck: every node we wait for has been blocked on a peer's input for the
+        // stall timeout (two nodes waiting for each other, say), so none can ever deliver.
+        let stall = Duration::from_secs_f64(self.case.run.stall_timeout);
+        if !waiting_on.is_empty()
+            && waiting_on.iter().all(|&i| {
+                self.nodes[i]
+                    .waiting_since
+                    .is_some_and(|t| t.elapsed() > stall)
+            })
+        {
+            return Err(self.deadlock(waiting_on));
+        }
+        for lost in self.t.lost_endpoints() {
+            // Before its accepted Hello a name may be tried by a rejected process: not a fault.
+            if self
+                .node_idx(&lost)
+                .is_some_and(|i| self.nodes[i].hello && self.nodes[i].finished.is_none())
+            {
+                return Err(Fault {
+                    node: lost,
+                    reason: "connection lost (liveliness token dropped)".into(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// A node's process that exited without being told to finish: the fault, after its last
+    /// words (a `Failed` message) had a moment to arrive.
+    fn check_exits(&mut self) -> Result<(), Fault> {
         for i in 0..self.nodes.len() {
             let n = &mut self.nodes[i];
             if n.finished.is_some() {
@@ -48,15 +79,11 @@ impl Coord<'_> {
                 n.exited = Some(describe_status(st));
             }
             if let Some(why) = n.exited.clone() {
-                // Give a dying node's last words (a Failed message) a moment to arrive.
                 let name = n.name.clone();
                 let log = n.log.as_deref().map(log_note).unwrap_or_default();
                 let deadline = Instant::now() + Duration::from_millis(100);
                 while Instant::now() < deadline {
-                    match self.pump_one(Duration::from_millis(10)) {
-                        Ok(_) => {}
-                        Err(f) => return Err(f),
-                    }
+                    self.pump_one(Duration::from_millis(10))?;
                 }
                 return Err(Fault {
                     node: name,
@@ -64,7 +91,13 @@ impl Coord<'_> {
                 });
             }
         }
-        // Beats may wait unread behind the coordinator's own work: read them before judging.
+        Ok(())
+    }
+
+    /// A node of `waiting_on` silent for longer than the heartbeat timeout, once the beats
+    /// queued behind the coordinator's own work are read.
+    fn check_beats(&mut self, waiting_on: &[usize]) -> Result<(), Fault> {
+        let timeout = Duration::from_secs_f64(self.case.run.heartbeat_timeout);
         if waiting_on
             .iter()
             .any(|&i| self.nodes[i].last_seen.elapsed() > timeout)
@@ -89,69 +122,51 @@ impl Coord<'_> {
                 });
             }
         }
-        // Alive but stuck: every node we wait for has been blocked on a peer's input for the
-        // stall timeout (two nodes waiting for each other, say), so none can ever deliver.
-        let stall = Duration::from_secs_f64(self.case.run.stall_timeout);
-        if !waiting_on.is_empty()
-            && waiting_on.iter().all(|&i| {
-                self.nodes[i]
-                    .waiting_since
-                    .is_some_and(|t| t.elapsed() > stall)
-            })
-        {
-            let names: Vec<&str> = waiting_on
-                .iter()
-                .map(|&i| self.nodes[i].name.as_str())
-                .collect();
-            // What each waits for, and who owes it: the first such sender is the one named.
-            let mut missing = Vec::new();
-            for &i in waiting_on {
-                let n = &self.nodes[i];
-                let working = n.done.map_or(0, |d| d + 1);
-                let bindings = case::bindings_of(self.case, &n.name);
-                missing.extend(crate::deadlock::missing(
-                    &n.name,
-                    working,
-                    &bindings,
-                    |c, s| self.fields_seen(c, s),
-                    |c| {
-                        let ci = self.case.couplings.iter().position(|x| x.name == c)?;
-                        self.until[ci]
-                    },
-                ));
-            }
-            let said = if missing.is_empty() {
-                "; every input they wait for was sent, as far as the coordinator saw (lost on its way?)".to_string()
-            } else {
-                let what: Vec<&str> = missing.iter().map(|m| m.what.as_str()).collect();
-                format!(": {}", what.join("; "))
-            };
-            return Err(Fault {
-                node: missing
-                    .first()
-                    .map_or(names[0], |m| m.sender.as_str())
-                    .to_string(),
-                reason: format!(
-                    "deadlock: {} s during window {} with every running node ({}) waiting for a peer's input{said}",
-                    self.case.run.stall_timeout,
-                    self.window,
-                    names.join(", ")
-                ),
-            });
-        }
-        for lost in self.t.lost_endpoints() {
-            // Before its accepted Hello a name may be tried by a rejected process: not a fault.
-            if self
-                .node_idx(&lost)
-                .is_some_and(|i| self.nodes[i].hello && self.nodes[i].finished.is_none())
-            {
-                return Err(Fault {
-                    node: lost,
-                    reason: "connection lost (liveliness token dropped)".into(),
-                });
-            }
-        }
         Ok(())
+    }
+
+    /// The deadlock of the nodes `waiting_on`, all blocked on a peer's input: what each waits
+    /// for and who owes it, the first such sender named.
+    fn deadlock(&self, waiting_on: &[usize]) -> Fault {
+        let names: Vec<&str> = waiting_on
+            .iter()
+            .map(|&i| self.nodes[i].name.as_str())
+            .collect();
+        let mut missing = Vec::new();
+        for &i in waiting_on {
+            let n = &self.nodes[i];
+            let working = n.done.map_or(0, |d| d + 1);
+            let bindings = case::bindings_of(self.case, &n.name);
+            missing.extend(crate::deadlock::missing(
+                &n.name,
+                working,
+                &bindings,
+                |c, s| self.fields_seen(c, s),
+                |c| {
+                    let ci = self.case.couplings.iter().position(|x| x.name == c)?;
+                    self.until[ci]
+                },
+            ));
+        }
+        let said = if missing.is_empty() {
+            "; every input they wait for was sent, as far as the coordinator saw (lost on its way?)"
+                .to_string()
+        } else {
+            let what: Vec<&str> = missing.iter().map(|m| m.what.as_str()).collect();
+            format!(": {}", what.join("; "))
+        };
+        Fault {
+            node: missing
+                .first()
+                .map_or(names[0], |m| m.sender.as_str())
+                .to_string(),
+            reason: format!(
+                "deadlock: {} s during window {} with every running node ({}) waiting for a peer's input{said}",
+                self.case.run.stall_timeout,
+                self.window,
+                names.join(", ")
+            ),
+        }
     }
 
     /// Pump until `pred` holds for every node in `who`.

@@ -121,7 +121,7 @@ impl Coord<'_> {
         }
         self.nodes[owner].last_seen = Instant::now();
         match message {
-            Some(m) => self.take_message(owner, id, m).map(|_| ()),
+            Some(m) => self.take_message(owner, id, m),
             None => Ok(()),
         }
     }
@@ -139,63 +139,12 @@ impl Coord<'_> {
 
     /// A whole message `message` from node `owner` on topic `id`, checked for its sender and
     /// contract: the hand-shake's, a heartbeat, a `Done` read in full, a failure, or a
-    /// lagrange side's data. Ok(true): it was taken.
-    fn take_message(&mut self, owner: usize, id: TopicId, message: Message) -> Result<bool, Fault> {
-        let tname = self.topics[id].0.as_str();
+    /// lagrange side's data.
+    fn take_message(&mut self, owner: usize, id: TopicId, message: Message) -> Result<(), Fault> {
         let n = &mut self.nodes[owner];
         match message {
-            Message::Hello(h) => {
-                if h.protocol_version != codec::PROTOCOL_VERSION {
-                    return Err(Fault {
-                        node: n.name.clone(),
-                        reason: format!(
-                            "speaks protocol {}, cosim {}",
-                            h.protocol_version,
-                            codec::PROTOCOL_VERSION
-                        ),
-                    });
-                }
-                let remote = self.case.nodes[owner].remote;
-                if remote && h.token != self.token {
-                    let i = owner;
-                    let _ = self.send(
-                        i,
-                        &Message::Reject(Reject {
-                            reason: "wrong run token".into(),
-                        }),
-                    );
-                    tracing::warn!(
-                        "rejected a node presenting a wrong token as '{}'",
-                        self.nodes[i].name
-                    );
-                    return Ok(true);
-                }
-                n.hello = true;
-            }
-            Message::Describe(d) => {
-                // A remote node not described before the run is checked now, before any
-                // window: its interfaces and fields against every coupling it is in.
-                if self.case.nodes[owner].interfaces.is_none() {
-                    case::check_joined(self.case, &n.name, &d.interfaces).map_err(|e| Fault {
-                        node: n.name.clone(),
-                        reason: format!("refused at the handshake: {e}"),
-                    })?;
-                    // Its interfaces size the data of the couplings it drives.
-                    for c in self.contracts.iter_mut().flatten() {
-                        for i in &d.interfaces {
-                            c.learn(&n.name, i);
-                        }
-                    }
-                }
-                n.described += 1;
-                n.stable_dt = d.stable_dt;
-                for w in d.warnings {
-                    if !n.warnings.contains(&w) {
-                        tracing::warn!("node '{}': {w}", n.name);
-                        n.warnings.push(w);
-                    }
-                }
-            }
+            Message::Hello(h) => self.take_hello(owner, &h)?,
+            Message::Describe(d) => self.take_describe(owner, d)?,
             Message::Done(mut d) => {
                 take_done(
                     n,
@@ -226,20 +175,77 @@ impl Coord<'_> {
             }
             Message::Mesh(m) => {
                 let name = n.name.clone();
-                return self.lagrange_input(&name, LagIn::Mesh(m)).map(|_| true);
+                self.lagrange_input(&name, LagIn::Mesh(m))?;
             }
             Message::Fields(f) => {
                 let name = n.name.clone();
-                return self.lagrange_input(&name, LagIn::Fields(f)).map(|_| true);
+                self.lagrange_input(&name, LagIn::Fields(f))?;
             }
             other => {
                 return Err(Fault {
                     node: n.name.clone(),
-                    reason: format!("unexpected {} on {tname}", other.type_name()),
+                    reason: format!("unexpected {} on {}", other.type_name(), self.topics[id].0),
                 });
             }
         }
-        Ok(true)
+        Ok(())
+    }
+
+    /// Node `owner`'s `Hello`: its protocol version, and a remote node's run token (a wrong
+    /// one is rejected and the node stays unknown).
+    fn take_hello(&mut self, owner: usize, h: &Hello) -> Result<(), Fault> {
+        if h.protocol_version != codec::PROTOCOL_VERSION {
+            return Err(Fault {
+                node: self.nodes[owner].name.clone(),
+                reason: format!(
+                    "speaks protocol {}, cosim {}",
+                    h.protocol_version,
+                    codec::PROTOCOL_VERSION
+                ),
+            });
+        }
+        if self.case.nodes[owner].remote && h.token != self.token {
+            let _ = self.send(
+                owner,
+                &Message::Reject(Reject {
+                    reason: "wrong run token".into(),
+                }),
+            );
+            tracing::warn!(
+                "rejected a node presenting a wrong token as '{}'",
+                self.nodes[owner].name
+            );
+            return Ok(());
+        }
+        self.nodes[owner].hello = true;
+        Ok(())
+    }
+
+    /// Node `owner`'s `Describe`: a remote node not described before the run is checked now,
+    /// before any window, its interfaces and fields against every coupling it is in.
+    fn take_describe(&mut self, owner: usize, d: Describe) -> Result<(), Fault> {
+        let n = &mut self.nodes[owner];
+        if self.case.nodes[owner].interfaces.is_none() {
+            case::check_joined(self.case, &n.name, &d.interfaces).map_err(|e| Fault {
+                node: n.name.clone(),
+                reason: format!("refused at the handshake: {e}"),
+            })?;
+            // Its interfaces size the data of the couplings it drives.
+            for c in self.contracts.iter_mut().flatten() {
+                for i in &d.interfaces {
+                    c.learn(&n.name, i);
+                }
+            }
+        }
+        n.described += 1;
+        n.stable_dt = d.stable_dt;
+        for w in d.warnings {
+            if !n.warnings.contains(&w) {
+                tracing::warn!("node '{}': {w}", n.name);
+                n.warnings.push(w);
+            }
+        }
+        Ok(())
     }
 
     /// The fault to report for node `failed`'s `Failed`: a node often fails on what a peer

@@ -29,40 +29,9 @@ pub(super) fn decouple_due(
         if decoupled[ci].is_some() || !cp.decouple.is_set() {
             continue;
         }
-        let mut why = None;
-        if let Some(at) = cp.decouple.at
-            && t0 >= at * (1.0 - 1e-12)
-        {
-            why = Some(format!("t = {t0:.6e} s reached decouple_at = {at:e} s"));
-        }
-        if why.is_none()
-            && k > 1
-            && let Some((node, q, level)) = &cp.decouple.when
-            && let Some(i) = c.node_idx(node)
-        {
-            let r = &c.nodes[i].report;
-            match r.scalars.iter().find(|(n, _)| n == q) {
-                Some(&(_, v)) if v >= *level => {
-                    why = Some(format!("{node}.{q} = {v} reached {level}"));
-                }
-                Some(_) => {}
-                None => {
-                    let have: Vec<&str> = r.scalars.iter().map(|(n, _)| n.as_str()).collect();
-                    return Err(Fault {
-                        node: node.clone(),
-                        reason: format!(
-                            "couplings[{ci}].decouple_when: the node does not report '{q}' (it reports: {})",
-                            if have.is_empty() {
-                                "nothing".to_string()
-                            } else {
-                                have.join(", ")
-                            }
-                        ),
-                    });
-                }
-            }
-        }
-        let Some(why) = why else { continue };
+        let Some(why) = decouple_reason(c, ci, k, t0)? else {
+            continue;
+        };
         c.progress.note(&format!(
             "cosim: coupling '{}' ends before window {k} ({why}); '{}' goes on alone",
             cp.name, cp.driver.0
@@ -88,6 +57,56 @@ pub(super) fn decouple_due(
     if !any {
         return Ok(false);
     }
+    finish_alone(c, decoupled, k)
+}
+
+/// Why coupling `ci` ends before window `k` (starting at `t0`), if its rule fires: its time
+/// `decouple_at` reached, or the scalar its `decouple_when` names at its level in the node's
+/// last report (a scalar the node does not report is a fault).
+fn decouple_reason(c: &Coord, ci: usize, k: u64, t0: f64) -> Result<Option<String>, Fault> {
+    let cp = &c.case.couplings[ci];
+    if let Some(at) = cp.decouple.at
+        && t0 >= at * (1.0 - 1e-12)
+    {
+        return Ok(Some(format!(
+            "t = {t0:.6e} s reached decouple_at = {at:e} s"
+        )));
+    }
+    let Some((node, q, level)) = &cp.decouple.when else {
+        return Ok(None);
+    };
+    let Some(i) = c.node_idx(node).filter(|_| k > 1) else {
+        return Ok(None);
+    };
+    let r = &c.nodes[i].report;
+    match r.scalars.iter().find(|(n, _)| n == q) {
+        Some(&(_, v)) if v >= *level => Ok(Some(format!("{node}.{q} = {v} reached {level}"))),
+        Some(_) => Ok(None),
+        None => {
+            let have: Vec<&str> = r.scalars.iter().map(|(n, _)| n.as_str()).collect();
+            Err(Fault {
+                node: node.clone(),
+                reason: format!(
+                    "couplings[{ci}].decouple_when: the node does not report '{q}' (it reports: {})",
+                    if have.is_empty() {
+                        "nothing".to_string()
+                    } else {
+                        have.join(", ")
+                    }
+                ),
+            })
+        }
+    }
+}
+
+/// Finish each node still running that responds in a decoupled coupling and has no coupling
+/// left, after window `k - 1`. Returns whether a node was finished.
+fn finish_alone(
+    c: &mut Coord,
+    decoupled: &[Option<(u64, f64, String)>],
+    k: u64,
+) -> Result<bool, Fault> {
+    let case = c.case;
     let mut finished = false;
     for (i, n) in case.nodes.iter().enumerate() {
         if c.nodes[i].finished.is_some() {

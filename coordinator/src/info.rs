@@ -1,0 +1,294 @@
+//! `cosim info`: what a recording holds (its case, nodes, couplings, windows, channels and
+//! last balance), as text or as a JSON document.
+
+use crate::record::{self, Recorded};
+use crate::replay::{Decoded, case_of, decode_all};
+use protocol::*;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// What `cosim info` reports on a recording (also its `--json` document).
+#[derive(Debug, serde::Serialize)]
+pub struct RunInfo {
+    pub recording: String,
+    pub bytes: u64,
+    /// False when the writer stopped early (a killed coordinator).
+    pub complete: bool,
+    pub segments: Vec<String>,
+    pub run: String,
+    pub end_time: Option<f64>,
+    pub window: Option<f64>,
+    /// As the recorded case says; `None` where the recording holds no case.
+    pub schedule: Option<String>,
+    pub transport: Option<String>,
+    pub nodes: Vec<NodeInfo>,
+    pub couplings: Vec<CouplingInfo>,
+    pub windows_completed: u64,
+    pub messages: u64,
+    pub channels: Vec<ChannelInfo>,
+    /// The last `/cosim/balance` row as recorded, with the run's largest imbalance and
+    /// residual beside it.
+    pub balance: Option<serde_json::Value>,
+    pub largest_momentum_imbalance: Option<f64>,
+    pub largest_momentum_residual: Option<f64>,
+}
+
+#[derive(Debug, serde::Serialize)]
+pub struct NodeInfo {
+    pub name: String,
+    pub model: String,
+    pub couplings: usize,
+}
+
+#[derive(Debug, serde::Serialize)]
+pub struct CouplingInfo {
+    pub name: String,
+    pub kind: String,
+    pub from: String,
+    pub to: String,
+}
+
+#[derive(Debug, serde::Serialize)]
+pub struct ChannelInfo {
+    pub topic: String,
+    pub messages: u64,
+    pub bytes: u64,
+}
+
+/// Everything `cosim info` says about a recording (and the segments restarts added to it).
+pub fn run_info(path: &Path) -> anyhow::Result<RunInfo> {
+    let (msgs, complete) = record::read_all(path)?;
+    let bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+    let segments = record::segments(path)
+        .iter()
+        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .collect();
+    let dec = decode_all(&msgs);
+    let case = CaseFacts::of(&msgs);
+    let run = dec.first().map(|d| d.env.run.clone()).unwrap_or_default();
+    let (nodes, couplings) = nodes_and_couplings(&dec);
+    let windows_completed = dec
+        .iter()
+        .filter_map(|d| match &d.env.message {
+            Message::Done(dn) => Some(dn.window),
+            _ => None,
+        })
+        .max()
+        .unwrap_or(0);
+    let mut counts: BTreeMap<&str, (u64, u64)> = BTreeMap::new();
+    for m in &msgs {
+        let e = counts.entry(m.topic.as_str()).or_default();
+        e.0 += 1;
+        e.1 += m.data.len() as u64;
+    }
+    let rows: Vec<serde_json::Value> = msgs
+        .iter()
+        .filter(|m| m.topic == "/cosim/balance")
+        .filter_map(|m| serde_json::from_slice(&m.data).ok())
+        .collect();
+    let largest = |key: &str| rows.iter().filter_map(|v| v[key].as_f64()).reduce(f64::max);
+    Ok(RunInfo {
+        recording: path.display().to_string(),
+        bytes,
+        complete,
+        segments,
+        run,
+        end_time: case.end_time,
+        window: case.window,
+        schedule: case.schedule,
+        transport: case.transport,
+        nodes,
+        couplings,
+        windows_completed,
+        messages: msgs.len() as u64,
+        channels: counts
+            .into_iter()
+            .map(|(t, (n, b))| ChannelInfo {
+                topic: t.to_string(),
+                messages: n,
+                bytes: b,
+            })
+            .collect(),
+        largest_momentum_imbalance: largest("momentum_imbalance"),
+        largest_momentum_residual: largest("momentum_residual"),
+        balance: rows.last().cloned(),
+    })
+}
+
+/// `cosim info`: [`run_info`] as text.
+pub fn info(path: &Path) -> anyhow::Result<String> {
+    use std::fmt::Write;
+    let i = run_info(path)?;
+    let mut s = String::new();
+    writeln!(
+        s,
+        "recording  {} ({:.1} kB, {})",
+        i.recording,
+        i.bytes as f64 / 1e3,
+        if i.complete {
+            "complete"
+        } else {
+            "INCOMPLETE: writer stopped early"
+        }
+    )?;
+    if i.segments.len() > 1 {
+        writeln!(
+            s,
+            "segments   {} (restarted {} times, read as one run)",
+            i.segments.join(" + "),
+            i.segments.len() - 1
+        )?;
+    }
+    match (&i.schedule, &i.transport) {
+        (Some(schedule), Some(transport)) => {
+            let opt = |x: Option<f64>| x.map(|v| v.to_string()).unwrap_or_default();
+            writeln!(
+                s,
+                "case       end_time {} s, window {} s, schedule {schedule}, transport {transport}",
+                opt(i.end_time),
+                opt(i.window),
+            )?
+        }
+        _ => writeln!(s, "case       not in the recording")?,
+    }
+    writeln!(s, "run        {}", i.run)?;
+    writeln!(s, "nodes")?;
+    for n in &i.nodes {
+        writeln!(
+            s,
+            "  {:<12} model {:<20} couplings {}",
+            n.name, n.model, n.couplings
+        )?;
+    }
+    writeln!(s, "couplings")?;
+    for c in &i.couplings {
+        writeln!(s, "  {:<12} {} {} → {}", c.name, c.kind, c.from, c.to)?;
+    }
+    writeln!(s, "windows    {} completed", i.windows_completed)?;
+    writeln!(
+        s,
+        "messages   {} in {} channels",
+        i.messages,
+        i.channels.len()
+    )?;
+    for c in &i.channels {
+        writeln!(
+            s,
+            "  {:<48} {:>8} msgs {:>12.1} kB",
+            c.topic,
+            c.messages,
+            c.bytes as f64 / 1e3
+        )?;
+    }
+    if let Some(v) = &i.balance {
+        write_balance(&mut s, &i, v)?;
+    }
+    Ok(s)
+}
+
+/// The run's settings the recorded case gives (what it leaves out is the default it ran
+/// with); all None where the recording holds no case.
+#[derive(Default)]
+struct CaseFacts {
+    end_time: Option<f64>,
+    window: Option<f64>,
+    schedule: Option<String>,
+    transport: Option<String>,
+}
+
+impl CaseFacts {
+    fn of(msgs: &[Recorded]) -> CaseFacts {
+        let Some(run) = case_of(msgs)
+            .ok()
+            .and_then(|(case, _)| case.get("run").and_then(|r| r.as_table()).cloned())
+        else {
+            return CaseFacts::default();
+        };
+        let num = |k: &str| {
+            run.get(k)
+                .and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+        };
+        let text = |k: &str, default: &str| {
+            Some(
+                run.get(k)
+                    .and_then(|v| v.as_str())
+                    .unwrap_or(default)
+                    .to_string(),
+            )
+        };
+        CaseFacts {
+            end_time: num("end_time"),
+            window: num("window"),
+            schedule: text("schedule", "serial"),
+            transport: text("transport", "shm"),
+        }
+    }
+}
+
+/// The nodes the recording welcomed, and the couplings their drivers' bindings name.
+fn nodes_and_couplings(dec: &[Decoded]) -> (Vec<NodeInfo>, Vec<CouplingInfo>) {
+    let mut nodes = Vec::new();
+    let mut couplings = BTreeMap::new();
+    for d in dec {
+        let Message::Welcome(w) = &d.env.message else {
+            continue;
+        };
+        let node = d.topic.rsplit('/').nth(1).unwrap_or("?").to_string();
+        for b in w.bindings.iter().filter(|b| b.role == Role::Driver) {
+            couplings.insert(
+                b.coupling.clone(),
+                CouplingInfo {
+                    name: b.coupling.clone(),
+                    kind: b.kind.as_str().to_string(),
+                    from: format!("{node}.{}", b.interface),
+                    to: format!("{}.{}", b.peer, b.peer_interface),
+                },
+            );
+        }
+        nodes.push(NodeInfo {
+            name: node,
+            model: w.model.clone(),
+            couplings: w.bindings.len(),
+        });
+    }
+    (nodes, couplings.into_values().collect())
+}
+
+/// The last balance row `v` of the run `i`, as text.
+fn write_balance(s: &mut String, i: &RunInfo, v: &serde_json::Value) -> std::fmt::Result {
+    use std::fmt::Write;
+    let f = |k: &str| v[k].as_f64().unwrap_or(0.0);
+    writeln!(s, "balance at window {} (t = {} s)", v["window"], v["time"])?;
+    writeln!(
+        s,
+        "  energy {:.6e} J, external work {:.6e} J, residual {:.3e} J, interface work sum {:.3e} J",
+        f("energy"),
+        f("external_work"),
+        f("energy_residual"),
+        f("interface_work_sum")
+    )?;
+    writeln!(
+        s,
+        "  momentum {:.6e}, external impulse {:.6e}, imbalance {:.3e} N s",
+        f("momentum"),
+        f("external_impulse"),
+        f("momentum_imbalance")
+    )?;
+    let applied = f("applied_impulse");
+    let worst = i.largest_momentum_imbalance.unwrap_or(0.0);
+    if applied > 0.0 {
+        writeln!(
+            s,
+            "  largest momentum imbalance {:.3e} N s = {:.3e} of the applied impulse {:.3e} N s",
+            worst,
+            worst / applied,
+            applied
+        )?;
+    }
+    writeln!(
+        s,
+        "  largest momentum residual (external and in-flight coupling impulse accounted) {:.3e} N s",
+        i.largest_momentum_residual.unwrap_or(0.0)
+    )?;
+    Ok(())
+}
