@@ -284,24 +284,30 @@ fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
 }
 "#;
 
-/// A `pd-bond` body on the device.
-pub struct GpuBondBody {
+/// What every PD body on the device holds beside its model's own buffers: the context, the
+/// particle buffer (`PV_REALS` per particle, shared with the integration kernels), the report
+/// kernels and the bind group they run with, and the clock.
+pub struct Core {
     ctx: Arc<GpuContext>,
-    kick_drift: wgpu::ComputePipeline,
-    kick_only: wgpu::ComputePipeline,
-    force: wgpu::ComputePipeline,
     report: Report,
     bind: wgpu::BindGroup,
-    params: wgpu::Buffer,
     pv: wgpu::Buffer,
-    bd: wgpu::Buffer,
     n: usize,
-    nb: usize,
-    rho: f64,
-    bf: f64,
     max_wg: u32,
     pub time: f64,
     pub steps: u64,
+}
+
+/// A `pd-bond` body on the device.
+pub struct GpuBondBody {
+    pub core: Core,
+    /// kick + drift, force, kick: one velocity-Verlet step.
+    pipes: [wgpu::ComputePipeline; 3],
+    params: wgpu::Buffer,
+    bd: wgpu::Buffer,
+    nb: usize,
+    rho: f64,
+    bf: f64,
 }
 
 fn flat(v: &[[f64; 3]]) -> &[f64] {
@@ -348,20 +354,7 @@ impl GpuBondBody {
             "pd-bond",
             &format!("alias real = {};\n{SHADER}\n{INTEGRATE_SHADER}", p.wgsl()),
         )?;
-        let mut reals = Vec::with_capacity(PV_REALS * n);
-        for a in [&body.pos, &body.vel, &body.force, &body.fext, &body.vpres] {
-            reals.extend_from_slice(flat(a));
-        }
-        reals.extend_from_slice(&body.vol);
-        // window accumulators (work 16n, internal-force impulse 17n): see `accumulate`
-        reals.resize(20 * n, 0.0);
-        reals.extend_from_slice(flat(&body.disp));
-        reals.extend_from_slice(flat(&body.x0));
-        // the strain energy scratch of the `energy` kernel
-        reals.resize(PV_REALS * n, 0.0);
-        let mut ints: Vec<u32> = body.prescribed.iter().map(|&x| x as u32).collect();
-        ints.extend(body.bonds.offsets.iter().map(|&o| o as u32));
-        ints.extend_from_slice(&body.bonds.nbr);
+        let (reals, ints) = particle_data(body);
         let mut breal = body.bonds.inv_len.clone();
         breal.extend_from_slice(&model.coef);
         let max_bind = ctx.limits.max_storage_buffer_binding_size as usize;
@@ -371,7 +364,7 @@ impl GpuBondBody {
             )));
         }
         let (gi, rg_len) = gather_list(n, gather)?;
-        let (kick_drift, kick_only, force, bind, params, pv, bd, report) =
+        let (pipes, bind, params, pv, bd, report) =
             ctx.checked("building the pd-bond pipelines", || {
                 use mechanics::gpu::BufferBinding::{Read, ReadWrite, Uniform};
                 let layout = ctx.bind_layout(
@@ -414,25 +407,16 @@ impl GpuBondBody {
                     n,
                     m: gather.len(),
                 };
-                (kd, ko, fo, bind, params, pv, bd, report)
+                ([kd, fo, ko], bind, params, pv, bd, report)
             })?;
         let gpu = GpuBondBody {
-            max_wg: ctx.limits.max_compute_workgroups_per_dimension,
-            ctx,
-            kick_drift,
-            kick_only,
-            force,
-            report,
-            bind,
+            core: Core::new(ctx, report, bind, pv, body),
+            pipes,
             params,
-            pv,
             bd,
-            n,
             nb,
             rho: body.density,
             bf,
-            time: body.time,
-            steps: body.steps,
         };
         // the particle count for a report before the first steps
         gpu.upload_params(0.0);
@@ -441,34 +425,103 @@ impl GpuBondBody {
 
     /// The uniform parameters (`P` in the shader) for steps of size `dt`.
     fn upload_params(&self, dt: f64) {
-        let p = self.ctx.precision;
+        let c = &self.core;
+        let p = c.ctx.precision;
         let mut u = vec![0u8; 64];
-        u[0..4].copy_from_slice(&(self.n as u32).to_le_bytes());
+        u[0..4].copy_from_slice(&(c.n as u32).to_le_bytes());
         u[4..8].copy_from_slice(&(self.nb as u32).to_le_bytes());
         let r = reals_to_bytes(p, &[dt, 0.5 * dt, self.rho, self.bf]);
         // the first real sits at byte 16 (after 4 u32) for both f32 and f64 alignment
         u[16..16 + r.len()].copy_from_slice(&r);
-        self.ctx.upload(&self.params, 0, &u);
+        c.ctx.upload(&self.params, 0, &u);
     }
 
     /// `k` velocity-Verlet steps of size `dt` (integrate.rs `Body::step`), one submission.
     pub fn steps(&mut self, k: u64, dt: f64) -> Result<(), GpuError> {
         self.upload_params(dt);
+        self.core.steps(&self.pipes, "pd-bond steps", k, dt)
+    }
+
+    /// Copy positions, velocities, forces, time and step count into `body`, and the bond
+    /// coefficients (zero = broken) into `coef`.
+    pub fn download(&self, body: &mut Body, coef: &mut [f64]) -> Result<(), GpuError> {
+        self.core.download(body)?;
+        if coef.len() == self.nb {
+            let c = &self.core;
+            let rb = c.ctx.precision.bytes();
+            let b = c
+                .ctx
+                .read(&self.bd, (self.nb * rb) as u64, (self.nb * rb) as u64)?;
+            bytes_to_reals(c.ctx.precision, &b, coef)?;
+        }
+        Ok(())
+    }
+}
+
+/// The particle buffer's reals (`PV_REALS` per particle) and the integer buffer (prescribed
+/// flags, bond offsets, neighbours) of `body`, as both PD bodies upload them.
+fn particle_data(body: &Body) -> (Vec<f64>, Vec<u32>) {
+    let n = body.len();
+    let mut reals = Vec::with_capacity(PV_REALS * n);
+    for a in [&body.pos, &body.vel, &body.force, &body.fext, &body.vpres] {
+        reals.extend_from_slice(flat(a));
+    }
+    reals.extend_from_slice(&body.vol);
+    // window accumulators (work 16n, internal-force impulse 17n): see `accumulate`
+    reals.resize(20 * n, 0.0);
+    reals.extend_from_slice(flat(&body.disp));
+    reals.extend_from_slice(flat(&body.x0));
+    // the strain energy scratch of the `energy` kernel
+    reals.resize(PV_REALS * n, 0.0);
+    let mut ints: Vec<u32> = body.prescribed.iter().map(|&x| x as u32).collect();
+    ints.extend(body.bonds.offsets.iter().map(|&o| o as u32));
+    ints.extend_from_slice(&body.bonds.nbr);
+    (reals, ints)
+}
+
+impl Core {
+    fn new(
+        ctx: Arc<GpuContext>,
+        report: Report,
+        bind: wgpu::BindGroup,
+        pv: wgpu::Buffer,
+        body: &Body,
+    ) -> Core {
+        Core {
+            max_wg: ctx.limits.max_compute_workgroups_per_dimension,
+            ctx,
+            report,
+            bind,
+            pv,
+            n: body.len(),
+            time: body.time,
+            steps: body.steps,
+        }
+    }
+
+    /// `k` steps of size `dt`, each the kernels `pipes` in order over every particle, in one
+    /// submission (`what` names it in an error).
+    fn steps(
+        &mut self,
+        pipes: &[wgpu::ComputePipeline],
+        what: &str,
+        k: u64,
+        dt: f64,
+    ) -> Result<(), GpuError> {
         let (x, y) = dispatch_dims((self.n as u32).div_ceil(WG), self.max_wg);
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         {
             let mut pass = enc.begin_compute_pass(&Default::default());
             pass.set_bind_group(0, &self.bind, &[]);
             for _ in 0..k {
-                for pipe in [&self.kick_drift, &self.force, &self.kick_only] {
+                for pipe in pipes {
                     pass.set_pipeline(pipe);
                     pass.dispatch_workgroups(x, y, 1);
                 }
             }
         }
-        self.ctx.checked("pd-bond steps", || {
-            self.ctx.queue.submit(Some(enc.finish()))
-        })?;
+        self.ctx
+            .checked(what, || self.ctx.queue.submit(Some(enc.finish())))?;
         for _ in 0..k {
             self.time += dt;
         }
@@ -476,9 +529,8 @@ impl GpuBondBody {
         Ok(())
     }
 
-    /// Copy positions, velocities, forces, time and step count into `body`, and the bond
-    /// coefficients (zero = broken) into `coef`.
-    pub fn download(&self, body: &mut Body, coef: &mut [f64]) -> Result<(), GpuError> {
+    /// Copy positions, velocities, forces, displacements, time and step count into `body`.
+    fn download(&self, body: &mut Body) -> Result<(), GpuError> {
         let p = self.ctx.precision;
         let rb = p.bytes();
         let n3 = 3 * self.n;
@@ -493,12 +545,6 @@ impl GpuBondBody {
             .as_flattened_mut()
             .copy_from_slice(&all[2 * n3..]);
         read_disp(&self.ctx, &self.pv, self.n, &mut body.disp)?;
-        if coef.len() == self.nb {
-            let b = self
-                .ctx
-                .read(&self.bd, (self.nb * rb) as u64, (self.nb * rb) as u64)?;
-            bytes_to_reals(p, &b, coef)?;
-        }
         body.time = self.time;
         body.steps = self.steps;
         Ok(())
@@ -1041,19 +1087,13 @@ fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
 
 /// A `pd-correspondence` body (without bond damage) on the device.
 pub struct GpuCorrBody {
-    ctx: Arc<GpuContext>,
+    pub core: Core,
+    /// kick + drift, pass 1, force, kick: one velocity-Verlet step.
     pipes: [wgpu::ComputePipeline; 4],
-    report: Report,
-    bind: wgpu::BindGroup,
     mp: wgpu::Buffer,
-    pv: wgpu::Buffer,
     pt: wgpu::Buffer,
-    n: usize,
     /// dt, half_dt and the material constants (`mp` without the step).
     consts: Vec<f64>,
-    max_wg: u32,
-    pub time: f64,
-    pub steps: u64,
 }
 
 impl GpuCorrBody {
@@ -1127,20 +1167,7 @@ impl GpuCorrBody {
                 p.wgsl()
             ),
         )?;
-        let mut reals = Vec::with_capacity(PV_REALS * n);
-        for a in [&body.pos, &body.vel, &body.force, &body.fext, &body.vpres] {
-            reals.extend_from_slice(flat(a));
-        }
-        reals.extend_from_slice(&body.vol);
-        // window accumulators (work 16n, internal-force impulse 17n): see `accumulate`
-        reals.resize(20 * n, 0.0);
-        reals.extend_from_slice(flat(&body.disp));
-        reals.extend_from_slice(flat(&body.x0));
-        // the strain energy scratch of the `energy` kernel
-        reals.resize(PV_REALS * n, 0.0);
-        let mut ints: Vec<u32> = body.prescribed.iter().map(|&x| x as u32).collect();
-        ints.extend(body.bonds.offsets.iter().map(|&o| o as u32));
-        ints.extend_from_slice(&body.bonds.nbr);
+        let (reals, ints) = particle_data(body);
         let mut breal: Vec<f64> = flat(&body.bonds.xi).to_vec();
         breal.extend_from_slice(&body.bonds.intact);
         let mut pts = vec![0.0; 34 * n];
@@ -1214,110 +1241,52 @@ impl GpuCorrBody {
                 (pipes, bind, mp, pv, pt, report)
             })?;
         Ok(GpuCorrBody {
-            max_wg: ctx.limits.max_compute_workgroups_per_dimension,
-            ctx,
+            core: Core::new(ctx, report, bind, pv, body),
             pipes,
-            report,
-            bind,
             mp,
-            pv,
             pt,
-            n,
             consts,
-            time: body.time,
-            steps: body.steps,
         })
     }
 
     /// `k` velocity-Verlet steps of size `dt` (integrate.rs `Body::step`: kick, drift,
     /// pass 1 + force gather, kick), one submission.
     pub fn steps(&mut self, k: u64, dt: f64) -> Result<(), GpuError> {
-        let p = self.ctx.precision;
+        let p = self.core.ctx.precision;
         self.consts[0] = dt;
         self.consts[1] = 0.5 * dt;
-        self.ctx
+        self.core
+            .ctx
             .upload(&self.mp, 0, &reals_to_bytes(p, &self.consts[..2]));
-        let (x, y) = dispatch_dims((self.n as u32).div_ceil(WG), self.max_wg);
-        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
-        {
-            let mut pass = enc.begin_compute_pass(&Default::default());
-            pass.set_bind_group(0, &self.bind, &[]);
-            for _ in 0..k {
-                for pipe in &self.pipes {
-                    pass.set_pipeline(pipe);
-                    pass.dispatch_workgroups(x, y, 1);
-                }
-            }
-        }
-        self.ctx.checked("pd-correspondence steps", || {
-            self.ctx.queue.submit(Some(enc.finish()))
-        })?;
-        for _ in 0..k {
-            self.time += dt;
-        }
-        self.steps += k;
-        Ok(())
+        self.core
+            .steps(&self.pipes, "pd-correspondence steps", k, dt)
     }
 
     /// Copy positions, velocities, forces, time and step count into `body`, and the J2
     /// states (stress, back stress, equivalent plastic strain) into `state`.
     pub fn download(&self, body: &mut Body, state: &mut [J2State]) -> Result<(), GpuError> {
-        let p = self.ctx.precision;
-        let rb = p.bytes();
-        let n = self.n;
-        let n3 = 3 * n;
-        let b = self.ctx.read(&self.pv, 0, (3 * n3 * rb) as u64)?;
-        let mut all = vec![0.0; 3 * n3];
-        bytes_to_reals(p, &b, &mut all)?;
-        body.pos.as_flattened_mut().copy_from_slice(&all[..n3]);
-        body.vel
-            .as_flattened_mut()
-            .copy_from_slice(&all[n3..2 * n3]);
-        body.force
-            .as_flattened_mut()
-            .copy_from_slice(&all[2 * n3..]);
-        read_disp(&self.ctx, &self.pv, self.n, &mut body.disp)?;
-        if state.len() == n {
-            let b = self
-                .ctx
-                .read(&self.pt, (10 * n * rb) as u64, (13 * n * rb) as u64)?;
-            let mut s = vec![0.0; 13 * n];
-            bytes_to_reals(p, &b, &mut s)?;
-            for (i, st) in state.iter_mut().enumerate() {
+        self.core.download(body)?;
+        if state.len() == self.core.n {
+            state.copy_from_slice(&self.j2_states()?);
+        }
+        Ok(())
+    }
+
+    /// The J2 states of every particle (10n..23n of the points buffer: stresses, back
+    /// stresses, equivalent plastic strains).
+    fn j2_states(&self) -> Result<Vec<J2State>, GpuError> {
+        let n = self.core.n;
+        let s = read_reals(&self.core.ctx, &self.pt, 10 * n, 13 * n)?;
+        Ok((0..n)
+            .map(|i| {
+                let mut st = J2State::default();
                 st.stress.copy_from_slice(&s[6 * i..6 * i + 6]);
                 st.back_stress
                     .copy_from_slice(&s[6 * n + 6 * i..6 * n + 6 * i + 6]);
                 st.eq_plastic_strain = s[12 * n + i];
-            }
-        }
-        body.time = self.time;
-        body.steps = self.steps;
-        Ok(())
-    }
-
-    /// Start of a coupling window: `fext` (N per particle) held over it; accumulators cleared.
-    pub fn begin_window(&mut self, fext: &[[f64; 3]]) -> Result<(), GpuError> {
-        begin_window(&self.ctx, &self.pv, self.n, fext)
-    }
-
-    /// What the steps of this window accumulated (see `accumulate` in the shader).
-    pub fn window_sums(&self, work: &mut [f64], impulse: &mut [[f64; 3]]) -> Result<(), GpuError> {
-        window_sums(&self.ctx, &self.pv, self.n, work, impulse)
-    }
-
-    /// The window report: reduced scalars and the gathered particles' state (the only
-    /// device → host traffic of a window on the node's path).
-    pub fn window_report(&self) -> Result<WindowReport, GpuError> {
-        self.report.run(&self.ctx, &self.bind, self.max_wg)
-    }
-
-    /// Set when the kernels run in f32 (for the log and the report).
-    pub fn warning(&self) -> Option<&str> {
-        self.ctx.warning.as_deref()
-    }
-
-    pub fn precision(&self) -> Precision {
-        self.ctx.precision
+                st
+            })
+            .collect())
     }
 }
 
@@ -1477,27 +1446,34 @@ impl DeviceBody {
         self.refresh()
     }
 
+    /// What both kinds of body hold alike.
+    fn core(&self) -> &Core {
+        match &self.kind {
+            DeviceKind::Bond { gpu, .. } => &gpu.core,
+            DeviceKind::Corr { gpu, .. } => &gpu.core,
+        }
+    }
+
+    fn core_mut(&mut self) -> &mut Core {
+        match &mut self.kind {
+            DeviceKind::Bond { gpu, .. } => &mut gpu.core,
+            DeviceKind::Corr { gpu, .. } => &mut gpu.core,
+        }
+    }
+
     /// Reduce the report of the device state as it stands (after an upload), so that
     /// [`DeviceBody::last_report`]'s energies describe it before the next window.
     fn refresh(&mut self) -> Result<(), GpuError> {
-        self.report = match &self.kind {
-            DeviceKind::Bond { gpu, .. } => gpu.window_report()?,
-            DeviceKind::Corr { gpu, .. } => gpu.window_report()?,
-        };
+        self.report = self.core().window_report()?;
         Ok(())
     }
 
     /// One window: `fext` (N per particle) held over `k` velocity-Verlet steps of `dt`.
     pub fn advance(&mut self, fext: &[[f64; 3]], k: u64, dt: f64) -> Result<(), GpuError> {
+        self.core_mut().begin_window(fext)?;
         match &mut self.kind {
-            DeviceKind::Bond { gpu, .. } => {
-                gpu.begin_window(fext)?;
-                gpu.steps(k, dt)
-            }
-            DeviceKind::Corr { gpu, .. } => {
-                gpu.begin_window(fext)?;
-                gpu.steps(k, dt)
-            }
+            DeviceKind::Bond { gpu, .. } => gpu.steps(k, dt),
+            DeviceKind::Corr { gpu, .. } => gpu.steps(k, dt),
         }
     }
 
@@ -1505,16 +1481,9 @@ impl DeviceBody {
     /// step count and the gathered particles' positions and velocities (the rest of its state
     /// stays on the device: see [`DeviceBody::snapshot`]).
     pub fn finish(&mut self, body: &mut Body, t1: f64) -> Result<&WindowReport, GpuError> {
-        let (r, steps) = match &mut self.kind {
-            DeviceKind::Bond { gpu, .. } => {
-                gpu.time = t1;
-                (gpu.window_report()?, gpu.steps)
-            }
-            DeviceKind::Corr { gpu, .. } => {
-                gpu.time = t1;
-                (gpu.window_report()?, gpu.steps)
-            }
-        };
+        let core = self.core_mut();
+        core.time = t1;
+        let (r, steps) = (core.window_report()?, core.steps);
         for (k, &i) in self.gather.iter().enumerate() {
             body.pos[i] = r.pos[k];
             body.vel[i] = r.vel[k];
@@ -1529,10 +1498,8 @@ impl DeviceBody {
     /// state per window took before (session 3: positions, velocities, forces and the window
     /// sums, 13 reals per particle, plus 13 per particle of J2 state for pd-correspondence).
     pub fn window_bytes(&self) -> (usize, usize) {
-        let (n, rb, corr) = match &self.kind {
-            DeviceKind::Bond { gpu, .. } => (gpu.n, gpu.ctx.precision.bytes(), false),
-            DeviceKind::Corr { gpu, .. } => (gpu.n, gpu.ctx.precision.bytes(), true),
-        };
+        let (n, rb) = (self.core().n, self.core().ctx.precision.bytes());
+        let corr = matches!(self.kind, DeviceKind::Corr { .. });
         let now = (REPORT_REALS * n.div_ceil(CHUNK) + 10 * self.gather.len()) * rb;
         let before = (13 + if corr { 13 } else { 0 }) * n * rb;
         (now, before)
@@ -1560,28 +1527,16 @@ impl DeviceBody {
     /// The full device state: displacements, velocities, forces and (pd-correspondence) the
     /// J2 states, for output frames and checkpoints.
     pub fn snapshot(&self) -> Result<Snapshot, GpuError> {
-        let (ctx, pv, n) = match &self.kind {
-            DeviceKind::Bond { gpu, .. } => (&gpu.ctx, &gpu.pv, gpu.n),
-            DeviceKind::Corr { gpu, .. } => (&gpu.ctx, &gpu.pv, gpu.n),
-        };
+        let Core { ctx, pv, n, .. } = self.core();
+        let n = *n;
         let a = read_reals(ctx, pv, 3 * n, 6 * n)?;
         let disp = unflat(&read_reals(ctx, pv, 20 * n, 3 * n)?);
         let (states, plastic_work) = match &self.kind {
             DeviceKind::Bond { .. } => (None, None),
-            DeviceKind::Corr { gpu, .. } => {
-                let s = read_reals(ctx, &gpu.pt, 10 * n, 13 * n)?;
-                let states = (0..n)
-                    .map(|i| {
-                        let mut st = J2State::default();
-                        st.stress.copy_from_slice(&s[6 * i..6 * i + 6]);
-                        st.back_stress
-                            .copy_from_slice(&s[6 * n + 6 * i..6 * n + 6 * i + 6]);
-                        st.eq_plastic_strain = s[12 * n + i];
-                        st
-                    })
-                    .collect();
-                (Some(states), Some(read_reals(ctx, &gpu.pt, 33 * n, n)?))
-            }
+            DeviceKind::Corr { gpu, .. } => (
+                Some(gpu.j2_states()?),
+                Some(read_reals(ctx, &gpu.pt, 33 * n, n)?),
+            ),
         };
         Ok(Snapshot {
             disp,
