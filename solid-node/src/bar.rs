@@ -73,30 +73,7 @@ pub struct BarParams {
     pub integrator: Option<IntegratorSpec>,
 }
 
-/// The start of the end force (see [`BarParams::ramp`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, schemars::JsonSchema)]
-#[serde(rename_all = "lowercase")]
-pub enum Ramp {
-    #[default]
-    Step,
-    Sin2,
-    Septic,
-}
-
-impl Ramp {
-    /// The load factor at time t ≥ 0 of a ramp over `time`.
-    pub fn factor(self, t: f64, time: f64) -> f64 {
-        let x = match self {
-            Ramp::Step => return 1.0,
-            _ => (t / time).clamp(0.0, 1.0),
-        };
-        match self {
-            Ramp::Step => 1.0,
-            Ramp::Sin2 => (std::f64::consts::FRAC_PI_2 * x).sin().powi(2),
-            Ramp::Septic => mechanics::time::septic_ramp(x),
-        }
-    }
-}
+pub use mechanics::time::Ramp;
 
 /// Most elements a bar takes (its arrays must fit in memory).
 pub const MAX_ELEMENTS: usize = 100_000_000;

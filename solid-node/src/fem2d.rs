@@ -13,8 +13,8 @@
 use crate::lagrange::SubdomainSide;
 use mechanics::fem2d::{Edge, Fem2dError, Material, Mesh, Model, Plane};
 use mechanics::time::{
-    CouplingMethod, Gs4, Gs4Error, IntegratorSpec, InterfaceDof, LinearSystem, State, Stepper,
-    Subdomain,
+    CouplingMethod, Gs4, Gs4Error, IntegratorSpec, InterfaceDof, LinearSystem, LoadRamp, Ramp,
+    State, Stepper, Subdomain,
 };
 use protocol::scheme;
 use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
@@ -91,10 +91,12 @@ pub struct LoadParams {
     pub edge: String,
     /// Force per metre of edge [qx, qy] (N/m), whatever the thickness.
     pub traction: [f64; 2],
-    /// "step" (full load from t = 0) or "ramp" (the C³ ramp over `ramp_time`, then held).
-    #[serde(default = "default_history")]
-    pub history: String,
-    /// Ramp duration T (s), for `history = "ramp"`.
+    /// How the load starts: "step" (at once), "sin2" or "septic" (the C³ ramp, for
+    /// second-order studies) over `ramp_time`, then held. Also read under its older name,
+    /// `history`.
+    #[serde(default, alias = "history")]
+    pub ramp: Ramp,
+    /// Ramp duration T (s), with every `ramp` but "step".
     #[serde(default)]
     pub ramp_time: Option<f64>,
 }
@@ -108,47 +110,11 @@ fn default_thickness() -> f64 {
 fn default_courant() -> f64 {
     0.9
 }
-fn default_history() -> String {
-    "step".into()
-}
 
-/// A load's time history g(t) ∈ [0, 1].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum History {
-    Step,
-    /// 35x⁴ − 84x⁵ + 70x⁶ − 20x⁷ with x = t/T for t < T, then 1: g', g'', g''' vanish at
-    /// both ends, so the response is smooth enough for second order in time to show.
-    Ramp(f64),
-}
-
-impl History {
-    /// `history = "step" | "ramp"` with its `ramp_time` (s); `prefix` is the key path of the
-    /// load's table ("loads[0].").
-    pub fn parse(prefix: &str, history: &str, ramp_time: Option<f64>) -> SolverResult<Self> {
-        match (history, ramp_time) {
-            ("step", None) => Ok(History::Step),
-            ("step", Some(_)) => Err(SolverError::config(
-                format!("{prefix}ramp_time"),
-                "only applies with history = \"ramp\"",
-            )),
-            ("ramp", Some(t)) if t.is_finite() && t > 0.0 => Ok(History::Ramp(t)),
-            ("ramp", t) => Err(SolverError::config(
-                format!("{prefix}ramp_time"),
-                format!("history = \"ramp\" needs ramp_time > 0 (s), got {t:?}"),
-            )),
-            (other, _) => Err(SolverError::config(
-                format!("{prefix}history"),
-                format!("must be \"step\" or \"ramp\", got \"{other}\""),
-            )),
-        }
-    }
-
-    pub fn at(self, t: f64) -> f64 {
-        match self {
-            History::Step => 1.0,
-            History::Ramp(period) => mechanics::time::septic_ramp(t / period),
-        }
-    }
+/// A load's ramp as its table gives it (`prefix`: the table's key path, "loads[0].").
+pub fn load_ramp(prefix: &str, ramp: Ramp, ramp_time: Option<f64>) -> SolverResult<LoadRamp> {
+    LoadRamp::new(ramp, ramp_time)
+        .map_err(|(key, reason)| SolverError::config(format!("{prefix}{key}"), reason))
 }
 
 fn fem_error(prefix: &str) -> impl Fn(Fem2dError) -> SolverError + '_ {
@@ -183,7 +149,7 @@ pub struct Fem2d {
     /// Explicit critical step bound (s).
     critical: f64,
     /// Each load's free-dof shape (N) and history.
-    loads: Vec<(Vec<f64>, History)>,
+    loads: Vec<(Vec<f64>, LoadRamp)>,
     /// Reported points: name and node.
     points: Vec<(String, usize)>,
     /// Σ over the supported x (y) dofs of their stiffness rows, over the free dofs: the
@@ -319,7 +285,7 @@ impl Fem2d {
             if !l.traction.iter().all(|q| q.is_finite()) {
                 return Err(SolverError::config(key("traction"), "must be finite"));
             }
-            let history = History::parse(&key(""), &l.history, l.ramp_time)?;
+            let history = load_ramp(&key(""), l.ramp, l.ramp_time)?;
             let full = model.edge_load(&model.mesh.edge(edge), l.traction);
             let mut shape = vec![0.0; sys.len()];
             model.restrict(&full, &mut shape);
@@ -440,7 +406,7 @@ impl Fem2d {
     }
 
     /// The load at time t over the free dofs, into `f`.
-    fn load_at(loads: &[(Vec<f64>, History)], t: f64, f: &mut [f64]) {
+    fn load_at(loads: &[(Vec<f64>, LoadRamp)], t: f64, f: &mut [f64]) {
         f.fill(0.0);
         for (shape, h) in loads {
             let g = h.at(t);
@@ -568,12 +534,12 @@ impl Fem2d {
             }
         }
         let mut shape = vec![0.0; self.sys.len()];
-        let mut history = History::Step;
+        let mut history = LoadRamp::STEP;
         for (k, (s, h)) in self.loads.iter().enumerate() {
             if k > 0 && *h != history {
                 return Err(SolverError::config(
-                    format!("loads[{k}].history"),
-                    "a lagrange subdomain takes loads of one history",
+                    format!("loads[{k}].ramp"),
+                    "a lagrange subdomain takes loads of one ramp",
                 ));
             }
             history = *h;

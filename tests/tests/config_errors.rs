@@ -340,7 +340,7 @@ poisson = 0.3
 density = 2700.0
 plane = "stress"
 fixed = ["left"]
-loads = [{ edge = "right", traction = [-1e4, 0.0], history = "step" }]
+loads = [{ edge = "right", traction = [-1e4, 0.0], ramp = "step" }]
 points = { A = [5.0, 0.5] }
 "#;
 
@@ -379,8 +379,8 @@ fn bad_fem_2d_parameters_are_named() {
         ),
         (
             "fem-ramp",
-            "history = \"step\"",
-            "history = \"ramp\"",
+            "ramp = \"step\"",
+            "ramp = \"septic\"",
             "nodes.beam.params.loads[0].ramp_time",
         ),
         (
@@ -410,6 +410,41 @@ fn bad_fem_2d_parameters_are_named() {
     ] {
         refused(tag, |_| FEM.replacen(from, to, 1), key);
     }
+    refused(
+        "fem-ramp-name",
+        |_| FEM.replacen("ramp = \"step\"", "ramp = \"linear\", ramp_time = 0.5", 1),
+        "nodes.beam.params.loads[0].ramp",
+    );
+}
+
+/// A load's start is `ramp` with `ramp_time`, as `bar-1d`'s end force; the older spelling,
+/// `history = "ramp"`, still reads as the septic ramp, and a step takes no ramp time.
+#[test]
+fn a_load_ramp_reads_in_both_spellings() {
+    for (tag, load) in [
+        ("ramp-septic", "ramp = \"septic\", ramp_time = 0.5"),
+        ("ramp-sin2", "ramp = \"sin2\", ramp_time = 0.5"),
+        ("ramp-older", "history = \"ramp\", ramp_time = 0.5"),
+        ("ramp-older-step", "history = \"step\""),
+    ] {
+        let (dir, _) = scratch(tag);
+        let case = dir.join("case.toml");
+        let text = FEM
+            .replace("OUT", dir.join("out").to_str().unwrap())
+            .replacen("ramp = \"step\"", load, 1);
+        std::fs::write(&case, text).unwrap();
+        let v = cosim(&["validate", case.to_str().unwrap()]);
+        assert!(
+            v.status.success(),
+            "{tag}: {}",
+            String::from_utf8_lossy(&v.stderr)
+        );
+    }
+    refused(
+        "ramp-step-timed",
+        |_| FEM.replacen("ramp = \"step\"", "ramp = \"step\", ramp_time = 0.5", 1),
+        "nodes.beam.params.loads[0].ramp_time",
+    );
 }
 
 /// The good case's coupling as a lagrange coupling, the lines of `[[couplings]]`

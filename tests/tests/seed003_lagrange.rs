@@ -168,7 +168,8 @@ fn cantilever_in_two_subdomains_matches_the_monolithic_mesh() {
 
 /// The three-subdomain cantilever's load ramped over 0.1 s (C³), 0.2 s long: a smooth
 /// response with free vibration after the ramp, for the order study.
-const STUDY_LOAD: &str = "loads=[{ edge = \"right\", traction = [0.0, -100000.0], history = \"ramp\", ramp_time = 0.1 }]";
+const STUDY_LOAD: &str =
+    "loads=[{ edge = \"right\", traction = [0.0, -100000.0], ramp = \"septic\", ramp_time = 0.1 }]";
 const STUDY_END: f64 = 0.2;
 /// Coarsest system step of the study per method (s); the levels halve it three times. gc's
 /// start finer: its error holds a second-order part that hides the first order above 1 ms
@@ -312,7 +313,7 @@ fn explicit_side_at_its_critical_step_is_stable() {
     let windows = (7.8e-3 / window).round() as usize;
     let end = window * windows as f64;
     println!("critical step bound {critical:e} s, window {window:e} s, {windows} windows");
-    let load = "loads=[{ edge = \"right\", traction = [-10000.0, 0.0], history = \"ramp\", ramp_time = 1.0e-3 }]";
+    let load = "loads=[{ edge = \"right\", traction = [-10000.0, 0.0], ramp = \"septic\", ramp_time = 1.0e-3 }]";
     let reference = run(
         "seed003_wave.toml",
         "s3w-cref",

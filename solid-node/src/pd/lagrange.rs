@@ -12,7 +12,7 @@
 
 use super::checkpoint::{Reader, Writer, flat3, unflat3};
 use super::integrate::Body;
-use crate::fem2d::History;
+use mechanics::time::LoadRamp;
 
 /// The coupling state of an explicit particle side; the body is stepped through it.
 #[derive(Debug, Clone)]
@@ -33,7 +33,7 @@ pub struct ExplicitSide {
     acc: Vec<[f64; 3]>,
     /// Load: particle and its force at full load (N), times `history`.
     load: Vec<(usize, [f64; 3])>,
-    history: History,
+    history: LoadRamp,
     lambda_start: Vec<f64>,
     lambda_end: Vec<f64>,
     u_start: Vec<f64>,
@@ -62,7 +62,7 @@ impl ExplicitSide {
         (first_lambda, sign): (usize, f64),
         (dt, steps, gc): (f64, usize, bool),
         load: Vec<(usize, [f64; 3])>,
-        history: History,
+        history: LoadRamp,
     ) -> Self {
         let mut dofs = Vec::with_capacity(points.len() * comps);
         for &p in points {
@@ -667,7 +667,7 @@ mod tests {
                 "loads[0].region",
             ),
             (
-                "loads = [{ region = { shape = \"box\", min = [0.0, 0.0, 0.0], max = [0.5, 0.4, 0.0] }, force = [0.0, 1.0, 0.0], history = \"ramp\" }]",
+                "loads = [{ region = { shape = \"box\", min = [0.0, 0.0, 0.0], max = [0.5, 0.4, 0.0] }, force = [0.0, 1.0, 0.0], ramp = \"septic\" }]",
                 "loads[0].ramp_time",
             ),
             ("substeps = 0", "substeps"),

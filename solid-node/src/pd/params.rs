@@ -217,16 +217,14 @@ pub struct PdLoad {
     pub region: Shape,
     /// Total force [Fx, Fy, Fz] (N), spread equally over them.
     pub force: [f64; 3],
-    /// "step" (full load from t = 0) or "ramp" (the C³ ramp over `ramp_time`, then held).
-    #[serde(default = "default_history")]
-    pub history: String,
-    /// Ramp duration T (s), for `history = "ramp"`.
+    /// How the load starts: "step" (at once), "sin2" or "septic" (the C³ ramp, for
+    /// second-order studies) over `ramp_time`, then held. Also read under its older name,
+    /// `history`.
+    #[serde(default, alias = "history")]
+    pub ramp: mechanics::time::Ramp,
+    /// Ramp duration T (s), with every `ramp` but "step".
     #[serde(default)]
     pub ramp_time: Option<f64>,
-}
-
-fn default_history() -> String {
-    "step".into()
 }
 
 fn default_select() -> String {

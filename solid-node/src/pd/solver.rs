@@ -21,11 +21,12 @@ use super::lagrange::ExplicitSide;
 use super::model::Dim;
 use super::models::{ModelInput, PdModelDef};
 pub use super::params::*;
-use crate::fem2d::History;
+use crate::fem2d::load_ramp;
 use mechanics::damage::{
     BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain, NoDamage,
 };
 use mechanics::j2::{J2Material, von_mises};
+use mechanics::time::LoadRamp;
 use node_kit::device::Device;
 use node_kit::vtk::{self, Arrays, Frame};
 use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
@@ -98,7 +99,7 @@ pub struct PdSolver {
     /// is brought up to date at every window end.
     device: Option<DeviceBody>,
     /// Loads: particle, force at full load (N), and history of each load.
-    loads: Vec<(usize, [f64; 3], History)>,
+    loads: Vec<(usize, [f64; 3], LoadRamp)>,
     /// Reported points: scalar names (x, y[, z]) and particle.
     points: Vec<(Vec<String>, usize)>,
     /// The body as one side of a lagrange coupling (then the side steps it).
@@ -203,16 +204,17 @@ impl PdSolver {
         let bc_particles = prescribe_velocity(&mut body, &p)?;
         let pressure_area = pressure_faces(&body, &p)?;
         let interfaces = interfaces_of(&body, &p)?;
-        let device = match on_gpu && !opts.describe_only {
-            true => open_device(
+        let device = if on_gpu && !opts.describe_only {
+            open_device(
                 def,
                 &target,
                 (dim, &p, material),
                 &body,
                 &interfaces,
                 &bc_particles,
-            )?,
-            false => None,
+            )?
+        } else {
+            None
         };
         let loads = loads_of(&body, &p)?;
         if on_gpu && !p.loads.is_empty() {
@@ -625,13 +627,13 @@ impl PdSolver {
                 ),
             );
         }
-        let mut history = History::Step;
+        let mut history = LoadRamp::STEP;
         for (k, l) in self.params.loads.iter().enumerate() {
-            let h = History::parse("", &l.history, l.ramp_time)?;
+            let h = load_ramp("", l.ramp, l.ramp_time)?;
             if k > 0 && h != history {
                 return cfg(
-                    &format!("loads[{k}].history"),
-                    "a lagrange side takes loads of one history",
+                    &format!("loads[{k}].ramp"),
+                    "a lagrange side takes loads of one ramp",
                 );
             }
             history = h;
@@ -1023,7 +1025,7 @@ fn open_device(
 }
 
 /// `loads`: each load's force shared among the particles of its region, with its history.
-fn loads_of(body: &Body, p: &PdParams) -> SolverResult<Vec<(usize, [f64; 3], History)>> {
+fn loads_of(body: &Body, p: &PdParams) -> SolverResult<Vec<(usize, [f64; 3], LoadRamp)>> {
     let three_d = body.dim.three_d();
     let mut loads = Vec::new();
     for (n, l) in p.loads.iter().enumerate() {
@@ -1034,7 +1036,7 @@ fn loads_of(body: &Body, p: &PdParams) -> SolverResult<Vec<(usize, [f64; 3], His
         if !l.force.iter().all(|f| f.is_finite()) {
             return cfg(&format!("{key}force"), "must be finite");
         }
-        let history = History::parse(&key, &l.history, l.ramp_time)?;
+        let history = load_ramp(&key, l.ramp, l.ramp_time)?;
         let pts: Vec<usize> = (0..body.len())
             .filter(|&i| l.region.contains(&body.x0[i], three_d))
             .collect();
