@@ -13,7 +13,6 @@ use crate::eos::Eos;
 use crate::model::Fluid;
 use node_kit::vtk::{self, Frame};
 use protocol::{SolverError, SolverResult};
-use std::fmt::Write as _;
 use std::path::Path;
 use vtkio::model::{
     Attribute, Attributes, Coordinates, DataArray, DataSet, ElementType, Extent,
@@ -139,22 +138,14 @@ pub fn write_probes(f: &Fluid, hist: &[(f64, Vec<[f64; 5]>)], dir: &Path) -> Sol
     if f.probes.is_empty() {
         return Ok(());
     }
-    std::fs::create_dir_all(dir)?;
-    let mut s = String::from("time");
+    let mut header = vec!["time".to_string()];
     for p in &f.probes {
         for q in ["density", "pressure", "u", "v", "w"] {
-            let _ = write!(s, ",{}.{q}", p.name);
+            header.push(format!("{}.{q}", p.name));
         }
     }
-    s.push('\n');
-    for (t, vals) in hist {
-        let _ = write!(s, "{t:e}");
-        for v in vals {
-            for x in v {
-                let _ = write!(s, ",{x:e}");
-            }
-        }
-        s.push('\n');
-    }
-    std::fs::write(dir.join("probes.csv"), s).map_err(SolverError::from)
+    let rows = hist
+        .iter()
+        .map(|(t, vals)| std::iter::once(*t).chain(vals.iter().flatten().copied()));
+    node_kit::table::write_csv(&dir.join("probes.csv"), &header, rows).map_err(SolverError::from)
 }

@@ -156,17 +156,8 @@ impl History {
     }
 
     pub fn write_csv(&self, path: &Path) -> SolverResult<()> {
-        if let Some(d) = path.parent() {
-            std::fs::create_dir_all(d)?;
-        }
-        let mut s = self.header.join(",");
-        s.push('\n');
-        for r in &self.rows {
-            let line: Vec<String> = r.iter().map(|v| format!("{v:.10e}")).collect();
-            s.push_str(&line.join(","));
-            s.push('\n');
-        }
-        std::fs::write(path, s)?;
+        let rows = self.rows.iter().map(|r| r.iter().copied());
+        node_kit::table::write_csv(path, &self.header, rows)?;
         Ok(())
     }
 }

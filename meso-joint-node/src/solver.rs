@@ -27,7 +27,6 @@ use protocol::{
     Binding, Inbox, InterfaceInfo, InterfaceMesh, NodeDescription, Outbox, Solver, SolverError,
     SolverResult, StepReport, Window,
 };
-use std::io::Write;
 use std::path::Path;
 
 /// Runtime state of the responder coupling (one entry per coupling particle).
@@ -731,29 +730,27 @@ impl Solver for SpgSolver {
 
     fn write_output(&self, t: f64, window: u64, dir: &Path) -> SolverResult<()> {
         crate::output::write_vtu(&self.model, dir, window, t)?;
-        let mut csv = std::io::BufWriter::new(std::fs::File::create(dir.join("joint_force.csv"))?);
-        write!(csv, "time")?;
+        let mut header = vec!["time".to_string()];
+        let mut columns = |name: &str| {
+            header.extend(["fx", "fy", "fz"].map(|c| format!("{name}_{c}")));
+        };
         for g in &self.model.bcs {
-            write!(csv, ",{0}_fx,{0}_fy,{0}_fz", g.name)?;
+            columns(&g.name);
         }
         if let Some(c) = &self.coupling {
             for (k, name) in c.region_names.iter().enumerate() {
-                let name = if name.is_empty() {
-                    format!("region{k}")
+                if name.is_empty() {
+                    columns(&format!("region{k}"));
                 } else {
-                    name.clone()
-                };
-                write!(csv, ",{name}_fx,{name}_fy,{name}_fz")?;
+                    columns(name);
+                }
             }
         }
-        writeln!(csv)?;
-        for (t, r, c) in &self.history {
-            write!(csv, "{t:e}")?;
-            for f in r.iter().chain(c) {
-                write!(csv, ",{:e},{:e},{:e}", f[0], f[1], f[2])?;
-            }
-            writeln!(csv)?;
-        }
+        let rows = self
+            .history
+            .iter()
+            .map(|(t, r, c)| std::iter::once(*t).chain(r.iter().chain(c).flatten().copied()));
+        node_kit::table::write_csv(&dir.join("joint_force.csv"), &header, rows)?;
         Ok(())
     }
 }
