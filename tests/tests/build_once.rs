@@ -3,8 +3,14 @@
 //! every shared dependency with the same features, so none of them compiles a registry crate
 //! the others already built. Cargo picks features by the packages a command selects (and
 //! leaves the dev-dependencies' wishes out of a plain build); `workspace-hack` asks for the
-//! union. This test asks `cargo tree` how each command resolves and fails, naming the crate
-//! and both feature sets, when a new dependency breaks the agreement.
+//! union. The first test asks `cargo tree` how each command resolves and fails, naming the
+//! crate and both feature sets, when a new dependency breaks the agreement.
+//!
+//! `cargo tree` shows one feature set per package where the host (build scripts,
+//! proc-macros) and the target differ: a host crate built with other features under maturin
+//! (zenoh's macros reading serde_json) escaped it and made a clean clone compile zenoh twice.
+//! The second test compares the compilation units themselves (`cargo build --unit-graph`:
+//! package, features, host or target, profile, mode), which is where a second build shows.
 
 use cosim_tests::workspace_root;
 use std::collections::{BTreeMap, BTreeSet};
@@ -87,5 +93,103 @@ fn the_build_the_tests_and_the_python_package_resolve_one_feature_set() {
         "maturin would compile these again with other features; add them to \
          workspace-hack/Cargo.toml:\n{}",
         python_differs.join("\n")
+    );
+}
+
+/// The compilation units of the registry crates a cargo command (`args`) would build, without
+/// building anything: package, features, host or target, profile name and opt level, mode and
+/// target name. `--unit-graph` is unstable in cargo; RUSTC_BOOTSTRAP lets the stable cargo
+/// print it, and only here. A scratch target directory keeps the call off the lock of the
+/// `cargo test` running this test.
+fn units(args: &[&str]) -> BTreeSet<String> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let scratch = std::env::temp_dir().join(format!("cosim-unit-graph-{}", std::process::id()));
+    let out = Command::new(cargo)
+        .current_dir(workspace_root())
+        .env("RUSTC_BOOTSTRAP", "1")
+        .env("CARGO_TARGET_DIR", &scratch)
+        .args(args)
+        .args([
+            "--release",
+            "--frozen",
+            "--unit-graph",
+            "-Z",
+            "unstable-options",
+        ])
+        .output()
+        .expect("cargo runs");
+    let _ = std::fs::remove_dir_all(&scratch);
+    assert!(
+        out.status.success(),
+        "cargo {args:?} --unit-graph: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let graph: serde_json::Value = serde_json::from_slice(&out.stdout).expect("a unit graph");
+    assert_eq!(graph["version"], 1, "a unit graph of another version");
+    let mut set = BTreeSet::new();
+    for u in graph["units"].as_array().expect("units") {
+        let id = u["pkg_id"].as_str().unwrap_or_default();
+        if !id.starts_with("registry+") {
+            continue;
+        }
+        let package = id.rsplit('#').next().unwrap_or(id);
+        let features: Vec<&str> = u["features"]
+            .as_array()
+            .map(|f| f.iter().filter_map(|x| x.as_str()).collect())
+            .unwrap_or_default();
+        let side = u["platform"].as_str().unwrap_or("host-or-target");
+        set.insert(format!(
+            "{package} [{}] {side} {} opt {} {} {}",
+            features.join(","),
+            u["profile"]["name"],
+            u["profile"]["opt_level"],
+            u["mode"],
+            u["target"]["name"]
+        ));
+    }
+    set
+}
+
+/// Every registry unit maturin's build of the Python package compiles is one the workspace
+/// build compiles too, and every unit `cargo test` compiles of a package the build has is one
+/// the build compiled (the test adds its dev-dependencies, which the build does not have).
+#[test]
+fn the_build_compiles_every_unit_the_python_package_and_the_tests_reuse() {
+    let build = units(&["build", "--workspace"]);
+    let python = units(&["build", "-p", "cosim-python", "--lib"]);
+    let test = units(&["test", "--workspace", "--no-run"]);
+    println!(
+        "{} registry units in the build, {} in the Python package, {} with the tests",
+        build.len(),
+        python.len(),
+        test.len()
+    );
+    assert!(build.len() > 500 && python.len() > 500, "{}", build.len());
+    assert!(test.len() > build.len(), "{}", test.len());
+    let python_only: Vec<&String> = python.difference(&build).collect();
+    assert!(
+        python_only.is_empty(),
+        "the build after `pip install ./python` would compile these again (pin their \
+         features in workspace-hack/Cargo.toml, host crates under [build-dependencies]):\n{}",
+        python_only
+            .iter()
+            .map(|s| s.as_str())
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+    let packages: BTreeSet<&str> = build.iter().filter_map(|u| u.split(' ').next()).collect();
+    let test_again: Vec<&String> = test
+        .difference(&build)
+        .filter(|u| u.split(' ').next().is_some_and(|p| packages.contains(p)))
+        .collect();
+    assert!(
+        test_again.is_empty(),
+        "`cargo test` after the build would compile these again (pin their features in \
+         workspace-hack/Cargo.toml):\n{}",
+        test_again
+            .iter()
+            .map(|s| s.as_str())
+            .collect::<Vec<_>>()
+            .join("\n")
     );
 }
