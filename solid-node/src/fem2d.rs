@@ -865,3 +865,27 @@ impl Solver for Fem2d {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load(text: &str) -> LoadRamp {
+        let l: LoadParams = toml::from_str(text).expect("a load table");
+        load_ramp("loads[0].", l.ramp, l.ramp_time).expect("a valid ramp")
+    }
+
+    /// The older spelling `history = "ramp"` is the septic ramp, as `ramp = "septic"` is; a
+    /// load without either starts at once.
+    #[test]
+    fn the_older_history_spelling_reads_as_the_septic_ramp() {
+        let head = "edge = \"right\"\ntraction = [1.0, 0.0]\n";
+        let older = load(&format!("{head}history = \"ramp\"\nramp_time = 0.5"));
+        let newer = load(&format!("{head}ramp = \"septic\"\nramp_time = 0.5"));
+        assert_eq!(older, newer);
+        assert_eq!(older.ramp, Ramp::Septic);
+        assert_eq!(older.time, 0.5);
+        assert_eq!(load(&format!("{head}history = \"step\"")), LoadRamp::STEP);
+        assert_eq!(load(head), LoadRamp::STEP);
+    }
+}

@@ -63,7 +63,7 @@ density = 2700.0
 plane = "stress"
 thickness = 1.0
 fixed = ["left"]
-loads = [{ edge = "right", traction = [10000.0, 0.0], history = "step" }]
+loads = [{ edge = "right", traction = [10000.0, 0.0], ramp = "step" }]
 "#;
 
 /// A small 3-D block with a hole, a moving end, interfaces and bond damage.

@@ -107,3 +107,50 @@ impl LoadRamp {
 }
 pub use linear::{Csr, LinearSystem, SparseLlt, State, Stepper};
 pub use subdomain::{CouplingMethod, InterfaceDof, Subdomain, SubdomainState};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The ramps against their closed forms at the ends and the middle: 0 at t = 0, 1 from
+    /// T on (held), ½ at T/2 for both (the septic ramp is odd about (½, ½): 35/16 − 84/32 +
+    /// 70/64 − 20/128 = ½; sin²(π/4) = ½), and the step 1 throughout.
+    #[test]
+    fn ramps_start_at_zero_end_at_one_and_cross_one_half_midway() {
+        let t = 0.2;
+        for r in [Ramp::Sin2, Ramp::Septic] {
+            assert_eq!(r.factor(0.0, t), 0.0, "{r:?}");
+            assert!((r.factor(0.5 * t, t) - 0.5).abs() < 1e-15, "{r:?}");
+            assert_eq!(r.factor(t, t), 1.0, "{r:?}");
+            assert_eq!(r.factor(3.0 * t, t), 1.0, "{r:?}");
+        }
+        // the septic ramp's first derivative vanishes at both ends: its rise over the
+        // first and last 1 % of T is of order x⁴, against 1 % for a linear ramp
+        let r = Ramp::Septic;
+        assert!(r.factor(0.01 * t, t) < 1e-6);
+        assert!(1.0 - r.factor(0.99 * t, t) < 1e-6);
+        assert_eq!(Ramp::Step.factor(0.0, t), 1.0);
+    }
+
+    /// A ramp time goes with every ramp but a step, and only with them.
+    #[test]
+    fn a_ramp_time_goes_with_a_ramp_only() {
+        assert_eq!(LoadRamp::new(Ramp::Step, None), Ok(LoadRamp::STEP));
+        assert_eq!(
+            LoadRamp::new(Ramp::Step, Some(1.0)).unwrap_err().0,
+            "ramp_time"
+        );
+        for bad in [
+            None,
+            Some(0.0),
+            Some(-1.0),
+            Some(f64::NAN),
+            Some(f64::INFINITY),
+        ] {
+            assert_eq!(LoadRamp::new(Ramp::Septic, bad).unwrap_err().0, "ramp_time");
+        }
+        let l = LoadRamp::new(Ramp::Sin2, Some(2.0)).unwrap();
+        assert_eq!((l.ramp, l.time), (Ramp::Sin2, 2.0));
+        assert_eq!(l.at(1.0), Ramp::Sin2.factor(1.0, 2.0));
+    }
+}
