@@ -16,8 +16,9 @@ use thiserror::Error;
 /// First bytes of every checkpoint file.
 pub const MAGIC: [u8; 8] = *b"COSIMCKP";
 /// Version of the container layout and of the built-in nodes' payloads; a reader refuses any
-/// other. 2: the joint node's coupling state holds the shared sync-force `Follow`.
-pub const FORMAT_VERSION: u16 = 2;
+/// other. 2: the joint node's coupling state holds the shared sync-force `Follow`. 3: the
+/// peridynamic node's state in the same serde encoding as every other node's.
+pub const FORMAT_VERSION: u16 = 3;
 /// File name of the coordinator's own state in a checkpoint directory.
 pub const COORDINATOR: &str = "coordinator";
 
@@ -182,11 +183,17 @@ pub fn encode_state<T: Serialize>(state: &T) -> SolverResult<Vec<u8>> {
 }
 
 /// The inverse of [`encode_state`] for `Solver::load_state`: refuses a payload that does not
-/// decode to exactly one `T`.
+/// decode to exactly one `T` (a truncated one says so).
 pub fn decode_state<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> SolverResult<T> {
     let (v, used): (T, usize) =
-        bincode::serde::decode_from_slice(bytes, bincode::config::standard())
-            .map_err(|e| SolverError::Other(format!("load_state: {e}")))?;
+        bincode::serde::decode_from_slice(bytes, bincode::config::standard()).map_err(|e| {
+            SolverError::Other(match e {
+                bincode::error::DecodeError::UnexpectedEnd { .. } => {
+                    format!("load_state: truncated state ({} bytes)", bytes.len())
+                }
+                e => format!("load_state: {e}"),
+            })
+        })?;
     if used != bytes.len() {
         return Err(SolverError::Other(format!(
             "load_state: {} trailing bytes",

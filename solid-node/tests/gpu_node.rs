@@ -73,17 +73,11 @@ fn build(model: &str, t: &toml::Table) -> Result<Box<dyn Solver>, SolverError> {
 /// crosses).
 type Run = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<StepReport>, [Vec<f64>; 3]);
 
-/// Displacements, velocities and forces from a checkpoint (solver.rs `save_state` layout).
+/// Displacements, velocities and forces from a checkpoint.
 fn full_state(bytes: &[u8]) -> [Vec<f64>; 3] {
-    use solid_node::pd::checkpoint::Reader;
-    let mut r = Reader::new(bytes);
-    let magic_len = r.u64().expect("magic length") as usize;
-    r.rest = &r.rest[magic_len..];
-    let n = r.u64().expect("n") as usize;
-    let _nb = r.u64().expect("nb");
-    let _t = r.f64().expect("time");
-    let _steps = r.u64().expect("steps");
-    std::array::from_fn(|_| r.f64s(3 * n, "state").expect("state block"))
+    let s: solid_node::pd::solver::BodyState =
+        protocol::checkpoint::decode_state(bytes).expect("a peridynamic node's state");
+    [&s.disp, &s.vel, &s.force].map(|v| v.iter().flatten().copied().collect())
 }
 
 fn run_with(model: &str, device: &str, density: f64, yield_stress: Option<f64>) -> Run {

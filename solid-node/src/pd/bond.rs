@@ -19,6 +19,8 @@ use super::family::{Bonds, par_points, par_row_blocks, par_rows};
 use super::model::{Dim, Kinematics, PdModel};
 use mechanics::simd::Simd;
 use mechanics::tensor::vec3;
+use protocol::checkpoint::{check_len, decode_state, encode_state};
+use protocol::solver::SolverResult;
 use std::f64::consts::PI;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -625,14 +627,16 @@ impl PdModel for BondModel {
         }
     }
 
-    fn save_state(&self, w: &mut super::checkpoint::Writer) {
-        w.f64s(self.coef.iter().copied());
-        w.f64s(self.released.iter().copied());
+    fn save_state(&self) -> SolverResult<Vec<u8>> {
+        encode_state(&(&self.coef, &self.released))
     }
 
-    fn load_state(&mut self, r: &mut super::checkpoint::Reader) -> Result<(), String> {
-        self.coef = r.f64s(self.coef.len(), "bond coefficients")?;
-        self.released = r.f64s(self.released.len(), "released bond energy")?;
+    fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
+        let (coef, released): (Vec<f64>, Vec<f64>) = decode_state(bytes)?;
+        check_len("bond coefficients", coef.len(), self.coef.len())?;
+        check_len("released bond energy", released.len(), self.released.len())?;
+        self.coef = coef;
+        self.released = released;
         Ok(())
     }
 

@@ -30,7 +30,10 @@ use mechanics::damage::{BondInput, DamageModel};
 use mechanics::j2::{J2Material, J2State, Sym, jaumann_rotate, von_mises};
 use mechanics::simd::Simd;
 use mechanics::tensor::{self, IDENTITY};
+use protocol::checkpoint::{check_len, decode_state, encode_state};
+use protocol::solver::SolverResult;
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::f64::consts::PI;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -87,6 +90,26 @@ pub struct BondSide {
     /// Von Mises stress and equivalent plastic strain, for bond damage.
     pub vm: f64,
     pub eqp: f64,
+}
+
+/// What a checkpoint holds of a correspondence body (`PdModel::save_state`, and the device
+/// path's state in the same form): per particle its J2 state, plastic work and strain energy
+/// given up by bond damage.
+#[derive(Debug, serde::Serialize, serde::Deserialize)]
+pub struct CorrHistory<'a> {
+    pub state: Cow<'a, [J2State]>,
+    pub plastic_work: Cow<'a, [f64]>,
+    pub released: Cow<'a, [f64]>,
+}
+
+impl CorrHistory<'_> {
+    /// Decodes a history of `particles` particles, refusing one of another size.
+    pub fn decode(bytes: &[u8], particles: usize) -> SolverResult<Self> {
+        let h: Self = decode_state(bytes)?;
+        check_len("particle J2 states", h.state.len(), particles)?;
+        check_len("plastic work", h.plastic_work.len(), particles)?;
+        Ok(h)
+    }
 }
 
 /// The correspondence model, generic over its damage law (monomorphized bond loop).
@@ -824,16 +847,24 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
         Some(self.state.iter().map(|s| s.eq_plastic_strain).collect())
     }
 
-    fn save_state(&self, w: &mut super::checkpoint::Writer) {
-        super::checkpoint::put_j2(w, &self.state);
-        w.f64s(self.plastic_work.iter().copied());
-        w.f64s(self.released.iter().copied());
+    fn save_state(&self) -> SolverResult<Vec<u8>> {
+        encode_state(&CorrHistory {
+            state: Cow::Borrowed(&self.state),
+            plastic_work: Cow::Borrowed(&self.plastic_work),
+            released: Cow::Borrowed(&self.released),
+        })
     }
 
-    fn load_state(&mut self, r: &mut super::checkpoint::Reader) -> Result<(), String> {
-        super::checkpoint::get_j2(r, &mut self.state, "particle J2 states")?;
-        self.plastic_work = r.f64s(self.plastic_work.len(), "plastic work")?;
-        self.released = r.f64s(self.released.len(), "released bond energy")?;
+    fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
+        let h = CorrHistory::decode(bytes, self.state.len())?;
+        check_len(
+            "released bond energy",
+            h.released.len(),
+            self.released.len(),
+        )?;
+        self.state = h.state.into_owned();
+        self.plastic_work = h.plastic_work.into_owned();
+        self.released = h.released.into_owned();
         // the loaded intact fractions are booked as they are at the next evaluation
         self.booked.clear();
         // K⁻¹ is rebuilt from the restored bond damage on the next step.

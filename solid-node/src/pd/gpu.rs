@@ -22,7 +22,7 @@
 //! (ξ | intact).
 
 use super::bond::BondModel;
-use super::correspondence::Correspondence;
+use super::correspondence::{CorrHistory, Correspondence};
 use super::integrate::Body;
 use super::model::Dim;
 use mechanics::damage::NoDamage;
@@ -1431,15 +1431,14 @@ impl DeviceBody {
             }
             DeviceKind::Corr { gpu, twin } => {
                 // the J2 states and the plastic work through the model's own checkpoint
-                // format
-                let mut w = super::checkpoint::Writer::default();
-                body.model.save_state(&mut w);
-                let mut r = super::checkpoint::Reader::new(&w.buf);
-                super::checkpoint::get_j2(&mut r, &mut twin.state, "particle J2 states")
-                    .map_err(GpuError)?;
-                twin.plastic_work = r
-                    .f64s(twin.plastic_work.len(), "plastic work")
-                    .map_err(GpuError)?;
+                // form
+                let h = body
+                    .model
+                    .save_state()
+                    .and_then(|b| CorrHistory::decode(&b, twin.state.len()))
+                    .map_err(|e| GpuError(e.to_string()))?;
+                twin.state = h.state.into_owned();
+                twin.plastic_work = h.plastic_work.into_owned();
                 *gpu = GpuCorrBody::gathering(self.ctx.clone(), body, twin, &self.gather)?;
             }
         }

@@ -10,9 +10,11 @@
 //! nonlinear PD force included). gs4 and ph then need this side at one step per system step
 //! (more would need the body's tangent stiffness over the substeps); gc takes any ratio.
 
-use super::checkpoint::{Reader, Writer, flat3, unflat3};
 use super::integrate::Body;
 use mechanics::time::LoadRamp;
+use protocol::checkpoint::{check_len, decode_state, encode_state};
+use protocol::solver::{SolverError, SolverResult};
+use std::borrow::Cow;
 
 /// The coupling state of an explicit particle side; the body is stepped through it.
 #[derive(Debug, Clone)]
@@ -233,86 +235,88 @@ impl ExplicitSide {
     }
 }
 
-/// First bytes of a lagrange side's coupling state (`LagrangeSide::save_state`).
-const STATE_MAGIC: &[u8] = b"cosim-pd-lagrange-v1";
+/// What a checkpoint holds of a lagrange side (`ExplicitSide::save_state`): its size, step
+/// and method first, so that a state of another side is refused, then the step-end
+/// accelerations, the multipliers, the step-start interface displacements, the load's Σ f·u,
+/// the audit sums and the clock.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct SideState<'a> {
+    particles: usize,
+    unknowns: usize,
+    steps: usize,
+    gc: bool,
+    dt: f64,
+    acc: Cow<'a, [[f64; 3]]>,
+    lambda_start: Cow<'a, [f64]>,
+    lambda_end: Cow<'a, [f64]>,
+    u_start: Cow<'a, [f64]>,
+    load_u: f64,
+    interface_work: f64,
+    interface_impulse: [f64; 3],
+    external_work: f64,
+    load_integral: f64,
+    time: f64,
+}
 
 impl ExplicitSide {
     /// What the side carries from one system step to the next, for a checkpoint beside the
-    /// body's (`PdSolver::save_state`): the step-end accelerations, the multipliers, the
-    /// step-start interface displacements, the load's Σ f·u, the audit sums and the clock.
-    /// The size, step and method go first so that a state of another side is refused.
-    pub fn save_state(&self) -> Vec<u8> {
-        let mut w = Writer::default();
-        w.bytes(STATE_MAGIC);
-        w.u64(self.acc.len() as u64);
-        w.u64(self.dofs.len() as u64);
-        w.u64(self.steps as u64);
-        w.u64(u64::from(self.gc));
-        w.f64(self.dt);
-        w.f64s(flat3(&self.acc));
-        w.f64s(self.lambda_start.iter().copied());
-        w.f64s(self.lambda_end.iter().copied());
-        w.f64s(self.u_start.iter().copied());
-        let [ix, iy, iz] = self.interface_impulse;
-        let sums = [
-            self.load_u,
-            self.interface_work,
-            ix,
-            iy,
-            iz,
-            self.external_work,
-            self.load_integral,
-            self.time,
-        ];
-        w.f64s(sums.into_iter());
-        w.buf
+    /// body's (`PdSolver::save_state`).
+    pub fn save_state(&self) -> SolverResult<Vec<u8>> {
+        encode_state(&SideState {
+            particles: self.acc.len(),
+            unknowns: self.dofs.len(),
+            steps: self.steps,
+            gc: self.gc,
+            dt: self.dt,
+            acc: Cow::Borrowed(&self.acc),
+            lambda_start: Cow::Borrowed(&self.lambda_start),
+            lambda_end: Cow::Borrowed(&self.lambda_end),
+            u_start: Cow::Borrowed(&self.u_start),
+            load_u: self.load_u,
+            interface_work: self.interface_work,
+            interface_impulse: self.interface_impulse,
+            external_work: self.external_work,
+            load_integral: self.load_integral,
+            time: self.time,
+        })
     }
 
     /// The inverse of [`Self::save_state`], on the side set up again for the same body,
     /// interface, step and method; nothing changes unless the whole state reads.
-    pub fn load_state(&mut self, bytes: &[u8]) -> Result<(), String> {
-        let mut r = Reader::new(bytes);
-        if r.bytes(STATE_MAGIC.len(), "magic")? != STATE_MAGIC {
-            return Err(
-                "not the coupling state of a peridynamic lagrange side (or of an \
-                        older version)"
-                    .into(),
-            );
-        }
-        let (n, nl) = (r.u64()?, r.u64()?);
-        let (steps, gc, dt) = (r.u64()?, r.u64()? != 0, r.f64()?);
-        if n as usize != self.acc.len() || nl as usize != self.dofs.len() {
-            return Err(format!(
-                "coupling state of {n} particles / {nl} interface unknowns, this side has {} / {}",
+    pub fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
+        let s: SideState = decode_state(bytes)?;
+        let bad = |m: String| Err(SolverError::Other(format!("load_state: {m}")));
+        if s.particles != self.acc.len() || s.unknowns != self.dofs.len() {
+            return bad(format!(
+                "coupling state of {} particles / {} interface unknowns, this side has {} / {}",
+                s.particles,
+                s.unknowns,
                 self.acc.len(),
                 self.dofs.len()
             ));
         }
-        if steps as usize != self.steps || gc != self.gc || dt.to_bits() != self.dt.to_bits() {
-            return Err(format!(
-                "coupling state of {steps} steps of {dt:e} s (gc: {gc}) per system step, this \
-                 side takes {} of {:e} s (gc: {})",
-                self.steps, self.dt, self.gc
+        if s.steps != self.steps || s.gc != self.gc || s.dt.to_bits() != self.dt.to_bits() {
+            return bad(format!(
+                "coupling state of {} steps of {:e} s (gc: {}) per system step, this side \
+                 takes {} of {:e} s (gc: {})",
+                s.steps, s.dt, s.gc, self.steps, self.dt, self.gc
             ));
         }
-        let acc = r.f64s(3 * self.acc.len(), "accelerations")?;
-        let lambda_start = r.f64s(self.dofs.len(), "step-start multipliers")?;
-        let lambda_end = r.f64s(self.dofs.len(), "step-end multipliers")?;
-        let u_start = r.f64s(self.dofs.len(), "step-start displacements")?;
-        let sums = r.f64s(8, "audit sums")?;
-        if !r.rest.is_empty() {
-            return Err(format!("{} trailing bytes", r.rest.len()));
-        }
-        unflat3(&acc, &mut self.acc);
-        self.lambda_start = lambda_start;
-        self.lambda_end = lambda_end;
-        self.u_start = u_start;
-        self.load_u = sums[0];
-        self.interface_work = sums[1];
-        self.interface_impulse = [sums[2], sums[3], sums[4]];
-        self.external_work = sums[5];
-        self.load_integral = sums[6];
-        self.time = sums[7];
+        check_len("accelerations", s.acc.len(), self.acc.len())?;
+        let nl = self.dofs.len();
+        check_len("step-start multipliers", s.lambda_start.len(), nl)?;
+        check_len("step-end multipliers", s.lambda_end.len(), nl)?;
+        check_len("step-start displacements", s.u_start.len(), nl)?;
+        self.acc = s.acc.into_owned();
+        self.lambda_start = s.lambda_start.into_owned();
+        self.lambda_end = s.lambda_end.into_owned();
+        self.u_start = s.u_start.into_owned();
+        self.load_u = s.load_u;
+        self.interface_work = s.interface_work;
+        self.interface_impulse = s.interface_impulse;
+        self.external_work = s.external_work;
+        self.load_integral = s.load_integral;
+        self.time = s.time;
         Ok(())
     }
 }
@@ -612,13 +616,14 @@ mod tests {
             Err(e) => e,
         };
         assert!(e.contains("steps of"), "{e}");
-        let mut wrong = state.clone();
-        wrong[8] ^= 1;
-        let e = match LagrangeSide::load_state(&mut r, &wrong) {
-            Ok(()) => panic!("a state with another magic loaded"),
-            Err(e) => e,
+        // The body's own state is no coupling state.
+        let body = match Solver::save_state(&l) {
+            Ok(s) => s,
+            Err(e) => panic!("{e}"),
         };
-        assert!(e.contains("older version"), "{e}");
+        if LagrangeSide::load_state(&mut r, &body).is_ok() {
+            panic!("a body's state loaded as a coupling state");
+        }
         let e = match LagrangeSide::load_state(&mut r, &state[..state.len() - 8]) {
             Ok(()) => panic!("a truncated state loaded"),
             Err(e) => e,

@@ -14,7 +14,6 @@
 mod avx512;
 pub mod bond;
 pub mod cases;
-pub mod checkpoint;
 pub mod correspondence;
 pub mod family;
 pub mod fracture;

@@ -11,6 +11,7 @@
 
 use super::family::Bonds;
 use mechanics::j2::Sym;
+use protocol::solver::SolverResult;
 
 /// The particle kinematics a model reads.
 #[derive(Debug, Clone, Copy)]
@@ -90,12 +91,13 @@ pub trait PdModel: Send + Sync {
         None
     }
 
-    /// Appends the model's history (what the next step needs and cannot recompute) to a
-    /// checkpoint.
-    fn save_state(&self, w: &mut super::checkpoint::Writer);
+    /// The model's history (what the next step needs and cannot recompute) for a checkpoint,
+    /// in the node kit's state encoding (`protocol::checkpoint::encode_state`).
+    fn save_state(&self) -> SolverResult<Vec<u8>>;
 
-    /// Restores what [`PdModel::save_state`] wrote; caches are rebuilt on the next step.
-    fn load_state(&mut self, r: &mut super::checkpoint::Reader) -> Result<(), String>;
+    /// Restores what [`PdModel::save_state`] wrote, refusing a history of another size;
+    /// caches are rebuilt on the next step.
+    fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()>;
 
     /// Caps the instruction set of the model's bond kernels (benchmarks compare the builds;
     /// every choice gives the same bits, except pd-correspondence's explicit AVX-512 kernels,

@@ -36,6 +36,8 @@ use super::model::{Dim, Kinematics, PdModel};
 use mechanics::damage::{BondInput, DamageModel};
 use mechanics::j2::{J2Material, J2State, Sym, jaumann_rotate_skew, von_mises};
 use mechanics::tensor::vec3;
+use protocol::checkpoint::{check_len, decode_state, encode_state};
+use protocol::solver::SolverResult;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Largest monomial basis: 3-D, order 2 (x, y, z, x², xy, xz, y², yz, z²).
@@ -731,25 +733,27 @@ impl<D: DamageModel> PdModel for RkBa<D> {
         )
     }
 
-    fn save_state(&self, w: &mut super::checkpoint::Writer) {
-        let st: Vec<J2State> = self.hist.iter().map(|h| h.state).collect();
-        super::checkpoint::put_j2(w, &st);
-        w.f64s(self.hist.iter().map(|h| h.wd));
-        w.f64s(self.hist.iter().map(|h| h.plastic_work));
-        w.f64s(self.released.iter().copied());
+    /// Per bond its J2 state, damage and plastic work (ω is recomputed at each evaluation),
+    /// then the released energy per particle.
+    fn save_state(&self) -> SolverResult<Vec<u8>> {
+        let hist: Vec<(J2State, f64, f64)> = self
+            .hist
+            .iter()
+            .map(|h| (h.state, h.wd, h.plastic_work))
+            .collect();
+        encode_state(&(hist, &self.released))
     }
 
-    fn load_state(&mut self, r: &mut super::checkpoint::Reader) -> Result<(), String> {
-        let mut st = vec![J2State::default(); self.hist.len()];
-        super::checkpoint::get_j2(r, &mut st, "bond J2 states")?;
-        let wd = r.f64s(self.hist.len(), "bond damage")?;
-        let wp = r.f64s(self.hist.len(), "bond plastic work")?;
-        self.released = r.f64s(self.released.len(), "released bond energy")?;
-        for (((h, s), d), p) in self.hist.iter_mut().zip(st).zip(wd).zip(wp) {
-            h.state = s;
-            h.wd = d;
-            h.plastic_work = p;
+    fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
+        let (hist, released): (Vec<(J2State, f64, f64)>, Vec<f64>) = decode_state(bytes)?;
+        check_len("bond histories", hist.len(), self.hist.len())?;
+        check_len("released bond energy", released.len(), self.released.len())?;
+        for (h, (state, wd, plastic_work)) in self.hist.iter_mut().zip(hist) {
+            h.state = state;
+            h.wd = wd;
+            h.plastic_work = plastic_work;
         }
+        self.released = released;
         Ok(())
     }
 

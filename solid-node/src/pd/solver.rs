@@ -13,6 +13,7 @@
     clippy::too_many_arguments
 )]
 
+use super::correspondence::CorrHistory;
 use super::family::{Bonds, full_family, surface_particles};
 use super::geometry::{Shape, lattice, lattice_count};
 use super::gpu::DeviceBody;
@@ -29,6 +30,7 @@ use mechanics::j2::{J2Material, von_mises};
 use mechanics::time::LoadRamp;
 use node_kit::device::Device;
 use node_kit::vtk::{self, Arrays, Frame};
+use protocol::checkpoint::{check_len, decode_state, encode_state};
 use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
 use protocol::scheme::{self, kinematic};
 use protocol::{
@@ -36,6 +38,7 @@ use protocol::{
     SolverError, SolverResult, StepReport, Window,
 };
 use protocol::{BuildOptions, Inbox, LimitApplies, Outbox, WindowLimit};
+use std::borrow::Cow;
 use std::path::Path;
 
 /// Damage index φ (seed 000 App. C: the volume fraction of a particle's family whose bonds
@@ -48,7 +51,7 @@ pub const DAMAGED_INDEX: f64 = 0.5;
 /// φ > 0, how many particles were damaged then, and the distances of all of them to the
 /// nearest inner corner of a hollow-square body / from the axis of a hollow-cylinder body
 /// (negative when the body has no such shape).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FirstDamage {
     pub time: f64,
     pub position: [f64; 3],
@@ -143,8 +146,29 @@ fn bond_budget(p: &PdParams, particles: usize, three_d: bool) -> SolverResult<()
     )
 }
 
-/// First bytes of a checkpoint of this node.
-const CHECKPOINT_MAGIC: &[u8] = b"cosim-pd-state-v4";
+/// What a checkpoint holds of the body and the node's sums (`Solver::save_state`; read back
+/// with `protocol::checkpoint::decode_state`); the model's history rides along in the
+/// model's own form (`PdModel::save_state`).
+#[derive(serde::Serialize, serde::Deserialize)]
+pub struct BodyState<'a> {
+    pub particles: usize,
+    pub bonds: usize,
+    pub time: f64,
+    pub steps: u64,
+    pub disp: Cow<'a, [[f64; 3]]>,
+    pub vel: Cow<'a, [[f64; 3]]>,
+    pub force: Cow<'a, [[f64; 3]]>,
+    pub vpres: Cow<'a, [[f64; 3]]>,
+    pub prescribed: Cow<'a, [u8]>,
+    pub intact: Cow<'a, [f64]>,
+    pub external_impulse: [f64; 3],
+    pub interface_impulse: [f64; 3],
+    pub applied_impulse: f64,
+    pub interface_work: f64,
+    pub external_work: f64,
+    pub first_damage: Option<FirstDamage>,
+    pub model: Vec<u8>,
+}
 
 fn cfg<T>(key: &str, reason: impl Into<String>) -> SolverResult<T> {
     Err(SolverError::config(key, reason))
@@ -697,14 +721,14 @@ impl LagrangeSide for PdSolver {
             .map_or(0.0, |(_, s)| s.interface_work)
     }
     fn save_state(&self) -> Result<Vec<u8>, String> {
-        self.lagrange
-            .as_ref()
-            .map(|(_, s)| s.save_state())
-            .ok_or_else(|| "this peridynamic body is no lagrange side".into())
+        match self.lagrange.as_ref() {
+            Some((_, s)) => s.save_state().map_err(|e| e.to_string()),
+            None => Err("this peridynamic body is no lagrange side".into()),
+        }
     }
     fn load_state(&mut self, bytes: &[u8]) -> Result<(), String> {
         match self.lagrange.as_mut() {
-            Some((_, s)) => s.load_state(bytes),
+            Some((_, s)) => s.load_state(bytes).map_err(|e| e.to_string()),
             None => Err("this peridynamic body is no lagrange side".into()),
         }
     }
@@ -1553,7 +1577,6 @@ impl Solver for PdSolver {
     }
 
     fn save_state(&self) -> SolverResult<Vec<u8>> {
-        use super::checkpoint::{Writer, flat3};
         // A lagrange side's coupling state goes beside this (`LagrangeSide::save_state`, the
         // runtime pairs them).
         let b = &self.body;
@@ -1566,118 +1589,78 @@ impl Solver for PdSolver {
             Some(s) => (&s.disp, &s.vel, &s.force),
             None => (&b.disp, &b.vel, &b.force),
         };
-        let mut w = Writer::default();
-        w.bytes(CHECKPOINT_MAGIC);
-        w.u64(b.len() as u64);
-        w.u64(b.bonds.len() as u64);
-        w.f64(b.time);
-        w.u64(b.steps);
-        w.f64s(flat3(disp));
-        w.f64s(flat3(vel));
-        w.f64s(flat3(force));
-        w.f64s(flat3(&b.vpres));
-        w.bytes(&b.prescribed);
-        w.f64s(b.bonds.intact.iter().copied());
-        let acc = [
-            self.external_impulse[0],
-            self.external_impulse[1],
-            self.external_impulse[2],
-            self.interface_impulse[0],
-            self.interface_impulse[1],
-            self.interface_impulse[2],
-            self.applied_impulse,
-            self.interface_work,
-            self.external_work,
-        ];
-        w.f64s(acc.into_iter());
-        let fd = match &self.first_damage {
-            None => [0.0; 9],
-            Some(f) => [
-                1.0,
-                f.time,
-                f.position[0],
-                f.position[1],
-                f.position[2],
-                f.count as f64,
-                f.corner_distance,
-                f.radius[0],
-                f.radius[1],
-            ],
-        };
-        w.f64s(fd.into_iter());
-        match snap
+        let model = match snap
             .as_ref()
             .and_then(|s| s.states.as_ref().zip(s.plastic_work.as_ref()))
         {
             // pd-correspondence on the device: its J2 states, plastic work and released bond
-            // energy (none: no damage on the device), in the model's own format
-            Some((states, plastic_work)) => {
-                super::checkpoint::put_j2(&mut w, states);
-                w.f64s(plastic_work.iter().copied());
-                w.f64s(std::iter::repeat_n(0.0, states.len()));
-            }
-            None => b.model.save_state(&mut w),
-        }
-        Ok(w.buf)
+            // energy (none: no damage on the device), in the model's own form
+            Some((states, plastic_work)) => encode_state(&CorrHistory {
+                state: Cow::Borrowed(states),
+                plastic_work: Cow::Borrowed(plastic_work),
+                released: Cow::Owned(vec![0.0; states.len()]),
+            })?,
+            None => b.model.save_state()?,
+        };
+        encode_state(&BodyState {
+            particles: b.len(),
+            bonds: b.bonds.len(),
+            time: b.time,
+            steps: b.steps,
+            disp: Cow::Borrowed(disp),
+            vel: Cow::Borrowed(vel),
+            force: Cow::Borrowed(force),
+            vpres: Cow::Borrowed(&b.vpres),
+            prescribed: Cow::Borrowed(&b.prescribed),
+            intact: Cow::Borrowed(&b.bonds.intact),
+            external_impulse: self.external_impulse,
+            interface_impulse: self.interface_impulse,
+            applied_impulse: self.applied_impulse,
+            interface_work: self.interface_work,
+            external_work: self.external_work,
+            first_damage: self.first_damage,
+            model,
+        })
     }
 
     fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
-        use super::checkpoint::{Reader, unflat3};
-        let bad = |e: String| SolverError::Other(format!("load_state: {e}"));
         self.fragment_cache = None;
-        let mut r = Reader::new(bytes);
-        r.bytes(CHECKPOINT_MAGIC.len(), "magic")
-            .and_then(|m| {
-                if m == CHECKPOINT_MAGIC {
-                    Ok(())
-                } else {
-                    Err("not a peridynamic node checkpoint".into())
-                }
-            })
-            .map_err(bad)?;
+        let s: BodyState = decode_state(bytes)?;
         let b = &mut self.body;
         let (n, nb) = (b.len(), b.bonds.len());
-        let (n2, nb2) = (r.u64().map_err(bad)?, r.u64().map_err(bad)?);
-        if n2 as usize != n || nb2 as usize != nb {
-            return Err(bad(format!(
-                "checkpoint of {n2} particles / {nb2} bonds, this body has {n} / {nb}"
+        if s.particles != n || s.bonds != nb {
+            return Err(SolverError::Other(format!(
+                "load_state: a state of {} particles / {} bonds, this body has {n} / {nb}",
+                s.particles, s.bonds
             )));
         }
-        let time = r.f64().map_err(bad)?;
-        let steps = r.u64().map_err(bad)?;
-        let disp = r.f64s(3 * n, "displacements").map_err(bad)?;
-        let vel = r.f64s(3 * n, "velocities").map_err(bad)?;
-        let force = r.f64s(3 * n, "forces").map_err(bad)?;
-        let vpres = r.f64s(3 * n, "prescribed velocities").map_err(bad)?;
-        let pres = r.bytes(n, "prescribed flags").map_err(bad)?.to_vec();
-        let intact = r.f64s(nb, "bond damage").map_err(bad)?;
-        let acc = r.f64s(9, "accumulators").map_err(bad)?;
-        let fd = r.f64s(9, "first damage").map_err(bad)?;
-        b.model.load_state(&mut r).map_err(bad)?;
-        if !r.rest.is_empty() {
-            return Err(bad(format!("{} trailing bytes", r.rest.len())));
+        for (what, got) in [
+            ("displacements", s.disp.len()),
+            ("velocities", s.vel.len()),
+            ("forces", s.force.len()),
+            ("prescribed velocities", s.vpres.len()),
+            ("prescribed flags", s.prescribed.len()),
+        ] {
+            check_len(what, got, n)?;
         }
-        b.time = time;
-        b.steps = steps;
-        unflat3(&disp, &mut b.disp);
+        check_len("bond damage", s.intact.len(), nb)?;
+        // the model first: nothing changes unless the whole state reads
+        b.model.load_state(&s.model)?;
+        b.time = s.time;
+        b.steps = s.steps;
+        b.disp = s.disp.into_owned();
         b.sync_positions();
-        unflat3(&vel, &mut b.vel);
-        unflat3(&force, &mut b.force);
-        unflat3(&vpres, &mut b.vpres);
-        b.prescribed = pres;
-        b.bonds.intact = intact;
-        self.external_impulse = [acc[0], acc[1], acc[2]];
-        self.interface_impulse = [acc[3], acc[4], acc[5]];
-        self.applied_impulse = acc[6];
-        self.interface_work = acc[7];
-        self.external_work = acc[8];
-        self.first_damage = (fd[0] != 0.0).then(|| FirstDamage {
-            time: fd[1],
-            position: [fd[2], fd[3], fd[4]],
-            count: fd[5] as usize,
-            corner_distance: fd[6],
-            radius: [fd[7], fd[8]],
-        });
+        b.vel = s.vel.into_owned();
+        b.force = s.force.into_owned();
+        b.vpres = s.vpres.into_owned();
+        b.prescribed = s.prescribed.into_owned();
+        b.bonds.intact = s.intact.into_owned();
+        self.external_impulse = s.external_impulse;
+        self.interface_impulse = s.interface_impulse;
+        self.applied_impulse = s.applied_impulse;
+        self.interface_work = s.interface_work;
+        self.external_work = s.external_work;
+        self.first_damage = s.first_damage;
         if let Some(dev) = self.device.as_mut() {
             dev.rebuild(&self.body).map_err(gpu_err)?;
         }
