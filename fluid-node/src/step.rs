@@ -795,7 +795,7 @@ fn fluxes<const NM: usize>(f: &mut Fluid, ph: &[Phase; NM], d: usize) {
         });
 }
 
-/// Rows per rayon task of the fused 2-D stage: about eight tasks per thread for load
+/// Rows per rayon task of the fused stage on a 2-D grid: about eight tasks per thread for load
 /// balance, at most 32 rows so that a task's rows stay in cache, at least 4 so that the
 /// extra y line each task recomputes stays cheap. Any block size gives the same values
 /// (each face's fluxes are the same arithmetic whichever task computes them).
@@ -861,175 +861,6 @@ fn face_line<const NM: usize, const D: usize>(
     riemann_line::<NM, D>(ph, lb, rb, len, ce, out, mx, i0, len, cell);
 }
 
-/// One RK stage of a block of rows of a 2-D grid, fused: for each interior row, its x-face
-/// fluxes and its upper y-face fluxes (the lower ones kept from the row before) go into
-/// row-local scratch, the faces that are immersed walls take the stage's wall fluxes
-/// (`walls`), and the row is updated at once, so no flux array is written or read back (the
-/// memory traffic of the stage halves). Only the domain boundary faces are stored, in `xb`
-/// (the block's rows of `x_bound`) and `fyb` (its rows of `flux[1]`), for
-/// [`boundary_flux`]. Every value is that of `fluxes` + `write_wall_fluxes` + `update`.
-#[inline(always)]
-fn fused_block_body<const NM: usize>(
-    ph: &[Phase; NM],
-    lim: Limiter,
-    grid: &Grid,
-    prim: &[f64],
-    r0: usize,
-    u: &mut [f64],
-    u0: &[f64],
-    xb: &mut [f64],
-    fyb: &mut [f64],
-    a: f64,
-    b: f64,
-    dt: f64,
-    buf: &mut Vec<f64>,
-    first: bool,
-    walls: Option<WallPatch<'_>>,
-    mut next: Option<NextPrims<'_>>,
-) {
-    let nv = 2 * NM + 3;
-    let nf = nv + 1;
-    let mx = grid.mx();
-    let g = grid.g;
-    let n = grid.n;
-    let ir = grid.irange();
-    let len = ir.end - ir.start;
-    let lx = len + 1;
-    let work_n = (2 * nv + 5) * lx + 1;
-    let need = work_n + 2 * nv * len + 3 * nf * mx;
-    if buf.len() < need {
-        buf.resize(need, 0.0);
-    }
-    let (work, rest) = buf.split_at_mut(work_n);
-    let (sl, rest) = rest.split_at_mut(2 * nv * len);
-    let (fx, rest) = rest.split_at_mut(nf * mx);
-    let (fa, rest) = rest.split_at_mut(nf * mx);
-    let (fb, _) = rest.split_at_mut(nf * mx);
-    let (mut fy_lo, mut fy_hi) = (fa, fb);
-    let mut cached: Option<(usize, usize)> = None;
-    // the y line whose fluxes `fy_lo` holds
-    let mut have: Option<usize> = None;
-    let rowblk = nv * mx;
-    let xfaces = g[0] - 1..g[0] + n[0];
-    for (k, (uu, u0r)) in u.chunks_mut(rowblk).zip(u0.chunks(rowblk)).enumerate() {
-        let r = r0 + k;
-        if first {
-            // U ← U0 row by row while it is in cache (the step swapped the buffers
-            // instead of copying them)
-            uu.copy_from_slice(u0r);
-        }
-        if !grid.interior_row(r) {
-            continue;
-        }
-        if have != Some(r - 1) {
-            face_line::<NM, 1>(ph, lim, grid, prim, r - 1, fy_lo, work, sl, &mut cached);
-            if let Some(w) = walls {
-                w.apply(1, r - 1, fy_lo);
-            }
-        }
-        face_line::<NM, 1>(ph, lim, grid, prim, r, fy_hi, work, sl, &mut cached);
-        let row = &prim[r * rowblk..(r + 1) * rowblk];
-        flux_row_x_into::<NM>(ph, lim, row, fx, mx, xfaces.clone(), work);
-        if let Some(w) = walls {
-            w.apply(1, r, fy_hi);
-            w.apply(0, r, fx);
-        }
-        update_row_faces::<NM>(
-            grid,
-            [&*fx, &*fy_hi, &*fy_lo, &*fx, &*fx],
-            uu,
-            u0r,
-            a,
-            b,
-            dt,
-        );
-        if let Some(nx) = next.as_mut() {
-            nx.row::<NM>(grid, ph, k, uu);
-        }
-        // the domain boundary faces, for the boundary impulse
-        let xb = &mut xb[k * 2 * nf..(k + 1) * 2 * nf];
-        for v in 0..nf {
-            xb[v] = fx[v * mx + g[0] - 1];
-            xb[nf + v] = fx[v * mx + g[0] + n[0] - 1];
-        }
-        for (line, fl) in [(r - 1, &*fy_lo), (r, &*fy_hi)] {
-            if (line == g[1] - 1 || line == g[1] + n[1] - 1) && line >= r0 {
-                let o = (line - r0) * nf * mx;
-                fyb[o..o + nf * mx].copy_from_slice(fl);
-            }
-        }
-        std::mem::swap(&mut fy_lo, &mut fy_hi);
-        have = Some(r);
-    }
-}
-
-multiversion! {
-    /// [`fused_block_body`] for the widest instruction set allowed.
-    fn fused_block<const NM: usize>(
-        ph: &[Phase; NM],
-        lim: Limiter,
-        grid: &Grid,
-        prim: &[f64],
-        r0: usize,
-        u: &mut [f64],
-        u0: &[f64],
-        xb: &mut [f64],
-        fyb: &mut [f64],
-        a: f64,
-        b: f64,
-        dt: f64,
-        buf: &mut Vec<f64>,
-        first: bool,
-        walls: Option<WallPatch<'_>>,
-        next: Option<NextPrims<'_>>,
-    ) = fused_block_body;
-}
-
-/// [`fluxes`] in x and y, then [`update`], fused per block of rows (2-D), the immersed walls'
-/// fluxes (`walls`) applied on the way. `first`: the first stage, for which `cons` holds
-/// nothing yet and each row is copied from `cons0` before its update. `next`: also the
-/// primitives of each updated row into `prim_next` ([`NextPrims`]).
-fn fused_stage_2d<const NM: usize>(
-    f: &mut Fluid,
-    ph: &[Phase; NM],
-    walls: Option<WallPatch<'_>>,
-    a: f64,
-    b: f64,
-    dt: f64,
-    first: bool,
-    next: bool,
-) {
-    let grid = &f.grid;
-    let simd = f.simd;
-    let lim = f.limiter;
-    let nv = f.nv;
-    let nf = nv + 1;
-    let mx = grid.mx();
-    let prim = &f.prim;
-    let [_, fy, _] = &mut f.flux;
-    let bcx = &f.bc[0];
-    let nb = fused_block_rows(grid.rows());
-    f.cons
-        .par_chunks_mut(nb * nv * mx)
-        .zip(f.cons0.par_chunks(nb * nv * mx))
-        .zip(f.x_bound.par_chunks_mut(nb * 2 * nf))
-        .zip(fy.par_chunks_mut(nb * nf * mx))
-        .zip(f.prim_next.par_chunks_mut(nb * nv * mx))
-        .zip(f.row_bad.par_chunks_mut(nb))
-        .enumerate()
-        .for_each(|(blk, (((((u, u0), xb), fyb), pn), bad))| {
-            LINE_SCRATCH.with(|cell| {
-                let mut buf = cell.borrow_mut();
-                let r0 = blk * nb;
-                let next = next.then_some(NextPrims { prim: pn, bad, bcx });
-                fused_block::<NM>(
-                    simd, ph, lim, grid, prim, r0, u, u0, xb, fyb, a, b, dt, &mut buf, first,
-                    walls, next,
-                );
-            });
-        });
-}
-
 /// Planes (rows of constant k) per rayon task of the fused 3-D stage: on one thread all of
 /// them (one task, so no z-face plane is computed twice); otherwise about four tasks per
 /// thread, at least 3 planes (so that the first task holds the lower ghost plane whose z
@@ -1043,7 +874,7 @@ fn fused_block_planes(planes: usize) -> usize {
     }
 }
 
-/// y lines per tile of the fused 3-D stage: a tile's face batches, slopes and the primitive
+/// y lines per tile of the fused stage: a tile's face batches, slopes and the primitive
 /// rows they read stay in cache while the tile sweeps up its planes.
 const TILE_J: usize = 8;
 
@@ -1098,7 +929,7 @@ fn sides_var<S: Fn(f64, f64) -> f64>(
     }
 }
 
-/// The face sides of a tile of rows of the fused 3-D stage along one direction.
+/// The face sides of a tile of rows of the fused stage along one direction.
 #[derive(Clone, Copy)]
 struct Sides<'a> {
     prim: &'a [f64],
@@ -1171,22 +1002,24 @@ fn z_faces<const NM: usize>(
     }
 }
 
-/// One RK stage of a block of planes of a 3-D grid, fused (the 3-D form of
-/// [`fused_block_body`]). The interior y lines of the planes go in tiles of [`TILE_J`]
-/// rows; a tile sweeps up the planes and, per plane, computes its faces in three batches
-/// (the z faces above its rows, the y faces between them, the x faces of each row), each
-/// batch one long vectorised pass of [`riemann_line`] rather than a pass per line. For z
-/// and y, each row's limited slopes and both its face values come in one pass
+/// One RK stage of a block of rows, fused: a block of planes of a 3-D grid or a block of
+/// rows of a 2-D one. The block's interior y lines go in tiles of [`TILE_J`] rows; a tile
+/// sweeps up the planes (a 2-D grid has one) and, per plane, computes its faces in three
+/// batches (the z faces above its rows, in 3-D; the y faces between them; the x faces of
+/// each row), each batch one long vectorised pass of [`riemann_line`] rather than a pass per
+/// line. For z and y, each row's limited slopes and both its face values come in one pass
 /// ([`Sides::rows`]), laid out so that the batch reads them in place; for x, the slopes of
 /// the tile's contiguous rows come in one pass (ghost columns included, never read), then
 /// the face values. Each row's z sides are computed once (the tile keeps those of the plane
-/// above), each y-face line once (a tile hands its top line to the next tile of the same
-/// plane), and the rows are updated at once. Faces that are immersed walls take the stage's wall fluxes
-/// (`walls`). Only the domain boundary faces are stored in `fl` (the block's rows of
-/// `x_bound`, `flux[1]`, `flux[2]`), for [`boundary_flux`]. Every value is that of `fluxes` +
-/// `write_wall_fluxes` + `update`: the same operations on the same operands per face.
+/// above), each y-face line once per block (a tile hands its top line to the next tile of
+/// the same plane), and the rows are updated at once, so no flux array is written or read
+/// back (the memory traffic of the stage halves). Faces that are immersed walls take the
+/// stage's wall fluxes (`walls`). Only the domain boundary faces are stored in `fl` (the
+/// block's rows of `x_bound`, `flux[1]`, `flux[2]`; the last empty in 2-D), for
+/// [`boundary_flux`]. Every value is that of `fluxes` + `write_wall_fluxes` + `update`: the
+/// same operations on the same operands per face.
 #[inline(always)]
-fn fused_planes_body<const NM: usize>(
+fn fused_block_body<const NM: usize, const D3: bool>(
     ph: &[Phase; NM],
     lim: Limiter,
     grid: &Grid,
@@ -1213,8 +1046,16 @@ fn fused_planes_body<const NM: usize>(
     let fblk = nf * mx;
     let nrows = u.len() / rowblk;
     let jt = TILE_J.min(n[1]);
-    let (kp0, kp1) = (r0 / m1, (r0 + nrows) / m1);
-    let (klo, khi) = (kp0.max(g[2]), kp1.min(g[2] + n[2]));
+    let d3 = D3;
+    debug_assert_eq!(d3, grid.nd > 2);
+    // the block's interior planes k and y lines j: in 3-D whole planes, in 2-D rows of the
+    // one plane
+    let (klo, khi, jlo, jhi) = if d3 {
+        let (kp0, kp1) = (r0 / m1, (r0 + nrows) / m1);
+        (kp0.max(g[2]), kp1.min(g[2] + n[2]), g[1], g[1] + n[1])
+    } else {
+        (0, 1, r0.max(g[1]), (r0 + nrows).min(g[1] + n[1]))
+    };
     let planes = khi.saturating_sub(klo);
     // the largest batch: jt + 1 lines of y faces or jt lines of x faces
     let mb = (jt + 1) * nx;
@@ -1268,9 +1109,9 @@ fn fused_planes_body<const NM: usize>(
     }
     // offset in `prim` of row (j, k)
     let at = |j: usize, k: usize| grid.row(j, k) * rowblk;
-    let mut j0 = g[1];
-    while planes > 0 && j0 < g[1] + n[1] {
-        let j1 = (j0 + jt).min(g[1] + n[1]);
+    let mut j0 = jlo;
+    while planes > 0 && j0 < jhi {
+        let j1 = (j0 + jt).min(jhi);
         let jn = j1 - j0;
         let (mut z_lo, mut z_hi) = (&mut *za, &mut *zb);
         // the face sides of this tile's rows in planes k (`lo`) and k + 1 (`hi`)
@@ -1285,30 +1126,34 @@ fn fused_planes_body<const NM: usize>(
             i0,
             n0,
         };
-        // the z faces below the block's first plane
-        sides.rows(at(j0, klo - 1), jn, plane, lo.0, lo.1);
-        sides.rows(at(j0, klo), jn, plane, hi.0, hi.1);
-        z_faces::<NM>(ph, grid, prim, walls, j0, jn, klo - 1, lo.0, hi.1, z_lo, ce);
-        if klo - 1 == g[2] - 1 {
-            for l in 0..jn {
-                keep(fzb, grid.row(j0 + l, klo - 1), &z_lo[l * n0..], zs);
+        if d3 {
+            // the z faces below the block's first plane
+            sides.rows(at(j0, klo - 1), jn, plane, lo.0, lo.1);
+            sides.rows(at(j0, klo), jn, plane, hi.0, hi.1);
+            z_faces::<NM>(ph, grid, prim, walls, j0, jn, klo - 1, lo.0, hi.1, z_lo, ce);
+            if klo - 1 == g[2] - 1 {
+                for l in 0..jn {
+                    keep(fzb, grid.row(j0 + l, klo - 1), &z_lo[l * n0..], zs);
+                }
             }
         }
         for k in klo..khi {
-            // `hi` holds plane k's sides: plane k + 1's go to `lo`
-            std::mem::swap(&mut lo, &mut hi);
-            sides.rows(at(j0, k + 1), jn, plane, hi.0, hi.1);
-            z_faces::<NM>(ph, grid, prim, walls, j0, jn, k, lo.0, hi.1, z_hi, ce);
-            if k == g[2] + n[2] - 1 {
-                for l in 0..jn {
-                    keep(fzb, grid.row(j0 + l, k), &z_hi[l * n0..], zs);
+            if d3 {
+                // `hi` holds plane k's sides: plane k + 1's go to `lo`
+                std::mem::swap(&mut lo, &mut hi);
+                sides.rows(at(j0, k + 1), jn, plane, hi.0, hi.1);
+                z_faces::<NM>(ph, grid, prim, walls, j0, jn, k, lo.0, hi.1, z_hi, ce);
+                if k == g[2] + n[2] - 1 {
+                    for l in 0..jn {
+                        keep(fzb, grid.row(j0 + l, k), &z_hi[l * n0..], zs);
+                    }
                 }
             }
-            // y faces: line slot s lies between rows j0 - 1 + s and j0 + s; the first tile
-            // computes slot 0, the later ones take it from the tile below
+            // y faces: line slot s lies between rows j0 - 1 + s and j0 + s; the block's first
+            // tile computes slot 0, the later ones take it from the tile below
             let ys = (jn + 1) * n0;
             let top = &mut ytop[(k - klo) * nf * n0..(k - klo + 1) * nf * n0];
-            let jb = if j0 == g[1] { j0 - 1 } else { j0 };
+            let jb = if j0 == jlo { j0 - 1 } else { j0 };
             let skip = jb + 1 - j0;
             if skip == 1 {
                 for v in 0..nf {
@@ -1376,6 +1221,7 @@ fn fused_planes_body<const NM: usize>(
                 if first {
                     uu.copy_from_slice(u0r);
                 }
+                // (a 2-D update reads no z faces)
                 let faces = [
                     (&*xf, xs, l * nx),
                     (&*yf, ys, (l + 1) * n0),
@@ -1395,8 +1241,8 @@ fn fused_planes_body<const NM: usize>(
 }
 
 multiversion! {
-    /// [`fused_planes_body`] for the widest instruction set allowed.
-    fn fused_planes<const NM: usize>(
+    /// [`fused_block_body`] for the widest instruction set allowed.
+    fn fused_block<const NM: usize, const D3: bool>(
         ph: &[Phase; NM],
         lim: Limiter,
         grid: &Grid,
@@ -1412,12 +1258,15 @@ multiversion! {
         first: bool,
         walls: Option<WallPatch<'_>>,
         next: Option<NextPrims<'_>>,
-    ) = fused_planes_body;
+    ) = fused_block_body;
 }
 
-/// [`fluxes`] in x, y and z, then [`update`], fused per block of planes (3-D), the immersed
-/// walls' fluxes applied on the way; `first` and `next` as for [`fused_stage_2d`].
-fn fused_stage_3d<const NM: usize>(
+/// [`fluxes`] in every direction, then [`update`], fused per block of rows (of planes in 3-D;
+/// [`fused_block_body`]), the immersed walls' fluxes (`walls`) applied on the way. `first`:
+/// the first stage, for which `cons` holds nothing yet and each row is copied from `cons0`
+/// before its update. `next`: also the primitives of each updated row into `prim_next`
+/// ([`NextPrims`]).
+fn fused_stage<const NM: usize>(
     f: &mut Fluid,
     ph: &[Phase; NM],
     walls: Option<WallPatch<'_>>,
@@ -1427,6 +1276,35 @@ fn fused_stage_3d<const NM: usize>(
     first: bool,
     next: bool,
 ) {
+    // z faces apart (the fields are borrowed one by one below); a 2-D grid has none, and its
+    // blocks get none to keep
+    let mut fz = std::mem::take(&mut f.flux[2]);
+    let fzb = f.nv + 1;
+    if f.grid.nd > 2 {
+        let nb = fused_block_planes(f.grid.m[2]) * f.grid.m[1];
+        let fzs = fz.par_chunks_mut(nb * fzb * f.grid.mx());
+        fused_blocks::<NM, true>(f, ph, walls, [a, b, dt], first, next, nb, fzs);
+    } else {
+        let nb = fused_block_rows(f.grid.rows());
+        let blocks = f.grid.rows().div_ceil(nb);
+        let none = rayon::iter::repeat_n((), blocks).map(|()| -> &mut [f64] { &mut [] });
+        fused_blocks::<NM, false>(f, ph, walls, [a, b, dt], first, next, nb, none);
+    }
+    f.flux[2] = fz;
+}
+
+/// [`fused_block`] over every block of `nb` rows in parallel (`[a, b, dt]`, `first`, `next`
+/// as for [`fused_stage`]), `fz` giving each its rows of z faces to keep.
+fn fused_blocks<'z, const NM: usize, const D3: bool>(
+    f: &mut Fluid,
+    ph: &[Phase; NM],
+    walls: Option<WallPatch<'_>>,
+    [a, b, dt]: [f64; 3],
+    first: bool,
+    next: bool,
+    nb: usize,
+    fz: impl IndexedParallelIterator<Item = &'z mut [f64]>,
+) {
     let grid = &f.grid;
     let simd = f.simd;
     let lim = f.limiter;
@@ -1434,15 +1312,14 @@ fn fused_stage_3d<const NM: usize>(
     let nf = nv + 1;
     let mx = grid.mx();
     let prim = &f.prim;
-    let [_, fy, fz] = &mut f.flux;
+    let fy = &mut f.flux[1];
     let bcx = &f.bc[0];
-    let nb = fused_block_planes(grid.m[2]) * grid.m[1];
     f.cons
         .par_chunks_mut(nb * nv * mx)
         .zip(f.cons0.par_chunks(nb * nv * mx))
         .zip(f.x_bound.par_chunks_mut(nb * 2 * nf))
         .zip(fy.par_chunks_mut(nb * nf * mx))
-        .zip(fz.par_chunks_mut(nb * nf * mx))
+        .zip(fz)
         .zip(f.prim_next.par_chunks_mut(nb * nv * mx))
         .zip(f.row_bad.par_chunks_mut(nb))
         .enumerate()
@@ -1451,7 +1328,7 @@ fn fused_stage_3d<const NM: usize>(
                 let mut buf = cell.borrow_mut();
                 let r0 = blk * nb;
                 let next = next.then_some(NextPrims { prim: pn, bad, bcx });
-                fused_planes::<NM>(
+                fused_block::<NM, D3>(
                     simd,
                     ph,
                     lim,
@@ -1858,11 +1735,7 @@ fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
                 // the next stage's primitives while each row is in cache, unless an
                 // immersed body's projection changes the cells after the update
                 let next = ib.is_none() && s + 1 < RK3.len();
-                if f.grid.nd == 2 {
-                    fused_stage_2d::<NM>(f, &ph, walls, a, b, dt, s == 0, next);
-                } else {
-                    fused_stage_3d::<NM>(f, &ph, walls, a, b, dt, s == 0, next);
-                }
+                fused_stage::<NM>(f, &ph, walls, a, b, dt, s == 0, next);
                 f.add_boundary_flux(ib.as_ref(), dt_w);
                 if next {
                     std::mem::swap(&mut f.prim, &mut f.prim_next);
