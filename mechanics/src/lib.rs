@@ -1,15 +1,18 @@
 //! What several solvers share (docs/architecture.md): constitutive updates (J2 plasticity with
-//! isotropic and kinematic hardening, in 3-D and plane stress), damage laws, meshfree
-//! kernels, neighbour search in compressed rows, explicit time-step helpers, 2-D bilinear
-//! finite elements, the GS4-II time integrators and the small tensor algebra (on nalgebra).
-//! One concern per file.
+//! isotropic and kinematic hardening, in 3-D and plane stress; Johnson–Cook visco-plasticity
+//! with adiabatic heating and its failure law), the Mie–Grüneisen equation of state, damage
+//! laws, meshfree kernels, neighbour search in compressed rows, explicit time-step helpers,
+//! 2-D bilinear finite elements, the GS4-II time integrators and the small tensor algebra (on
+//! nalgebra). One concern per file.
 
 pub mod damage;
 pub mod fem2d;
 pub mod gpu;
 pub mod j2;
 pub mod j2_plane_stress;
+pub mod johnson_cook;
 pub mod kernel;
+pub mod mie_gruneisen;
 pub mod neighbour;
 pub mod simd;
 pub mod tensor;
