@@ -4,9 +4,11 @@
 /// The policy of tests that need something a machine may lack: skip with a message outside
 /// CI, fail under `CI=true`.
 pub use mechanics::gpu::skip_or_fail;
+use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::{Mutex, Once};
 
 /// `target/<profile>`: the directory of the running test binary's parent.
 pub fn bin_dir() -> PathBuf {
@@ -36,7 +38,20 @@ pub fn workspace_root() -> PathBuf {
 
 static COUNTER: AtomicU32 = AtomicU32::new(0);
 
-/// A fresh scratch directory and a unique run id for one test.
+/// Every scratch directory of this process, and those of the tests that failed (kept).
+static SCRATCH: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+static KEEP: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+static CLEANUP: Once = Once::new();
+
+thread_local! {
+    /// The scratch directories the test running on this thread made.
+    static MINE: RefCell<Vec<PathBuf>> = const { RefCell::new(Vec::new()) };
+}
+
+/// A fresh scratch directory and a unique run id for one test. When the test binary exits,
+/// the directories of the tests that passed are removed (a full run writes gigabytes of
+/// recordings and frames); those of a test that panicked are kept, for a look at what it
+/// left (the panic message is followed by a line naming them).
 pub fn scratch(tag: &str) -> (PathBuf, String) {
     let n = COUNTER.fetch_add(1, Ordering::Relaxed);
     let id = format!("t{}-{}-{}", std::process::id() % 100_000, n, tag);
@@ -46,7 +61,42 @@ pub fn scratch(tag: &str) -> (PathBuf, String) {
     let dir = std::env::temp_dir().join(format!("cosim-tests/{id}"));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("scratch dir");
+    remove_at_exit(&dir);
     (dir, id)
+}
+
+/// Books `dir` for removal at exit unless the thread that made it panics.
+fn remove_at_exit(dir: &Path) {
+    CLEANUP.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            previous(info);
+            let mine = MINE.with(|m| std::mem::take(&mut *m.borrow_mut()));
+            if !mine.is_empty() {
+                eprintln!("kept for inspection: {mine:?}");
+                lock(&KEEP).extend(mine);
+            }
+        }));
+        // SAFETY: `remove_scratch` is a plain `extern "C" fn` that takes no arguments and
+        // returns; libtest leaves through `std::process::exit`, which runs it.
+        unsafe {
+            libc::atexit(remove_scratch);
+        }
+    });
+    lock(&SCRATCH).push(dir.to_path_buf());
+    MINE.with(|m| m.borrow_mut().push(dir.to_path_buf()));
+}
+
+extern "C" fn remove_scratch() {
+    let keep = lock(&KEEP).clone();
+    for d in lock(&SCRATCH).iter().filter(|d| !keep.contains(d)) {
+        let _ = std::fs::remove_dir_all(d);
+    }
+}
+
+/// A lock that a panicking test cannot poison for the others.
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 /// Run `cosim` with arguments.
