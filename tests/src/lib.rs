@@ -49,9 +49,9 @@ thread_local! {
 }
 
 /// A fresh scratch directory and a unique run id for one test. When the test binary exits,
-/// the directories of the tests that passed are removed (a full run writes gigabytes of
-/// recordings and frames); those of a test that panicked are kept, for a look at what it
-/// left (the panic message is followed by a line naming them).
+/// the directories of the tests that passed are removed (otherwise every run's recordings
+/// and frames stay behind and pile up); those of a test that panicked are kept, for a look at
+/// what it left (the panic message is followed by a line naming them).
 pub fn scratch(tag: &str) -> (PathBuf, String) {
     let n = COUNTER.fetch_add(1, Ordering::Relaxed);
     let id = format!("t{}-{}-{}", std::process::id() % 100_000, n, tag);
@@ -78,7 +78,9 @@ fn remove_at_exit(dir: &Path) {
             }
         }));
         // SAFETY: `remove_scratch` is a plain `extern "C" fn` that takes no arguments and
-        // returns; libtest leaves through `std::process::exit`, which runs it.
+        // returns. The C library runs it at exit, whether the test binary's `main` returns
+        // (all passed) or libtest calls `std::process::exit` (a failure); a binary killed by
+        // a signal leaves its folders.
         unsafe {
             libc::atexit(remove_scratch);
         }
