@@ -21,6 +21,9 @@ pub struct BondInput {
     pub von_mises: f64,
     /// Equivalent plastic strain associated with the bond.
     pub eq_plastic_strain: f64,
+    /// Cumulative failure indicator associated with the bond (the Johnson–Cook D of a
+    /// point law that has one, e.g. [`crate::blast_solid`]; 0 otherwise).
+    pub failure: f64,
 }
 
 /// A bond damage law: the intact fraction ω_D ∈ [0, 1] for a bond's current state.
@@ -149,6 +152,26 @@ impl DamageModel for BrittleVonMises {
     }
     fn name(&self) -> &'static str {
         "von_mises"
+    }
+}
+
+/// Failure by a point law's cumulative indicator (the Johnson–Cook D = Σ Δε̄ᵖ/ε_f of
+/// [`crate::blast_solid`]): a bond breaks for good once the indicator associated with it —
+/// the mean of its two end points' — reaches 1. The indicator itself is accumulated by the
+/// point law, which holds the failure constants.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FailureIndicator;
+
+impl DamageModel for FailureIndicator {
+    #[inline]
+    fn intact_fraction(&self, input: &BondInput) -> f64 {
+        if input.failure >= 1.0 { 0.0 } else { 1.0 }
+    }
+    fn validate(&self) -> Result<(), (String, String)> {
+        Ok(())
+    }
+    fn name(&self) -> &'static str {
+        "johnson_cook"
     }
 }
 

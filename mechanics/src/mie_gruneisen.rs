@@ -101,6 +101,14 @@ impl MieGruneisen {
         (f, df)
     }
 
+    /// The two terms of p = f + Γ E at density ρ: f = f(μ), the energy-independent part, and
+    /// Γ = γ₀ + aμ (for a caller that solves for p and E together, p being linear in E).
+    #[inline]
+    pub fn linear_in_energy(&self, density: f64) -> (f64, f64) {
+        let mu = self.compression(density);
+        (self.cold(mu).0, self.gamma0 + self.volume_correction * mu)
+    }
+
     /// Pressure p(ρ, E) (Pa), E per unit reference volume (J/m³); the formula of the module
     /// documentation.
     #[inline]
@@ -171,8 +179,23 @@ impl MieGruneisen {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// y(to) of y' = f(x, y), y(x) = y, by classical Runge–Kutta in `steps` equal steps.
+    pub(crate) fn rk4(f: &dyn Fn(f64, f64) -> f64, x: f64, y: f64, to: f64, steps: usize) -> f64 {
+        let h = (to - x) / steps as f64;
+        let (mut x, mut y) = (x, y);
+        for _ in 0..steps {
+            let k1 = f(x, y);
+            let k2 = f(x + 0.5 * h, y + 0.5 * h * k1);
+            let k3 = f(x + 0.5 * h, y + 0.5 * h * k2);
+            let k4 = f(x + h, y + h * k3);
+            y += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+            x += h;
+        }
+        y
+    }
 
     /// Principal Hugoniot from the Rankine–Hugoniot jumps (p₀ = E₀ = 0) of a linear Us–up
     /// material, for particle speeds 50…2000 m/s: Us = C₀ + S₁up, ρ = ρ₀Us/(Us − up),
@@ -296,20 +319,7 @@ mod tests {
         let rho0 = m.density;
         // dE/dρ along the isentrope.
         let rate = |rho: f64, e: f64| m.pressure(rho, e) * rho0 / (rho * rho);
-        let isentrope = |rho: f64, e: f64, to: f64| {
-            let steps = 20;
-            let h = (to - rho) / steps as f64;
-            let (mut r, mut e) = (rho, e);
-            for _ in 0..steps {
-                let k1 = rate(r, e);
-                let k2 = rate(r + 0.5 * h, e + 0.5 * h * k1);
-                let k3 = rate(r + 0.5 * h, e + 0.5 * h * k2);
-                let k4 = rate(r + h, e + h * k3);
-                e += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
-                r += h;
-            }
-            e
-        };
+        let isentrope = |rho: f64, e: f64, to: f64| rk4(&rate, rho, e, to, 20);
         let mut samples = 0;
         for mu in [-0.2, -0.05, 0.05, 0.2, 0.5] {
             for e in [0.0, 2e8, 2e9] {

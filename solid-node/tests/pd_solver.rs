@@ -302,6 +302,14 @@ fn kinematic_driver_sends_motion_and_applies_the_force() {
     }
 }
 
+/// 4340 steel as Johnson–Cook solid with the Mie–Grüneisen pressure and a low failure
+/// strain (ε_f = 0.002).
+const JOHNSON_COOK: &str = r#"poisson = 0.29
+yield_stress = 300e6
+johnson_cook = { hardening_modulus = 510e6, hardening_exponent = 0.26, rate_coefficient = 0.014, thermal_exponent = 1.03, room_temperature = 273.0, melt_temperature = 1793.0, specific_heat = 477.0 }
+eos = { kind = "mie_gruneisen", sound_speed = 4569.0, s1 = 1.49, gamma0 = 2.17, volume_correction = 0.46 }
+damage = { kind = "johnson_cook", d1 = 0.002, d2 = 0.0, d3 = 0.0, d4 = 0.0, d5 = 0.0 }"#;
+
 /// Checkpoint: `save_state` after some windows, then (a) keep running and (b) a fresh node
 /// built from the same parameters that `load_state`s the blob and runs the same windows give
 /// bit-identical positions, velocities, damage and reports, for every model (with plasticity
@@ -321,6 +329,9 @@ fn checkpoint_restart_is_bit_identical() {
             "pd-rk-ba",
             "poisson = 0.3\nyield_stress = 150e6\nkin_hardening = 20e9\ndamage = { kind = \"von_mises\", critical_stress = 250e6 }",
         ),
+        // the Johnson–Cook solid with its temperature, pressure work and failure indicator
+        // (a failure strain of 0.2 % so that bonds break within the run)
+        ("pd-correspondence", JOHNSON_COOK),
     ];
     for (model, ex) in extra {
         let mut t = base();

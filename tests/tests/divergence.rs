@@ -351,6 +351,7 @@ fn every_example_and_variant_starts_within_the_default_energy_bound() {
             if let Some(v) = variant {
                 extra.extend(["--variant", v]);
             }
+            let started = std::time::Instant::now();
             let o = run_case(&case, &out, &id, &extra);
             let err = String::from_utf8_lossy(&o.stderr);
             assert_eq!(o.status.code(), Some(0), "{tag}: {err}");
@@ -358,8 +359,9 @@ fn every_example_and_variant_starts_within_the_default_energy_bound() {
             assert_eq!(s["status"], "finished", "{tag}: {s}");
             let over = s["balance"]["max_energy_over_budget"].as_f64().unwrap();
             println!(
-                "{tag}: {} windows, energy at most {over:.3} × its budget",
-                s["windows"]
+                "{tag}: {} windows, energy at most {over:.3} × its budget ({:.2} s)",
+                s["windows"],
+                started.elapsed().as_secs_f64()
             );
             assert!(over < 10.0, "{tag}: {over}");
             let _ = std::fs::remove_dir_all(&scratch_dir);

@@ -27,8 +27,9 @@
 use super::family::{Bonds, par_row_blocks, par_rows};
 use super::model::{Dim, Kinematics, PdModel};
 use mechanics::damage::{BondInput, DamageModel};
-use mechanics::j2::{J2Material, J2State, Sym, jaumann_rotate, von_mises};
+use mechanics::j2::{J2Material, J2State, Sym, von_mises};
 use mechanics::simd::Simd;
+use mechanics::stress_law::StressLaw;
 use mechanics::tensor::{self, IDENTITY};
 use protocol::checkpoint::{check_len, decode_state, encode_state};
 use protocol::solver::SolverResult;
@@ -87,22 +88,27 @@ pub struct BondSide {
     pub ahat: M3,
     /// κ = G C V_H/ω₀ (0 for an inactive particle).
     pub kappa: f64,
-    /// Von Mises stress and equivalent plastic strain, for bond damage.
+    /// Von Mises stress, equivalent plastic strain and failure indicator, for bond damage.
     pub vm: f64,
     pub eqp: f64,
+    pub fail: f64,
 }
 
 /// What a checkpoint holds of a correspondence body (`PdModel::save_state`, and the device
-/// path's state in the same form): per particle its J2 state, plastic work and strain energy
-/// given up by bond damage.
+/// path's state in the same form): per particle its material state (`S`, the stress law's),
+/// plastic work and strain energy given up by bond damage.
 #[derive(Debug, serde::Serialize, serde::Deserialize)]
-pub struct CorrHistory<'a> {
-    pub state: Cow<'a, [J2State]>,
+#[serde(bound(
+    serialize = "S: serde::Serialize",
+    deserialize = "S: serde::de::DeserializeOwned"
+))]
+pub struct CorrHistory<'a, S: Clone = J2State> {
+    pub state: Cow<'a, [S]>,
     pub plastic_work: Cow<'a, [f64]>,
     pub released: Cow<'a, [f64]>,
 }
 
-impl CorrHistory<'_> {
+impl<S: Clone + serde::de::DeserializeOwned> CorrHistory<'_, S> {
     /// Decodes a history of `particles` particles, refusing one of another size.
     pub fn decode(bytes: &[u8], particles: usize) -> SolverResult<Self> {
         let h: Self = decode_state(bytes)?;
@@ -112,10 +118,11 @@ impl CorrHistory<'_> {
     }
 }
 
-/// The correspondence model, generic over its damage law (monomorphized bond loop).
-pub struct Correspondence<D: DamageModel> {
+/// The correspondence model, generic over its damage law (monomorphized bond loop) and its
+/// stress law (J2 plasticity unless said otherwise).
+pub struct Correspondence<D: DamageModel, L: StressLaw = J2Material> {
     pub dim: Dim,
-    pub material: J2Material,
+    pub material: L,
     /// Stabilization constant G of eq. (186) (seed 001 uses 0.5).
     pub stabilization: f64,
     /// Bond micromodulus C of eq. (188).
@@ -124,7 +131,7 @@ pub struct Correspondence<D: DamageModel> {
     pub horizon_volume: f64,
     pub damage: D,
     pub horizon: f64,
-    pub state: Vec<J2State>,
+    pub state: Vec<L::State>,
     /// Plastic work density per particle since the start (J/m³).
     pub plastic_work: Vec<f64>,
     /// Per-particle scratch of the strain-energy sum (J).
@@ -148,11 +155,11 @@ pub struct Correspondence<D: DamageModel> {
     packed: avx512::Packed,
 }
 
-impl<D: DamageModel> Correspondence<D> {
+impl<D: DamageModel, L: StressLaw> Correspondence<D, L> {
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         dim: Dim,
-        material: J2Material,
+        material: L,
         stabilization: f64,
         horizon: f64,
         thickness: f64,
@@ -160,8 +167,8 @@ impl<D: DamageModel> Correspondence<D> {
         k: &Kinematics,
         bonds: &Bonds,
     ) -> Self {
-        let kb = material.bulk_modulus();
-        let (nu, e) = (material.poisson, material.young);
+        let (e, nu) = material.elastic_constants();
+        let kb = e / (3.0 * (1.0 - 2.0 * nu));
         // eq. (188)–(189)
         let (c, vh) = match dim {
             Dim::Three => (
@@ -187,7 +194,7 @@ impl<D: DamageModel> Correspondence<D> {
             horizon_volume: vh,
             damage,
             horizon,
-            state: vec![J2State::default(); n],
+            state: vec![material.initial_state(); n],
             plastic_work: vec![0.0; n],
             energy: vec![0.0; n],
             released: vec![0.0; n],
@@ -272,8 +279,9 @@ impl<D: DamageModel> Correspondence<D> {
                     *sd = BondSide {
                         ahat: [[0.0; 3]; 3],
                         kappa: 0.0,
-                        vm: von_mises(&st.stress),
-                        eqp: st.eq_plastic_strain,
+                        vm: von_mises(L::stress(st)),
+                        eqp: L::eq_plastic_strain(st),
+                        fail: L::failure(st),
                     };
                     return;
                 }
@@ -301,17 +309,10 @@ impl<D: DamageModel> Correspondence<D> {
                         0.5 * (l[0][2] + l[2][0]) * dt,
                         0.5 * (l[0][1] + l[1][0]) * dt,
                     ];
-                    // seed 000 eq. (B.2)–(B.4): Jaumann rate, then radial return.
-                    jaumann_rotate(&mut st.stress, &spin, dt);
-                    jaumann_rotate(&mut st.back_stress, &spin, dt);
-                    let deqp = if dim == Dim::PlaneStress {
-                        mat.update_plane_stress(st, &de).0
-                    } else {
-                        mat.update(st, &de)
-                    };
-                    *wp += mechanics::j2::plastic_work(st, deqp);
+                    // seed 000 eq. (B.2)–(B.4): Jaumann rate, then the law's update
+                    *wp += mat.step(st, &de, &spin, dt, det(&f), dim == Dim::PlaneStress);
                 }
-                let s = mechanics::j2::to_matrix(&st.stress);
+                let s = mechanics::j2::to_matrix(L::stress(st));
                 // P = J σ F⁻ᵀ, A = P K⁻¹
                 let a = match finv {
                     Some(finv) => {
@@ -331,8 +332,9 @@ impl<D: DamageModel> Correspondence<D> {
                     // formed from displacements too
                     ahat: std::array::from_fn(|r| std::array::from_fn(|c| a[r][c] - kd * h[r][c])),
                     kappa,
-                    vm: von_mises(&st.stress),
-                    eqp: st.eq_plastic_strain,
+                    vm: von_mises(L::stress(st)),
+                    eqp: L::eq_plastic_strain(st),
+                    fail: L::failure(st),
                 };
             });
         #[cfg(target_arch = "x86_64")]
@@ -355,7 +357,7 @@ impl<D: DamageModel> Correspondence<D> {
     }
 
     /// What [`point_energy`] reads.
-    fn energy_view(&self) -> EnergyView<'_> {
+    fn energy_view(&self) -> EnergyView<'_, L> {
         EnergyView {
             dim: self.dim,
             mat: self.material,
@@ -573,6 +575,7 @@ fn force_block_body<D: DamageModel>(
                         stretch: super::bond::stretch_over_len(&x, &e, il).0,
                         von_mises: 0.5 * (pi.vm + pj.vm),
                         eq_plastic_strain: 0.5 * (pi.eqp + pj.eqp),
+                        failure: 0.5 * (pi.fail + pj.fail),
                     };
                     damage.update(*om, &input)
                 }
@@ -645,13 +648,13 @@ fn detach_inactive(kin: &[PointKin], k0det: &[f64], bonds: &mut Bonds) -> u32 {
 }
 
 /// What a particle's strain energy reads from the model (see [`point_energy`]).
-struct EnergyView<'a> {
+struct EnergyView<'a, L: StressLaw> {
     dim: Dim,
-    mat: J2Material,
+    mat: L,
     inv_h: f64,
     /// κ₀ = G C V_H (κ = κ₀/Σ ω V_j).
     kappa0: f64,
-    state: &'a [J2State],
+    state: &'a [L::State],
     kin: &'a [PointKin],
     side: &'a [BondSide],
     k0det: &'a [f64],
@@ -667,7 +670,13 @@ struct EnergyView<'a> {
 /// κ are pass 1's; for a family that damage changed since, K⁻¹, H and κ = κ₀/Σ ω V_j are
 /// formed as the next pass 1 forms them, so the energy follows damage at once. A particle
 /// that carries no gradient (fully broken, or too few bonds left) stores nothing.
-fn point_energy(v: &EnergyView, i: usize, k: &Kinematics, bonds: &Bonds, row: &[f64]) -> f64 {
+fn point_energy<L: StressLaw>(
+    v: &EnergyView<L>,
+    i: usize,
+    k: &Kinematics,
+    bonds: &Bonds,
+    row: &[f64],
+) -> f64 {
     let r = bonds.offsets[i]..bonds.offsets[i + 1];
     let (nbr, xis) = (&bonds.nbr[r.clone()], &bonds.xi[r]);
     let pk = &v.kin[i];
@@ -740,10 +749,10 @@ fn point_energy(v: &EnergyView, i: usize, k: &Kinematics, bonds: &Bonds, row: &[
         }
         psi *= 0.5 * kappa * v.inv_h;
     }
-    k.vol[i] * (v.mat.elastic_energy(&v.state[i].stress) + psi)
+    k.vol[i] * (v.mat.stored_energy(&v.state[i]) + psi)
 }
 
-impl<D: DamageModel> PdModel for Correspondence<D> {
+impl<D: DamageModel, L: StressLaw> PdModel for Correspondence<D, L> {
     fn name(&self) -> &'static str {
         "pd-correspondence"
     }
@@ -798,9 +807,7 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
 
     fn stable_dt(&self, k: &Kinematics, bonds: &Bonds, density: f64) -> f64 {
         // seed 001 §4.2: Δt ≤ l/c, l the spacing, c the dilatational wave speed.
-        let m = &self.material;
-        let modulus = m.bulk_modulus() + 4.0 / 3.0 * m.shear_modulus();
-        let c = (modulus / density).sqrt();
+        let c = (self.material.wave_modulus() / density).sqrt();
         let mut lmin = f64::INFINITY;
         for i in 0..bonds.particles() {
             for b in bonds.offsets[i]..bonds.offsets[i + 1] {
@@ -840,11 +847,20 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
     }
 
     fn stress(&self) -> Option<Vec<Sym>> {
-        Some(self.state.iter().map(|s| s.stress).collect())
+        Some(self.state.iter().map(|s| *L::stress(s)).collect())
     }
 
     fn plastic_strain(&self) -> Option<Vec<f64>> {
-        Some(self.state.iter().map(|s| s.eq_plastic_strain).collect())
+        Some(self.state.iter().map(L::eq_plastic_strain).collect())
+    }
+
+    fn point_scalars(&self) -> Vec<(&'static str, Vec<f64>)> {
+        let names = self.material.scalar_names();
+        names
+            .iter()
+            .enumerate()
+            .map(|(k, &name)| (name, self.state.iter().map(|s| L::scalar(s, k)).collect()))
+            .collect()
     }
 
     fn save_state(&self) -> SolverResult<Vec<u8>> {
@@ -856,7 +872,7 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
     }
 
     fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
-        let h = CorrHistory::decode(bytes, self.state.len())?;
+        let h = CorrHistory::<L::State>::decode(bytes, self.state.len())?;
         check_len(
             "released bond energy",
             h.released.len(),
@@ -880,8 +896,7 @@ impl<D: DamageModel> PdModel for Correspondence<D> {
 
     fn stiffness_bound(&self, k: &Kinematics, bonds: &Bonds, i: usize) -> f64 {
         // (K + 4G/3) Δx-scaled: modulus × V_i / l_min²
-        let m = &self.material;
-        let modulus = m.bulk_modulus() + 4.0 / 3.0 * m.shear_modulus();
+        let modulus = self.material.wave_modulus();
         let l = (bonds.offsets[i]..bonds.offsets[i + 1])
             .map(|b| 1.0 / bonds.inv_len[b])
             .fold(f64::INFINITY, f64::min);
@@ -933,6 +948,7 @@ mod tests {
                         stretch: crate::pd::bond::stretch_over_len(x, &e, il).0,
                         von_mises: 0.5 * (pi.vm + pj.vm),
                         eq_plastic_strain: 0.5 * (pi.eqp + pj.eqp),
+                        failure: 0.5 * (pi.fail + pj.fail),
                     };
                     let w = m.damage.update(*om, &input);
                     *om = w;

@@ -52,8 +52,9 @@ pub fn build(
 /// Keys of the parameter table that the chosen model or dimension ignores are refused by
 /// name, so a key meant for another model is not silently dropped: each model's own list
 /// (`PdModelDef::refuses`: the J2 keys and `stabilization` on the elastic bond model,
-/// `rk_order` outside pd-rk-ba, `stabilization` on pd-rk-ba), hardening without
-/// `yield_stress`, `thickness` in 3-D.
+/// `rk_order` outside pd-rk-ba, `stabilization` on pd-rk-ba, `johnson_cook` and `eos`
+/// outside pd-correspondence), hardening without `yield_stress`, J2 hardening with
+/// `johnson_cook`, `eos` without it, `thickness` in 3-D.
 fn refuse_inapplicable(def: &models::PdModelDef, params: &toml::Table) -> SolverResult<()> {
     use protocol::SolverError;
     let has = |k: &str| params.contains_key(k);
@@ -72,6 +73,21 @@ fn refuse_inapplicable(def: &models::PdModelDef, params: &toml::Table) -> Solver
                 );
             }
         }
+    }
+    if has("johnson_cook") {
+        for k in ["iso_hardening", "kin_hardening"] {
+            if has(k) {
+                return only(
+                    k,
+                    "is J2's linear hardening; with johnson_cook the hardening is its B and n",
+                );
+            }
+        }
+    } else if has("eos") {
+        return only(
+            "eos",
+            "applies only with johnson_cook (the J2 material's pressure follows its bulk modulus)",
+        );
     }
     if has("thickness") && params.get("dimension").and_then(|d| d.as_str()) == Some("3d") {
         return only(

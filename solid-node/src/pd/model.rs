@@ -91,6 +91,12 @@ pub trait PdModel: Send + Sync {
         None
     }
 
+    /// Further per-particle scalars of the model's stress law (name, one value per
+    /// particle), e.g. the temperature of a Johnson–Cook solid; none by default.
+    fn point_scalars(&self) -> Vec<(&'static str, Vec<f64>)> {
+        Vec::new()
+    }
+
     /// The model's history (what the next step needs and cannot recompute) for a checkpoint,
     /// in the node kit's state encoding (`protocol::checkpoint::encode_state`).
     fn save_state(&self) -> SolverResult<Vec<u8>>;

@@ -615,6 +615,7 @@ impl<D: DamageModel> PdModel for RkBa<D> {
                     stretch: x2.sqrt() * il - 1.0,
                     von_mises: von_mises(&h.state.stress),
                     eq_plastic_strain: h.state.eq_plastic_strain,
+                    failure: 0.0,
                 };
                 let wd = damage.update(h.wd, &input);
                 let om = if wd < h.wd { om0 * (wd / h.wd) } else { om0 };

@@ -24,7 +24,7 @@ use super::models::{ModelInput, PdModelDef};
 pub use super::params::*;
 use crate::fem2d::load_ramp;
 use mechanics::damage::{
-    BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain, NoDamage,
+    BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain, FailureIndicator, NoDamage,
 };
 use mechanics::j2::{J2Material, von_mises};
 use mechanics::time::LoadRamp;
@@ -381,6 +381,11 @@ impl PdSolver {
         {
             let m = ep.iter().cloned().fold(0.0, f64::max);
             v.push(("max_plastic_strain".into(), m));
+        }
+        // the stress law's own point scalars (temperature, failure indicator)
+        for (name, values) in self.body.model.point_scalars() {
+            let m = values.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+            v.push((format!("max_{name}"), m));
         }
         if matches!(self.params.damage, None | Some(DamageParams::None {})) {
             return v;
@@ -811,6 +816,15 @@ fn check_params(p: &PdParams, three_d: bool) -> SolverResult<J2Material> {
             threshold: *eps_threshold,
             critical: *eps_critical,
         }),
+        Some(DamageParams::JohnsonCook { .. }) => {
+            if p.johnson_cook.is_none() {
+                return cfg(
+                    "damage.kind",
+                    "\"johnson_cook\" needs the johnson_cook strength table (its failure indicator grows with that law's plastic strain, rate and temperature)",
+                );
+            }
+            Box::new(FailureIndicator)
+        }
     };
     if let Err((k, r)) = damage.validate() {
         return cfg(&format!("damage.{k}"), r);
@@ -1134,6 +1148,7 @@ fn gpu_supports(def: &PdModelDef, dim: Dim, p: &PdParams) -> Result<(), String> 
         Some(DamageParams::CriticalStretch { .. }) => Some("critical_stretch"),
         Some(DamageParams::VonMises { .. }) => Some("von_mises"),
         Some(DamageParams::PlasticStrain { .. }) => Some("plastic_strain"),
+        Some(DamageParams::JohnsonCook { .. }) => Some("johnson_cook"),
     };
     if let Some(kind) = kind {
         return Err(format!(
@@ -1707,6 +1722,9 @@ impl Solver for PdSolver {
         }
         if let Some(p) = plastic {
             data.push(("plastic_strain", 1, p));
+        }
+        for (name, values) in b.model.point_scalars() {
+            data.push((name, 1, values));
         }
         let mut bonds = b.bonds.clone();
         b.model.sync_bonds(&mut bonds);

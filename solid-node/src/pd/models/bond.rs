@@ -29,6 +29,14 @@ pub const DEF: PdModelDef = PdModelDef {
             "kin_hardening",
             "does not apply to pd-bond (elastic-brittle; use pd-correspondence or pd-rk-ba for plasticity)",
         ),
+        (
+            "johnson_cook",
+            "does not apply to pd-bond (elastic-brittle; only pd-correspondence runs the Johnson–Cook solid)",
+        ),
+        (
+            "eos",
+            "does not apply to pd-bond (only pd-correspondence's Johnson–Cook solid takes an equation of state)",
+        ),
     ],
     plastic: false,
     build,

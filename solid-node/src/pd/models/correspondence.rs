@@ -1,13 +1,16 @@
-//! `pd-correspondence`: the non-ordinary state-based correspondence model with J2 plasticity
-//! and zero-energy stabilization (its force law: `pd/correspondence.rs`).
+//! `pd-correspondence`: the non-ordinary state-based correspondence model with zero-energy
+//! stabilization (its force law: `pd/correspondence.rs`), with J2 plasticity or, given
+//! `johnson_cook`, the blast solid (Johnson–Cook strength, an equation of state, Johnson–Cook
+//! failure; `mechanics::blast_solid`).
 
-use super::{DamageVisitor, DeviceDef, ModelInput, PdModelDef, with_damage};
+use super::{DamageVisitor, DeviceDef, ModelInput, PdModelDef, cfg, with_damage};
 use crate::pd::correspondence::Correspondence;
 use crate::pd::gpu::DeviceBody;
 use crate::pd::integrate::Body;
 use crate::pd::model::{Dim, PdModel};
 use mechanics::damage::{DamageModel, NoDamage};
 use mechanics::gpu::{GpuContext, GpuError};
+use mechanics::stress_law::StressLaw;
 use protocol::SolverResult;
 use std::sync::Arc;
 
@@ -20,7 +23,10 @@ pub const DEF: PdModelDef = PdModelDef {
     plastic: true,
     build,
     device: Some(DeviceDef {
-        refuses: |dim, _| {
+        refuses: |dim, p| {
+            if p.johnson_cook.is_some() {
+                return Some("\"gpu\" does not support johnson_cook (the device kernels integrate J2 plasticity only): use device = \"cpu\"".to_string());
+            }
             (dim == Dim::PlaneStress).then(|| {
                 "\"gpu\" does not support dimension = \"plane_stress\" for pd-correspondence (its through-thickness iteration has no device kernel): use plane_strain or 3d, or use device = \"cpu\"".to_string()
             })
@@ -29,22 +35,32 @@ pub const DEF: PdModelDef = PdModelDef {
     }),
 };
 
-/// The model with the damage law the parameters give.
+/// The model with the stress and damage laws the parameters give.
 fn build(m: &ModelInput) -> SolverResult<Box<dyn PdModel>> {
-    struct Make<'a, 'b>(&'a ModelInput<'b>);
-    impl DamageVisitor<Box<dyn PdModel>> for Make<'_, '_> {
+    let solid = m.p.blast_solid().or_else(|(k, r)| cfg(&k, r))?;
+    if solid.is_some() && m.dim == Dim::PlaneStress {
+        return cfg(
+            "johnson_cook",
+            "is integrated in 3d and plane_strain (plane stress's through-thickness iteration is J2's alone)",
+        );
+    }
+    struct Make<'a, 'b, L>(&'a ModelInput<'b>, L);
+    impl<L: StressLaw> DamageVisitor<Box<dyn PdModel>> for Make<'_, '_, L> {
         fn visit<D: DamageModel + 'static>(self, damage: D) -> Box<dyn PdModel> {
-            Box::new(model(self.0, damage))
+            Box::new(model(self.0, self.1, damage))
         }
     }
-    Ok(with_damage(&m.p.damage, Make(m)))
+    Ok(match solid {
+        Some(s) => with_damage(&m.p.damage, Make(m, s)),
+        None => with_damage(&m.p.damage, Make(m, m.material)),
+    })
 }
 
-fn model<D: DamageModel>(m: &ModelInput, damage: D) -> Correspondence<D> {
+fn model<D: DamageModel, L: StressLaw>(m: &ModelInput, law: L, damage: D) -> Correspondence<D, L> {
     let p = m.p;
     Correspondence::new(
         m.dim,
-        m.material,
+        law,
         p.stabilization,
         p.horizon,
         p.thickness,
@@ -61,5 +77,5 @@ fn open(
     body: &Body,
     gather: &[usize],
 ) -> Result<DeviceBody, GpuError> {
-    DeviceBody::corr(ctx, body, model(m, NoDamage), gather)
+    DeviceBody::corr(ctx, body, model(m, m.material, NoDamage), gather)
 }

@@ -13,7 +13,9 @@ use super::gpu::DeviceBody;
 use super::integrate::Body;
 use super::model::{Dim, Kinematics, PdModel};
 use super::params::{DamageParams, PdParams};
-use mechanics::damage::{BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain};
+use mechanics::damage::{
+    BrittleVonMises, CriticalStretch, DamageModel, DuctilePlasticStrain, FailureIndicator,
+};
 use mechanics::gpu::{GpuContext, GpuError};
 use mechanics::j2::J2Material;
 use protocol::{SolverError, SolverResult};
@@ -87,6 +89,8 @@ pub(super) fn with_damage<R>(damage: &Option<DamageParams>, f: impl DamageVisito
             threshold: eps_threshold,
             critical: eps_critical,
         }),
+        // the indicator is accumulated by the stress law (checked at set-up to be there)
+        DamageParams::JohnsonCook { .. } => f.visit(FailureIndicator),
     }
 }
 

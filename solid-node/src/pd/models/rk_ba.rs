@@ -9,10 +9,20 @@ use protocol::SolverResult;
 
 pub const DEF: PdModelDef = PdModelDef {
     name: "pd-rk-ba",
-    refuses: &[(
-        "stabilization",
-        "does not apply to pd-rk-ba (its bond-associative stabilization takes no constant; G is pd-correspondence's)",
-    )],
+    refuses: &[
+        (
+            "stabilization",
+            "does not apply to pd-rk-ba (its bond-associative stabilization takes no constant; G is pd-correspondence's)",
+        ),
+        (
+            "johnson_cook",
+            "does not apply to pd-rk-ba (it integrates J2 plasticity; only pd-correspondence runs the Johnson–Cook solid)",
+        ),
+        (
+            "eos",
+            "does not apply to pd-rk-ba (only pd-correspondence's Johnson–Cook solid takes an equation of state)",
+        ),
+    ],
     plastic: true,
     build,
     device: None,
