@@ -644,9 +644,13 @@ pub fn node_main_with(
             watchdog::stop().map_or(1, |s| s.exit_code())
         }
     };
-    // The transport is closed: if this was the run's last process (its coordinator died),
-    // sweep what the run left in shared memory.
-    if let Ok(kind) = args.transport.parse::<TransportKind>() {
+    // The transport is closed: if this may be the run's last process (its coordinator died,
+    // or it was started by hand), sweep what the run left in shared memory. A coordinator that
+    // still runs sweeps once all its nodes have exited; the sweep here would only wait its
+    // second for the coordinator to be listed gone, and leave the files to it anyway.
+    if !watchdog::parent_alive(parent)
+        && let Ok(kind) = args.transport.parse::<TransportKind>()
+    {
         transport::cleanup(kind, &args.run);
     }
     watchdog::finished();

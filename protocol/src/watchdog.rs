@@ -93,6 +93,12 @@ fn parent_pid() -> u32 {
     unsafe { libc::getppid() as u32 }
 }
 
+/// Whether the coordinator that launched this node (`parent`, from [`arm_parent_death`]) is
+/// still its parent; false for a node started by hand.
+pub fn parent_alive(parent: Option<u32>) -> bool {
+    parent.is_some_and(|p| parent_pid() == p)
+}
+
 /// For a node launched by `cosim` (the environment names its pid): ask for SIGTERM when the
 /// parent dies, then check that it has not died already (the request only covers deaths
 /// after it). Returns the coordinator's pid, `None` for a node started by hand.
