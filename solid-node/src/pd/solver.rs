@@ -852,11 +852,6 @@ fn check_params(p: &PdParams, three_d: bool) -> SolverResult<J2Material> {
         return cfg("bodies", "the bodies hold no lattice point at this spacing");
     }
     bond_budget(p, particles, three_d)?;
-    let particles = lattice_count(&p.bodies, &p.holes, p.spacing, three_d);
-    if particles == 0 {
-        return cfg("bodies", "the bodies hold no lattice point at this spacing");
-    }
-    bond_budget(p, particles, three_d)?;
     Ok(material)
 }
 
