@@ -7,8 +7,16 @@ use std::collections::BTreeMap;
 #[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Params {
-    /// The Cartesian grid.
+    /// The grid (uniform cells; what its coordinates measure is `geometry`).
     pub grid: GridSpec,
+    /// What the grid's coordinates measure: "cartesian" (default); "cylindrical" or
+    /// "spherical" on a 1-D grid, x the distance from the axis or the centre (a cell is a
+    /// shell; cylindrical sums are per metre of axis); "axisymmetric" on a 2-D grid, x the
+    /// distance from the axis and y along it (a cell is a ring of the whole revolution).
+    /// The radius starts at `grid.lower[0] ≥ 0`; at 0 the face `x_lower` is a symmetry
+    /// (the default there) or a wall.
+    #[serde(default)]
+    pub geometry: Option<String>,
     /// Materials by name; each names its EOS.
     pub materials: BTreeMap<String, MaterialSpec>,
     /// Initial regions, applied in order (later ones overwrite earlier ones).
@@ -97,7 +105,7 @@ pub struct RegionSpec {
     pub lower: Option<[f64; 3]>,
     /// Box: upper corner (m).
     pub upper: Option<[f64; 3]>,
-    /// Sphere: centre (m).
+    /// Sphere: centre (m); also the centre of `radial_velocity`.
     pub center: Option<[f64; 3]>,
     /// Sphere: radius (m).
     pub radius: Option<f64>,
@@ -111,11 +119,21 @@ pub struct RegionSpec {
     pub density: Option<f64>,
     /// Temperature (K), instead of `density`.
     pub temperature: Option<f64>,
-    /// Pressure (Pa).
-    pub pressure: f64,
+    /// Pressure (Pa); or give `energy`.
+    pub pressure: Option<f64>,
+    /// Internal energy the region holds (J; per metre of axis in cylindrical geometry, and
+    /// in the z-thickness of a 2-D Cartesian grid), instead of `pressure`: spread uniformly
+    /// over the cells the region covers (after later regions overwrite theirs), so a blast
+    /// of a given energy is deposited exactly whatever the resolution.
+    pub energy: Option<f64>,
     /// Velocity (m/s).
     #[serde(default)]
     pub velocity: [f64; 3],
+    /// Speed (m/s) away from `center` (negative: toward it), instead of `velocity`: radial
+    /// in the grid's active directions (Cartesian; a sphere's radius in axisymmetric
+    /// geometry, `center` on the axis); along x in cylindrical and spherical geometry,
+    /// where `center` does not apply. Zero at the centre itself.
+    pub radial_velocity: Option<f64>,
 }
 
 #[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]

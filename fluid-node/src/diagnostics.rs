@@ -61,10 +61,13 @@ pub fn cell_state(f: &Fluid, row: usize, i: usize) -> [f64; 5] {
     [rho, p, v[0], v[1], v[2]]
 }
 
-/// Mass, momentum, energies of the gas (solid cells of the immersed body excluded).
+/// Mass, momentum, energies of the gas (solid cells of the immersed body excluded). On a
+/// radial grid every sum is over the rings' or shells' volumes, and the momentum is the
+/// gas's momentum as a whole: zero across the axis or centre by symmetry, the axial
+/// component alone in axisymmetric geometry (`momentum_gross` still sums |ρu| V).
 pub fn totals(f: &mut Fluid) -> SolverResult<Totals> {
     let g = &f.grid;
-    let vol = g.cell_volume();
+    let radial = !g.columns.is_empty();
     let nm = f.nmat();
     let mx = g.mx();
     let nv = f.nv;
@@ -80,6 +83,7 @@ pub fn totals(f: &mut Fluid) -> SolverResult<Totals> {
             {
                 continue;
             }
+            let vol = g.volume_at(i);
             let (rho, v, p, _) = cell_prim(f, r, i);
             let e = f.cons[(r * nv + nm + 3) * mx + i];
             let ke = 0.5 * rho * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
@@ -87,7 +91,9 @@ pub fn totals(f: &mut Fluid) -> SolverResult<Totals> {
             let mut m2 = 0.0;
             for d in 0..3 {
                 let m = f.cons[(r * nv + nm + d) * mx + i];
-                row.momentum[d] += m * vol;
+                if !radial || (d == 1 && g.nd > 1) {
+                    row.momentum[d] += m * vol;
+                }
                 m2 += m * m;
             }
             row.momentum_gross += m2.sqrt() * vol;

@@ -6,6 +6,52 @@
 /// Ghost layers in each active direction (MUSCL needs two).
 pub const NG: usize = 2;
 
+/// What the grid's coordinates measure (docs/physics.md, "Radial geometries").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Geometry {
+    /// x, y, z Cartesian: every cell the same box.
+    Cartesian,
+    /// 1-D, x the distance from an axis: a cell is a cylindrical shell one metre long.
+    Cylindrical,
+    /// 1-D, x the distance from a centre: a cell is a spherical shell.
+    Spherical,
+    /// 2-D, x the distance from the axis and y along it: a cell is a ring of the whole
+    /// revolution.
+    Axisymmetric,
+}
+
+impl Geometry {
+    /// The exponent α of the radial face area A ∝ r^α (0 in Cartesian geometry).
+    pub fn alpha(self) -> u32 {
+        match self {
+            Geometry::Cartesian => 0,
+            Geometry::Cylindrical | Geometry::Axisymmetric => 1,
+            Geometry::Spherical => 2,
+        }
+    }
+    /// The name a case file gives it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Geometry::Cartesian => "cartesian",
+            Geometry::Cylindrical => "cylindrical",
+            Geometry::Spherical => "spherical",
+            Geometry::Axisymmetric => "axisymmetric",
+        }
+    }
+}
+
+/// The volume and x-face areas of the cells of one x column of a radial grid (the same in
+/// every row): the finite-volume weights of the radial direction.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Column {
+    /// Cell volume (m³; per metre of axis in cylindrical geometry).
+    pub volume: f64,
+    /// Area of the cell's inner (lower x) face (m²; per metre of axis in cylindrical geometry).
+    pub area_lo: f64,
+    /// Area of its outer (upper x) face.
+    pub area_hi: f64,
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct Grid {
     /// Interior cells per direction.
@@ -19,6 +65,11 @@ pub struct Grid {
     pub dx: [f64; 3],
     /// Number of active directions (1, 2 or 3).
     pub nd: usize,
+    /// What the coordinates measure.
+    pub geometry: Geometry,
+    /// Per x index (ghosts included) the radial weights of its cells; empty in Cartesian
+    /// geometry, where [`Grid::cell_volume`] and [`Grid::face_area`] hold for every cell.
+    pub columns: Vec<Column>,
 }
 
 impl Grid {
@@ -49,6 +100,64 @@ impl Grid {
             upper,
             dx,
             nd,
+            geometry: Geometry::Cartesian,
+            columns: Vec::new(),
+        }
+    }
+
+    /// A grid whose x coordinate is a radius (`geometry` not Cartesian: 1-D cylindrical or
+    /// spherical, 2-D axisymmetric with y along the axis). The caller has checked that the
+    /// dimension fits the geometry and that `lower[0] ≥ 0`.
+    pub fn radial(n: [usize; 3], lower: [f64; 3], upper: [f64; 3], geometry: Geometry) -> Self {
+        let mut grid = Grid::new(n, lower, upper);
+        grid.geometry = geometry;
+        if geometry == Geometry::Cartesian {
+            return grid;
+        }
+        let pi = std::f64::consts::PI;
+        // a ring's thickness along the axis (axisymmetric); the cylinder is one metre long
+        let dz = if geometry == Geometry::Axisymmetric {
+            grid.dx[1]
+        } else {
+            1.0
+        };
+        let face = |r: f64| -> f64 {
+            match geometry {
+                Geometry::Spherical => 4.0 * pi * r * r,
+                _ => 2.0 * pi * r * dz,
+            }
+        };
+        let below = |r: f64| -> f64 {
+            // volume inside radius r
+            match geometry {
+                Geometry::Spherical => 4.0 / 3.0 * pi * r * r * r,
+                _ => pi * r * r * dz,
+            }
+        };
+        grid.columns = (0..grid.mx())
+            .map(|i| {
+                // ghost columns mirror their interior partners' radii about r = 0 if they
+                // fall below it; their weights are never used in an update
+                let lo = (lower[0] + (i as f64 - grid.g[0] as f64) * grid.dx[0]).abs();
+                let hi = (lo + grid.dx[0]).abs();
+                Column {
+                    volume: (below(hi) - below(lo)).abs(),
+                    area_lo: face(lo),
+                    area_hi: face(hi),
+                }
+            })
+            .collect();
+        grid
+    }
+
+    /// Volume of a cell of x index i (ghost-inclusive): [`Grid::cell_volume`] in Cartesian
+    /// geometry, its ring or shell otherwise.
+    #[inline(always)]
+    pub fn volume_at(&self, i: usize) -> f64 {
+        if self.columns.is_empty() {
+            self.cell_volume()
+        } else {
+            self.columns[i].volume
         }
     }
 

@@ -20,6 +20,7 @@ pub mod boundary;
 pub mod config;
 pub mod diagnostics;
 pub mod eos;
+pub mod exact;
 pub mod gpu;
 pub mod grid;
 pub mod immersed;

@@ -5,7 +5,7 @@
 use crate::boundary::Boundary;
 use crate::config::{BoundaryEntry, BoundarySpec, MaterialSpec, Params, RegionSpec};
 use crate::eos::{Eos, IdealGas, Jwl, Material, StiffenedGas};
-use crate::grid::Grid;
+use crate::grid::{Geometry, Grid};
 use crate::immersed::Immersed;
 use crate::limiter::Limiter;
 use crate::mixture::{self, Phase};
@@ -108,12 +108,35 @@ fn material(name: &str, m: &MaterialSpec) -> SolverResult<Material> {
     }
 }
 
-/// A region's single-material primitive state: (material index, ρ, velocity, p).
+/// A region's single-material primitive state: (material index, ρ, velocity, p), and a
+/// radial velocity (speed, centre) that replaces `vel` where it is given.
 struct RegionState {
     mat: usize,
     rho: f64,
     vel: [f64; 3],
     p: f64,
+    radial: Option<(f64, [f64; 3])>,
+}
+
+impl RegionState {
+    /// The velocity at point x of a grid of `geometry` with `nd` active directions.
+    fn velocity_at(&self, x: [f64; 3], geometry: Geometry, nd: usize) -> [f64; 3] {
+        let Some((speed, c)) = self.radial else {
+            return self.vel;
+        };
+        if matches!(geometry, Geometry::Cylindrical | Geometry::Spherical) {
+            return [speed, 0.0, 0.0];
+        }
+        let mut d = [0.0; 3];
+        for k in 0..nd {
+            d[k] = x[k] - c[k];
+        }
+        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        if len == 0.0 {
+            return [0.0; 3];
+        }
+        d.map(|v| speed * v / len)
+    }
 }
 
 fn state_of(
@@ -191,6 +214,7 @@ fn state_of(
         rho,
         vel: velocity,
         p: pressure,
+        radial: None,
     })
 }
 
@@ -212,7 +236,7 @@ impl Shape {
     }
 }
 
-fn shape(key: &str, r: &RegionSpec) -> SolverResult<Shape> {
+fn shape(key: &str, r: &RegionSpec, radial_centre: bool) -> SolverResult<Shape> {
     let need = |v: Option<[f64; 3]>, f: &str| {
         v.ok_or_else(|| {
             cfg(
@@ -229,19 +253,20 @@ fn shape(key: &str, r: &RegionSpec) -> SolverResult<Shape> {
         ("point", r.point.is_some()),
         ("normal", r.normal.is_some()),
     ];
-    let applies: &[&str] = match r.shape.as_str() {
-        "all" => &[],
-        "box" => &["lower", "upper"],
-        "sphere" | "circle" => &["center", "radius"],
-        "half_space" => &["point", "normal"],
-        _ => &["lower", "upper", "center", "radius", "point", "normal"],
+    let mut applies: Vec<&str> = match r.shape.as_str() {
+        "all" => vec![],
+        "box" => vec!["lower", "upper"],
+        "sphere" | "circle" => vec!["center", "radius"],
+        "half_space" => vec!["point", "normal"],
+        _ => vec!["lower", "upper", "center", "radius", "point", "normal"],
     };
-    refuse_inapplicable(
-        &format!("{key}."),
-        &format!("shape = \"{}\"", r.shape),
-        &given,
-        applies,
-    )?;
+    let what = if radial_centre {
+        applies.push("center");
+        format!("shape = \"{}\" with radial_velocity", r.shape)
+    } else {
+        format!("shape = \"{}\"", r.shape)
+    };
+    refuse_inapplicable(&format!("{key}."), &what, &given, &applies)?;
     match r.shape.as_str() {
         "all" => Ok(Shape::All),
         "box" => {
@@ -351,6 +376,324 @@ fn boundary(
     }
 }
 
+/// The grid's geometry, checked against its dimension and its radial extent.
+fn geometry(p: &Params) -> SolverResult<Geometry> {
+    let g = match p.geometry.as_deref().unwrap_or("cartesian") {
+        "cartesian" => return Ok(Geometry::Cartesian),
+        "cylindrical" => Geometry::Cylindrical,
+        "spherical" => Geometry::Spherical,
+        "axisymmetric" => Geometry::Axisymmetric,
+        other => {
+            return Err(cfg(
+                "geometry",
+                format!(
+                    "unknown geometry '{other}' (cartesian, cylindrical, spherical, axisymmetric)"
+                ),
+            ));
+        }
+    };
+    let c = p.grid.cells;
+    let nd = if c[2] > 1 {
+        3
+    } else if c[1] > 1 {
+        2
+    } else {
+        1
+    };
+    let wants = if g == Geometry::Axisymmetric { 2 } else { 1 };
+    if nd != wants {
+        let cells = if wants == 1 {
+            "[nr, 1, 1]"
+        } else {
+            "[nr, nz, 1] (x the radius, y the axis)"
+        };
+        return Err(cfg(
+            "grid.cells",
+            format!(
+                "geometry '{}' runs on a {wants}-D grid: use cells = {cells}, got {c:?}",
+                g.name()
+            ),
+        ));
+    }
+    let r0 = p.grid.lower[0];
+    if !(r0 >= 0.0) {
+        return Err(cfg(
+            "grid.lower[0]",
+            format!(
+                "x is the radius in geometry '{}': it starts at 0 or above, got {r0}",
+                g.name()
+            ),
+        ));
+    }
+    Ok(g)
+}
+
+/// The regions' shapes and states. A region given by its energy gets the pressure that puts
+/// that internal energy into the cells it covers.
+fn regions(
+    p: &Params,
+    grid: &Grid,
+    names: &[String],
+    mats: &[Material],
+) -> SolverResult<Vec<(Shape, RegionState)>> {
+    if p.regions.is_empty() {
+        return Err(cfg("regions", "at least one region is needed"));
+    }
+    let geometry = grid.geometry;
+    let radial_1d = matches!(geometry, Geometry::Cylindrical | Geometry::Spherical);
+    let mut shapes = Vec::new();
+    for (ri, r) in p.regions.iter().enumerate() {
+        let key = format!("regions[{ri}]");
+        // `center` is the radial velocity's centre too, except along a 1-D radius
+        shapes.push(shape(&key, r, r.radial_velocity.is_some() && !radial_1d)?);
+    }
+    // what each region covers, sampled cell by cell: only when a region is given by energy
+    let volumes = if p.regions.iter().any(|r| r.energy.is_some()) {
+        region_volumes(grid, &shapes)
+    } else {
+        Vec::new()
+    };
+    let mut out = Vec::new();
+    for ((ri, r), sh) in p.regions.iter().enumerate().zip(shapes) {
+        let key = format!("regions[{ri}]");
+        let pressure = match (r.pressure, r.energy) {
+            (Some(pr), None) => pr,
+            (Some(_), Some(_)) => {
+                return Err(cfg(
+                    format!("{key}.energy"),
+                    "give pressure or energy, not both",
+                ));
+            }
+            (None, None) => return Err(cfg(format!("{key}.pressure"), "give pressure or energy")),
+            (None, Some(e)) => energy_pressure(&key, r, e, volumes[ri], names, mats)?,
+        };
+        let velocity = match r.radial_velocity {
+            Some(_) if r.velocity != [0.0; 3] => {
+                return Err(cfg(
+                    format!("{key}.radial_velocity"),
+                    "give velocity or radial_velocity, not both",
+                ));
+            }
+            Some(v) if !v.is_finite() => {
+                return Err(cfg(
+                    format!("{key}.radial_velocity"),
+                    format!("must be finite, got {v}"),
+                ));
+            }
+            _ => r.velocity,
+        };
+        check_velocity(&format!("{key}.velocity"), velocity, geometry)?;
+        let mut s = state_of(
+            &key,
+            names,
+            mats,
+            &r.material,
+            r.density,
+            r.temperature,
+            pressure,
+            velocity,
+        )?;
+        if let Some(speed) = r.radial_velocity {
+            let c = if radial_1d {
+                [0.0; 3]
+            } else {
+                r.center.ok_or_else(|| {
+                    cfg(
+                        format!("{key}.center"),
+                        "required with radial_velocity: the point the flow leaves or meets",
+                    )
+                })?
+            };
+            if geometry == Geometry::Axisymmetric && c[0] != 0.0 {
+                return Err(cfg(
+                    format!("{key}.center"),
+                    format!(
+                        "a radial flow in axisymmetric geometry is centred on the axis (x = 0), got x = {}",
+                        c[0]
+                    ),
+                ));
+            }
+            s.radial = Some((speed, c));
+        }
+        out.push((sh, s));
+    }
+    Ok(out)
+}
+
+/// The pressure at which region `r` (density given) holds internal energy `e` in its
+/// covered volume `volume`.
+fn energy_pressure(
+    key: &str,
+    r: &RegionSpec,
+    e: f64,
+    volume: f64,
+    names: &[String],
+    mats: &[Material],
+) -> SolverResult<f64> {
+    if !(e > 0.0) || !e.is_finite() {
+        return Err(cfg(
+            format!("{key}.energy"),
+            format!("must be > 0, got {e}"),
+        ));
+    }
+    let Some(rho) = r.density else {
+        return Err(cfg(
+            format!("{key}.density"),
+            "a region given by its energy needs its density (a temperature needs a pressure)",
+        ));
+    };
+    if !(volume > 0.0) {
+        return Err(cfg(
+            format!("{key}.energy"),
+            "the region covers no cell (it is too small for the grid, or later regions cover it): the energy has nowhere to go",
+        ));
+    }
+    // the material's name is checked by `state_of`; an unknown one gets its error there
+    let Some(m) = names.iter().position(|n| n == &r.material) else {
+        return Ok(f64::NAN);
+    };
+    if !(rho > 0.0) || !rho.is_finite() {
+        return Ok(f64::NAN);
+    }
+    let p = mats[m].pressure(rho, e / volume / rho);
+    if !(p > mats[m].min_pressure()) || !p.is_finite() {
+        return Err(cfg(
+            format!("{key}.energy"),
+            format!(
+                "{e} J in {volume:e} m³ at density {rho} gives pressure {p:e}, not above the material's least {:e}",
+                mats[m].min_pressure()
+            ),
+        ));
+    }
+    Ok(p)
+}
+
+/// A region's or an inflow's velocity must lie in the directions the geometry keeps: the
+/// radius alone in 1-D radial geometry, the radius and the axis in axisymmetric geometry
+/// (a swirl would need its own equation).
+fn check_velocity(key: &str, v: [f64; 3], geometry: Geometry) -> SolverResult<()> {
+    let from = match geometry {
+        Geometry::Cartesian => return Ok(()),
+        Geometry::Cylindrical | Geometry::Spherical => 1,
+        Geometry::Axisymmetric => 2,
+    };
+    if v[from..].iter().any(|&c| c != 0.0) {
+        let only = if from == 1 {
+            "it is radial: only its x component (along the radius) may be non-zero"
+        } else {
+            "it has no swirl: its z component must be 0 (x is the radius, y the axis)"
+        };
+        return Err(cfg(
+            key,
+            format!("in geometry '{}' {only}, got {v:?}", geometry.name()),
+        ));
+    }
+    Ok(())
+}
+
+/// The radial grid's faces: at r = 0 the x_lower face is a symmetry (the default there) or a
+/// wall; no direction of a radius is periodic; inflows flow along the radius.
+fn radial_boundaries(p: &Params, grid: &Grid, bc: &mut [[Boundary; 2]; 3]) -> SolverResult<()> {
+    let name = grid.geometry.name();
+    if grid.lower[0] == 0.0 {
+        match (&p.boundaries.x_lower, &bc[0][0]) {
+            (None, _) => bc[0][0] = Boundary::Symmetry,
+            (_, Boundary::Symmetry | Boundary::Wall) => {}
+            _ => {
+                return Err(cfg(
+                    "boundaries.x_lower",
+                    format!(
+                        "the radius starts at 0 in geometry '{name}': the face there is a symmetry (the default) or a wall"
+                    ),
+                ));
+            }
+        }
+    }
+    if bc[0][0] == Boundary::Periodic {
+        return Err(cfg(
+            "boundaries.x_lower",
+            format!("a radius is not periodic (geometry '{name}')"),
+        ));
+    }
+    let b = &p.boundaries;
+    for (key, e) in [
+        ("boundaries.x_lower", &b.x_lower),
+        ("boundaries.x_upper", &b.x_upper),
+        ("boundaries.y_lower", &b.y_lower),
+        ("boundaries.y_upper", &b.y_upper),
+    ] {
+        if let Some(BoundaryEntry::Full(s)) = e
+            && let Some(v) = s.velocity
+        {
+            check_velocity(&format!("{key}.velocity"), v, grid.geometry)?;
+        }
+    }
+    Ok(())
+}
+
+/// The sub-cell samples of interior cell (i, j, k), each point with its weight; returns the
+/// weights' sum. A sample's weight is its share of the cell's volume: 1 on a Cartesian grid,
+/// its radius to the power α in a radial geometry (so cell averages are the volume averages
+/// of its ring or shell).
+fn samples(grid: &Grid, i: usize, j: usize, k: usize, mut each: impl FnMut([f64; 3], f64)) -> f64 {
+    let ns = match grid.nd {
+        1 => 8,
+        2 => 4,
+        _ => 3,
+    };
+    let x0 = grid.centre(i, j, k);
+    let alpha = grid.geometry.alpha() as i32;
+    let sub = |d: usize| if d < grid.nd { ns } else { 1 };
+    let mut total = 0.0;
+    for a in 0..sub(0) {
+        for b in 0..sub(1) {
+            for c in 0..sub(2) {
+                let idx = [a, b, c];
+                let mut x = x0;
+                for d in 0..grid.nd {
+                    x[d] += ((idx[d] as f64 + 0.5) / ns as f64 - 0.5) * grid.dx[d];
+                }
+                let w = x[0].abs().powi(alpha);
+                each(x, w);
+                total += w;
+            }
+        }
+    }
+    total
+}
+
+/// The last region containing x (the first region if none does: it fills the grid).
+fn region_at(shapes: &[&Shape], x: [f64; 3], nd: usize) -> usize {
+    shapes
+        .iter()
+        .rposition(|sh| sh.contains(x, nd))
+        .unwrap_or(0)
+}
+
+/// The volume each region holds once later regions have overwritten theirs.
+fn region_volumes(grid: &Grid, shapes: &[Shape]) -> Vec<f64> {
+    let shapes: Vec<&Shape> = shapes.iter().collect();
+    let mut vol = vec![0.0; shapes.len()];
+    let mut cell = vec![0.0; shapes.len()];
+    for r in 0..grid.rows() {
+        if !grid.interior_row(r) {
+            continue;
+        }
+        let (j, k) = grid.jk(r);
+        for i in grid.irange() {
+            cell.fill(0.0);
+            let total = samples(grid, i, j, k, |x, w| {
+                cell[region_at(&shapes, x, grid.nd)] += w;
+            });
+            let v = grid.volume_at(i);
+            for (a, c) in vol.iter_mut().zip(&cell) {
+                *a += v * c / total;
+            }
+        }
+    }
+    vol
+}
+
 /// Build the validated model.
 pub fn build(p: &Params) -> SolverResult<Fluid> {
     // grid
@@ -381,10 +724,12 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
             ));
         }
     }
-    let grid = Grid::new(
+    let geometry = geometry(p)?;
+    let grid = Grid::radial(
         [c[0] as usize, c[1] as usize, c[2] as usize],
         p.grid.lower,
         p.grid.upper,
+        geometry,
     );
     if !(p.cfl > 0.0 && p.cfl <= 1.0) {
         return Err(cfg("cfl", format!("must be in (0, 1], got {}", p.cfl)));
@@ -412,28 +757,22 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
     }
     let nm = mats.len();
     let nv = 2 * nm + 3;
+    // Before a byte of state is allocated or a cell sampled: the state arrays (conserved, its
+    // copy, primitive, next primitive: nv values a cell; a flux of nv + 1 values a cell per
+    // direction) must fit in memory, or a large grid is refused by its key instead of
+    // aborting the allocator (or sampling its regions for minutes first).
+    let cells = grid.rows() as u128 * grid.mx() as u128;
+    let values = (4 * nv + grid.nd * (nv + 1)) as u128;
+    protocol::memory::check_fits(
+        "grid.cells",
+        cells * values * 8,
+        &format!("{cells} cells with ghosts × {values} f64 values of state"),
+    )?;
     // regions
-    if p.regions.is_empty() {
-        return Err(cfg("regions", "at least one region is needed"));
-    }
-    let mut regions = Vec::new();
-    for (ri, r) in p.regions.iter().enumerate() {
-        let key = format!("regions[{ri}]");
-        let s = state_of(
-            &key,
-            &names,
-            &mats,
-            &r.material,
-            r.density,
-            r.temperature,
-            r.pressure,
-            r.velocity,
-        )?;
-        regions.push((shape(&key, r)?, s));
-    }
+    let regions = regions(p, &grid, &names, &mats)?;
     // boundaries
     let b = &p.boundaries;
-    let bc = [
+    let mut bc = [
         [
             boundary("boundaries.x_lower", &b.x_lower, &names, &mats)?,
             boundary("boundaries.x_upper", &b.x_upper, &names, &mats)?,
@@ -447,6 +786,9 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
             boundary("boundaries.z_upper", &b.z_upper, &names, &mats)?,
         ],
     ];
+    if geometry != Geometry::Cartesian {
+        radial_boundaries(p, &grid, &mut bc)?;
+    }
     for (d, ax) in ["x", "y", "z"].iter().enumerate() {
         let per = [
             bc[d][0] == Boundary::Periodic,
@@ -459,16 +801,6 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
             ));
         }
     }
-    // Before a byte of state is allocated: the arrays below (conserved, its copy, primitive,
-    // next primitive: nv values a cell; a flux of nv + 1 values a cell per direction) must fit
-    // in memory, or a large grid is refused by its key instead of aborting the allocator.
-    let cells = grid.rows() as u128 * grid.mx() as u128;
-    let values = (4 * nv + grid.nd * (nv + 1)) as u128;
-    protocol::memory::check_fits(
-        "grid.cells",
-        cells * values * 8,
-        &format!("{cells} cells with ghosts × {values} f64 values of state"),
-    )?;
     let phases: Vec<Phase> = mats.iter().cloned().map(Phase::new).collect();
     let total = grid.rows() * nv * grid.mx();
     let mut f = Fluid {
@@ -502,7 +834,8 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
         max_steps_per_window: p.max_steps_per_window.unwrap_or(10_000_000),
         prim_valid: false,
         simd: crate::simd::Simd::detect(),
-        fused: true,
+        // the radial update runs unfused (its weights differ per column)
+        fused: geometry == Geometry::Cartesian,
         timing: Default::default(),
     };
     initialise(&mut f, &regions, &mats);
@@ -521,6 +854,15 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
         });
     }
     if let Some(im) = &p.immersed {
+        if geometry != Geometry::Cartesian {
+            return Err(cfg(
+                "immersed",
+                format!(
+                    "an immersed interface needs a Cartesian grid, not geometry '{}'",
+                    geometry.name()
+                ),
+            ));
+        }
         if im.interface.is_empty() {
             return Err(cfg("immersed.interface", "must not be empty"));
         }
@@ -533,60 +875,40 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
     Ok(f)
 }
 
-/// Conserved state of every interior cell: the average over sub-cell samples of the state
-/// of the last region containing each sample (smooth volume fractions at curved interfaces).
+/// Conserved state of every interior cell: the volume average over sub-cell samples of the
+/// state of the last region containing each sample (smooth volume fractions at curved
+/// interfaces).
 fn initialise(f: &mut Fluid, regions: &[(Shape, RegionState)], mats: &[Material]) {
     let grid = f.grid.clone();
     let nm = mats.len();
     let nv = f.nv;
     let mx = grid.mx();
-    let ns = match grid.nd {
-        1 => 8,
-        2 => 4,
-        _ => 3,
-    };
     let phases: Vec<Phase> = mats.iter().cloned().map(Phase::new).collect();
+    let shapes: Vec<&Shape> = regions.iter().map(|(sh, _)| sh).collect();
     for r in 0..grid.rows() {
         if !grid.interior_row(r) {
             continue;
         }
         let (j, k) = grid.jk(r);
         for i in grid.irange() {
-            let x0 = grid.centre(i, j, k);
             let mut acc = [0.0; MAXF];
-            let mut count = 0.0;
-            let sub = |d: usize| if d < grid.nd { ns } else { 1 };
-            for a in 0..sub(0) {
-                for b in 0..sub(1) {
-                    for cc in 0..sub(2) {
-                        let idx = [a, b, cc];
-                        let mut x = x0;
-                        for d in 0..grid.nd {
-                            x[d] += ((idx[d] as f64 + 0.5) / ns as f64 - 0.5) * grid.dx[d];
-                        }
-                        let s = match regions.iter().rev().find(|(sh, _)| sh.contains(x, grid.nd)) {
-                            Some((_, s)) => s,
-                            None => &regions[0].1,
-                        };
-                        // conserved state of the pure material
-                        acc[s.mat] += s.rho;
-                        for d in 0..3 {
-                            acc[nm + d] += s.rho * s.vel[d];
-                        }
-                        let rhoe = rhoe_single(&phases[s.mat], s.rho, s.p);
-                        acc[nm + 3] += rhoe
-                            + 0.5
-                                * s.rho
-                                * (s.vel[0].powi(2) + s.vel[1].powi(2) + s.vel[2].powi(2));
-                        if s.mat < nm - 1 {
-                            acc[nm + 4 + s.mat] += 1.0;
-                        }
-                        count += 1.0;
-                    }
+            let total = samples(&grid, i, j, k, |x, w| {
+                let s = &regions[region_at(&shapes, x, grid.nd)].1;
+                let vel = s.velocity_at(x, grid.geometry, grid.nd);
+                // conserved state of the pure material (w is 1 on a Cartesian grid)
+                acc[s.mat] += w * s.rho;
+                for d in 0..3 {
+                    acc[nm + d] += w * (s.rho * vel[d]);
                 }
-            }
+                let rhoe = rhoe_single(&phases[s.mat], s.rho, s.p);
+                acc[nm + 3] +=
+                    w * (rhoe + 0.5 * s.rho * (vel[0].powi(2) + vel[1].powi(2) + vel[2].powi(2)));
+                if s.mat < nm - 1 {
+                    acc[nm + 4 + s.mat] += w;
+                }
+            });
             for (v, a) in acc.iter().enumerate().take(nv) {
-                f.cons[(r * nv + v) * mx + i] = a / count;
+                f.cons[(r * nv + v) * mx + i] = a / total;
             }
         }
     }

@@ -1540,6 +1540,72 @@ fn update_var<const ND: usize, const ALPHA: bool>(
     }
 }
 
+/// The stage update of a radial grid (docs/physics.md, "Radial geometries"): in x, the
+/// flux difference weighted by the faces' areas over the cell's volume,
+/// −(A₊F₊ − A₋F₋)/V, and in the radial momentum the pressure's push on the cell's sides,
+/// +p (A₊ − A₋)/V (the form in which a gas at rest and uniform pressure stays at rest to
+/// round-off); in y (the axis of an axisymmetric grid) the Cartesian difference. Mass and
+/// energy are conserved in the rings' and shells' volumes. For the volume fractions the
+/// Johnsen–Colonius term takes the same weights: −(A₊αu₊ − A₋αu₋)/V + α(A₊u₊ − A₋u₋)/V.
+fn update_radial<const NM: usize>(f: &mut Fluid, a: f64, b: f64, dt: f64) {
+    let grid = &f.grid;
+    let nv = f.nv;
+    let nf = nv + 1;
+    let mx = grid.mx();
+    let fl = &f.flux;
+    let prim = &f.prim;
+    let ir = grid.irange();
+    let idy = 1.0 / grid.dx[1];
+    let axis = grid.nd > 1;
+    let cols = &grid.columns;
+    f.cons
+        .par_chunks_mut(nv * mx)
+        .zip(f.cons0.par_chunks(nv * mx))
+        .enumerate()
+        .for_each(|(r, (u, u0))| {
+            if !grid.interior_row(r) {
+                return;
+            }
+            let fb = nf * mx;
+            let fx = &fl[0][r * fb..(r + 1) * fb];
+            let (fy, fym) = if axis {
+                (&fl[1][r * fb..(r + 1) * fb], &fl[1][(r - 1) * fb..r * fb])
+            } else {
+                (fx, fx)
+            };
+            let p = &prim[(r * nv + NM + 3) * mx..(r * nv + NM + 4) * mx];
+            // face velocities for the α rows (indexed like the fluxes)
+            let (ux, uy, uym) = (&fx[nv * mx..], &fy[nv * mx..], &fym[nv * mx..]);
+            for v in 0..nv {
+                let is_alpha = v >= NM + 4;
+                let o = v * mx;
+                for i in ir.clone() {
+                    let c = cols[i];
+                    let (wl, wh) = (c.area_lo / c.volume, c.area_hi / c.volume);
+                    let mut res = -(wh * fx[o + i] - wl * fx[o + i - 1]);
+                    if is_alpha {
+                        res += u[o + i] * (wh * ux[i] - wl * ux[i - 1]);
+                    }
+                    if v == NM {
+                        res += p[i] * (wh - wl);
+                    }
+                    if axis {
+                        let mut dfy = fy[o + i] - fym[o + i];
+                        if is_alpha {
+                            dfy -= u[o + i] * (uy[i] - uym[i]);
+                        }
+                        res -= dfy * idy;
+                    }
+                    let mut nu = a * u0[o + i] + b * (u[o + i] + dt * res);
+                    if is_alpha {
+                        nu = nu.clamp(0.0, 1.0);
+                    }
+                    u[o + i] = nu;
+                }
+            }
+        });
+}
+
 /// The fluxes of the two domain boundary x faces of every interior row from `flux[0]` into
 /// `x_bound` (the unfused stages; the fused ones store them there directly).
 fn store_x_bound(f: &mut Fluid) {
@@ -1564,6 +1630,9 @@ fn store_x_bound(f: &mut Fluid) {
 /// inside the domain is solid (`kind`, the immersed body's cell classes) bounds no gas: the
 /// body covers the wall there, and its flux enters neither the gas nor these sums.
 fn boundary_flux(f: &Fluid, kind: Option<&[u8]>, dt_w: f64) -> [f64; 4] {
+    if !f.grid.columns.is_empty() {
+        return boundary_flux_radial(f, dt_w);
+    }
     let grid = &f.grid;
     let nm = f.nmat();
     let nf = f.nf();
@@ -1638,6 +1707,54 @@ fn boundary_flux(f: &Fluid, kind: Option<&[u8]>, dt_w: f64) -> [f64; 4] {
     imp
 }
 
+/// [`boundary_flux`] of a radial grid: the faces' fluxes times their areas (the whole
+/// revolution). Of the momentum only the axial component of an axisymmetric grid is a
+/// momentum of the gas: the radial flux of a ring or shell pushes every direction at once,
+/// so its impulse is zero by symmetry, as is the gas's radial momentum (`diagnostics`).
+fn boundary_flux_radial(f: &Fluid, dt_w: f64) -> [f64; 4] {
+    let grid = &f.grid;
+    let nm = f.nmat();
+    let nf = f.nf();
+    let mx = grid.mx();
+    let (g, n) = (grid.g, grid.n);
+    let cols = &grid.columns;
+    let (a_lo, a_hi) = (cols[g[0]].area_lo, cols[g[0] + n[0] - 1].area_hi);
+    let mut lo = [0.0; 4];
+    let mut hi = [0.0; 4];
+    for j in g[1]..g[1] + n[1] {
+        let r = grid.row(j, g[2]);
+        let xb = &f.x_bound[r * 2 * nf..(r + 1) * 2 * nf];
+        for c in 0..4 {
+            lo[c] += a_lo * xb[nm + c];
+            hi[c] += a_hi * xb[nf + nm + c];
+        }
+    }
+    if grid.nd > 1 {
+        // the axis's end faces: a ring's area each, the volume over its length
+        let (ra, rb) = (grid.row(g[1] - 1, g[2]), grid.row(g[1] + n[1] - 1, g[2]));
+        let fr = |r: usize| &f.flux[1][r * nf * mx..(r + 1) * nf * mx];
+        for c in 0..4 {
+            let o = (nm + c) * mx;
+            for i in grid.irange() {
+                let area = cols[i].volume / grid.dx[1];
+                lo[c] += area * fr(ra)[o + i];
+                hi[c] += area * fr(rb)[o + i];
+            }
+        }
+    }
+    let mut imp = [0.0; 4];
+    for c in 0..4 {
+        imp[c] = dt_w * (lo[c] - hi[c]);
+    }
+    // radial (x) and swirl (z) impulses vanish by symmetry
+    imp[0] = 0.0;
+    imp[2] = 0.0;
+    if grid.nd == 1 {
+        imp[1] = 0.0;
+    }
+    imp
+}
+
 /// The CFL-limited step now (s).
 pub fn stable_dt(f: &mut Fluid) -> SolverResult<f64> {
     match f.nmat() {
@@ -1687,7 +1804,7 @@ fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
         });
     }
     let dt = (f.cfl / rate).min(dt_max);
-    let fused = f.fused && f.grid.nd >= 2;
+    let fused = f.fused && f.grid.nd >= 2 && f.grid.columns.is_empty();
     if fused {
         // U0 ← U by swapping; the first fused stage copies each row back before updating it
         std::mem::swap(&mut f.cons, &mut f.cons0);
@@ -1755,7 +1872,11 @@ fn step_nm<const NM: usize>(f: &mut Fluid, dt_max: f64) -> SolverResult<f64> {
                 }
                 store_x_bound(f);
                 f.add_boundary_flux(ib.as_ref(), dt_w);
-                update::<NM>(f, a, b, dt);
+                if f.grid.columns.is_empty() {
+                    update::<NM>(f, a, b, dt);
+                } else {
+                    update_radial::<NM>(f, a, b, dt);
+                }
             }
             f.timing.kernels_s += lap(&mut clock);
             if let Some(im) = ib.as_mut() {

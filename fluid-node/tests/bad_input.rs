@@ -125,3 +125,130 @@ fn negative_state_during_run_stops_with_cell_time_variable() {
         other => panic!("expected Diverged, got {other:?}"),
     }
 }
+
+/// A radial set-up that cannot run is refused by the key that makes it so.
+#[test]
+fn radial_set_ups_are_refused_by_key() {
+    let sph = |s: &str| format!("geometry = \"spherical\"\n{BASE}\n{s}");
+    let extra_region = |s: &str| {
+        format!(
+            "[[regions]]\nshape = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 0.2\nmaterial = \"air\"\ndensity = 1.0\n{s}"
+        )
+    };
+    let cases: Vec<(String, &str, &str)> = vec![
+        (
+            format!("geometry = \"conical\"\n{BASE}"),
+            "geometry",
+            "unknown geometry",
+        ),
+        (
+            format!(
+                "geometry = \"spherical\"\n{}",
+                BASE.replace("[20, 1, 1]", "[20, 20, 1]")
+            ),
+            "grid.cells",
+            "1-D grid",
+        ),
+        (
+            format!("geometry = \"axisymmetric\"\n{BASE}"),
+            "grid.cells",
+            "2-D grid",
+        ),
+        (
+            sph("").replace("lower = [0.0, 0.0, 0.0]", "lower = [-0.5, 0.0, 0.0]"),
+            "grid.lower[0]",
+            "starts at 0",
+        ),
+        (
+            sph("[boundaries]\nx_lower = \"outflow\""),
+            "boundaries.x_lower",
+            "symmetry",
+        ),
+        (
+            sph(
+                "[boundaries]\nx_upper = { kind = \"inflow\", material = \"air\", density = 1.0, pressure = 1.0, velocity = [0.0, 2.0, 0.0] }",
+            ),
+            "boundaries.x_upper.velocity",
+            "only its x component",
+        ),
+        (
+            sph("").replace(
+                "pressure = 1.0\n",
+                "pressure = 1.0\nvelocity = [0.0, 1.0, 0.0]\n",
+            ),
+            "regions[0].velocity",
+            "only its x component",
+        ),
+        (
+            BASE.replace(
+                "pressure = 1.0\n",
+                "pressure = 1.0\nradial_velocity = -1.0\n",
+            ),
+            "regions[0].center",
+            "required with radial_velocity",
+        ),
+        (
+            format!(
+                "geometry = \"axisymmetric\"\n{}",
+                BASE.replace("[20, 1, 1]", "[20, 20, 1]").replace(
+                    "pressure = 1.0\n",
+                    "pressure = 1.0\nradial_velocity = -1.0\ncenter = [0.5, 0.0, 0.0]\n"
+                )
+            ),
+            "regions[0].center",
+            "on the axis",
+        ),
+        (
+            sph("").replace(
+                "pressure = 1.0\n",
+                "pressure = 1.0\nradial_velocity = -1.0\nvelocity = [1.0, 0.0, 0.0]\n",
+            ),
+            "regions[0].radial_velocity",
+            "not both",
+        ),
+        (
+            sph(&extra_region("pressure = 2.0\nenergy = 1.0")),
+            "regions[1].energy",
+            "not both",
+        ),
+        (
+            sph(&extra_region("")),
+            "regions[1].pressure",
+            "pressure or energy",
+        ),
+        (
+            sph(&extra_region("energy = -1.0")),
+            "regions[1].energy",
+            "must be > 0",
+        ),
+        (
+            sph(&extra_region("energy = 1.0").replace("density = 1.0\n", "temperature = 300.0\n")),
+            "regions[1].density",
+            "needs its density",
+        ),
+        (
+            sph(&extra_region(
+                "energy = 1.0\n[[regions]]\nshape = \"all\"\nmaterial = \"air\"\ndensity = 1.0\npressure = 1.0",
+            )),
+            "regions[1].energy",
+            "covers no cell",
+        ),
+        (
+            sph("[immersed]\ninterface = \"particles\""),
+            "immersed",
+            "Cartesian grid",
+        ),
+        (
+            format!("device = \"gpu\"\n{}", sph("")),
+            "device",
+            "geometry 'spherical'",
+        ),
+    ];
+    for (text, key, words) in &cases {
+        let (k, r) = refused(text);
+        println!("{k}: {r}");
+        assert_eq!(&k, key, "{r}\n{text}");
+        assert!(r.contains(words), "{key}: '{r}' lacks '{words}'");
+    }
+    println!("{} radial set-ups refused", cases.len());
+}

@@ -29,6 +29,7 @@ mod output_lock;
 mod params_schema;
 mod pipelining;
 mod protocol_example;
+mod radial_cases;
 mod recording;
 mod recording_checks;
 mod remote_node;

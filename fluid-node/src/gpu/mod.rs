@@ -92,6 +92,12 @@ fn gpu_err(e: GpuError) -> SolverError {
 
 /// Check that the device kernels implement this model; `Err` names what is missing.
 pub fn supports(f: &Fluid) -> Result<(), String> {
+    if !f.grid.columns.is_empty() {
+        return Err(format!(
+            "geometry '{}' (the device kernels run Cartesian grids)",
+            f.grid.geometry.name()
+        ));
+    }
     if f.nmat() != 1 {
         return Err(format!(
             "{} materials (the device kernels are single-material)",
