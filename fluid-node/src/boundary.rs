@@ -1,7 +1,8 @@
 //! Boundary conditions as ghost-cell fills on the primitive variables (seed 002 §5: walls,
 //! non-reflecting outflow, inflow): wall and symmetry mirror the normal velocity (identical for
 //! the inviscid equations), outflow copies the last interior cell (zero gradient), periodic
-//! wraps, inflow imposes a fixed state.
+//! wraps, inflow imposes a fixed state, and a non-reflecting face lets the outgoing acoustic
+//! wave leave and lets in only the far field's (docs/physics.md §3.4).
 
 use crate::grid::Grid;
 use rayon::prelude::*;
@@ -14,6 +15,42 @@ pub enum Boundary {
     Periodic,
     /// Fixed primitive state in the solver's primitive ordering.
     Inflow(Vec<f64>),
+    /// Characteristic far field (docs/physics.md §3.4): the ghost carries the interior's
+    /// outgoing acoustic invariant p + Z u·n (n the outward normal) and an incoming one
+    /// p − Z u·n relaxed from the interior's toward the far field's by the fraction `relax`,
+    /// the rest of the interior state unchanged. With `relax` 0 it is the transmissive
+    /// outflow; the small relaxation holds the far field's pressure without reflecting the
+    /// waves that leave.
+    NonReflecting(FarField),
+}
+
+/// The far field of a non-reflecting face.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FarField {
+    /// Pressure far outside (Pa).
+    pub pressure: f64,
+    /// Velocity far outside (m/s).
+    pub velocity: [f64; 3],
+    /// Acoustic impedance ρc of the gas along the face (Pa s/m).
+    pub impedance: f64,
+    /// Fraction of the difference between the far field's incoming invariant and the
+    /// interior's that each ghost fill lets in: σ Δx / L with σ = 0.25 and L the domain's
+    /// extent across the face.
+    pub relax: f64,
+}
+
+impl FarField {
+    /// The ghost's (pressure, velocity along the face's axis) from the interior cell's, for a
+    /// face whose outward normal is `sign` × that axis (`u` the interior's velocity along the
+    /// axis, `u_far` the far field's).
+    #[inline(always)]
+    pub fn ghost(&self, p: f64, u: f64, u_far: f64, sign: f64) -> (f64, f64) {
+        let z = self.impedance;
+        let out = p + z * sign * u;
+        let inc = p - z * sign * u;
+        let inc = inc + self.relax * ((self.pressure - z * sign * u_far) - inc);
+        (0.5 * (out + inc), sign * (out - inc) / (2.0 * z))
+    }
 }
 
 /// Fill the ghost cells of `prim` (nv primitive variables, normal velocity of direction d at
@@ -61,10 +98,17 @@ pub fn fill_row_x(grid: &Grid, block: &mut [f64], nv: usize, vel0: usize, bc: &[
                             row[mirror]
                         }
                     }
-                    Boundary::Outflow => row[inner],
+                    Boundary::Outflow | Boundary::NonReflecting(_) => row[inner],
                     Boundary::Periodic => row[wrap],
                     Boundary::Inflow(s) => s[v],
                 };
+            }
+            if let Boundary::NonReflecting(far) = &bc[side] {
+                let sign = if side == 0 { -1.0 } else { 1.0 };
+                let (ip, iu) = ((vel0 + 3) * mx, vel0 * mx);
+                let (p, u) = far.ghost(block[ip + inner], block[iu + inner], far.velocity[0], sign);
+                block[ip + gi] = p;
+                block[iu + gi] = u;
             }
         }
     }
@@ -112,7 +156,7 @@ pub fn fill_ghosts_yz(
                     let dst = row_of(gi) * nv * mx;
                     let src_t = match &bc[d][side] {
                         Boundary::Wall | Boundary::Symmetry => Some(mirror),
-                        Boundary::Outflow => Some(inner),
+                        Boundary::Outflow | Boundary::NonReflecting(_) => Some(inner),
                         Boundary::Periodic => Some(wrap),
                         Boundary::Inflow(_) => None,
                     };
@@ -124,6 +168,20 @@ pub fn fill_ghosts_yz(
                                 let o = dst + (vel0 + d) * mx;
                                 for x in &mut prim[o..o + mx] {
                                     *x = -*x;
+                                }
+                            }
+                            if let Boundary::NonReflecting(far) = &bc[d][side] {
+                                let sign = if side == 0 { -1.0 } else { 1.0 };
+                                let (op, ou) = (dst + (vel0 + 3) * mx, dst + (vel0 + d) * mx);
+                                for i in 0..mx {
+                                    let (p, u) = far.ghost(
+                                        prim[op + i],
+                                        prim[ou + i],
+                                        far.velocity[d],
+                                        sign,
+                                    );
+                                    prim[op + i] = p;
+                                    prim[ou + i] = u;
                                 }
                             }
                         }

@@ -139,7 +139,10 @@ pub struct RegionSpec {
 #[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BoundarySpec {
-    /// "wall", "symmetry", "outflow", "periodic" or "inflow".
+    /// "wall", "symmetry", "outflow", "non_reflecting", "periodic" or "inflow". A
+    /// non-reflecting face lets waves leave and holds the far field: its `pressure` (default:
+    /// the face's initial mean) and `velocity` (default 0); the impedance ρc is the face's
+    /// initial mean.
     pub kind: String,
     /// Inflow: the material flowing in.
     pub material: Option<String>,
@@ -147,9 +150,9 @@ pub struct BoundarySpec {
     pub density: Option<f64>,
     /// Inflow: temperature (K), instead of density.
     pub temperature: Option<f64>,
-    /// Inflow: pressure (Pa).
+    /// Inflow: pressure (Pa); non-reflecting: the far field's.
     pub pressure: Option<f64>,
-    /// Inflow: velocity (m/s).
+    /// Inflow: velocity (m/s); non-reflecting: the far field's.
     pub velocity: Option<[f64; 3]>,
 }
 

@@ -55,6 +55,25 @@ fn cell_prim_nm<const NM: usize>(
     (rho, vel, p, al.to_vec())
 }
 
+/// The acoustic impedance ρc of a cell (the mixture's frozen sound speed).
+pub fn cell_impedance(f: &Fluid, row: usize, i: usize) -> f64 {
+    match f.nmat() {
+        1 => cell_impedance_nm::<1>(f, row, i),
+        2 => cell_impedance_nm::<2>(f, row, i),
+        3 => cell_impedance_nm::<3>(f, row, i),
+        _ => cell_impedance_nm::<4>(f, row, i),
+    }
+}
+
+fn cell_impedance_nm<const NM: usize>(f: &Fluid, row: usize, i: usize) -> f64 {
+    let ph: [Phase; NM] = std::array::from_fn(|k| f.phases[k].clone());
+    let (rho, _, p, al) = cell_prim_nm::<NM>(f, row, i);
+    let mx = f.grid.mx();
+    let ar: [f64; NM] = std::array::from_fn(|k| f.cons[(row * f.nv + k) * mx + i].max(0.0));
+    let al: [f64; NM] = std::array::from_fn(|k| al[k]);
+    rho * mixture::sound_speed2::<NM>(&ph, &ar, &al, rho, p).sqrt()
+}
+
 /// [ρ, p, u, v, w] of a cell.
 pub fn cell_state(f: &Fluid, row: usize, i: usize) -> [f64; 5] {
     let (rho, v, p, _) = cell_prim(f, row, i);

@@ -2,7 +2,7 @@
 //! given by ρ or T, p, velocity and material; seed 000 §3 and seed 002 eq. 36 set-ups). Every
 //! refusal names the key inside `params` and the offending value.
 
-use crate::boundary::Boundary;
+use crate::boundary::{Boundary, FarField};
 use crate::config::{BoundaryEntry, BoundarySpec, MaterialSpec, Params, RegionSpec};
 use crate::eos::{Eos, IdealGas, Jwl, Material, StiffenedGas};
 use crate::grid::{Geometry, Grid};
@@ -331,9 +331,17 @@ fn boundary(
         Some(BoundaryEntry::Full(s)) => s.clone(),
     };
     if spec.kind != "inflow" {
+        let (what, applies): (&str, &[&str]) = if spec.kind == "non_reflecting" {
+            (
+                "(it takes the far field's pressure and velocity)",
+                &["pressure", "velocity"],
+            )
+        } else {
+            ("(only an inflow takes a state)", &[])
+        };
         refuse_inapplicable(
             &format!("{key}."),
-            &format!("kind = \"{}\" (only an inflow takes a state)", spec.kind),
+            &format!("kind = \"{}\" {what}", spec.kind),
             &[
                 ("material", spec.material.is_some()),
                 ("density", spec.density.is_some()),
@@ -341,7 +349,7 @@ fn boundary(
                 ("pressure", spec.pressure.is_some()),
                 ("velocity", spec.velocity.is_some()),
             ],
-            &[],
+            applies,
         )?;
     }
     match spec.kind.as_str() {
@@ -349,6 +357,27 @@ fn boundary(
         "symmetry" => Ok(Boundary::Symmetry),
         "outflow" => Ok(Boundary::Outflow),
         "periodic" => Ok(Boundary::Periodic),
+        "non_reflecting" => {
+            if let Some(p) = spec.pressure
+                && !p.is_finite()
+            {
+                return Err(cfg(
+                    format!("{key}.pressure"),
+                    format!("must be finite, got {p}"),
+                ));
+            }
+            let v = spec.velocity.unwrap_or([0.0; 3]);
+            if v.iter().any(|c| !c.is_finite()) {
+                return Err(cfg(format!("{key}.velocity"), "must be finite"));
+            }
+            // the impedance (and a pressure not given) come from the face's initial state
+            Ok(Boundary::NonReflecting(FarField {
+                pressure: spec.pressure.unwrap_or(f64::NAN),
+                velocity: v,
+                impedance: f64::NAN,
+                relax: f64::NAN,
+            }))
+        }
         "inflow" => {
             let m = spec
                 .material
@@ -371,7 +400,9 @@ fn boundary(
         }
         other => Err(cfg(
             format!("{key}.kind"),
-            format!("unknown boundary '{other}' (wall, symmetry, outflow, periodic, inflow)"),
+            format!(
+                "unknown boundary '{other}' (wall, symmetry, outflow, non_reflecting, periodic, inflow)"
+            ),
         )),
     }
 }
@@ -839,6 +870,7 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
         timing: Default::default(),
     };
     initialise(&mut f, &regions, &mats);
+    far_fields(&mut f);
     for (pi, pr) in p.probes.iter().enumerate() {
         let [i, j, k] = grid.locate(pr.position).ok_or_else(|| {
             cfg(
@@ -910,6 +942,56 @@ fn initialise(f: &mut Fluid, regions: &[(Shape, RegionState)], mats: &[Material]
             for (v, a) in acc.iter().enumerate().take(nv) {
                 f.cons[(r * nv + v) * mx + i] = a / total;
             }
+        }
+    }
+}
+
+/// σ of a non-reflecting face's relaxation toward its far field (Rudy & Strikwerda, J. Comput.
+/// Phys. 36, 1980, find 0.27 the least reflecting; Poinsot & Lele, J. Comput. Phys. 101, 1992,
+/// use 0.25–0.58).
+const NON_REFLECTING_SIGMA: f64 = 0.25;
+
+/// The far field of each non-reflecting face from the initial state of the cells along it:
+/// the impedance ρc averaged over them, and the pressure too where the case gives none.
+fn far_fields(f: &mut Fluid) {
+    let g = f.grid.clone();
+    for d in 0..g.nd {
+        for side in 0..2 {
+            let Boundary::NonReflecting(far) = f.bc[d][side] else {
+                continue;
+            };
+            // the interior layer along the face: its cells' (row, x index)
+            let layer = if side == 0 {
+                g.g[d]
+            } else {
+                g.g[d] + g.n[d] - 1
+            };
+            let (mut z, mut p, mut n) = (0.0, 0.0, 0.0);
+            for r in 0..g.rows() {
+                if !g.interior_row(r) {
+                    continue;
+                }
+                let (j, k) = g.jk(r);
+                for i in g.irange() {
+                    let on = match d {
+                        0 => i == layer,
+                        1 => j == layer,
+                        _ => k == layer,
+                    };
+                    if on {
+                        z += crate::diagnostics::cell_impedance(f, r, i);
+                        p += crate::diagnostics::cell_state(f, r, i)[1];
+                        n += 1.0;
+                    }
+                }
+            }
+            let mut far = far;
+            far.impedance = z / n;
+            far.relax = NON_REFLECTING_SIGMA * g.dx[d] / (g.upper[d] - g.lower[d]);
+            if far.pressure.is_nan() {
+                far.pressure = p / n;
+            }
+            f.bc[d][side] = Boundary::NonReflecting(far);
         }
     }
 }

@@ -252,3 +252,42 @@ fn radial_set_ups_are_refused_by_key() {
     }
     println!("{} radial set-ups refused", cases.len());
 }
+
+/// A non-reflecting face takes the far field's pressure and velocity and nothing else, and
+/// the GPU path refuses it.
+#[test]
+fn non_reflecting_faces_are_refused_by_key_where_they_cannot_run() {
+    let cases = [
+        (
+            format!(
+                "{BASE}\n[boundaries]\nx_upper = {{ kind = \"non_reflecting\", density = 1.0 }}"
+            ),
+            "boundaries.x_upper.density",
+            "far field's pressure and velocity",
+        ),
+        (
+            format!(
+                "{BASE}\n[boundaries]\nx_upper = {{ kind = \"non_reflecting\", pressure = nan }}"
+            ),
+            "boundaries.x_upper.pressure",
+            "finite",
+        ),
+        (
+            format!("device = \"gpu\"\n{BASE}\n[boundaries]\nx_lower = \"non_reflecting\""),
+            "device",
+            "non_reflecting",
+        ),
+    ];
+    for (text, key, words) in &cases {
+        let (k, r) = refused(text);
+        println!("{k}: {r}");
+        assert_eq!(&k, key, "{r}");
+        assert!(r.contains(words), "{key}: '{r}' lacks '{words}'");
+    }
+    assert!(
+        build(&format!(
+            "{BASE}\n[boundaries]\nx_upper = {{ kind = \"non_reflecting\", pressure = 1.0 }}"
+        ))
+        .is_ok()
+    );
+}

@@ -113,6 +113,13 @@ pub fn supports(f: &Fluid) -> Result<(), String> {
     if f.nv != 5 {
         return Err(format!("{} variables per cell (expected 5)", f.nv));
     }
+    if f.bc
+        .iter()
+        .flatten()
+        .any(|b| matches!(b, Boundary::NonReflecting(_)))
+    {
+        return Err("a non_reflecting boundary (the device kernels fill wall, symmetry, outflow, periodic and inflow ghosts)".into());
+    }
     Ok(())
 }
 
@@ -173,7 +180,8 @@ fn whole(b: &wgpu::Buffer, binding: u32) -> wgpu::BindGroupEntry<'_> {
 fn bc_code(b: &Boundary) -> u32 {
     match b {
         Boundary::Wall | Boundary::Symmetry => 0,
-        Boundary::Outflow => 1,
+        // `supports` refuses a non-reflecting face before any kernel is built
+        Boundary::Outflow | Boundary::NonReflecting(_) => 1,
         Boundary::Periodic => 2,
         Boundary::Inflow(_) => 3,
     }
