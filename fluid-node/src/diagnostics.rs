@@ -6,7 +6,7 @@ use crate::mixture::{self, Phase};
 use crate::model::Fluid;
 use protocol::SolverResult;
 
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy)]
 pub struct Totals {
     pub mass: f64,
     pub momentum: [f64; 3],
@@ -15,6 +15,24 @@ pub struct Totals {
     pub kinetic: f64,
     pub internal: f64,
     pub max_pressure: f64,
+    /// The least pressure and density of any gas cell (+∞ with no gas cell).
+    pub min_pressure: f64,
+    pub min_density: f64,
+}
+
+impl Default for Totals {
+    fn default() -> Self {
+        Totals {
+            mass: 0.0,
+            momentum: [0.0; 3],
+            momentum_gross: 0.0,
+            kinetic: 0.0,
+            internal: 0.0,
+            max_pressure: 0.0,
+            min_pressure: f64::INFINITY,
+            min_density: f64::INFINITY,
+        }
+    }
 }
 
 /// Primitive state of one cell from its conserved variables: (ρ, velocity, p, α).
@@ -119,6 +137,8 @@ pub fn totals(f: &mut Fluid) -> SolverResult<Totals> {
             row.kinetic += ke * vol;
             row.internal += (e - ke) * vol;
             row.max_pressure = row.max_pressure.max(p);
+            row.min_pressure = row.min_pressure.min(p);
+            row.min_density = row.min_density.min(rho);
         }
         t.mass += row.mass;
         for d in 0..3 {
@@ -128,6 +148,8 @@ pub fn totals(f: &mut Fluid) -> SolverResult<Totals> {
         t.kinetic += row.kinetic;
         t.internal += row.internal;
         t.max_pressure = t.max_pressure.max(row.max_pressure);
+        t.min_pressure = t.min_pressure.min(row.min_pressure);
+        t.min_density = t.min_density.min(row.min_density);
     }
     Ok(t)
 }

@@ -283,6 +283,8 @@ impl Solver for EulerSolver {
         }
         report.scalars.push(("mass".into(), d.mass));
         report.scalars.push(("max_pressure".into(), d.max_pressure));
+        report.scalars.push(("min_pressure".into(), d.min_pressure));
+        report.scalars.push(("min_density".into(), d.min_density));
         timing_scalars(&self.fluid, &mut report.scalars);
         if let Some((_, last)) = self.probe_history.last() {
             for (p, s) in self.fluid.probes.iter().zip(last) {
@@ -428,6 +430,8 @@ impl EulerSolver {
         };
         report.scalars.push(("mass".into(), d.mass));
         report.scalars.push(("max_pressure".into(), d.max_pressure));
+        report.scalars.push(("min_pressure".into(), d.min_pressure));
+        report.scalars.push(("min_density".into(), d.min_density));
         // Precision of the device arithmetic (64, or 32 with a warning in the log).
         let bits = if g.warning().is_some() { 32.0 } else { 64.0 };
         report.scalars.push(("gpu_precision_bits".into(), bits));

@@ -144,6 +144,8 @@ fn check_f64(name: &str, text: &str, t1: f64) -> Option<u64> {
     let e = tc.kinetic + tc.internal;
     assert!(close(tg.kinetic, tc.kinetic, e) && close(tg.internal, tc.internal, e));
     assert!(close(tg.max_pressure, tc.max_pressure, tc.max_pressure));
+    assert!(close(tg.min_pressure, tc.min_pressure, tc.max_pressure));
+    assert!(close(tg.min_density, tc.min_density, tc.min_density));
     let pmax = tc.momentum.iter().fold(tc.mass, |m, x| m.max(x.abs()));
     for d in 0..3 {
         assert!(close(tg.momentum[d], tc.momentum[d], pmax), "momentum {d}");

@@ -644,9 +644,10 @@ fn finish() {
 // ---------------------------------------------------------------- diagnostics
 
 // diagnostics.rs totals(), one interior row per thread in x order: mass, momentum,
-// kinetic and internal energy, largest pressure, solid cells of an immersed body skipped
-// (is_solid_cell: immersed.wgsl, or `false` without an interface); written to the flux buffer (scratch
-// between steps) at 7 t + q for the t-th interior row. The host sums rows in order.
+// kinetic and internal energy, largest pressure, momentum scale, least pressure and density,
+// solid cells of an immersed body skipped (is_solid_cell: immersed.wgsl, or `false` without an
+// interface); written to the flux buffer (scratch between steps) at 10 t + q for the t-th
+// interior row. The host sums rows in order.
 @compute @workgroup_size(WG)
 fn row_totals(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let t = lin(gid, nwg, WG);
@@ -661,6 +662,8 @@ fn row_totals(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
     var int = real(0.0);
     var pmax = real(0.0);
     var gross = real(0.0);
+    var pmin = real(1.0e30);
+    var rmin = real(1.0e30);
     for (var i = g(0u); i < g(0u) + n(0u); i++) {
         if is_solid_cell(r * mx() + i) {
             continue;
@@ -684,9 +687,11 @@ fn row_totals(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
         kin += ke * vol;
         int += (e - ke) * vol;
         pmax = max(pmax, p);
+        pmin = min(pmin, p);
+        rmin = min(rmin, rho);
         gross += sqrt(m0 * m0 + m1 * m1 + m2 * m2) * vol;
     }
-    let o = 8u * t;
+    let o = 10u * t;
     flux[o] = mass;
     flux[o + 1u] = mom[0];
     flux[o + 2u] = mom[1];
@@ -695,4 +700,6 @@ fn row_totals(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
     flux[o + 5u] = int;
     flux[o + 6u] = pmax;
     flux[o + 7u] = gross;
+    flux[o + 8u] = pmin;
+    flux[o + 9u] = rmin;
 }

@@ -326,8 +326,8 @@ impl GpuEuler {
         let len = grid.rows() * 5 * mx;
         let rb = p.bytes();
         let max_bind = ctx.limits.max_storage_buffer_binding_size;
-        // one flux array per direction (row_totals also uses it as scratch: 8 reals a row)
-        let flux_len = (grid.nd * len).max(8 * grid.rows());
+        // one flux array per direction (row_totals also uses it as scratch: 10 reals a row)
+        let flux_len = (grid.nd * len).max(10 * grid.rows());
         if (flux_len * rb) as u64 > max_bind {
             return Err(GpuSetupError::Unsupported(format!(
                 "{:?} cells: the flux array needs {} bytes, more than the adapter's {} per binding",
@@ -778,7 +778,7 @@ impl GpuEuler {
 
     /// Mass, momentum, kinetic and internal energy and the largest pressure of the device
     /// state, as `diagnostics::totals` computes them (per-row sums on the device, rows
-    /// summed in order on the host: 7 reals per row cross, not the field).
+    /// summed in order on the host: 10 reals per row cross, not the field).
     pub fn totals(&self) -> Result<Totals, SolverError> {
         let p = self.ctx.precision;
         let nrows = self.grid.n[1] * self.grid.n[2];
@@ -803,12 +803,12 @@ impl GpuEuler {
             .map_err(gpu_err)?;
         let b = self
             .ctx
-            .read(&self.flux, 0, (8 * nrows * p.bytes()) as u64)
+            .read(&self.flux, 0, (10 * nrows * p.bytes()) as u64)
             .map_err(gpu_err)?;
-        let mut rows = vec![0.0; 8 * nrows];
+        let mut rows = vec![0.0; 10 * nrows];
         bytes_to_reals(p, &b, &mut rows).map_err(gpu_err)?;
         let mut t = Totals::default();
-        for row in rows.chunks_exact(8) {
+        for row in rows.chunks_exact(10) {
             t.mass += row[0];
             for d in 0..3 {
                 t.momentum[d] += row[1 + d];
@@ -817,6 +817,11 @@ impl GpuEuler {
             t.internal += row[5];
             t.max_pressure = t.max_pressure.max(row[6]);
             t.momentum_gross += row[7];
+            // a row of solid cells only reports the kernel's 1e30: no gas cell
+            if row[8] < 1.0e29 {
+                t.min_pressure = t.min_pressure.min(row[8]);
+                t.min_density = t.min_density.min(row[9]);
+            }
         }
         Ok(t)
     }
