@@ -34,8 +34,9 @@ pub struct FarField {
     /// Acoustic impedance ρc of the gas along the face (Pa s/m).
     pub impedance: f64,
     /// Fraction of the difference between the far field's incoming invariant and the
-    /// interior's that each ghost fill lets in: σ Δx / L with σ = 0.25 and L the domain's
-    /// extent across the face.
+    /// interior's that each ghost fill lets in: K Δt of the relaxation rate K = σ c / L
+    /// (Poinsot & Lele) over a step Δt = cfl Δx / c, so σ · cfl · Δx / L, with σ = 0.25 and L
+    /// the domain's extent across the face.
     pub relax: f64,
 }
 

@@ -987,7 +987,8 @@ fn far_fields(f: &mut Fluid) {
             }
             let mut far = far;
             far.impedance = z / n;
-            far.relax = NON_REFLECTING_SIGMA * g.dx[d] / (g.upper[d] - g.lower[d]);
+            // K Δt of the relaxation K = σ c / L over a step Δt = cfl Δx / c
+            far.relax = NON_REFLECTING_SIGMA * f.cfl * g.dx[d] / (g.upper[d] - g.lower[d]);
             if far.pressure.is_nan() {
                 far.pressure = p / n;
             }
