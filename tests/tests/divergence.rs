@@ -265,6 +265,8 @@ const EXAMPLES: &[(&str, &[&str])] = &[
             "small-decoupled",
         ],
     ),
+    ("noh", &["cylindrical", "small"]),
+    ("sedov", &["cylindrical", "small"]),
     (
         "seed003_cantilever",
         &["small", "reference", "small-reference"],
@@ -282,6 +284,10 @@ const EXAMPLES: &[(&str, &[&str])] = &[
     ("split_bar", &["python", "c"]),
     ("split_bar_chain", &["small"]),
     ("split_bar_lagrange", &[]),
+    (
+        "underwater_explosion",
+        &["fine", "small", "radial", "radial-coarse"],
+    ),
 ];
 
 /// How many windows of each example and variant the test runs: the start, where a bound
