@@ -34,6 +34,12 @@ pub struct Params {
     /// `NAME.pressure` …) and written to `probes.csv`.
     #[serde(default)]
     pub probes: Vec<ProbeSpec>,
+    /// Lines along which a material's edges are tracked: reported every window as
+    /// `NAME.first` and `NAME.last` (distance from the line's start, m; −1 when the material
+    /// is not on the line) and their speeds `NAME.first_speed`, `NAME.last_speed` (m/s,
+    /// positive away from the start), and written to `edges.csv`.
+    #[serde(default)]
+    pub edges: Vec<EdgeSpec>,
     /// Immersed-boundary responder interface (seed 002 §3).
     #[serde(default)]
     pub immersed: Option<ImmersedSpec>,
@@ -187,6 +193,20 @@ pub struct ProbeSpec {
     pub name: String,
     /// Where it samples (m); the cell holding it.
     pub position: [f64; 3],
+}
+
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct EdgeSpec {
+    /// The line's name (its report scalars are `NAME.first`, `NAME.last`, …).
+    pub name: String,
+    /// The material whose edges it finds (a name of `materials`): where its volume fraction
+    /// first rises through 0.5 and last falls through it, going from `from` to `to`.
+    pub material: String,
+    /// Where the line starts (m); positions are distances along it from here.
+    pub from: [f64; 3],
+    /// Where the line ends (m).
+    pub to: [f64; 3],
 }
 
 #[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]

@@ -19,6 +19,7 @@
 pub mod boundary;
 pub mod config;
 pub mod diagnostics;
+pub mod edges;
 pub mod eos;
 pub mod exact;
 pub mod gpu;

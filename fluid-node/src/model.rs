@@ -57,6 +57,8 @@ pub struct Fluid {
     /// and out through inflow and outflow faces (walls and symmetry planes carry none).
     pub boundary_work: f64,
     pub probes: Vec<Probe>,
+    /// Lines along which a material's edges are tracked.
+    pub edges: Vec<crate::edges::EdgeLine>,
     pub immersed: Option<Immersed>,
     pub max_steps_per_window: u64,
     /// True once `prim` holds the primitives of `cons` (interior cells).

@@ -134,6 +134,22 @@ pub fn write_vtk(f: &Fluid, t: f64, window: u64, dir: &Path) -> SolverResult<()>
 }
 
 /// Probe histories as CSV: time, then ρ, p, u, v, w for each probe.
+/// `edges.csv`: per window the time and each edge line's first and last edge (m along it).
+pub fn write_edges(f: &Fluid, hist: &[(f64, Vec<[f64; 2]>)], dir: &Path) -> SolverResult<()> {
+    if f.edges.is_empty() {
+        return Ok(());
+    }
+    let mut header = vec!["time".to_string()];
+    for e in &f.edges {
+        header.push(format!("{}.first", e.name));
+        header.push(format!("{}.last", e.name));
+    }
+    let rows = hist
+        .iter()
+        .map(|(t, vals)| std::iter::once(*t).chain(vals.iter().flatten().copied()));
+    node_kit::table::write_csv(&dir.join("edges.csv"), &header, rows).map_err(SolverError::from)
+}
+
 pub fn write_probes(f: &Fluid, hist: &[(f64, Vec<[f64; 5]>)], dir: &Path) -> SolverResult<()> {
     if f.probes.is_empty() {
         return Ok(());

@@ -861,6 +861,7 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
         boundary_impulse: [0.0; 3],
         boundary_work: 0.0,
         probes: Vec::new(),
+        edges: Vec::new(),
         immersed: None,
         max_steps_per_window: p.max_steps_per_window.unwrap_or(10_000_000),
         prim_valid: false,
@@ -884,6 +885,41 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
             row: grid.row(j, k),
             i,
         });
+    }
+    for (ei, e) in p.edges.iter().enumerate() {
+        let key = |k: &str| format!("edges[{ei}].{k}");
+        if e.name.is_empty() || p.edges[..ei].iter().any(|o| o.name == e.name) {
+            return Err(cfg(
+                key("name"),
+                format!("'{}' is empty or given twice", e.name),
+            ));
+        }
+        let m = names.iter().position(|n| n == &e.material).ok_or_else(|| {
+            cfg(
+                key("material"),
+                format!(
+                    "unknown material '{}' (defined: {})",
+                    e.material,
+                    names.join(", ")
+                ),
+            )
+        })?;
+        if nm == 1 {
+            return Err(cfg(
+                key("material"),
+                "with one material the grid is all of it: there is no edge to find",
+            ));
+        }
+        let line = crate::edges::EdgeLine::new(&f, &e.name, m, e.from, e.to).ok_or_else(|| {
+            cfg(
+                key("to"),
+                format!(
+                    "the line from {:?} to {:?} crosses fewer than two cells of the grid",
+                    e.from, e.to
+                ),
+            )
+        })?;
+        f.edges.push(line);
     }
     if let Some(im) = &p.immersed {
         if geometry != Geometry::Cartesian {

@@ -20,6 +20,8 @@ pub struct EulerSolver {
     pub fluid: Fluid,
     /// Probe history: (time, per probe [ρ, p, u, v, w]).
     pub probe_history: Vec<(f64, Vec<[f64; 5]>)>,
+    /// Edge history: (time, per edge line [first, last]), from t = 0.
+    pub edge_history: Vec<(f64, Vec<[f64; 2]>)>,
     /// Work received through the immersed interface so far (J): minus the work of the
     /// impulse given to the particles at the particle velocities of that window.
     pub interface_work: f64,
@@ -53,6 +55,7 @@ impl EulerSolver {
             },
         };
         Ok(EulerSolver {
+            edge_history: first_edges(&fluid),
             fluid,
             probe_history: Vec::new(),
             interface_work: 0.0,
@@ -62,6 +65,7 @@ impl EulerSolver {
 
     pub fn from_fluid(fluid: Fluid) -> Self {
         EulerSolver {
+            edge_history: first_edges(&fluid),
             fluid,
             probe_history: Vec::new(),
             interface_work: 0.0,
@@ -248,6 +252,7 @@ impl Solver for EulerSolver {
             self.fluid.timing.immersed_window_s += t_forces.elapsed().as_secs_f64();
         }
         self.record_probes();
+        self.record_edges();
         let d = diagnostics::totals(&mut self.fluid)?;
         let mut report = StepReport {
             kinetic_energy: d.kinetic,
@@ -285,6 +290,7 @@ impl Solver for EulerSolver {
         report.scalars.push(("max_pressure".into(), d.max_pressure));
         report.scalars.push(("min_pressure".into(), d.min_pressure));
         report.scalars.push(("min_density".into(), d.min_density));
+        self.edge_scalars(&mut report.scalars);
         timing_scalars(&self.fluid, &mut report.scalars);
         if let Some((_, last)) = self.probe_history.last() {
             for (p, s) in self.fluid.probes.iter().zip(last) {
@@ -298,7 +304,8 @@ impl Solver for EulerSolver {
     fn write_output(&self, t: f64, window: u64, dir: &Path) -> SolverResult<()> {
         let f = self.host_state()?;
         output::write_vtk(&f, t, window, dir)?;
-        output::write_probes(&f, &self.probe_history, dir)
+        output::write_probes(&f, &self.probe_history, dir)?;
+        output::write_edges(&f, &self.edge_history, dir)
     }
 
     fn save_state(&self) -> SolverResult<Vec<u8>> {
@@ -320,6 +327,7 @@ impl Solver for EulerSolver {
             boundary_work: f.boundary_work,
             interface_work: self.interface_work,
             probe_history: &self.probe_history,
+            edge_history: &self.edge_history,
             immersed: im.as_deref(),
         })
     }
@@ -328,6 +336,9 @@ impl Solver for EulerSolver {
         use protocol::checkpoint::check_len;
         let s: FluidState = protocol::checkpoint::decode_state(bytes)?;
         check_len("cons", s.cons.len(), self.fluid.cons.len())?;
+        for (_, e) in &s.edge_history {
+            check_len("edge lines", e.len(), self.fluid.edges.len())?;
+        }
         match (&self.fluid.immersed, &s.immersed) {
             (None, None) => {}
             (Some(a), Some(b)) if a.interface == b.interface && a.kind.len() == b.kind.len() => {}
@@ -347,10 +358,25 @@ impl Solver for EulerSolver {
         f.prim_valid = false;
         self.interface_work = s.interface_work;
         self.probe_history = s.probe_history;
+        self.edge_history = s.edge_history;
         if let Some(g) = self.gpu.as_mut() {
             g.upload(&self.fluid)?;
         }
         Ok(())
+    }
+}
+
+/// The edge lines' positions now.
+fn edges_now(f: &Fluid) -> Vec<[f64; 2]> {
+    f.edges.iter().map(|e| e.positions(f)).collect()
+}
+
+/// The edge history's first entry, at the model's time (none without edge lines).
+fn first_edges(f: &Fluid) -> Vec<(f64, Vec<[f64; 2]>)> {
+    if f.edges.is_empty() {
+        Vec::new()
+    } else {
+        vec![(f.time, edges_now(f))]
     }
 }
 
@@ -389,6 +415,7 @@ struct FluidStateRef<'a> {
     boundary_work: f64,
     interface_work: f64,
     probe_history: &'a [(f64, Vec<[f64; 5]>)],
+    edge_history: &'a [(f64, Vec<[f64; 2]>)],
     immersed: Option<&'a Immersed>,
 }
 
@@ -402,6 +429,7 @@ struct FluidState {
     boundary_work: f64,
     interface_work: f64,
     probe_history: Vec<(f64, Vec<[f64; 5]>)>,
+    edge_history: Vec<(f64, Vec<[f64; 2]>)>,
     immersed: Option<Immersed>,
 }
 
@@ -446,6 +474,28 @@ impl EulerSolver {
         }
         report.wall_s = start.elapsed().as_secs_f64();
         Ok(report)
+    }
+
+    /// Appends the edge lines' positions now to their history.
+    fn record_edges(&mut self) {
+        if !self.fluid.edges.is_empty() {
+            let now = edges_now(&self.fluid);
+            self.edge_history.push((self.fluid.time, now));
+        }
+    }
+
+    /// `NAME.first`, `NAME.last` and their speeds of every edge line, from the history.
+    fn edge_scalars(&self, out: &mut Vec<(String, f64)>) {
+        let Some((_, now)) = self.edge_history.last() else {
+            return;
+        };
+        for (e, (line, pos)) in self.fluid.edges.iter().zip(now).enumerate() {
+            for (side, which) in ["first", "last"].iter().enumerate() {
+                out.push((format!("{}.{which}", line.name), pos[side]));
+                let v = crate::edges::speed(&self.edge_history, e, side, line.moved);
+                out.push((format!("{}.{which}_speed", line.name), v));
+            }
+        }
     }
 
     fn record_probes(&mut self) {

@@ -291,3 +291,48 @@ fn non_reflecting_faces_are_refused_by_key_where_they_cannot_run() {
         .is_ok()
     );
 }
+
+/// An edge line names a material of two or more, and crosses the grid.
+#[test]
+fn edge_lines_are_refused_by_key() {
+    let two = BASE.replace(
+        "[materials.air]",
+        "[materials.helium]\neos = \"ideal\"\ngamma = 1.67\n[materials.air]",
+    );
+    let line = |m: &str, to: &str| {
+        format!("[[edges]]\nname = \"b\"\nmaterial = \"{m}\"\nfrom = [0.0, 0.5, 0.5]\nto = {to}\n")
+    };
+    let cases = [
+        (
+            format!("{BASE}\n{}", line("air", "[1.0, 0.5, 0.5]")),
+            "edges[0].material",
+            "no edge to find",
+        ),
+        (
+            format!("{two}\n{}", line("water", "[1.0, 0.5, 0.5]")),
+            "edges[0].material",
+            "unknown material 'water'",
+        ),
+        (
+            format!("{two}\n{}", line("helium", "[0.01, 0.5, 0.5]")),
+            "edges[0].to",
+            "fewer than two cells",
+        ),
+        (
+            format!(
+                "{two}\n{}\n{}",
+                line("helium", "[1.0, 0.5, 0.5]"),
+                line("air", "[1.0, 0.5, 0.5]")
+            ),
+            "edges[1].name",
+            "given twice",
+        ),
+    ];
+    for (text, key, words) in &cases {
+        let (k, r) = refused(text);
+        println!("{k}: {r}");
+        assert_eq!(&k, key, "{r}");
+        assert!(r.contains(words), "{key}: '{r}' lacks '{words}'");
+    }
+    assert!(build(&format!("{two}\n{}", line("helium", "[1.0, 0.5, 0.5]"))).is_ok());
+}

@@ -76,6 +76,9 @@ pub struct RunSection {
     pub energy_bound: Option<f64>,
     /// Divergence guard: energy added to the bound, J (≥ 0).
     pub energy_floor: Option<f64>,
+    /// Scalars of the nodes' last reports to print after the run's line, as "NODE.SCALAR"
+    /// (e.g. "gas.bubble.first_speed"); they are in summary.json whatever this says.
+    pub print: Option<Vec<String>>,
 }
 
 /// `run.schedule`.

@@ -64,6 +64,8 @@ pub struct RunConfig {
     /// diverged; 0 turns the bound off (non-finite values still stop it).
     pub energy_bound: f64,
     pub energy_floor: f64,
+    /// `run.print`: (node, scalar) pairs printed from the nodes' last reports at the end.
+    pub print: Vec<(String, String)>,
 }
 
 /// `run.pictures`: the field pictures a finished run draws from its VTK series.

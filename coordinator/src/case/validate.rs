@@ -61,6 +61,15 @@ pub(super) fn settle(file: CaseFile, path: &Path, text: &str) -> Result<Case, Co
             format!("{why} couplings[{i}] (docs/architecture.md); use \"serial\""),
         ));
     }
+    for (i, (node, _)) in run.print.iter().enumerate() {
+        if !nodes.iter().any(|n| &n.name == node) {
+            let names: Vec<&str> = nodes.iter().map(|n| n.name.as_str()).collect();
+            return Err(err(
+                format!("run.print[{i}]"),
+                format!("no node '{node}' (the case has {})", names.join(", ")),
+            ));
+        }
+    }
     Ok(Case {
         path: path.to_path_buf(),
         text: text.to_string(),
@@ -121,7 +130,27 @@ fn settle_run(r: &RunSection) -> Result<RunConfig, ConfigError> {
         },
         energy_bound,
         energy_floor,
+        print: run_print(r)?,
     })
+}
+
+/// `run.print`: each entry "NODE.SCALAR" (the node checked once the nodes are known).
+fn run_print(r: &RunSection) -> Result<Vec<(String, String)>, ConfigError> {
+    let mut out = Vec::new();
+    for (i, e) in r.print.iter().flatten().enumerate() {
+        match e.split_once('.') {
+            Some((node, scalar)) if !node.is_empty() && !scalar.is_empty() => {
+                out.push((node.to_string(), scalar.to_string()));
+            }
+            _ => {
+                return Err(err(
+                    format!("run.print[{i}]"),
+                    format!("must be \"NODE.SCALAR\" (e.g. \"gas.max_pressure\"), got '{e}'"),
+                ));
+            }
+        }
+    }
+    Ok(out)
 }
 
 /// `run.end_time` and `run.window`: positive, a window no longer than the run, at most 1e9

@@ -288,4 +288,10 @@ fn print_finished(c: &case::Case, o: &crate::run::Outcome) {
             eprintln!("cosim: warning: {w}");
         }
     }
+    for (node, scalar) in &c.run.print {
+        match o.summary["nodes"][node]["final"]["scalars"][scalar].as_f64() {
+            Some(v) => println!("cosim: {node}.{scalar} = {v}"),
+            None => println!("cosim: {node}.{scalar}: not in the node's last report"),
+        }
+    }
 }
