@@ -279,7 +279,7 @@ const EXAMPLES: &[(&str, &[&str])] = &[
     ("seed003_three", &["small"]),
     ("seed003_wave", &["small", "reference", "small-reference"]),
     ("seed003_wave_split", &["small", "implicit"]),
-    ("shock_bubble", &[]),
+    ("shock_bubble", &["seed", "small"]),
     ("single_joint", &["small"]),
     ("split_bar", &["python", "c"]),
     ("split_bar_chain", &["small"]),
