@@ -90,7 +90,10 @@ fn the_edges_of_a_carried_slab_move_with_the_flow() {
     let h = 1.0 / 400.0;
     assert!((first - (0.2 + u * t)).abs() < 0.5 * h, "{first}");
     assert!((last - (0.4 + u * t)).abs() < 0.5 * h, "{last}");
-    assert!((v1 / u - 1.0).abs() < 0.01 && (v2 / u - 1.0).abs() < 0.01, "{v1} {v2}");
+    assert!(
+        (v1 / u - 1.0).abs() < 0.01 && (v2 / u - 1.0).abs() < 0.01,
+        "{v1} {v2}"
+    );
     // from the other end: the first edge met is the slab's right one, moving toward the start
     assert!((get("back.first") - (1.0 - last)).abs() < 1e-9);
     assert!((get("back.last") - (1.0 - first)).abs() < 1e-9);

@@ -135,6 +135,20 @@ fn window_not_positive_or_beyond_the_end() {
 }
 
 #[test]
+fn print_naming_no_node_or_no_scalar() {
+    refused(
+        "print-node",
+        |s| s.replace("window = 1e-6", "window = 1e-6\nprint = [\"middle.tip\"]"),
+        "run.print[0]",
+    );
+    refused(
+        "print-form",
+        |s| s.replace("window = 1e-6", "window = 1e-6\nprint = [\"left.\"]"),
+        "run.print[0]",
+    );
+}
+
+#[test]
 fn coupling_naming_an_unknown_node_or_interface() {
     refused(
         "nonode",
