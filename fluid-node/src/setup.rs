@@ -579,13 +579,16 @@ fn energy_pressure(
             "the region covers no cell (it is too small for the grid, or later regions cover it): the energy has nowhere to go",
         ));
     }
+    if !(rho > 0.0) || !rho.is_finite() {
+        return Err(cfg(
+            format!("{key}.density"),
+            format!("must be > 0, got {rho}"),
+        ));
+    }
     // the material's name is checked by `state_of`; an unknown one gets its error there
     let Some(m) = names.iter().position(|n| n == &r.material) else {
         return Ok(f64::NAN);
     };
-    if !(rho > 0.0) || !rho.is_finite() {
-        return Ok(f64::NAN);
-    }
     let p = mats[m].pressure(rho, e / volume / rho);
     if !(p > mats[m].min_pressure()) || !p.is_finite() {
         return Err(cfg(

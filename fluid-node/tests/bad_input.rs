@@ -222,6 +222,11 @@ fn radial_set_ups_are_refused_by_key() {
             "must be > 0",
         ),
         (
+            sph(&extra_region("energy = 1.0").replace("density = 1.0\n", "density = -2.0\n")),
+            "regions[1].density",
+            "must be > 0",
+        ),
+        (
             sph(&extra_region("energy = 1.0").replace("density = 1.0\n", "temperature = 300.0\n")),
             "regions[1].density",
             "needs its density",
