@@ -1,5 +1,6 @@
-//! Structured Cartesian grid with ghost layers and the row-blocked structure-of-arrays layout
-//! every kernel uses: a "row" is one x-line of cells (ghosts included); row `r` stores its
+//! Structured grid with ghost layers — Cartesian, or with x a radius (`Geometry`: cylindrical,
+//! spherical, axisymmetric; each x column then carries its cells' volume and face areas) — and
+//! the row-blocked structure-of-arrays layout every kernel uses: a "row" is one x-line of cells (ghosts included); row `r` stores its
 //! `nv` variables one after another, `data[(r * nv + v) * mx + i]`. A row with all its
 //! variables is one contiguous chunk, so rayon splits work by rows without scatter.
 
@@ -50,6 +51,10 @@ pub struct Column {
     pub area_lo: f64,
     /// Area of its outer (upper x) face.
     pub area_hi: f64,
+    /// `area_lo / volume` and `area_hi / volume`: the update's weights, divided once here
+    /// instead of in every stage for every variable.
+    pub lo_per_volume: f64,
+    pub hi_per_volume: f64,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -140,10 +145,13 @@ impl Grid {
                 // fall below it; their weights are never used in an update
                 let lo = (lower[0] + (i as f64 - grid.g[0] as f64) * grid.dx[0]).abs();
                 let hi = (lo + grid.dx[0]).abs();
+                let volume = (below(hi) - below(lo)).abs();
                 Column {
-                    volume: (below(hi) - below(lo)).abs(),
+                    volume,
                     area_lo: face(lo),
                     area_hi: face(hi),
+                    lo_per_volume: face(lo) / volume,
+                    hi_per_volume: face(hi) / volume,
                 }
             })
             .collect();

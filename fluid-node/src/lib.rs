@@ -5,7 +5,9 @@
 //!
 //! Layout: `config` (params schema) → `setup` (validated model) → `step` (the time loop,
 //! kernels over flat arrays) with `riemann`, `limiter`, `eos`, `mixture`, `boundary`,
-//! `immersed`; `solver` wraps it all in the `Solver` trait; `output`, `diagnostics`.
+//! `immersed`; `solver` wraps it all in the `Solver` trait; `output`, `diagnostics`, `edges`
+//! (a material's edges along a line, for reports); `exact` holds the exact solutions of the
+//! radial verification problems (Noh, Sedov), which use none of the solver's code.
 
 // `!(x > 0.0)` is deliberate throughout: it rejects NaN as well as non-positive values.
 // Index loops over small fixed-size arrays mirror the component-wise equations.

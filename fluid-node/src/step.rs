@@ -1580,8 +1580,7 @@ fn update_radial<const NM: usize>(f: &mut Fluid, a: f64, b: f64, dt: f64) {
                 let is_alpha = v >= NM + 4;
                 let o = v * mx;
                 for i in ir.clone() {
-                    let c = cols[i];
-                    let (wl, wh) = (c.area_lo / c.volume, c.area_hi / c.volume);
+                    let (wl, wh) = (cols[i].lo_per_volume, cols[i].hi_per_volume);
                     let mut res = -(wh * fx[o + i] - wl * fx[o + i - 1]);
                     if is_alpha {
                         res += u[o + i] * (wh * ux[i] - wl * ux[i - 1]);
