@@ -217,6 +217,14 @@ pub struct ImmersedSpec {
     pub interface: String,
     /// Number of particles, when known in advance (otherwise taken from the first inbox).
     pub particles: Option<usize>,
+    /// How a cell the solid leaves is filled: "average" (default) gives it the mean state of
+    /// its gas neighbours, booked as reclassification (external) mass, momentum and energy;
+    /// "conservative" has it take 1/(n+1) of its n gas neighbours' mass, momentum and energy
+    /// from them, so nothing is created (a solid that sweeps through dense gas, such as an
+    /// expanding shell, otherwise adds the gas's energy density times the volume it sweeps).
+    /// Either way the gas of a cell the solid covers leaves the gas, booked.
+    #[serde(default)]
+    pub refill: Option<String>,
 }
 
 fn default_interface() -> String {

@@ -937,11 +937,23 @@ pub fn build(p: &Params) -> SolverResult<Fluid> {
         if im.interface.is_empty() {
             return Err(cfg("immersed.interface", "must not be empty"));
         }
-        f.immersed = Some(Immersed::new(
+        let conservative = match im.refill.as_deref() {
+            None | Some("average") => false,
+            Some("conservative") => true,
+            Some(other) => {
+                return Err(cfg(
+                    "immersed.refill",
+                    format!("must be \"average\" or \"conservative\", got \"{other}\""),
+                ));
+            }
+        };
+        let mut body = Immersed::new(
             im.interface.clone(),
             im.particles.unwrap_or(0),
             grid.rows() * grid.mx(),
-        ));
+        );
+        body.conservative = conservative;
+        f.immersed = Some(body);
     }
     Ok(f)
 }

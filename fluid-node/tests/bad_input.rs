@@ -67,6 +67,15 @@ fn cfl_above_one_is_refused() {
 }
 
 #[test]
+fn an_unknown_immersed_refill_is_refused() {
+    let ok = format!("{BASE}[immersed]\ninterface = \"particles\"\nrefill = \"conservative\"\n");
+    assert!(build(&ok).is_ok());
+    let (k, r) = refused(&ok.replace("\"conservative\"", "\"mean\""));
+    assert_eq!(k, "immersed.refill");
+    assert!(r.contains("\"average\" or \"conservative\""), "{r}");
+}
+
+#[test]
 fn zero_cells_are_refused() {
     let (k, _) = refused(&BASE.replace("cells = [20, 1, 1]", "cells = [0, 1, 1]"));
     assert_eq!(k, "grid.cells");

@@ -33,6 +33,23 @@ const G: f64 = 1.4;
 
 #[test]
 fn moving_particle_slab_refills_cells_and_keeps_gas_mass() {
+    slab("average");
+}
+
+/// The same slab with `refill = "conservative"`: the cells it leaves take their gas from
+/// their neighbours, so the reclassification books no mass in (only the cells it covers
+/// give theirs up); the balance holds to round-off and the piston shock ahead is the same.
+/// Behind, the gas is thinner than the rarefaction's (p/p0 0.547 against 0.695 measured):
+/// the moving wall's flux has already carried the gas that follows the slab into the cells
+/// it leaves (booked as wall mass), and the refill takes that volume's gas from the
+/// neighbours a second time. The check pins that known deficit (below the rarefaction,
+/// within 25 %) so that a change to it is seen.
+#[test]
+fn a_conservative_refill_creates_no_gas() {
+    slab("conservative");
+}
+
+fn slab(refill: &str) {
     let (nx, ny) = (240, 4);
     let h = 2.4 / nx as f64;
     let ly = ny as f64 * h;
@@ -58,6 +75,7 @@ fn moving_particle_slab_refills_cells_and_keeps_gas_mass() {
         y_upper = "wall"
         [immersed]
         interface = "particles"
+        refill = "{refill}"
     "#
     )) {
         Ok(f) => EulerSolver::from_fluid(f),
@@ -125,6 +143,14 @@ fn moving_particle_slab_refills_cells_and_keeps_gas_mass() {
             // the gas at t = 0: the set-up's field without the cells the slab covers
             m_gas0 = m0 + im.reclass_mass;
         }
+        if refill == "conservative" && k > 1 {
+            // only the cells the slab covers are booked: out, never in
+            assert!(
+                im.reclass_mass <= prev_reclass,
+                "window {k}: reclassified mass went {prev_reclass} → {}",
+                im.reclass_mass
+            );
+        }
         // mass balance of this window
         let dm = mass - prev_mass;
         let src = (im.wall_mass - prev_wall) + (im.reclass_mass - prev_reclass);
@@ -179,13 +205,20 @@ fn moving_particle_slab_refills_cells_and_keeps_gas_mass() {
     let front = plateau(1.35, 1.65);
     let pb = back;
     println!(
-        "moving slab: {refilled} refilled cells; worst per-window mass balance residual {worst_balance:.3e} (relative to gas mass); gas mass drift {drift:.3e} = {:.3} of one cell column at ρ2 ({column:.3e}; swept mass {swept:.3e}); back-side p/p0 {pb:.4} (rarefaction {p_back:.4}); front p/p0 {front:.4} (piston shock {p_front:.4})",
+        "moving slab ({refill} refill): {refilled} refilled cells; worst per-window mass balance residual {worst_balance:.3e} (relative to gas mass); gas mass drift {drift:.3e} = {:.3} of one cell column at ρ2 ({column:.3e}; swept mass {swept:.3e}); back-side p/p0 {pb:.4} (rarefaction {p_back:.4}); front p/p0 {front:.4} (piston shock {p_front:.4})",
         drift / column
     );
     assert!(refilled >= 14 * ny, "refilled cells: {refilled}");
     assert!(worst_balance < 1e-13, "mass balance {worst_balance}");
-    assert!(drift < column, "mass drift {drift} vs one column {column}");
-    assert!((pb / p_back - 1.0).abs() < 0.03, "back-side pressure {pb}");
+    if refill == "conservative" {
+        // the gas the slab covers is booked out and none is booked in: the gas loses mass
+        // (about 15 columns swept, at the piston-shock density)
+        assert!(mass < m_gas0, "gas mass {mass} ≥ {m_gas0}");
+        assert!(pb < p_back && pb > 0.75 * p_back, "back-side pressure {pb}");
+    } else {
+        assert!(drift < column, "mass drift {drift} vs one column {column}");
+        assert!((pb / p_back - 1.0).abs() < 0.03, "back-side pressure {pb}");
+    }
     assert!(
         (front / p_front - 1.0).abs() < 0.03,
         "front pressure {front}"

@@ -51,6 +51,12 @@ pub struct Immersed {
     /// since the start (J): the gas a solid covers leaves the gas's books (the first
     /// classification removes what the initial condition put where the solid is).
     pub reclass_energy: f64,
+    /// Reclassification shares the gas among a cell and its neighbours instead of creating
+    /// or removing it (`immersed.refill = "conservative"`).
+    pub conservative: bool,
+    /// Whether the cells have been classified once: the first classification removes what
+    /// the initial condition put where the solid is, whatever `conservative` says.
+    pub classified: bool,
     /// Gas mass that entered the gas (+) through the moving wall faces since the start (kg).
     pub wall_mass: f64,
     /// Fluxes of the wall faces in the current RK stage (nf per wall, in `walls` order).
@@ -88,6 +94,8 @@ impl Immersed {
             reclass_momentum: [0.0; 3],
             reclass_mass: 0.0,
             reclass_energy: 0.0,
+            conservative: false,
+            classified: false,
             wall_mass: 0.0,
             wall_flux: Vec::new(),
             wall_order: Vec::new(),

@@ -151,12 +151,15 @@ impl Immersed {
 
     /// Cells that were solid and now hold gas: neighbour average of the conserved state
     /// (seed 002 eq. 32 with equal weights for the face neighbours); cells that became solid
-    /// leave the gas.
+    /// leave the gas. With `conservative` (after the first classification) a cell the solid
+    /// left takes its gas from its neighbours instead ([`Immersed::share`]).
     fn refill(&mut self, f: &mut Fluid) {
         let mx = f.grid.mx();
         let nv = f.nv;
         let nm = f.nmat();
         let vol = f.grid.cell_volume();
+        let share = self.conservative && self.classified;
+        self.classified = true;
         for r in 0..f.grid.rows() {
             if !f.grid.interior_row(r) {
                 continue;
@@ -164,6 +167,9 @@ impl Immersed {
             for i in f.grid.irange() {
                 let c = r * mx + i;
                 let (was, now) = (self.prev_kind[c], self.kind[c]);
+                if share && was == SOLID && now != SOLID && self.share(f, c) {
+                    continue;
+                }
                 if was == SOLID && now != SOLID {
                     let mut acc = [0.0; MAXF];
                     let mut cnt = 0.0;
@@ -199,6 +205,45 @@ impl Immersed {
                 }
             }
         }
+    }
+}
+
+impl Immersed {
+    /// Conservative refill of cell `c`, which the solid has just left, from its gas face
+    /// neighbours (cells gas before and now): it takes 1/(n+1) of its n neighbours' summed
+    /// mass, momentum and energy, and each neighbour keeps n/(n+1) of its own. Every
+    /// neighbour keeps its velocity and specific energy, the cell starts at their mean state
+    /// diluted by n/(n+1) (the gas has expanded into the freed volume), its volume fractions
+    /// their mean; nothing is created. False (nothing done) when it has no gas neighbour.
+    fn share(&mut self, f: &mut Fluid, c: usize) -> bool {
+        let mx = f.grid.mx();
+        let nv = f.nv;
+        let conserved = f.nmat() + 4;
+        let mut nbs = [0usize; 6];
+        let mut n = 0;
+        for (nb, _, _) in neighbours(f, c) {
+            if self.prev_kind[nb] != SOLID && self.kind[nb] != SOLID {
+                nbs[n] = nb;
+                n += 1;
+            }
+        }
+        if n == 0 {
+            return false;
+        }
+        let at = |cell: usize, v: usize| ((cell / mx) * nv + v) * mx + cell % mx;
+        let keep = n as f64 / (n as f64 + 1.0);
+        for v in 0..nv {
+            let sum: f64 = nbs[..n].iter().map(|&nb| f.cons[at(nb, v)]).sum();
+            if v < conserved {
+                f.cons[at(c, v)] = sum / (n as f64 + 1.0);
+                for &nb in &nbs[..n] {
+                    f.cons[at(nb, v)] *= keep;
+                }
+            } else {
+                f.cons[at(c, v)] = sum / n as f64;
+            }
+        }
+        true
     }
 }
 
