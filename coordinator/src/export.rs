@@ -5,7 +5,9 @@
 //! for vectors, NaN where a window lacks the key; `csv` and `parquet` write one table per
 //! node (vectors as `KEY_x`, `KEY_y`, `KEY_z`; empty or null where a window lacks the key). The
 //! coupling messages' interface fields go to `fields.npz` (`COUPLING/SENDER/FIELD` as
-//! (messages, points, components), with `.window` and `.time` per message).
+//! (messages, points, components), with `.window` and `.time` per message). A node that wrote
+//! a fragment table (`NODE/fragments.csv` in the run's folder) adds the table
+//! `NODE_fragments`, one row per fragment of its last frame.
 
 use crate::record;
 use anyhow::{Context, bail};
@@ -87,6 +89,66 @@ pub fn tables(recording: &Path) -> anyhow::Result<BTreeMap<String, Table>> {
         );
     }
     Ok(out)
+}
+
+/// The fragment tables the run's nodes wrote (`RUN/NODE/fragments.csv`: one row per fragment
+/// of the last frame), as tables named `NODE_fragments`, one row per fragment, in node
+/// order. A file that is not a table of numbers under one header is an error naming it.
+pub fn fragment_tables(run_dir: &Path) -> anyhow::Result<BTreeMap<String, Table>> {
+    let mut out = BTreeMap::new();
+    let Ok(rd) = std::fs::read_dir(run_dir) else {
+        return Ok(out);
+    };
+    let mut files: Vec<(String, PathBuf)> = rd
+        .flatten()
+        .map(|e| e.path())
+        .filter(|d| d.join("fragments.csv").is_file())
+        .map(|d| {
+            let node = d
+                .file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned();
+            (node, d.join("fragments.csv"))
+        })
+        .collect();
+    files.sort();
+    for (node, file) in files {
+        out.insert(format!("{node}_fragments"), read_table(&file)?);
+    }
+    Ok(out)
+}
+
+/// A CSV file of numbers under one header line as a [`Table`] (a column per header field).
+pub fn read_table(file: &Path) -> anyhow::Result<Table> {
+    let mut r =
+        csv::Reader::from_path(file).with_context(|| format!("cannot read {}", file.display()))?;
+    let header: Vec<String> = r
+        .headers()
+        .with_context(|| format!("{}: no header line", file.display()))?
+        .iter()
+        .map(str::to_string)
+        .collect();
+    let mut t = Table {
+        columns: header.iter().map(|h| (h.clone(), 1)).collect(),
+        rows: Vec::new(),
+    };
+    for (line, rec) in r.records().enumerate() {
+        let rec = rec.with_context(|| format!("{}: row {}", file.display(), line + 1))?;
+        let mut row = serde_json::Map::new();
+        for (h, v) in header.iter().zip(rec.iter()) {
+            let x: f64 = v.trim().parse().with_context(|| {
+                format!(
+                    "{}: row {}, column {h}: '{v}' is not a number",
+                    file.display(),
+                    line + 1
+                )
+            })?;
+            row.insert(h.clone(), serde_json::json!(x));
+        }
+        t.rows.push(row);
+    }
+    Ok(t)
 }
 
 /// Whether `name` (`NODE/KEY`) is selected by `patterns` (`NODE/KEY` with `*` matching any

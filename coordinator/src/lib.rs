@@ -14,6 +14,7 @@ pub mod engine;
 pub mod export;
 pub mod fields;
 pub mod guard;
+pub mod histogram;
 pub mod info;
 pub mod integrity;
 pub mod launch;

@@ -43,6 +43,18 @@ fn key_of(model: &str, t: &toml::Table) -> String {
 fn bad_input_is_refused_with_the_key() {
     let ok = base();
     assert_eq!(key_of("pd-bond", &ok), "accepted");
+    // A fragment axis that is not a point.
+    let mut t = base();
+    t.insert(
+        "fragment_axis".into(),
+        toml::Value::Array(vec![toml::Value::Float(0.0)]),
+    );
+    assert_eq!(key_of("pd-bond", &t), "fragment_axis");
+    t.insert(
+        "fragment_axis".into(),
+        toml::Value::Array(vec![toml::Value::Float(0.0), toml::Value::Float(0.1)]),
+    );
+    assert_eq!(key_of("pd-bond", &t), "accepted");
     // Horizon smaller than the spacing.
     let mut t = base();
     t.insert("horizon".into(), toml::Value::Float(0.5e-3));

@@ -77,7 +77,8 @@ pub struct RunSection {
     /// Divergence guard: energy added to the bound, J (≥ 0).
     pub energy_floor: Option<f64>,
     /// Scalars of the nodes' last reports to print after the run's line, as "NODE.SCALAR"
-    /// (e.g. "gas.bubble.first_speed"); they are in summary.json whatever this says.
+    /// (e.g. "gas.bubble.first_speed", or an energy such as "tube.kinetic_energy"); they are
+    /// in summary.json whatever this says.
     pub print: Option<Vec<String>>,
 }
 

@@ -81,7 +81,8 @@ pub enum Cmd {
     /// error.
     Replay(ReplayArgs),
     /// Plot quantities of several runs on one figure each (e.g. one case at three
-    /// resolutions): `cosim plot out/a out/b --series bar.com_x --series gas.point1.pressure`.
+    /// resolutions): `cosim plot out/a out/b --series bar.com_x --series gas.point1.pressure`;
+    /// with `--field`, a picture of a field; with `--fragments`, fragment-size histograms.
     Plot(PlotArgs),
     /// The parameters of a model (key, type, default, meaning; SI units), from the JSON Schema
     /// its node executable derives from the types it decodes them into; without a model, the

@@ -78,12 +78,16 @@ pub struct PlotArgs {
     /// NODE.QUANTITY to plot (a scalar of the node's report, kinetic_energy,
     /// internal_energy, momentum_x, ...), repeatable; `*.QUANTITY`: whichever node of each
     /// run reports it.
-    #[arg(long = "series", required_unless_present = "field")]
+    #[arg(long = "series", required_unless_present_any = ["field", "fragments"])]
     pub series: Vec<String>,
     /// Instead of time histories, a picture of a field: NODE.FIELD of the node's VTK
     /// frames (e.g. gas.pressure, bar.damage), per run, at `--at` (default the end).
     #[arg(long, conflicts_with_all = ["series", "x"])]
     pub field: Option<String>,
+    /// Instead of time histories, fragment-size histograms: per run, the widths and
+    /// thicknesses of the fragments in each node's fragment table (its last frame).
+    #[arg(long, conflicts_with_all = ["series", "x", "field"])]
+    pub fragments: bool,
     /// Simulated time (s) of the field picture (the frame nearest it).
     #[arg(long, requires = "field")]
     pub at: Option<f64>,
@@ -186,6 +190,7 @@ pub(super) fn export(a: ExportArgs) -> anyhow::Result<String> {
     let rec = recording_of(&a.run);
     let base = folder_of(&a.run);
     let mut t = crate::export::tables(&rec)?;
+    t.extend(crate::export::fragment_tables(&base)?);
     crate::export::filter(&mut t, &a.series)?;
     let note = if a.fields {
         export_fields(&rec, &base)?
@@ -225,6 +230,11 @@ fn export_fields(rec: &Path, base: &Path) -> anyhow::Result<String> {
 
 /// `cosim plot`: the charts of the series written (or with `--field`, one picture per run).
 pub(super) fn plot(a: &PlotArgs) -> anyhow::Result<String> {
+    if a.fragments {
+        let runs: Vec<PathBuf> = a.runs.iter().map(|r| folder_of(r)).collect();
+        let files = crate::histogram::fragment_histograms(&runs, &a.output)?;
+        return Ok(files.iter().map(|f| format!("{}\n", f.display())).collect());
+    }
     let Some(field) = &a.field else {
         let files = crate::plot::compare(&a.runs, &a.series, a.x.as_deref(), &a.output)?;
         let mut s = String::new();

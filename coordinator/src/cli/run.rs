@@ -289,7 +289,9 @@ fn print_finished(c: &case::Case, o: &crate::run::Outcome) {
         }
     }
     for (node, scalar) in &c.run.print {
-        match o.summary["nodes"][node]["final"]["scalars"][scalar].as_f64() {
+        // a named scalar of the node's report, or one of its energies
+        let last = &o.summary["nodes"][node]["final"];
+        match last["scalars"][scalar].as_f64().or(last[scalar].as_f64()) {
             Some(v) => println!("cosim: {node}.{scalar} = {v}"),
             None => println!("cosim: {node}.{scalar}: not in the node's last report"),
         }

@@ -120,6 +120,186 @@ pub fn fragment_count(bonds: &Bonds, intact: &[f64], min_size: usize) -> usize {
         .count()
 }
 
+/// One fragment as measured in its current configuration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fragment {
+    /// Particles in it.
+    pub particles: usize,
+    /// Mass (kg; per unit thickness times the thickness in 2-D).
+    pub mass: f64,
+    /// Centre of mass (m).
+    pub centroid: [f64; 3],
+    /// Velocity of the centre of mass (m/s).
+    pub velocity: [f64; 3],
+    /// Extent along the tube (m): about an axis, the arc its particles span at their mean
+    /// radius; without one, the extent along the longer principal axis of the x–y plane.
+    /// Each particle stands for a cell one spacing wide, so a line of k particles is k
+    /// spacings long.
+    pub width: f64,
+    /// Extent across (m): about an axis, the radial extent; without one, along the shorter
+    /// principal axis (one spacing added as for the width).
+    pub thickness: f64,
+}
+
+impl Fragment {
+    /// Speed of the centre of mass (m/s).
+    pub fn speed(&self) -> f64 {
+        let v = self.velocity;
+        (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+    }
+}
+
+/// The components of `label`/`sizes` with at least `min_size` particles, measured at the
+/// current positions `pos` with velocities `vel` and particle masses `mass`, heaviest first
+/// (ties by lowest label). `axis`: a point (x, y) of the tube's axis along z, for widths as
+/// arcs and thicknesses as radial extents; `spacing`: the lattice spacing added to each
+/// extent. Returns the fragments and, per particle, the index of its fragment in that list
+/// (`u32::MAX` for a particle of a smaller piece).
+pub fn measure_fragments(
+    label: &[u32],
+    sizes: &[usize],
+    min_size: usize,
+    pos: &[[f64; 3]],
+    vel: &[[f64; 3]],
+    mass: &[f64],
+    axis: Option<[f64; 2]>,
+    spacing: f64,
+) -> (Vec<Fragment>, Vec<u32>) {
+    // component label → rank among the kept ones (by label first, re-ranked by mass below)
+    let kept: Vec<usize> = (0..sizes.len()).filter(|&c| sizes[c] >= min_size).collect();
+    let mut slot = vec![u32::MAX; sizes.len()];
+    for (k, &c) in kept.iter().enumerate() {
+        slot[c] = k as u32;
+    }
+    let nk = kept.len();
+    // first pass: mass, momentum and first moment
+    let mut m = vec![0.0; nk];
+    let mut mx = vec![[0.0; 3]; nk];
+    let mut mv = vec![[0.0; 3]; nk];
+    for i in 0..label.len() {
+        let k = slot[label[i] as usize];
+        if k == u32::MAX {
+            continue;
+        }
+        let k = k as usize;
+        m[k] += mass[i];
+        for d in 0..3 {
+            mx[k][d] += mass[i] * pos[i][d];
+            mv[k][d] += mass[i] * vel[i][d];
+        }
+    }
+    let centroid: Vec<[f64; 3]> = (0..nk)
+        .map(|k| std::array::from_fn(|d| mx[k][d] / m[k]))
+        .collect();
+    // second pass: extents, in polar coordinates about the axis or along principal axes
+    let mut lo = vec![[f64::INFINITY; 2]; nk];
+    let mut hi = vec![[f64::NEG_INFINITY; 2]; nk];
+    let mut mr = vec![0.0; nk];
+    let frames: Vec<[f64; 4]> = match axis {
+        // the centroid's angle: arcs are measured from it, so a piece across θ = ±π is whole
+        Some(a) => centroid
+            .iter()
+            .map(|c| [(c[1] - a[1]).atan2(c[0] - a[0]), 0.0, 0.0, 0.0])
+            .collect(),
+        None => {
+            let mut s = vec![[0.0; 3]; nk];
+            for i in 0..label.len() {
+                let k = slot[label[i] as usize];
+                if k == u32::MAX {
+                    continue;
+                }
+                let k = k as usize;
+                let (dx, dy) = (pos[i][0] - centroid[k][0], pos[i][1] - centroid[k][1]);
+                s[k][0] += mass[i] * dx * dx;
+                s[k][1] += mass[i] * dx * dy;
+                s[k][2] += mass[i] * dy * dy;
+            }
+            // the longer principal direction of the x–y second moment
+            s.iter()
+                .map(|s| {
+                    let t = 0.5 * (2.0 * s[1]).atan2(s[0] - s[2]);
+                    [t.cos(), t.sin(), 0.0, 0.0]
+                })
+                .collect()
+        }
+    };
+    for i in 0..label.len() {
+        let k = slot[label[i] as usize];
+        if k == u32::MAX {
+            continue;
+        }
+        let k = k as usize;
+        let q = match axis {
+            Some(a) => {
+                let (dx, dy) = (pos[i][0] - a[0], pos[i][1] - a[1]);
+                let r = (dx * dx + dy * dy).sqrt();
+                let mut dt = dy.atan2(dx) - frames[k][0];
+                if dt > std::f64::consts::PI {
+                    dt -= std::f64::consts::TAU;
+                } else if dt < -std::f64::consts::PI {
+                    dt += std::f64::consts::TAU;
+                }
+                mr[k] += mass[i] * r;
+                [dt, r]
+            }
+            None => {
+                let (dx, dy) = (pos[i][0] - centroid[k][0], pos[i][1] - centroid[k][1]);
+                let [c, s, ..] = frames[k];
+                [c * dx + s * dy, -s * dx + c * dy]
+            }
+        };
+        for d in 0..2 {
+            lo[k][d] = lo[k][d].min(q[d]);
+            hi[k][d] = hi[k][d].max(q[d]);
+        }
+    }
+    let mut out: Vec<Fragment> = (0..nk)
+        .map(|k| {
+            let (along, across) = match axis {
+                Some(_) => ((hi[k][0] - lo[k][0]) * mr[k] / m[k], hi[k][1] - lo[k][1]),
+                None => (hi[k][0] - lo[k][0], hi[k][1] - lo[k][1]),
+            };
+            Fragment {
+                particles: sizes[kept[k]],
+                mass: m[k],
+                centroid: centroid[k],
+                velocity: std::array::from_fn(|d| mv[k][d] / m[k]),
+                width: along + spacing,
+                thickness: across + spacing,
+            }
+        })
+        .collect();
+    // heaviest first; the sort is stable, so equal masses keep label order
+    let mut order: Vec<usize> = (0..nk).collect();
+    order.sort_by(|&a, &b| out[b].mass.total_cmp(&out[a].mass));
+    let mut rank = vec![0u32; nk];
+    for (r, &k) in order.iter().enumerate() {
+        rank[k] = r as u32;
+    }
+    out = order.iter().map(|&k| out[k]).collect();
+    let of_particle = label
+        .iter()
+        .map(|&c| match slot[c as usize] {
+            u32::MAX => u32::MAX,
+            k => rank[k as usize],
+        })
+        .collect();
+    (out, of_particle)
+}
+
+/// Mean width, mean thickness and largest speed of `fragments` (zeros when there are none).
+pub fn fragment_summary(fragments: &[Fragment]) -> [f64; 3] {
+    if fragments.is_empty() {
+        return [0.0; 3];
+    }
+    let n = fragments.len() as f64;
+    [
+        fragments.iter().map(|f| f.width).sum::<f64>() / n,
+        fragments.iter().map(|f| f.thickness).sum::<f64>() / n,
+        fragments.iter().map(Fragment::speed).fold(0.0, f64::max),
+    ]
+}
+
 /// Critical stretch s0 for which breaking every bond that crosses the line y = `y_cut` over
 /// x ∈ [x_lo, x_hi] costs G0 per unit crack area: G0 (x_hi − x_lo) h = Σ ½ c_b V_i |ξ| s0²,
 /// where `coef[b]` is the bond's force coefficient (force density on i = coef_b · s · ŷ) and
@@ -200,5 +380,123 @@ mod tests {
         assert_eq!(lab[0], 0);
         assert_eq!(lab[9], 1);
         assert_eq!(fragment_count(&bonds, &intact, 6), 0);
+    }
+
+    /// A ring of particles on polar rows (radii r0 + k h, k < 4) cut into `pieces` equal
+    /// arcs, the first centred on θ = π so that it straddles the ±π cut; component labels by
+    /// arc.
+    fn cut_ring(pieces: usize, per_piece: usize, r0: f64, h: f64) -> (Vec<[f64; 3]>, Vec<u32>) {
+        let mut pos = Vec::new();
+        let mut label = Vec::new();
+        let dth = std::f64::consts::TAU / (pieces * per_piece) as f64;
+        for p in 0..pieces {
+            for j in 0..per_piece {
+                let th = std::f64::consts::PI + (p * per_piece + j) as f64 * dth
+                    - 0.5 * (per_piece - 1) as f64 * dth;
+                for k in 0..4 {
+                    let r = r0 + k as f64 * h;
+                    pos.push([0.3 + r * th.cos(), -0.2 + r * th.sin(), 0.0]);
+                    label.push(p as u32);
+                }
+            }
+        }
+        (pos, label)
+    }
+
+    #[test]
+    fn arcs_of_a_cut_ring_measure_their_arc_and_wall() {
+        let (h, r0) = (0.5e-3, 30e-3);
+        let (pieces, per) = (12, 10);
+        let (pos, label) = cut_ring(pieces, per, r0, h);
+        let n = pos.len();
+        let mut vel = vec![[0.0; 3]; n];
+        // every piece moves outward at 100 m/s plus 7 m/s along z
+        for i in 0..n {
+            let (dx, dy) = (pos[i][0] - 0.3, pos[i][1] + 0.2);
+            let r = (dx * dx + dy * dy).sqrt();
+            vel[i] = [100.0 * dx / r, 100.0 * dy / r, 7.0];
+        }
+        let mass = vec![2.0e-3; n];
+        let sizes = vec![4 * per; pieces];
+        let (f, of) =
+            measure_fragments(&label, &sizes, 10, &pos, &vel, &mass, Some([0.3, -0.2]), h);
+        assert_eq!(f.len(), pieces);
+        assert_eq!(of.len(), n);
+        // the arc spanned by the particle centres at the mean radius, plus one spacing
+        let dth = std::f64::consts::TAU / (pieces * per) as f64;
+        let r_mean = r0 + 1.5 * h;
+        let width = (per - 1) as f64 * dth * r_mean + h;
+        for g in &f {
+            assert_eq!(g.particles, 40);
+            assert!((g.mass - 0.08).abs() < 1e-15);
+            assert!(
+                (g.width - width).abs() < 1e-12 * width,
+                "{} {width}",
+                g.width
+            );
+            assert!((g.thickness - 4.0 * h).abs() < 1e-12, "{}", g.thickness);
+            // the centre of mass moves outward at the mean of the radial velocities'
+            // projections on the piece's mid-line, and along z at 7 m/s
+            let radial = 100.0
+                * (0..per)
+                    .map(|j| ((j as f64 - 0.5 * (per - 1) as f64) * dth).cos())
+                    .sum::<f64>()
+                / per as f64;
+            assert!((g.speed() - (radial * radial + 49.0).sqrt()).abs() < 1e-9);
+        }
+        // the piece across θ = ±π is whole, not an arc of 2π
+        let straddling = of[0] as usize;
+        assert!(f[straddling].width < 2.0 * width);
+        // pieces below the minimum size are left out and marked
+        let mut small = sizes.clone();
+        small[3] = 5;
+        let (g, of) =
+            measure_fragments(&label, &small, 10, &pos, &vel, &mass, Some([0.3, -0.2]), h);
+        assert_eq!(g.len(), pieces - 1);
+        let marked = of.iter().filter(|&&k| k == u32::MAX).count();
+        assert_eq!(marked, 4 * per);
+        let [w, t, v] = fragment_summary(&f);
+        assert!((w - width).abs() < 1e-12 * width && (t - 4.0 * h).abs() < 1e-12);
+        assert!(v > 99.0 && v < 101.0);
+    }
+
+    #[test]
+    fn a_rotated_block_without_an_axis_measures_its_sides() {
+        // 12 × 3 particles at spacing h, turned 30° and shifted; and a lighter 2 × 2 block
+        let h = 1e-3;
+        let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+        let mut pos = Vec::new();
+        let mut label = Vec::new();
+        for i in 0..12 {
+            for j in 0..3 {
+                let (x, y) = (i as f64 * h, j as f64 * h);
+                pos.push([1.0 + c * x - s * y, 2.0 + s * x + c * y, 0.0]);
+                label.push(0);
+            }
+        }
+        for i in 0..2 {
+            for j in 0..2 {
+                pos.push([5.0 + i as f64 * h, j as f64 * h, 0.0]);
+                label.push(1);
+            }
+        }
+        let n = pos.len();
+        let vel = vec![[3.0, 4.0, 0.0]; n];
+        let mass = vec![1.0; n];
+        let (f, of) = measure_fragments(&label, &[36, 4], 4, &pos, &vel, &mass, None, h);
+        assert_eq!(f.len(), 2);
+        // heaviest first: the 12 × 3 block is fragment 0
+        assert_eq!((f[0].particles, f[1].particles), (36, 4));
+        assert_eq!((of[0], of[n - 1]), (0, 1));
+        assert!((f[0].width - 12.0 * h).abs() < 1e-12, "{}", f[0].width);
+        assert!(
+            (f[0].thickness - 3.0 * h).abs() < 1e-12,
+            "{}",
+            f[0].thickness
+        );
+        assert!((f[1].width - 2.0 * h).abs() < 1e-12 && (f[1].thickness - 2.0 * h).abs() < 1e-12);
+        assert!((f[0].speed() - 5.0).abs() < 1e-12);
+        let cx = 1.0 + c * 5.5 * h - s * 1.0 * h;
+        assert!((f[0].centroid[0] - cx).abs() < 1e-12);
     }
 }

@@ -106,6 +106,13 @@ pub struct PdParams {
     /// smaller ones are `debris_particles`.
     #[serde(default = "default_fragment_min_size")]
     pub fragment_min_size: usize,
+    /// A point (x, y) of an axis (along z) to measure fragments about: their `width` is then
+    /// the arc they span at their mean radius, their `thickness` their radial extent (for
+    /// pieces that have not turned). Absent (the default): the extents along each fragment's
+    /// principal axes in the x–y plane, the longer one its width — what a caliper gives on a
+    /// recovered piece, whichever way it has turned in flight.
+    #[serde(default)]
+    pub fragment_axis: Option<Vec<f64>>,
     /// "cpu" (default) or "gpu" (pd-bond and pd-correspondence).
     #[serde(default)]
     pub device: Option<String>,

@@ -95,9 +95,10 @@ pub struct PdSolver {
     interface_work: f64,
     external_work: f64,
     first_damage: Option<FirstDamage>,
-    /// (Σ damage, fragments, debris) of the last count: bonds never heal, so an unchanged
-    /// damage sum means no bond broke and the components need no recount.
-    fragment_cache: Option<(f64, usize, usize)>,
+    /// (Σ damage, component of every particle, component sizes) of the last count: bonds
+    /// never heal, so an unchanged damage sum means no bond broke and the components need no
+    /// recount.
+    fragment_cache: Option<(f64, Vec<u32>, Vec<usize>)>,
     /// The device copy of the body when `device = "gpu"`: it owns the time stepping; `body`
     /// is brought up to date at every window end.
     device: Option<DeviceBody>,
@@ -365,6 +366,33 @@ impl PdSolver {
         (big, debris)
     }
 
+    /// The axis fragments are measured about (`fragment_axis`); none: principal extents.
+    fn fragment_axis(&self) -> Option<[f64; 2]> {
+        self.params.fragment_axis.as_ref().map(|a| [a[0], a[1]])
+    }
+
+    /// The fragments (components of ≥ `fragment_min_size` particles) of the body with its
+    /// bonds as `bonds`, measured now, and each particle's fragment index.
+    fn measured_fragments(
+        &self,
+        label: &[u32],
+        sizes: &[usize],
+        vel: &[[f64; 3]],
+    ) -> (Vec<super::fracture::Fragment>, Vec<u32>) {
+        let b = &self.body;
+        let mass: Vec<f64> = b.vol.iter().map(|v| v * b.density).collect();
+        super::fracture::measure_fragments(
+            label,
+            sizes,
+            self.params.fragment_min_size,
+            &b.pos,
+            vel,
+            &mass,
+            self.fragment_axis(),
+            b.spacing,
+        )
+    }
+
     /// The window's fracture and stress scalars: with a damage model,
     /// `damaged_particles` (φ ≥ [`DAMAGED_INDEX`]), `cracked_particles` (φ > 0), `fragments`
     /// (components of ≥ `fragment_min_size` particles) and `debris_particles`, and from the
@@ -395,16 +423,24 @@ impl PdSolver {
         v.push(("damaged_particles".into(), damaged as f64));
         v.push(("cracked_particles".into(), cracked as f64));
         let dsum: f64 = damage.iter().sum();
-        let (frags, debris) = match self.fragment_cache {
-            Some((d, f, r)) if d == dsum => (f, r),
-            _ => {
-                let (big, debris) = self.fragments(self.params.fragment_min_size);
-                self.fragment_cache = Some((dsum, big.len(), debris));
-                (big.len(), debris)
-            }
+        if !matches!(&self.fragment_cache, Some((d, ..)) if *d == dsum) {
+            self.body.model.sync_bonds(&mut self.body.bonds);
+            let (label, sizes) =
+                super::fracture::components(&self.body.bonds, &self.body.bonds.intact);
+            self.fragment_cache = Some((dsum, label, sizes));
+        }
+        let Some((_, label, sizes)) = &self.fragment_cache else {
+            unreachable!("the fragment cache was filled above")
         };
-        v.push(("fragments".into(), frags as f64));
+        let min = self.params.fragment_min_size;
+        let debris: usize = sizes.iter().filter(|&&s| s < min).sum();
+        let (frags, _) = self.measured_fragments(label, sizes, &self.body.vel);
+        let [width, thickness, speed] = super::fracture::fragment_summary(&frags);
+        v.push(("fragments".into(), frags.len() as f64));
         v.push(("debris_particles".into(), debris as f64));
+        v.push(("fragment_mean_width".into(), width));
+        v.push(("fragment_mean_thickness".into(), thickness));
+        v.push(("fragment_max_speed".into(), speed));
         if self.first_damage.is_none() && cracked > 0 {
             self.first_damage = Some(first_damage_of(
                 &self.params.bodies,
@@ -776,6 +812,14 @@ fn check_params(p: &PdParams, three_d: bool) -> SolverResult<J2Material> {
     }
     if !(p.cfl > 0.0 && p.cfl <= 1.0) {
         return cfg("cfl", format!("must be in (0, 1], got {}", p.cfl));
+    }
+    if let Some(a) = &p.fragment_axis
+        && !((a.len() == 2 || a.len() == 3) && a.iter().all(|x| x.is_finite()))
+    {
+        return cfg(
+            "fragment_axis",
+            format!("must be a point [x, y] (or [x, y, z]) of finite numbers, got {a:?}"),
+        );
     }
     if !(p.stabilization.is_finite() && p.stabilization >= 0.0) {
         return cfg(
@@ -1726,6 +1770,17 @@ impl Solver for PdSolver {
         let mut d = vec![0.0; n];
         bonds.damage(&b.vol, &mut d);
         data.push(("damage", 1, d));
+        if !matches!(self.params.damage, None | Some(DamageParams::None {})) {
+            // the fragment table of this frame and each particle's fragment (−1: debris)
+            let (label, sizes) = super::fracture::components(&bonds, &bonds.intact);
+            let (frags, of) = self.measured_fragments(&label, &sizes, vel_s);
+            write_fragments(&dir.join("fragments.csv"), t, &frags)?;
+            let ids = of
+                .iter()
+                .map(|&k| if k == u32::MAX { -1.0 } else { k as f64 })
+                .collect();
+            data.push(("fragment", 1, ids));
+        }
         let frame = Frame {
             dir,
             stem: "pd",
@@ -1735,4 +1790,36 @@ impl Solver for PdSolver {
         vtk::write_vtu(&frame, vtk::point_cloud(&pos, data))?;
         Ok(())
     }
+}
+
+/// `fragments.csv`: one row per fragment of the frame at time `t`, heaviest first — index,
+/// particles, mass (kg), centre of mass (m), its velocity and speed (m/s), width and
+/// thickness (m).
+fn write_fragments(path: &Path, t: f64, frags: &[super::fracture::Fragment]) -> SolverResult<()> {
+    let header: Vec<String> = [
+        "time",
+        "fragment",
+        "particles",
+        "mass",
+        "x",
+        "y",
+        "z",
+        "vx",
+        "vy",
+        "vz",
+        "speed",
+        "width",
+        "thickness",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let rows = frags.iter().enumerate().map(|(k, f)| {
+        [t, k as f64, f.particles as f64, f.mass]
+            .into_iter()
+            .chain(f.centroid)
+            .chain(f.velocity)
+            .chain([f.speed(), f.width, f.thickness])
+    });
+    node_kit::table::write_csv(path, &header, rows).map_err(SolverError::from)
 }
