@@ -284,6 +284,7 @@ const EXAMPLES: &[(&str, &[&str])] = &[
     ("split_bar", &["python", "c"]),
     ("split_bar_chain", &["small"]),
     ("split_bar_lagrange", &[]),
+    ("steel_tube", &["fine", "small"]),
     (
         "underwater_explosion",
         &["fine", "small", "radial", "radial-coarse"],
@@ -299,7 +300,11 @@ const FIRST_WINDOWS: f64 = 12.0;
 /// The variants at the finest resolutions run only their first two windows: the same set-up
 /// as their base case at more cells, each window of them costing as much as the whole of
 /// most other cases' twelve.
-const FINEST: &[&str] = &["shock_bubble/seed", "underwater_explosion/fine"];
+const FINEST: &[&str] = &[
+    "shock_bubble/seed",
+    "steel_tube/fine",
+    "underwater_explosion/fine",
+];
 
 /// The window of `case` under `variant` (a variant may set `run.window`).
 fn window_of(doc: &toml::Table, variant: Option<&str>) -> f64 {
