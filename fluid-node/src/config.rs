@@ -219,10 +219,12 @@ pub struct ImmersedSpec {
     pub particles: Option<usize>,
     /// How a cell the solid leaves is filled: "average" (default) gives it the mean state of
     /// its gas neighbours, booked as reclassification (external) mass, momentum and energy;
-    /// "conservative" has it take 1/(n+1) of its n gas neighbours' mass, momentum and energy
-    /// from them, so nothing is created (a solid that sweeps through dense gas, such as an
-    /// expanding shell, otherwise adds the gas's energy density times the volume it sweeps).
-    /// Either way the gas of a cell the solid covers leaves the gas, booked.
+    /// "conservative" gives it back the gas the receding wall's flux carried into it (with
+    /// its momentum and energy; the particles then take only the pressure's push), or, when
+    /// little was carried (a crack), 1/(n+1) of its n gas neighbours' mass, momentum and
+    /// energy taken from them: nothing is created (the average adds the gas's energy density
+    /// times every volume a solid sweeps, much for a shell expanding through dense gas).
+    /// Either way the gas of a cell the solid covers leaves the gas, booked. Not on the GPU.
     #[serde(default)]
     pub refill: Option<String>,
 }

@@ -272,10 +272,12 @@ impl Solver for EulerSolver {
                 // Cells that change class (gas ↔ solid) create or remove gas momentum that
                 // does not cross to the particles: a source of the gas like its walls, so the
                 // coordinator's audit counts it with the external impulse.
-                report.external_impulse[c] += im.reclass_momentum[c];
+                report.external_impulse[c] += im.reclass_momentum[c] - im.held_momentum[c];
             }
-            // and the energy of the gas those cells add or remove, with the external work
-            report.external_work += im.reclass_energy;
+            // and the energy of the gas those cells add or remove, with the external work;
+            // with a conservative refill also the energy the walls carried into solid cells
+            // (out; it comes back with the refills)
+            report.external_work += im.reclass_energy - im.held_energy;
             report
                 .scalars
                 .push(("reclassification_energy".into(), im.reclass_energy));

@@ -36,14 +36,11 @@ fn moving_particle_slab_refills_cells_and_keeps_gas_mass() {
     slab("average");
 }
 
-/// The same slab with `refill = "conservative"`: the cells it leaves take their gas from
-/// their neighbours, so the reclassification books no mass in (only the cells it covers
-/// give theirs up); the balance holds to round-off and the piston shock ahead is the same.
-/// Behind, the gas is thinner than the rarefaction's (p/p0 0.547 against 0.695 measured):
-/// the moving wall's flux has already carried the gas that follows the slab into the cells
-/// it leaves (booked as wall mass), and the refill takes that volume's gas from the
-/// neighbours a second time. The check pins that known deficit (below the rarefaction,
-/// within 25 %) so that a change to it is seen.
+/// The same slab with `refill = "conservative"`: what the receding wall's flux carries
+/// into the cells behind the slab is kept and handed back when the slab leaves them (booked
+/// out and back in), and a cell with nothing held would take its gas from its neighbours;
+/// nothing is created. The same checks hold: the mass balance to round-off, the drift within
+/// a column, the piston shock ahead and the rarefaction behind within 3 %.
 #[test]
 fn a_conservative_refill_creates_no_gas() {
     slab("conservative");
@@ -143,14 +140,6 @@ fn slab(refill: &str) {
             // the gas at t = 0: the set-up's field without the cells the slab covers
             m_gas0 = m0 + im.reclass_mass;
         }
-        if refill == "conservative" && k > 1 {
-            // only the cells the slab covers are booked: out, never in
-            assert!(
-                im.reclass_mass <= prev_reclass,
-                "window {k}: reclassified mass went {prev_reclass} → {}",
-                im.reclass_mass
-            );
-        }
         // mass balance of this window
         let dm = mass - prev_mass;
         let src = (im.wall_mass - prev_wall) + (im.reclass_mass - prev_reclass);
@@ -210,15 +199,8 @@ fn slab(refill: &str) {
     );
     assert!(refilled >= 14 * ny, "refilled cells: {refilled}");
     assert!(worst_balance < 1e-13, "mass balance {worst_balance}");
-    if refill == "conservative" {
-        // the gas the slab covers is booked out and none is booked in: the gas loses mass
-        // (about 15 columns swept, at the piston-shock density)
-        assert!(mass < m_gas0, "gas mass {mass} ≥ {m_gas0}");
-        assert!(pb < p_back && pb > 0.75 * p_back, "back-side pressure {pb}");
-    } else {
-        assert!(drift < column, "mass drift {drift} vs one column {column}");
-        assert!((pb / p_back - 1.0).abs() < 0.03, "back-side pressure {pb}");
-    }
+    assert!(drift < column, "mass drift {drift} vs one column {column}");
+    assert!((pb / p_back - 1.0).abs() < 0.03, "back-side pressure {pb}");
     assert!(
         (front / p_front - 1.0).abs() < 0.03,
         "front pressure {front}"

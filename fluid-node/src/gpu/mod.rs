@@ -120,6 +120,9 @@ pub fn supports(f: &Fluid) -> Result<(), String> {
     {
         return Err("a non_reflecting boundary (the device kernels fill wall, symmetry, outflow, periodic and inflow ghosts)".into());
     }
+    if f.immersed.as_ref().is_some_and(|im| im.conservative) {
+        return Err("immersed.refill = \"conservative\" (the device's wall fluxes do not keep what they carry into the solid's cells)".into());
+    }
     Ok(())
 }
 

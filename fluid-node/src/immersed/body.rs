@@ -57,6 +57,17 @@ pub struct Immersed {
     /// Whether the cells have been classified once: the first classification removes what
     /// the initial condition put where the solid is, whatever `conservative` says.
     pub classified: bool,
+    /// With `conservative`: per cell, the partial densities', momentum's and energy's
+    /// content (per cell, not per volume) that the moving walls' fluxes have carried into the
+    /// cell while it was solid, the energy without the wall's work p*·v (which went to the
+    /// particles); handed back when the solid leaves the cell. Empty until a wall flux.
+    pub held: Vec<f64>,
+    /// Energy the walls' fluxes carried into solid cells since the start (J, booked out of
+    /// the gas with `conservative`; handed back through `reclass_energy`).
+    pub held_energy: f64,
+    /// Momentum the walls' fluxes carried into solid cells since the start (kg m/s, booked
+    /// out of the gas with `conservative`; handed back through `reclass_momentum`).
+    pub held_momentum: [f64; 3],
     /// Gas mass that entered the gas (+) through the moving wall faces since the start (kg).
     pub wall_mass: f64,
     /// Fluxes of the wall faces in the current RK stage (nf per wall, in `walls` order).
@@ -96,6 +107,9 @@ impl Immersed {
             reclass_energy: 0.0,
             conservative: false,
             classified: false,
+            held: Vec::new(),
+            held_energy: 0.0,
+            held_momentum: [0.0; 3],
             wall_mass: 0.0,
             wall_flux: Vec::new(),
             wall_order: Vec::new(),

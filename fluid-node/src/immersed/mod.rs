@@ -152,7 +152,8 @@ impl Immersed {
     /// Cells that were solid and now hold gas: neighbour average of the conserved state
     /// (seed 002 eq. 32 with equal weights for the face neighbours); cells that became solid
     /// leave the gas. With `conservative` (after the first classification) a cell the solid
-    /// left takes its gas from its neighbours instead ([`Immersed::share`]).
+    /// left gets back what the walls carried into it ([`Immersed::hand_back`]) or, failing
+    /// that, takes its gas from its neighbours ([`Immersed::share`]).
     fn refill(&mut self, f: &mut Fluid) {
         let mx = f.grid.mx();
         let nv = f.nv;
@@ -167,8 +168,16 @@ impl Immersed {
             for i in f.grid.irange() {
                 let c = r * mx + i;
                 let (was, now) = (self.prev_kind[c], self.kind[c]);
-                if share && was == SOLID && now != SOLID && self.share(f, c) {
+                if share
+                    && was == SOLID
+                    && now != SOLID
+                    && (self.hand_back(f, c) || self.share(f, c))
+                {
                     continue;
+                }
+                if self.conservative && was != SOLID && now == SOLID && !self.held.is_empty() {
+                    // a newly covered cell starts holding nothing
+                    self.held[c * nv..(c + 1) * nv].fill(0.0);
                 }
                 if was == SOLID && now != SOLID {
                     let mut acc = [0.0; MAXF];
@@ -209,6 +218,62 @@ impl Immersed {
 }
 
 impl Immersed {
+    /// Hands back to cell `c`, which the solid has just left, what the moving walls' fluxes
+    /// carried into it while it was solid (`held`: partial densities, momentum, energy, and
+    /// the volume fractions weighted by the mass carried), booked as reclassification (the
+    /// carrying was booked out: `held_energy`, `wall_mass`). False (nothing done, nothing
+    /// booked) when less mass is held than a tenth of the mean of its gas neighbours' (a cell
+    /// a crack opened, or one the wall barely crossed), or when what is held is not a gas of
+    /// positive density and pressure.
+    fn hand_back(&mut self, f: &mut Fluid, c: usize) -> bool {
+        if self.held.is_empty() {
+            return false;
+        }
+        let mx = f.grid.mx();
+        let nv = f.nv;
+        let nm = f.nmat();
+        let vol = f.grid.cell_volume();
+        let at = |cell: usize, v: usize| ((cell / mx) * nv + v) * mx + cell % mx;
+        let h = c * nv;
+        let mass: f64 = self.held[h..h + nm].iter().sum();
+        let (mut nb_mass, mut n) = (0.0, 0);
+        for (nb, _, _) in neighbours(f, c) {
+            if self.prev_kind[nb] != SOLID && self.kind[nb] != SOLID {
+                nb_mass += (0..nm).map(|k| f.cons[at(nb, k)]).sum::<f64>() * vol;
+                n += 1;
+            }
+        }
+        if n == 0
+            || !(mass > 0.1 * nb_mass / n as f64)
+            || self.held[h..h + nm].iter().any(|&m| m < 0.0)
+        {
+            return false;
+        }
+        let mut before = [0.0; MAXF];
+        for v in 0..nv {
+            before[v] = f.cons[at(c, v)];
+            let x = self.held[h + v];
+            f.cons[at(c, v)] = if v < nm + 4 { x / vol } else { x / mass };
+        }
+        let (rho, u, p, _) = crate::diagnostics::cell_prim(f, c / mx, c % mx);
+        if !(rho > 0.0 && p > 0.0 && p.is_finite() && u.iter().all(|x| x.is_finite())) {
+            for (v, b) in before.iter().enumerate().take(nv) {
+                f.cons[at(c, v)] = *b;
+            }
+            return false;
+        }
+        for v in 0..nm + 4 {
+            let x = self.held[h + v];
+            match v {
+                v if v < nm => self.reclass_mass += x,
+                v if v < nm + 3 => self.reclass_momentum[v - nm] += x,
+                _ => self.reclass_energy += x,
+            }
+        }
+        self.held[h..h + nv].fill(0.0);
+        true
+    }
+
     /// Conservative refill of cell `c`, which the solid has just left, from its gas face
     /// neighbours (cells gas before and now): it takes 1/(n+1) of its n neighbours' summed
     /// mass, momentum and energy, and each neighbour keeps n/(n+1) of its own. Every
@@ -364,7 +429,10 @@ pub fn refill_x_ghosts(f: &mut Fluid, im: &Immersed) -> usize {
 /// its mirror image in the wall moving with the interface velocity, into `im.wall_flux`. The
 /// momentum these faces carry out of the gas, weighted by the stage's flux weight `dt_w` (RK3
 /// weight · dt), goes to the particles of the solid cell — together with the projections it
-/// is the whole momentum the gas loses to the body. The stage then uses these fluxes on those
+/// is the whole momentum the gas loses to the body. With a conservative refill, a face whose
+/// gas flows into the solid cell (the wall recedes) gives the particles only the pressure's
+/// push p*; the gas it carries, with its momentum and energy less the wall's work p*·v, is
+/// kept in `held` for [`Immersed::hand_back`]. The stage then uses these fluxes on those
 /// faces: [`write_wall_fluxes`] (unfused) or [`WallPatch`] (fused).
 pub fn wall_fluxes<const NM: usize>(f: &Fluid, ph: &[Phase; NM], im: &mut Immersed, dt_w: f64) {
     let mx = f.grid.mx();
@@ -407,12 +475,22 @@ pub fn wall_fluxes<const NM: usize>(f: &Fluid, ph: &[Phase; NM], im: &mut Immers
         // momentum into the solid cell: +F if the gas is on the lower side, -F otherwise
         let sign = if w.gas_left { 1.0 } else { -1.0 };
         let solid = if w.gas_left { w.right } else { w.left };
+        let mflux: f64 = fl[..NM].iter().sum();
+        // with a conservative refill, gas carried into the solid cell is kept with its
+        // momentum (`held`): the particles take only the pressure's push p*
+        let keep = im.conservative && sign * mflux > 0.0;
+        let p_star = fl[NM + w.d] - mflux * wall;
+        let pushed = |d: usize| match (keep, d == w.d) {
+            (false, _) => fl[NM + d],
+            (true, true) => p_star,
+            (true, false) => 0.0,
+        };
         if let Ok(ci) = im.cells.binary_search(&solid) {
             let area = f.grid.face_area(w.d);
             let j = [
-                sign * fl[NM] * area * dt_w,
-                sign * fl[NM + 1] * area * dt_w,
-                sign * fl[NM + 2] * area * dt_w,
+                sign * pushed(0) * area * dt_w,
+                sign * pushed(1) * area * dt_w,
+                sign * pushed(2) * area * dt_w,
             ];
             let (a, b) = (im.off[ci], im.off[ci + 1]);
             let share = 1.0 / (b - a) as f64;
@@ -428,8 +506,35 @@ pub fn wall_fluxes<const NM: usize>(f: &Fluid, ph: &[Phase; NM], im: &mut Immers
         }
         // mass through the moving face into the gas cell (zero for a wall at rest)
         let area = f.grid.face_area(w.d);
-        let mflux: f64 = fl[..NM].iter().sum();
         im.wall_mass -= sign * mflux * area * dt_w;
+        if keep {
+            // what the face carries into the solid cell (a wall receding from the gas; one
+            // advancing into it sends gas out, which the cell it covers next gives back),
+            // kept for when the solid leaves it:
+            // the partial densities and momentum as they flow (the normal momentum less the
+            // pressure's push p*, from the normal flux ρ*v² + p*), the energy less the
+            // wall's work p*·v
+            // the volume fractions weighted by the mass carried (the gas cell's)
+            let held_len = f.grid.rows() * mx * nv;
+            if im.held.len() != held_len {
+                im.held.resize(held_len, 0.0);
+            }
+            let k = sign * area * dt_w;
+            let at = solid * nv;
+            for v in 0..NM + 3 {
+                let push = if v == NM + w.d { p_star } else { 0.0 };
+                im.held[at + v] += k * (fl[v] - push);
+                if v >= NM {
+                    im.held_momentum[v - NM] += k * (fl[v] - push);
+                }
+            }
+            let e = k * (fl[NM + 3] - p_star * wall);
+            im.held[at + NM + 3] += e;
+            im.held_energy += e;
+            for v in NM + 4..nv {
+                im.held[at + v] += q[v] * k * mflux;
+            }
+        }
     }
 }
 
