@@ -20,6 +20,10 @@ pub use body::{FLUID, INTERFACE, Immersed, SOLID, WallFace};
 
 const NONE: usize = usize::MAX;
 
+/// The least held mass, as a fraction of the gas neighbours' mean, that a freed cell gets
+/// back ([`Immersed::hand_back`]); with less it takes its gas from its neighbours.
+const HAND_BACK_MIN: f64 = 0.8;
+
 impl Immersed {
     /// Start a window with new particle data: classify cells, refill cells the solid left,
     /// zero the window impulses.
@@ -221,9 +225,11 @@ impl Immersed {
     /// Hands back to cell `c`, which the solid has just left, what the moving walls' fluxes
     /// carried into it while it was solid (`held`: partial densities, momentum, energy, and
     /// the volume fractions weighted by the mass carried), booked as reclassification (the
-    /// carrying was booked out: `held_energy`, `wall_mass`). False (nothing done, nothing
-    /// booked) when less mass is held than a tenth of the mean of its gas neighbours' (a cell
-    /// a crack opened, or one the wall barely crossed), or when what is held is not a gas of
+    /// carrying was booked out: `held_energy`, `held_momentum`, `wall_mass`). False (nothing
+    /// done, nothing booked) when less mass is held than 0.8 of the mean of its gas
+    /// neighbours' (a cell a crack opened, or one the wall crossed only in part: handed
+    /// back, such a thin cell beside dense gas starts a rarefaction that took the steel
+    /// tube's fine variant to negative pressure), or when what is held is not a gas of
     /// positive density and pressure.
     fn hand_back(&mut self, f: &mut Fluid, c: usize) -> bool {
         if self.held.is_empty() {
@@ -244,7 +250,7 @@ impl Immersed {
             }
         }
         if n == 0
-            || !(mass > 0.1 * nb_mass / n as f64)
+            || !(mass > HAND_BACK_MIN * nb_mass / n as f64)
             || self.held[h..h + nm].iter().any(|&m| m < 0.0)
         {
             return false;
