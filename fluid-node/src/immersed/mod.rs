@@ -516,11 +516,10 @@ pub fn wall_fluxes<const NM: usize>(f: &Fluid, ph: &[Phase; NM], im: &mut Immers
         if keep {
             // what the face carries into the solid cell (a wall receding from the gas; one
             // advancing into it sends gas out, which the cell it covers next gives back),
-            // kept for when the solid leaves it:
-            // the partial densities and momentum as they flow (the normal momentum less the
-            // pressure's push p*, from the normal flux ρ*v² + p*), the energy less the
-            // wall's work p*·v
-            // the volume fractions weighted by the mass carried (the gas cell's)
+            // kept for when the solid leaves it: the partial densities and momentum as they
+            // flow (the normal momentum less the pressure's push p*, from the normal flux
+            // ρ*v² + p*), the energy less the wall's work p*·v, and the gas cell's volume
+            // fractions weighted by the mass carried
             let held_len = f.grid.rows() * mx * nv;
             if im.held.len() != held_len {
                 im.held.resize(held_len, 0.0);
