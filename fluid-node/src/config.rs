@@ -221,8 +221,9 @@ pub struct ImmersedSpec {
     /// its gas neighbours, booked as reclassification (external) mass, momentum and energy;
     /// "conservative" gives it back the gas the receding wall's flux carried into it (with
     /// its momentum and energy; the particles then take only the pressure's push), or, when
-    /// little was carried (a crack), 1/(n+1) of its n gas neighbours' mass, momentum and
-    /// energy taken from them: nothing is created (the average adds the gas's energy density
+    /// less than 0.8 of its neighbours' mean mass was carried (a crack, a wall crossed in
+    /// part), 1/(n+1) of its n gas neighbours' mass, momentum and energy taken from them:
+    /// nothing is created (the average adds the gas's energy density
     /// times every volume a solid sweeps, much for a shell expanding through dense gas).
     /// Either way the gas of a cell the solid covers leaves the gas, booked. Not on the GPU.
     #[serde(default)]

@@ -324,9 +324,9 @@ fn after_decoupling_the_gas_stops_and_the_square_goes_on_alone() {
 }
 
 /// The steel tube of `examples/steel_tube.toml` at its test size (fluid 2 mm, tube 1 mm, to
-/// 30 µs), a JWL charge in a Johnson–Cook tube. Checked: momentum to round-off; the gas never
-/// negative in any window; the tube in fragments whose table adds up (rows, particles, masses
-/// against the lattice's, the reported means); the tube's kinetic energy below Gurney's bound
+/// 30 µs), a JWL charge in a Johnson–Cook tube. Checked: momentum to round-off; energy within
+/// 5 % (the refill conserves); the gas never negative in any window; the tube in fragments
+/// whose table adds up (rows, particles, masses against the lattice's, the reported means); the tube's kinetic energy below Gurney's bound
 /// for a cylinder, ½M·2E/(M/C + ½) with the charge's whole detonation energy E (4.29 MJ/kg:
 /// no tube gets more; with TNT's measured Gurney energy, √2E = 2.44 km/s, a tube gets 0.69
 /// of it once fully driven) and above 0.4 of it (at 30 µs the products still push); and the
@@ -340,6 +340,14 @@ fn the_steel_tube_breaks_into_measured_fragments_below_gurneys_bound() {
         .as_f64()
         .unwrap();
     assert!(residual < 1e-12, "momentum residual {residual}");
+    // the conservative refill creates and loses no gas: the balance closes within 5 % of
+    // the largest energy (measured +1.1 %; with the seed's mean-state refill this variant
+    // misses 13.8 %, and on the base case a refill that took freed cells' gas from their
+    // neighbours missed 28 %)
+    let energy = s["balance"]["max_energy_residual_relative"]
+        .as_f64()
+        .unwrap();
+    assert!(energy.abs() < 0.05, "energy residual {energy}");
     for key in ["min_pressure", "min_density"] {
         let v = node_series(&mcap, "gas", key);
         assert_eq!(v.len(), 150, "{key}: {} windows", v.len());

@@ -1,6 +1,7 @@
 //! Fracture measurements on a particle body: the direction of a
 //! crack grown from a notch tip (least-squares line through the tip fitted to the damaged
-//! particles), fragments (connected components over unbroken bonds), and the critical stretch
+//! particles), fragments (connected components over unbroken bonds, each measured: mass,
+//! speed, width and thickness — [`measure_fragments`]), and the critical stretch
 //! that makes the lattice's energy per unit crack area equal a given fracture energy G0
 //! (Silling & Askari 2005: G0 is the work to break every bond crossing a unit crack area).
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
@@ -172,16 +173,21 @@ pub fn measure_fragments(
         slot[c] = k as u32;
     }
     let nk = kept.len();
+    // (particle, index of its kept fragment) for every particle of a kept fragment
+    let members = || {
+        label
+            .iter()
+            .enumerate()
+            .filter_map(|(i, &c)| match slot[c as usize] {
+                u32::MAX => None,
+                k => Some((i, k as usize)),
+            })
+    };
     // first pass: mass, momentum and first moment
     let mut m = vec![0.0; nk];
     let mut mx = vec![[0.0; 3]; nk];
     let mut mv = vec![[0.0; 3]; nk];
-    for i in 0..label.len() {
-        let k = slot[label[i] as usize];
-        if k == u32::MAX {
-            continue;
-        }
-        let k = k as usize;
+    for (i, k) in members() {
         m[k] += mass[i];
         for d in 0..3 {
             mx[k][d] += mass[i] * pos[i][d];
@@ -203,12 +209,7 @@ pub fn measure_fragments(
             .collect(),
         None => {
             let mut s = vec![[0.0; 3]; nk];
-            for i in 0..label.len() {
-                let k = slot[label[i] as usize];
-                if k == u32::MAX {
-                    continue;
-                }
-                let k = k as usize;
+            for (i, k) in members() {
                 let (dx, dy) = (pos[i][0] - centroid[k][0], pos[i][1] - centroid[k][1]);
                 s[k][0] += mass[i] * dx * dx;
                 s[k][1] += mass[i] * dx * dy;
@@ -223,12 +224,7 @@ pub fn measure_fragments(
                 .collect()
         }
     };
-    for i in 0..label.len() {
-        let k = slot[label[i] as usize];
-        if k == u32::MAX {
-            continue;
-        }
-        let k = k as usize;
+    for (i, k) in members() {
         let q = match axis {
             Some(a) => {
                 let (dx, dy) = (pos[i][0] - a[0], pos[i][1] - a[1]);
