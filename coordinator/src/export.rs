@@ -161,7 +161,7 @@ pub fn selected(name: &str, patterns: &[String]) -> bool {
 }
 
 /// `*`-only glob match of `text` against `pat`.
-fn glob(pat: &str, text: &str) -> bool {
+pub fn glob(pat: &str, text: &str) -> bool {
     let mut parts = pat.split('*');
     let first = parts.next().unwrap_or("");
     let Some(mut rest) = text.strip_prefix(first) else {

@@ -426,11 +426,16 @@ pub fn render(
     })
 }
 
-/// The last frame of each node alone into `RUN/fields_<node>.png`, where more than one node
-/// wrote a series (one node's picture is `fields.png` itself); returns the files.
+/// A run of more nodes than this draws only the picture of all of them when it ends (a crash
+/// tube's ten joints; `cosim render RUN --per-node` draws each).
+pub const MAX_NODE_PICTURES: usize = 4;
+
+/// The last frame of each node alone into `RUN/fields_<node>.png`, where two to
+/// [`MAX_NODE_PICTURES`] nodes wrote a series (one node's picture is `fields.png` itself);
+/// returns the files.
 pub fn render_nodes(run_dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     let nodes = nodes_with_series(run_dir);
-    if nodes.len() < 2 {
+    if nodes.len() < 2 || nodes.len() > MAX_NODE_PICTURES {
         return Ok(Vec::new());
     }
     let mut files = Vec::with_capacity(nodes.len());

@@ -28,9 +28,15 @@ pub const EXIT_DIVERGED: i32 = 4;
 /// a divergence (for the message only; the bound is what stops a run).
 pub const OVER_BUDGET: f64 = 0.1;
 
-/// Energy residual (created, as a share of the largest energy or work) beyond which a run
-/// that ends within its bound is still warned of: the examples create at most 0.2 %.
-pub const CREATED_WARNING: f64 = 0.05;
+/// Default `run.balance.energy`: the energy residual (created or dissipated, as a share of
+/// the largest energy or work) beyond which a run that ends within its bound is still warned
+/// of. Every example's default run stays within it (the README's balance table).
+pub const ENERGY_WARNING: f64 = 0.05;
+
+/// Default `run.balance.momentum`: the momentum residual (as a share of the larger of the
+/// largest impulse and the largest gross momentum) beyond which a run is warned of. Every
+/// example's default run stays within round-off, ten orders below it.
+pub const MOMENTUM_WARNING: f64 = 1e-6;
 
 /// Default `run.energy_bound`: a multiple of the energy budget.
 pub const DEFAULT_FACTOR: f64 = 10.0;

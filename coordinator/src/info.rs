@@ -31,6 +31,23 @@ pub struct RunInfo {
     pub balance: Option<serde_json::Value>,
     pub largest_momentum_imbalance: Option<f64>,
     pub largest_momentum_residual: Option<f64>,
+    /// The balance as a user reads it first: the largest residuals against their scales and
+    /// the case's `[run.balance]` thresholds, and the warnings they give.
+    pub verdict: Option<Verdict>,
+}
+
+/// The run's largest residuals, their thresholds and the balance warnings (those of
+/// `summary.json`, from the recording alone).
+#[derive(Debug, serde::Serialize)]
+pub struct Verdict {
+    /// Largest momentum residual over the larger of the largest impulse and gross momentum
+    /// (None for a recording made before the rows carried their scales).
+    pub momentum_relative: Option<f64>,
+    /// Largest energy residual (signed: created > 0) over the largest energy or work.
+    pub energy_relative: f64,
+    pub momentum_warning: f64,
+    pub energy_warning: f64,
+    pub warnings: Vec<String>,
 }
 
 #[derive(Debug, serde::Serialize)]
@@ -87,7 +104,9 @@ pub fn run_info(path: &Path) -> anyhow::Result<RunInfo> {
         .filter_map(|m| serde_json::from_slice(&m.data).ok())
         .collect();
     let largest = |key: &str| rows.iter().filter_map(|v| v[key].as_f64()).reduce(f64::max);
+    let verdict = verdict(&rows, &case);
     Ok(RunInfo {
+        verdict,
         recording: path.display().to_string(),
         bytes,
         complete,
@@ -131,6 +150,9 @@ pub fn info(path: &Path) -> anyhow::Result<String> {
             "INCOMPLETE: writer stopped early"
         }
     )?;
+    if let Some(v) = &i.verdict {
+        write_verdict(&mut s, v)?;
+    }
     if i.segments.len() > 1 {
         writeln!(
             s,
@@ -194,6 +216,9 @@ struct CaseFacts {
     window: Option<f64>,
     schedule: Option<String>,
     transport: Option<String>,
+    /// `[run.balance]` as recorded (None: the default).
+    balance_momentum: Option<f64>,
+    balance_energy: Option<f64>,
 }
 
 impl CaseFacts {
@@ -216,13 +241,72 @@ impl CaseFacts {
                     .to_string(),
             )
         };
+        let balance = |k: &str| {
+            run.get("balance")
+                .and_then(|b| b.get(k))
+                .and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+        };
         CaseFacts {
+            balance_momentum: balance("momentum"),
+            balance_energy: balance("energy"),
             end_time: num("end_time"),
             window: num("window"),
             schedule: text("schedule", "serial"),
             transport: text("transport", "shm"),
         }
     }
+}
+
+/// The balance rows' verdict: the audit's largest residuals and scales rebuilt from the
+/// recorded rows, judged by the case's thresholds as the run judged them.
+fn verdict(rows: &[serde_json::Value], case: &CaseFacts) -> Option<Verdict> {
+    let last = rows.last()?;
+    let f = |v: &serde_json::Value, k: &str| v[k].as_f64();
+    let mut a = crate::engine::Audit::default();
+    for r in rows {
+        a.worst_resid = a.worst_resid.max(f(r, "momentum_residual").unwrap_or(0.0));
+        let e = f(r, "energy_residual").unwrap_or(0.0);
+        if e.abs() > a.worst_e_resid.abs() {
+            a.worst_e_resid = e;
+        }
+    }
+    let momentum_scale = f(last, "momentum_scale");
+    a.momentum_scale = momentum_scale.unwrap_or(0.0);
+    a.energy_scale = match f(last, "energy_scale") {
+        Some(e) => e,
+        // an older recording: the largest energy, external work or initial energy
+        None => rows
+            .iter()
+            .flat_map(|r| {
+                let (e, w) = (
+                    f(r, "energy").unwrap_or(0.0),
+                    f(r, "external_work").unwrap_or(0.0),
+                );
+                let e0 = e - w - f(r, "energy_residual").unwrap_or(0.0);
+                [e.abs(), w.abs(), e0.abs()]
+            })
+            .fold(0.0, f64::max),
+    };
+    let (momentum_warning, energy_warning) = (
+        case.balance_momentum
+            .unwrap_or(crate::guard::MOMENTUM_WARNING),
+        case.balance_energy.unwrap_or(crate::guard::ENERGY_WARNING),
+    );
+    Some(Verdict {
+        momentum_relative: momentum_scale.map(|_| a.momentum_relative()),
+        energy_relative: a.energy_relative(),
+        momentum_warning,
+        energy_warning,
+        warnings: crate::engine::summary::balance_warnings(
+            &a,
+            if momentum_scale.is_some() {
+                momentum_warning
+            } else {
+                f64::INFINITY
+            },
+            energy_warning,
+        ),
+    })
 }
 
 /// The nodes the recording welcomed, and the couplings their drivers' bindings name.
@@ -252,6 +336,34 @@ fn nodes_and_couplings(dec: &[Decoded]) -> (Vec<NodeInfo>, Vec<CouplingInfo>) {
         });
     }
     (nodes, couplings.into_values().collect())
+}
+
+/// The balance a user reads first: "ok" or "WARNING", the largest residuals against their
+/// thresholds, and each warning.
+fn write_verdict(s: &mut String, v: &Verdict) -> std::fmt::Result {
+    use std::fmt::Write;
+    let momentum = match v.momentum_relative {
+        Some(p) => format!(
+            "momentum residual {p:.1e} (warn above {:e})",
+            v.momentum_warning
+        ),
+        None => "momentum residual not judged (recorded without its scale)".to_string(),
+    };
+    writeln!(
+        s,
+        "balance    {}: {momentum}, energy residual {:+.2} % (warn above {} %)",
+        if v.warnings.is_empty() {
+            "ok"
+        } else {
+            "WARNING"
+        },
+        v.energy_relative * 100.0,
+        v.energy_warning * 100.0
+    )?;
+    for w in &v.warnings {
+        writeln!(s, "  {w}")?;
+    }
+    Ok(())
 }
 
 /// The last balance row `v` of the run `i`, as text.

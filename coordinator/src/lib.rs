@@ -4,6 +4,7 @@
 
 pub mod books;
 pub mod case;
+pub mod charts;
 pub mod checkpoint;
 pub mod cli;
 pub mod clock;

@@ -49,14 +49,18 @@ pub(crate) fn font_ready() -> bool {
     })
 }
 
-const COLOURS: [RGBColor; 8] = [
+/// Matplotlib's "tab10" cycle, the colours researchers know (ten joints of a crash tube
+/// on one chart, each its own).
+const COLOURS: [RGBColor; 10] = [
     RGBColor(31, 119, 180),
-    RGBColor(214, 39, 40),
-    RGBColor(44, 160, 44),
     RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
     RGBColor(148, 103, 189),
     RGBColor(140, 86, 75),
     RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
     RGBColor(23, 190, 207),
 ];
 
@@ -86,32 +90,80 @@ fn bounds(vals: impl Iterator<Item = f64>) -> (f64, f64) {
 }
 
 /// The SI unit of a reported quantity, from its name (the nodes report SI, see the README's
-/// "Units"); `None` when the name does not say.
+/// "Units"): the last part of a dotted name, a vector component's `_x`/`_y`/`_z` aside;
+/// `None` when the name does not say. Counts and ratios read "1".
 pub fn unit_of(key: &str) -> Option<&'static str> {
     let k = key.rsplit('.').next().unwrap_or(key).to_ascii_lowercase();
-    let has = |w: &str| k.contains(w);
-    Some(if has("energy") || has("work") {
+    let base = ["_x", "_y", "_z"]
+        .iter()
+        .find_map(|c| k.strip_suffix(c))
+        .unwrap_or(&k);
+    let has = |w: &str| base.contains(w);
+    let ends = |w: &str| base.ends_with(w);
+    // a vector's component of a location; an edge line's first and last crossing (the
+    // fluid's `NAME.first`, `NAME.last`)
+    let located = base != k && ["first_damage", "centre", "center", "com"].contains(&base)
+        || ["first", "last"].contains(&base);
+    Some(if ends("per_s") {
+        "1/s"
+    } else if base == "time"
+        || base.starts_with("time_")
+        || ends("_time")
+        || ends("_s")
+        || base == "dt"
+        || ends("_dt")
+    {
+        "s"
+    } else if has("energy") || has("work") {
         "J"
     } else if has("momentum") || has("impulse") {
         "N s"
-    } else if has("pressure") || has("stress") || has("modulus") {
+    } else if has("pressure") || has("stress") || has("modulus") || has("von_mises") {
         "Pa"
     } else if has("velocity") || has("speed") {
         "m/s"
-    } else if has("displacement") || has("position") || has("deflection") || has("gap") {
-        "m"
-    } else if has("force") || has("lambda") {
-        "N"
-    } else if has("mass") {
-        "kg"
+    } else if has("fraction") || has("ratio") || has("_over_") {
+        "1"
     } else if has("density") {
         "kg/m³"
+    } else if has("mass") {
+        "kg"
     } else if has("temperature") {
         "K"
-    } else if has("strain") || has("damage") || has("fraction") || has("ratio") || has("count") {
+    } else if has("force") || has("lambda") {
+        "N"
+    } else if located
+        || [
+            "displacement",
+            "position",
+            "deflection",
+            "gap",
+            "width",
+            "thickness",
+            "radius",
+        ]
+        .iter()
+        .any(|w| has(w))
+        || has("distance")
+        || has("length")
+        || ["_ux", "_uy", "_uz"].iter().any(|w| ends(w))
+        || ["ux", "uy", "uz"].contains(&base)
+    {
+        "m"
+    } else if [
+        "strain",
+        "damage",
+        "count",
+        "particles",
+        "bonds",
+        "fragments",
+        "cells",
+        "index",
+    ]
+    .iter()
+    .any(|w| has(w))
+    {
         "1"
-    } else if k.ends_with("_s") || k == "time" || has("dt") {
-        "s"
     } else {
         return None;
     })
@@ -229,20 +281,97 @@ fn line_chart_into(
     y_label: &str,
     series: &[Series],
 ) -> anyhow::Result<()> {
-    if series.iter().all(|s| s.points.is_empty()) {
-        bail!("{title}: nothing to plot");
+    let panel = Panel {
+        title: title.to_string(),
+        y_label: y_label.to_string(),
+        series: series.to_vec(),
+    };
+    grid_chart_into(path, "", x_label, std::slice::from_ref(&panel))
+}
+
+/// One chart of a figure: its title, its quantity (y) and its lines.
+#[derive(Debug, Clone)]
+pub struct Panel {
+    pub title: String,
+    pub y_label: String,
+    pub series: Vec<Series>,
+}
+
+/// Draw `panels` into one PNG at `path`: a single chart is 800×500; several are laid out in
+/// a grid of up to four columns, 600×380 each, under the figure's `title`.
+pub fn grid_chart(path: &Path, title: &str, x_label: &str, panels: &[Panel]) -> anyhow::Result<()> {
+    png_whole(path, |tmp| grid_chart_into(tmp, title, x_label, panels))
+}
+
+/// Columns and rows of a grid of `n` panels.
+fn grid_of(n: usize) -> (usize, usize) {
+    let cols = match n {
+        0 | 1 => 1,
+        2 | 4 => 2,
+        3 | 5 | 6 | 9 => 3,
+        _ => 4,
+    };
+    (cols, n.div_ceil(cols))
+}
+
+fn grid_chart_into(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    panels: &[Panel],
+) -> anyhow::Result<()> {
+    let drawn: Vec<&Panel> = panels
+        .iter()
+        .filter(|p| p.series.iter().any(|s| !s.points.is_empty()))
+        .collect();
+    if drawn.is_empty() {
+        let what = panels.first().map_or(title, |p| p.title.as_str());
+        bail!("{what}: nothing to plot");
     }
     let text = font_ready();
-    let (xs, x_label, (x0, x1), (y0, y1)) = axes(series, x_label);
-    let y_label = with_unit(y_label);
-    let root = BitMapBackend::new(path, (800, 500)).into_drawing_area();
     let draw = |e: &dyn std::fmt::Display| anyhow::anyhow!("plot {}: {e}", path.display());
+    let (cols, rows) = grid_of(drawn.len());
+    let heading = if text && drawn.len() > 1 && !title.is_empty() {
+        40
+    } else {
+        0
+    };
+    let size = if drawn.len() == 1 {
+        (800, 500)
+    } else {
+        (600 * cols as u32, 380 * rows as u32 + heading)
+    };
+    let root = BitMapBackend::new(path, size).into_drawing_area();
     root.fill(&WHITE).map_err(|e| draw(&e))?;
-    let mut builder = ChartBuilder::on(&root);
+    let body = if heading > 0 {
+        root.titled(title, ("sans-serif", 26))
+            .map_err(|e| draw(&e))?
+    } else {
+        root.clone()
+    };
+    for (area, panel) in body.split_evenly((rows, cols)).iter().zip(&drawn) {
+        draw_panel(area, panel, x_label, text).map_err(|e| draw(&e))?;
+    }
+    root.present().map_err(|e| draw(&e))?;
+    Ok(())
+}
+
+/// One panel's axes, grid, lines and legend on `area`.
+fn draw_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    panel: &Panel,
+    x_label: &str,
+    text: bool,
+) -> Result<(), String> {
+    let series = &panel.series;
+    let (xs, x_label, (x0, x1), (y0, y1)) = axes(series, x_label);
+    let y_label = with_unit(&panel.y_label);
+    let e = |e: &dyn std::fmt::Display| e.to_string();
+    let mut builder = ChartBuilder::on(area);
     builder.margin(15);
     if text {
         builder
-            .caption(title, ("sans-serif", 22))
+            .caption(&panel.title, ("sans-serif", 22))
             .x_label_area_size(45)
             .y_label_area_size(80);
     } else {
@@ -250,7 +379,7 @@ fn line_chart_into(
     }
     let mut chart = builder
         .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(|e| draw(&e))?;
+        .map_err(|x| e(&x))?;
     let x_ticks = |v: &f64| tick_label(*v, x0, x1);
     let y_ticks = |v: &f64| tick_label(*v, y0, y1);
     let mut mesh = chart.configure_mesh();
@@ -263,7 +392,7 @@ fn line_chart_into(
     } else {
         mesh.x_labels(0).y_labels(0);
     }
-    mesh.draw().map_err(|e| draw(&e))?;
+    mesh.draw().map_err(|x| e(&x))?;
     for (i, s) in series.iter().enumerate() {
         let colour = COLOURS[i % COLOURS.len()];
         let pts = s
@@ -273,23 +402,22 @@ fn line_chart_into(
             .filter(|p| p.0.is_finite() && p.1.is_finite());
         let drawn = chart
             .draw_series(LineSeries::new(pts, colour.stroke_width(2)))
-            .map_err(|e| draw(&e))?;
+            .map_err(|x| e(&x))?;
         if text {
             drawn
                 .label(s.label.clone())
                 .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], colour));
         }
     }
-    if text && (series.len() > 1 || !series[0].label.is_empty()) {
+    if text && (series.len() > 1 || series.first().is_some_and(|s| !s.label.is_empty())) {
         chart
             .configure_series_labels()
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK)
             .label_font(("sans-serif", 14))
             .draw()
-            .map_err(|e| draw(&e))?;
+            .map_err(|x| e(&x))?;
     }
-    root.present().map_err(|e| draw(&e))?;
     Ok(())
 }
 
@@ -417,13 +545,11 @@ pub fn file_stem(s: &str) -> String {
         .collect()
 }
 
-/// The plots of one finished run (its histories, collected while it ran), written to
-/// `<dir>/plots/`: per node an energy chart and one chart per scalar (none for a scalar that is
-/// zero throughout). Returns the files.
-pub fn run_plots(hist: &Histories, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    let plots = dir.join("plots");
-    std::fs::create_dir_all(&plots)
-        .with_context(|| format!("cannot create {}", plots.display()))?;
+/// Every quantity of a run on its own (`cosim plot RUN --all`), written to `plots`: per node
+/// an energy chart and one chart per other quantity (none for one that is zero throughout).
+/// Returns the files.
+pub fn every_quantity(hist: &Histories, plots: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(plots).with_context(|| format!("cannot create {}", plots.display()))?;
     let mut written = Vec::new();
     for (node, q) in hist {
         // every energy and work term of the node on one chart, those zero throughout left out
@@ -440,13 +566,7 @@ pub fn run_plots(hist: &Histories, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
             .collect();
         if !energies.is_empty() {
             let p = plots.join(format!("{node}_energy.png"));
-            line_chart(
-                &p,
-                &format!("{node}: energy"),
-                "t [s]",
-                "energy [J]",
-                &energies,
-            )?;
+            line_chart(&p, &format!("{node}: energy"), "t [s]", "energy", &energies)?;
             written.push(p);
         }
         for (k, pts) in q {
@@ -495,9 +615,56 @@ fn lookup<'a>(h: &'a Histories, label: &str, spec: &str) -> anyhow::Result<&'a [
         Some(p) => Ok(p.as_slice()),
         None => {
             let known: Vec<&String> = h.get(node).map(|m| m.keys().collect()).unwrap_or_default();
-            bail!("run '{label}' has no {node}.{q} (it has: {known:?})")
+            match h.get(node) {
+                None => bail!(
+                    "run '{label}' has no node {node} (its nodes: {})",
+                    h.keys().cloned().collect::<Vec<_>>().join(", ")
+                ),
+                Some(_) => bail!(
+                    "run '{label}' has no {node}.{q}{} (it has: {known:?})",
+                    did_you_mean(q, known.iter().map(|k| k.as_str()))
+                        .map(|m| format!("; did you mean {node}.{m}?"))
+                        .unwrap_or_default()
+                ),
+            }
         }
     }
+}
+
+/// The series of one run a `--series` names: `NODE.QUANTITY` itself, or where the quantity
+/// (or the node) holds a `*`, every match in name order (`gas.point*.pressure`).
+fn expand(h: &Histories, label: &str, spec: &str) -> anyhow::Result<Vec<String>> {
+    let (node, q) = spec
+        .split_once('.')
+        .with_context(|| format!("{spec}: must be NODE.QUANTITY (or *.QUANTITY)"))?;
+    if !q.contains('*') && (node == "*" || !node.contains('*')) {
+        lookup(h, label, spec)?;
+        return Ok(vec![spec.to_string()]);
+    }
+    let hits: Vec<String> = h
+        .iter()
+        .filter(|(n, _)| crate::export::glob(node, n))
+        .flat_map(|(n, m)| {
+            m.keys()
+                .filter(|k| crate::export::glob(q, k))
+                .map(move |k| format!("{n}.{k}"))
+        })
+        .collect();
+    if hits.is_empty() {
+        bail!("run '{label}': nothing matches {spec}");
+    }
+    Ok(hits)
+}
+
+/// The closest of `known` to `name` by edit distance, where it is close enough to be a typo
+/// (at most a third of the name's length, and 3).
+pub fn did_you_mean<'a>(name: &str, known: impl Iterator<Item = &'a str>) -> Option<&'a str> {
+    let limit = (name.chars().count() / 3).clamp(1, 3);
+    known
+        .map(|k| (strsim::levenshtein(name, k), k))
+        .filter(|(d, _)| *d <= limit)
+        .min_by_key(|(d, _)| *d)
+        .map(|(_, k)| k)
 }
 
 /// Pair two histories of one run by time (same window ends): (x(t), y(t)).
@@ -515,66 +682,149 @@ fn pair(x: &[(f64, f64)], y: &[(f64, f64)]) -> Vec<(f64, f64)> {
     out
 }
 
-/// `cosim plot`: for each `node.quantity` in `series`, one PNG with a line per run (a run is a
-/// recording or an output directory holding `run.mcap`), labelled by the run's directory name,
-/// against time or against another reported quantity `x` (e.g. force against displacement).
-/// A node named `*` is whichever node of each run reports the quantity (runs whose nodes are
-/// named differently, e.g. a two-scale and a single-scale model of one coupon).
+/// `cosim plot`: the `series` of several `runs` (output directories holding `run.mcap`, or
+/// recordings; a line per run and series, runs labelled by their directory's name) against
+/// time or against another reported quantity `x` (e.g. force against displacement). Series
+/// that share a unit share a figure (`--series gas.point1.pressure --series
+/// gas.point2.pressure`: one chart); a `*` in the quantity takes every match
+/// (`gas.point*.pressure`); a node named `*` is whichever node of each run reports the
+/// quantity (runs whose nodes are named differently, e.g. a two-scale and a single-scale
+/// model of one coupon). Returns the files, one per unit.
 pub fn compare(
     runs: &[PathBuf],
     series: &[String],
     x: Option<&str>,
     out_dir: &Path,
 ) -> anyhow::Result<Vec<PathBuf>> {
-    let mut data = Vec::new();
-    for r in runs {
-        let mcap = if r.is_dir() {
-            r.join("run.mcap")
-        } else {
-            r.clone()
-        };
-        let (msgs, _) = record::read_json(&mcap)?;
-        let label = if r.is_dir() {
-            r.file_name()
-        } else {
-            r.parent().and_then(|p| p.file_name())
-        }
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| r.display().to_string());
-        data.push((label, node_histories(&msgs)));
-    }
+    let data = load_runs(runs)?;
     std::fs::create_dir_all(out_dir)
         .with_context(|| format!("cannot create {}", out_dir.display()))?;
-    let mut written = Vec::new();
+    // (unit, specs in order, lines)
+    let mut figures: Vec<(Option<&str>, Vec<&str>, Vec<Series>)> = Vec::new();
     for s in series {
+        let q = s.split_once('.').map_or(s.as_str(), |(_, q)| q);
+        let unit = unit_of(q);
         let mut lines = Vec::new();
         for (label, h) in &data {
-            let ys = lookup(h, label, s).with_context(|| format!("--series {s}"))?;
-            let points = match x {
-                None => ys.to_vec(),
-                Some(xs) => pair(
-                    lookup(h, label, xs).with_context(|| format!("--x {xs}"))?,
-                    ys,
-                ),
-            };
-            lines.push(Series {
-                label: label.clone(),
-                points,
-            });
+            let names = expand(h, label, s).with_context(|| format!("--series {s}"))?;
+            for name in &names {
+                let ys = lookup(h, label, name).with_context(|| format!("--series {s}"))?;
+                let points = match x {
+                    None => ys.to_vec(),
+                    Some(xs) => pair(
+                        lookup(h, label, xs).with_context(|| format!("--x {xs}"))?,
+                        ys,
+                    ),
+                };
+                lines.push((label.clone(), name.clone(), points));
+            }
         }
-        let q = s.split_once('.').map_or(s.as_str(), |(_, q)| q);
+        // a line names its run where there are several, and its series where the spec
+        // matched several or shares the figure with others
+        let many_names = series.len() > 1 || lines.iter().any(|l| l.1 != lines[0].1);
+        let lines: Vec<Series> = lines
+            .into_iter()
+            .map(|(run, name, points)| Series {
+                label: match (data.len() > 1, many_names) {
+                    (true, true) => format!("{run}: {name}"),
+                    (true, false) => run,
+                    (false, _) => name,
+                },
+                points,
+            })
+            .collect();
+        match figures.iter_mut().find(|f| f.0 == unit) {
+            Some(f) => {
+                f.1.push(s);
+                f.2.extend(lines);
+            }
+            None => figures.push((unit, vec![s.as_str()], lines)),
+        }
+    }
+    let mut written = Vec::new();
+    for (_, specs, lines) in figures {
+        let stems: Vec<String> = specs.iter().map(|s| file_stem(s)).collect();
+        let mut stem = stems.join("+");
+        if stem.len() > 120 {
+            stem = format!("{}+{}_more", stems[0], stems.len() - 1);
+        }
+        let q: Vec<&str> = specs
+            .iter()
+            .map(|s| s.split_once('.').map_or(*s, |(_, q)| q))
+            .collect();
         let (stem, x_label) = match x {
-            None => (file_stem(s), "t [s]".to_string()),
+            None => (stem, "t [s]".to_string()),
             Some(xs) => (
-                format!("{}_vs_{}", file_stem(s), file_stem(xs)),
-                xs.split_once('.').map_or(xs, |(_, q)| q).to_string(),
+                format!("{stem}_vs_{}", file_stem(xs)),
+                with_unit(xs.split_once('.').map_or(xs, |(_, q)| q)),
             ),
         };
+        let title = specs.join(", ");
         let p = out_dir.join(format!("{stem}.png"));
-        line_chart(&p, s, &x_label, q, &lines)?;
+        line_chart(&p, &title, &x_label, &q.join(", "), &lines)?;
         written.push(p);
     }
     Ok(written)
+}
+
+/// The JSON messages of a run: an output directory (its `run.mcap`) or a recording.
+fn run_messages(r: &Path) -> anyhow::Result<Vec<Recorded>> {
+    let mcap = if r.is_dir() {
+        r.join("run.mcap")
+    } else {
+        r.to_path_buf()
+    };
+    Ok(record::read_json(&mcap)?.0)
+}
+
+/// Each run's label (its directory's name) and node histories.
+fn load_runs(runs: &[PathBuf]) -> anyhow::Result<Vec<(String, Histories)>> {
+    runs.iter()
+        .map(|r| Ok((run_label(r), node_histories(&run_messages(r)?))))
+        .collect()
+}
+
+/// The default set of charts of a run (an output directory or a recording), as `cosim run`
+/// drew them when it ended.
+pub fn default_charts(run: &Path) -> anyhow::Result<Vec<crate::charts::Chart>> {
+    let msgs = run_messages(run)?;
+    let rows: Vec<serde_json::Value> = msgs
+        .iter()
+        .filter(|m| m.topic == "/cosim/balance")
+        .filter_map(|m| serde_json::from_slice(&m.data).ok())
+        .collect();
+    let b = crate::charts::balance_histories(&rows);
+    Ok(crate::charts::curated(&node_histories(&msgs), &b))
+}
+
+/// `cosim plot RUN...` without `--series`: each run's default set of charts (`all`: every
+/// quantity of every node on its own), into `out_dir` (`out_dir/<run>/` for several runs).
+pub fn run_sets(runs: &[PathBuf], all: bool, out_dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let mut written = Vec::new();
+    for r in runs {
+        let dir = if runs.len() > 1 {
+            out_dir.join(run_label(r))
+        } else {
+            out_dir.to_path_buf()
+        };
+        if all {
+            written.extend(every_quantity(&node_histories(&run_messages(r)?), &dir)?);
+        } else {
+            written.extend(crate::charts::draw(&default_charts(r)?, &dir)?);
+        }
+    }
+    Ok(written)
+}
+
+/// A run's label: the name of its output directory (a recording's folder).
+fn run_label(r: &Path) -> String {
+    if r.is_dir() {
+        r.file_name()
+    } else {
+        r.parent().and_then(|p| p.file_name())
+    }
+    .map(|s| s.to_string_lossy().into_owned())
+    .unwrap_or_else(|| r.display().to_string())
 }
 
 #[cfg(test)]
@@ -626,12 +876,32 @@ mod tests {
         assert_eq!(with_unit("com_displacement_x"), "com_displacement_x [m]");
         assert_eq!(with_unit("momentum_x"), "momentum_x [N s]");
         assert_eq!(with_unit("plastic_work"), "plastic_work [J]");
-        assert_eq!(with_unit("broken_bonds"), "broken_bonds");
+        assert_eq!(with_unit("broken_bonds"), "broken_bonds [1]");
         assert_eq!(with_unit("energy [J]"), "energy [J]");
+        // a time step is not a mass, a counter per second not a time
+        for (key, unit) in [
+            ("mass_scaling_dt", "s"),
+            ("cell_updates_per_s", "1/s"),
+            ("time_ghost_fills_s", "s"),
+            ("added_mass", "kg"),
+            ("added_mass_fraction", "1"),
+            ("kinetic_over_internal", "1"),
+            ("first_damage_x", "m"),
+            ("first_damage_particles", "1"),
+            ("A_ux", "m"),
+            ("bubble.first", "m"),
+            ("max_failure_index", "1"),
+            ("fragment_mean_width", "m"),
+            ("bubble.first_speed", "m/s"),
+            ("min_density", "kg/m³"),
+            ("max_von_mises", "Pa"),
+        ] {
+            assert_eq!(unit_of(key), Some(unit), "{key}");
+        }
     }
 
     #[test]
-    fn a_run_draws_no_chart_for_a_quantity_that_stays_zero() {
+    fn every_quantity_draws_no_chart_for_a_quantity_that_stays_zero() {
         let dir = std::env::temp_dir().join(format!("cosim-plot-zero-{}", std::process::id()));
         let mut h = Histories::new();
         let q = h.entry("bar".into()).or_default();
@@ -646,7 +916,7 @@ mod tests {
             "fracture_energy".into(),
             t.iter().map(|&t| (t, 0.0)).collect(),
         );
-        let files = run_plots(&h, &dir).expect("plots");
+        let files = every_quantity(&h, &dir).expect("plots");
         let names: Vec<String> = files
             .iter()
             .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())

@@ -170,7 +170,14 @@ fn draw(
         tracing::info!("no plots drawn: the run was interrupted");
         return;
     }
-    match crate::plot::run_plots(history, out) {
+    // the default set: the balance, the energies, a chart per physical quantity, the
+    // methods' counters (`cosim plot RUN --all` draws every quantity on its own)
+    let rows = summary["balance"]["per_window"]
+        .as_array()
+        .cloned()
+        .unwrap_or_default();
+    let charts = crate::charts::curated(history, &crate::charts::balance_histories(&rows));
+    match crate::charts::draw(&charts, &out.join("plots")) {
         Ok(files) => summary["plots"] = json!(files),
         Err(e) => tracing::warn!("plots of {}: {e:#}", out.display()),
     }

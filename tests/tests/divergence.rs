@@ -112,6 +112,119 @@ fn the_energy_bound_is_the_users_to_set() {
 }
 
 #[test]
+fn residuals_past_their_thresholds_end_the_run_with_warnings_naming_them() {
+    // One grow node: 1 J that loses 1 % a window, 1 N s that gains 1e-3 N s a window with no
+    // impulse booked. After the 20 windows the energy residual is 0.99^20 − 1 = −0.182093 of
+    // the initial 1 J (the largest energy), the momentum residual 20 × 1e-3 = 0.02 N s of
+    // the largest gross momentum 1.02 N s: 0.0196078.
+    let (dir, id) = scratch("lossy");
+    let case = grow_case(
+        &dir,
+        &[(
+            "lossy",
+            "energy = 1.0\ngrowth = 0.99\nmomentum = 1.0\ndrift = 1e-3",
+        )],
+    );
+    let (code, err, s) = run(&case, &dir, &id, &[]);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(s["status"], "finished", "{s}");
+    let b = &s["balance"];
+    let e = b["max_energy_residual_relative"].as_f64().unwrap();
+    assert!((e - (0.99f64.powi(20) - 1.0)).abs() < 1e-12, "{e}");
+    let p = b["max_momentum_residual_relative"].as_f64().unwrap();
+    assert!((p - 0.02 / 1.02).abs() < 1e-12, "{p}");
+    assert_eq!(b["energy_warning"], 0.05, "{b}");
+    assert_eq!(b["momentum_warning"], 1e-6, "{b}");
+    let warnings: Vec<&str> = s["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|w| w.as_str())
+        .collect();
+    assert_eq!(warnings.len(), 2, "{warnings:?}");
+    assert!(
+        warnings[0].starts_with("balance: the momentum residual reached 1.961e-2")
+            && warnings[0].contains("run.balance.momentum = 1e-6"),
+        "{}",
+        warnings[0]
+    );
+    assert!(
+        warnings[1].starts_with("balance: the numerical methods lost 18.2 %")
+            && warnings[1].contains("run.balance.energy = 0.05"),
+        "{}",
+        warnings[1]
+    );
+    // The run's last lines are the warnings, and its own line says it has them.
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(
+        lines[lines.len() - 2..],
+        [
+            format!("cosim: warning: {}", warnings[0]),
+            format!("cosim: warning: {}", warnings[1])
+        ],
+        "{err}"
+    );
+    // `cosim info` says so on its second line, from the recording alone.
+    let o = cosim(&["info", dir.join("out/run.mcap").to_str().unwrap()]);
+    let info = String::from_utf8_lossy(&o.stdout);
+    let second = info.lines().nth(1).unwrap_or_default();
+    assert!(
+        second.starts_with("balance    WARNING: momentum residual 2.0e-2 (warn above 1e-6), energy residual -18.21 % (warn above 5 %)"),
+        "{info}"
+    );
+    assert!(info.contains(warnings[1]), "{info}");
+
+    // The thresholds are the case's: raised past both residuals, no warning, and info says ok.
+    let (dir, id) = scratch("lossy-ok");
+    let case = grow_case(
+        &dir,
+        &[(
+            "lossy",
+            "energy = 1.0\ngrowth = 0.99\nmomentum = 1.0\ndrift = 1e-3",
+        )],
+    );
+    let sets = [
+        "--set",
+        "run.balance.energy=0.2",
+        "--set",
+        "run.balance.momentum=0.05",
+    ];
+    let (code, err, s) = run(&case, &dir, &id, &sets);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(s["warnings"].as_array().map(Vec::len), Some(0), "{s}");
+    assert!(!err.contains("warning"), "{err}");
+    let o = cosim(&["info", dir.join("out/run.mcap").to_str().unwrap()]);
+    let info = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        info.lines()
+            .nth(1)
+            .unwrap_or_default()
+            .starts_with("balance    ok:"),
+        "{info}"
+    );
+    // A threshold of 0 would warn of every run: refused by key before anything starts.
+    for (key, set) in [
+        ("run.balance.energy", "run.balance.energy=0"),
+        ("run.balance.momentum", "run.balance.momentum=-1e-6"),
+    ] {
+        let o = cosim(&["validate", case.to_str().unwrap(), "--set", set]);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{e}");
+        assert!(e.contains(&format!("{key}: must be > 0")), "{e}");
+    }
+    let o = cosim(&[
+        "validate",
+        case.to_str().unwrap(),
+        "--set",
+        "run.balance.enrgy=0.1",
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("run.balance"), "{e}");
+    nothing_left(&id);
+}
+
+#[test]
 fn a_node_about_to_report_nan_stops_the_run_naming_itself_and_the_quantity() {
     let (dir, id) = scratch("nan");
     let case = grow_case(
@@ -306,6 +419,20 @@ const FINEST: &[&str] = &[
     "underwater_explosion/fine",
 ];
 
+/// The default charts of the run in `out`, drawn again from its recording: the panels whose
+/// quantity has no unit.
+fn units_missing(out: &Path, tag: &str) -> Vec<String> {
+    let mut missing = Vec::new();
+    for c in coordinator::plot::default_charts(out).expect("recording") {
+        for p in &c.panels {
+            if coordinator::plot::unit_of(&p.y_label).is_none() {
+                missing.push(format!("{tag}: {} draws {}", c.file, p.y_label));
+            }
+        }
+    }
+    missing
+}
+
 /// The window of `case` under `variant` (a variant may set `run.window`).
 fn window_of(doc: &toml::Table, variant: Option<&str>) -> f64 {
     let base = doc["run"]["window"].as_float().expect("run.window");
@@ -340,6 +467,7 @@ fn every_example_and_variant_starts_within_the_default_energy_bound() {
     let python = python_package_or_skip();
     let c_bar = build_c_bar(&workspace_root().join("examples/external/bar-c")).is_some();
     let mut ran = 0;
+    let mut no_unit = Vec::new();
     for (name, variants) in EXAMPLES {
         let case = dir.join(format!("{name}.toml"));
         let doc: toml::Table = toml::from_str(&std::fs::read_to_string(&case).unwrap()).unwrap();
@@ -385,6 +513,11 @@ fn every_example_and_variant_starts_within_the_default_energy_bound() {
                 started.elapsed().as_secs_f64()
             );
             assert!(over < 10.0, "{tag}: {over}");
+            // Every chart the run drew has a unit on its axis: every quantity of every
+            // model the examples use is known by name.
+            let charts = s["plots"].as_array().map_or(0, Vec::len);
+            assert!(charts >= 2, "{tag}: {} charts", s["plots"]);
+            no_unit.extend(units_missing(&out, &tag));
             let _ = std::fs::remove_dir_all(&scratch_dir);
             nothing_left(&id);
             ran += 1;
@@ -393,6 +526,7 @@ fn every_example_and_variant_starts_within_the_default_energy_bound() {
     let all: usize = EXAMPLES.iter().map(|e| 1 + e.1.len()).sum();
     let skipped = usize::from(!python) + usize::from(!c_bar);
     assert_eq!(ran + skipped, all, "ran {ran} of {all}");
+    assert!(no_unit.is_empty(), "axes without a unit: {no_unit:#?}");
 }
 
 #[test]

@@ -160,16 +160,27 @@ fn the_recording_passes_the_official_reader_and_plots_are_written() {
         .expect("plots/")
         .filter_map(|e| e.ok().map(|e| e.path()))
         .collect();
+    // The default set: the balance, every node's energies, the probes' pressures on one
+    // chart, the bar's centre of mass as a vector, the gas's wall-clock counters apart.
     for want in [
-        "gas_energy.png",
-        "bar_energy.png",
-        "gas_point2.pressure.png",
+        "balance.png",
+        "energy.png",
+        "gas_pressure.png",
+        "bar_com_displacement.png",
+        "profile.png",
     ] {
-        let want = want.replace(".pressure", "_pressure");
-        let p = out.join("plots").join(&want);
+        let p = out.join("plots").join(want);
         let len = std::fs::metadata(&p).map(|m| m.len()).unwrap_or(0);
         assert!(len > 1000, "{want}: {len} bytes; plots: {plots:?}");
     }
+    // No counter of the methods among the physics.
+    assert!(
+        !plots.iter().any(|p| {
+            let n = p.file_name().unwrap().to_string_lossy();
+            n.contains("time_") || n.contains("per_s")
+        }),
+        "{plots:?}"
+    );
     // `cosim plot` draws one quantity of several runs (here the same run twice).
     let dir = out.join("compare");
     let o = cosim(&[

@@ -160,11 +160,22 @@ fn coupon_two_scale_matches_single_scale_up_to_the_peak() {
         // Every VTK file of both runs (shell elements, SPG particles) opens with meshio.
         let (ok, text) = check_vtk(out, &[]);
         assert!(ok, "check_vtk {}: {text}", out.display());
-        let p = out.join("plots/coupon_force_right_x.png");
+        // The force on the pulled end among the default charts: the coupon's alone (single
+        // scale: its x component), on one chart with the centre's (two scales, both report
+        // it).
+        let want = if out == &single {
+            "coupon_force_right_x.png"
+        } else {
+            "force_right.png"
+        };
+        let p = out.join("plots").join(want);
         assert!(
             std::fs::metadata(&p)
                 .map(|m| m.len() > 1000)
-                .unwrap_or(false)
+                .unwrap_or(false),
+            "{}: {:?}",
+            p.display(),
+            summary(out)["plots"]
         );
     }
 }
@@ -264,6 +275,82 @@ fn crash_tube_screws_at_joint_3_peak_higher_than_bolts() {
     assert!(j3_i > 10.0, "joint 3 carries no load in case I ({j3_i} N)");
     assert!(j3_ii > 1.5 * j3_i, "case II {j3_ii} N vs case I {j3_i} N");
     tube_picture(&case1);
+    charts_of_eleven_nodes(&case1, &case2);
+}
+
+/// What the small crash tube (eleven nodes) draws: at most 25 PNGs, every axis with a unit;
+/// and `cosim plot` puts two series of one run, or one series of two runs, on one chart.
+fn charts_of_eleven_nodes(case1: &Path, case2: &Path) {
+    let pngs: Vec<PathBuf> = files_under(case1, &[])
+        .into_keys()
+        .filter(|p| p.extension().is_some_and(|e| e == "png"))
+        .collect();
+    println!("{} PNGs: {pngs:?}", pngs.len());
+    assert!(
+        (5..=25).contains(&pngs.len()),
+        "{} PNGs: {pngs:?}",
+        pngs.len()
+    );
+    let listed = summary(case1)["plots"].as_array().unwrap().len();
+    assert_eq!(listed + 1, pngs.len(), "the plots and fields.png");
+    // The same charts from the recording: every axis carries a unit.
+    let charts = coordinator::plot::default_charts(case1).unwrap();
+    assert_eq!(charts.len(), listed);
+    let mut panels = 0;
+    for c in &charts {
+        for p in &c.panels {
+            panels += 1;
+            assert!(
+                coordinator::plot::unit_of(&p.y_label).is_some(),
+                "{}: {} has no unit",
+                c.file,
+                p.y_label
+            );
+        }
+    }
+    // the energy chart has a panel per node: eleven, at least
+    assert!(panels >= charts.len() + 10, "{panels} panels");
+    let (dir, _) = scratch("crash-plots");
+    // Two series of one run (a glob over nodes and quantities: joints 3 and 3'), one chart.
+    let o = cosim(&[
+        "plot",
+        case1.to_str().unwrap(),
+        "--series",
+        "j3*.force_j3*_a",
+        "-o",
+        dir.to_str().unwrap(),
+    ]);
+    let listed = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(listed.lines().count(), 1, "{listed}");
+    // One series of two runs, one chart.
+    let o = cosim(&[
+        "plot",
+        case1.to_str().unwrap(),
+        case2.to_str().unwrap(),
+        "--series",
+        "j3.force_j3_a",
+        "-o",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let listed = String::from_utf8_lossy(&o.stdout).to_string();
+    assert_eq!(
+        listed.trim(),
+        dir.join("j3_force_j3_a.png").to_str().unwrap()
+    );
+    // A misspelt quantity is named, with the nearest one.
+    let o = cosim(&[
+        "plot",
+        case1.to_str().unwrap(),
+        "--series",
+        "j3.force_j3_aa",
+        "-o",
+        dir.to_str().unwrap(),
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(e.contains("did you mean j3.force_j3_a?"), "{e}");
 }
 
 /// `fields.png` of a crash-tube run: the tube drawn across the picture (its longest axis

@@ -76,10 +76,26 @@ pub struct RunSection {
     pub energy_bound: Option<f64>,
     /// Divergence guard: energy added to the bound, J (≥ 0).
     pub energy_floor: Option<f64>,
+    /// Balance warnings: how large the momentum and energy residuals may grow before the
+    /// run ends with a warning (its last line and summary.json `warnings`).
+    pub balance: Option<BalanceSection>,
     /// Scalars of the nodes' last reports to print after the run's line, as "NODE.SCALAR"
     /// (e.g. "gas.bubble.first_speed", or an energy such as "tube.kinetic_energy"); they are
     /// in summary.json whatever this says.
     pub print: Option<Vec<String>>,
+}
+
+/// `[run.balance]`: thresholds of the balance warnings, as shares of the residuals' scales.
+#[derive(Debug, Clone, Default, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BalanceSection {
+    /// The largest momentum residual, as a share of the larger of the largest impulse any
+    /// node saw and the largest gross momentum (default 1e-6; a booking that is right stays
+    /// near round-off).
+    pub momentum: Option<f64>,
+    /// The largest energy residual, created or dissipated, as a share of the largest energy
+    /// or work of the run (default 0.05).
+    pub energy: Option<f64>,
 }
 
 /// `run.schedule`.

@@ -64,6 +64,11 @@ pub struct RunConfig {
     /// diverged; 0 turns the bound off (non-finite values still stop it).
     pub energy_bound: f64,
     pub energy_floor: f64,
+    /// `[run.balance]`: the largest momentum residual (share of its scale) and energy
+    /// residual (share of the largest energy or work, either sign) a run may reach before
+    /// it ends with a warning.
+    pub balance_momentum: f64,
+    pub balance_energy: f64,
     /// `run.print`: (node, scalar) pairs printed from the nodes' last reports at the end.
     pub print: Vec<(String, String)>,
 }

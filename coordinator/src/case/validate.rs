@@ -93,6 +93,7 @@ fn settle_run(r: &RunSection) -> Result<RunConfig, ConfigError> {
     let (end_time, window) = run_times(r)?;
     let (heartbeat_ms, heartbeat_timeout, stall_timeout) = run_liveness(r)?;
     let (energy_bound, energy_floor) = run_energy_guard(r)?;
+    let (balance_momentum, balance_energy) = run_balance(r)?;
     let positive = |key: &str, v: Option<f64>, default: f64| {
         let v = v.unwrap_or(default);
         if v.is_finite() && v > 0.0 {
@@ -130,8 +131,30 @@ fn settle_run(r: &RunSection) -> Result<RunConfig, ConfigError> {
         },
         energy_bound,
         energy_floor,
+        balance_momentum,
+        balance_energy,
         print: run_print(r)?,
     })
+}
+
+/// `[run.balance]`: both thresholds > 0 (and finite), with their defaults.
+fn run_balance(r: &RunSection) -> Result<(f64, f64), ConfigError> {
+    let b = r.balance.clone().unwrap_or_default();
+    let share = |key: &str, v: Option<f64>, default: f64| {
+        let v = v.unwrap_or(default);
+        if v.is_finite() && v > 0.0 {
+            Ok(v)
+        } else {
+            Err(err(
+                format!("run.balance.{key}"),
+                format!("must be > 0 (a share of the residual's scale), got {v}"),
+            ))
+        }
+    };
+    Ok((
+        share("momentum", b.momentum, crate::guard::MOMENTUM_WARNING)?,
+        share("energy", b.energy, crate::guard::ENERGY_WARNING)?,
+    ))
 }
 
 /// `run.print`: each entry "NODE.SCALAR" (the node checked once the nodes are known).

@@ -76,10 +76,15 @@ pub struct PlotArgs {
     #[arg(required = true)]
     pub runs: Vec<PathBuf>,
     /// NODE.QUANTITY to plot (a scalar of the node's report, kinetic_energy,
-    /// internal_energy, momentum_x, ...), repeatable; `*.QUANTITY`: whichever node of each
-    /// run reports it.
-    #[arg(long = "series", required_unless_present_any = ["field", "fragments"])]
+    /// internal_energy, momentum_x, ...), repeatable: series that share a unit share a
+    /// figure; a `*` in the quantity takes every match (`gas.point*.pressure`); `*.QUANTITY`:
+    /// whichever node of each run reports it. Without any, each run's default set of charts
+    /// (the one `cosim run` draws).
+    #[arg(long = "series")]
     pub series: Vec<String>,
+    /// Without `--series`: every quantity of every node on its own chart, not the default set.
+    #[arg(long, conflicts_with_all = ["series", "x", "field", "fragments"])]
+    pub all: bool,
     /// Instead of time histories, a picture of a field: NODE.FIELD of the node's VTK
     /// frames (e.g. gas.pressure, bar.damage), per run, at `--at` (default the end).
     #[arg(long, conflicts_with_all = ["series", "x"])]
@@ -236,7 +241,14 @@ pub(super) fn plot(a: &PlotArgs) -> anyhow::Result<String> {
         return Ok(files.iter().map(|f| format!("{}\n", f.display())).collect());
     }
     let Some(field) = &a.field else {
-        let files = crate::plot::compare(&a.runs, &a.series, a.x.as_deref(), &a.output)?;
+        let files = if a.series.is_empty() {
+            if a.x.is_some() {
+                anyhow::bail!("--x needs the --series to draw against it");
+            }
+            crate::plot::run_sets(&a.runs, a.all, &a.output)?
+        } else {
+            crate::plot::compare(&a.runs, &a.series, a.x.as_deref(), &a.output)?
+        };
         let mut s = String::new();
         for f in files {
             let _ = writeln!(s, "{}", f.display());

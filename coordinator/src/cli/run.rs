@@ -257,7 +257,7 @@ fn run_case(c: &case::Case, opts: &crate::run::RunOptions) -> i32 {
 }
 
 /// The line of a run that finished: its windows, wall time, balance and output; the
-/// balance warnings after it.
+/// scalars `run.print` names, then the balance warnings, last.
 fn print_finished(c: &case::Case, o: &crate::run::Outcome) {
     let b = &o.summary["balance"];
     let f = |k: &str| b[k].as_f64().unwrap_or(0.0);
@@ -276,18 +276,25 @@ fn print_finished(c: &case::Case, o: &crate::run::Outcome) {
         "largest energy residual {:+.3e} of the largest energy or work",
         f("max_energy_residual_relative")
     );
+    let warned: Vec<&str> = o.summary["warnings"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|w| w.as_str())
+        .filter(|w| w.starts_with("balance: "))
+        .collect();
+    let with = match warned.len() {
+        0 => String::new(),
+        1 => " with a balance warning".to_string(),
+        n => format!(" with {n} balance warnings"),
+    };
     println!(
-        "cosim: {} finished: {} windows in {:.2} s; {balance}; {energy}; output in {}",
+        "cosim: {} finished{with}: {} windows in {:.2} s; {balance}; {energy}; output in {}",
         c.run.name,
         o.summary["windows"],
         o.summary["wall_s"].as_f64().unwrap_or(0.0),
         o.output.display()
     );
-    for w in o.summary["warnings"].as_array().into_iter().flatten() {
-        if let Some(w) = w.as_str().filter(|w| w.starts_with("balance: ")) {
-            eprintln!("cosim: warning: {w}");
-        }
-    }
     for (node, scalar) in &c.run.print {
         // a named scalar of the node's report, or one of its energies
         let last = &o.summary["nodes"][node]["final"];
@@ -295,5 +302,9 @@ fn print_finished(c: &case::Case, o: &crate::run::Outcome) {
             Some(v) => println!("cosim: {node}.{scalar} = {v}"),
             None => println!("cosim: {node}.{scalar}: not in the node's last report"),
         }
+    }
+    // the balance warnings last, where a user reads first
+    for w in warned {
+        eprintln!("cosim: warning: {w}");
     }
 }

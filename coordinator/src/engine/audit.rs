@@ -19,6 +19,12 @@ pub struct BalanceRow {
     pub external_work: f64,
     pub interface_work_sum: f64,
     pub energy_residual: f64,
+    /// What the residuals are measured against so far: the largest energy or work, and the
+    /// larger of the largest impulse any node saw and the largest gross momentum.
+    #[serde(default)]
+    pub energy_scale: f64,
+    #[serde(default)]
+    pub momentum_scale: f64,
 }
 
 /// The audit of a run so far: every window's balance and the worst values.
@@ -36,6 +42,29 @@ pub struct Audit {
     /// Largest gross momentum (Σ m|v| over the nodes).
     pub momentum_scale: f64,
     pub worst_iface_p: f64,
+}
+
+impl Audit {
+    /// The scale of the momentum residual: the larger of the largest impulse any node saw
+    /// and the largest gross momentum.
+    pub fn residual_scale(&self) -> f64 {
+        self.impulse_scale.max(self.momentum_scale)
+    }
+
+    /// The largest momentum residual over its scale (0 while nothing has moved).
+    pub fn momentum_relative(&self) -> f64 {
+        relative(self.worst_resid, self.residual_scale())
+    }
+
+    /// The largest energy residual (signed: created > 0, dissipated < 0) over its scale.
+    pub fn energy_relative(&self) -> f64 {
+        relative(self.worst_e_resid, self.energy_scale)
+    }
+}
+
+/// `x / scale`, 0 where the scale is 0.
+pub fn relative(x: f64, scale: f64) -> f64 {
+    if scale > 0.0 { x / scale } else { 0.0 }
 }
 
 /// The nodes' reports summed for the balance of one window.
@@ -145,5 +174,7 @@ pub fn balance<'r>(
         external_work: wext,
         interface_work_sum: wif,
         energy_residual: e_resid,
+        energy_scale: a.energy_scale,
+        momentum_scale: a.residual_scale(),
     }
 }

@@ -140,32 +140,54 @@ fn lagrange_doc(c: &Coord, cp: &case::CouplingConfig, v: &mut serde_json::Value)
     v["interface_energy"] = json!(-work);
 }
 
-/// The case's warnings, the balance's (energy the methods created, short of the divergence
-/// bound: the mark of a slowly growing instability that a user must see), and every node's.
+/// The case's warnings, the balance's and every node's.
 fn warnings(c: &Coord, a: &super::audit::Audit) -> Vec<String> {
-    let created = if a.energy_scale > 0.0 {
-        a.worst_e_resid / a.energy_scale
-    } else {
-        0.0
-    };
-    let balance_warning = (created > crate::guard::CREATED_WARNING).then(|| {
-        format!(
-            "balance: the numerical methods created {:.1} % of the largest energy or work (energy residual {:+.4e} J); a healthy run creates almost none: the coupling or an integrator may be near its stability limit (try a smaller run.window)",
-            created * 100.0,
-            a.worst_e_resid
-        )
-    });
     c.case
         .warnings
         .iter()
         .map(|w| format!("case: {w}"))
-        .chain(balance_warning)
+        .chain(balance_warnings(
+            a,
+            c.case.run.balance_momentum,
+            c.case.run.balance_energy,
+        ))
         .chain(
             c.nodes
                 .iter()
                 .flat_map(|n| n.warnings.iter().map(move |w| format!("{}: {w}", n.name))),
         )
         .collect()
+}
+
+/// A warning for each residual beyond its `[run.balance]` threshold (`momentum`, `energy`): momentum a node or a
+/// coupling booked wrongly; energy the methods created (short of the divergence bound: the
+/// mark of a slowly growing instability) or dissipated without any node booking it.
+pub fn balance_warnings(a: &super::audit::Audit, momentum: f64, energy: f64) -> Vec<String> {
+    let mut out = Vec::new();
+    let p = a.momentum_relative();
+    if p > momentum {
+        out.push(format!(
+            "balance: the momentum residual reached {p:.3e} of the largest impulse or gross momentum ({:.4e} N s; run.balance.momentum = {:e}): some impulse is not booked — a node's report or a coupling's exchange is wrong",
+            a.worst_resid, momentum
+        ));
+    }
+    let e = a.energy_relative();
+    if e > energy {
+        out.push(format!(
+            "balance: the numerical methods created {:.1} % of the largest energy or work (energy residual {:+.4e} J; run.balance.energy = {}): a healthy run creates almost none: the coupling or an integrator may be near its stability limit (try a smaller run.window)",
+            e * 100.0,
+            a.worst_e_resid,
+            energy
+        ));
+    } else if -e > energy {
+        out.push(format!(
+            "balance: the numerical methods lost {:.1} % of the largest energy or work (energy residual {:+.4e} J; run.balance.energy = {}): energy left the run that no node booked as dissipated: too coarse a resolution for the loading, or a coupling that does not conserve energy",
+            -e * 100.0,
+            a.worst_e_resid,
+            energy
+        ));
+    }
+    out
 }
 
 /// The run's balance: the largest momentum and energy residuals against their scales, the
@@ -182,11 +204,7 @@ fn balance_doc(c: &Coord, a: &super::audit::Audit) -> serde_json::Value {
         "max_momentum_residual": a.worst_resid,
         // Against the larger of the two scales: the largest impulse any node saw, and the
         // largest gross momentum of the run.
-        "max_momentum_residual_relative": if a.impulse_scale.max(a.momentum_scale) > 0.0 {
-            a.worst_resid / a.impulse_scale.max(a.momentum_scale)
-        } else {
-            0.0
-        },
+        "max_momentum_residual_relative": a.momentum_relative(),
         // Signed: negative is energy the numerical methods (and couplings) dissipated,
         // positive energy they created.
         "max_energy_residual": a.worst_e_resid,
@@ -196,11 +214,10 @@ fn balance_doc(c: &Coord, a: &super::audit::Audit) -> serde_json::Value {
         // run.energy_bound.
         "max_energy_over_budget": c.guard.worst_ratio(),
         "energy_bound": c.case.run.energy_bound,
-        "max_energy_residual_relative": if a.energy_scale > 0.0 {
-            a.worst_e_resid / a.energy_scale
-        } else {
-            0.0
-        },
+        "max_energy_residual_relative": a.energy_relative(),
+        // The thresholds of the balance warnings ([run.balance]).
+        "momentum_warning": c.case.run.balance_momentum,
+        "energy_warning": c.case.run.balance_energy,
         "per_window": a.rows,
     })
 }

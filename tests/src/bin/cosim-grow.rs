@@ -2,7 +2,9 @@
 //! `grow`: a body of kinetic energy `energy` (J) after set-up that multiplies it by `growth`
 //! every window, and, from window `nan_at` on (0: never), reports it as NaN. Its stable step
 //! is `stable_dt` (s), stated as a lagrange side's limit in `substeps` steps when those are
-//! given, so that validation can be tested against a known limit.
+//! given, so that validation can be tested against a known limit. Its momentum (along x) is
+//! `momentum` after set-up and grows by `drift` every window with no impulse booked: a
+//! booking fault of known size, for the balance warnings' tests.
 
 use protocol::*;
 
@@ -19,6 +21,10 @@ struct Params {
     stable_dt: f64,
     #[serde(default)]
     substeps: Option<u64>,
+    #[serde(default)]
+    momentum: f64,
+    #[serde(default)]
+    drift: f64,
 }
 
 fn one() -> f64 {
@@ -28,6 +34,7 @@ fn one() -> f64 {
 struct Grow {
     p: Params,
     energy: f64,
+    momentum: f64,
 }
 
 impl Solver for Grow {
@@ -67,12 +74,15 @@ impl Solver for Grow {
     fn initial_report(&mut self) -> SolverResult<StepReport> {
         Ok(StepReport {
             kinetic_energy: self.energy,
+            momentum: [self.momentum, 0.0, 0.0],
+            momentum_gross: self.momentum.abs(),
             ..Default::default()
         })
     }
 
     fn advance(&mut self, w: &Window, _: &Inbox, _: &mut Outbox) -> SolverResult<StepReport> {
         self.energy *= self.p.growth;
+        self.momentum += self.p.drift;
         let reported = if self.p.nan_at > 0 && w.index >= self.p.nan_at {
             f64::NAN
         } else {
@@ -80,6 +90,8 @@ impl Solver for Grow {
         };
         Ok(StepReport {
             kinetic_energy: reported,
+            momentum: [self.momentum, 0.0, 0.0],
+            momentum_gross: self.momentum.abs(),
             substeps: 1,
             ..Default::default()
         })
@@ -96,6 +108,7 @@ fn build(model: &str, params: &toml::Table, _: &BuildOptions) -> SolverResult<Bo
     let p: Params = protocol::params::decode(params)?;
     Ok(Box::new(Grow {
         energy: p.energy,
+        momentum: p.momentum,
         p,
     }))
 }
