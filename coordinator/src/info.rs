@@ -163,7 +163,7 @@ pub fn info(path: &Path) -> anyhow::Result<String> {
     }
     match (&i.schedule, &i.transport) {
         (Some(schedule), Some(transport)) => {
-            let opt = |x: Option<f64>| x.map(|v| v.to_string()).unwrap_or_default();
+            let opt = |x: Option<f64>| x.map(plain).unwrap_or_default();
             writeln!(
                 s,
                 "case       end_time {} s, window {} s, schedule {schedule}, transport {transport}",
@@ -338,6 +338,16 @@ fn nodes_and_couplings(dec: &[Decoded]) -> (Vec<NodeInfo>, Vec<CouplingInfo>) {
     (nodes, couplings.into_values().collect())
 }
 
+/// A number as a person reads it: plain from 1e-3 to 1e6, otherwise in scientific notation
+/// (`4.956056900399753e-7`, not `0.0000004956056900399753`).
+fn plain(x: f64) -> String {
+    if x == 0.0 || (1e-3..1e6).contains(&x.abs()) {
+        x.to_string()
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// The balance a user reads first: "ok" or "WARNING", the largest residuals against their
 /// thresholds, and each warning.
 fn write_verdict(s: &mut String, v: &Verdict) -> std::fmt::Result {
@@ -370,7 +380,8 @@ fn write_verdict(s: &mut String, v: &Verdict) -> std::fmt::Result {
 fn write_balance(s: &mut String, i: &RunInfo, v: &serde_json::Value) -> std::fmt::Result {
     use std::fmt::Write;
     let f = |k: &str| v[k].as_f64().unwrap_or(0.0);
-    writeln!(s, "balance at window {} (t = {} s)", v["window"], v["time"])?;
+    let t = v["time"].as_f64().map(plain).unwrap_or_default();
+    writeln!(s, "balance at window {} (t = {t} s)", v["window"])?;
     writeln!(
         s,
         "  energy {:.6e} J, external work {:.6e} J, residual {:.3e} J, interface work sum {:.3e} J",

@@ -622,7 +622,7 @@ fn lookup<'a>(h: &'a Histories, label: &str, spec: &str) -> anyhow::Result<&'a [
                 ),
                 Some(_) => bail!(
                     "run '{label}' has no {node}.{q}{} (it has: {known:?})",
-                    did_you_mean(q, known.iter().map(|k| k.as_str()))
+                    protocol::params::did_you_mean(q, known.iter().map(|k| k.as_str()))
                         .map(|m| format!("; did you mean {node}.{m}?"))
                         .unwrap_or_default()
                 ),
@@ -654,17 +654,6 @@ fn expand(h: &Histories, label: &str, spec: &str) -> anyhow::Result<Vec<String>>
         bail!("run '{label}': nothing matches {spec}");
     }
     Ok(hits)
-}
-
-/// The closest of `known` to `name` by edit distance, where it is close enough to be a typo
-/// (at most a third of the name's length, and 3).
-pub fn did_you_mean<'a>(name: &str, known: impl Iterator<Item = &'a str>) -> Option<&'a str> {
-    let limit = (name.chars().count() / 3).clamp(1, 3);
-    known
-        .map(|k| (strsim::levenshtein(name, k), k))
-        .filter(|(d, _)| *d <= limit)
-        .min_by_key(|(d, _)| *d)
-        .map(|(_, k)| k)
 }
 
 /// Pair two histories of one run by time (same window ends): (x(t), y(t)).

@@ -155,8 +155,20 @@ fn described(v: &toml::Value) -> Option<String> {
     })
 }
 
+/// The closest of `known` to `name` by edit distance (a swap of two letters counts one),
+/// where it is close enough to be a typo (at most a third of the name's length, and 3).
+pub fn did_you_mean<'a>(name: &str, known: impl Iterator<Item = &'a str>) -> Option<&'a str> {
+    let limit = (name.chars().count() / 3).clamp(1, 3);
+    known
+        .map(|k| (strsim::osa_distance(name, k), k))
+        .filter(|(d, _)| *d <= limit)
+        .min_by_key(|(d, _)| *d)
+        .map(|(_, k)| k)
+}
+
 /// The full key and a readable reason from serde's path and message. serde reports a missing
-/// field at its parent; the key named is the field itself.
+/// field at its parent; the key named is the field itself. An unknown key is answered with
+/// the nearest known one.
 fn explain(path: &str, message: &str) -> (String, String) {
     let join = |k: &str| {
         if path == "." || path.is_empty() {
@@ -177,10 +189,19 @@ fn explain(path: &str, message: &str) -> (String, String) {
         path.to_string()
     };
     if let Some(rest) = message.strip_prefix("unknown field `")
-        && let Some((_, expected)) = rest.split_once("`, expected ")
+        && let Some((field, expected)) = rest.split_once("`, expected ")
     {
         let expected = expected.replace('`', "").replace("one of ", "");
-        return (key, format!("unknown key (expected one of: {expected})"));
+        let names = expected
+            .split([',', ' '])
+            .filter(|w| !w.is_empty() && *w != "or");
+        let hint = did_you_mean(field, names)
+            .map(|k| format!("did you mean '{k}'? "))
+            .unwrap_or_default();
+        return (
+            key,
+            format!("unknown key ({hint}expected one of: {expected})"),
+        );
     }
     if let Some(rest) = message.strip_prefix("unknown field `")
         && rest.contains("there are no fields")
@@ -269,7 +290,10 @@ mod tests {
         assert!(r.contains("invalid type"), "{r}");
         let (k, r) = err_of("young = 1.0\n[materials.air]\neos = \"ideal\"\ngama = 1.4");
         assert_eq!(k, "materials.air.gama");
-        assert_eq!(r, "unknown key (expected one of: eos or gamma)");
+        assert_eq!(
+            r,
+            "unknown key (did you mean 'gamma'? expected one of: eos or gamma)"
+        );
         let (k, r) = err_of("young = 1.0\n[materials.air]\ngamma = 1.4");
         assert_eq!((k.as_str(), r.as_str()), ("materials.air.eos", "missing"));
         let (k, _) = err_of("young = 1.0\n[[interfaces]]\nname = 3");
@@ -277,7 +301,7 @@ mod tests {
         let (k, r) = err_of("yung = 1.0");
         assert_eq!(k, "yung");
         assert!(
-            r.starts_with("unknown key (expected one of: young, "),
+            r.starts_with("unknown key (did you mean 'young'? expected one of: young, "),
             "{r}"
         );
         let (k, r) = err_of("");

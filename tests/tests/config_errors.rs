@@ -827,3 +827,52 @@ fn a_body_whose_bonds_exceed_the_memory_is_refused_by_its_key() {
     );
     assert!(took < std::time::Duration::from_secs(60), "took {took:?}");
 }
+
+#[test]
+fn a_misspelt_key_node_or_variant_is_answered_with_the_nearest_name() {
+    // A key of the case, and one of a model's parameters.
+    refused_naming(
+        "typo-key",
+        |s| s.replace("window = 1e-6", "windw = 1e-6"),
+        &["run.windw", "did you mean 'window'?"],
+    );
+    refused_naming(
+        "typo-param",
+        |s| s.replacen("young = 200e9", "yuong = 200e9", 1),
+        &["nodes.left.params.yuong", "did you mean 'young'?"],
+    );
+    // A coupling naming a node that is not there lists the nodes.
+    refused_naming(
+        "typo-node",
+        |s| s.replace("driver = \"left.tip\"", "driver = \"lefft.tip\""),
+        &[
+            "unknown node 'lefft'",
+            "did you mean 'left'?",
+            "left, right",
+        ],
+    );
+    // On the command line: a node of --set, a variant; and the missing case file is named
+    // once.
+    let case = workspace_root().join("examples/crash_tube.toml");
+    for (args, want) in [
+        (
+            vec!["--variant", "smal"],
+            "unknown variant 'smal' (did you mean 'small'? the case has: case2, grouped, small, small2)",
+        ),
+        (
+            vec!["--set", "tub.params.section.thickness=2e-3"],
+            "unknown node 'tub' (did you mean 'tube'?",
+        ),
+    ] {
+        let mut a = vec!["validate", case.to_str().unwrap()];
+        a.extend(args);
+        let o = cosim(&a);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{e}");
+        assert!(e.contains(want), "{e}");
+    }
+    let o = cosim(&["validate", "no/such/case.toml"]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert_eq!(e.matches("no/such/case.toml").count(), 1, "{e}");
+}

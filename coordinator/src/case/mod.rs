@@ -40,8 +40,8 @@ pub fn load_variant(
     variant: Option<&str>,
     sets: &[String],
 ) -> Result<Case, ConfigError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| err(path.display().to_string(), format!("cannot read: {e}")))?;
+    // the key is the file itself, which every caller names already
+    let text = std::fs::read_to_string(path).map_err(|e| err("", format!("cannot read: {e}")))?;
     load_variant_text(&text, path, variant, sets)
 }
 

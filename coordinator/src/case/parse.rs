@@ -318,7 +318,10 @@ mod tests {
             "{GOOD}[[couplings]]\nkind = \"kinematic\"\ndecouple_whn = \"a.x >= 1\"\n"
         ));
         assert_eq!(k, "couplings[0].decouple_whn");
-        assert!(r.starts_with("unknown key (expected one of: "), "{r}");
+        assert!(
+            r.starts_with("unknown key (did you mean 'decouple_when'? expected one of: "),
+            "{r}"
+        );
         let (k, _) = refused(&GOOD.replace("window", "windw"));
         assert_eq!(k, "run.windw");
         let (k, _) = refused(&format!("{GOOD}remot = true\n"));

@@ -7,18 +7,47 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// A configuration error: the key path and why.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{key}: {reason}")]
+/// A refused case: the key path at fault (empty for the case file as a whole) and why.
+#[derive(Debug, Clone, PartialEq)]
 pub struct ConfigError {
     pub key: String,
     pub reason: String,
 }
+
+impl std::fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.key.is_empty() {
+            write!(f, "{}", self.reason)
+        } else {
+            write!(f, "{}: {}", self.key, self.reason)
+        }
+    }
+}
+
+impl std::error::Error for ConfigError {}
 
 pub(crate) fn err(key: impl Into<String>, reason: impl Into<String>) -> ConfigError {
     ConfigError {
         key: key.into(),
         reason: reason.into(),
     }
+}
+
+/// "unknown NODE_OR_VARIANT 'x' (did you mean 'y'? the case has: a, b)": what a name that
+/// is not among `known` reads like in an error.
+pub(crate) fn unknown<'a>(
+    what: &str,
+    name: &str,
+    known: impl Iterator<Item = &'a str> + Clone,
+) -> String {
+    let hint = protocol::params::did_you_mean(name, known.clone())
+        .map(|k| format!("did you mean '{k}'? "))
+        .unwrap_or_default();
+    let all: Vec<&str> = known.collect();
+    format!(
+        "unknown {what} '{name}' ({hint}the case has: {})",
+        all.join(", ")
+    )
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -375,7 +375,8 @@ fn settle_members(
             .split_once('.')
             .ok_or_else(|| err(key, format!("must be \"node.interface\", got \"{s}\"")))?;
         if !nodes.iter().any(|x| x.name == n) {
-            return Err(err(key, format!("unknown node '{n}'")));
+            let known = nodes.iter().map(|x| x.name.as_str());
+            return Err(err(key, super::resolved::unknown("node", n, known)));
         }
         Ok((n.to_string(), i.to_string()))
     };
@@ -792,7 +793,8 @@ fn parse_when(s: &str, nodes: &[NodeConfig]) -> Result<(String, String, f64), St
         .split_once('.')
         .ok_or_else(|| format!("{form}, got \"{s}\""))?;
     if !nodes.iter().any(|n| n.name == node) {
-        return Err(format!("unknown node '{node}'"));
+        let known = nodes.iter().map(|n| n.name.as_str());
+        return Err(super::resolved::unknown("node", node, known));
     }
     if q.is_empty() {
         return Err(format!("{form}, got \"{s}\""));

@@ -53,7 +53,7 @@ fn variant_sets(file: &CaseFile, name: &str) -> Result<Vec<String>, ConfigError>
             if known.is_empty() {
                 "the case has no [variants]".to_string()
             } else {
-                format!("no such variant (the case has {})", known.join(", "))
+                super::resolved::unknown("variant", name, known.iter().copied())
             },
         ));
     };
@@ -323,13 +323,18 @@ fn set_node(
     node: &str,
     rest: &str,
 ) -> Result<(), ConfigError> {
+    let names: Vec<String> = doc
+        .get("nodes")
+        .and_then(|n| n.as_table())
+        .map(|t| t.keys().cloned().collect())
+        .unwrap_or_default();
     let table = doc
         .get_mut("nodes")
         .and_then(|n| n.get_mut(node))
         .and_then(|n| n.as_table_mut())
         .ok_or_else(|| ConfigError {
             key: format!("--set {s}"),
-            reason: format!("unknown node '{node}'"),
+            reason: super::resolved::unknown("node", node, names.iter().map(String::as_str)),
         })?;
     let key = rest.split_once('=').map_or(rest, |(k, _)| k).trim();
     if matches!(key, "model" | "solver" | "remote") {
