@@ -96,7 +96,7 @@ struct Line<'a> {
 }
 
 /// A node's physical quantities as lines: a vector reported as `K_x`, `K_y`, `K_z` is the
-/// group `K` (left out where the node also reports its magnitude `K`), probes sharing a
+/// group `K` (left out where the node also reports its magnitude `K_magnitude`), probes sharing a
 /// quantity (`point1.pressure`, `point2.pressure`) the group `*.pressure`.
 fn node_lines<'a>(q: &'a BTreeMap<String, Vec<(f64, f64)>>) -> Vec<Line<'a>> {
     let physics: Vec<(&String, &Vec<(f64, f64)>)> = q
@@ -125,7 +125,7 @@ fn node_lines<'a>(q: &'a BTreeMap<String, Vec<(f64, f64)>>) -> Vec<Line<'a>> {
     let mut out = Vec::new();
     for &(k, p) in &physics {
         if let Some((base, i)) = component(k).filter(|(b, _)| is_vector(b)) {
-            if q.contains_key(&base) {
+            if q.contains_key(&base) || q.contains_key(&format!("{base}_magnitude")) {
                 continue; // the magnitude is reported: one line, not three
             }
             out.push(Line {
@@ -477,10 +477,11 @@ mod tests {
         for j in ["j1", "j2"] {
             let f = format!("force_{j}_a");
             let (fx, fy, fz) = (format!("{f}_x"), format!("{f}_y"), format!("{f}_z"));
+            let m = format!("{f}_magnitude");
             hist.extend(h(
                 j,
                 &[
-                    (f.as_str(), ramp),
+                    (m.as_str(), ramp),
                     (fx.as_str(), ramp),
                     (fy.as_str(), ramp),
                     (fz.as_str(), ramp),
@@ -495,7 +496,7 @@ mod tests {
             files,
             [
                 "energy.png",
-                "force_a.png",
+                "force_a_magnitude.png",
                 "gas_com_displacement.png",
                 "gas_point1_density.png",
                 "gas_pressure.png",
@@ -515,7 +516,7 @@ mod tests {
         assert_eq!(labels("gas_com_displacement.png"), ["x", "y"]);
         assert_eq!(labels("gas_pressure.png"), ["point1", "point2"]);
         // the joints' magnitudes, one line each (their components are left out)
-        assert_eq!(labels("force_a.png"), ["j1", "j2"]);
+        assert_eq!(labels("force_a_magnitude.png"), ["j1", "j2"]);
         assert_eq!(by("numerics.png").panels[0].title, "mass_scaling_dt");
         assert_eq!(by("energy.png").panels.len(), 1);
         // every axis of the set carries a unit

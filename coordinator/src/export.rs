@@ -78,6 +78,7 @@ pub fn tables(recording: &Path) -> anyhow::Result<BTreeMap<String, Table>> {
         t.rows.push(row);
     }
     for t in out.values_mut() {
+        fold_vectors(t);
         // window and time first, the rest in name order
         t.columns
             .sort_by_key(|(k, _)| (k != "window", k != "time", k.clone()));
@@ -89,6 +90,41 @@ pub fn tables(recording: &Path) -> anyhow::Result<BTreeMap<String, Table>> {
         );
     }
     Ok(out)
+}
+
+/// One name for a vector everywhere: a node's scalars `K_x`, `K_y` (and `K_z`) become the
+/// vector column `K` (2 or 3 components, as the recorded `momentum` is), so NPZ and Python
+/// hold one (windows, n) array `K` and the flat tables (CSV, Parquet, pandas) its columns
+/// `K_x`, `K_y`, `K_z` again. Left apart where the table already has a key `K`.
+fn fold_vectors(t: &mut Table) {
+    let has = |t: &Table, k: &str| t.columns.iter().any(|(c, w)| c == k && *w == 1);
+    let bases: Vec<String> = t
+        .columns
+        .iter()
+        .filter_map(|(c, w)| (*w == 1).then(|| c.strip_suffix("_x"))?)
+        .map(str::to_string)
+        .collect();
+    for base in bases {
+        let comps: Vec<String> = ["x", "y", "z"]
+            .iter()
+            .map(|a| format!("{base}_{a}"))
+            .take_while(|k| has(t, k))
+            .collect();
+        if comps.len() < 2 || t.columns.iter().any(|(c, _)| *c == base) {
+            continue;
+        }
+        for row in &mut t.rows {
+            let v: Vec<serde_json::Value> = comps
+                .iter()
+                .map(|k| row.remove(k).unwrap_or(serde_json::Value::Null))
+                .collect();
+            if v.iter().any(|x| !x.is_null()) {
+                row.insert(base.clone(), serde_json::Value::Array(v));
+            }
+        }
+        t.columns.retain(|(c, _)| !comps.contains(c));
+        t.columns.push((base, comps.len()));
+    }
 }
 
 /// The fragment tables the run's nodes wrote (`RUN/NODE/fragments.csv`: one row per fragment
@@ -345,8 +381,8 @@ pub fn write_npz(tables: &BTreeMap<String, Table>, path: &Path) -> anyhow::Resul
     Ok(n)
 }
 
-/// A table's columns flattened to scalars: vectors as `KEY_x`, `KEY_y`, `KEY_z` (wider ones
-/// `KEY_0`, …), one value per row, NaN where a row lacks the key.
+/// A table's columns flattened to scalars: vectors as `KEY_x`, `KEY_y` (and `KEY_z`; wider
+/// ones `KEY_0`, …), one value per row, NaN where a row lacks the key.
 fn flat_columns(t: &Table) -> Vec<(String, Vec<f64>)> {
     let mut out = Vec::new();
     for (key, width) in &t.columns {
@@ -357,9 +393,7 @@ fn flat_columns(t: &Table) -> Vec<(String, Vec<f64>)> {
         }
         for i in 0..*width {
             let name = match (*width, i) {
-                (3, 0) => format!("{key}_x"),
-                (3, 1) => format!("{key}_y"),
-                (3, 2) => format!("{key}_z"),
+                (2 | 3, _) => format!("{key}_{}", ["x", "y", "z"][i]),
                 _ => format!("{key}_{i}"),
             };
             out.push((name, c.iter().skip(i).step_by(*width).copied().collect()));

@@ -589,7 +589,7 @@ impl Solver for SpgSolver {
                 for (d, axis) in ["x", "y", "z"].iter().enumerate() {
                     scalars.push((format!("force_{name}_{axis}"), f[d]));
                 }
-                scalars.push((format!("force_{name}"), vec3(f).norm()));
+                scalars.push((format!("force_{name}_magnitude"), vec3(f).norm()));
             }
         }
         Ok(StepReport {

@@ -5,14 +5,17 @@
 >>> run.nodes
 ['bar', 'gas']
 >>> run.report("gas")["point2.pressure"]          # one float64 per window
->>> run.report("bar")["com_displacement"]         # (windows, 3)
+>>> run.report("bar")["com_displacement"]         # (windows, 3), as "momentum"
 >>> run.balance()["energy_residual"]
 >>> run.fields("surface", "bar")["velocity"]      # (messages, points, components)
 >>> run.report("gas").to_pandas()
 
 The tables are those of ``cosim export`` (the same reader, in Rust): one row per recorded
-window, ``window`` and ``time`` (simulated, s) first, NaN where a window lacks a key. The
-interface fields are decoded from the recorded coupling messages. Values are SI.
+window, ``window`` and ``time`` (simulated, s) first, NaN where a window lacks a key. A vector
+has one name: one (windows, 3) array here and in ``history.npz`` (a node's ``K_x``, ``K_y``,
+``K_z`` are the array ``K``), the columns ``K_x``, ``K_y``, ``K_z`` in every flat table (CSV,
+Parquet, ``to_pandas()``). The interface fields are decoded from the recorded coupling
+messages. Values are SI.
 """
 
 import json
@@ -30,7 +33,8 @@ class Table(dict):
     (windows, n) for vectors)."""
 
     def to_pandas(self):
-        """The table as a pandas DataFrame (vectors as ``key.x``, ``key.y``, ``key.z``)."""
+        """The table as a pandas DataFrame (vectors as ``key_x``, ``key_y``, ``key_z``, as in
+        ``cosim export``'s CSV and Parquet)."""
         import pandas as pd
 
         cols = {}
@@ -38,10 +42,16 @@ class Table(dict):
             if a.ndim == 1:
                 cols[key] = a
             else:
-                names = "xyz" if a.shape[1] == 3 else [str(i) for i in range(a.shape[1])]
+                names = "xyz" if a.shape[1] <= 3 else [str(i) for i in range(a.shape[1])]
                 for i, n in enumerate(names):
-                    cols[f"{key}.{n}"] = a[:, i]
+                    cols[f"{key}_{n}"] = a[:, i]
         return pd.DataFrame(cols)
+
+    def __repr__(self):
+        rows = next((len(a) for a in self.values()), 0)
+        keys = [k if a.ndim == 1 else f"{k} {a.shape[1:]}" for k, a in self.items()]
+        shown = ", ".join(keys[:12]) + (f", … ({len(keys) - 12} more)" if len(keys) > 12 else "")
+        return f"cosim.Table({rows} windows; {shown})"
 
 
 class FieldSeries(dict):
@@ -55,6 +65,10 @@ class FieldSeries(dict):
         self.sender = sender
         self.window = {}
         self.time = {}
+
+    def __repr__(self):
+        shapes = ", ".join(f"{k} {a.shape}" for k, a in self.items())
+        return f"cosim.FieldSeries({self.coupling!r}, {self.sender!r}: {shapes})"
 
 
 class Run:
