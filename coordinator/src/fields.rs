@@ -158,6 +158,101 @@ pub fn has_series(run: &Path) -> bool {
     !all_series(run).is_empty()
 }
 
+/// The colour map of a field: viridis for a field of one sign, a diverging blue–white–red map
+/// centred on zero for a signed one, grey for the background field under another one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Map {
+    Viridis,
+    Diverging,
+    Grey,
+    /// White to red: a damage fraction over the gas.
+    WhiteRed,
+}
+
+/// One field's colour scale as drawn: its caption (node, field, the measure drawn of a vector
+/// or tensor, unit), its range and its map.
+#[derive(Debug, Clone)]
+pub struct Scale {
+    pub label: String,
+    pub lo: f64,
+    pub hi: f64,
+    pub map: Map,
+}
+
+impl Scale {
+    /// A scale over `lo..hi`: diverging and symmetric about zero where the values take both
+    /// signs, else viridis (`grey` for a background field).
+    fn new(label: String, (lo, hi): (f64, f64), grey: bool) -> Scale {
+        if grey {
+            return Scale {
+                label,
+                lo,
+                hi,
+                map: Map::Grey,
+            };
+        }
+        if lo < 0.0 && hi > 0.0 {
+            let m = lo.abs().max(hi);
+            return Scale {
+                label,
+                lo: -m,
+                hi: m,
+                map: Map::Diverging,
+            };
+        }
+        Scale {
+            label,
+            lo,
+            hi,
+            map: Map::Viridis,
+        }
+    }
+
+    /// The colour of value `v`.
+    fn colour(&self, v: f64) -> RGBColor {
+        self.at((v - self.lo) / (self.hi - self.lo))
+    }
+
+    /// The colour at `s` of the way up the scale (0..1).
+    fn at(&self, s: f64) -> RGBColor {
+        let s = if s.is_finite() {
+            s.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        match self.map {
+            Map::Viridis => colour(s),
+            Map::Grey => {
+                let g = (70.0 + 170.0 * s).round() as u8;
+                RGBColor(g, g, g)
+            }
+            Map::WhiteRed => {
+                let g = (235.0 * (1.0 - s)) as u8;
+                RGBColor(235, g, g)
+            }
+            Map::Diverging => {
+                // blue (59, 76, 192) – white – red (180, 4, 38), as ParaView's "Cool to Warm"
+                let (a, b, w) = if s < 0.5 {
+                    ((59.0, 76.0, 192.0), (242.0, 242.0, 242.0), s / 0.5)
+                } else {
+                    ((242.0, 242.0, 242.0), (180.0, 4.0, 38.0), (s - 0.5) / 0.5)
+                };
+                let mix = |p: f64, q: f64| (p + w * (q - p)).round() as u8;
+                RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+            }
+        }
+    }
+}
+
+/// What a picture shows: the time drawn, the colour scale of each field drawn (one colour bar
+/// each) and the length of its scale bar.
+#[derive(Debug, Clone)]
+pub struct Picture {
+    pub time: f64,
+    pub scales: Vec<Scale>,
+    pub length_scale: Option<String>,
+}
+
 /// A colour map from dark blue through green to yellow (viridis, 6 stops).
 fn colour(s: f64) -> RGBColor {
     const STOPS: [(f64, f64, f64); 6] = [
@@ -186,21 +281,79 @@ fn shade(c: RGBColor, k: f64) -> RGBColor {
     RGBColor(f(c.0), f(c.1), f(c.2))
 }
 
-/// The entry's magnitude (the value itself for one component).
-fn magnitude(a: &Array, i: usize) -> f64 {
-    let v = &a.values[i * a.comps..(i + 1) * a.comps];
-    if a.comps == 1 {
-        v[0]
-    } else {
-        v.iter().map(|x| x * x).sum::<f64>().sqrt()
+/// Whether an array is a stress tensor: [σxx, σyy, σxy] in 2-D, six (Voigt) or nine
+/// components in 3-D.
+fn is_stress(a: &Array) -> bool {
+    a.name.contains("stress") && matches!(a.comps, 3 | 6 | 9)
+}
+
+/// The measure drawn of an array's entries: None for a scalar, "von Mises" for a stress
+/// tensor (in-plane for three components), "magnitude" for a vector.
+fn measure(a: &Array) -> Option<&'static str> {
+    match a.comps {
+        1 => None,
+        3 if is_stress(a) => Some("von Mises, in-plane"),
+        _ if is_stress(a) => Some("von Mises"),
+        _ => Some("magnitude"),
     }
 }
 
-/// The first of `names` that `list` holds with `n` entries and some non-zero value.
+/// Entry `i` as one number: the value itself, the von Mises stress of a stress tensor, else
+/// a vector's magnitude.
+fn magnitude(a: &Array, i: usize) -> f64 {
+    let v = &a.values[i * a.comps..(i + 1) * a.comps];
+    let mises = |n: [f64; 3], s: [f64; 3]| {
+        (0.5 * ((n[0] - n[1]).powi(2) + (n[1] - n[2]).powi(2) + (n[2] - n[0]).powi(2))
+            + 3.0 * (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]))
+            .sqrt()
+    };
+    match (a.comps, is_stress(a)) {
+        (1, _) => v[0],
+        (3, true) => mises([v[0], v[1], 0.0], [v[2], 0.0, 0.0]),
+        (6, true) => mises([v[0], v[1], v[2]], [v[3], v[4], v[5]]),
+        (9, true) => mises(
+            [v[0], v[4], v[8]],
+            [
+                0.5 * (v[1] + v[3]),
+                0.5 * (v[5] + v[7]),
+                0.5 * (v[2] + v[6]),
+            ],
+        ),
+        _ => v.iter().map(|x| x * x).sum::<f64>().sqrt(),
+    }
+}
+
+/// Whether the entries of `a` (as drawn) take more than one value.
+fn varies(a: &Array) -> bool {
+    let n = a.values.len() / a.comps.max(1);
+    let first = (0..n).map(|i| magnitude(a, i)).find(|v| v.is_finite());
+    first.is_some_and(|f| (0..n).any(|i| magnitude(a, i) != f && magnitude(a, i).is_finite()))
+}
+
+/// The first of `names` that `list` holds with `n` entries that vary (a field of one value,
+/// such as the damage of a model without damage, shows nothing).
 fn pick<'a>(list: &'a [Array], names: &[&str], n: usize) -> Option<&'a Array> {
-    names.iter().find_map(|want| {
-        pick_sized(list, &[want], n).filter(|a| a.values.iter().any(|v| *v != 0.0))
-    })
+    names
+        .iter()
+        .find_map(|want| pick_sized(list, &[want], n).filter(|a| varies(a)))
+}
+
+/// Of `names`, the field of `list` (with `n` entries) that shows most: the largest ratio of
+/// its largest to its smallest value for a positive field (a shock's pressure, a bubble's
+/// density), else of its span to its largest magnitude.
+fn pick_most<'a>(list: &'a [Array], names: &[&str], n: usize) -> Option<&'a Array> {
+    let contrast = |a: &Array| {
+        let (lo, hi) = range((0..n).map(|i| magnitude(a, i)));
+        if lo > 0.0 {
+            hi / lo
+        } else {
+            1.0 + (hi - lo) / lo.abs().max(hi.abs()).max(1e-300)
+        }
+    };
+    names
+        .iter()
+        .filter_map(|want| pick(list, &[want], n))
+        .max_by(|a, b| contrast(a).total_cmp(&contrast(b)))
 }
 
 /// The first of `names` that `list` holds with `n` entries, zero or not.
@@ -290,11 +443,17 @@ fn wanted<'a>(f: &Frame, choice: Option<Choice<'a>>, default: &[&'a str]) -> Vec
     }
 }
 
-/// A colour-bar caption: `node: field [unit]`.
-fn caption(node: &str, field: &str) -> String {
+/// A colour-bar caption of array `a` of `node`: `node: field (measure) [unit]`.
+fn caption(node: &str, a: &Array) -> String {
+    label(node, &a.name, measure(a))
+}
+
+/// `who: field (measure) [unit]`.
+fn label(who: &str, field: &str, measure: Option<&str>) -> String {
+    let m = measure.map(|m| format!(" ({m})")).unwrap_or_default();
     match crate::plot::unit_of(field) {
-        Some(u) => format!("{node}: {field} [{u}]"),
-        None => format!("{node}: {field}"),
+        Some(u) => format!("{who}: {field}{m} [{u}]"),
+        None => format!("{who}: {field}{m}"),
     }
 }
 
@@ -376,23 +535,25 @@ pub fn nodes_with_series(run_dir: &Path) -> Vec<String> {
 }
 
 /// Draws `frames` (time `t`) on `root`: the plane view when a gas grid is among them, else
-/// the oblique view; the colour bar and the caption.
+/// the oblique view; a colour bar per field drawn, a length scale and the caption. Returns
+/// what it drew.
 fn draw(
     root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
     frames: &[Frame],
     choice: Option<Choice>,
     t: f64,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Picture> {
     let text = crate::plot::font_ready();
     root.fill(&WHITE)?;
-    let bar = if frames.iter().any(|f| f.grid.is_some()) {
+    let (scales, px_per_m) = if frames.iter().any(|f| f.grid.is_some()) {
         plane_view(root, frames, choice)?
     } else {
         oblique_view(root, frames, choice)?
     };
-    if let Some((label, lo, hi)) = bar {
-        colour_bar(root, &label, lo, hi, text)?;
+    for (k, sc) in scales.iter().enumerate() {
+        colour_bar(root, sc, k, scales.len(), text)?;
     }
+    let length_scale = scale_bar(root, px_per_m, text)?;
     if text {
         let names: Vec<&str> = frames.iter().map(|f| f.node.as_str()).collect();
         root.draw(&Text::new(
@@ -401,28 +562,32 @@ fn draw(
             ("sans-serif", 22).into_font(),
         ))?;
     }
-    Ok(())
+    Ok(Picture {
+        time: t,
+        scales,
+        length_scale,
+    })
 }
 
 /// Draws the frames nearest `time` (the last ones when None) of the run in `run_dir` — of
 /// every node, or of `node` alone — into `png`, one node coloured by a chosen field if
-/// `choice` says so; returns the time drawn (the latest of the frames used).
+/// `choice` says so; returns what it drew (the time: the latest of the frames used).
 pub fn render(
     run_dir: &Path,
     time: Option<f64>,
     png: &Path,
     choice: Option<Choice>,
     node: Option<&str>,
-) -> anyhow::Result<f64> {
+) -> anyhow::Result<Picture> {
     let (frames, t_drawn) = frames_at(run_dir, time, node)?;
     if let Some(c) = choice {
         check_choice(&frames, c)?;
     }
     crate::plot::png_whole(png, |tmp| {
         let root = BitMapBackend::new(tmp, SIZE).into_drawing_area();
-        draw(&root, &frames, choice, t_drawn)?;
+        let picture = draw(&root, &frames, choice, t_drawn)?;
         root.present()?;
-        Ok(t_drawn)
+        Ok(picture)
     })
 }
 
@@ -483,7 +648,7 @@ pub fn render_all(
     for (k, t) in times.into_iter().enumerate() {
         let png = dir.join(format!("{}_{k:04}.png", node.unwrap_or("fields")));
         let drawn = render(run_dir, Some(t), &png, choice, node)?;
-        out.push((png, drawn));
+        out.push((png, drawn.time));
     }
     Ok(out)
 }
@@ -519,15 +684,14 @@ pub fn render_gif(
     Ok((times.len(), last))
 }
 
-type Bar = Option<(String, f64, f64)>;
-
-/// The gas grid's x–y plane (its middle z layer) coloured by pressure, the solids' particles
-/// and surfaces projected on it.
+/// The gas grid's x–y plane (its middle z layer) coloured by the field that shows most, the
+/// solids' particles and surfaces projected on it; a solid's chosen field takes a colour bar
+/// of its own and the gas goes grey under it. Returns the scales and pixels per metre.
 fn plane_view(
     root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
     frames: &[Frame],
     choice: Option<Choice>,
-) -> anyhow::Result<Bar> {
+) -> anyhow::Result<(Vec<Scale>, f64)> {
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
     for f in frames {
@@ -539,33 +703,31 @@ fn plane_view(
         }
     }
     let view = View::fit(lo, hi, PLOT);
-    let mut bar = None;
+    let over = choice.is_some_and(|c| frames.iter().any(|f| f.grid.is_none() && f.node == c.node));
+    let mut scales = Vec::new();
     for f in frames {
-        if let Some(b) = draw_grid_layer(root, f, choice, &view)? {
-            bar = Some(b);
-        }
+        scales.extend(draw_grid_layer(root, f, choice, &view, over)?);
     }
     for f in frames.iter().filter(|f| f.grid.is_none()) {
-        if let Some(b) = draw_solid_flat(root, f, choice, &view)? {
-            bar = Some(b);
-        }
+        scales.extend(draw_solid_flat(root, f, choice, &view)?);
     }
-    Ok(bar)
+    Ok((scales, view.scale))
 }
 
-/// The middle z layer of frame `f`'s grid, its cells coloured by the chosen field, else
-/// pressure, else density: the colour bar, or None where the frame has no grid or no such
-/// field.
+/// The middle z layer of frame `f`'s grid, its cells coloured by the chosen field, else by
+/// pressure or density, whichever shows more (grey when `under` another field): its scale,
+/// or None where the frame has no grid or no such field.
 fn draw_grid_layer(
     root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
     f: &Frame,
     choice: Option<Choice>,
     view: &View,
-) -> anyhow::Result<Bar> {
+    under: bool,
+) -> anyhow::Result<Option<Scale>> {
     let Some(g) = &f.grid else { return Ok(None) };
     let n = [g[0].len() - 1, g[1].len() - 1, g[2].len().max(2) - 1];
     let cells = n[0] * n[1] * n[2];
-    let Some(a) = pick(
+    let Some(a) = pick_most(
         &f.cell_data,
         &wanted(f, choice, &["pressure", "density"]),
         cells,
@@ -574,48 +736,62 @@ fn draw_grid_layer(
     };
     let k = n[2] / 2;
     let layer = |i: usize, j: usize| magnitude(a, i + n[0] * (j + n[1] * k));
-    let (vmin, vmax) = range(
+    let span = range(
         (0..n[1])
             .flat_map(|j| (0..n[0]).map(move |i| (i, j)))
             .map(|(i, j)| layer(i, j)),
     );
+    let sc = Scale::new(caption(&f.node, a), span, under);
     for j in 0..n[1] {
         for i in 0..n[0] {
-            let c = colour((layer(i, j) - vmin) / (vmax - vmin));
+            let c = sc.colour(layer(i, j));
             let (x0, y1) = view.px(g[0][i], g[1][j]);
             let (x1, y0) = view.px(g[0][i + 1], g[1][j + 1]);
             root.draw(&Rectangle::new([(x0, y0), (x1, y1)], c.filled()))?;
         }
     }
-    Ok(Some((caption(&f.node, &a.name), vmin, vmax)))
+    Ok(Some(sc))
 }
 
 /// A solid frame `f` over the grid seen from above: its particles coloured by a chosen point
-/// field (which takes the colour bar), else shaded by damage; a mesh as grey polygons.
+/// field (which takes a colour bar), else shaded by damage; a mesh as grey polygons.
 fn draw_solid_flat(
     root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
     f: &Frame,
     choice: Option<Choice>,
     view: &View,
-) -> anyhow::Result<Bar> {
+) -> anyhow::Result<Option<Scale>> {
     let chosen = choice
         .filter(|c| c.node == f.node)
-        .and_then(|c| pick(&f.point_data, &[c.field], f.points.len()));
+        .and_then(|c| pick_sized(&f.point_data, &[c.field], f.points.len()));
     let r = if f.points.len() > 20_000 { 1 } else { 2 };
     if let Some(a) = chosen {
-        let (vmin, vmax) = range((0..f.points.len()).map(|i| magnitude(a, i)));
+        let sc = Scale::new(
+            caption(&f.node, a),
+            range((0..f.points.len()).map(|i| magnitude(a, i))),
+            false,
+        );
         for (i, p) in f.points.iter().enumerate() {
-            let c = colour((magnitude(a, i) - vmin) / (vmax - vmin));
+            let c = sc.colour(magnitude(a, i));
             root.draw(&Circle::new(view.px(p[0], p[1]), r, c.filled()))?;
         }
-        return Ok(Some((caption(&f.node, &a.name), vmin, vmax)));
+        return Ok(Some(sc));
     }
     if f.polygons.is_empty() {
+        // white to red by damage on 0..1 (its own bar where there is damage)
         let damage = pick(&f.point_data, &["damage"], f.points.len());
+        let sc = Scale {
+            label: damage.map_or(String::new(), |a| caption(&f.node, a)),
+            lo: 0.0,
+            hi: 1.0,
+            map: Map::WhiteRed,
+        };
         for (i, p) in f.points.iter().enumerate() {
-            let d = damage.map_or(0.0, |a| magnitude(a, i)).clamp(0.0, 1.0);
-            let c = RGBColor(235, (235.0 * (1.0 - d)) as u8, (235.0 * (1.0 - d)) as u8);
+            let c = sc.colour(damage.map_or(0.0, |a| magnitude(a, i)));
             root.draw(&Circle::new(view.px(p[0], p[1]), r, c.filled()))?;
+        }
+        if damage.is_some() {
+            return Ok(Some(sc));
         }
     } else {
         for poly in &f.polygons {
@@ -636,7 +812,7 @@ fn oblique_view(
     root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
     frames: &[Frame],
     choice: Option<Choice>,
-) -> anyhow::Result<Bar> {
+) -> anyhow::Result<(Vec<Scale>, f64)> {
     let camera = Oblique::of(frames);
     let mut plo = [f64::INFINITY; 2];
     let mut phi = [f64::NEG_INFINITY; 2];
@@ -648,8 +824,11 @@ fn oblique_view(
         }
     }
     let view = View::fit(plo, phi, PLOT);
-    let bar = draw_surfaces(root, frames, choice, &camera, &view)?;
-    draw_particles(root, frames, choice, &camera, &view, bar)
+    let mut scales: Vec<Scale> = draw_surfaces(root, frames, choice, &camera, &view)?
+        .into_iter()
+        .collect();
+    scales.extend(draw_particles(root, frames, choice, &camera, &view)?);
+    Ok((scales, view.scale))
 }
 
 /// The oblique camera over a set of frames: their bounding box's axes by length, its centre,
@@ -705,15 +884,16 @@ impl Oblique {
     }
 }
 
-/// Every polygon of every frame with its colour value, drawn far to near; the colour bar of
-/// the chosen node's field, else of the first frame with polygons.
+/// Every polygon of every frame with its colour value, drawn far to near: coloured by the
+/// chosen field, else by plastic strain, stress or displacement, whichever varies first; the
+/// scale of the chosen node's field, else of the first frame with polygons.
 fn draw_surfaces(
     root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
     frames: &[Frame],
     choice: Option<Choice>,
     camera: &Oblique,
     view: &View,
-) -> anyhow::Result<Bar> {
+) -> anyhow::Result<Option<Scale>> {
     let mut faces: Vec<(f64, Vec<[f64; 3]>, f64, usize)> = Vec::new();
     let mut bar_name = None;
     for (fi, f) in frames.iter().enumerate() {
@@ -746,43 +926,100 @@ fn draw_surfaces(
         }
         let is_chosen = choice.is_some_and(|c| c.node == f.node);
         if (bar_name.is_none() || is_chosen) && ne > 0 {
-            bar_name = cell.or(point).map(|a| caption(&f.node, &a.name));
+            bar_name = cell.or(point).map(|a| caption(&f.node, a));
         }
     }
-    let (vmin, vmax) = range(faces.iter().map(|f| f.2));
+    let sc = Scale::new(
+        bar_name.clone().unwrap_or_default(),
+        range(faces.iter().map(|f| f.2)),
+        false,
+    );
     faces.sort_by(|a, b| b.0.total_cmp(&a.0));
     for (_, q, v, _) in &faces {
         let n = normal(q);
         let light = 0.35 + 0.65 * n[2].abs();
-        let c = shade(colour((v - vmin) / (vmax - vmin)), light);
+        let c = shade(sc.colour(*v), light);
         let pts: Vec<(i32, i32)> = q.iter().map(|p| view.px(p[0], p[1])).collect();
         root.draw(&Polygon::new(pts, c.filled()))?;
     }
-    Ok(bar_name.map(|n| (n, vmin, vmax)))
+    Ok(bar_name.map(|_| sc))
 }
 
-/// The particles of the frames without polygons, far to near, by the colour map: a chosen
-/// field, else damage (or the joint's broken-bond fraction) on 0..1. The bar goes to the
-/// chosen field, else stays `bar` (the surfaces'), else goes to the first fraction drawn.
+/// The particles of the frames without polygons, far to near: by a chosen field, else by
+/// damage (or the joint's broken-bond fraction) on 0..1 where it varies, else by the stress
+/// or the displacement. Frames drawn by the same field share one scale (ten joints, one
+/// colour bar).
 fn draw_particles(
     root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
     frames: &[Frame],
     choice: Option<Choice>,
     camera: &Oblique,
     view: &View,
-    mut bar: Bar,
-) -> anyhow::Result<Bar> {
-    for f in frames.iter().filter(|f| f.polygons.is_empty()) {
+) -> anyhow::Result<Vec<Scale>> {
+    // each frame's field and whether it is a fraction on 0..1
+    let fields: Vec<(&Frame, Option<(&Array, bool)>)> = frames
+        .iter()
+        .filter(|f| f.polygons.is_empty())
+        .map(|f| {
+            let n = f.points.len();
+            let chosen = choice
+                .filter(|c| c.node == f.node)
+                .and_then(|c| pick_sized(&f.point_data, &[c.field], n));
+            let fraction = pick(&f.point_data, &["damage", "broken_bond_fraction"], n);
+            let field = match (chosen, fraction) {
+                (Some(a), _) => Some((a, false)),
+                (None, Some(a)) => Some((a, true)),
+                _ => pick(&f.point_data, &["stress", "displacement", "velocity"], n)
+                    .map(|a| (a, false)),
+            };
+            (f, field)
+        })
+        .collect();
+    // one scale per field name, over every frame drawn by it
+    let mut shared: Vec<Shared> = Vec::new();
+    for (f, field) in &fields {
+        let Some((a, fraction)) = field else { continue };
+        let span = if *fraction {
+            (0.0, 1.0)
+        } else {
+            range((0..f.points.len()).map(|i| magnitude(a, i)))
+        };
+        match shared.iter_mut().find(|s| s.name == a.name) {
+            Some(s) => {
+                s.nodes.push(&f.node);
+                s.span = (s.span.0.min(span.0), s.span.1.max(span.1));
+            }
+            None => shared.push(Shared {
+                name: &a.name,
+                nodes: vec![&f.node],
+                span,
+                measure: measure(a),
+            }),
+        }
+    }
+    let scales: Vec<Scale> = shared
+        .iter()
+        .map(|s| {
+            let who = match s.nodes.as_slice() {
+                [one] => one.to_string(),
+                [a, b] => format!("{a}, {b}"),
+                many => format!(
+                    "{}, …, {} ({} nodes)",
+                    many[0],
+                    many[many.len() - 1],
+                    many.len()
+                ),
+            };
+            Scale::new(label(&who, s.name, s.measure), s.span, false)
+        })
+        .collect();
+    for (f, field) in &fields {
         let n = f.points.len();
         let r = if n > 20_000 { 1 } else { 2 };
-        let chosen = choice
-            .filter(|c| c.node == f.node)
-            .and_then(|c| pick(&f.point_data, &[c.field], n));
-        let fraction = pick_sized(&f.point_data, &["damage", "broken_bond_fraction"], n);
-        let (vmin, vmax) = match chosen {
-            Some(a) => range((0..n).map(|i| magnitude(a, i))),
-            None => (0.0, 1.0),
-        };
+        let sc = field.and_then(|(a, _)| {
+            let k = shared.iter().position(|s| s.name == a.name)?;
+            Some(&scales[k])
+        });
         let mut order: Vec<(f64, usize)> = f
             .points
             .iter()
@@ -792,20 +1029,23 @@ fn draw_particles(
         order.sort_by(|a, b| b.0.total_cmp(&a.0));
         for (_, i) in order {
             let q = camera.project(&f.points[i]);
-            let c = match (chosen, fraction) {
-                (Some(a), _) => colour((magnitude(a, i) - vmin) / (vmax - vmin)),
-                (None, Some(a)) => colour(magnitude(a, i).clamp(0.0, 1.0)),
-                (None, None) => RGBColor(200, 40, 40),
+            let c = match (field, sc) {
+                (Some((a, _)), Some(sc)) => sc.colour(magnitude(a, i)),
+                _ => RGBColor(200, 40, 40),
             };
             root.draw(&Circle::new(view.px(q[0], q[1]), r, c.filled()))?;
         }
-        if let Some(a) = chosen {
-            bar = Some((caption(&f.node, &a.name), vmin, vmax));
-        } else if let (Some(a), None) = (fraction, &bar) {
-            bar = Some((caption(&f.node, &a.name), 0.0, 1.0));
-        }
     }
-    Ok(bar)
+    Ok(scales)
+}
+
+/// A field that colours the particles of several frames: its name, the nodes, the span of
+/// their values and the measure drawn.
+struct Shared<'a> {
+    name: &'a str,
+    nodes: Vec<&'a str>,
+    span: (f64, f64),
+    measure: Option<&'static str>,
 }
 
 /// Unit normal of a planar polygon (Newell's method).
@@ -825,34 +1065,125 @@ fn normal(q: &[[f64; 3]]) -> [f64; 3] {
     }
 }
 
+/// The colour bar of scale `sc`, the `k`-th of `n` stacked down the right edge: the map,
+/// ticks at round values with their numbers, and the caption above it.
 fn colour_bar(
     root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
-    label: &str,
-    lo: f64,
-    hi: f64,
+    sc: &Scale,
+    k: usize,
+    n: usize,
     text: bool,
 ) -> anyhow::Result<()> {
-    let (x0, y0, h) = (1080, 120, 560);
-    for k in 0..h {
-        let s = 1.0 - k as f64 / (h - 1) as f64;
+    let slot = 620 / n.max(1) as i32;
+    let (x0, y0, h) = (1075, 100 + k as i32 * slot + 20, slot - 50);
+    for j in 0..h {
+        let s = 1.0 - j as f64 / (h - 1) as f64;
         root.draw(&Rectangle::new(
-            [(x0, y0 + k), (x0 + 30, y0 + k + 1)],
-            colour(s).filled(),
+            [(x0, y0 + j), (x0 + 24, y0 + j + 1)],
+            sc.at(s).filled(),
         ))?;
     }
-    if text {
-        let font = ("sans-serif", 16).into_font();
+    root.draw(&Rectangle::new([(x0, y0), (x0 + 24, y0 + h)], BLACK))?;
+    if !text {
+        return Ok(());
+    }
+    let font = ("sans-serif", 14).into_font();
+    for v in ticks(sc.lo, sc.hi) {
+        let y = y0 + ((sc.hi - v) / (sc.hi - sc.lo) * (h - 1) as f64).round() as i32;
+        root.draw(&PathElement::new([(x0 + 24, y), (x0 + 30, y)], BLACK))?;
         root.draw(&Text::new(
-            format!("{hi:.3e}"),
-            (x0 - 20, y0 - 22),
+            crate::plot::tick_label(v, sc.lo, sc.hi),
+            (x0 + 33, y - 7),
             font.clone(),
         ))?;
+    }
+    // the caption above the bar, right-aligned to the picture's edge and kept right of the
+    // plot: on two lines (`node: field` over `(measure) [unit]`) where one is too wide
+    let caption = ("sans-serif", 15).into_font();
+    let style = caption.clone().into_text_style(root);
+    let width = |t: &str| {
+        root.estimate_text_size(t, &style)
+            .map_or(0, |(w, _)| w as i32)
+    };
+    let room = 1195 - (PLOT.0 + PLOT.2 + 8);
+    let lines: Vec<String> = match sc.label.find(" (").or_else(|| sc.label.find(" [")) {
+        Some(i) if width(&sc.label) > room => {
+            vec![sc.label[..i].to_string(), sc.label[i + 1..].to_string()]
+        }
+        _ => vec![sc.label.clone()],
+    };
+    for (k, line) in lines.iter().rev().enumerate() {
+        let x = (1195 - width(line)).max(PLOT.0 + PLOT.2 + 8);
         root.draw(&Text::new(
-            format!("{lo:.3e}"),
-            (x0 - 20, y0 + h + 6),
-            font.clone(),
+            line.clone(),
+            (x, y0 - 22 - 18 * k as i32),
+            caption.clone(),
         ))?;
-        root.draw(&Text::new(label.to_string(), (760, 40), font))?;
     }
     Ok(())
+}
+
+/// Round tick values in `lo..=hi`: 1, 2 or 5 times a power of ten apart, 4 to 10 of them.
+fn ticks(lo: f64, hi: f64) -> Vec<f64> {
+    let span = hi - lo;
+    if !(span > 0.0 && span.is_finite()) {
+        return vec![lo];
+    }
+    let raw = span / 5.0;
+    let p = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 5.0, 10.0]
+        .iter()
+        .map(|m| m * p)
+        .find(|s| span / s <= 8.0)
+        .unwrap_or(10.0 * p);
+    let first = (lo / step).ceil() as i64;
+    let last = (hi / step).floor() as i64;
+    (first..=last).map(|k| k as f64 * step).collect()
+}
+
+/// A length scale at the picture's lower left: a bar of a round length (1, 2 or 5 times a
+/// power of ten, about a fifth of the plot's width) and its length in m, mm or µm; None
+/// where the view has no scale.
+fn scale_bar(
+    root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    px_per_m: f64,
+    text: bool,
+) -> anyhow::Result<Option<String>> {
+    if !(px_per_m.is_finite() && px_per_m > 0.0) {
+        return Ok(None);
+    }
+    let want = 0.2 * PLOT.2 as f64 / px_per_m;
+    let p = 10f64.powf(want.log10().floor());
+    let len = [1.0, 2.0, 5.0]
+        .iter()
+        .map(|m| m * p)
+        .rfind(|l| *l <= want)
+        .unwrap_or(p);
+    let label = if len >= 1.0 {
+        format!("{} m", round_len(len))
+    } else if len >= 1e-3 {
+        format!("{} mm", round_len(len * 1e3))
+    } else {
+        format!("{} µm", round_len(len * 1e6))
+    };
+    let (x0, y) = (PLOT.0 + 10, PLOT.1 + PLOT.3 + 22);
+    let x1 = x0 + (len * px_per_m).round() as i32;
+    root.draw(&Rectangle::new([(x0, y), (x1, y + 5)], BLACK.filled()))?;
+    for x in [x0, x1] {
+        root.draw(&PathElement::new([(x, y - 5), (x, y + 10)], BLACK))?;
+    }
+    if text {
+        root.draw(&Text::new(
+            label.clone(),
+            (x1 + 10, y - 6),
+            ("sans-serif", 16).into_font(),
+        ))?;
+    }
+    Ok(Some(label))
+}
+
+/// A round length as written: no trailing zeros.
+fn round_len(v: f64) -> String {
+    let s = format!("{v:.3}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
 }

@@ -30,7 +30,7 @@ pub const OVER_BUDGET: f64 = 0.1;
 
 /// Default `run.balance.energy`: the energy residual (created or dissipated, as a share of
 /// the largest energy or work) beyond which a run that ends within its bound is still warned
-/// of. Every example's default run stays within it (the README's balance table).
+/// of. Every example's default run stays within it (docs/user-guide.md, "Balance warnings").
 pub const ENERGY_WARNING: f64 = 0.05;
 
 /// Default `run.balance.momentum`: the momentum residual (as a share of the larger of the

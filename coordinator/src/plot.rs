@@ -89,8 +89,8 @@ fn bounds(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     (lo, hi)
 }
 
-/// The SI unit of a reported quantity, from its name (the nodes report SI, see the README's
-/// "Units"): the last part of a dotted name, a vector component's `_x`/`_y`/`_z` aside;
+/// The SI unit of a reported quantity, from its name (the nodes report SI, see
+/// docs/user-guide.md): the last part of a dotted name, a vector component's `_x`/`_y`/`_z` aside;
 /// `None` when the name does not say. Counts and ratios read "1".
 pub fn unit_of(key: &str) -> Option<&'static str> {
     let k = key.rsplit('.').next().unwrap_or(key).to_ascii_lowercase();
@@ -118,7 +118,7 @@ pub fn unit_of(key: &str) -> Option<&'static str> {
         "J"
     } else if has("momentum") || has("impulse") {
         "N s"
-    } else if has("pressure") || has("stress") || has("modulus") || has("von_mises") {
+    } else if has("pressure") || has("stress") || has("modulus") || has("mises") {
         "Pa"
     } else if has("velocity") || has("speed") {
         "m/s"
@@ -189,7 +189,7 @@ fn time_scale(t_max: f64) -> (f64, &'static str) {
 /// Tick labels for an axis spanning `lo..hi`: fixed notation with as many decimals as the
 /// tick spacing needs for magnitudes 1e-3 … 1e5, else scientific with as many digits as tell
 /// the ticks apart; values within 1e-9 of the span from zero read 0 (no `-6.8e-21`).
-fn tick_label(v: f64, lo: f64, hi: f64) -> String {
+pub(crate) fn tick_label(v: f64, lo: f64, hi: f64) -> String {
     let span = (hi - lo).abs();
     let step = if span > 0.0 {
         span / 10.0

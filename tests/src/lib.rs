@@ -711,3 +711,36 @@ pub fn kill_cosim(child: &mut std::process::Child, id: &str) {
         "the killed run's nodes live on"
     );
 }
+
+/// `cosim render`'s picture of the run in `out` (one node's `field` chosen, `NODE.FIELD`, or
+/// the defaults) drawn as a figure for a paper, into `out/paper_<field>.png`: a length scale,
+/// and a colour bar per field drawn, each captioned with its node, field and unit (a tensor
+/// with the measure drawn of it). Returns what it drew.
+pub fn paper_picture(out: &Path, field: Option<&str>) -> coordinator::fields::Picture {
+    let choice = field.map(|f| coordinator::fields::Choice::parse(f).expect("NODE.FIELD"));
+    let png = out.join(format!("paper_{}.png", field.unwrap_or("default")));
+    let p = coordinator::fields::render(out, None, &png, choice, None).expect("a picture");
+    println!(
+        "{}: length scale {:?}, colour bars {:?}",
+        png.display(),
+        p.length_scale,
+        p.scales.iter().map(|s| &s.label).collect::<Vec<_>>()
+    );
+    assert!(
+        p.length_scale.is_some(),
+        "{}: no length scale",
+        png.display()
+    );
+    assert!(!p.scales.is_empty(), "{}: no colour bar", png.display());
+    for s in &p.scales {
+        assert!(
+            s.label.contains(": ") && s.label.ends_with(']') && s.hi > s.lo,
+            "{}: colour bar '{}' over {}..{}",
+            png.display(),
+            s.label,
+            s.lo,
+            s.hi
+        );
+    }
+    p
+}

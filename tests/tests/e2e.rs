@@ -13,6 +13,7 @@ mod conformance;
 mod decouple;
 mod disk_full;
 mod divergence;
+mod docs_examples;
 mod docs_links;
 mod external;
 mod failures;

@@ -433,5 +433,14 @@ fn shock_bubble_small_prints_and_records_the_edge_speeds_it_states() {
         (downstream / 138.0 - 1.0).abs() < 0.01,
         "downstream {downstream}"
     );
+    // As a figure, the gas is coloured by the field that shows the bubble: its density
+    // (helium at a seventh of the air's), not the shock's pressure (a ratio of 1.6).
+    let p = paper_picture(&out, None);
+    assert_eq!(p.scales.len(), 1);
+    assert!(
+        p.scales[0].label.starts_with("gas: density"),
+        "{}",
+        p.scales[0].label
+    );
     nothing_left(&id);
 }

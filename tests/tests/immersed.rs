@@ -181,6 +181,24 @@ fn the_recording_passes_the_official_reader_and_plots_are_written() {
         }),
         "{plots:?}"
     );
+    // `cosim render`'s picture as a figure: the gas by pressure or density (whichever shows
+    // more) with its colour bar; the bar's stress chosen over it, the gas goes grey, each
+    // field has its own bar, and the stress measure drawn is named.
+    let p = paper_picture(out, None);
+    let gas = &p.scales[0].label;
+    assert!(
+        gas.starts_with("gas: pressure [Pa]") || gas.starts_with("gas: density [kg/m³]"),
+        "{:?}",
+        p.scales
+    );
+    let p = paper_picture(out, Some("bar.stress"));
+    assert_eq!(p.scales.len(), 2, "{:?}", p.scales);
+    assert_eq!(p.scales[0].map, coordinator::fields::Map::Grey);
+    assert!(
+        p.scales[1].label.starts_with("bar: stress (von Mises"),
+        "{}",
+        p.scales[1].label
+    );
     // `cosim plot` draws one quantity of several runs (here the same run twice).
     let dir = out.join("compare");
     let o = cosim(&[

@@ -156,6 +156,23 @@ fn coupon_two_scale_matches_single_scale_up_to_the_peak() {
     let png = std::fs::read(dir.join("coupon_force_right_x_vs_coupon_displacement_right_x.png"))
         .expect("force–displacement plot written");
     assert!(png.len() > 1000 && png.starts_with(b"\x89PNG"));
+    // Both as figures: the shells' mid-surface stress drawn as von Mises, the particles'
+    // velocity as its magnitude, each named on its colour bar.
+    for (out, field, measure) in [
+        (&two, "coupon.stress_mid", "coupon: stress_mid (von Mises"),
+        (
+            &single,
+            "coupon.velocity",
+            "coupon: velocity (magnitude) [m/s]",
+        ),
+    ] {
+        let p = paper_picture(out, Some(field));
+        assert!(
+            p.scales.iter().any(|s| s.label.starts_with(measure)),
+            "{:?}",
+            p.scales
+        );
+    }
     for out in [&single, &two] {
         // Every VTK file of both runs (shell elements, SPG particles) opens with meshio.
         let (ok, text) = check_vtk(out, &[]);
@@ -272,6 +289,7 @@ fn crash_tube_screws_at_joint_3_peak_higher_than_bolts() {
     assert!(j3_ii > 1.5 * j3_i, "case II {j3_ii} N vs case I {j3_i} N");
     tube_picture(&case1);
     charts_of_eleven_nodes(&case1, &case2);
+    paper_picture(&case1, None);
 }
 
 /// What the small crash tube (eleven nodes) draws: at most 25 PNGs, every axis with a unit;

@@ -34,6 +34,7 @@ pub(super) fn validate(a: &ValidateArgs) -> i32 {
     let mut doc = json!({
         "ok": true, "case": a.case, "variant": variant, "nodes": [], "variants": [],
         "couplings": c.couplings.len(), "windows": windows(&c), "order": order,
+        "window": c.run.window, "end_time": c.run.end_time, "output": c.run.output,
         "warnings": c.warnings,
     });
     if !a.json {

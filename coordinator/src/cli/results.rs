@@ -176,7 +176,7 @@ fn render_node(
         (None, None) => run.join("fields.png"),
         (None, Some(n)) => run.join(format!("fields_{n}.png")),
     });
-    let t = fields::render(run, a.time, &png, choice, node)?;
+    let t = fields::render(run, a.time, &png, choice, node)?.time;
     Ok(vec![(png, t)])
 }
 
@@ -270,7 +270,7 @@ pub(super) fn plot(a: &PlotArgs) -> anyhow::Result<String> {
             "{name}_{}{at_name}.png",
             crate::plot::file_stem(field)
         ));
-        let t = fields::render(&dir, a.at, &png, Some(choice), None)?;
+        let t = fields::render(&dir, a.at, &png, Some(choice), None)?.time;
         drawn.push((png, t));
     }
     Ok(drawn_lines(&drawn))
