@@ -1,5 +1,5 @@
 //! Bad case files are refused before any process starts: exit code 2 and one line naming the
-//! key path and the reason (docs/architecture.md, STYLE "Errors and input").
+//! key path and the reason (docs/architecture.md).
 
 use cosim_tests::*;
 

@@ -1,4 +1,4 @@
-//! Seed 004's shell–joint cases end to end through `cosim run` (issues 6 and 7): a
+//! Seed 004's shell–joint cases end to end through `cosim run`: a
 //! `macro-shell-node` (model `blt-shell`) drives `meso-joint-node`s (model `mc-spg`) through
 //! the kinematic coupling (docs/architecture.md, serial schedule), at the small variants of
 //! `examples/coupon_*.toml`, `examples/single_joint.toml` and `examples/crash_tube.toml`.

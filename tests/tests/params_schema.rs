@@ -252,6 +252,36 @@ fn the_published_case_schema_is_current() {
     same_as_published(&live, "case.json", "schema");
 }
 
+/// docs/reference.md is what `cosim schema --markdown` prints: every key of the case file
+/// and every parameter of each built-in model, from the schemas above.
+#[test]
+fn the_published_reference_is_current() {
+    let (code, out, err) = cosim(&["schema", "--markdown"]);
+    assert_eq!(code, 0, "{err}");
+    let path = workspace_root().join("docs/reference.md");
+    let published = std::fs::read_to_string(&path).unwrap_or_default();
+    assert!(
+        published.trim_end() == out.trim_end(),
+        "{} is out of date: ./target/release/cosim schema --markdown > {}",
+        path.display(),
+        path.display()
+    );
+    // the case's keys, nested ones included, and a section per built-in model
+    for key in [
+        "| `run.end_time` |",
+        "| `run.balance.energy` |",
+        "| `couplings.decouple_when` |",
+        "| `variants.<name>.set` |",
+    ] {
+        assert!(out.contains(key), "no row {key}");
+    }
+    let models = out.matches("\n## `").count();
+    let listing = cosim(&["params"]).1;
+    // `cosim params`: a header line, a line per model, and a line of how to go on
+    let listed = listing.lines().filter(|l| l.contains("-node")).count();
+    assert_eq!(models, listed, "a section per model of `cosim params`");
+}
+
 /// Validates TOML files against a JSON Schema with the `jsonschema` package (an independent
 /// validator): prints `PATH: ok` or `PATH: KEY.PATH: message` per file.
 const VALIDATE: &str = r#"

@@ -89,8 +89,12 @@ pub enum Cmd {
     /// models of the built-in nodes.
     Params(ParamsArgs),
     /// Print the JSON Schema (draft 2020-12) of case files, the one in docs/schema/case.json,
-    /// for tools and editors that check TOML against a JSON Schema.
-    Schema,
+    /// for tools and editors that check TOML against a JSON Schema; with `--markdown`, the
+    /// reference of every case key and every built-in model's parameters (docs/reference.md).
+    Schema {
+        #[arg(long)]
+        markdown: bool,
+    },
     /// Print a shell completion script: `cosim completions bash > ~/.local/share/bash-completion/completions/cosim`
     /// (also zsh, fish, elvish, powershell).
     Completions {
@@ -131,11 +135,12 @@ pub fn main_with(cli: Cli) -> i32 {
         Cmd::Plot(a) => outcome("cosim plot", 1, results::plot(&a)),
         Cmd::Params(a) => outcome("cosim params", 2, results::params(&a)),
         Cmd::Replay(a) => replay::replay(a),
-        Cmd::Schema => outcome(
+        Cmd::Schema { markdown: false } => outcome(
             "cosim",
             1,
             serde_json::to_string_pretty(&crate::case::parse::schema()).map_err(Into::into),
         ),
+        Cmd::Schema { markdown: true } => outcome("cosim", 1, crate::params::reference()),
         Cmd::Completions { shell } => {
             use clap::CommandFactory;
             clap_complete::generate(shell, &mut Cli::command(), "cosim", &mut std::io::stdout());

@@ -1,4 +1,4 @@
-//! The peridynamic model family (STYLE: one trait per family, one file per member): a model
+//! The peridynamic model family (one trait per family, one file per member): a model
 //! turns the current positions and velocities into a force density per particle (N/m³),
 //! updating its bond damage and internal variables (seed 001 eq. 183, seed 000 eq. A.13).
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
