@@ -132,8 +132,8 @@ fn case_facts(dir: &Path, args: &[String]) -> (f64, f64, String) {
     )
 }
 
-/// Runs the shell blocks in `dir` (the examples and the build reachable from it as from the
-/// repository's root). A `cosim run` is cut to 4 windows more than the last run into the same
+/// Runs the shell blocks in `dir` (a copy of the examples and the build reachable from it as
+/// from the repository's root). A `cosim run` is cut to 4 windows more than the last run into the same
 /// folder (so a restart reaches a later time); in a block that restarts, runs checkpoint
 /// every window, and a folder no run has written yet is first written by the block's own
 /// `cosim run … --restart FOLDER`, without the restart. Returns how many commands ran and
@@ -425,9 +425,18 @@ fn every_code_example_of_the_documents_runs_or_checks() {
         assert!(names >= 5, "{}:{}: {names} names", b.doc, b.line);
     }
 
-    // Shell: run, in a folder of their own with the examples and the build at hand.
+    // Shell: run, in a folder of their own holding a copy of the examples (runs write
+    // beside their case file: examples/out/...) and the build at hand.
     let (dir, _id) = scratch("docs-examples");
-    for link in ["examples", "target"] {
+    let copied = Command::new("cp")
+        .args(["-r", workspace_root().join("examples").to_str().unwrap()])
+        .arg(dir.join("examples"))
+        .status()
+        .expect("cp");
+    assert!(copied.success());
+    let _ = std::fs::remove_dir_all(dir.join("examples/out"));
+    // the build, and the C participant's header the external example's Makefile finds
+    for link in ["target", "participant-c"] {
         std::os::unix::fs::symlink(workspace_root().join(link), dir.join(link)).unwrap();
     }
     let shell: Vec<&Block> = code.iter().copied().filter(|b| b.lang == "sh").collect();

@@ -231,3 +231,48 @@ fn progress_lines_when_stderr_is_not_a_terminal() {
         "-q printed progress: {quiet}"
     );
 }
+
+/// One path rule: what a case file names (its `run.output`, a node's `solver`) is relative to
+/// the case file, wherever `cosim` is started; what the command line names (`--set
+/// run.output=`) is relative to the working directory.
+#[test]
+fn a_case_run_from_elsewhere_writes_and_finds_its_solver_beside_itself() {
+    let (dir, id) = scratch("paths");
+    let cases = dir.join("cases");
+    std::fs::create_dir_all(cases.join("bin")).unwrap();
+    let case = split_bar_case(&cases, 20, 60, 0.5, "shm", 0.05);
+    // the right half's executable beside the case, named by a relative path
+    std::os::unix::fs::symlink(bin("solid-node"), cases.join("bin/my-bar")).unwrap();
+    let text = std::fs::read_to_string(&case).unwrap();
+    let swapped = text.replacen(
+        "[nodes.right]\nsolver = \"solid-node\"",
+        "[nodes.right]\nsolver = \"bin/my-bar\"",
+        1,
+    );
+    assert_ne!(swapped, text, "the case names the right half's solver");
+    std::fs::write(&case, swapped).unwrap();
+    let elsewhere = dir.join("elsewhere");
+    std::fs::create_dir_all(&elsewhere).unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec!["run", case.to_str().unwrap(), "--run-id", &id, "--quiet"];
+        args.extend_from_slice(extra);
+        let o = std::process::Command::new(bin("cosim"))
+            .args(&args)
+            .current_dir(&elsewhere)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    run(&[]);
+    // `output = "out"` of the case: beside the case, not in the working directory
+    assert!(cases.join("out/run.mcap").is_file());
+    assert!(!elsewhere.join("out").exists());
+    assert_eq!(
+        summary(&cases.join("out"))["nodes"]["right"]["solver"],
+        "bin/my-bar"
+    );
+    // the command line's own path: from the working directory
+    run(&["--set", "run.output=mine"]);
+    assert!(elsewhere.join("mine/run.mcap").is_file());
+    nothing_left(&id);
+}

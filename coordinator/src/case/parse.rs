@@ -44,7 +44,9 @@ pub struct RunSection {
     pub schedule: Option<ScheduleName>,
     /// "shm" (default: shared memory on this host) or "zenoh" (the network).
     pub transport: Option<TransportName>,
-    /// Output directory, relative to the working directory; default "out".
+    /// Output directory, relative to the case file's folder (as every path a case file names);
+    /// default "out". `cosim run --output DIR` and `--set run.output=DIR` are relative to the
+    /// working directory.
     pub output: Option<String>,
     /// Write node output (VTK) every this many windows; 0 (default) = only at the end.
     pub output_every: Option<u64>,

@@ -14,7 +14,7 @@ use protocol::CouplingKind;
 use protocol::scheme;
 use protocol::transport::TransportKind;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The resolved case of a typed case file: every value checked, defaults filled in, params
 /// files read (relative to `path`'s folder) and node executables found. Nothing is started.
@@ -28,7 +28,7 @@ pub(super) fn settle(file: CaseFile, path: &Path, text: &str) -> Result<Case, Co
             ));
         }
     }
-    let run = settle_run(&file.run)?;
+    let run = settle_run(&file.run, &case_dir)?;
     if file.nodes.is_empty() {
         return Err(err("nodes", "a case needs at least one [nodes.<name>]"));
     }
@@ -82,7 +82,9 @@ pub(super) fn settle(file: CaseFile, path: &Path, text: &str) -> Result<Case, Co
 }
 
 /// `[run]`, checked and with its defaults.
-fn settle_run(r: &RunSection) -> Result<RunConfig, ConfigError> {
+/// `[run]`, its `output` relative to the case file's folder (`case_dir`), as every path a case
+/// file names is.
+fn settle_run(r: &RunSection, case_dir: &Path) -> Result<RunConfig, ConfigError> {
     let name = r.name.clone().unwrap_or_else(|| "run".into());
     if !valid_name(&name) {
         return Err(err(
@@ -114,7 +116,7 @@ fn settle_run(r: &RunSection) -> Result<RunConfig, ConfigError> {
             None | Some(TransportName::Shm) => TransportKind::Shm,
             Some(TransportName::Zenoh) => TransportKind::Zenoh,
         },
-        output: PathBuf::from(r.output.clone().unwrap_or_else(|| "out".into())),
+        output: case_dir.join(r.output.as_deref().unwrap_or("out")),
         output_every: r.output_every.unwrap_or(0),
         heartbeat_ms,
         heartbeat_timeout,

@@ -356,6 +356,26 @@ fn set_node(
     apply_sets(t, &[rest.to_string()])
 }
 
+/// `--set run.output=DIR` with a relative DIR as the absolute path from the working
+/// directory (the case file's own `run.output` is relative to the case file); any other
+/// setting as it is.
+fn from_here(s: &str) -> String {
+    let Some(v) = s
+        .split_once('=')
+        .filter(|(k, _)| k.trim() == "run.output")
+        .map(|(_, v)| v.trim().trim_matches('"'))
+    else {
+        return s.to_string();
+    };
+    let p = std::path::Path::new(v);
+    match std::env::current_dir() {
+        Ok(here) if p.is_relative() => {
+            format!("run.output={:?}", here.join(p).display().to_string())
+        }
+        _ => s.to_string(),
+    }
+}
+
 /// Apply variant `variant` (if any) of the typed case `file`, then `sets`, to its document
 /// `doc` (`path`: the case file, which params files are relative to).
 pub fn apply(
@@ -369,7 +389,8 @@ pub fn apply(
     if let Some(name) = variant {
         all = variant_sets_placed(doc, file, name)?;
     }
-    all.extend(sets.iter().cloned());
+    // a path given on the command line is the working directory's, not the case file's
+    all.extend(sets.iter().map(|s| from_here(s)));
     for s in &all {
         let (node, rest) = s.split_once('.').ok_or_else(|| ConfigError {
             key: format!("--set {s}"),
