@@ -727,11 +727,12 @@ fn draw_grid_layer(
     let Some(g) = &f.grid else { return Ok(None) };
     let n = [g[0].len() - 1, g[1].len() - 1, g[2].len().max(2) - 1];
     let cells = n[0] * n[1] * n[2];
-    let Some(a) = pick_most(
-        &f.cell_data,
-        &wanted(f, choice, &["pressure", "density"]),
-        cells,
-    ) else {
+    // a chosen field is drawn even where it is uniform; the default is the one that shows
+    let chosen = choice.filter(|c| c.node == f.node);
+    let Some(a) = (match chosen {
+        Some(c) => pick_sized(&f.cell_data, &[c.field], cells),
+        None => pick_most(&f.cell_data, &["pressure", "density"], cells),
+    }) else {
         return Ok(None);
     };
     let k = n[2] / 2;
