@@ -155,7 +155,7 @@ fn open_transport(case: &Case, run_id: &str) -> anyhow::Result<(Box<dyn Transpor
 
 /// The plots and pictures of a run closed in `out`, listed in its `summary`. They are a
 /// convenience: a failure to draw them is reported, not fatal. A run stopped on request exits
-/// within the 2 s a scheduler allows and draws none (a crash tube's 200 plots take longer);
+/// within the 2 s a scheduler allows and draws none (a crash tube's pictures take longer);
 /// its restart draws them for the whole run.
 fn draw(
     case: &Case,
