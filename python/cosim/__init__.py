@@ -1,6 +1,6 @@
 """Write a cosim solver node in Python, and read a run's results back.
 
-Reading: ``cosim.open_run("out/CASE")`` gives a :class:`Run` whose ``report(node)``,
+Reading: ``cosim.open_run("examples/out/CASE")`` gives a :class:`Run` whose ``report(node)``,
 ``balance()`` and ``fields(coupling, sender)`` return numpy arrays (see ``cosim.results``).
 
 A solver is a class built as ``Solver(model, params)`` (``params`` is the node's

@@ -1,7 +1,7 @@
 """Read a cosim run back as numpy arrays (and pandas frames, if pandas is installed).
 
 >>> import cosim
->>> run = cosim.open_run("out/chamber_detonation")
+>>> run = cosim.open_run("examples/out/chamber_detonation")
 >>> run.nodes
 ['bar', 'gas']
 >>> run.report("gas")["point2.pressure"]          # one float64 per window

@@ -393,7 +393,19 @@ fn every_code_example_of_the_documents_runs_or_checks() {
             keys_checked += 1;
         }
     }
+    println!("{keys_checked} keys of the TOML examples found in the case schema");
     assert!(keys_checked >= 20, "{keys_checked} keys checked");
+    // The walk tells a key the schema lacks from one it has, at every level.
+    for (known, unknown) in [
+        ("run.window", "run.windw"),
+        ("run.balance.energy", "run.balance.enrgy"),
+        ("nodes.left.solver", "nodes.left.solvr"),
+        ("couplings[].decouple_when", "couplings[].decouple_whn"),
+        ("variants.fine.set", "variants.fine.sett"),
+    ] {
+        assert!(schema_at(&schema, known).is_some(), "{known}");
+        assert!(schema_at(&schema, unknown).is_none(), "{unknown}");
+    }
 
     // JSON: parses.
     for b in code.iter().filter(|b| b.lang == "json") {

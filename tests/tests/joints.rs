@@ -325,45 +325,60 @@ fn charts_of_eleven_nodes(case1: &Path, case2: &Path) {
     // the energy chart has a panel per node: eleven, at least
     assert!(panels >= charts.len() + 10, "{panels} panels");
     let (dir, _) = scratch("crash-plots");
-    // Two series of one run (a glob over nodes and quantities: joints 3 and 3'), one chart.
-    let o = cosim(&[
-        "plot",
-        case1.to_str().unwrap(),
-        "--series",
-        "j3*.force_j3*_a_magnitude",
-        "-o",
-        dir.to_str().unwrap(),
-    ]);
-    let listed = String::from_utf8_lossy(&o.stdout).to_string();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let plot = |runs: &[&Path], series: &[&str]| {
+        let mut args = vec!["plot".to_string()];
+        args.extend(runs.iter().map(|r| r.display().to_string()));
+        for s in series {
+            args.extend(["--series".into(), s.to_string()]);
+        }
+        args.push("-o".into());
+        args.push(dir.display().to_string());
+        let a: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = cosim(&a);
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stdout).to_string(),
+            err,
+        )
+    };
+    // Pixels of the first two line colours (matplotlib's blue and orange): a line over the
+    // run's 250 windows covers hundreds, a legend's swatch about forty.
+    let two_lines = |png: &str| {
+        let (_, _, px) = png_pixels(Path::new(png.trim()));
+        let count = |c: [u8; 3]| px.iter().filter(|p| **p == c).count();
+        let (blue, orange) = (count([31, 119, 180]), count([255, 127, 14]));
+        println!("{}: {blue} blue and {orange} orange pixels", png.trim());
+        assert!(
+            blue > 300 && orange > 300,
+            "{png}: {blue} blue, {orange} orange"
+        );
+    };
+    // A glob over nodes and quantities (joints 3 and 3'), one chart. The two mirror each
+    // other across the tube's symmetry plane, so their lines coincide: the drawing is
+    // checked with two joints that differ, below.
+    let (ok, listed, err) = plot(&[case1], &["j3*.force_j3*_a_magnitude"]);
+    assert!(ok, "{err}");
     assert_eq!(listed.lines().count(), 1, "{listed}");
+    // Two series of one run, joints 1 and 3, one chart with both lines.
+    let (ok, listed, err) = plot(
+        &[case1],
+        &["j1.force_j1_a_magnitude", "j3.force_j3_a_magnitude"],
+    );
+    assert!(ok, "{err}");
+    assert_eq!(listed.lines().count(), 1, "{listed}");
+    two_lines(&listed);
     // One series of two runs, one chart.
-    let o = cosim(&[
-        "plot",
-        case1.to_str().unwrap(),
-        case2.to_str().unwrap(),
-        "--series",
-        "j3.force_j3_a_magnitude",
-        "-o",
-        dir.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let listed = String::from_utf8_lossy(&o.stdout).to_string();
+    let (ok, listed, err) = plot(&[case1, case2], &["j3.force_j3_a_magnitude"]);
+    assert!(ok, "{err}");
     assert_eq!(
         listed.trim(),
         dir.join("j3_force_j3_a_magnitude.png").to_str().unwrap()
     );
+    two_lines(&listed);
     // A misspelt quantity is named, with the nearest one.
-    let o = cosim(&[
-        "plot",
-        case1.to_str().unwrap(),
-        "--series",
-        "j3.force_j3_a_magnitde",
-        "-o",
-        dir.to_str().unwrap(),
-    ]);
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success());
+    let (ok, _, e) = plot(&[case1], &["j3.force_j3_a_magnitde"]);
+    assert!(!ok);
     assert!(e.contains("did you mean j3.force_j3_a_magnitude?"), "{e}");
 }
 

@@ -367,6 +367,9 @@ fn from_here(s: &str) -> String {
     else {
         return s.to_string();
     };
+    if v.is_empty() {
+        return s.to_string(); // `run.output=` removes the key: the case file's default
+    }
     let p = std::path::Path::new(v);
     match std::env::current_dir() {
         Ok(here) if p.is_relative() => {
