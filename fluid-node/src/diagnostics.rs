@@ -50,10 +50,27 @@ fn cell_prim_nm<const NM: usize>(
     row: usize,
     i: usize,
 ) -> (f64, [f64; 3], f64, Vec<f64>) {
-    let ph: [Phase; NM] = std::array::from_fn(|k| f.phases[k].clone());
     let mx = f.grid.mx();
     let nv = f.nv;
-    let c = |v: usize| f.cons[(row * nv + v) * mx + i];
+    prim_of::<NM>(&f.phases, |v| f.cons[(row * nv + v) * mx + i])
+}
+
+/// Primitive state (ρ, velocity, p, α) of the conserved values `c(v)` of one cell, as
+/// [`cell_prim`] gives it: also for a cell read back from the device.
+pub fn cell_prim_of(phases: &[Phase], c: &[f64]) -> (f64, [f64; 3], f64, Vec<f64>) {
+    match phases.len() {
+        1 => prim_of::<1>(phases, |v| c[v]),
+        2 => prim_of::<2>(phases, |v| c[v]),
+        3 => prim_of::<3>(phases, |v| c[v]),
+        _ => prim_of::<4>(phases, |v| c[v]),
+    }
+}
+
+fn prim_of<const NM: usize>(
+    phases: &[Phase],
+    c: impl Fn(usize) -> f64,
+) -> (f64, [f64; 3], f64, Vec<f64>) {
+    let ph: [Phase; NM] = std::array::from_fn(|k| phases[k].clone());
     let mut ar = [0.0; NM];
     let mut al = [0.0; NM];
     let mut rho = 0.0;

@@ -1107,6 +1107,58 @@ pub fn benchmark_blast_case_3d(n: usize) -> String {
         )
 }
 
+/// Air (ideal, γ 1.4) and TNT detonation products (JWL: the constants of
+/// examples/steel_tube.toml) as a case's `[materials]` block (TOML text), for the
+/// multi-material benchmarks and tests.
+pub const TNT_AND_AIR: &str = r#"
+        [materials.air]
+        eos = "ideal"
+        gamma = 1.4
+        [materials.tnt]
+        eos = "jwl"
+        rho0 = 1630.0
+        a = 3.712e11
+        b = 3.21e9
+        r1 = 4.15
+        r2 = 0.95
+        omega = 0.3
+        e0 = 6.9927e9"#;
+
+/// The multi-material blast of the benchmarks: a TNT charge (JWL products at their loading
+/// density, 1630 kg/m³, and the JWL pressure of that density and 6.99 GJ/m³, 8.38 GPa) of
+/// radius 0.05 m at the centre of a 1 m square of air at 1 bar (`n`² cells, outflow on every
+/// side): two materials, seven variables per cell, and the JWL curve's exponentials in
+/// every cell that holds products.
+pub fn benchmark_tnt_case(n: usize) -> String {
+    format!(
+        r#"
+        cfl = 0.5
+        [grid]
+        cells = [{n}, {n}, 1]
+        lower = [0.0, 0.0, 0.0]
+        upper = [1.0, 1.0, 0.01]
+        {TNT_AND_AIR}
+        [[regions]]
+        shape = "all"
+        material = "air"
+        density = 1.2
+        pressure = 1.0e5
+        [[regions]]
+        shape = "sphere"
+        center = [0.5, 0.5, 0.005]
+        radius = 0.05
+        material = "tnt"
+        density = 1630.0
+        pressure = 8.3759e9
+        [boundaries]
+        x_lower = "outflow"
+        x_upper = "outflow"
+        y_lower = "outflow"
+        y_upper = "outflow"
+    "#
+    )
+}
+
 /// The parameter table (TOML text) of Sod's shock tube (the README's case sections "Fluid node"): γ 1.4,
 /// (ρ, u, p) = (1, 0, 1) left of x 0.5 and (0.125, 0, 0.1) right of it, `n` cells on [0, 1],
 /// outflow ends, the given TVD limiter. Shared by the verification and GPU tests.

@@ -119,6 +119,23 @@ fn prim_row<const NM: usize>(
     None
 }
 
+/// What [`prim_row`] finds wrong with one cell's conserved values `c` (2·NM + 3 of them):
+/// the inadmissible primitive variable and its value, or `None`. The device path names a
+/// cell its kernels rejected with this.
+pub(crate) fn diagnose(phases: &[Phase], c: &[f64]) -> Option<(usize, f64)> {
+    fn one<const NM: usize>(phases: &[Phase], c: &[f64]) -> Option<(usize, f64)> {
+        let ph: [Phase; NM] = std::array::from_fn(|k| phases[k].clone());
+        let mut prim = vec![0.0; c.len()];
+        prim_row::<NM>(&ph, c, &mut prim, 1, 0..1).map(|(_, v, x)| (v, x))
+    }
+    match phases.len() {
+        1 => one::<1>(phases, c),
+        2 => one::<2>(phases, c),
+        3 => one::<3>(phases, c),
+        _ => one::<4>(phases, c),
+    }
+}
+
 /// [`prim_row`] with a branch-free, vectorisable loop for a single ideal gas (the same
 /// arithmetic, so identical values); any inadmissible cell reruns the general row to name it.
 #[inline(always)]

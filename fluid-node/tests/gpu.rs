@@ -3,7 +3,11 @@
 //! and by `gpu::GpuEuler::advance_to`; every conserved variable must agree within 1e-10 of
 //! that variable's largest magnitude (f64 kernels), with the same step count, the same final
 //! time, the same boundary impulse and the same window diagnostics (totals read as per-row
-//! sums, a probe cell's state). The CPU path itself is verified against exact
+//! sums, a probe cell's state). Some multi-material blasts amplify round-off: the CPU run from
+//! an initial state changed by 2e-16 relative differs from the unchanged one by up to 1e-3
+//! (a TNT charge in air, 7.7e-5; a gas bubble in water, 2e-3). Every test measures that
+//! control, and the GPU may differ from the CPU by 1e-10 or ten times the control, whichever
+//! is larger. The CPU path itself is verified against exact
 //! solutions by sod_shock_tube.rs and sedov_cylindrical.rs. Without an adapter the tests print
 //! why they were skipped and pass outside CI, and fail under `CI=true`.
 
@@ -62,8 +66,9 @@ fn rel_diff(cpu: &Fluid, gpu: &Fluid) -> f64 {
     worst
 }
 
-/// (relative difference, CPU model, GPU model downloaded, GPU totals, GPU probe state).
-type Compared = (f64, Fluid, Fluid, Totals, [f64; 5]);
+/// (relative difference, CPU model, GPU model downloaded, GPU totals, GPU probe state,
+/// and the next stable step on the GPU and the CPU).
+type Compared = (f64, Fluid, Fluid, Totals, [f64; 5], [f64; 2]);
 
 /// Run `text` to `t1` on the CPU and on the GPU.
 fn compare(
@@ -102,17 +107,22 @@ fn compare(
     // the next step's CFL limit from the device reduction
     let dt_gpu = gpu.stable_dt()?;
     let dt_cpu = fluid_node::step::stable_dt(&mut cpu.fluid.clone())?;
-    let tol = if gpu.precision() == Precision::F64 {
-        1e-12
-    } else {
-        1e-4
-    };
-    assert!(
-        (dt_gpu - dt_cpu).abs() <= tol * dt_cpu,
-        "stable dt: GPU {dt_gpu:e}, CPU {dt_cpu:e}"
-    );
+    // f64 kernels are checked against the CPU's own round-off by `check_f64`
+    if gpu.precision() == Precision::F32 {
+        assert!(
+            (dt_gpu - dt_cpu).abs() <= 5e-4 * dt_cpu,
+            "stable dt: GPU {dt_gpu:e}, CPU {dt_cpu:e}"
+        );
+    }
     assert_eq!(state, diagnostics::cell_state(&out, mid.0, mid.1));
-    Ok((rel_diff(&cpu.fluid, &out), cpu.fluid, out, totals, state))
+    Ok((
+        rel_diff(&cpu.fluid, &out),
+        cpu.fluid,
+        out,
+        totals,
+        state,
+        [dt_gpu, dt_cpu],
+    ))
 }
 
 /// Returns the steps both took (`None`: skipped outside CI).
@@ -128,13 +138,25 @@ fn check_f64(name: &str, text: &str, t1: f64) -> Option<u64> {
         );
         return None;
     }
-    let (rel, mut cpu, gpu, tg, _) = compare(ctx, text, t1).expect("run");
-    println!("{name}: max relative difference GPU vs CPU {rel:.3e}");
-    assert!(rel <= 1e-10, "{name}: GPU differs from CPU by {rel:e}");
+    let (rel, mut cpu, gpu, tg, _, [dt_gpu, dt_cpu]) = compare(ctx, text, t1).expect("run");
+    // Round-off on the CPU itself: the same run from an initial state changed in its last
+    // bit or so. Where the flow amplifies round-off (the 2-D multi-material blasts grow a
+    // 2e-16 change to 1e-5 and more), the GPU can agree with the CPU only as well as the CPU
+    // agrees with itself.
+    let control = cpu_control(text, t1);
+    let tol = 1e-10_f64.max(10.0 * control);
+    println!(
+        "{name}: max relative difference GPU vs CPU {rel:.3e} (CPU vs CPU from a state changed by 2e-16: {control:.3e}; allowed {tol:.1e})"
+    );
+    assert!(rel <= tol, "{name}: GPU differs from CPU by {rel:e}");
+    assert!(
+        (dt_gpu - dt_cpu).abs() <= tol * dt_cpu,
+        "{name}: stable dt: GPU {dt_gpu:e}, CPU {dt_cpu:e}"
+    );
     assert_eq!(gpu.time, cpu.time, "final times differ");
     assert_eq!(gpu.steps, cpu.steps);
     let tc = diagnostics::totals(&mut cpu).expect("totals");
-    let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-10 * scale.abs().max(1e-300);
+    let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= tol * scale.abs().max(1e-300);
     assert!(
         close(tg.mass, tc.mass, tc.mass),
         "mass {} vs {}",
@@ -157,16 +179,37 @@ fn check_f64(name: &str, text: &str, t1: f64) -> Option<u64> {
             .iter()
             .fold(1e-300_f64, |m, x| m.max(x.abs()));
         assert!(
-            (a - b).abs() <= 1e-10 * scale,
+            (a - b).abs() <= tol * scale,
             "{name}: boundary impulse {c}: GPU {a:e}, CPU {b:e}"
         );
     }
     let (a, b) = (gpu.boundary_work, cpu.boundary_work);
     assert!(
-        (a - b).abs() <= 1e-10 * b.abs().max(e),
+        (a - b).abs() <= tol * b.abs().max(e),
         "{name}: boundary work: GPU {a:e}, CPU {b:e}"
     );
     Some(cpu.steps)
+}
+
+/// Largest relative difference of the CPU run of `text` to `t1` from the same run started
+/// from its initial state with every conserved value changed by up to ±1e-16 relative
+/// (a fixed pseudo-random sequence).
+fn cpu_control(text: &str, t1: f64) -> f64 {
+    let f0 = setup::from_toml_str(text).expect("case");
+    let mut f1 = f0.clone();
+    let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+    for x in f1.cons.iter_mut() {
+        seed = seed
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        let r = (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+        *x *= 1.0 + 2e-16 * r;
+    }
+    let mut a = EulerSolver::from_fluid(f0);
+    let mut b = EulerSolver::from_fluid(f1);
+    a.advance_to(t1).expect("CPU run");
+    b.advance_to(t1).expect("perturbed CPU run");
+    rel_diff(&a.fluid, &b.fluid)
 }
 
 fn sod(n: usize, limiter: &str) -> String {
@@ -320,14 +363,6 @@ fn f32_fallback_is_close_and_warns() {
 
 #[test]
 fn unsupported_models_are_refused_with_a_reason() {
-    // a 1-D bar of 20 cells of `materials`, all of material `fill`
-    let bar = |materials: &str, fill: &str, density: f64, pressure: f64| {
-        format!(
-            "[grid]\ncells = [20, 1, 1]\nlower = [0.0, 0.0, 0.0]\nupper = [1.0, 1.0, 1.0]\n\
-             {materials}\n[[regions]]\nshape = \"all\"\nmaterial = \"{fill}\"\n\
-             density = {density}\npressure = {pressure}\n"
-        )
-    };
     let refusal = |text: &str| match GpuEuler::new(&setup::from_toml_str(text).expect("valid")) {
         Err(GpuSetupError::Unsupported(s)) => {
             println!("refused: {s}");
@@ -336,25 +371,197 @@ fn unsupported_models_are_refused_with_a_reason() {
         Err(e) => panic!("expected Unsupported, got {e}"),
         Ok(_) => panic!("accepted: {text}"),
     };
-    let two = bar(
-        "[materials.air]\neos = \"ideal\"\ngamma = 1.4\n\
-         [materials.water]\neos = \"stiffened\"\ngamma = 4.4\np_inf = 6e8",
-        "air",
-        1.0,
-        1e5,
+    let air = "[materials.air]\neos = \"ideal\"\ngamma = 1.4\n\
+               [[regions]]\nshape = \"all\"\nmaterial = \"air\"\ndensity = 1.0\npressure = 1e5\n";
+    // a radial grid
+    let radial = format!(
+        "geometry = \"cylindrical\"\n[grid]\ncells = [20, 1, 1]\nlower = [0.0, 0.0, 0.0]\n\
+         upper = [1.0, 1.0, 1.0]\n{air}"
     );
-    let s = refusal(&two);
-    assert!(s.contains("2 materials"), "{s}");
-    // one JWL material (detonation products alone)
-    let jwl = bar(
-        "[materials.products]\neos = \"jwl\"\na = 3.712e11\nb = 3.231e9\nr1 = 4.15\n\
-         r2 = 0.95\nomega = 0.30\nrho0 = 1630.0\ne0 = 7.0e9",
-        "products",
-        1630.0,
-        1e9,
+    let s = refusal(&radial);
+    assert!(s.contains("geometry 'cylindrical'"), "{s}");
+    // a non-reflecting side
+    let open = format!(
+        "[grid]\ncells = [20, 1, 1]\nlower = [0.0, 0.0, 0.0]\nupper = [1.0, 1.0, 1.0]\n{air}\
+         [boundaries]\nx_upper = {{ kind = \"non_reflecting\", pressure = 1e5 }}\n"
     );
-    let s = refusal(&jwl);
-    assert!(s.contains("JWL"), "{s}");
+    let s = refusal(&open);
+    assert!(s.contains("non_reflecting"), "{s}");
+    // an edge line, whose cells the device path does not read back
+    let edges = format!(
+        "[grid]\ncells = [20, 1, 1]\nlower = [0.0, 0.0, 0.0]\nupper = [1.0, 1.0, 1.0]\n{air}\
+         [[edges]]\nname = \"front\"\nmaterial = \"air\"\nfrom = [0.0, 0.5, 0.5]\nto = [1.0, 0.5, 0.5]\n"
+    );
+    let edges = edges.replace(
+        "[materials.air]",
+        "[materials.helium]\neos = \"ideal\"\ngamma = 1.67\n[materials.air]",
+    );
+    let s = refusal(&edges);
+    assert!(s.contains("edge lines"), "{s}");
+}
+
+use setup::TNT_AND_AIR;
+
+/// A TNT charge in air on a 2-D grid (van Leer, outflow, wall and symmetry sides): two
+/// materials, one of them JWL, whose products expand by a factor of hundreds, so that the
+/// JWL reference curve is evaluated from V = 1 to where its exponentials underflow.
+fn tnt_charge(n: &str, dims: &str, centre: &str) -> String {
+    format!(
+        r#"
+        cfl = 0.5
+        limiter = "van_leer"
+        [grid]
+        cells = {n}
+        lower = [0.0, 0.0, 0.0]
+        upper = {dims}
+        {TNT_AND_AIR}
+        [[regions]]
+        shape = "all"
+        material = "air"
+        density = 1.2
+        pressure = 1.0e5
+        [[regions]]
+        shape = "sphere"
+        center = {centre}
+        radius = 0.05
+        material = "tnt"
+        density = 1630.0
+        pressure = 8.3759e9
+        [boundaries]
+        x_lower = "wall"
+        x_upper = "outflow"
+        y_lower = "symmetry"
+        y_upper = "outflow"
+        z_lower = "symmetry"
+        z_upper = "outflow"
+    "#
+    )
+}
+
+#[test]
+fn tnt_charge_in_air_matches_cpu() {
+    let text = tnt_charge("[48, 40, 1]", "[0.6, 0.5, 0.01]", "[0.12, 0.1, 0.005]");
+    if let Some(steps) = check_f64("tnt in air 48x40", &text, 1.5e-4) {
+        // the products' sound speed at the loading density, ≈ 5.2 km/s (ρc² from the JWL
+        // curve), bounds the step near 0.5 · 0.0125 m / 5.2 km/s ≈ 1.2 µs at the start
+        assert!(steps >= 60, "tnt in air: {steps} steps");
+    }
+}
+
+#[test]
+fn tnt_charge_in_air_3d_matches_cpu() {
+    let text = tnt_charge("[16, 14, 12]", "[0.4, 0.35, 0.3]", "[0.1, 0.1, 0.1]");
+    check_f64("tnt in air 16x14x12", &text, 6e-5);
+}
+
+/// Three materials in one tube: compressed air | helium | water, walls at both ends, so that
+/// a shock crosses both material interfaces and their volume fractions move (1-D).
+#[test]
+fn air_helium_and_water_tube_matches_cpu() {
+    let text = r#"
+        cfl = 0.5
+        limiter = "mc"
+        [grid]
+        cells = [300, 1, 1]
+        lower = [0.0, 0.0, 0.0]
+        upper = [1.0, 0.01, 0.01]
+        [materials.air]
+        eos = "ideal"
+        gamma = 1.4
+        [materials.helium]
+        eos = "ideal"
+        gamma = 1.67
+        [materials.water]
+        eos = "stiffened"
+        gamma = 4.4
+        p_inf = 6.0e8
+        [[regions]]
+        shape = "all"
+        material = "air"
+        density = 1.2
+        pressure = 1.0e5
+        [[regions]]
+        shape = "box"
+        lower = [0.0, 0.0, 0.0]
+        upper = [0.3, 0.01, 0.01]
+        material = "air"
+        density = 12.0
+        pressure = 1.0e7
+        [[regions]]
+        shape = "box"
+        lower = [0.4, 0.0, 0.0]
+        upper = [0.55, 0.01, 0.01]
+        material = "helium"
+        density = 0.17
+        pressure = 1.0e5
+        [[regions]]
+        shape = "box"
+        lower = [0.7, 0.0, 0.0]
+        upper = [1.0, 0.01, 0.01]
+        material = "water"
+        density = 1000.0
+        pressure = 1.0e5
+        [boundaries]
+        x_lower = "wall"
+        x_upper = "wall"
+    "#;
+    check_f64("air | helium | water 300", text, 6e-4);
+}
+
+/// An underwater explosion as examples/underwater_explosion.toml sets it up (a gas bubble at
+/// 7.8 GPa in water, an ideal gas and a stiffened gas), on a small 2-D grid.
+#[test]
+fn gas_bubble_in_water_matches_cpu() {
+    let text = r#"
+        cfl = 0.5
+        limiter = "van_leer"
+        [grid]
+        cells = [40, 40, 1]
+        lower = [0.0, 0.0, 0.0]
+        upper = [0.5, 0.5, 0.001]
+        [materials.water]
+        eos = "stiffened"
+        gamma = 4.4
+        p_inf = 6.0e8
+        [materials.products]
+        eos = "ideal"
+        gamma = 1.4
+        [[regions]]
+        shape = "all"
+        material = "water"
+        density = 1000.0
+        pressure = 1.0e5
+        [[regions]]
+        shape = "sphere"
+        center = [0.0, 0.0, 0.0]
+        radius = 0.1
+        material = "products"
+        density = 1630.0
+        pressure = 7.81e9
+        [boundaries]
+        x_lower = "symmetry"
+        y_lower = "symmetry"
+        x_upper = "outflow"
+        y_upper = "outflow"
+    "#;
+    check_f64("gas bubble in water 40x40", text, 1e-4);
+}
+
+/// The f32 kernels on the TNT charge: JWL through WGSL's f32 exponential. The same answer to
+/// f32 round-off amplified by the shocks, as on Sod.
+#[test]
+fn f32_tnt_charge_is_close() {
+    let Some(ctx) = context("f32 tnt in air", PrecisionRequest::ForceF32) else {
+        return;
+    };
+    let text = tnt_charge("[48, 40, 1]", "[0.6, 0.5, 0.01]", "[0.12, 0.1, 0.005]");
+    let (rel, ..) = compare(ctx, &text, 1.5e-4).expect("run");
+    println!("f32 tnt in air 48x40: max relative difference GPU(f32) vs CPU(f64) {rel:.3e}");
+    assert!(rel < 2e-3, "f32 GPU differs from CPU by {rel:e}");
+    assert!(
+        rel > 1e-12,
+        "an f32 run cannot agree to f64 round-off: {rel:e}"
+    );
 }
 
 /// Water (stiffened gas, γ 4.4, p∞ 6e8 Pa) on the device: a 1-D water shock tube (1 GPa

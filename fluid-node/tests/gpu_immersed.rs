@@ -6,7 +6,10 @@
 //! cells it enters (turned solid); a resting strip against the left wall covers boundary
 //! faces, which the wall impulse leaves out. Per window, the force on every particle, the interface
 //! impulse, the reclassification momentum, the wall and refill mass bookkeeping and the
-//! totals must agree within 1e-10 relative (f64 kernels); the final field likewise. The CPU
+//! totals must agree within 1e-10 relative (f64 kernels); the final field likewise. Where the
+//! flow amplifies round-off (the JWL charge: the CPU run from an initial state changed by
+//! 2e-16 differs from itself by up to 5e-4), each quantity may differ from the CPU by ten
+//! times what that control run gives, and no more. The CPU
 //! path is verified against the piston problem and by mass balance in
 //! tests/immersed_moving.rs and against momentum conservation end to end. Without an
 //! adapter (or without f64) the test prints why it was skipped and passes outside CI, and
@@ -17,7 +20,8 @@ use fluid_node::immersed::SOLID;
 use protocol::message::StepReport;
 use protocol::{Field, Inbox, Outbox, Solver, Window};
 
-fn case(device: &str, n: usize) -> String {
+/// The box of `n`² cells with its gas: `materials` and `regions` in case-file form.
+fn case(device: &str, n: usize, gas: &str) -> String {
     format!(
         r#"
         device = "{device}"
@@ -28,6 +32,28 @@ fn case(device: &str, n: usize) -> String {
         cells = [{n}, {n}, 1]
         lower = [0.0, 0.0, 0.0]
         upper = [1.0, 1.0, 0.1]
+        {gas}
+        [boundaries]
+        x_lower = "wall"
+        x_upper = "outflow"
+        y_lower = "symmetry"
+        y_upper = "wall"
+    "#
+    )
+}
+
+use mechanics::gpu::max_rel_diff as rel;
+
+fn scalar(r: &StepReport, name: &str) -> f64 {
+    r.scalars
+        .iter()
+        .find(|(n, _)| n == name)
+        .map(|s| s.1)
+        .unwrap_or(f64::NAN)
+}
+
+/// An ideal gas in nondimensional units: ρ 1, p 1 about a circle at ρ 2, p 8.
+const AIR_BLAST: &str = r#"
         [materials.air]
         eos = "ideal"
         gamma = 1.4
@@ -42,56 +68,80 @@ fn case(device: &str, n: usize) -> String {
         radius = 0.12
         material = "air"
         density = 2.0
-        pressure = 8.0
-        [boundaries]
-        x_lower = "wall"
-        x_upper = "outflow"
-        y_lower = "symmetry"
-        y_upper = "wall"
-    "#
+        pressure = 8.0"#;
+
+/// Air at 1 bar about a circle of TNT detonation products (JWL) at their loading density and
+/// the JWL pressure of ρ0 and e0, in SI units: two materials, one of them JWL.
+fn jwl_blast() -> String {
+    format!(
+        r#"{}
+        [[regions]]
+        shape = "all"
+        material = "air"
+        density = 1.2
+        pressure = 1.0e5
+        [[regions]]
+        shape = "sphere"
+        center = [0.15, 0.4, 0.05]
+        radius = 0.06
+        material = "tnt"
+        density = 1630.0
+        pressure = 8.3759e9"#,
+        fluid_node::setup::TNT_AND_AIR
     )
-}
-
-/// Largest |a - b| / max |b|.
-fn rel(a: &[f64], b: &[f64]) -> f64 {
-    assert_eq!(a.len(), b.len());
-    let scale = b.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
-    let d = a
-        .iter()
-        .zip(b)
-        .map(|(x, y)| (x - y).abs())
-        .fold(
-            0.0_f64,
-            |m, e| if e.is_nan() { f64::INFINITY } else { m.max(e) },
-        );
-    if scale > 0.0 { d / scale } else { d }
-}
-
-fn scalar(r: &StepReport, name: &str) -> f64 {
-    r.scalars
-        .iter()
-        .find(|(n, _)| n == name)
-        .map(|s| s.1)
-        .unwrap_or(f64::NAN)
 }
 
 #[test]
 fn moving_disc_in_a_blast_matches_cpu() {
-    if mechanics::gpu::f64_context_or_skip("moving_disc_in_a_blast_matches_cpu").is_none() {
+    disc_in_a_blast(
+        "moving_disc_in_a_blast_matches_cpu",
+        AIR_BLAST,
+        0.01,
+        [0.5, 0.25],
+    );
+}
+
+/// The same with a JWL charge in air (SI units: a window of 20 µs, the disc at 200 m/s):
+/// the multi-material kernels, JWL included, under the immersed coupling.
+#[test]
+fn moving_disc_in_a_jwl_blast_matches_cpu() {
+    disc_in_a_blast(
+        "moving_disc_in_a_jwl_blast_matches_cpu",
+        &jwl_blast(),
+        2e-5,
+        [200.0, 100.0],
+    );
+}
+
+/// A disc of particles moving at `u` through the blast of `gas`, 12 windows of `win`.
+fn disc_in_a_blast(name: &str, gas: &str, win: f64, u: [f64; 2]) {
+    if mechanics::gpu::f64_context_or_skip(name).is_none() {
         return;
     }
     let n = 40;
     let h = 1.0 / n as f64;
     let build = |device: &str| {
-        let t: toml::Table = toml::from_str(&case(device, n)).expect("case TOML");
+        let t: toml::Table = toml::from_str(&case(device, n, gas)).expect("case TOML");
         EulerSolver::new(&t).expect("solver")
     };
     let mut cpu = build("cpu");
     let mut gpu = build("gpu");
+    // the CPU's own round-off: the same run from an initial state changed by up to ±1e-16
+    // relative (a fixed pseudo-random sequence); where the flow amplifies round-off the GPU
+    // can agree with the CPU only as well as the CPU agrees with itself
+    let mut ctl = build("cpu");
+    let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+    for x in ctl.fluid.cons.iter_mut() {
+        seed = seed
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        let r = (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+        *x *= 1.0 + 2e-16 * r;
+    }
     assert!(gpu.gpu.is_some() && cpu.gpu.is_none());
     // a disc of radius 0.15 about (0.55, 0.5), particles at h/2, moving at (0.5, 0.25)
     let sp = 0.5 * h;
-    let (c0, rad, u) = ([0.55, 0.5], 0.15, [0.5, 0.25]);
+    let (c0, rad) = ([0.55, 0.5], 0.15);
     let mut x0 = Vec::new();
     let m = (2.0 * rad / sp).ceil() as i64;
     for a in -m..=m {
@@ -116,10 +166,10 @@ fn moving_disc_in_a_blast_matches_cpu() {
         components: c,
         values: v,
     };
-    let win = 0.01;
     let windows = 12u64;
-    let (mut out_c, mut out_g) = (Outbox::new(), Outbox::new());
+    let (mut out_c, mut out_g, mut out_t) = (Outbox::new(), Outbox::new(), Outbox::new());
     let mut worst = [0.0_f64; 6];
+    let mut worst_ctl = [0.0_f64; 6];
     let mut refilled = 0usize;
     let mut wall_solid = 0usize;
     let mut peak_force = 0.0_f64;
@@ -153,46 +203,50 @@ fn moving_disc_in_a_blast_matches_cpu() {
         let t = std::time::Instant::now();
         let rg = gpu.advance(&w, &inbox, &mut out_g).expect("GPU window");
         t_gpu += t.elapsed().as_secs_f64();
+        let rt = ctl.advance(&w, &inbox, &mut out_t).expect("control window");
         assert_eq!(rc.substeps, rg.substeps, "window {k}: substeps");
-        let fc = out_c
-            .get("particles", "force")
-            .expect("CPU force")
-            .values
-            .clone();
-        let fg = out_g
-            .get("particles", "force")
-            .expect("GPU force")
-            .values
-            .clone();
+        let force = |o: &Outbox| o.get("particles", "force").expect("force").values.clone();
+        let fc = force(&out_c);
         peak_force = fc.iter().fold(peak_force, |m, x| m.max(x.abs()));
-        worst[0] = worst[0].max(rel(&fg, &fc));
-        worst[1] = worst[1].max(rel(&rg.interface_impulse, &rc.interface_impulse));
-        worst[2] = worst[2].max(rel(&rg.external_impulse, &rc.external_impulse));
-        worst[3] = worst[3].max(rel(&rg.momentum, &rc.momentum));
-        worst[4] = worst[4].max(rel(
-            &[scalar(&rg, "mass"), rg.kinetic_energy + rg.internal_energy],
-            &[scalar(&rc, "mass"), rc.kinetic_energy + rc.internal_energy],
-        ));
         let (ic, ig) = (cpu.immersed().expect("im"), gpu.immersed().expect("im"));
         assert_eq!(ic.kind, ig.kind, "window {k}: cell classes");
+        // the window's differences of (a, its immersed state) from the CPU's
+        let measure = |ra: &StepReport, fa: &[f64], ia: &fluid_node::immersed::Immersed| {
+            [
+                rel(fa, &fc),
+                rel(&ra.interface_impulse, &rc.interface_impulse),
+                rel(&ra.external_impulse, &rc.external_impulse),
+                rel(&ra.momentum, &rc.momentum),
+                rel(
+                    &[scalar(ra, "mass"), ra.kinetic_energy + ra.internal_energy],
+                    &[scalar(&rc, "mass"), rc.kinetic_energy + rc.internal_energy],
+                ),
+                rel(
+                    &[
+                        ia.wall_mass,
+                        ia.reclass_mass,
+                        ia.reclass_momentum[0],
+                        ia.reclass_momentum[1],
+                    ],
+                    &[
+                        ic.wall_mass,
+                        ic.reclass_mass,
+                        ic.reclass_momentum[0],
+                        ic.reclass_momentum[1],
+                    ],
+                ),
+            ]
+        };
+        let mg = measure(&rg, &force(&out_g), ig);
+        let mt = measure(&rt, &force(&out_t), ctl.immersed().expect("im"));
+        for q in 0..6 {
+            worst[q] = worst[q].max(mg[q]);
+            worst_ctl[q] = worst_ctl[q].max(mt[q]);
+        }
         let g = &cpu.fluid.grid;
         wall_solid += (0..g.rows())
             .filter(|&r| g.interior_row(r) && ic.kind[r * g.mx() + g.g[0]] == SOLID)
             .count();
-        worst[5] = worst[5].max(rel(
-            &[
-                ig.wall_mass,
-                ig.reclass_mass,
-                ig.reclass_momentum[0],
-                ig.reclass_momentum[1],
-            ],
-            &[
-                ic.wall_mass,
-                ic.reclass_mass,
-                ic.reclass_momentum[0],
-                ic.reclass_momentum[1],
-            ],
-        ));
         if let Some(pk) = &prev_kind {
             refilled += pk
                 .iter()
@@ -209,31 +263,43 @@ fn moving_disc_in_a_blast_matches_cpu() {
         .expect("gpu")
         .download(&mut fg)
         .expect("download");
-    let field_rel = (0..5)
-        .map(|v| {
-            let g = &cpu.fluid.grid;
-            let mx = g.mx();
-            let (mut a, mut b) = (Vec::new(), Vec::new());
-            for r in (0..g.rows()).filter(|&r| g.interior_row(r)) {
-                for i in g.irange() {
-                    a.push(fg.cons[(r * 5 + v) * mx + i]);
-                    b.push(cpu.fluid.cons[(r * 5 + v) * mx + i]);
+    let nv = cpu.fluid.nv;
+    let field_rel = |other: &[f64]| {
+        (0..nv)
+            .map(|v| {
+                let g = &cpu.fluid.grid;
+                let mx = g.mx();
+                let (mut a, mut b) = (Vec::new(), Vec::new());
+                for r in (0..g.rows()).filter(|&r| g.interior_row(r)) {
+                    for i in g.irange() {
+                        a.push(other[(r * nv + v) * mx + i]);
+                        b.push(cpu.fluid.cons[(r * nv + v) * mx + i]);
+                    }
                 }
-            }
-            rel(&a, &b)
-        })
-        .fold(0.0, f64::max);
+                rel(&a, &b)
+            })
+            .fold(0.0, f64::max)
+    };
+    let (field_gpu, field_ctl) = (field_rel(&fg.cons), field_rel(&ctl.fluid.cons));
     println!(
-        "moving disc, {np} particles, {windows} windows, {refilled} refilled cells, peak force {peak_force:.3e}: GPU vs CPU max relative difference: force {:.3e}, interface impulse {:.3e}, external impulse {:.3e}, momentum {:.3e}, mass/energy {:.3e}, wall/refill bookkeeping {:.3e}, final field {field_rel:.3e}",
+        "{name}: {np} particles, {windows} windows, {refilled} refilled cells, peak force {peak_force:.3e}: GPU vs CPU max relative difference: force {:.3e}, interface impulse {:.3e}, external impulse {:.3e}, momentum {:.3e}, mass/energy {:.3e}, wall/refill bookkeeping {:.3e}, final field {field_gpu:.3e}",
         worst[0], worst[1], worst[2], worst[3], worst[4], worst[5]
+    );
+    println!(
+        "{name}: the CPU from a state changed by 2e-16: {worst_ctl:?}, final field {field_ctl:.3e}"
     );
     println!("wall time of the windows: CPU {t_cpu:.3} s, GPU {t_gpu:.3} s");
     assert!(refilled > 0, "the disc must leave cells");
     println!("{wall_solid} solid cells against the left wall over the windows");
     assert!(wall_solid > 0, "the strip must cover wall cells");
     assert!(peak_force > 0.0, "the gas must push the particles");
-    for (q, x) in worst.iter().enumerate() {
-        assert!(*x <= 1e-10, "quantity {q}: {x:e}");
+    let allowed = |control: f64| 1e-10_f64.max(10.0 * control);
+    for q in 0..6 {
+        let (x, c) = (worst[q], worst_ctl[q]);
+        assert!(x <= allowed(c), "quantity {q}: {x:e} (control {c:e})");
     }
-    assert!(field_rel <= 1e-10, "final field {field_rel:e}");
+    assert!(
+        field_gpu <= allowed(field_ctl),
+        "final field {field_gpu:e} (control {field_ctl:e})"
+    );
 }

@@ -763,6 +763,19 @@ pub fn skip_or_fail(test: &str, why: &str) {
     println!("{test}: skipped: {why}");
 }
 
+/// Largest |a − b| over the largest |b| (the absolute difference where b is all zero), a NaN
+/// on either side counting as infinitely far: how the GPU tests measure a device result `a`
+/// against the CPU's `b`.
+pub fn max_rel_diff(a: &[f64], b: &[f64]) -> f64 {
+    assert_eq!(a.len(), b.len(), "compared arrays differ in length");
+    let scale = b.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+    let diff = a.iter().zip(b).fold(0.0_f64, |m, (x, y)| {
+        let e = (x - y).abs();
+        if e.is_nan() { f64::INFINITY } else { m.max(e) }
+    });
+    if scale > 0.0 { diff / scale } else { diff }
+}
+
 /// For the tests that compare a GPU path with the CPU to 1e-10: a context with f64 kernels,
 /// or `None` after [`skip_or_fail`] (no adapter, or f32 kernels only).
 pub fn f64_context_or_skip(test: &str) -> Option<GpuContext> {

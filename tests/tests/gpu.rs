@@ -126,15 +126,55 @@ fn ok(o: &std::process::Output, what: &str) {
 
 #[test]
 fn chamber_with_the_gas_on_the_gpu_sends_the_same_coupling_traffic() {
+    // the control: the CPU run with the initial air temperature one ulp higher
+    let one_ulp = format!(
+        "gas.regions=[{{ shape = \"all\", material = \"air\", temperature = {:?}, pressure = 1.0e5 }}, {{ shape = \"sphere\", center = [0.0, 0.2, 0.0], radius = 0.0061, material = \"air\", temperature = 1465.0, pressure = 6.75e6 }}]",
+        f64::from_bits(290.0f64.to_bits() + 1)
+    );
+    same_traffic(
+        "chamber_with_the_gas_on_the_gpu_sends_the_same_coupling_traffic",
+        &[],
+        &one_ulp,
+        false,
+    );
+}
+
+/// TNT detonation products (JWL, the constants of examples/steel_tube.toml) as a material of
+/// the chamber's gas.
+const TNT: &str = "gas.materials.tnt={ eos = \"jwl\", rho0 = 1630.0, a = 3.712e11, b = 3.21e9, r1 = 4.15, r2 = 0.95, omega = 0.3, e0 = 6.9927e9 }";
+
+/// The chamber's gas with a 2 cm TNT charge (JWL products at their loading density and JWL
+/// pressure) instead of the hot air: two materials, one of them JWL, on the GPU in a coupled
+/// run. This blast amplifies round-off (in process, fluid-node/tests/gpu.rs measures a 2e-16
+/// change of the initial state growing to 8e-5), so each field may differ from the CPU run by
+/// ten times what the one-ulp control run differs, or 1e-10, whichever is larger.
+#[test]
+fn chamber_with_a_jwl_charge_on_the_gpu_sends_the_same_coupling_traffic() {
+    let regions = |t_air: f64| {
+        format!(
+            "gas.regions=[{{ shape = \"all\", material = \"air\", temperature = {t_air:?}, pressure = 1.0e5 }}, {{ shape = \"sphere\", center = [0.0, 0.2, 0.0], radius = 0.02, material = \"tnt\", density = 1630.0, pressure = 8.3759e9 }}]"
+        )
+    };
+    let one_ulp = regions(f64::from_bits(290.0f64.to_bits() + 1));
+    same_traffic(
+        "chamber_with_a_jwl_charge_on_the_gpu_sends_the_same_coupling_traffic",
+        &[TNT.to_string(), regions(290.0)],
+        &one_ulp,
+        true,
+    );
+}
+
+/// The small chamber with `sets` run with the gas on the GPU and on the CPU, and on the CPU
+/// again with `control` set too: every exchanged field must agree within 1e-10 of its
+/// largest |value| (or, when `by_control`, within ten times the control's difference where
+/// that is larger), and so must the gas's interface impulse.
+fn same_traffic(test: &str, sets: &[String], control: &str, by_control: bool) {
     let case = workspace_root().join("examples/chamber_detonation.toml");
     let (dir, id) = scratch("gpu-chamber");
-    let (o, t_gpu) = run(
-        &case,
-        &dir.join("gpu"),
-        &format!("{id}g"),
-        &["gas.device=\"gpu\""],
-    );
-    if output_unless_no_adapter("chamber_with_the_gas_on_the_gpu", &o).is_none() {
+    let mut gsets: Vec<&str> = sets.iter().map(String::as_str).collect();
+    gsets.push("gas.device=\"gpu\"");
+    let (o, t_gpu) = run(&case, &dir.join("gpu"), &format!("{id}g"), &gsets);
+    if output_unless_no_adapter(test, &o).is_none() {
         return;
     }
     ok(&o, "GPU run");
@@ -143,19 +183,17 @@ fn chamber_with_the_gas_on_the_gpu_sends_the_same_coupling_traffic() {
     assert!(!bits.is_empty(), "the GPU run must report its precision");
     if bits.iter().any(|&(_, b)| b != 64.0) {
         skip_or_fail(
-            "chamber_with_the_gas_on_the_gpu_sends_the_same_coupling_traffic",
+            test,
             "the 1e-10 agreement needs f64 kernels (the adapter has no SHADER_F64)",
         );
         return;
     }
-    let (o, t_cpu) = run(&case, &dir.join("cpu"), &format!("{id}c"), &[]);
+    let csets: Vec<&str> = sets.iter().map(String::as_str).collect();
+    let (o, t_cpu) = run(&case, &dir.join("cpu"), &format!("{id}c"), &csets);
     ok(&o, "CPU run");
-    // the control: the CPU run with the initial air temperature one ulp higher
-    let one_ulp = format!(
-        "gas.regions=[{{ shape = \"all\", material = \"air\", temperature = {:?}, pressure = 1.0e5 }}, {{ shape = \"sphere\", center = [0.0, 0.2, 0.0], radius = 0.0061, material = \"air\", temperature = 1465.0, pressure = 6.75e6 }}]",
-        f64::from_bits(290.0f64.to_bits() + 1)
-    );
-    let (o, _) = run(&case, &dir.join("ulp"), &format!("{id}u"), &[&one_ulp]);
+    let mut usets = csets.clone();
+    usets.push(control);
+    let (o, _) = run(&case, &dir.join("ulp"), &format!("{id}u"), &usets);
     ok(&o, "perturbed CPU run");
     println!("wall time of the run: gas on the CPU {t_cpu:.2} s, on the GPU {t_gpu:.2} s");
     let cpu = traffic(&dir.join("cpu/run.mcap"));
@@ -190,9 +228,15 @@ fn chamber_with_the_gas_on_the_gpu_sends_the_same_coupling_traffic() {
     }
     for (k, d, sc) in &gpu {
         assert!(*sc > 0.0 || k.3 != "force", "{k:?}: no scale");
+        let control = if by_control {
+            worst_ulp[&format!("{}/{}", k.1, k.3)]
+        } else {
+            0.0
+        };
+        let allowed = 1e-10_f64.max(10.0 * control);
         assert!(
-            *d <= 1e-10 * sc,
-            "{k:?}: GPU differs from CPU by {d:e}, {:e} of the run's largest |value| {sc:e}",
+            *d <= allowed * sc,
+            "{k:?}: GPU differs from CPU by {d:e}, {:e} of the run's largest |value| {sc:e} (allowed {allowed:e})",
             d / sc
         );
     }
@@ -210,8 +254,21 @@ fn chamber_with_the_gas_on_the_gpu_sends_the_same_coupling_traffic() {
         .zip(&ig)
         .flat_map(|((_, a), (_, b))| (0..3).map(move |d| (a[d] - b[d]).abs()))
         .fold(0.0_f64, nan_max);
-    println!("gas interface impulse: largest difference {diff:.3e} of {scale:.3e} N s");
-    assert!(diff <= 1e-10 * scale, "{diff:e} vs {scale:e}");
+    let iu = node_vectors(&dir.join("ulp/run.mcap"), "gas", "interface_impulse");
+    let diff_ulp = ic
+        .iter()
+        .zip(&iu)
+        .flat_map(|((_, a), (_, b))| (0..3).map(move |d| (a[d] - b[d]).abs()))
+        .fold(0.0_f64, nan_max);
+    println!(
+        "gas interface impulse: largest difference {diff:.3e} of {scale:.3e} N s (control {diff_ulp:.3e})"
+    );
+    let allowed = if by_control {
+        (1e-10 * scale).max(10.0 * diff_ulp)
+    } else {
+        1e-10 * scale
+    };
+    assert!(diff <= allowed, "{diff:e} vs {scale:e}");
 }
 
 /// `precision = "f32"` on both GPU nodes (for consumer GPUs, whose f64 rate is a small

@@ -372,12 +372,12 @@ fn every_bad_parameter_is_refused_naming_its_full_key() {
             "",
             "nodes.gas.params.grid",
         ),
-        // a GPU-related key checked without opening a GPU: two materials have no device kernels
+        // a GPU-related key checked without opening a GPU: a radial grid has no device kernels
         (
-            "gas-gpu-two-materials",
+            "gas-gpu-radial",
             GAS,
             "cfl = 0.5",
-            "cfl = 0.5\ndevice = \"gpu\"\n[nodes.gas.params.materials.helium]\neos = \"ideal\"\ngamma = 1.67",
+            "cfl = 0.5\ndevice = \"gpu\"\ngeometry = \"spherical\"",
             "nodes.gas.params.device",
         ),
         // peridynamics

@@ -1,14 +1,20 @@
-// Single-material Euler step on the device (one ideal or stiffened gas) (seed 002 §2.3–§2.4, Fig. 4):
-// primitive recovery, ghost fill, MUSCL + HLLC fluxes, SSP-RK3 stage update (seed 002 eq. 35
-// weights), boundary impulse, and the CFL reduction. Every formula mirrors fluid-node's CPU
-// kernels (step.rs, riemann/hllc.rs, limiter.rs, boundary.rs) operation by operation, so the
-// f64 results agree with the CPU to round-off.
+// The five-equation multi-material Euler step on the device (seed 002 §2.2–§2.4, Fig. 4; one
+// to four materials, each an ideal gas, a stiffened gas or JWL products): primitive recovery
+// with the mixture closure in mechanical equilibrium, ghost fill, MUSCL + HLLC fluxes with the
+// Johnsen–Colonius face velocity for the volume fractions, SSP-RK3 stage update (seed 002
+// eq. 35 weights), boundary impulse, and the CFL reduction. Every formula mirrors fluid-node's
+// CPU kernels (step.rs, mixture.rs, eos/, riemann/, limiter.rs, boundary.rs) operation by
+// operation, so the f64 results agree with the CPU to round-off.
 //
-// `real` is f64 or f32: the host prepends `alias real = f64;` (or f32), and the model's
-// limiter and dimension as constants (`const LIMITER: u32`, `const ND: u32`), so the driver
-// compiles one limiter and only the directions the grid has.
+// `real` is f64 or f32: the host prepends `alias real = f64;` (or f32), the model's limiter,
+// dimension and materials as constants (`LIMITER`, `ND`, `NM` materials, `NV` = 2 NM + 3
+// variables, `NF` flux entries per face: NV, and one more, the face velocity, with several
+// materials; `JWL`, a bit per JWL material) and `rexp`, the exponential of the JWL reference
+// curve, so the driver compiles one limiter, only the directions the grid has and only the
+// equations of state the model uses.
 // Layout: the CPU's row-blocked structure of arrays, value v of cell (row r, x index i) at
-// (r * 5 + v) * mx + i; fluxes of direction d at d * fsize + (same index of the left cell).
+// (r * NV + v) * mx + i; fluxes of direction d at d * fsize + (r * NF + v) * mx + i, indexed by
+// the cell left of the face.
 
 // u32 parameters (uniform, 16-byte rows)
 struct U { w: array<vec4<u32>, 8> }
@@ -25,7 +31,6 @@ struct U { w: array<vec4<u32>, 8> }
 struct Stage { a: real, b: real, w: real, s: u32 }
 @group(0) @binding(8) var<uniform> stg: Stage;
 
-const NV: u32 = 5u;
 const WG: u32 = 64u;
 const RWG: u32 = 256u;
 
@@ -43,9 +48,6 @@ fn iparts() -> u32 { return pu.w[3][1]; }
 fn bc(d: u32, s: u32) -> u32 { return pu.w[4 + d][s]; }
 
 // real parameter slots
-fn gamma() -> real { return pr[0]; }
-fn inv_g() -> real { return pr[1]; }
-fn off() -> real { return pr[2]; }
 fn cfl() -> real { return pr[3]; }
 fn inf() -> real { return pr[4]; }
 fn maxr() -> real { return pr[5]; }
@@ -53,10 +55,17 @@ fn snap() -> real { return pr[6]; }
 fn minpos() -> real { return pr[7]; }
 fn idx(d: u32) -> real { return pr[8u + d]; }
 fn area(d: u32) -> real { return pr[11u + d]; }
-fn inflow(d: u32, s: u32, v: u32) -> real { return pr[14u + (d * 2u + s) * NV + v]; }
 fn cell_volume() -> real { return pr[44]; }
-// p∞ of a stiffened gas (0 for an ideal gas): ρc² = γ (p + p∞), the CPU's rho_c2
-fn p_inf() -> real { return pr[48]; }
+// material k's constants (MAT reals each): 1/Γ, the offset -p_ref/Γ of a constant-reference
+// phase, Γ, γ and p∞ (ρc² = γ (p + p∞) of an ideal or stiffened gas, eos/), and JWL's ρ0,
+// A, B, R1, R2, ω
+const MAT0: u32 = 50u;
+const MAT: u32 = 12u;
+fn mp(k: u32, s: u32) -> real { return pr[MAT0 + MAT * k + s]; }
+fn inv_g(k: u32) -> real { return mp(k, 0u); }
+fn off(k: u32) -> real { return mp(k, 1u); }
+// the inflow state of direction d, side s (NV primitives), after the materials
+fn inflow(d: u32, s: u32, v: u32) -> real { return pr[MAT0 + MAT * 4u + (d * 2u + s) * NV + v]; }
 
 // control slots: red[0] time, red[1] t_end (or dt cap), red[2] dt, red[3] rate,
 // red[4..7] boundary impulse, red[7] boundary work; st[0] active, st[1] steps, st[2] substeps, st[3] error,
@@ -74,10 +83,120 @@ fn mx() -> u32 { return m(0u); }
 fn row(j: u32, k: u32) -> u32 { return j + k * m(1u); }
 fn at(r: u32, v: u32, i: u32) -> u32 { return (r * NV + v) * mx() + i; }
 fn finite(x: real) -> bool { return x <= maxr() && x >= -maxr(); }
+// flux entry v of the face right of cell (row r, x index i)
+fn fat(r: u32, v: u32, i: u32) -> u32 { return (r * NF + v) * mx() + i; }
+
+// ---------------------------------------------------------------- equations of state (eos/)
+
+fn is_jwl(k: u32) -> bool { return ((JWL >> k) & 1u) == 1u; }
+
+// jwl.rs p_ref and dp_ref at ρ (V = ρ0/ρ), the two exponentials computed once:
+// p_ref = A (1 - ω/(R1 V)) e^{-R1 V} + B (1 - ω/(R2 V)) e^{-R2 V},
+// dp_ref = -(dp_ref/dV) V/ρ with dp_ref/dV = A e^{-R1 V} (ω/(R1 V²) - R1 + ω/V) + (B, R2)
+fn jwl_ref(k: u32, rho: real) -> vec2<real> {
+    let v = mp(k, 5u) / rho;
+    let w = mp(k, 10u);
+    let r1 = mp(k, 8u);
+    let r2 = mp(k, 9u);
+    let e1 = rexp(-r1 * v);
+    let e2 = rexp(-r2 * v);
+    let a = mp(k, 6u);
+    let b = mp(k, 7u);
+    let p = a * (real(1.0) - w / (r1 * v)) * e1 + b * (real(1.0) - w / (r2 * v)) * e2;
+    let t1 = a * e1 * (w / (r1 * v * v) - r1 + w / v);
+    let t2 = b * e2 * (w / (r2 * v * v) - r2 + w / v);
+    return vec2<real>(p, -(t1 + t2) * v / rho);
+}
+
+fn jwl_p_ref(k: u32, rho: real) -> real {
+    let v = mp(k, 5u) / rho;
+    let w = mp(k, 10u);
+    let r1 = mp(k, 8u);
+    let r2 = mp(k, 9u);
+    return mp(k, 6u) * (real(1.0) - w / (r1 * v)) * rexp(-r1 * v)
+        + mp(k, 7u) * (real(1.0) - w / (r2 * v)) * rexp(-r2 * v);
+}
+
+// Eos::rho_c2 of material k at (ρ, p)
+fn rho_c2(k: u32, rho: real, p: real) -> real {
+    if is_jwl(k) {
+        let g = mp(k, 2u);
+        let rf = jwl_ref(k, rho);
+        return rho * (rf.y - g * rho * real(0.0)) + (g + real(1.0)) * p - rf.x;
+    }
+    return mp(k, 3u) * (p + mp(k, 4u));
+}
+
+// ---------------------------------------------------------------- mixture (mixture.rs)
+
+// Phase::offset: α (ρ_k e_ref - p_ref/Γ), ρ_k = ar/α
+fn phase_offset(k: u32, ar: real, al: real) -> real {
+    if !is_jwl(k) {
+        return al * off(k);
+    }
+    if al > real(1e-8) {
+        let rk = ar / al;
+        return al * (rk * real(0.0) - jwl_p_ref(k, rk) * inv_g(k));
+    }
+    return real(0.0);
+}
+
+// Phase::axrc2: α ξ_k ρ_k c_k²
+fn phase_axrc2(k: u32, ar: real, al: real, p: real) -> real {
+    if !is_jwl(k) {
+        return al * inv_g(k) * rho_c2(k, real(1.0), p);
+    }
+    if al > real(1e-8) {
+        return al * inv_g(k) * rho_c2(k, ar / al, p);
+    }
+    return real(0.0);
+}
+
+// mixture::pressure from partial densities, volume fractions and ρe
+fn mix_pressure(ar: array<real, NM>, al: array<real, NM>, rhoe: real) -> real {
+    if NM == 1u {
+        return (rhoe - phase_offset(0u, ar[0], real(1.0))) / inv_g(0u);
+    }
+    var xi = real(0.0);
+    var o = real(0.0);
+    for (var k = 0u; k < NM; k++) {
+        xi += al[k] * inv_g(k);
+        o += phase_offset(k, ar[k], al[k]);
+    }
+    return (rhoe - o) / xi;
+}
+
+// mixture::rhoe at pressure p
+fn mix_rhoe(ar: array<real, NM>, al: array<real, NM>, p: real) -> real {
+    if NM == 1u {
+        return p * inv_g(0u) + phase_offset(0u, ar[0], real(1.0));
+    }
+    var xi = real(0.0);
+    var o = real(0.0);
+    for (var k = 0u; k < NM; k++) {
+        xi += al[k] * inv_g(k);
+        o += phase_offset(k, ar[k], al[k]);
+    }
+    return p * xi + o;
+}
+
+// mixture::sound_speed2 (frozen); non-positive or NaN marks an inadmissible state
+fn mix_c2(ar: array<real, NM>, al: array<real, NM>, rho: real, p: real) -> real {
+    if NM == 1u {
+        return rho_c2(0u, rho, p) / rho;
+    }
+    var xi = real(0.0);
+    var s = real(0.0);
+    for (var k = 0u; k < NM; k++) {
+        xi += al[k] * inv_g(k);
+        s += phase_axrc2(k, ar[k], al[k], p);
+    }
+    return s / (rho * xi);
+}
 
 // ---------------------------------------------------------------- primitives + wave rate
 
-// step.rs prim_row_fast for cell id (interior enumeration); returns the cell's wave rate
+// step.rs prim_row for cell id (interior enumeration); returns the cell's wave rate
 // Σ_d (|u_d| + c)/Δx_d (max_rate), or 0 outside the interior.
 fn prim_cell(id: u32) -> real {
     let total = n(0u) * n(1u) * n(2u);
@@ -90,32 +209,76 @@ fn prim_cell(id: u32) -> real {
     let k = g(2u) + q / n(1u);
     let b = at(row(j, k), 0u, i);
     let w = mx();
-    let a = cons[b];
-    let rho = real(0.0) + a;
+    var ar: array<real, NM>;
+    var al: array<real, NM>;
+    var rho = real(0.0);
+    var ok = true;
+    // tiny negative partial densities of a trace phase are round-off (several materials)
+    var sabs = real(0.0);
+    if NM > 1u {
+        for (var m = 0u; m < NM; m++) {
+            sabs += abs(cons[b + m * w]);
+        }
+    }
+    for (var m = 0u; m < NM; m++) {
+        let a = cons[b + m * w];
+        if !(a >= real(0.0)) {
+            if NM > 1u && a > real(-1e-12) * sabs {
+                ar[m] = real(0.0);
+                continue;
+            }
+            ok = false;
+        }
+        ar[m] = a;
+        rho += a;
+    }
     let inv = real(1.0) / rho;
-    let u = cons[b + w] * inv;
-    let v = cons[b + 2u * w] * inv;
-    let ww = cons[b + 3u * w] * inv;
-    let rhoe = cons[b + 4u * w] - real(0.5) * rho * (u * u + v * v + ww * ww);
-    let p = (rhoe - real(1.0) * off()) / inv_g();
-    let cc = gamma() * (p + p_inf()) / rho;
-    let ok = a >= real(0.0) && rho > real(0.0) && cc > real(0.0) && finite(cc) && finite(p);
+    let u = cons[b + NM * w] * inv;
+    let v = cons[b + (NM + 1u) * w] * inv;
+    let ww = cons[b + (NM + 2u) * w] * inv;
+    let rhoe = cons[b + (NM + 3u) * w] - real(0.5) * rho * (u * u + v * v + ww * ww);
+    var sa = real(0.0);
+    for (var m = 0u; m + 1u < NM; m++) {
+        let a = cons[b + (NM + 4u + m) * w];
+        al[m] = a;
+        sa += a;
+    }
+    al[NM - 1u] = max(real(1.0) - sa, real(0.0));
+    let p = mix_pressure(ar, al, rhoe);
+    let cc = mix_c2(ar, al, rho, p);
+    ok = ok && rho > real(0.0) && cc > real(0.0) && finite(cc) && finite(p);
     if !ok && running() {
         atomicMin(&st[4], b);
         atomicStore(&st[5], stg.s);
         atomicStore(&st[3], 1u);
         atomicStore(&st[0], 0u);
     }
-    prim[b] = a;
-    prim[b + w] = u;
-    prim[b + 2u * w] = v;
-    prim[b + 3u * w] = ww;
-    prim[b + 4u * w] = p;
-    // max_rate: the same arithmetic on the stored primitives
-    let c2 = gamma() * (p + p_inf()) / a;
+    for (var m = 0u; m < NM; m++) {
+        prim[b + m * w] = ar[m];
+    }
+    prim[b + NM * w] = u;
+    prim[b + (NM + 1u) * w] = v;
+    prim[b + (NM + 2u) * w] = ww;
+    prim[b + (NM + 3u) * w] = p;
+    // max_rate: the sound speed `face` gives the stored primitives, c = ∞ where it rejects
+    // them. Their partial densities are ≥ 0 and sum to ρ, and the last volume fraction
+    // `face` forms from theirs is the one above (1 - Σ, or 0 within 1e-12 of 1) unless it
+    // is negative, which it rejects: so c² is `cc`.
+    var fok = rho > real(0.0) && cc > real(0.0) && finite(cc);
+    for (var m = 0u; m + 1u < NM; m++) {
+        prim[b + (NM + 4u + m) * w] = al[m];
+        fok = fok && al[m] >= real(0.0) && al[m] <= real(1.0);
+    }
+    if NM > 1u {
+        var last = real(1.0) - sa;
+        if sa > real(1.0) && sa < real(1.0) + real(1e-12) {
+            last = real(0.0);
+        }
+        fok = fok && !(last < real(0.0));
+    }
     var c = inf();
-    if a > real(0.0) && c2 > real(0.0) && finite(c2) {
-        c = sqrt(c2);
+    if fok {
+        c = sqrt(cc);
     }
     var s = real(0.0);
     var vel = array<real, 3>(u, v, ww);
@@ -230,7 +393,7 @@ fn ghost_x(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroup
         val = inflow(0u, side, v);
     } else {
         val = prim[at(r, v, gs.y)];
-        if code == 0u && v == 1u {
+        if code == 0u && v == NM {
             val = -val;
         }
     }
@@ -271,7 +434,7 @@ fn ghost_rows(id: u32, d: u32) {
     } else {
         let src = r0 + gs.y * stride - gd * stride;
         val = prim[at(src, v, i)];
-        if code == 0u && v == 1u + d {
+        if code == 0u && v == NM + d {
             val = -val;
         }
     }
@@ -320,37 +483,102 @@ fn slope(a: real, b: real) -> real {
     return mm;
 }
 
-struct Face { rho: real, vel: array<real, 3>, p: real, e: real, c: real, ok: bool }
+struct Face {
+    ar: array<real, NM>,
+    al: array<real, NM>,
+    rho: real,
+    vel: array<real, 3>,
+    p: real,
+    e: real,
+    c: real,
+    ok: bool,
+}
 
-// step.rs face_state for one material: c = sqrt(γ(p + p∞)/ρ), E = (p/Γ + off) + ½ρ|u|²
-fn face(q: array<real, 5>) -> Face {
+// riemann/mod.rs face_state: partial densities ≥ 0, volume fractions in [0, 1] (the last one
+// 1 - Σ, a hair below zero taken as zero), ρ > 0, c² > 0 and finite;
+// E = ρe(p) + ½ρ|u|² (mixture.rs)
+fn face(q: array<real, NV>) -> Face {
     var f: Face;
-    let r = q[0];
-    let p = q[4];
-    f.rho = r;
-    f.vel = array<real, 3>(q[1], q[2], q[3]);
+    if NM == 1u {
+        // one material: ρ = q0, c = √(ρc²(ρ, p)/ρ), E = (p/Γ + off) + ½ρ|u|² (the
+        // general form below with its sums of one term)
+        let r = q[0];
+        let p = q[NM + 3u];
+        f.ar[0] = r;
+        f.al[0] = real(1.0);
+        f.rho = r;
+        f.vel = array<real, 3>(q[NM], q[NM + 1u], q[NM + 2u]);
+        f.p = p;
+        let c2 = rho_c2(0u, r, p) / r;
+        f.ok = r > real(0.0) && c2 > real(0.0) && finite(c2);
+        f.c = real(0.0);
+        if f.ok {
+            f.c = sqrt(c2);
+        }
+        f.e = (p * inv_g(0u) + phase_offset(0u, r, real(1.0))) + real(0.5) * r * (f.vel[0] * f.vel[0] + f.vel[1] * f.vel[1] + f.vel[2] * f.vel[2]);
+        return f;
+    }
+    var ok = true;
+    var rho = real(0.0);
+    for (var k = 0u; k < NM; k++) {
+        f.ar[k] = q[k];
+        rho += q[k];
+        if !(q[k] >= real(0.0)) {
+            ok = false;
+        }
+    }
+    var sa = real(0.0);
+    for (var k = 0u; k + 1u < NM; k++) {
+        let a = q[NM + 4u + k];
+        if !(a >= real(0.0) && a <= real(1.0)) {
+            ok = false;
+        }
+        f.al[k] = a;
+        sa += a;
+    }
+    var last = real(1.0) - sa;
+    if sa > real(1.0) && sa < real(1.0) + real(1e-12) {
+        last = real(0.0);
+    }
+    f.al[NM - 1u] = last;
+    if !(rho > real(0.0)) || last < real(0.0) {
+        ok = false;
+    }
+    f.rho = rho;
+    f.vel = array<real, 3>(q[NM], q[NM + 1u], q[NM + 2u]);
+    let p = q[NM + 3u];
     f.p = p;
-    let c2 = gamma() * (p + p_inf()) / r;
-    f.ok = r > real(0.0) && c2 > real(0.0) && finite(c2);
+    let c2 = mix_c2(f.ar, f.al, rho, p);
+    ok = ok && c2 > real(0.0) && finite(c2);
+    f.ok = ok;
     f.c = real(0.0);
-    if f.ok {
+    if ok {
         f.c = sqrt(c2);
     }
-    f.e = (p * inv_g() + real(1.0) * off()) + real(0.5) * r * (q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    f.e = mix_rhoe(f.ar, f.al, p) + real(0.5) * rho * (f.vel[0] * f.vel[0] + f.vel[1] * f.vel[1] + f.vel[2] * f.vel[2]);
     return f;
 }
 
-// hllc.rs side(): F_K, plus s_K (U*_K - U_K) when the fan crosses the face
-fn side(q: Face, sk: real, ss: real, d: u32) -> array<real, 5> {
-    var f: array<real, 5>;
+// hllc.rs side(): F_K, plus s_K (U*_K - U_K) when the fan crosses the face; with several
+// materials the α entries carry α u and the last entry the face velocity (Johnsen–Colonius)
+fn side(q: Face, sk: real, ss: real, d: u32) -> array<real, NF> {
+    var f: array<real, NF>;
     var vel = q.vel;
     let un = vel[d];
-    f[0] = q.rho * un;
-    for (var c = 0u; c < 3u; c++) {
-        f[1u + c] = q.rho * vel[c] * un;
+    for (var k = 0u; k < NM; k++) {
+        f[k] = q.ar[k] * un;
     }
-    f[1u + d] += q.p;
-    f[4] = (q.e + q.p) * un;
+    for (var c = 0u; c < 3u; c++) {
+        f[NM + c] = q.rho * vel[c] * un;
+    }
+    f[NM + d] += q.p;
+    f[NM + 3u] = (q.e + q.p) * un;
+    for (var k = 0u; k + 1u < NM; k++) {
+        f[NM + 4u + k] = q.al[k] * un;
+    }
+    if NF > NV {
+        f[NF - 1u] = un;
+    }
     var crosses: bool;
     if sk < real(0.0) {
         crosses = real(0.0) <= ss && sk < real(0.0);
@@ -360,19 +588,27 @@ fn side(q: Face, sk: real, ss: real, d: u32) -> array<real, 5> {
     if crosses {
         let chi = (sk - un) / (sk - ss);
         let sc = sk * (chi - real(1.0));
-        f[0] += sc * q.rho;
-        for (var c = 0u; c < 3u; c++) {
-            f[1u + c] += sc * q.rho * vel[c];
+        for (var k = 0u; k < NM; k++) {
+            f[k] += sc * q.ar[k];
         }
-        f[1u + d] += sk * chi * q.rho * (ss - un);
+        for (var c = 0u; c < 3u; c++) {
+            f[NM + c] += sc * q.rho * vel[c];
+        }
+        f[NM + d] += sk * chi * q.rho * (ss - un);
         let estar = chi * (q.e + (ss - un) * (q.rho * ss + q.p / (sk - un)));
-        f[4] += sk * (estar - q.e);
+        f[NM + 3u] += sk * (estar - q.e);
+        for (var k = 0u; k + 1u < NM; k++) {
+            f[NM + 4u + k] += sc * q.al[k];
+        }
+        if NF > NV {
+            f[NF - 1u] += sc;
+        }
     }
     return f;
 }
 
 // hllc.rs flux_dir(): Davis wave speeds, Toro's star speed
-fn hllc(l: Face, r: Face, d: u32) -> array<real, 5> {
+fn hllc(l: Face, r: Face, d: u32) -> array<real, NF> {
     var lv = l.vel;
     var rv = r.vel;
     let ul = lv[d];
@@ -390,6 +626,15 @@ fn hllc(l: Face, r: Face, d: u32) -> array<real, 5> {
     return side(r, sr, ss, d);
 }
 
+fn nan_flux() -> array<real, NF> {
+    let nan = inf() - inf();
+    var f: array<real, NF>;
+    for (var v = 0u; v < NF; v++) {
+        f[v] = nan;
+    }
+    return f;
+}
+
 // one face normal to d: stencil cells (left-1, left, right, right+1); stored at the left cell
 fn flux_face(id: u32, d: u32) {
     var cnt = vec3<u32>(n(0u), n(1u), n(2u));
@@ -404,12 +649,13 @@ fn flux_face(id: u32, d: u32) {
     let i = g(0u) + a - e.x;
     let j = g(1u) + qq % cnt.y - e.y;
     let k = g(2u) + qq / cnt.y - e.z;
-    let base = at(row(j, k), 0u, i);
+    let r0 = row(j, k);
+    let base = at(r0, 0u, i);
     var s = 1u;
     if d == 1u { s = NV * mx(); }
     if d == 2u { s = NV * mx() * m(1u); }
-    var lq: array<real, 5>;
-    var rq: array<real, 5>;
+    var lq: array<real, NV>;
+    var rq: array<real, NV>;
     for (var v = 0u; v < NV; v++) {
         let o = base + v * mx();
         let a0 = prim[o - s];
@@ -424,29 +670,28 @@ fn flux_face(id: u32, d: u32) {
     }
     var fl = face(lq);
     var fr = face(rq);
-    var f: array<real, 5>;
+    var f: array<real, NF>;
     if fl.ok && fr.ok {
         f = hllc(fl, fr, d);
     } else {
         // first order where the reconstruction leaves the admissible set (rare: the cell
         // states are read again rather than kept live through the common path)
-        var q1: array<real, 5>;
-        var q2: array<real, 5>;
+        var q1: array<real, NV>;
+        var q2: array<real, NV>;
         for (var v = 0u; v < NV; v++) {
             q1[v] = prim[base + v * mx()];
             q2[v] = prim[base + v * mx() + s];
         }
         fl = face(q1);
         fr = face(q2);
-        if fl.ok && fr.ok && q1[0] >= real(0.0) && q2[0] >= real(0.0) {
+        if fl.ok && fr.ok {
             f = hllc(fl, fr, d);
         } else {
-            let nan = inf() - inf();
-            f = array<real, 5>(nan, nan, nan, nan, nan);
+            f = nan_flux();
         }
     }
-    let fo = d * fsize() + base;
-    for (var v = 0u; v < NV; v++) {
+    let fo = d * fsize() + fat(r0, 0u, i);
+    for (var v = 0u; v < NF; v++) {
         flux[fo + v * mx()] = f[v];
     }
 }
@@ -468,7 +713,8 @@ fn flux_z(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
 
 // ---------------------------------------------------------------- RK stage update
 
-// step.rs update(): U = a U0 + b (U + dt L(U)); stage 0 first saves U0 = U
+// step.rs update(): U = a U0 + b (U + dt L(U)); stage 0 first saves U0 = U. A volume
+// fraction adds the Johnsen–Colonius term α ∇·u_face (update_var) and is clamped to [0, 1].
 @compute @workgroup_size(WG)
 fn update(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let id = lin(gid, nwg, WG);
@@ -479,30 +725,54 @@ fn update(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
     let q = id / n(0u);
     let j = g(1u) + q % n(1u);
     let k = g(2u) + q / n(1u);
-    let base = at(row(j, k), 0u, i);
+    let r = row(j, k);
+    let base = at(r, 0u, i);
+    let fbase = fat(r, 0u, i);
     let dt = red[2];
-    let sy = NV * mx();
-    let sz = NV * mx() * m(1u);
+    let sy = NF * mx();
+    let sz = NF * mx() * m(1u);
     let f1 = fsize();
     let f2 = 2u * fsize();
+    // the face velocities' entries (several materials)
+    let uo = fbase + (NF - 1u) * mx();
     for (var v = 0u; v < NV; v++) {
         let o = base + v * mx();
-        let dfx = flux[o] - flux[o - 1u];
+        let fo = fbase + v * mx();
+        let alpha = v >= NM + 4u;
+        let u = cons[o];
+        var dfx = flux[fo] - flux[fo - 1u];
+        if alpha {
+            dfx -= u * (flux[uo] - flux[uo - 1u]);
+        }
         var res = -dfx * idx(0u);
         if nd() > 1u {
-            let dfy = flux[f1 + o] - flux[f1 + o - sy];
+            var dfy = flux[f1 + fo] - flux[f1 + fo - sy];
+            if alpha {
+                dfy -= u * (flux[f1 + uo] - flux[f1 + uo - sy]);
+            }
             res -= dfy * idx(1u);
         }
         if nd() > 2u {
-            let dfz = flux[f2 + o] - flux[f2 + o - sz];
+            var dfz = flux[f2 + fo] - flux[f2 + fo - sz];
+            if alpha {
+                dfz -= u * (flux[f2 + uo] - flux[f2 + uo - sz]);
+            }
             res -= dfz * idx(2u);
         }
-        let u = cons[o];
         if stg.s == 0u {
             cons0[o] = u;
         }
         let u0 = cons0[o];
-        cons[o] = stg.a * u0 + stg.b * (u + dt * res);
+        var nu = stg.a * u0 + stg.b * (u + dt * res);
+        if alpha {
+            if nu < real(0.0) {
+                nu = real(0.0);
+            }
+            if nu > real(1.0) {
+                nu = real(1.0);
+            }
+        }
+        cons[o] = nu;
     }
 }
 
@@ -515,7 +785,7 @@ fn update(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
 // gas and counts zero. Pairing the two sides keeps a periodic direction's impulse exactly
 // zero, as on the CPU (its two faces carry the same flux).
 fn boundary_term(f: u32, c: u32) -> real {
-    let v = 1u + c;
+    let v = NM + c;
     var t = f;
     for (var d = 0u; d < nd(); d++) {
         var cnt: u32;
@@ -555,10 +825,10 @@ fn boundary_term(f: u32, c: u32) -> real {
         var x = real(0.0);
         var y = real(0.0);
         if !is_solid_cell(lo.z * mx() + lo.w) {
-            x = flux[fo + at(lo.x, v, lo.y)];
+            x = flux[fo + fat(lo.x, v, lo.y)];
         }
         if !is_solid_cell(hi.z * mx() + hi.w) {
-            y = flux[fo + at(hi.x, v, hi.y)];
+            y = flux[fo + fat(hi.x, v, hi.y)];
         }
         return area(d) * (x - y);
     }
@@ -668,17 +938,29 @@ fn row_totals(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
         if is_solid_cell(r * mx() + i) {
             continue;
         }
-        let ar = max(cons[at(r, 0u, i)], real(0.0));
-        let rho = real(0.0) + ar;
-        let m0 = cons[at(r, 1u, i)];
-        let m1 = cons[at(r, 2u, i)];
-        let m2 = cons[at(r, 3u, i)];
-        let e = cons[at(r, 4u, i)];
+        // diagnostics.rs cell_prim
+        var ar: array<real, NM>;
+        var al: array<real, NM>;
+        var rho = real(0.0);
+        for (var k = 0u; k < NM; k++) {
+            ar[k] = max(cons[at(r, k, i)], real(0.0));
+            rho += ar[k];
+        }
+        var sa = real(0.0);
+        for (var k = 0u; k + 1u < NM; k++) {
+            al[k] = cons[at(r, NM + 4u + k, i)];
+            sa += al[k];
+        }
+        al[NM - 1u] = real(1.0) - sa;
+        let m0 = cons[at(r, NM, i)];
+        let m1 = cons[at(r, NM + 1u, i)];
+        let m2 = cons[at(r, NM + 2u, i)];
+        let e = cons[at(r, NM + 3u, i)];
         let v0 = m0 / rho;
         let v1 = m1 / rho;
         let v2 = m2 / rho;
         let rhoe = e - real(0.5) * rho * (v0 * v0 + v1 * v1 + v2 * v2);
-        let p = (rhoe - real(1.0) * off()) / inv_g();
+        let p = mix_pressure(ar, al, rhoe);
         let ke = real(0.5) * rho * (v0 * v0 + v1 * v1 + v2 * v2);
         mass += rho * vol;
         mom[0] += m0 * vol;

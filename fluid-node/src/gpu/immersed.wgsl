@@ -63,7 +63,10 @@ fn im_fill(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroup
     let b = cbase(im_cell(ci));
     let nb = im_nbc(ci);
     if nb > 0u {
-        var acc = array<real, 5>(real(0.0), real(0.0), real(0.0), real(0.0), real(0.0));
+        var acc: array<real, NV>;
+        for (var v = 0u; v < NV; v++) {
+            acc[v] = real(0.0);
+        }
         var cnt = real(0.0);
         for (var k = 0u; k < nb; k++) {
             let o = cbase(im_nb(ci, k));
@@ -78,7 +81,7 @@ fn im_fill(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroup
     }
     let vo = r_vel() + 3u * ci;
     for (var d = 0u; d < 3u; d++) {
-        prim[b + (1u + d) * w] = imr[vo + d];
+        prim[b + (NM + d) * w] = imr[vo + d];
     }
 }
 
@@ -96,7 +99,7 @@ fn im_wall(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroup
     let gci = im_wall_u(wi, 5u);
     let w = mx();
     let bg = cbase(gas);
-    var q: array<real, 5>;
+    var q: array<real, NV>;
     for (var v = 0u; v < NV; v++) {
         q[v] = prim[bg + v * w];
     }
@@ -105,22 +108,21 @@ fn im_wall(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroup
         wall = imr[r_vel() + 3u * gci + d];
     }
     var mq = q;
-    mq[1u + d] = real(2.0) * wall - q[1u + d];
+    mq[NM + d] = real(2.0) * wall - q[NM + d];
     let fa = face(q);
     let fb = face(mq);
-    var fl: array<real, 5>;
-    if fa.ok && fb.ok && q[0] >= real(0.0) && mq[0] >= real(0.0) {
+    var fl: array<real, NF>;
+    if fa.ok && fb.ok {
         if gas_left {
             fl = hllc(fa, fb, d);
         } else {
             fl = hllc(fb, fa, d);
         }
     } else {
-        let nan = inf() - inf();
-        fl = array<real, 5>(nan, nan, nan, nan, nan);
+        fl = nan_flux();
     }
-    let fo = d * fsize() + cbase(left);
-    for (var v = 0u; v < NV; v++) {
+    let fo = d * fsize() + fat(left / w, 0u, left % w);
+    for (var v = 0u; v < NF; v++) {
         flux[fo + v * w] = fl[v];
     }
     var sign = real(-1.0);
@@ -131,9 +133,13 @@ fn im_wall(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroup
     let ar = area(d);
     let jo = r_wj() + 3u * wi;
     for (var c = 0u; c < 3u; c++) {
-        imr[jo + c] = sign * fl[1u + c] * ar * dtw;
+        imr[jo + c] = sign * fl[NM + c] * ar * dtw;
     }
-    imr[r_wm() + wi] = sign * fl[0] * ar * dtw;
+    var mflux = real(0.0);
+    for (var k = 0u; k < NM; k++) {
+        mflux += fl[k];
+    }
+    imr[r_wm() + wi] = sign * mflux * ar * dtw;
 }
 
 // immersed.rs project (and project_cell), one occupied cell per thread
@@ -164,8 +170,11 @@ fn im_project(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
         let vo = r_vel() + 3u * ci;
         let vel = array<real, 3>(imr[vo], imr[vo + 1u], imr[vo + 2u]);
         let vol = cell_volume();
-        let rho = real(0.0) + cons[b];
-        let m = array<real, 3>(cons[b + w], cons[b + 2u * w], cons[b + 3u * w]);
+        var rho = real(0.0);
+        for (var k = 0u; k < NM; k++) {
+            rho += cons[b + k * w];
+        }
+        let m = array<real, 3>(cons[b + NM * w], cons[b + (NM + 1u) * w], cons[b + (NM + 2u) * w]);
         let ke_old = real(0.5) * (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) / rho;
         let ke_new = real(0.5) * rho * (vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]);
         let ro = r_rem() + 3u * ci;
@@ -173,11 +182,11 @@ fn im_project(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
         for (var c = 0u; c < 3u; c++) {
             let mn = rho * vel[c];
             let removed = vol * (m[c] - mn);
-            cons[b + (1u + c) * w] = mn;
+            cons[b + (NM + c) * w] = mn;
             imr[ro + c] = removed;
             imp[c] += share * removed;
         }
-        cons[b + 4u * w] += ke_new - ke_old;
+        cons[b + (NM + 3u) * w] += ke_new - ke_old;
     }
     for (var c = 0u; c < 3u; c++) {
         imr[io + c] = imp[c];
@@ -215,7 +224,7 @@ fn im_total() {
     imr[3] = wm;
 }
 
-// the conserved state of the listed cells into the exchange area (5 reals per cell)
+// the conserved state of the listed cells into the exchange area (NV reals per cell)
 @compute @workgroup_size(WG)
 fn im_gather(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let k = lin(gid, nwg, WG);

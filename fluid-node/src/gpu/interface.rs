@@ -41,6 +41,8 @@ pub(super) struct ImDevice {
     /// Cells of the grid (ghosts included) and the solid mask as on the device.
     gcells: usize,
     mask: Vec<u32>,
+    /// Conserved values per cell (2·NM + 3).
+    nv: usize,
     /// Occupied cells, wall faces of the current window.
     pub ncells: u32,
     pub nwalls: u32,
@@ -78,9 +80,10 @@ fn bind(
     })
 }
 
-/// Offsets of the tables for `nc` occupied cells, `nw` wall faces, `nx` exchanged cells:
-/// (u32 header words 4..=11, real offsets in words 12..=17, u32 words, reals).
-fn plan(gcells: usize, nc: usize, nw: usize, nx: usize) -> ([usize; 14], usize, usize) {
+/// Offsets of the tables for `nc` occupied cells, `nw` wall faces, `nx` exchanged cells of
+/// `nv` conserved values: (u32 header words 4..=11, real offsets in words 12..=17, u32
+/// words, reals).
+fn plan(gcells: usize, nc: usize, nw: usize, nx: usize, nv: usize) -> ([usize; 14], usize, usize) {
     let mut o = [0usize; 14];
     let mut u = HDR + gcells;
     // cells, kind, count, wall offsets (nc + 1), neighbour counts, neighbours (6 each),
@@ -92,7 +95,7 @@ fn plan(gcells: usize, nc: usize, nw: usize, nx: usize) -> ([usize; 14], usize, 
     }
     let mut r = RHDR;
     // impulses, velocities, wall momenta, wall masses, removed momenta, exchange values
-    let sizes_r = [3 * nc, 3 * nc, 3 * nw, nw, 3 * nc, 5 * nx];
+    let sizes_r = [3 * nc, 3 * nc, 3 * nw, nw, 3 * nc, nv * nx];
     for (k, s) in sizes_r.iter().enumerate() {
         o[8 + k] = r;
         r += s;
@@ -136,6 +139,7 @@ impl ImDevice {
         scatter: wgpu::ComputePipeline,
         im: &Immersed,
         gcells: usize,
+        nv: usize,
     ) -> ImDevice {
         let p = ctx.precision;
         let cap_u = HDR + gcells + 64;
@@ -164,6 +168,7 @@ impl ImDevice {
             bind,
             gcells,
             mask,
+            nv,
             ncells: 0,
             nwalls: 0,
             xcells: Vec::new(),
@@ -252,7 +257,7 @@ impl ImDevice {
         let nc = newc.len();
         let nw_cap = 2 * grid.nd * nc;
         let nx = touched.len();
-        let (o, nu, nr) = plan(self.gcells, nc, nw_cap, nx);
+        let (o, nu, nr) = plan(self.gcells, nc, nw_cap, nx, self.nv);
         self.reserve(ctx, nu, nr);
         self.xcells.clear();
         self.xcells.extend(touched.iter().map(|&c| c as u32));
@@ -271,15 +276,15 @@ impl ImDevice {
             let b = ctx.read(
                 &self.imr,
                 (o[13] * p.bytes()) as u64,
-                (5 * nx * p.bytes()) as u64,
+                (nv * nx * p.bytes()) as u64,
             )?;
             self.tab_r.clear();
-            self.tab_r.resize(5 * nx, 0.0);
+            self.tab_r.resize(nv * nx, 0.0);
             bytes_to_reals(p, &b, &mut self.tab_r)?;
             for (k, &c) in touched.iter().enumerate() {
                 let (r, i) = (c / mx, c % mx);
                 for v in 0..nv {
-                    f.cons[(r * nv + v) * mx + i] = self.tab_r[5 * k + v];
+                    f.cons[(r * nv + v) * mx + i] = self.tab_r[nv * k + v];
                 }
             }
         }
@@ -364,7 +369,7 @@ impl ImDevice {
         for (k, &c) in touched.iter().enumerate() {
             let (r, i) = (c / mx, c % mx);
             for v in 0..nv {
-                tr[o[13] + 5 * k + v] = f.cons[(r * nv + v) * mx + i];
+                tr[o[13] + nv * k + v] = f.cons[(r * nv + v) * mx + i];
             }
         }
         ctx.upload(&self.imu, 0, u32_bytes(&tu[..HDR]));

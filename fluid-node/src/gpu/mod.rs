@@ -6,10 +6,12 @@
 //! operation by operation. Only a few control words cross to the host per batch of steps;
 //! the field crosses only when [`GpuEuler::download`] asks for it.
 //!
-//! Scope: one ideal or stiffened-gas material (air, water), 1-D, 2-D or 3-D, every boundary kind (wall, symmetry,
-//! outflow, periodic, inflow), with or without an immersed particle interface (its kernels in
-//! `immersed.wgsl`, its per-window host work in [`interface`]). Multi-material and JWL
-//! models are refused with an error that names the reason.
+//! Scope: the five-equation model with one to four materials, each an ideal gas, a
+//! stiffened gas or JWL detonation products (air, water, explosive products), 1-D, 2-D or
+//! 3-D, every boundary kind (wall, symmetry, outflow, periodic, inflow), with or without an
+//! immersed particle interface (its kernels in `immersed.wgsl`, its per-window host work in
+//! [`interface`]). What the kernels do not implement (radial grids, non-reflecting sides, a
+//! conservative refill, edge lines) is refused with an error that names the reason.
 
 use crate::boundary::Boundary;
 use crate::diagnostics::Totals;
@@ -17,6 +19,7 @@ use crate::eos::Material;
 use crate::grid::Grid;
 use crate::immersed::Immersed;
 use crate::limiter::Limiter;
+use crate::mixture::Phase;
 use crate::model::Fluid;
 use crate::step::{RK3, RK3_FLUX_WEIGHT, RK3_PROJECTION_WEIGHT};
 use mechanics::gpu::{
@@ -98,20 +101,24 @@ pub fn supports(f: &Fluid) -> Result<(), String> {
             f.grid.geometry.name()
         ));
     }
-    if f.nmat() != 1 {
+    if !(1..=MAX_MATERIALS).contains(&f.nmat()) {
         return Err(format!(
-            "{} materials (the device kernels are single-material)",
+            "{} materials (the device kernels take 1 to {MAX_MATERIALS})",
             f.nmat()
         ));
     }
-    if eos_constants(&f.phases[0].eos).is_none() {
+    if f.nv != 2 * f.nmat() + 3 {
         return Err(format!(
-            "material '{}' with a JWL equation of state (the device kernels take one ideal or stiffened gas)",
-            f.material_names[0]
+            "{} variables per cell (expected {})",
+            f.nv,
+            2 * f.nmat() + 3
         ));
     }
-    if f.nv != 5 {
-        return Err(format!("{} variables per cell (expected 5)", f.nv));
+    if !f.edges.is_empty() {
+        return Err(
+            "edge lines (`edges`: the device path does not read their cells back each window)"
+                .into(),
+        );
     }
     if f.bc
         .iter()
@@ -126,13 +133,74 @@ pub fn supports(f: &Fluid) -> Result<(), String> {
     Ok(())
 }
 
-/// (γ, p∞) of an equation of state the device kernels implement: ideal gas (p∞ = 0) or
-/// stiffened gas, ρc² = γ (p + p∞) (`None`: JWL).
-fn eos_constants(m: &Material) -> Option<(f64, f64)> {
-    match m {
-        Material::Ideal(g) => Some((g.gamma, 0.0)),
-        Material::Stiffened(s) => Some((s.gamma, s.p_inf)),
-        _ => None,
+/// Most materials the device kernels take (the CPU's limit too).
+const MAX_MATERIALS: usize = 4;
+/// First real parameter of the materials' constants, and reals per material (`euler.wgsl`
+/// `MAT0`, `MAT`); the inflow states follow the last material's slot.
+const MAT0: usize = 50;
+const MAT: usize = 12;
+
+/// The constants of material `ph` as `euler.wgsl` reads them: 1/Γ, the offset −p_ref/Γ of a
+/// constant-reference phase, Γ, γ and p∞ of an ideal or stiffened gas (ρc² = γ (p + p∞);
+/// p∞ = 0 for an ideal gas), and JWL's ρ0, A, B, R1, R2, ω; and whether it is JWL.
+fn material_constants(ph: &Phase) -> ([f64; MAT], bool) {
+    use crate::eos::Eos;
+    let mut c = [0.0; MAT];
+    c[0] = ph.inv_g;
+    c[1] = ph.off;
+    c[2] = ph.eos.gruneisen();
+    match &ph.eos {
+        Material::Ideal(g) => {
+            c[3] = g.gamma;
+            (c, false)
+        }
+        Material::Stiffened(s) => {
+            c[3] = s.gamma;
+            c[4] = s.p_inf;
+            (c, false)
+        }
+        Material::Jwl(j) => {
+            c[5..11].copy_from_slice(&[j.rho0, j.a, j.b, j.r1, j.r2, j.omega]);
+            (c, true)
+        }
+    }
+}
+
+/// The exponential of the JWL reference curve in the shader's precision. WGSL's `exp` is
+/// f32 only (Vulkan has no f64 exponential), so the f64 kernels compute e^x = 2^k e^r with
+/// r = x − k ln 2 (ln 2 in two parts, exact products for |k| < 2048), e^r by its Taylor
+/// series to r^15 in Horner form (|r| ≤ ½ ln 2: a truncation near 1e-19 relative) and 2^k
+/// exactly by `ldexp`: within a few units in the last place of the CPU's `exp`.
+fn exp_source(p: Precision) -> &'static str {
+    match p {
+        Precision::F32 => "fn rexp(x: real) -> real { return exp(x); }\n",
+        Precision::F64 => {
+            "fn rexp(x: real) -> real {
+    if x < real(-746.0) {
+        return real(0.0);
+    }
+    let k = floor(x * real(1.4426950408889634) + real(0.5));
+    let r = (x - k * real(6.93147180369123816490e-01)) - k * real(1.90821492927058770002e-10);
+    var e = real(7.647163731819816e-13);
+    e = e * r + real(1.1470745597729725e-11);
+    e = e * r + real(1.6059043836821613e-10);
+    e = e * r + real(2.08767569878681e-09);
+    e = e * r + real(2.505210838544172e-08);
+    e = e * r + real(2.755731922398589e-07);
+    e = e * r + real(2.7557319223985893e-06);
+    e = e * r + real(2.48015873015873e-05);
+    e = e * r + real(0.0001984126984126984);
+    e = e * r + real(0.001388888888888889);
+    e = e * r + real(0.008333333333333333);
+    e = e * r + real(0.041666666666666664);
+    e = e * r + real(0.16666666666666666);
+    e = e * r + real(0.5);
+    e = e * r + real(1.0);
+    e = e * r + real(1.0);
+    return ldexp(e, i32(k));
+}
+"
+        }
     }
 }
 
@@ -278,14 +346,15 @@ pub struct GpuEuler {
     red: wgpu::Buffer,
     st: wgpu::Buffer,
     staging: wgpu::Buffer,
-    /// Values per state array (rows · 5 · mx, the CPU layout).
+    /// Values per state array (rows · nv · mx, the CPU layout).
     len: usize,
+    /// Conserved values per cell (2·NM + 3).
+    nv: usize,
     /// Row length (cells per x-line with ghosts).
     mx: usize,
     grid: Grid,
-    /// 1/Γ and the EOS offset of the gas (for error messages).
-    inv_g: f64,
-    off: f64,
+    /// The materials (for probes and error messages).
+    phases: Vec<Phase>,
     nd: usize,
     /// Thread counts of each kernel.
     cells: u32,
@@ -326,11 +395,15 @@ impl GpuEuler {
         let grid = &f.grid;
         let p = ctx.precision;
         let mx = grid.mx();
-        let len = grid.rows() * 5 * mx;
+        let nm = f.nmat();
+        let nv = f.nv;
+        // flux entries per face: the face velocity too with several materials
+        let nf = if nm == 1 { nv } else { nv + 1 };
+        let len = grid.rows() * nv * mx;
         let rb = p.bytes();
         let max_bind = ctx.limits.max_storage_buffer_binding_size;
         // one flux array per direction (row_totals also uses it as scratch: 10 reals a row)
-        let flux_len = (grid.nd * len).max(10 * grid.rows());
+        let flux_len = (grid.nd * grid.rows() * nf * mx).max(10 * grid.rows());
         if (flux_len * rb) as u64 > max_bind {
             return Err(GpuSetupError::Unsupported(format!(
                 "{:?} cells: the flux array needs {} bytes, more than the adapter's {} per binding",
@@ -345,13 +418,10 @@ impl GpuEuler {
                 grid.n
             )));
         }
-        let Some((gamma, p_inf)) = eos_constants(&f.phases[0].eos) else {
-            return Err(GpuSetupError::Unsupported("a JWL material".into()));
-        };
         let cells = grid.cells() as u32;
         let nparts = cells.div_ceil(RWG);
         let max_wg = ctx.limits.max_compute_workgroups_per_dimension;
-        let fsize = (grid.rows() * 5 * mx) as u32;
+        let fsize = (grid.rows() * nf * mx) as u32;
         // u32 parameters, 8 rows of 4
         let mut pu = [0u32; 32];
         for d in 0..3 {
@@ -386,11 +456,11 @@ impl GpuEuler {
                 f32::MIN_POSITIVE as f64,
             ),
         };
-        let ph = &f.phases[0];
+        // 0..3 are free (the materials' constants follow at MAT0)
         let mut prs = vec![
-            gamma,
-            ph.inv_g,
-            ph.off,
+            0.0,
+            0.0,
+            0.0,
             f.cfl,
             inf,
             maxr,
@@ -403,21 +473,33 @@ impl GpuEuler {
             grid.face_area(1),
             grid.face_area(2),
         ];
-        let inflow_at = prs.len();
-        for d in 0..3 {
-            for s in 0..2 {
-                match &f.bc[d][s] {
-                    Boundary::Inflow(q) if q.len() >= 5 => prs.extend_from_slice(&q[..5]),
-                    _ => prs.extend_from_slice(&[0.0; 5]),
-                }
-            }
-        }
-        debug_assert_eq!(inflow_at, 14);
+        // 14..44 are free
+        prs.resize(44, 0.0);
         prs.push(grid.cell_volume());
         // 45..48: projection weights of the RK stages (seed 002 eq. 35)
         prs.extend_from_slice(&RK3_PROJECTION_WEIGHT);
-        // 48: p∞ of a stiffened gas (0: ideal)
-        prs.push(p_inf);
+        // the materials' constants from MAT0, a bit per JWL material
+        prs.resize(MAT0, 0.0);
+        let mut jwl = 0u32;
+        for k in 0..MAX_MATERIALS {
+            match f.phases.get(k) {
+                Some(ph) => {
+                    let (c, is_jwl) = material_constants(ph);
+                    prs.extend_from_slice(&c);
+                    jwl |= u32::from(is_jwl) << k;
+                }
+                None => prs.extend_from_slice(&[0.0; MAT]),
+            }
+        }
+        // the inflow states (nv primitives per side)
+        for d in 0..3 {
+            for s in 0..2 {
+                match &f.bc[d][s] {
+                    Boundary::Inflow(q) if q.len() >= nv => prs.extend_from_slice(&q[..nv]),
+                    _ => prs.extend(std::iter::repeat_n(0.0, nv)),
+                }
+            }
+        }
         // stage uniforms at aligned offsets
         let align = ctx.limits.min_uniform_buffer_offset_alignment.max(32) as usize;
         let mut stage_bytes = vec![0u8; 3 * align];
@@ -441,10 +523,13 @@ impl GpuEuler {
             )));
         }
         let head = format!(
-            "alias real = {};\nconst LIMITER: u32 = {}u;\nconst ND: u32 = {}u;\n",
+            "alias real = {};\nconst LIMITER: u32 = {}u;\nconst ND: u32 = {}u;\n\
+             const NM: u32 = {nm}u;\nconst NV: u32 = {nv}u;\nconst NF: u32 = {nf}u;\n\
+             const JWL: u32 = {jwl}u;\n{}",
             p.wgsl(),
             pu[7],
-            grid.nd
+            grid.nd,
+            exp_source(p)
         );
         let src = if immersed {
             format!("{head}{SHADER}\n{IMMERSED_SHADER}")
@@ -561,9 +646,9 @@ impl GpuEuler {
         let n = grid.n;
         let g = grid.g;
         let ghost_n = [
-            (n[1] * n[2] * 2 * g[0] * 5) as u32,
-            (n[2] * 2 * g[1] * 5 * mx) as u32,
-            (grid.m[1] * 2 * g[2] * 5 * mx) as u32,
+            (n[1] * n[2] * 2 * g[0] * nv) as u32,
+            (n[2] * 2 * g[1] * nv * mx) as u32,
+            (grid.m[1] * 2 * g[2] * nv * mx) as u32,
         ];
         let face_n: [u32; 3] = std::array::from_fn(|d| {
             let mut c = n;
@@ -582,10 +667,10 @@ impl GpuEuler {
             st,
             staging,
             len,
+            nv,
             mx,
             grid: grid.clone(),
-            inv_g: f.phases[0].inv_g,
-            off: f.phases[0].off,
+            phases: f.phases.clone(),
             nd: grid.nd,
             cells,
             ghost_n,
@@ -611,6 +696,7 @@ impl GpuEuler {
                         scatter,
                         im,
                         grid.rows() * mx,
+                        nv,
                     ))
                 }
                 _ => None,
@@ -841,20 +927,18 @@ impl GpuEuler {
                     "cell (row {r}, x index {i}) is outside the device grid"
                 )));
             }
-            // the 5 values of a cell are mx apart: read the span and pick them
-            let first = (r * 5 * mx + i) * p.bytes();
-            let span = (4 * mx + 1) * p.bytes();
+            // the nv values of a cell are mx apart: read the span and pick them
+            let nv = self.nv;
+            let first = (r * nv * mx + i) * p.bytes();
+            let span = ((nv - 1) * mx + 1) * p.bytes();
             let b = self
                 .ctx
                 .read(&self.cons, first as u64, span as u64)
                 .map_err(gpu_err)?;
-            let mut vals = vec![0.0; 4 * mx + 1];
+            let mut vals = vec![0.0; (nv - 1) * mx + 1];
             bytes_to_reals(p, &b, &mut vals).map_err(gpu_err)?;
-            let c: [f64; 5] = std::array::from_fn(|v| vals[v * mx]);
-            let rho = 0.0 + c[0].max(0.0);
-            let vel = [c[1] / rho, c[2] / rho, c[3] / rho];
-            let rhoe = c[4] - 0.5 * rho * (vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]);
-            let pr = (rhoe - 1.0 * self.off) / self.inv_g;
+            let c: Vec<f64> = (0..nv).map(|v| vals[v * mx]).collect();
+            let (rho, vel, pr, _) = crate::diagnostics::cell_prim_of(&self.phases, &c);
             out.push([rho, pr, vel[0], vel[1], vel[2]]);
         }
         Ok(out)
@@ -1021,15 +1105,18 @@ impl GpuEuler {
         let rb = self.ctx.precision.bytes() as u64;
         let cells = self.cells as u64;
         let nd = self.nd as u64;
+        let nv = self.nv as u64;
+        let nf = if nv == 5 { nv } else { nv + 1 };
         let vals = match d.kernel {
-            // 5 conserved in, 5 primitives out
-            Kernel::PrimRate | Kernel::PrimOnly => 10 * cells,
+            // nv conserved in, nv primitives out
+            Kernel::PrimRate | Kernel::PrimOnly => 2 * nv * cells,
             // one value read and one written per thread
             Kernel::Ghost(g) => 2 * self.ghost_n[g] as u64,
-            // 5 primitives of each cell in, 5 fluxes of each face out
-            Kernel::Flux(f) => 5 * cells + 5 * self.face_n[f] as u64,
-            // fluxes in, U (and U0) in, U out (stage 0 writes U0 instead of reading it)
-            Kernel::Update => (5 * nd + 15) * cells,
+            // nv primitives of each cell in, nf fluxes of each face out
+            Kernel::Flux(f) => nv * cells + nf * self.face_n[f] as u64,
+            // fluxes in (with the face velocities for the volume fractions), U (and U0) in,
+            // U out (stage 0 writes U0 instead of reading it)
+            Kernel::Update => (nf * nd + 3 * nv) * cells,
             Kernel::Impulse => {
                 let faces: u64 = (0..self.nd)
                     .map(|a| 2 * self.face_n[a] as u64 / (self.grid.n[a] as u64 + 1))
@@ -1201,30 +1288,28 @@ impl GpuEuler {
         let p = self.ctx.precision;
         let mx = self.mx;
         let grid = &self.grid;
-        let (r, i) = (flat / (5 * mx), flat % (5 * mx));
-        let mut c = [f64::NAN; 5];
+        let nv = self.nv;
+        let (r, i) = (flat / (nv * mx), flat % (nv * mx));
+        let mut c = vec![f64::NAN; nv];
         if let Ok(b) = self.ctx.read(
             &self.cons,
-            (r * 5 * mx * p.bytes()) as u64,
-            (5 * mx * p.bytes()) as u64,
+            (r * nv * mx * p.bytes()) as u64,
+            (nv * mx * p.bytes()) as u64,
         ) {
-            let mut row = vec![0.0; 5 * mx];
+            let mut row = vec![0.0; nv * mx];
             if bytes_to_reals(p, &b, &mut row).is_ok() {
                 for (v, x) in c.iter_mut().enumerate() {
                     *x = row[v * mx + i];
                 }
             }
         }
-        // step.rs prim_row's diagnosis of the same conserved state
-        let (a, rho) = (c[0], 0.0 + c[0]);
-        let (var, val) = if !(a >= 0.0) || !(rho > 0.0) {
-            (0, rho)
-        } else {
-            let inv = 1.0 / rho;
-            let (u, v, w) = (c[1] * inv, c[2] * inv, c[3] * inv);
-            let rhoe = c[4] - 0.5 * rho * (u * u + v * v + w * w);
-            (4, (rhoe - 1.0 * self.off) / self.inv_g)
-        };
+        // step.rs prim_row's diagnosis of the same conserved state (the pressure where it
+        // finds nothing wrong: the device's arithmetic rejected a state at the edge)
+        let nm = self.phases.len();
+        let (var, val) = crate::step::diagnose(&self.phases, &c).unwrap_or_else(|| {
+            let (_, _, p, _) = crate::diagnostics::cell_prim_of(&self.phases, &c);
+            (nm + 3, p)
+        });
         let (j, k) = grid.jk(r);
         let x = grid.centre(i, j, k);
         SolverError::Diverged {
@@ -1237,7 +1322,7 @@ impl GpuEuler {
                 x[0],
                 x[1],
                 x[2],
-                crate::step::prim_name(1, var),
+                crate::step::prim_name(nm, var),
                 stage + 1
             ),
         }
