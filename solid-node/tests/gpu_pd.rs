@@ -123,6 +123,24 @@ fn compare(
         .zip(&coef)
         .all(|(&w, &c)| (w == 0.0) == (c == 0.0));
     assert!(same, "different bonds broke");
+    // the energy the broken bonds released, booked per particle on both paths
+    let released: f64 = gpu.released().expect("released").iter().sum();
+    let e = (released - cpu.model.fracture_energy()).abs();
+    assert!(
+        e <= 1e-10 * cpu.model.fracture_energy().abs(),
+        "released energy: GPU {released:e}, CPU {:e}",
+        cpu.model.fracture_energy()
+    );
+    if broken_cpu > 0 {
+        assert!(released > 0.0);
+        println!(
+            "  released energy: GPU {released:.6e} J, CPU {:.6e} J",
+            cpu.model.fracture_energy()
+        );
+    }
+    // the packed intact flags are the coefficients' (zero = broken)
+    let bits = gpu.intact_bits().expect("intact bits");
+    assert!((0..coef.len()).all(|b| solid_node::pd::gpu::bit(&bits, b) == (coef[b] != 0.0)));
     [
         max_rel(&out.pos, &cpu.pos, Some(&cpu.x0)),
         max_rel(&out.vel, &cpu.vel, None),

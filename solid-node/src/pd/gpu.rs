@@ -36,17 +36,20 @@ use std::sync::Arc;
 const WG: u32 = 64;
 /// Reals per particle in the particle buffer: pos, vel, force, fext, vpres (3 each), vol,
 /// the window accumulators (work 1, impulse 3), the displacement u and the reference
-/// position X (3 each), and the strain energy scratch of the `energy` kernel (1).
-const PV_REALS: usize = 27;
+/// position X (3 each), the strain energy scratch of the `energy` kernel (1), the energy
+/// released by the particle's row of broken bonds since the start (1, J; `pd-bond`) and the
+/// broken-bond scratch of the `energy` kernel (1).
+const PV_REALS: usize = 29;
 /// Reals per chunk of the `report` kernel (see the shader).
-const REPORT_REALS: usize = 12;
+const REPORT_REALS: usize = 14;
 
 /// Velocity Verlet of integrate.rs (`Body::step`) on the device, shared by both force models,
 /// and the window report. Each model's shader defines the layout of `pv` (pos 0, vel 3n,
 /// force 6n, fext 9n, vpres 12n, vol 15n, work 16n, impulse 17n, disp 20n, x0 23n, energy
-/// 26n), `iu` (prescribed flags first) and the accessors `n_pts`, `step_dt`, `half_dt`,
-/// `density`, `vm_at`, `eqp_at`, `energy_at` (the particle's strain energy, J) and `wp_at`
-/// (its plastic work since the start, J).
+/// 26n, released 27n, broken 28n), `iu` (prescribed flags first) and the accessors `n_pts`,
+/// `step_dt`, `half_dt`, `density`, `vm_at`, `eqp_at`, `energy_at` (the particle's strain
+/// energy, J), `wp_at` (its plastic work since the start, J) and `broken_at` (how many bonds
+/// of its row are broken).
 const INTEGRATE_SHADER: &str = r#"
 fn lin(gid: vec3<u32>, nwg: vec3<u32>) -> u32 { return gid.x + gid.y * nwg.x * 64u; }
 
@@ -97,15 +100,17 @@ fn kick_drift(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
 
 // The window report (per window only the interface arrays and reduced scalars cross
 // to the host). `energy`: one thread per particle writes its strain energy (`energy_at`, the
-// CPU model's per-particle term of `strain_energy`) to pv[26n + i]. `report`: one thread per
-// chunk of CHUNK particles sums, in index order, the node's report terms (solver.rs): kinetic
-// energy ½ρV|v|², momentum ρVv (3), gross momentum ρV|v|, Σ V u (3), the largest von Mises
-// stress and plastic strain (`vm_at`, `eqp_at`), the strain energy and the plastic work
-// into rg[NR c..NR c + NR]; the host adds the chunks in order. `gather`: for the
+// CPU model's per-particle term of `strain_energy`) to pv[26n + i] and its row's broken bonds
+// (`broken_at`) to pv[28n + i]. `report`: one thread per chunk of CHUNK particles sums, in
+// index order, the node's report terms (solver.rs): kinetic energy ½ρV|v|², momentum ρVv (3),
+// gross momentum ρV|v|, Σ V u (3), the largest von Mises stress and plastic strain (`vm_at`,
+// `eqp_at`), the strain energy, the plastic work, the energy released by broken bonds
+// (pv[27n + i]) and the broken bonds into rg[NR c..NR c + NR]; the host adds the chunks in
+// order. `gather`: for the
 // listed particles gi[1..=gi[0]], position, velocity, external work and internal impulse (10
 // reals each) after the chunk sums. All are deterministic.
 const CHUNK: u32 = 256u;
-const NR: u32 = 12u;
+const NR: u32 = 14u;
 
 @compute @workgroup_size(64)
 fn energy(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
@@ -113,6 +118,7 @@ fn energy(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
     let n = n_pts();
     if i >= n { return; }
     pv[26u * n + i] = energy_at(i);
+    pv[28u * n + i] = broken_at(i);
 }
 
 @compute @workgroup_size(64)
@@ -140,6 +146,8 @@ fn report(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
         s[9] = max(s[9], eqp_at(i));
         s[10] += pv[26u * n + i];
         s[11] += wp_at(i);
+        s[12] += pv[27u * n + i];
+        s[13] += pv[28u * n + i];
     }
     for (var k = 0u; k < NR; k++) { rg[NR * c + k] = s[k]; }
 }
@@ -174,21 +182,47 @@ const SHADER: &str = r#"
 struct P { n: u32, nb: u32, pad0: u32, pad1: u32, dt: real, half_dt: real, rho: real, bf: real }
 @group(0) @binding(0) var<uniform> pp: P;
 // pos 0, vel 3n, force 6n, fext 9n, vpres 12n, vol 15n, work 16n, impulse 17n, disp 20n,
-// x0 23n, energy 26n
+// x0 23n, energy 26n, released 27n, broken 28n
 @group(0) @binding(1) var<storage, read_write> pv: array<real>;
 // prescribed 0, offsets n, nbr 2n+1
 @group(0) @binding(2) var<storage, read> iu: array<u32>;
-// inv_len 0, coef nb (ξ is formed from x0, as on the CPU)
+// inv_len 0, coef nb (ξ is formed from x0, as on the CPU; coef 0 = broken, the bond's
+// intact flag, as in bond.rs's BondModel)
 @group(0) @binding(3) var<storage, read_write> bd: array<real>;
 // window report: chunk sums, then the gathered particles (see `report`, `gather`)
 @group(0) @binding(4) var<storage, read_write> rg: array<real>;
 // gathered particles: count, then indices
 @group(0) @binding(5) var<storage, read> gi: array<u32>;
+// the intact flags packed 32 bonds a word (bit k of word w: bond 32w + k), see `pack_intact`
+@group(0) @binding(6) var<storage, read_write> ib: array<u32>;
 
 fn n_pts() -> u32 { return pp.n; }
 fn vm_at(i: u32) -> real { return real(0.0); }
 fn eqp_at(i: u32) -> real { return real(0.0); }
 fn wp_at(i: u32) -> real { return real(0.0); }
+
+// the broken bonds (coefficient 0) of row i
+fn broken_at(i: u32) -> real {
+    var c = 0u;
+    for (var b = iu[pp.n + i]; b < iu[pp.n + i + 1u]; b++) {
+        if bd[pp.nb + b] == real(0.0) { c++; }
+    }
+    return real(c);
+}
+
+// The intact flags for the host (fragments, damage index, checkpoints): one thread per word
+// of 32 bonds, bit set while the bond's coefficient is non-zero.
+@compute @workgroup_size(64)
+fn pack_intact(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let w = lin(gid, nwg);
+    if w >= (pp.nb + 31u) / 32u { return; }
+    var bits = 0u;
+    for (var k = 0u; k < 32u; k++) {
+        let b = 32u * w + k;
+        if b < pp.nb && bd[pp.nb + b] != real(0.0) { bits |= 1u << k; }
+    }
+    ib[w] = bits;
+}
 
 // bond.rs strain_energy() at particle i: Σ_j ¼ c_b s² |ξ| V_i over the row's unbroken bonds in
 // row order (`bond_energy_share`: row i's half of the micro-potential ½ c_b s² |ξ| V_i V_j,
@@ -230,7 +264,11 @@ fn density() -> real { return pp.rho; }
 
 // bond.rs row_force_body(): f_i = Σ_j c_ij s/|y| y (summed in bond.rs's lane order), breaking bonds with |y|²/|ξ|² > (1 + s0)² first
 // (pp.bf = (1 + s0)², negative without damage); s = η·(2ξ + η) / (|ξ|(|y| + |ξ|)) from
-// η = u_j − u_i, and s/|y| = t/(|y|² il + |y|) with t = η·(2ξ + η) il²
+// η = u_j − u_i, and s/|y| = t/(|y|² il + |y|) with t = η·(2ξ + η) il². A bond that breaks
+// releases its row's share of its micro-potential at the stretch it broke at into pv[27n + i],
+// as bond.rs release() books it in the same step (bond_energy_share: ¼ c_b s² |ξ| V_i, c_b
+// the coefficient before it was zeroed, s = t/(1 + |y| il) as stretch_over_len() forms it),
+// added in row order.
 @compute @workgroup_size(64)
 fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let i = lin(gid, nwg);
@@ -269,6 +307,8 @@ fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
         let il = bd[b];
         if pp.bf >= real(0.0) && q * il * il > pp.bf {
             bd[pp.nb + b] = real(0.0);
+            let sb = num * il * il / (real(1.0) + sqrt(q) * il);
+            pv[27u * n + i] += real(0.25) * cb * sb * sb / il * pv[15u * n + i];
             continue;
         }
         let ly = sqrt(q);
@@ -303,6 +343,9 @@ pub struct GpuBondBody {
     pub core: Core,
     /// kick + drift, force, kick: one velocity-Verlet step.
     pipes: [wgpu::ComputePipeline; 3],
+    /// `pack_intact` and its output, the intact flags 32 bonds a word.
+    pack: wgpu::ComputePipeline,
+    ib: wgpu::Buffer,
     params: wgpu::Buffer,
     bd: wgpu::Buffer,
     nb: usize,
@@ -364,14 +407,17 @@ impl GpuBondBody {
             )));
         }
         let (gi, rg_len) = gather_list(n, gather)?;
-        let (pipes, bind, params, pv, bd, report) =
+        let words = nb.div_ceil(32).max(1);
+        let (pipes, pack, ib, bind, params, pv, bd, report) =
             ctx.checked("building the pd-bond pipelines", || {
                 use mechanics::gpu::BufferBinding::{Read, ReadWrite, Uniform};
                 let layout = ctx.bind_layout(
                     "pd",
-                    &[Uniform, ReadWrite, Read, ReadWrite, ReadWrite, Read],
+                    &[
+                        Uniform, ReadWrite, Read, ReadWrite, ReadWrite, Read, ReadWrite,
+                    ],
                 );
-                let [kd, ko, fo, rp, ga, en]: [wgpu::ComputePipeline; 6] = ctx
+                let [kd, ko, fo, rp, ga, en, pk]: [wgpu::ComputePipeline; 7] = ctx
                     .pipelines(
                         "pd",
                         &[Some(&layout)],
@@ -383,10 +429,11 @@ impl GpuBondBody {
                             "report",
                             "gather",
                             "energy",
+                            "pack_intact",
                         ],
                     )
                     .try_into()
-                    .unwrap_or_else(|_| unreachable!("six entry points, six pipelines"));
+                    .unwrap_or_else(|_| unreachable!("seven entry points, seven pipelines"));
                 let rg = ctx.storage("pd report", rg_len * rb);
                 let gib = ctx.storage_init("pd gather list", mechanics::gpu::u32_bytes(&gi));
                 let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -398,7 +445,8 @@ impl GpuBondBody {
                 let pv = ctx.storage_init("pd particles", &reals_to_bytes(p, &reals));
                 let iu = ctx.storage_init("pd ints", mechanics::gpu::u32_bytes(&ints));
                 let bd = ctx.storage_init("pd bonds", &reals_to_bytes(p, &breal));
-                let bind = ctx.bind_group("pd", &layout, &[&params, &pv, &iu, &bd, &rg, &gib]);
+                let ib = ctx.storage("pd intact bits", 4 * words);
+                let bind = ctx.bind_group("pd", &layout, &[&params, &pv, &iu, &bd, &rg, &gib, &ib]);
                 let report = Report {
                     energy: en,
                     report: rp,
@@ -407,11 +455,13 @@ impl GpuBondBody {
                     n,
                     m: gather.len(),
                 };
-                ([kd, fo, ko], bind, params, pv, bd, report)
+                ([kd, fo, ko], pk, ib, bind, params, pv, bd, report)
             })?;
         let gpu = GpuBondBody {
             core: Core::new(ctx, report, bind, pv, body),
             pipes,
+            pack,
+            ib,
             params,
             bd,
             nb,
@@ -456,6 +506,67 @@ impl GpuBondBody {
         }
         Ok(())
     }
+
+    /// The intact flags, 32 bonds a word (bit k of word w: bond 32w + k, set while the bond
+    /// is intact), packed on the device: nb/8 bytes cross instead of the coefficients' 8 nb.
+    pub fn intact_bits(&self) -> Result<Vec<u32>, GpuError> {
+        let c = &self.core;
+        let words = self.nb.div_ceil(32);
+        if words == 0 {
+            return Ok(Vec::new());
+        }
+        let mut enc = c.ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_bind_group(0, &c.bind, &[]);
+            pass.set_pipeline(&self.pack);
+            let (x, y) = dispatch_dims((words as u32).div_ceil(WG), c.max_wg);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        c.ctx.checked("packing the pd-bond intact flags", || {
+            c.ctx.queue.submit(Some(enc.finish()))
+        })?;
+        let b = c.ctx.read(&self.ib, 0, (4 * words) as u64)?;
+        Ok(b.chunks_exact(4)
+            .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+            .collect())
+    }
+
+    /// How many bonds (counted in both rows of each) the body has.
+    pub fn bonds(&self) -> usize {
+        self.nb
+    }
+
+    /// Per particle, the energy its row's broken bonds released since the start (J; each
+    /// bond's two rows carry half of it each, as bond.rs's `released`).
+    pub fn released(&self) -> Result<Vec<f64>, GpuError> {
+        let n = self.core.n;
+        read_reals(&self.core.ctx, &self.core.pv, 27 * n, n)
+    }
+
+    /// Sets the per-particle released energy (a restart: the model's checkpointed values).
+    pub fn set_released(&self, released: &[f64]) -> Result<(), GpuError> {
+        let c = &self.core;
+        if released.len() != c.n {
+            return Err(GpuError(format!(
+                "{} released energies for {} particles",
+                released.len(),
+                c.n
+            )));
+        }
+        let p = c.ctx.precision;
+        c.ctx.upload(
+            &c.pv,
+            (27 * c.n * p.bytes()) as u64,
+            &reals_to_bytes(p, released),
+        );
+        c.ctx.take_uncaptured("uploading the released bond energy")
+    }
+}
+
+/// Bit `b` of packed intact flags (see [`GpuBondBody::intact_bits`]).
+pub fn bit(bits: &[u32], b: usize) -> bool {
+    bits[b / 32] >> (b % 32) & 1 == 1
 }
 
 /// The particle buffer's reals (`PV_REALS` per particle) and the integer buffer (prescribed
@@ -471,7 +582,8 @@ fn particle_data(body: &Body) -> (Vec<f64>, Vec<u32>) {
     reals.resize(20 * n, 0.0);
     reals.extend_from_slice(flat(&body.disp));
     reals.extend_from_slice(flat(&body.x0));
-    // the strain energy scratch of the `energy` kernel
+    // the strain energy scratch of the `energy` kernel, the released energy (none yet; see
+    // `GpuBondBody::set_released`) and the broken-bond scratch
     reals.resize(PV_REALS * n, 0.0);
     let mut ints: Vec<u32> = body.prescribed.iter().map(|&x| x as u32).collect();
     ints.extend(body.bonds.offsets.iter().map(|&o| o as u32));
@@ -675,6 +787,12 @@ pub struct WindowReport {
     pub strain_energy: f64,
     /// Plastic work since the start (J), as the CPU model's `plastic_work`.
     pub plastic_work: f64,
+    /// Energy released by broken bonds since the start (J), as the CPU model's
+    /// `fracture_energy` (`pd-bond`; 0 otherwise).
+    pub released: f64,
+    /// Broken bonds, counted in both rows of each (`pd-bond`; 0 otherwise): when it
+    /// changes, the intact flags cross to the host.
+    pub broken: f64,
     /// Per gathered particle: position, velocity, work of the external force, internal-force
     /// impulse over the window.
     pub pos: Vec<[f64; 3]>,
@@ -730,6 +848,8 @@ impl Report {
             r.max_plastic_strain = r.max_plastic_strain.max(c[9]);
             r.strain_energy += c[10];
             r.plastic_work += c[11];
+            r.released += c[12];
+            r.broken += c[13];
         }
         for g in all[REPORT_REALS * nch..].chunks_exact(10) {
             r.pos.push([g[0], g[1], g[2]]);
@@ -779,6 +899,8 @@ fn vm_at(i: u32) -> real {
 }
 fn eqp_at(i: u32) -> real { return pt[22u * pu.n + i]; }
 fn wp_at(i: u32) -> real { return pt[33u * pu.n + i] * pv[15u * pu.n + i]; }
+// no bond breaks on this device path
+fn broken_at(i: u32) -> real { return real(0.0); }
 fn step_dt() -> real { return mp[0]; }
 fn half_dt() -> real { return mp[1]; }
 fn density() -> real { return mp[2]; }
@@ -1299,6 +1421,16 @@ impl GpuCorrBody {
 /// and, for the gathered particles (the interfaces and the supports), position, velocity and
 /// the window sums. The full state ([`DeviceBody::snapshot`]) is read only when an output
 /// frame or a checkpoint is written.
+///
+/// `pd-bond` with a critical stretch breaks bonds on the device (the `force` kernel, in the
+/// step the CPU breaks them) and books their released energy there; the window report carries
+/// its sum and the count of broken bonds. The host needs more only to measure fragments,
+/// which the node reports every window with a damage model: at each window end the positions
+/// and velocities of every particle come back, and, only in a window where bonds broke, the
+/// intact flags (packed 32 a word) and the per-particle released energy, which bring the host
+/// body's bonds and model (coefficients, released energy) up to the device's (the damage
+/// index, fragments, first damage, the stable step and checkpoints then read them as on the
+/// CPU path).
 pub struct DeviceBody {
     ctx: Arc<GpuContext>,
     kind: DeviceKind,
@@ -1306,13 +1438,18 @@ pub struct DeviceBody {
     gather: Vec<usize>,
     slot: Vec<usize>,
     report: WindowReport,
+    /// The broken-bond count the host body's intact flags reflect.
+    broken: f64,
 }
 
 enum DeviceKind {
     Bond {
         gpu: GpuBondBody,
-        /// The host model's twin (its bond coefficients; no damage on the device path).
+        /// The host model's twin: its bond coefficients as built (or as restored), which a
+        /// broken bond's flag zeroes on the host.
         twin: Box<BondModel>,
+        /// The critical stretch s0 (None: bonds never break).
+        s0: Option<f64>,
     },
     Corr {
         gpu: GpuCorrBody,
@@ -1352,15 +1489,17 @@ fn unflat(v: &[f64]) -> Vec<[f64; 3]> {
 }
 
 impl DeviceBody {
-    /// `pd-bond` without damage: `twin` is a copy of the model `body` holds; `gather` the
-    /// particles whose state crosses to the host every window.
+    /// `pd-bond`, breaking bonds above the critical stretch `s0` (None: no damage): `twin` is
+    /// a copy of the model `body` holds; `gather` the particles whose state crosses to the
+    /// host every window.
     pub fn bond(
         ctx: Arc<GpuContext>,
         body: &Body,
         twin: BondModel,
+        s0: Option<f64>,
         gather: &[usize],
     ) -> Result<Self, GpuError> {
-        let gpu = GpuBondBody::gathering(ctx.clone(), body, &twin, None, gather)?;
+        let gpu = GpuBondBody::gathering(ctx.clone(), body, &twin, s0, gather)?;
         Self::with(
             ctx,
             body.len(),
@@ -1368,6 +1507,7 @@ impl DeviceBody {
             DeviceKind::Bond {
                 gpu,
                 twin: Box::new(twin),
+                s0,
             },
         )
     }
@@ -1418,6 +1558,7 @@ impl DeviceBody {
             gather: gather.to_vec(),
             slot,
             report: WindowReport::default(),
+            broken: 0.0,
         };
         d.refresh()?;
         Ok(d)
@@ -1426,8 +1567,24 @@ impl DeviceBody {
     /// Upload `body` again (after a checkpoint was loaded into it and its model).
     pub fn rebuild(&mut self, body: &Body) -> Result<(), GpuError> {
         match &mut self.kind {
-            DeviceKind::Bond { gpu, twin } => {
-                *gpu = GpuBondBody::gathering(self.ctx.clone(), body, twin, None, &self.gather)?;
+            DeviceKind::Bond { gpu, twin, s0 } => {
+                // the bond coefficients (zero: broken) and the released energy through the
+                // model's own checkpoint form
+                let (coef, released): (Vec<f64>, Vec<f64>) = body
+                    .model
+                    .save_state()
+                    .and_then(|b| protocol::checkpoint::decode_state(&b))
+                    .map_err(|e| GpuError(e.to_string()))?;
+                if coef.len() != twin.coef.len() {
+                    return Err(GpuError(format!(
+                        "{} restored bond coefficients for {} bonds",
+                        coef.len(),
+                        twin.coef.len()
+                    )));
+                }
+                twin.coef = coef;
+                *gpu = GpuBondBody::gathering(self.ctx.clone(), body, twin, *s0, &self.gather)?;
+                gpu.set_released(&released)?;
             }
             DeviceKind::Corr { gpu, twin } => {
                 // the J2 states and the plastic work through the model's own checkpoint
@@ -1464,6 +1621,8 @@ impl DeviceBody {
     /// [`DeviceBody::last_report`]'s energies describe it before the next window.
     fn refresh(&mut self) -> Result<(), GpuError> {
         self.report = self.core().window_report()?;
+        // the host body's flags are the ones just uploaded
+        self.broken = self.report.broken;
         Ok(())
     }
 
@@ -1479,6 +1638,10 @@ impl DeviceBody {
     /// Window end: the window report (see [`WindowReport`]); `body` gets the time `t1`, the
     /// step count and the gathered particles' positions and velocities (the rest of its state
     /// stays on the device: see [`DeviceBody::snapshot`]).
+    ///
+    /// `pd-bond` with damage: also every particle's position and velocity (the fragments are
+    /// measured from them) and, when bonds broke in the window, the intact flags and the
+    /// released energy, into `body`'s bonds and model (see [`DeviceBody`]).
     pub fn finish(&mut self, body: &mut Body, t1: f64) -> Result<&WindowReport, GpuError> {
         let core = self.core_mut();
         core.time = t1;
@@ -1489,6 +1652,30 @@ impl DeviceBody {
         }
         body.time = t1;
         body.steps = steps;
+        if let DeviceKind::Bond {
+            gpu,
+            twin,
+            s0: Some(_),
+        } = &self.kind
+        {
+            let c = &gpu.core;
+            let pv = read_reals(&c.ctx, &c.pv, 0, 6 * c.n)?;
+            let (pos, vel) = pv.split_at(3 * c.n);
+            body.pos.as_flattened_mut().copy_from_slice(pos);
+            body.vel.as_flattened_mut().copy_from_slice(vel);
+            if r.broken != self.broken {
+                let bits = gpu.intact_bits()?;
+                let coef: Vec<f64> = (0..twin.coef.len())
+                    .map(|b| if bit(&bits, b) { twin.coef[b] } else { 0.0 })
+                    .collect();
+                let released = gpu.released()?;
+                protocol::checkpoint::encode_state(&(&coef, &released))
+                    .and_then(|s| body.model.load_state(&s))
+                    .map_err(|e| GpuError(format!("the host model's bond state: {e}")))?;
+                body.model.sync_bonds(&mut body.bonds);
+                self.broken = r.broken;
+            }
+        }
         self.report = r;
         Ok(&self.report)
     }
@@ -1499,7 +1686,11 @@ impl DeviceBody {
     pub fn window_bytes(&self) -> (usize, usize) {
         let (n, rb) = (self.core().n, self.core().ctx.precision.bytes());
         let corr = matches!(self.kind, DeviceKind::Corr { .. });
-        let now = (REPORT_REALS * n.div_ceil(CHUNK) + 10 * self.gather.len()) * rb;
+        let mut now = (REPORT_REALS * n.div_ceil(CHUNK) + 10 * self.gather.len()) * rb;
+        if let DeviceKind::Bond { s0: Some(_), .. } = self.kind {
+            // with damage: every particle's position and velocity, for the fragments
+            now += 6 * n * rb;
+        }
         let before = (13 + if corr { 13 } else { 0 }) * n * rb;
         (now, before)
     }
@@ -1631,15 +1822,6 @@ mod tests {
         (b, twin)
     }
 
-    fn max_rel(a: &[f64], b: &[f64]) -> f64 {
-        let scale = b.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
-        let diff = a.iter().zip(b).fold(0.0_f64, |m, (x, y)| {
-            let e = (x - y).abs();
-            if e.is_nan() { f64::INFINITY } else { m.max(e) }
-        });
-        if scale > 0.0 { diff / scale } else { diff }
-    }
-
     /// (displacement, velocity, force, stress, plastic strain differences; particles that
     /// yielded on the CPU, on the GPU).
     fn compare(
@@ -1685,11 +1867,11 @@ mod tests {
         let gs: Vec<f64> = st.iter().flat_map(|s| s.stress).collect();
         let gp: Vec<f64> = st.iter().map(|s| s.eq_plastic_strain).collect();
         [
-            max_rel(&disp(&out), &disp(&cpu)),
-            max_rel(out.vel.as_flattened(), cpu.vel.as_flattened()),
-            max_rel(out.force.as_flattened(), cpu.force.as_flattened()),
-            max_rel(&gs, cs.as_flattened()),
-            max_rel(&gp, &cp),
+            mechanics::gpu::max_rel_diff(&disp(&out), &disp(&cpu)),
+            mechanics::gpu::max_rel_diff(out.vel.as_flattened(), cpu.vel.as_flattened()),
+            mechanics::gpu::max_rel_diff(out.force.as_flattened(), cpu.force.as_flattened()),
+            mechanics::gpu::max_rel_diff(&gs, cs.as_flattened()),
+            mechanics::gpu::max_rel_diff(&gp, &cp),
             cp.iter().filter(|&&x| x > 0.0).count() as f64,
             gp.iter().filter(|&&x| x > 0.0).count() as f64,
         ]
@@ -1710,9 +1892,9 @@ mod tests {
             b.model.stress().expect("stress"),
         );
         [
-            max_rel(b.vel.as_flattened(), a.vel.as_flattened()),
-            max_rel(b.force.as_flattened(), a.force.as_flattened()),
-            max_rel(sb.as_flattened(), sa.as_flattened()),
+            mechanics::gpu::max_rel_diff(b.vel.as_flattened(), a.vel.as_flattened()),
+            mechanics::gpu::max_rel_diff(b.force.as_flattened(), a.force.as_flattened()),
+            mechanics::gpu::max_rel_diff(sb.as_flattened(), sa.as_flattened()),
         ]
     }
 

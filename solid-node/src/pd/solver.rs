@@ -484,13 +484,14 @@ impl PdSolver {
     /// and energy released by broken bonds since the start (the last two dissipated; the
     /// coordinator's balance counts all three, see `wire::DISSIPATED_SCALARS`).
     /// On the device path the host body is not up to date between windows (only the
-    /// interface and support particles come back): the strain energy and plastic work are
-    /// reduced on the device with the window report (gpu.rs `energy` and `report`), and no
-    /// bond breaks there (damage is refused at set-up).
+    /// interface and support particles come back): the strain energy, plastic work and the
+    /// energy released by broken bonds (pd-bond with a critical stretch, booked on the
+    /// device in the step a bond breaks) are reduced on the device with the window report
+    /// (gpu.rs `energy` and `report`).
     pub fn energies(&mut self) -> (f64, f64, f64) {
         if let Some(dev) = &self.device {
             let r = dev.last_report();
-            return (r.strain_energy, r.plastic_work, 0.0);
+            return (r.strain_energy, r.plastic_work, r.released);
         }
         let b = &mut self.body;
         let k = super::model::Kinematics {
@@ -1184,14 +1185,22 @@ fn gpu_supports(def: &PdModelDef, dim: Dim, p: &PdParams) -> Result<(), String> 
     };
     let kind = match &p.damage {
         None | Some(DamageParams::None {}) => None,
+        Some(DamageParams::CriticalStretch { .. }) if dd.critical_stretch => None,
         Some(DamageParams::CriticalStretch { .. }) => Some("critical_stretch"),
         Some(DamageParams::VonMises { .. }) => Some("von_mises"),
         Some(DamageParams::PlasticStrain { .. }) => Some("plastic_strain"),
         Some(DamageParams::JohnsonCook { .. }) => Some("johnson_cook"),
     };
     if let Some(kind) = kind {
+        let breaking: Vec<&str> = super::models::ALL
+            .iter()
+            .filter(|d| d.device.as_ref().is_some_and(|d| d.critical_stretch))
+            .map(|d| d.name)
+            .collect();
         return Err(format!(
-            "\"gpu\" does not support bond damage (damage.kind = \"{kind}\"): the device path has no bond breaking, damage index or fragment report; {cpu}"
+            "\"gpu\" does not support bond damage (damage.kind = \"{kind}\") for {}: the device kernels break bonds only at a critical stretch (damage.kind = \"critical_stretch\"), and only for {}; {cpu}",
+            def.name,
+            breaking.join(" and ")
         ));
     }
     if let Some(why) = (dd.refuses)(dim, p) {

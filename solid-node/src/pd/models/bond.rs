@@ -42,6 +42,7 @@ pub const DEF: PdModelDef = PdModelDef {
     build,
     device: Some(DeviceDef {
         refuses: |_, _| None,
+        critical_stretch: true,
         open,
     }),
 };
@@ -84,12 +85,16 @@ fn model(m: &ModelInput, s0: Option<f64>) -> BondModel {
     BondModel::new(m.dim, p.young, p.horizon, p.thickness, s0, m.k, m.bonds)
 }
 
-/// The device body, with an undamaged twin of the body's model.
+/// The device body, with a twin of the body's model, breaking bonds at the critical stretch.
 fn open(
     ctx: Arc<GpuContext>,
     m: &ModelInput,
     body: &Body,
     gather: &[usize],
 ) -> Result<DeviceBody, GpuError> {
-    DeviceBody::bond(ctx, body, model(m, None), gather)
+    let s0 = match &m.p.damage {
+        Some(DamageParams::CriticalStretch { critical_stretch }) => Some(*critical_stretch),
+        _ => None,
+    };
+    DeviceBody::bond(ctx, body, model(m, s0), s0, gather)
 }

@@ -31,6 +31,7 @@ pub const DEF: PdModelDef = PdModelDef {
                 "\"gpu\" does not support dimension = \"plane_stress\" for pd-correspondence (its through-thickness iteration has no device kernel): use plane_strain or 3d, or use device = \"cpu\"".to_string()
             })
         },
+        critical_stretch: false,
         open,
     }),
 };

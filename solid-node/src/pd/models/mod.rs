@@ -59,6 +59,9 @@ pub struct DeviceDef {
     /// What its kernels cannot run, beyond what no device path supports (damage, pressure
     /// pulses): the reason, for `device = "gpu"`.
     pub refuses: fn(Dim, &PdParams) -> Option<String>,
+    /// Whether its kernels break bonds at a critical stretch (`damage.kind =
+    /// "critical_stretch"`); every other damage law stays on the CPU.
+    pub critical_stretch: bool,
     /// The device copy of a freshly built `body` (`input` as the body's model was built
     /// with), gathering the particles `gather` to the host every window.
     pub open: OpenDevice,
