@@ -6,6 +6,8 @@
 //! * `fluid` — one full SSP-RK3 step of one cell on the 2-D cylindrical blast
 //!   (`fluid_node::setup::benchmark_blast_case`), CPU and GPU (`fluid_node::gpu::GpuEuler`);
 //!   `fluid-3d` the same on the 3-D spherical blast of n³ cells, CPU only.
+//!   `fluid-tnt` the five-equation model with two materials on a 2-D TNT charge in air (JWL
+//!   products and an ideal gas, n² cells).
 //! * `pd-bond`, `pd-correspondence` — one particle–family-member pair processed in one
 //!   velocity-Verlet step (forces, damage check, integration) on an n³ cubic block,
 //!   δ = 3.015 Δx; `pd-bond` also on the GPU (`solid_node::pd::gpu::GpuBondBody`).
@@ -40,7 +42,7 @@ use std::time::Instant;
 pub struct SuiteArgs {
     /// Kernels to run, comma-separated: transport, window (whole coupled windows through
     /// `cosim run`: participant round trip in Rust, Python and C; the split bar per transport),
-    /// fluid, fluid-3d, solid (= pd-bond and pd-correspondence), pd-bond, pd-correspondence, shell,
+    /// fluid, fluid-3d, fluid-tnt, solid (= pd-bond and pd-correspondence), pd-bond, pd-correspondence, shell,
     /// joint, gpu-profile (the GPU's copy bandwidth and each fluid kernel's device time).
     /// Default: all.
     #[arg(long, value_delimiter = ',')]
@@ -61,11 +63,12 @@ pub struct SuiteArgs {
 }
 
 /// All kernels, in run order.
-pub const KERNELS: [&str; 9] = [
+pub const KERNELS: [&str; 10] = [
     "transport",
     "window",
     "fluid",
     "fluid-3d",
+    "fluid-tnt",
     "pd-bond",
     "pd-correspondence",
     "shell",
@@ -104,12 +107,12 @@ pub fn select(only: &[String]) -> Result<Vec<&'static str>, String> {
 }
 
 /// The kernels with GPU rows.
-const GPU_KERNELS: [&str; 4] = ["fluid", "fluid-3d", "pd-bond", "gpu-profile"];
+const GPU_KERNELS: [&str; 5] = ["fluid", "fluid-3d", "fluid-tnt", "pd-bond", "gpu-profile"];
 
 /// The sizes `--large` adds (GPU rows only).
 fn large_sizes(kernel: &str) -> Vec<usize> {
     match kernel {
-        "fluid" => vec![1600, 4096],
+        "fluid" | "fluid-tnt" => vec![1600, 4096],
         "fluid-3d" => vec![128, 256],
         "pd-bond" => vec![64],
         _ => vec![],
@@ -121,8 +124,8 @@ fn sizes(kernel: &str, quick: bool) -> Vec<usize> {
     match (kernel, quick) {
         ("transport", false) => protocol::transport::bench::DEFAULT_SIZES.to_vec(),
         ("transport", true) => vec![1 << 10, 1 << 16],
-        ("fluid", false) => vec![100, 200, 400, 800],
-        ("fluid", true) => vec![16, 32],
+        ("fluid" | "fluid-tnt", false) => vec![100, 200, 400, 800],
+        ("fluid" | "fluid-tnt", true) => vec![16, 32],
         // 54³ has the cells of 400² (3-D per-cell throughput against 2-D)
         ("fluid-3d", false) => vec![24, 34, 44, 54],
         ("fluid-3d", true) => vec![8, 12],
@@ -772,15 +775,16 @@ struct Case {
     gpu: Vec<(&'static str, StepFn)>,
 }
 
-/// The fluid step on the 2-D cylindrical blast (`n`² cells), or with `three_d` on the 3-D
-/// spherical blast (`n`³ cells); with `gpu_only` no host rows (and the host copy freed).
-fn fluid(cx: &mut Ctx, n: usize, three_d: bool, gpu_only: bool) -> anyhow::Result<Case> {
+/// The fluid step of `kernel`: on the 2-D cylindrical blast (`n`² cells, `fluid`), the 3-D
+/// spherical blast (`n`³ cells, `fluid-3d`) or the 2-D TNT charge in air (`fluid-tnt`); with
+/// `gpu_only` no host rows (and the host copy freed).
+fn fluid(cx: &mut Ctx, n: usize, kernel: &'static str, gpu_only: bool) -> anyhow::Result<Case> {
     use fluid_node::{gpu::GpuEuler, setup, step};
     let t0 = Instant::now();
-    let text = if three_d {
-        setup::benchmark_blast_case_3d(n)
-    } else {
-        setup::benchmark_blast_case(n)
+    let text = match kernel {
+        "fluid-3d" => setup::benchmark_blast_case_3d(n),
+        "fluid-tnt" => setup::benchmark_tnt_case(n),
+        _ => setup::benchmark_blast_case(n),
     };
     let f0 = setup::from_toml_str(&text).map_err(|e| anyhow!("benchmark case: {e}"))?;
     let working_set = 8
@@ -789,11 +793,11 @@ fn fluid(cx: &mut Ctx, n: usize, three_d: bool, gpu_only: bool) -> anyhow::Resul
             + f0.prim.len()
             + f0.flux.iter().map(Vec::len).sum::<usize>()) as u64;
     let p = Problem {
-        kernel: if three_d { "fluid-3d" } else { "fluid" },
-        problem: if three_d {
-            format!("blast 3-D {n}×{n}×{n} cells")
-        } else {
-            format!("blast 2-D {n}×{n} cells")
+        kernel,
+        problem: match kernel {
+            "fluid-3d" => format!("blast 3-D {n}×{n}×{n} cells"),
+            "fluid-tnt" => format!("TNT in air 2-D {n}×{n} cells"),
+            _ => format!("blast 2-D {n}×{n} cells"),
         },
         size: n,
         unit: "cell-updates",
@@ -853,6 +857,25 @@ fn pd(cx: &mut Ctx, kernel: &'static str, n: usize, gpu_only: bool) -> anyhow::R
     let t0 = Instant::now();
     let blk = solid_node::pd::cases::benchmark_block(n, kernel).map_err(|e| anyhow!("{e}"))?;
     let (mut b, bond, model_bytes) = (blk.body, blk.bond, blk.model_bytes.unwrap_or(0));
+    // pd-bond with damage that happens: on top of the block's velocity field, every
+    // particle gets a velocity of up to ±V in each component (a fixed pseudo-random
+    // sequence). Neighbours moving apart stretch their bond by about V/c before the elastic
+    // response turns them round; with V = 60 m/s the bonds whose stretch passes s0 = 1 %
+    // break within the first steps, and the block then rings with the rest intact, so the
+    // timed steps run on a block with a settled share of broken bonds (printed when the
+    // problem is dropped), as on the CPU and the GPU rows alike.
+    let shaken = kernel == "pd-bond";
+    if shaken {
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        for v in b.vel.iter_mut() {
+            for c in v.iter_mut() {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                *c += 60.0 * (2.0 * (seed >> 11) as f64 / (1u64 << 53) as f64 - 1.0);
+            }
+        }
+    }
     let nb = b.bonds.len();
     let np = b.len();
     // pos, vel, force, fext, vpres, x0 (3 reals each), vol, offsets; per bond: nbr, xi,
@@ -861,7 +884,11 @@ fn pd(cx: &mut Ctx, kernel: &'static str, n: usize, gpu_only: bool) -> anyhow::R
     let working_set = (np * (6 * 24 + 8 + 8) + nb * (4 + 24 + 8 + 8) + model_bytes) as u64;
     let p = Problem {
         kernel,
-        problem: format!("block {n}³ = {np} particles"),
+        problem: if shaken {
+            format!("block {n}³ = {np} particles, breaking")
+        } else {
+            format!("block {n}³ = {np} particles")
+        },
         size: n,
         unit: "bond-updates",
         updates: nb as u64,
@@ -875,10 +902,14 @@ fn pd(cx: &mut Ctx, kernel: &'static str, n: usize, gpu_only: bool) -> anyhow::R
         // An adapter limit (e.g. the largest storage binding) skips the GPU row of this size
         // with the reason; the CPU rows are still measured.
         match solid_node::pd::gpu::GpuBondBody::new(ctx.clone(), &b, &model, Some(0.01)) {
-            Ok(mut g) => {
+            Ok(g) => {
+                let mut g = BrokenShare::Gpu(g, format!("{kernel} {n}³ gpu"));
                 gpu.push((
                     "gpu",
                     Box::new(move |k| {
+                        let BrokenShare::Gpu(g, _) = &mut g else {
+                            unreachable!("a GPU body")
+                        };
                         g.steps(k, dt).map_err(|e| anyhow!("{e}"))?;
                         ctx.device
                             .poll(wgpu::PollType::wait_indefinitely())
@@ -894,9 +925,13 @@ fn pd(cx: &mut Ctx, kernel: &'static str, n: usize, gpu_only: bool) -> anyhow::R
     if gpu_only {
         return Ok(Case { p, cpu: None, gpu });
     }
+    let mut b = BrokenShare::Cpu(b, format!("{kernel} {n}³ cpu"));
     Ok(Case {
         p,
         cpu: Some(Box::new(move |k| {
+            let BrokenShare::Cpu(b, _) = &mut b else {
+                unreachable!("a host body")
+            };
             for _ in 0..k {
                 b.step(dt);
             }
@@ -904,6 +939,40 @@ fn pd(cx: &mut Ctx, kernel: &'static str, n: usize, gpu_only: bool) -> anyhow::R
         })),
         gpu,
     })
+}
+
+/// A PD benchmark body that prints, when the measurement is over and it is dropped, the
+/// share of its bonds broken by then (the damage the timed steps included).
+enum BrokenShare {
+    Cpu(solid_node::pd::integrate::Body, String),
+    Gpu(solid_node::pd::gpu::GpuBondBody, String),
+}
+
+impl Drop for BrokenShare {
+    fn drop(&mut self) {
+        let (broken, total, what) = match self {
+            BrokenShare::Cpu(b, what) => {
+                let mut bonds = b.bonds.clone();
+                b.model.sync_bonds(&mut bonds);
+                let broken = bonds.intact.iter().filter(|&&w| w == 0.0).count();
+                (broken, bonds.len(), what)
+            }
+            BrokenShare::Gpu(g, what) => match g.intact_bits() {
+                Ok(bits) => {
+                    let intact: u32 = bits.iter().map(|w| w.count_ones()).sum();
+                    let total = g.bonds();
+                    (total - intact as usize, total, what)
+                }
+                Err(_) => return,
+            },
+        };
+        if total > 0 {
+            println!(
+                "{what:>18}   {:.1} % of the bonds broken at the end ({broken} of {total})",
+                100.0 * broken as f64 / total as f64
+            );
+        }
+    }
 }
 
 fn shell(n: usize) -> anyhow::Result<Case> {
@@ -1738,7 +1807,7 @@ pub fn suite(args: &SuiteArgs) -> i32 {
     let gpu32 = match &gpu {
         Some(c)
             if c.precision == mechanics::gpu::Precision::F64
-                && kernels.iter().any(|k| *k == "fluid" || *k == "fluid-3d") =>
+                && kernels.iter().any(|k| k.starts_with("fluid")) =>
         {
             GpuContext::with_precision(mechanics::gpu::PrecisionRequest::ForceF32)
                 .ok()
@@ -1832,8 +1901,7 @@ pub fn suite(args: &SuiteArgs) -> i32 {
         let all = sizes(k, args.quick).into_iter().map(|n| (n, false));
         for (n, gpu_only) in all.chain(large.into_iter().map(|n| (n, true))) {
             let r = match k {
-                "fluid" => fluid(&mut cx, n, false, gpu_only),
-                "fluid-3d" => fluid(&mut cx, n, true, gpu_only),
+                "fluid" | "fluid-3d" | "fluid-tnt" => fluid(&mut cx, n, k, gpu_only),
                 "pd-bond" | "pd-correspondence" => pd(&mut cx, k, n, gpu_only),
                 "shell" => shell(n),
                 "joint" => joint(n),

@@ -38,7 +38,7 @@ fn run_suite(only: &str) -> (Value, String) {
 
 #[test]
 fn quick_suite_covers_every_kernel_with_consistent_numbers() {
-    let (j, md) = run_suite("transport,fluid,fluid-3d,solid,shell,joint");
+    let (j, md) = run_suite("transport,fluid,fluid-3d,fluid-tnt,solid,shell,joint");
     let rows = j["results"].as_array().expect("results");
     let skipped = j["skipped"].as_array().expect("skipped");
     assert!(j["errors"].as_array().expect("errors").is_empty(), "{j:#}");
@@ -57,6 +57,7 @@ fn quick_suite_covers_every_kernel_with_consistent_numbers() {
     for k in [
         "fluid",
         "fluid-3d",
+        "fluid-tnt",
         "pd-bond",
         "pd-correspondence",
         "shell",
@@ -67,7 +68,7 @@ fn quick_suite_covers_every_kernel_with_consistent_numbers() {
         }
     }
     // GPU rows, or a skip with its reason.
-    for k in ["fluid", "fluid-3d", "pd-bond"] {
+    for k in ["fluid", "fluid-3d", "fluid-tnt", "pd-bond"] {
         let gpu = has(k, "gpu", None);
         let skip = skipped
             .iter()
@@ -76,7 +77,7 @@ fn quick_suite_covers_every_kernel_with_consistent_numbers() {
     }
     // Where the GPU rows run f64 kernels, the fluid also has f32 rows beside them.
     if m["gpu"]["precision"] == "f64" {
-        for k in ["fluid", "fluid-3d"] {
+        for k in ["fluid", "fluid-3d", "fluid-tnt"] {
             assert_eq!(has(k, "gpu-f32", None), 2, "{k}: f32 rows");
         }
     }
