@@ -38,6 +38,7 @@ bodies = [{ shape = "box", min = [0.0, 0.0, 0.0], max = [0.06, 0.006, 0.001] }]
 initial_velocity = [{ region = { shape = "box", min = [0.0, 0.0, 0.0], max = [0.015, 0.006, 0.001] }, velocity = [5.0, 0.0, 0.0] }]
 prescribed_velocity = [{ region = { shape = "box", min = [0.0575, 0.0, 0.0], max = [0.06, 0.006, 0.001] }, velocity = [0.0, 0.0, 0.0] }]
 interfaces = [{ name = "all", select = "all" }]
+points = { mid = [0.0305, 0.0035] }
 "#,
     )
     .expect("params");
@@ -189,8 +190,8 @@ fn differences(a: &Run, b: &Run) -> Vec<(&'static str, f64)> {
         ("plastic work", rel(&ea[1], &eb[1])),
         ("energy residual (of the largest energy)", residual),
     ];
-    let (mut p, mut ke, mut wk, mut ii, mut ei, mut com, mut vm) =
-        (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut p, mut ke, mut wk, mut ii, mut ei, mut com, mut vm, mut pt) =
+        (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     for (g, c) in ra[1..].iter().zip(&rb[1..]) {
         assert_eq!(c.substeps, g.substeps);
         p = f64::max(p, rel(&g.momentum, &c.momentum));
@@ -203,6 +204,10 @@ fn differences(a: &Run, b: &Run) -> Vec<(&'static str, f64)> {
             com,
             rel(&[scalar(g, "com_displacement_x").expect("com")], &[cx]),
         );
+        // a reported point: on the device path its displacement comes from the gathered
+        // position (to round-off of the position's size, 3 cm here)
+        let ux = |r: &StepReport| scalar(r, "mid_ux").expect("mid_ux");
+        pt = f64::max(pt, rel(&[ux(g)], &[ux(c)]));
         if let Some(s) = scalar(c, "max_von_mises") {
             vm = f64::max(vm, rel(&[scalar(g, "max_von_mises").expect("vm")], &[s]));
         }
@@ -215,6 +220,7 @@ fn differences(a: &Run, b: &Run) -> Vec<(&'static str, f64)> {
         ("support impulse", ei),
         ("com displacement", com),
         ("max von Mises", vm),
+        ("point displacement", pt),
     ]);
     worst
 }

@@ -19,7 +19,7 @@
 //! per-particle/per-bond integers into one u32 buffer (prescribed | offsets | nbr), per-bond
 //! reals into one: `pd-bond` (inv_len | coef; ξ = X_j − X_i is formed from x0, bit for bit
 //! `Bonds::xi`, which keeps 7 M bonds within a 128 MiB binding), `pd-correspondence`
-//! (ξ | intact).
+//! (intact; ξ formed from x0 as for `pd-bond`).
 
 use super::bond::BondModel;
 use super::correspondence::{CorrHistory, Correspondence};
@@ -55,13 +55,15 @@ fn lin(gid: vec3<u32>, nwg: vec3<u32>) -> u32 { return gid.x + gid.y * nwg.x * 6
 
 // The window sums of the node's report (solver.rs, per step after the last kick): the work
 // of the external force at the end-of-step velocity, Σ (f_ext dt)·v (16n), and the impulse
-// of the internal force, Σ (f V) dt (17n, 3 per particle). Cleared by the host each window.
+// of the internal force over the step, the mean of its start and end values (velocity
+// Verlet's), Σ ½ (f₀ + f) V dt (17n, 3 per particle: the start's half is added by
+// `kick_drift`). Cleared by the host each window.
 fn accumulate(i: u32, n: u32, dt: real) {
     var w = real(0.0);
     for (var d = 0u; d < 3u; d++) {
         let k = 3u * i + d;
         w += pv[9u * n + k] * dt * pv[3u * n + k];
-        pv[17u * n + k] += pv[6u * n + k] * pv[15u * n + i] * dt;
+        pv[17u * n + k] += real(0.5) * dt * pv[6u * n + k] * pv[15u * n + i];
     }
     pv[16u * n + i] += w;
 }
@@ -88,6 +90,11 @@ fn kick_drift(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
     let i = lin(gid, nwg);
     let n = n_pts();
     if i >= n { return; }
+    // the start-of-step half of the internal force's impulse (see `accumulate`)
+    for (var d = 0u; d < 3u; d++) {
+        let k = 3u * i + d;
+        pv[17u * n + k] += real(0.5) * step_dt() * pv[6u * n + k] * pv[15u * n + i];
+    }
     kick(i);
     // integrate.rs step(): u += dt v, x = X + u
     for (var d = 0u; d < 3u; d++) {
@@ -107,7 +114,7 @@ fn kick_drift(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
 // `eqp_at`), the strain energy, the plastic work, the energy released by broken bonds
 // (pv[27n + i]) and the broken bonds into rg[NR c..NR c + NR]; the host adds the chunks in
 // order. `gather`: for the
-// listed particles gi[1..=gi[0]], position, velocity, external work and internal impulse (10
+// listed particles gi[1..=gi[0]], displacement, velocity, external work and internal impulse (10
 // reals each) after the chunk sums. All are deterministic.
 const CHUNK: u32 = 256u;
 const NR: u32 = 14u;
@@ -160,7 +167,7 @@ fn gather(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
     let i = gi[1u + k];
     let o = NR * ((n + CHUNK - 1u) / CHUNK) + 10u * k;
     for (var d = 0u; d < 3u; d++) {
-        rg[o + d] = pv[3u * i + d];
+        rg[o + d] = pv[20u * n + 3u * i + d];
         rg[o + 3u + d] = pv[3u * n + 3u * i + d];
         rg[o + 7u + d] = pv[17u * n + 3u * i + d];
     }
@@ -793,9 +800,9 @@ pub struct WindowReport {
     /// Broken bonds, counted in both rows of each (`pd-bond`; 0 otherwise): when it
     /// changes, the intact flags cross to the host.
     pub broken: f64,
-    /// Per gathered particle: position, velocity, work of the external force, internal-force
-    /// impulse over the window.
-    pub pos: Vec<[f64; 3]>,
+    /// Per gathered particle: displacement, velocity, work of the external force,
+    /// internal-force impulse over the window.
+    pub disp: Vec<[f64; 3]>,
     pub vel: Vec<[f64; 3]>,
     pub work: Vec<f64>,
     pub impulse: Vec<[f64; 3]>,
@@ -852,7 +859,7 @@ impl Report {
             r.broken += c[13];
         }
         for g in all[REPORT_REALS * nch..].chunks_exact(10) {
-            r.pos.push([g[0], g[1], g[2]]);
+            r.disp.push([g[0], g[1], g[2]]);
             r.vel.push([g[3], g[4], g[5]]);
             r.work.push(g[6]);
             r.impulse.push([g[7], g[8], g[9]]);
@@ -878,7 +885,8 @@ struct U { n: u32, nb: u32, three_d: u32, pad: u32 }
 @group(0) @binding(2) var<storage, read_write> pv: array<real>;
 // prescribed 0, offsets n, nbr 2n+1
 @group(0) @binding(3) var<storage, read> iu: array<u32>;
-// xi 0 (3 per bond), intact 3nb
+// intact fraction per bond (ξ = X_j − X_i is formed from x0 by `xi`, bit for bit
+// Bonds::xi: a quarter of the bytes a stored ξ took, so 6.7e7 bonds fit a 2 GiB binding)
 @group(0) @binding(4) var<storage, read> bd: array<real>;
 // kinv 0 (9n), active 9n, stress 10n (6n), back 16n (6n), eqp 22n, ahat 23n (9n), kappa 32n,
 // plastic work density 33n
@@ -889,6 +897,11 @@ struct U { n: u32, nb: u32, three_d: u32, pad: u32 }
 @group(0) @binding(7) var<storage, read> gi: array<u32>;
 
 fn n_pts() -> u32 { return pu.n; }
+// component c of the bond ξ = X_j − X_i (family.rs Bonds::build)
+fn xi(i: u32, j: u32, c: u32) -> real {
+    let o = 23u * pu.n;
+    return pv[o + 3u * j + c] - pv[o + 3u * i + c];
+}
 // mechanics::j2 von_mises: √(3/2 s:s) of the deviator
 fn vm_at(i: u32) -> real {
     let o = 10u * pu.n + 6u * i;
@@ -982,13 +995,12 @@ struct Fam { m: array<real, 9>, w0: real }
 // particle i, in row order: Σ ω V_j (a_j − a_i)⊗ξ over the intact bonds, and Σ ω V_j
 fn family_sum(i: u32, o: u32) -> Fam {
     let n = pu.n;
-    let nb = pu.nb;
     let ai = array<real, 3>(pv[o + 3u * i], pv[o + 3u * i + 1u], pv[o + 3u * i + 2u]);
     var r: Fam;
     for (var q = 0u; q < 9u; q++) { r.m[q] = real(0.0); }
     r.w0 = real(0.0);
     for (var b = iu[n + i]; b < iu[n + i + 1u]; b++) {
-        let om = bd[3u * nb + b];
+        let om = bd[b];
         if om == real(0.0) { continue; }
         let j = iu[2u * n + 1u + b];
         let w = om * pv[15u * n + j];
@@ -998,7 +1010,7 @@ fn family_sum(i: u32, o: u32) -> Fam {
             w * (pv[aj + 2u] - ai[2]));
         for (var a = 0u; a < 3u; a++) {
             for (var c = 0u; c < 3u; c++) {
-                r.m[3u * a + c] += wy[a] * bd[3u * b + c];
+                r.m[3u * a + c] += wy[a] * xi(i, j, c);
             }
         }
     }
@@ -1039,17 +1051,16 @@ fn energy_at(i: u32) -> real {
         f[4] += real(1.0);
         f[8] += real(1.0);
         let ui = array<real, 3>(pv[20u * n + 3u * i], pv[20u * n + 3u * i + 1u], pv[20u * n + 3u * i + 2u]);
-        let nb = pu.nb;
         for (var b = iu[n + i]; b < iu[n + i + 1u]; b++) {
-            let w = bd[3u * nb + b];
+            let w = bd[b];
             if w == real(0.0) { continue; }
             let j = iu[2u * n + 1u + b];
             var z2 = real(0.0);
             for (var a = 0u; a < 3u; a++) {
                 // z = η − Hξ, H = F − I
-                let hx = (f[3u * a] - select(real(0.0), real(1.0), a == 0u)) * bd[3u * b]
-                    + (f[3u * a + 1u] - select(real(0.0), real(1.0), a == 1u)) * bd[3u * b + 1u]
-                    + (f[3u * a + 2u] - select(real(0.0), real(1.0), a == 2u)) * bd[3u * b + 2u];
+                let hx = (f[3u * a] - select(real(0.0), real(1.0), a == 0u)) * xi(i, j, 0u)
+                    + (f[3u * a + 1u] - select(real(0.0), real(1.0), a == 1u)) * xi(i, j, 1u)
+                    + (f[3u * a + 2u] - select(real(0.0), real(1.0), a == 2u)) * xi(i, j, 2u);
                 let z = (pv[20u * n + 3u * j + a] - ui[a]) - hx;
                 z2 += z * z;
             }
@@ -1175,7 +1186,6 @@ fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
     let i = lin(gid, nwg);
     let n = pu.n;
     if i >= n { return; }
-    let nb = pu.nb;
     let inv_h = mp[3];
     var ai: array<real, 9>;
     for (var q = 0u; q < 9u; q++) { ai[q] = pt[23u * n + 9u * i + q]; }
@@ -1185,14 +1195,14 @@ fn force(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
     let b0 = iu[n + i];
     let b1 = iu[n + i + 1u];
     for (var b = b0; b < b1; b++) {
-        let om = bd[3u * nb + b];
+        let om = bd[b];
         if om == real(0.0) { continue; }
         let j = iu[2u * n + 1u + b];
         let uo = 20u * n + 3u * j;
         let y = array<real, 3>(pv[uo] - up[0], pv[uo + 1u] - up[1], pv[uo + 2u] - up[2]);
         let w = om * pv[15u * n + j];
         let ks = (ki + pt[32u * n + j]) * inv_h;
-        let x = array<real, 3>(bd[3u * b], bd[3u * b + 1u], bd[3u * b + 2u]);
+        let x = array<real, 3>(xi(i, j, 0u), xi(i, j, 1u), xi(i, j, 2u));
         let aj = 23u * n + 9u * j;
         for (var c = 0u; c < 3u; c++) {
             let t = (ai[3u * c] + pt[aj + 3u * c]) * x[0]
@@ -1290,8 +1300,7 @@ impl GpuCorrBody {
             ),
         )?;
         let (reals, ints) = particle_data(body);
-        let mut breal: Vec<f64> = flat(&body.bonds.xi).to_vec();
-        breal.extend_from_slice(&body.bonds.intact);
+        let breal = body.bonds.intact.clone();
         let mut pts = vec![0.0; 34 * n];
         pts[33 * n..].copy_from_slice(&model.plastic_work);
         for (i, (k, s)) in model.kin.iter().zip(&model.state).enumerate() {
@@ -1418,7 +1427,7 @@ impl GpuCorrBody {
 /// device copy owns the time stepping and the state for the whole run. Per window the held
 /// external force goes up ([`DeviceBody::advance`]) and, at the window end, only the window
 /// report comes back ([`DeviceBody::finish`]): the node's report scalars reduced on the device
-/// and, for the gathered particles (the interfaces and the supports), position, velocity and
+/// and, for the gathered particles (the interfaces, the supports and the reported points), displacement, velocity and
 /// the window sums. The full state ([`DeviceBody::snapshot`]) is read only when an output
 /// frame or a checkpoint is written.
 ///
@@ -1636,7 +1645,7 @@ impl DeviceBody {
     }
 
     /// Window end: the window report (see [`WindowReport`]); `body` gets the time `t1`, the
-    /// step count and the gathered particles' positions and velocities (the rest of its state
+    /// step count and the gathered particles' displacements (and positions) and velocities (the rest of its state
     /// stays on the device: see [`DeviceBody::snapshot`]).
     ///
     /// `pd-bond` with damage: also every particle's position and velocity (the fragments are
@@ -1647,7 +1656,8 @@ impl DeviceBody {
         core.time = t1;
         let (r, steps) = (core.window_report()?, core.steps);
         for (k, &i) in self.gather.iter().enumerate() {
-            body.pos[i] = r.pos[k];
+            // x = X + u, as the device and integrate.rs form it
+            body.set_disp(i, r.disp[k]);
             body.vel[i] = r.vel[k];
         }
         body.time = t1;

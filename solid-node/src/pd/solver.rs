@@ -89,6 +89,9 @@ pub struct PdSolver {
     pressure_area: Vec<(usize, [f64; 3])>,
     /// Particles with prescribed velocity from the config.
     bc_particles: Vec<usize>,
+    /// The held particles' internal force at the start of the step being taken (the
+    /// supports' impulse is the step's mean force: see `advance`).
+    held_force: Vec<[f64; 3]>,
     external_impulse: [f64; 3],
     applied_impulse: f64,
     interface_impulse: [f64; 3],
@@ -229,14 +232,21 @@ impl PdSolver {
         let bc_particles = prescribe_velocity(&mut body, &p)?;
         let pressure_area = pressure_faces(&body, &p)?;
         let interfaces = interfaces_of(&body, &p)?;
+        let points = probe_points(&body, &p)?;
         let device = if on_gpu && !opts.describe_only {
+            // the supports' and the reported points' particles come back every window too
+            let watched: Vec<usize> = bc_particles
+                .iter()
+                .copied()
+                .chain(points.iter().map(|(_, i)| *i))
+                .collect();
             open_device(
                 def,
                 &target,
                 (dim, &p, material),
                 &body,
                 &interfaces,
-                &bc_particles,
+                &watched,
             )?
         } else {
             None
@@ -248,7 +258,6 @@ impl PdSolver {
                 "\"gpu\" does not support loads: use device = \"cpu\"",
             );
         }
-        let points = probe_points(&body, &p)?;
         if p.substeps == Some(0) {
             return cfg("substeps", "must be ≥ 1, got 0");
         }
@@ -263,6 +272,7 @@ impl PdSolver {
             follow_pts: Vec::new(),
             follow: kinematic::Follow::default(),
             pressure_area,
+            held_force: vec![[0.0; 3]; bc_particles.len()],
             bc_particles,
             external_impulse: [0.0; 3],
             applied_impulse: 0.0,
@@ -1057,15 +1067,15 @@ fn interfaces_of(body: &Body, p: &PdParams) -> SolverResult<Vec<(String, Vec<usi
 }
 
 /// The device copy of `body` for model `def` (built from `dim`, the parameters and the
-/// material), gathering the interfaces' and the supports' particles to the host every
-/// window; None where `target` opens no device.
+/// material), gathering the interfaces' particles and `watched` (the supports' and the
+/// reported points') to the host every window; None where `target` opens no device.
 fn open_device(
     def: &PdModelDef,
     target: &Device,
     (dim, p, material): (Dim, &PdParams, J2Material),
     body: &Body,
     interfaces: &[(String, Vec<usize>)],
-    bc_particles: &[usize],
+    watched: &[usize],
 ) -> SolverResult<Option<DeviceBody>> {
     let name = def.name;
     let bad = |e: String| SolverError::config("device", format!("device = \"gpu\": {e}"));
@@ -1075,7 +1085,7 @@ fn open_device(
     let mut gather: Vec<usize> = interfaces
         .iter()
         .flat_map(|(_, pts)| pts.iter().copied())
-        .chain(bc_particles.iter().copied())
+        .chain(watched.iter().copied())
         .collect();
     gather.sort_unstable();
     gather.dedup();
@@ -1520,6 +1530,14 @@ impl Solver for PdSolver {
                     self.external_impulse[d] -= imp[d];
                 }
             }
+            // and against the held coupling force on them, step by step as on the CPU path
+            for _ in 0..nsub {
+                for &i in &self.bc_particles {
+                    for d in 0..3 {
+                        self.external_impulse[d] -= self.fcouple[i][d] * dt;
+                    }
+                }
+            }
         } else {
             for step in 0..nsub {
                 let t = w.t0 + step as f64 * dt;
@@ -1544,6 +1562,11 @@ impl Solver for PdSolver {
                     self.applied_impulse +=
                         pr * (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt() * dt;
                 }
+                // the supports' internal force at the step's start (velocity Verlet kicks the
+                // free particles with the mean of the start and end forces)
+                for (k, &i) in self.bc_particles.iter().enumerate() {
+                    self.held_force[k] = self.internal_force(i);
+                }
                 self.body.step(dt);
                 for &i in &coupled_pts {
                     for d in 0..3 {
@@ -1557,11 +1580,16 @@ impl Solver for PdSolver {
                         self.external_work += g * f[d] * dt * self.body.vel[i][d];
                     }
                 }
-                // Supports: the impulse that holds prescribed particles on their path.
-                for &i in &self.bc_particles {
-                    let f = self.internal_force(i);
+                // Supports: the impulse that holds prescribed particles on their path. The
+                // free particles' momentum changes by the mean of the internal force at the
+                // step's start and end (velocity Verlet), whose sum over the body is minus the
+                // held particles' (internal forces are pairwise); every external force on a
+                // held particle (a coupling's force too) goes into the support.
+                for (k, &i) in self.bc_particles.iter().enumerate() {
+                    let (f0, f) = (self.held_force[k], self.internal_force(i));
+                    let fe = self.body.fext[i];
                     for d in 0..3 {
-                        self.external_impulse[d] -= f[d] * dt;
+                        self.external_impulse[d] -= 0.5 * dt * (f0[d] + f[d]) + fe[d] * dt;
                     }
                 }
                 for (q, &i) in self.follow_pts.iter().enumerate() {
