@@ -402,6 +402,7 @@ const EXAMPLES: &[(&str, &[&str])] = &[
         "underwater_explosion",
         &["fine", "small", "radial", "radial-coarse"],
     ),
+    ("underwater_plate", &["seed", "small"]),
 ];
 
 /// How many windows of each example and variant the test runs: the start, where a bound
@@ -417,7 +418,13 @@ const FINEST: &[&str] = &[
     "shock_bubble/seed",
     "steel_tube/fine",
     "underwater_explosion/fine",
+    "underwater_plate/-",
+    "underwater_plate/seed",
 ];
+
+/// The variants made for a GPU (`device = "gpu"` in their settings) run here on the CPU: the
+/// same set-up, without lavapipe's hours at their size.
+const GPU_VARIANTS: &[&str] = &["underwater_plate/seed"];
 
 /// The default charts of the run in `out`, drawn again from its recording: the panels whose
 /// quantity has no unit.
@@ -497,6 +504,14 @@ fn every_example_and_variant_starts_within_the_default_energy_bound() {
             let out = scratch_dir.join("out");
             let end_set = format!("run.end_time={end:e}");
             let mut extra = vec!["--set", &end_set, "--set", "run.pictures=none"];
+            if GPU_VARIANTS.contains(&tag.as_str()) {
+                extra.extend([
+                    "--set",
+                    "water.device=\"cpu\"",
+                    "--set",
+                    "plate.device=\"cpu\"",
+                ]);
+            }
             if let Some(v) = variant {
                 extra.extend(["--variant", v]);
             }
