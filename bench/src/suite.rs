@@ -56,8 +56,9 @@ pub struct SuiteArgs {
     /// No GPU rows even when an adapter exists.
     #[arg(long)]
     pub no_gpu: bool,
-    /// Also the sizes that fill a data-centre GPU (fluid 1600² and 4096², fluid-3d 128³ and
-    /// 256³, pd-bond 64³), on the GPU only: the host would take minutes per sample there.
+    /// Also the sizes that fill a data-centre GPU (fluid and fluid-tnt 1600² and 4096²,
+    /// fluid-3d 128³ and 256³, pd-bond 64³), on the GPU only: the host would take minutes per
+    /// sample there.
     #[arg(long)]
     pub large: bool,
 }
