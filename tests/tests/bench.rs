@@ -13,7 +13,7 @@ fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs().max(f64::MIN_POSITIVE)
 }
 
-fn run_suite(only: &str) -> (Value, String) {
+fn run_suite(only: &str) -> (Value, String, String) {
     let (dir, _) = scratch("bench");
     let out = dir.join("bench");
     let o = cosim(&[
@@ -33,12 +33,12 @@ fn run_suite(only: &str) -> (Value, String) {
     let text = std::fs::read_to_string(out.join("bench.json")).expect("bench.json written");
     let json: Value = serde_json::from_str(&text).expect("bench.json parses");
     let md = std::fs::read_to_string(out.join("bench.md")).expect("bench.md written");
-    (json, md)
+    (json, md, stdout.into_owned())
 }
 
 #[test]
 fn quick_suite_covers_every_kernel_with_consistent_numbers() {
-    let (j, md) = run_suite("transport,fluid,fluid-3d,fluid-tnt,solid,shell,joint");
+    let (j, md, stdout) = run_suite("transport,fluid,fluid-3d,fluid-tnt,solid,shell,joint");
     let rows = j["results"].as_array().expect("results");
     let skipped = j["skipped"].as_array().expect("skipped");
     assert!(j["errors"].as_array().expect("errors").is_empty(), "{j:#}");
@@ -80,6 +80,24 @@ fn quick_suite_covers_every_kernel_with_consistent_numbers() {
         for k in ["fluid", "fluid-3d", "fluid-tnt"] {
             assert_eq!(has(k, "gpu-f32", None), 2, "{k}: f32 rows");
         }
+    }
+    // The pd-bond block breaks bonds while it is timed, and stays mostly whole: its particles'
+    // velocities of up to ±60 m/s stretch neighbour bonds by about V/c ≈ 60 / 5100 ≈ 1.2 %,
+    // past s0 = 1 % for some of them only. Each body prints the share broken when it is
+    // dropped: one line per quick size for the host body and, with an adapter, the device's.
+    let shares: Vec<(String, f64)> = stdout
+        .lines()
+        .filter(|l| l.contains("pd-bond") && l.contains("of the bonds broken"))
+        .filter_map(|l| {
+            let head = l.split_once('%')?.0;
+            let pct: f64 = head.split_whitespace().last()?.parse().ok()?;
+            Some((l.trim().to_string(), pct))
+        })
+        .collect();
+    let cpu_lines = shares.iter().filter(|(l, _)| l.contains(" cpu ")).count();
+    assert_eq!(cpu_lines, 2, "{shares:?}\n{stdout}");
+    for (l, pct) in &shares {
+        assert!(*pct > 0.0 && *pct < 50.0, "{l}");
     }
     // The transports (local always works; the others run or say why not).
     for t in ["local", "shm", "zenoh"] {
@@ -188,7 +206,7 @@ fn quick_suite_covers_every_kernel_with_consistent_numbers() {
 
 #[test]
 fn only_filters_and_unknown_kernels_are_refused() {
-    let (j, _) = run_suite("shell");
+    let (j, _, _) = run_suite("shell");
     let rows = j["results"].as_array().expect("results");
     assert!(!rows.is_empty() && rows.iter().all(|r| r["kernel"] == "shell"));
     // shell needs no GPU: none acquired, none skipped
@@ -242,7 +260,7 @@ fn transport_subcommand_still_prints_its_table() {
 /// first tenth of the blocks left out as warm-up: 22 blocks, 176 windows).
 #[test]
 fn window_kernel_times_participants_and_the_split_bar() {
-    let (j, md) = run_suite("transport,window");
+    let (j, md, _) = run_suite("transport,window");
     assert!(j["errors"].as_array().expect("errors").is_empty(), "{j:#}");
     let rows = j["windows"].as_array().expect("windows");
     let skipped = j["skipped"].as_array().expect("skipped");
@@ -303,7 +321,7 @@ fn window_kernel_times_participants_and_the_split_bar() {
 /// 3, and the clock: 2 + 3·(2·nd + 3) + 2 + 1.
 #[test]
 fn gpu_profile_times_every_fluid_kernel() {
-    let (j, md) = run_suite("gpu-profile");
+    let (j, md, _) = run_suite("gpu-profile");
     if j["machine"]["gpu"].is_null() {
         mechanics::gpu::skip_or_fail(
             "gpu_profile_times_every_fluid_kernel",
