@@ -421,15 +421,20 @@ const PLOT: (i32, i32, i32, i32) = (40, 60, 1000, 700);
 pub struct Choice<'a> {
     pub node: &'a str,
     pub field: &'a str,
+    /// The colour range, where several pictures share one (`cosim plot --field` of several
+    /// runs side by side); None: the range of the values drawn.
+    pub span: Option<(f64, f64)>,
 }
 
 impl<'a> Choice<'a> {
     /// `NODE.FIELD` (the field name may itself hold dots).
     pub fn parse(spec: &'a str) -> anyhow::Result<Self> {
         match spec.split_once('.') {
-            Some((node, field)) if !node.is_empty() && !field.is_empty() => {
-                Ok(Choice { node, field })
-            }
+            Some((node, field)) if !node.is_empty() && !field.is_empty() => Ok(Choice {
+                node,
+                field,
+                span: None,
+            }),
             _ => bail!("--field {spec}: must be NODE.FIELD, e.g. gas.density or bar.damage"),
         }
     }
@@ -542,6 +547,7 @@ fn draw(
     frames: &[Frame],
     choice: Option<Choice>,
     t: f64,
+    title: &str,
 ) -> anyhow::Result<Picture> {
     let text = crate::plot::font_ready();
     root.fill(&WHITE)?;
@@ -557,7 +563,7 @@ fn draw(
     if text {
         let names: Vec<&str> = frames.iter().map(|f| f.node.as_str()).collect();
         root.draw(&Text::new(
-            format!("t = {t:.4e} s   nodes: {}", names.join(", ")),
+            format!("{title}t = {t:.4e} s   nodes: {}", names.join(", ")),
             (40, 20),
             ("sans-serif", 22).into_font(),
         ))?;
@@ -585,9 +591,64 @@ pub fn render(
     }
     crate::plot::png_whole(png, |tmp| {
         let root = BitMapBackend::new(tmp, SIZE).into_drawing_area();
-        let picture = draw(&root, &frames, choice, t_drawn)?;
+        let picture = draw(&root, &frames, choice, t_drawn, "")?;
         root.present()?;
         Ok(picture)
+    })
+}
+
+/// The chosen field's frames nearest `time` in each of `runs` (name, folder) side by side in
+/// one PNG — a row of up to three, else a near-square grid, each panel captioned with its run's name — on one colour
+/// range, the union of the values of every run, so that the panels compare by colour.
+/// Returns the time drawn in each run.
+pub fn render_runs(
+    runs: &[(String, PathBuf)],
+    time: Option<f64>,
+    png: &Path,
+    choice: Choice,
+) -> anyhow::Result<Vec<f64>> {
+    let mut all = Vec::new();
+    let mut span = (f64::INFINITY, f64::NEG_INFINITY);
+    for (name, dir) in runs {
+        let (frames, t) = frames_at(dir, time, None)?;
+        check_choice(&frames, choice).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+        for f in frames.iter().filter(|f| f.node == choice.node) {
+            let arrays = if f.grid.is_some() {
+                &f.cell_data
+            } else {
+                &f.point_data
+            };
+            if let Some(a) = arrays.iter().find(|a| a.name == choice.field) {
+                let (lo, hi) = range((0..a.values.len() / a.comps.max(1)).map(|i| magnitude(a, i)));
+                span = (span.0.min(lo), span.1.max(hi));
+            }
+        }
+        all.push((name, frames, t));
+    }
+    let shared = Choice {
+        span: span.0.is_finite().then_some(span),
+        ..choice
+    };
+    // a row of up to three, else a near-square grid
+    let n = all.len().max(1);
+    let cols = if n <= 3 {
+        n
+    } else {
+        n.isqrt() + usize::from(n.isqrt().pow(2) < n)
+    };
+    let rows = all.len().div_ceil(cols);
+    let size = (SIZE.0 * cols as u32, SIZE.1 * rows as u32);
+    crate::plot::png_whole(png, |tmp| {
+        let root = BitMapBackend::new(tmp, size).into_drawing_area();
+        root.fill(&WHITE)?;
+        let panels = root.split_evenly((rows, cols));
+        let mut times = Vec::new();
+        for ((name, frames, t), area) in all.iter().zip(&panels) {
+            draw(area, frames, Some(shared), *t, &format!("{name}:   "))?;
+            times.push(*t);
+        }
+        root.present()?;
+        Ok(times)
     })
 }
 
@@ -676,7 +737,7 @@ pub fn render_gif(
         if let Some(c) = choice {
             check_choice(&frames, c)?;
         }
-        draw(&root, &frames, choice, drawn)?;
+        draw(&root, &frames, choice, drawn, "")?;
         root.present()
             .with_context(|| format!("cannot write {}", gif.display()))?;
         last = drawn;
@@ -737,11 +798,13 @@ fn draw_grid_layer(
     };
     let k = n[2] / 2;
     let layer = |i: usize, j: usize| magnitude(a, i + n[0] * (j + n[1] * k));
-    let span = range(
-        (0..n[1])
-            .flat_map(|j| (0..n[0]).map(move |i| (i, j)))
-            .map(|(i, j)| layer(i, j)),
-    );
+    let span = chosen.and_then(|c| c.span).unwrap_or_else(|| {
+        range(
+            (0..n[1])
+                .flat_map(|j| (0..n[0]).map(move |i| (i, j)))
+                .map(|(i, j)| layer(i, j)),
+        )
+    });
     let sc = Scale::new(caption(&f.node, a), span, under);
     for j in 0..n[1] {
         for i in 0..n[0] {
@@ -762,16 +825,13 @@ fn draw_solid_flat(
     choice: Option<Choice>,
     view: &View,
 ) -> anyhow::Result<Option<Scale>> {
-    let chosen = choice
-        .filter(|c| c.node == f.node)
-        .and_then(|c| pick_sized(&f.point_data, &[c.field], f.points.len()));
+    let mine = choice.filter(|c| c.node == f.node);
+    let chosen = mine.and_then(|c| pick_sized(&f.point_data, &[c.field], f.points.len()));
     let r = if f.points.len() > 20_000 { 1 } else { 2 };
     if let Some(a) = chosen {
-        let sc = Scale::new(
-            caption(&f.node, a),
-            range((0..f.points.len()).map(|i| magnitude(a, i))),
-            false,
-        );
+        let span = mine.and_then(|c| c.span);
+        let span = span.unwrap_or_else(|| range((0..f.points.len()).map(|i| magnitude(a, i))));
+        let sc = Scale::new(caption(&f.node, a), span, false);
         for (i, p) in f.points.iter().enumerate() {
             let c = sc.colour(magnitude(a, i));
             root.draw(&Circle::new(view.px(p[0], p[1]), r, c.filled()))?;
@@ -980,10 +1040,11 @@ fn draw_particles(
     let mut shared: Vec<Shared> = Vec::new();
     for (f, field) in &fields {
         let Some((a, fraction)) = field else { continue };
-        let span = if *fraction {
-            (0.0, 1.0)
-        } else {
-            range((0..f.points.len()).map(|i| magnitude(a, i)))
+        let given = choice.filter(|c| c.node == f.node && c.field == a.name);
+        let span = match given.and_then(|c| c.span) {
+            Some(span) => span,
+            None if *fraction => (0.0, 1.0),
+            None => range((0..f.points.len()).map(|i| magnitude(a, i))),
         };
         match shared.iter_mut().find(|s| s.name == a.name) {
             Some(s) => {

@@ -315,6 +315,7 @@ pub fn mutate(t: &toml::Table, edits: &[Edit]) -> toml::Table {
                     let keys = [
                         "stabilization",
                         "rk_order",
+                        "bond_associative",
                         "p_inf",
                         "thickness",
                         "yield_stress",

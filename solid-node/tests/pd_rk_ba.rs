@@ -142,6 +142,18 @@ fn rk_gradient_patch_tests() {
     }
 }
 
+/// A block of pd-rk-ba without damage, with or without the bond-associative stabilization.
+fn rk_body_ba(n: [usize; 3], order: usize, ba: bool) -> Body {
+    let dx = 1e-3;
+    let x0 = block(n, dx, true);
+    let vol = vec![dx * dx * dx; x0.len()];
+    let delta = (order as f64 + 1.015) * dx;
+    let bonds = Bonds::build(&x0, delta);
+    let mut m = RkBa::new(Dim::Three, order, delta, steel(), NoDamage, &bonds);
+    m.set_bond_associative(ba);
+    Body::new(Dim::Three, dx, delta, 7850.0, x0, vol, bonds, Box::new(m))
+}
+
 fn rk_body(n: [usize; 3], order: usize, s0: Option<f64>) -> Body {
     let dx = 1e-3;
     let x0 = block(n, dx, true);
@@ -224,25 +236,29 @@ fn randomize(b: &mut Body, amp: f64) {
     }
 }
 
+/// Gives `b` random velocities (up to ±30 m/s), takes 150 steps at half the stable step and
+/// returns the largest change of a momentum component relative to Σ m |v|.
+fn random_momentum_drift(b: &mut Body) -> f64 {
+    randomize(b, 60.0);
+    let p0 = b.momentum();
+    let scale: f64 = (0..b.len())
+        .map(|i| b.density * b.vol[i] * b.vel[i].iter().map(|c| c.abs()).sum::<f64>())
+        .sum();
+    let dt = 0.5 * b.stable_dt();
+    for _ in 0..150 {
+        b.step(dt);
+    }
+    let p1 = b.momentum();
+    (0..3).map(|d| (p1[d] - p0[d]).abs()).fold(0.0, f64::max) / scale
+}
+
 /// Must-show 4 for pd-rk-ba: linear momentum of a free body with random velocities is
 /// conserved to round-off while bonds break (order 1 and 2).
 #[test]
 fn rk_ba_momentum_conserved_in_free_body() {
     for order in [1usize, 2] {
         let mut b = rk_body([8, 7, 6], order, Some(0.002));
-        randomize(&mut b, 60.0);
-        let p0 = b.momentum();
-        let scale: f64 = (0..b.len())
-            .map(|i| {
-                b.density * b.vol[i] * (b.vel[i][0].abs() + b.vel[i][1].abs() + b.vel[i][2].abs())
-            })
-            .sum();
-        let dt = 0.5 * b.stable_dt();
-        for _ in 0..150 {
-            b.step(dt);
-        }
-        let p1 = b.momentum();
-        let err = (0..3).map(|d| (p1[d] - p0[d]).abs()).fold(0.0, f64::max) / scale;
+        let err = random_momentum_drift(&mut b);
         let broken = b.damage().iter().filter(|&&d| d > 0.0).count();
         println!("order {order}: relative momentum drift {err:e}, {broken} damaged particles");
         assert!(broken > 0, "the test must break bonds");
@@ -254,13 +270,13 @@ fn rk_ba_momentum_conserved_in_free_body() {
     }
 }
 
-/// A homogeneous deformation rate in the bulk produces the classical stress: stretching a
-/// block at a uniform rate gives, at interior bonds, σ = C : D t (elastic, small strain), and
-/// no force on interior particles.
-#[test]
-fn rk_ba_uniform_rate_gives_classical_stress_and_no_interior_force() {
+/// Stretches block `b` at a uniform rate (every particle held at v = (ε̇ x, 0, 0)) for five
+/// steps and returns, over the interior particles (more than 3.5 spacings from the faces),
+/// how many there are, the largest stress error relative to the classical σ = C : D t
+/// (elastic, small strain) and the largest force relative to σ/Δx (a stress difference
+/// across one spacing).
+fn uniform_rate(mut b: Body) -> (usize, f64, f64) {
     let dx = 1e-3;
-    let mut b = rk_body([9, 9, 9], 2, None);
     let rate = 10.0; // 1/s
     let x0 = b.x0.clone();
     for (v, p) in b.vel.iter_mut().zip(&x0) {
@@ -273,36 +289,110 @@ fn rk_ba_uniform_rate_gives_classical_stress_and_no_interior_force() {
         b.step(dt);
     }
     let m = steel();
-    let (lam, mu) = {
-        let (e, nu) = (m.young, m.poisson);
-        (
-            e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
-            e / (2.0 * (1.0 + nu)),
-        )
-    };
+    let (e, nu) = (m.young, m.poisson);
+    let lam = e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+    let mu = e / (2.0 * (1.0 + nu));
     let eps = rate * 5.0 * dt;
-    let s_xx = (lam + 2.0 * mu) * eps;
-    let s_yy = lam * eps;
+    let (s_xx, s_yy) = ((lam + 2.0 * mu) * eps, lam * eps);
     let stress = b.model.stress().unwrap_or_default();
     let interior: Vec<usize> = (0..b.len())
         .filter(|&i| x0[i].iter().all(|&c| c > 3.5 * dx && c < 5.5 * dx))
         .collect();
-    assert!(!interior.is_empty());
-    let mut worst: f64 = 0.0;
-    let mut fmax: f64 = 0.0;
+    let (mut worst, mut fmax) = (0.0f64, 0.0f64);
     for &i in &interior {
         worst = worst.max((stress[i][0] - s_xx).abs() / s_xx);
         worst = worst.max((stress[i][1] - s_yy).abs() / s_xx);
         fmax = fmax.max(b.force[i].iter().map(|f| f.abs()).fold(0.0, f64::max));
     }
-    // Force scale: σ/Δx (a stress difference across one spacing).
-    let fscale = s_xx / dx;
+    (interior.len(), worst, fmax * dx / s_xx)
+}
+
+/// A homogeneous deformation rate in the bulk produces the classical stress: stretching a
+/// block at a uniform rate gives, at interior bonds, σ = C : D t (elastic, small strain), and
+/// no force on interior particles.
+#[test]
+fn rk_ba_uniform_rate_gives_classical_stress_and_no_interior_force() {
+    let (n, worst, force) = uniform_rate(rk_body([9, 9, 9], 2, None));
     println!(
-        "uniform rate: stress error {worst:.2e} (relative, small-strain C:ε), interior force {:.2e} of σ/Δx",
-        fmax / fscale
+        "uniform rate: {n} interior particles, stress error {worst:.2e} (relative, small-strain C:ε), interior force {force:.2e} of σ/Δx"
     );
+    assert!(n > 0);
     assert!(worst < 1e-6, "{worst:e}");
-    assert!(fmax < 1e-9 * fscale, "{fmax:e}");
+    assert!(force < 1e-9, "{force:e}");
+}
+
+/// Without the bond-associative stabilization the model is still consistent: a uniform
+/// deformation rate gives the classical stress at the particles and no interior force, and
+/// a free body with random velocities keeps its momentum to round-off (order 1 and 2).
+#[test]
+fn without_ba_a_uniform_rate_gives_classical_stress_and_momentum_is_kept() {
+    for order in [1usize, 2] {
+        let (n, worst, force) = uniform_rate(rk_body_ba([9, 9, 9], order, false));
+        println!(
+            "without BA, order {order}: {n} interior particles, stress error {worst:.2e}, interior force {force:.2e} of σ/Δx"
+        );
+        assert!(n > 0);
+        assert!(worst < 1e-6, "order {order}: {worst:e}");
+        assert!(force < 1e-9, "order {order}: {force:e}");
+
+        let err = random_momentum_drift(&mut rk_body_ba([8, 7, 6], order, false));
+        println!("without BA, order {order}: relative momentum drift {err:e}");
+        assert!(err < 2e-13, "order {order}: {err:e}");
+    }
+}
+
+/// The zero-energy mode that the bond-associative stabilization removes: velocities that
+/// alternate in sign from one lattice plane to the next, v = a (−1)^k e_x, have a zero point
+/// gradient at every particle whose family is symmetric (the odd neighbours cancel in
+/// pairs), so without BA the interior particles feel no force at all; with BA the bond
+/// gradient v_ij x_ijᵀ/|x_ij|² sees the mode and resists it (f · v < 0 at every interior
+/// particle).
+#[test]
+fn the_alternating_mode_has_no_stiffness_without_ba_and_is_resisted_with_it() {
+    let dx = 1e-3;
+    let n = [14usize, 14, 14];
+    for order in [1usize, 2] {
+        let delta = (order as f64 + 1.015) * dx;
+        let run = |ba: bool| {
+            let mut b = rk_body_ba(n, order, ba);
+            let x0 = b.x0.clone();
+            for (v, p) in b.vel.iter_mut().zip(&x0) {
+                let k = (p[0] / dx).floor() as i64;
+                *v = [if k % 2 == 0 { 1.0 } else { -1.0 }, 0.0, 0.0];
+            }
+            b.step(1e-9);
+            // interior: the whole family (and its families) away from the surface
+            let lo = 2.0 * delta;
+            let hi = n[0] as f64 * dx - 2.0 * delta;
+            let inner: Vec<usize> = (0..b.len())
+                .filter(|&i| x0[i].iter().all(|&c| c > lo && c < hi))
+                .collect();
+            let power: Vec<f64> = inner
+                .iter()
+                .map(|&i| (0..3).map(|d| b.force[i][d] * b.vel[i][d]).sum())
+                .collect();
+            let fmax = inner
+                .iter()
+                .map(|&i| b.force[i].iter().map(|f| f.abs()).fold(0.0, f64::max))
+                .fold(0.0, f64::max);
+            (inner.len(), power, fmax)
+        };
+        let (n_ba, power_ba, f_ba) = run(true);
+        let (n_point, _, f_point) = run(false);
+        println!(
+            "order {order}: {n_ba} interior particles; largest interior force with BA {f_ba:.3e} N, without {f_point:.3e} N"
+        );
+        assert_eq!(n_ba, n_point);
+        assert!(n_ba >= 8, "order {order}: only {n_ba} interior particles");
+        assert!(
+            power_ba.iter().all(|&p| p < 0.0),
+            "order {order}: BA does not resist the mode everywhere"
+        );
+        assert!(
+            f_point < 1e-9 * f_ba,
+            "order {order}: {f_point:e} vs {f_ba:e}"
+        );
+    }
 }
 
 /// Determinism: bit-identical state for 1 and 2 threads.
@@ -362,4 +452,13 @@ bodies = [{{ shape = "box", min = [0.0, 0.0, 0.0], max = [0.006, 0.005, 0.005] }
         toml::Value::String("plane_stress".into()),
     );
     assert_eq!(key(&ps), "dimension");
+    assert_eq!(key(&t("bond_associative = false")), "accepted pd-rk-ba");
+    let damaged = "bond_associative = false\ndamage = { kind = \"critical_stretch\", critical_stretch = 0.01 }";
+    assert_eq!(key(&t(damaged)), "bond_associative");
+    let other = |model: &str| match solid_node::pd::factory(model, &t("bond_associative = true")) {
+        Some(Err(protocol::SolverError::Config { key, .. })) => key,
+        _ => "accepted".into(),
+    };
+    assert_eq!(other("pd-correspondence"), "bond_associative");
+    assert_eq!(other("pd-bond"), "bond_associative");
 }

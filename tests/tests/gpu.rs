@@ -1,5 +1,6 @@
 //! The GPU path in a coupled run: the small variant of
-//! `examples/chamber_detonation.toml` (a gas node and a peridynamic bar node as real processes,
+//! `examples/chamber_detonation.toml` with the bar as `pd-correspondence` (a gas node and a
+//! peridynamic bar node as real processes,
 //! immersed coupling) run with the gas on `device = "cpu"` and on `device = "gpu"`
 //! (`--set gas.device="gpu"`), and compared field by field, window by window: every field of
 //! every recorded `Fields` message on the data topics (the gas's forces on the particles; the
@@ -91,7 +92,9 @@ fn compare(a: &Traffic, b: &Traffic) -> Vec<(FieldKey, f64, f64)> {
 fn run(case: &Path, out: &Path, id: &str, sets: &[&str]) -> (std::process::Output, f64) {
     // The default timeouts: a node beats from its Welcome on, while it builds its solver
     // (on the GPU path it compiles the WGSL pipelines, seconds on lavapipe under load).
-    let mut args = vec!["--variant", "small"];
+    // The bar as pd-correspondence, the model with device kernels (the case's own,
+    // pd-rk-ba, has none), on the CPU and on the GPU alike.
+    let mut args = vec!["--variant", "small", "--set", "bar.model=pd-correspondence"];
     for s in sets {
         args.extend_from_slice(&["--set", s]);
     }

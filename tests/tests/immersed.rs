@@ -226,7 +226,7 @@ fn both_nodes_of_the_chamber_replay_bit_identically() {
     // Another solid model against the recorded blast: compared over every window, and it
     // differs.
     let (_, id) = scratch("rp-chamber-rk");
-    let (code, out, err) = replay_status(&mcap, "bar", &id, &["--set", "model=pd-rk-ba"]);
+    let (code, out, err) = replay_status(&mcap, "bar", &id, &["--set", "model=pd-correspondence"]);
     println!("{out}{err}");
     assert_eq!(
         code,

@@ -85,7 +85,7 @@ fn a_rerun_needs_overwrite_and_then_lists_only_its_own_frames() {
     nothing_left(&id);
 }
 
-/// the chamber's bar swapped to `pd-rk-ba` from the command line.
+/// the chamber's bar swapped from `pd-rk-ba` to `pd-correspondence` from the command line.
 #[test]
 fn set_swaps_a_node_model_and_executable() {
     let (dir, id) = scratch("swap-model");
@@ -95,21 +95,25 @@ fn set_swaps_a_node_model_and_executable() {
         &case,
         &out,
         &id,
-        &["--variant", "small", "--set", "bar.model=pd-rk-ba"],
+        &["--variant", "small", "--set", "bar.model=pd-correspondence"],
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let s = summary(&out);
-    assert_eq!(s["nodes"]["bar"]["model"], "pd-rk-ba", "{}", s["nodes"]);
+    assert_eq!(
+        s["nodes"]["bar"]["model"], "pd-correspondence",
+        "{}",
+        s["nodes"]
+    );
     assert_eq!(s["status"], "finished");
     // The node really ran the other model, not just the summary's echo of the case: the bar's
-    // recorded energies are those of a case file that names pd-rk-ba itself, bit for bit,
-    // and differ from the unswapped run's.
+    // recorded energies are those of a case file that names pd-correspondence itself, bit
+    // for bit, and differ from the unswapped run's.
     let text = std::fs::read_to_string(&case).unwrap();
-    assert_eq!(text.matches("model = \"pd-correspondence\"").count(), 1);
-    let edited = dir.join("rk-ba.toml");
+    assert_eq!(text.matches("model = \"pd-rk-ba\"").count(), 1);
+    let edited = dir.join("correspondence.toml");
     std::fs::write(
         &edited,
-        text.replace("model = \"pd-correspondence\"", "model = \"pd-rk-ba\""),
+        text.replace("model = \"pd-rk-ba\"", "model = \"pd-correspondence\""),
     )
     .unwrap();
     let series = |case: &std::path::Path, tag: &str, extra: &[&str]| {

@@ -411,6 +411,9 @@ fn chamber_small_on_the_gpu_killed_and_restarted_is_bit_identical() {
             "small",
             "--set",
             "gas.device=\"gpu\"",
+            // the model with device kernels
+            "--set",
+            "bar.model=pd-correspondence",
             "--set",
             "bar.device=\"gpu\"",
         ],

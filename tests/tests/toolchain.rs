@@ -576,7 +576,8 @@ fn run_pictures_draws_every_frame_or_none() {
 /// `--field NODE.FIELD` colours that node by the field: the bar's particles, light grey by
 /// default, take the colour map of their speed (no grey pixel left in the bar's box, many
 /// colours); a field the node does not write is refused naming those it does; `--all` draws
-/// one picture per written time; `cosim plot --field --at` draws the same picture.
+/// one picture per written time; `cosim plot --field --at` draws the same picture, and of
+/// several runs also one of them side by side.
 #[test]
 fn a_chosen_field_colours_its_node_and_every_frame_can_be_drawn() {
     let out = chamber();
@@ -641,6 +642,43 @@ fn a_chosen_field_colours_its_node_and_every_frame_can_be_drawn() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let listed = String::from_utf8_lossy(&o.stdout);
     assert!(listed.contains("gas_density_2e-4.png"), "{listed}");
+
+    // Several runs also side by side, on one colour range (here the same run twice): a
+    // picture twice as wide whose two panels show the bar as the single picture does, pixel
+    // for pixel.
+    let o = cosim(&[
+        "plot",
+        out.to_str().unwrap(),
+        out.to_str().unwrap(),
+        "--field",
+        "bar.velocity",
+        "-o",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let listed = String::from_utf8_lossy(&o.stdout);
+    assert!(listed.contains("runs_bar_velocity.png"), "{listed}");
+    let (w2, h2, px2) = png_pixels(&dir.join("runs_bar_velocity.png"));
+    let h = px.len() as u32 / w;
+    assert_eq!((w2, h2), (2 * w, h));
+    let mut same = 0;
+    for y in (by0 + 3.0) as u32..=(by1 - 3.0) as u32 {
+        for x in (bx0 + 3.0) as u32..=(bx1 - 3.0) as u32 {
+            let single = px[(y * w + x) as usize];
+            assert_eq!(
+                px2[(y * w2 + x) as usize],
+                single,
+                "left panel at ({x}, {y})"
+            );
+            assert_eq!(
+                px2[(y * w2 + w + x) as usize],
+                single,
+                "right panel at ({x}, {y})"
+            );
+            same += 1;
+        }
+    }
+    assert!(same > 50_000, "{same}");
 }
 
 #[test]

@@ -86,7 +86,8 @@ pub struct PlotArgs {
     #[arg(long, conflicts_with_all = ["series", "x", "field", "fragments"])]
     pub all: bool,
     /// Instead of time histories, a picture of a field: NODE.FIELD of the node's VTK
-    /// frames (e.g. gas.pressure, bar.damage), per run, at `--at` (default the end).
+    /// frames (e.g. gas.pressure, bar.damage), per run, at `--at` (default the end); of
+    /// several runs also `runs_<field>.png`, all of them side by side on one colour range.
     #[arg(long, conflicts_with_all = ["series", "x"])]
     pub field: Option<String>,
     /// Instead of time histories, fragment-size histograms: per run, the widths and
@@ -233,7 +234,8 @@ fn export_fields(rec: &Path, base: &Path) -> anyhow::Result<String> {
     Ok(note)
 }
 
-/// `cosim plot`: the charts of the series written (or with `--field`, one picture per run).
+/// `cosim plot`: the charts of the series written (or with `--field`, one picture per run,
+/// and of several runs also one of them side by side on a shared colour range).
 pub(super) fn plot(a: &PlotArgs) -> anyhow::Result<String> {
     if a.fragments {
         let runs: Vec<PathBuf> = a.runs.iter().map(|r| folder_of(r)).collect();
@@ -258,7 +260,7 @@ pub(super) fn plot(a: &PlotArgs) -> anyhow::Result<String> {
     let choice = Choice::parse(field)?;
     std::fs::create_dir_all(&a.output)
         .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", a.output.display()))?;
-    let mut drawn = Vec::new();
+    let (mut drawn, mut named) = (Vec::new(), Vec::new());
     for run in &a.runs {
         let dir = folder_of(run);
         let name = dir
@@ -272,6 +274,18 @@ pub(super) fn plot(a: &PlotArgs) -> anyhow::Result<String> {
         ));
         let t = fields::render(&dir, a.at, &png, Some(choice), None)?.time;
         drawn.push((png, t));
+        named.push((name, dir));
+    }
+    if named.len() > 1 {
+        // the runs side by side on one colour range
+        let at_name = a.at.map(|t| format!("_{t:e}")).unwrap_or_default();
+        let png = a.output.join(format!(
+            "runs_{}{at_name}.png",
+            crate::plot::file_stem(field)
+        ));
+        let times = fields::render_runs(&named, a.at, &png, choice)?;
+        let latest = times.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        drawn.push((png, latest));
     }
     Ok(drawn_lines(&drawn))
 }

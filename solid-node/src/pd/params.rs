@@ -21,6 +21,9 @@ fn default_cfl() -> f64 {
 fn default_rk_order() -> usize {
     2
 }
+fn default_true() -> bool {
+    true
+}
 
 /// The parameter table of a peridynamic node (`[nodes.X.params]`).
 #[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
@@ -65,6 +68,12 @@ pub struct PdParams {
     /// Order n of the RK gradient of pd-rk-ba (1 or 2; seed 000 App. A).
     #[serde(default = "default_rk_order")]
     pub rk_order: usize,
+    /// Bond-associative stabilization of pd-rk-ba (default true): stress, plasticity and
+    /// damage at the bond, from the bond velocity gradient. `false` evaluates the stress at
+    /// the particles from their point gradient, the force state σ_i Φ_ij — the unstabilized
+    /// correspondence model, kept for stability studies; it takes no `damage`.
+    #[serde(default = "default_true")]
+    pub bond_associative: bool,
     /// Safety factor on the stable step.
     #[serde(default = "default_cfl")]
     pub cfl: f64,

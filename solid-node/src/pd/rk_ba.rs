@@ -20,6 +20,11 @@
 //!   momentum is conserved. (With ω̄_i = ω̄_j the PD stress Σ_j T_ij ⊗ x V_j equals σ: the
 //!   z term supplies the transverse part that the first term lacks.)
 //!
+//! * Without BA (`bond_associative = false`, for stability studies): J2 at the particle from its
+//!   point gradient L_i, and the plain correspondence force state T_ij = σ_i Φ_ij, so
+//!   f_i = Σ_j (σ_i Φ_ij − σ_j Φ_ji) V_j — still antisymmetric per pair, but with the
+//!   zero-energy modes that the bond-level gradient removes.
+//!
 //! Both copies of a bond (rows i and j) evolve bit-identically: L̄ is symmetric and the BA
 //! term is even in (v, x) → (−v, −x). The force pass reads Φ_ji through the reverse-bond map.
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
@@ -30,7 +35,7 @@
     clippy::too_many_arguments
 )]
 
-use super::correspondence::M3;
+use super::correspondence::{M3, spin_and_strain_step};
 use super::family::{Bonds, par_rows};
 use super::model::{Dim, Kinematics, PdModel};
 use mechanics::damage::{BondInput, DamageModel};
@@ -392,6 +397,11 @@ pub struct RkBa<D: DamageModel> {
     /// Strain energy given up by bond damage per particle since the start (J; see
     /// [`RkBa::release`]).
     released: Vec<f64>,
+    /// Whether the stress lives at the bonds (the BA model, the default) or at the particles.
+    bond_associative: bool,
+    /// Without BA: each particle's J2 state and the plastic work done at it (J); empty
+    /// with BA.
+    point_state: Vec<(J2State, f64)>,
 }
 
 /// Particle i's strain energy V_i S/W (J) with S = Σ_j ω_b V_j w_e(σ_b), W = Σ_j ω_b V_j over
@@ -452,7 +462,74 @@ impl<D: DamageModel> RkBa<D> {
             rev,
             offsets: bonds.offsets.clone(),
             released: vec![0.0; n],
+            bond_associative: true,
+            point_state: Vec::new(),
         }
+    }
+
+    /// Switches the bond-associative stabilization (on by default; see the module notes).
+    /// Set before the first step: the stress history lives at the bonds with it and at the
+    /// particles without it.
+    pub fn set_bond_associative(&mut self, on: bool) {
+        self.bond_associative = on;
+        self.point_state = if on {
+            Vec::new()
+        } else {
+            vec![(J2State::default(), 0.0); self.point.len()]
+        };
+    }
+
+    /// The unstabilized model's step after the gradient pass: Jaumann rate and J2 at each
+    /// particle from its point gradient L_i, then f_i = Σ_j (σ_i Φ_ij − σ_j Φ_ji) V_j. It
+    /// takes no damage (refused at set-up), so ω is the gradient pass's.
+    fn point_forces(&mut self, k: &Kinematics, bonds: &Bonds, dt: f64, f: &mut [[f64; 3]]) {
+        let (point, mat) = (&self.point, self.material);
+        if dt > 0.0 {
+            super::family::par_points(
+                &mut self.point_state,
+                &|i, (st, work): &mut (J2State, f64)| {
+                    let pi = &point[i];
+                    if !pi.active {
+                        return;
+                    }
+                    let l = pi.l;
+                    let (spin, de) = spin_and_strain_step(&l, dt);
+                    jaumann_rotate_skew(&mut st.stress, &spin, dt);
+                    if mat.kin_hardening != 0.0 {
+                        jaumann_rotate_skew(&mut st.back_stress, &spin, dt);
+                    }
+                    let deqp = mat.update(st, &de);
+                    if deqp > 0.0 {
+                        *work += k.vol[i] * mechanics::j2::plastic_work(st, deqp);
+                    }
+                },
+            );
+        }
+        for (h, &w) in self.hist.iter_mut().zip(&self.omega) {
+            h.om = w;
+        }
+        let (offsets, nbr) = (&bonds.offsets, &bonds.nbr);
+        let (state, phi, rev, omega) = (&self.point_state, &self.phi, &self.rev, &self.omega);
+        super::family::par_points(f, &|i, fi: &mut [f64; 3]| {
+            let si = mechanics::j2::to_matrix(&state[i].0.stress);
+            let mut acc = [0.0; 3];
+            for b in offsets[i]..offsets[i + 1] {
+                if omega[b] == 0.0 {
+                    continue;
+                }
+                let j = nbr[b] as usize;
+                let sj = mechanics::j2::to_matrix(&state[j].0.stress);
+                let (pij, pji) = (phi[b], phi[rev[b] as usize]);
+                let vj = k.vol[j];
+                for a in 0..3 {
+                    let ti = si[a][0] * pij[0] + si[a][1] * pij[1] + si[a][2] * pij[2];
+                    let tj = sj[a][0] * pji[0] + sj[a][1] * pji[1] + sj[a][2] * pji[2];
+                    // negated exactly by row j's copy of the pair
+                    acc[a] += (ti - tj) * vj;
+                }
+            }
+            *fi = acc;
+        });
     }
 
     /// Books the strain energy that this step's bond damage took from the rows it touched
@@ -536,6 +613,10 @@ impl<D: DamageModel> PdModel for RkBa<D> {
             &mut self.omega,
             &mut self.phi,
         );
+        if !self.bond_associative {
+            self.point_forces(k, bonds, dt, f);
+            return;
+        }
         // 2. Bond level: BA velocity gradient (A.11), Jaumann + J2 (App. B), damage (App. C),
         //    and z_i (A.14).
         let (offsets, nbr, inv_len) = (&bonds.offsets, &bonds.nbr, &bonds.inv_len);
@@ -588,16 +669,7 @@ impl<D: DamageModel> PdModel for RkBa<D> {
                     let l: M3 = std::array::from_fn(|a| {
                         std::array::from_fn(|c| lb[a][c] + res[a] * x[c] / x2)
                     });
-                    let spin: M3 =
-                        std::array::from_fn(|a| std::array::from_fn(|c| 0.5 * (l[a][c] - l[c][a])));
-                    let de: Sym = [
-                        l[0][0] * dt,
-                        l[1][1] * dt,
-                        l[2][2] * dt,
-                        0.5 * (l[1][2] + l[2][1]) * dt,
-                        0.5 * (l[0][2] + l[2][0]) * dt,
-                        0.5 * (l[0][1] + l[1][0]) * dt,
-                    ];
+                    let (spin, de) = spin_and_strain_step(&l, dt);
                     // seed 000 eq. (B.2)–(B.4) at the bond level.
                     jaumann_rotate_skew(&mut h.state.stress, &spin, dt);
                     if mat.kin_hardening != 0.0 {
@@ -703,6 +775,12 @@ impl<D: DamageModel> PdModel for RkBa<D> {
     /// bond is its renormalised average at once (see [`RkBa::release`]).
     fn strain_energy(&mut self, k: &Kinematics, bonds: &Bonds) -> f64 {
         let (mat, hist) = (self.material, &self.hist);
+        if !self.bond_associative {
+            // Σ_i V_i w_e(σ_i) without BA
+            return (self.point_state.iter().zip(k.vol))
+                .map(|((st, _), v)| v * mat.elastic_energy(&st.stress))
+                .sum();
+        }
         let mut e = 0.0;
         for i in 0..bonds.particles() {
             let r = bonds.offsets[i]..bonds.offsets[i + 1];
@@ -718,14 +796,24 @@ impl<D: DamageModel> PdModel for RkBa<D> {
 
     fn plastic_work(&self, vol: &[f64]) -> f64 {
         let _ = vol;
+        if !self.bond_associative {
+            return self.point_state.iter().map(|(_, w)| w).sum();
+        }
         self.hist.iter().map(|h| h.plastic_work).sum()
     }
 
     fn stress(&self) -> Option<Vec<Sym>> {
+        if !self.bond_associative {
+            return Some(self.point_state.iter().map(|(st, _)| st.stress).collect());
+        }
         Some(self.point_average(|h| h.state.stress))
     }
 
     fn plastic_strain(&self) -> Option<Vec<f64>> {
+        if !self.bond_associative {
+            let eqp = self.point_state.iter().map(|(st, _)| st.eq_plastic_strain);
+            return Some(eqp.collect());
+        }
         Some(
             self.point_average(|h| [h.state.eq_plastic_strain, 0.0, 0.0, 0.0, 0.0, 0.0])
                 .iter()
@@ -735,8 +823,12 @@ impl<D: DamageModel> PdModel for RkBa<D> {
     }
 
     /// Per bond its J2 state, damage and plastic work (ω is recomputed at each evaluation),
-    /// then the released energy per particle.
+    /// then the released energy per particle; without BA, each particle's J2 state and
+    /// plastic work instead.
     fn save_state(&self) -> SolverResult<Vec<u8>> {
+        if !self.bond_associative {
+            return encode_state(&self.point_state);
+        }
         let hist: Vec<(J2State, f64, f64)> = self
             .hist
             .iter()
@@ -746,6 +838,12 @@ impl<D: DamageModel> PdModel for RkBa<D> {
     }
 
     fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
+        if !self.bond_associative {
+            let state: Vec<(J2State, f64)> = decode_state(bytes)?;
+            check_len("particle states", state.len(), self.point_state.len())?;
+            self.point_state = state;
+            return Ok(());
+        }
         let (hist, released): (Vec<(J2State, f64, f64)>, Vec<f64>) = decode_state(bytes)?;
         check_len("bond histories", hist.len(), self.hist.len())?;
         check_len("released bond energy", released.len(), self.released.len())?;

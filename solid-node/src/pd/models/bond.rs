@@ -22,6 +22,10 @@ pub const DEF: PdModelDef = PdModelDef {
             "does not apply to pd-bond (only pd-rk-ba has an RK gradient order)",
         ),
         (
+            "bond_associative",
+            "does not apply to pd-bond (only pd-rk-ba has a bond-associative switch)",
+        ),
+        (
             "iso_hardening",
             "does not apply to pd-bond (elastic-brittle; use pd-correspondence or pd-rk-ba for plasticity)",
         ),

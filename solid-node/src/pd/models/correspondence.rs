@@ -16,10 +16,16 @@ use std::sync::Arc;
 
 pub const DEF: PdModelDef = PdModelDef {
     name: "pd-correspondence",
-    refuses: &[(
-        "rk_order",
-        "does not apply to pd-correspondence (only pd-rk-ba has an RK gradient order)",
-    )],
+    refuses: &[
+        (
+            "rk_order",
+            "does not apply to pd-correspondence (only pd-rk-ba has an RK gradient order)",
+        ),
+        (
+            "bond_associative",
+            "does not apply to pd-correspondence (only pd-rk-ba has a bond-associative switch; this model is stabilized by `stabilization`)",
+        ),
+    ],
     plastic: true,
     build,
     device: Some(DeviceDef {

@@ -1,5 +1,6 @@
 //! `pd-rk-ba`: the bond-associative model with reproducing-kernel gradients (its force law:
-//! `pd/rk_ba.rs`). It has no device kernels.
+//! `pd/rk_ba.rs`), or with `bond_associative = false` the same gradients without the
+//! stabilization. It has no device kernels.
 
 use super::{DamageVisitor, ModelInput, PdModelDef, cfg, with_damage};
 use crate::pd::model::{Dim, PdModel};
@@ -39,12 +40,19 @@ fn build(m: &ModelInput) -> SolverResult<Box<dyn PdModel>> {
     if !(order == 1 || order == 2) {
         return cfg("rk_order", format!("must be 1 or 2, got {order}"));
     }
+    if !m.p.bond_associative && m.p.damage.is_some() {
+        return cfg(
+            "bond_associative",
+            "false takes no `damage`: pd-rk-ba's damage acts on the bond-level stress, which the unstabilized model does not have",
+        );
+    }
     struct Make<'a, 'b>(&'a ModelInput<'b>);
     impl DamageVisitor<SolverResult<Box<dyn PdModel>>> for Make<'_, '_> {
         fn visit<D: DamageModel + 'static>(self, damage: D) -> SolverResult<Box<dyn PdModel>> {
             let m = self.0;
             let order = m.p.rk_order;
             let mut model = RkBa::new(m.dim, order, m.p.horizon, m.material, damage, m.bonds);
+            model.set_bond_associative(m.p.bond_associative);
             if let Some(i) = model.singular_particle(m.k, m.bonds) {
                 return cfg(
                     "horizon",
