@@ -9,7 +9,7 @@
 //!   grid agree within either's error against the similarity solution.
 //!
 //! Noh's implosion and Sedov's blast against their exact solutions, with observed convergence,
-//! run from their case files in the end-to-end tests (`tests/tests/radial_cases.rs`).
+//! run from their case files in the end-to-end tests (`tests/tests/fluid_cases.rs`).
 
 mod common;
 use common::solver;

@@ -1,5 +1,6 @@
 //! Chamber detonation, coarse level: the blast wave reaches the right
-//! wall's centre (point 2) when its own measured speed predicts, and reflects there.
+//! wall's centre (point 2) when its own measured speed predicts, and reflects there; and the
+//! chamber at three resolutions converges (see the second test).
 //!
 //! * Speed: arrival times (first rise of 2 kPa, interpolated between windows) at two
 //!   free-field probes above the bar, at radii r_a, r_b from the charge: D = Δr/Δt. The
@@ -113,4 +114,93 @@ fn the_shock_reaches_the_right_wall_when_its_speed_predicts_and_reflects_there()
         ((measured - P0) - (reflected - P0)).abs() <= 0.10 * (reflected - P0),
         "wall {measured} Pa, reflection predicts {reflected} Pa"
     );
+}
+
+/// The chamber under refinement (the seed's Fig. 4): three resolutions refined together by 2
+/// — gas 20², 40², 80² cells, bar 30 × 15, 60 × 30, 120 × 60 particles, δ 3.015 spacings,
+/// one 2.5 µs window for all — to 1.2 ms (the shock reaches point 2 at about 1.03 ms). The
+/// difference between neighbouring levels, the mean |Δ| over the 480 windows relative to the
+/// finest level's largest value, must shrink with the refinement for the bar's
+/// centre-of-mass displacement and the pressure at the right wall's centre (point 2); the
+/// observed order log₂(d_coarse/d_fine) is printed (measured: 0.95 and 0.48). The pressure
+/// at the detonation centre (point 1) is printed, not asserted: it does not converge at these
+/// levels (measured: order −0.17), since the 6.1 mm charge it sits in is smaller than one
+/// cell at all three and the probe reads its cell's average. (The case gives the charge by
+/// its energy so that each level holds the same charge.) The bar runs as pd-correspondence:
+/// at this charge the bar stays elastic and the model moves these quantities by little
+/// (docs/cases.md), and the finest level costs a fifth of the time that way.
+#[test]
+fn the_bar_displacement_and_the_wall_pressure_converge_under_refinement() {
+    let case = workspace_root().join("examples/chamber_detonation.toml");
+    let (dir, id) = scratch("chamber-conv");
+    let levels = [
+        (20, 6.666666666666667e-3),
+        (40, 3.3333333333333335e-3),
+        (80, 1.6666666666666668e-3),
+    ];
+    let mut runs = Vec::new();
+    for (k, (cells, dx)) in levels.iter().enumerate() {
+        let out = dir.join(format!("level{k}"));
+        let sets = [
+            format!("gas.grid.cells=[{cells}, {cells}, 1]"),
+            format!("bar.spacing={dx:e}"),
+            format!("bar.horizon={:e}", 3.015 * dx),
+            "run.end_time=1.2e-3".to_string(),
+            "run.window=2.5e-6".to_string(),
+            "run.output_every=0".to_string(),
+        ];
+        let mut args = vec!["--variant", "correspondence"];
+        for s in &sets {
+            args.extend(["--set", s.as_str()]);
+        }
+        let o = run_case(&case, &out, &format!("{id}{k}"), &args);
+        assert!(
+            o.status.success(),
+            "level {k}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let mcap = out.join("run.mcap");
+        runs.push([
+            node_series(&mcap, "bar", "com_displacement_x"),
+            node_series(&mcap, "gas", "point1.pressure"),
+            node_series(&mcap, "gas", "point2.pressure"),
+        ]);
+    }
+    let names = [
+        "bar centre-of-mass displacement",
+        "pressure at point 1",
+        "pressure at point 2",
+    ];
+    let asserted = [true, false, true];
+    let mut shrank = 0;
+    for (q, name) in names.iter().enumerate() {
+        let n = runs[2][q].len();
+        assert_eq!(n, 480, "{name}: {n} windows");
+        assert!(
+            runs.iter().all(|r| r[q].len() == n),
+            "{name}: levels differ in windows"
+        );
+        let scale = runs[2][q].iter().map(|p| p.1.abs()).fold(0.0, f64::max);
+        let diff = |a: usize, b: usize| {
+            let (x, y) = (&runs[a][q], &runs[b][q]);
+            assert!(
+                x.iter().zip(y).all(|(p, r)| p.0 == r.0),
+                "{name}: sample times differ"
+            );
+            x.iter().zip(y).map(|(p, r)| (p.1 - r.1).abs()).sum::<f64>() / (n as f64 * scale)
+        };
+        let (coarse, fine) = (diff(0, 1), diff(1, 2));
+        println!(
+            "{name}: mean difference 20²→40² {coarse:.3e}, 40²→80² {fine:.3e} of its largest value {scale:.4e}; observed order {:.2}",
+            (coarse / fine).log2()
+        );
+        if asserted[q] {
+            assert!(
+                fine < coarse,
+                "{name}: {fine:e} does not shrink from {coarse:e}"
+            );
+            shrank += 1;
+        }
+    }
+    assert_eq!(shrank, 2);
 }
