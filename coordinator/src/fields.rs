@@ -3,7 +3,8 @@
 //! pressure with the solids' particles over it (a plane view), or, without a grid, the solids'
 //! deformed surfaces in an oblique view, shaded and coloured by plastic strain or stress, and
 //! their particles coloured by damage (the joint's broken-bond fraction); one node alone, every
-//! frame, or an animated GIF of the series. Reads what the nodes wrote (vtkio), so it works for
+//! frame, or an animated GIF of the series; or several runs side by side on one colour range
+//! (`cosim plot --field` of several runs). Reads what the nodes wrote (vtkio), so it works for
 //! any node that writes VTK.
 
 use anyhow::{Context, bail};

@@ -269,6 +269,23 @@ pub fn plastic_work(state: &J2State, deqp: f64) -> f64 {
     (1.5f64).sqrt() * deqp * ddot(&s, &xi) / norm
 }
 
+/// The spin W = ½(L − Lᵀ) of a velocity gradient L and the strain increment D Δt (Voigt order
+/// xx, yy, zz, yz, xz, xy) over a step Δt: what [`jaumann_rotate_skew`] and
+/// [`J2Material::update`] take from a rate-form model's L.
+#[inline]
+pub fn spin_and_strain_step(l: &[[f64; 3]; 3], dt: f64) -> ([[f64; 3]; 3], Sym) {
+    let spin = std::array::from_fn(|a| std::array::from_fn(|c| 0.5 * (l[a][c] - l[c][a])));
+    let de: Sym = [
+        l[0][0] * dt,
+        l[1][1] * dt,
+        l[2][2] * dt,
+        0.5 * (l[1][2] + l[2][1]) * dt,
+        0.5 * (l[0][2] + l[2][0]) * dt,
+        0.5 * (l[0][1] + l[1][0]) * dt,
+    ];
+    (spin, de)
+}
+
 /// Same update as [`jaumann_rotate`] for a skew `spin`, in fewer operations (W σ − σ W =
 /// P + Pᵀ with P = W σ, using W_aa = 0); equal to it up to round-off, not bit for bit.
 #[inline]
@@ -572,6 +589,27 @@ mod tests {
         let sxx = e.young / (1.0 - e.poisson * e.poisson) * 1e-4;
         assert!((st.stress[0] - sxx).abs() < 1e-12 * sxx);
         assert!((st.stress[1] - e.poisson * sxx).abs() < 1e-12 * sxx);
+    }
+
+    /// A velocity gradient splits into its spin and its rate of deformation: W is skew, D
+    /// symmetric, and (D + W) Δt gives L Δt back in every component.
+    #[test]
+    fn a_velocity_gradient_is_its_spin_plus_its_rate_of_deformation() {
+        let l = [[0.3, -1.2, 0.7], [2.1, -0.4, 0.05], [-0.9, 1.6, 0.25]];
+        let dt = 1e-3;
+        let (w, de) = spin_and_strain_step(&l, dt);
+        let d = to_matrix(&de);
+        for a in 0..3 {
+            for c in 0..3 {
+                assert_eq!(w[a][c], -w[c][a], "W is skew at ({a}, {c})");
+                assert!(
+                    (d[a][c] + w[a][c] * dt - l[a][c] * dt).abs() < 1e-18,
+                    "({a}, {c}): D + W = {} against L = {}",
+                    d[a][c] + w[a][c] * dt,
+                    l[a][c] * dt
+                );
+            }
+        }
     }
 
     /// The skew-spin Jaumann update equals the general one to round-off.

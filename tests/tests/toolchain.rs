@@ -679,6 +679,68 @@ fn a_chosen_field_colours_its_node_and_every_frame_can_be_drawn() {
         }
     }
     assert!(same > 50_000, "{same}");
+
+    // Two different runs (the small chamber at 0.4 and at 0.2 ms): their single pictures
+    // colour the bar's velocity over different ranges, so the bar's colour bars differ; side
+    // by side, both panels draw it on the union of the two, so their colour bars (ticks and
+    // labels) are the same pixel for pixel.
+    let (half_dir, half_id) = scratch("toolchain-half");
+    let half = half_dir.join("out");
+    let case = workspace_root().join("examples/chamber_detonation.toml");
+    let o = run_case(
+        &case,
+        &half,
+        &half_id,
+        &["--variant", "small", "--set", "run.end_time=2e-4"],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let single = |run: &std::path::Path, name: &str| {
+        let png = dir.join(name);
+        let o = cosim(&[
+            "render",
+            run.to_str().unwrap(),
+            "--field",
+            "bar.velocity",
+            "-o",
+            png.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        png_pixels(&png)
+    };
+    // the bar's colour bar: the second of two (the gas's grey one is first), its ticks and
+    // labels right of it (fields.rs `colour_bar`: x from 1075, y from 100 + 310 + 20, 260 high)
+    let bar_scale = |px: &[[u8; 3]], width: u32, x_off: u32| -> Vec<[u8; 3]> {
+        (430..690u32)
+            .flat_map(|y| (1075..1195u32).map(move |x| (x, y)))
+            .map(|(x, y)| px[(y * width + x_off + x) as usize])
+            .collect()
+    };
+    let (wa, _, pa) = single(out, "end.png");
+    let (wb, _, pb) = single(&half, "half.png");
+    assert_ne!(
+        bar_scale(&pa, wa, 0),
+        bar_scale(&pb, wb, 0),
+        "the two runs' own ranges must differ for this check to mean anything"
+    );
+    let o = cosim(&[
+        "plot",
+        out.to_str().unwrap(),
+        half.to_str().unwrap(),
+        "--field",
+        "bar.velocity",
+        "-o",
+        half_dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (w2, _, px2) = png_pixels(&half_dir.join("runs_bar_velocity.png"));
+    assert_eq!(w2, 2 * wa);
+    let (left, right) = (bar_scale(&px2, w2, 0), bar_scale(&px2, w2, wa));
+    assert_eq!(left.len(), 260 * 120);
+    assert!(
+        left == right,
+        "the panels' colour bars differ: no shared range"
+    );
+    nothing_left(&half_id);
 }
 
 #[test]

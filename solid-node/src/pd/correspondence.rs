@@ -41,22 +41,6 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// A 3×3 matrix in the row-major flat storage of the per-particle arrays.
 pub type M3 = tensor::Rows3;
 
-/// The spin W = ½(L − Lᵀ) of a velocity gradient L and the strain increment D Δt
-/// (Voigt order xx, yy, zz, yz, xz, xy) of a step Δt, what the Jaumann-rate updates take.
-#[inline]
-pub fn spin_and_strain_step(l: &M3, dt: f64) -> (M3, Sym) {
-    let spin: M3 = std::array::from_fn(|a| std::array::from_fn(|c| 0.5 * (l[a][c] - l[c][a])));
-    let de: Sym = [
-        l[0][0] * dt,
-        l[1][1] * dt,
-        l[2][2] * dt,
-        0.5 * (l[1][2] + l[2][1]) * dt,
-        0.5 * (l[0][2] + l[2][0]) * dt,
-        0.5 * (l[0][1] + l[1][0]) * dt,
-    ];
-    (spin, de)
-}
-
 /// `a b` (nalgebra, in flat storage).
 #[inline]
 pub fn matmul(a: &M3, b: &M3) -> M3 {
@@ -315,7 +299,7 @@ impl<D: DamageModel, L: StressLaw> Correspondence<D, L> {
                 {
                     let fdot = matmul(&nd, &pk.kinv);
                     let l = matmul(&fdot, &finv);
-                    let (spin, de) = spin_and_strain_step(&l, dt);
+                    let (spin, de) = mechanics::j2::spin_and_strain_step(&l, dt);
                     // seed 000 eq. (B.2)–(B.4): Jaumann rate, then the law's update
                     *wp += mat.step(st, &de, &spin, dt, det(&f), dim == Dim::PlaneStress);
                 }

@@ -35,11 +35,13 @@
     clippy::too_many_arguments
 )]
 
-use super::correspondence::{M3, spin_and_strain_step};
+use super::correspondence::M3;
 use super::family::{Bonds, par_rows};
 use super::model::{Dim, Kinematics, PdModel};
 use mechanics::damage::{BondInput, DamageModel};
-use mechanics::j2::{J2Material, J2State, Sym, jaumann_rotate_skew, von_mises};
+use mechanics::j2::{
+    J2Material, J2State, Sym, jaumann_rotate_skew, spin_and_strain_step, von_mises,
+};
 use mechanics::tensor::vec3;
 use protocol::checkpoint::{check_len, decode_state, encode_state};
 use protocol::solver::SolverResult;
@@ -504,9 +506,6 @@ impl<D: DamageModel> RkBa<D> {
                     }
                 },
             );
-        }
-        for (h, &w) in self.hist.iter_mut().zip(&self.omega) {
-            h.om = w;
         }
         let (offsets, nbr) = (&bonds.offsets, &bonds.nbr);
         let (state, phi, rev, omega) = (&self.point_state, &self.phi, &self.rev, &self.omega);
