@@ -11,6 +11,7 @@
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 
 use crate::time::{Csr, LinearSystem};
+use crate::xfem::{self, Crack, Cut};
 use thiserror::Error;
 
 #[derive(Debug, Error, PartialEq)]
@@ -330,14 +331,7 @@ pub fn element(
         if !(det > 0.0) {
             return None;
         }
-        // B columns: dof 2a → [∂x N_a, 0, ∂y N_a], dof 2a+1 → [0, ∂y N_a, ∂x N_a].
-        let mut b = [[0.0; 8]; 3];
-        for a in 0..4 {
-            b[0][2 * a] = dx[a];
-            b[1][2 * a + 1] = dy[a];
-            b[2][2 * a] = dy[a];
-            b[2][2 * a + 1] = dx[a];
-        }
+        let b = b_matrix(&dx, &dy);
         let mut db = [[0.0; 8]; 3];
         for r in 0..3 {
             for c in 0..8 {
@@ -357,6 +351,125 @@ pub fn element(
     Some((k, m))
 }
 
+/// ∫ Bᵀ D B t dA over the part `poly` (a counter-clockwise polygon inside the quad `xy`):
+/// the stiffness of one side of a cut element (exact for parallelograms, where B is linear).
+fn part_stiffness(
+    xy: &[[f64; 2]; 4],
+    d: &[[f64; 3]; 3],
+    material: &Material,
+    poly: &[[f64; 2]],
+) -> [[f64; 8]; 8] {
+    let mut k = [[0.0; 8]; 8];
+    for (x, w) in xfem::polygon_rule(poly) {
+        let [xi, eta] = xfem::parent_coordinates(xy, x);
+        let (_, dx, dy, _) = shape(xy, xi, eta);
+        let b = b_matrix(&dx, &dy);
+        let db: [[f64; 8]; 3] = std::array::from_fn(|r| {
+            std::array::from_fn(|c| (0..3).map(|s| d[r][s] * b[s][c]).sum())
+        });
+        let wt = material.thickness * w;
+        for i in 0..8 {
+            for j in 0..8 {
+                k[i][j] += wt * (0..3).map(|r| b[r][i] * db[r][j]).sum::<f64>();
+            }
+        }
+    }
+    k
+}
+
+/// Where `crack` cuts `mesh`: its tips, each node's side and phantom, each element's cut.
+/// Refuses a crack through (or within 10⁻⁶ of an element from) a node, along an element
+/// edge, or crossing one element twice, naming `crack`.
+fn enrich(mesh: &Mesh, crack: Crack) -> Result<Enrichment, Fem2dError> {
+    let nodes = &mesh.nodes;
+    let h = mesh
+        .quads
+        .iter()
+        .flat_map(|q| (0..4).map(move |k| (q[k], q[(k + 1) % 4])))
+        .map(|(a, b)| (nodes[a][0] - nodes[b][0]).hypot(nodes[a][1] - nodes[b][1]))
+        .fold(f64::INFINITY, f64::min);
+    let mut side = Vec::with_capacity(nodes.len());
+    for (i, &p) in nodes.iter().enumerate() {
+        let (dist, s) = crack.locate(p);
+        if dist <= 1e-6 * h {
+            return Err(config(
+                "crack",
+                format!(
+                    "passes through node {i} at {p:?} (within {dist:e} m): move it off the node"
+                ),
+            ));
+        }
+        side.push(s);
+    }
+    let boundary = mesh.boundary_segments();
+    let tips = crack.ends().map(|p| {
+        let inside = mesh
+            .quads
+            .iter()
+            .any(|q| xfem::quad_contains(&q.map(|i| nodes[i]), p));
+        let on_edge = boundary
+            .iter()
+            .any(|&[a, b]| xfem::segment_distance(p, nodes[a], nodes[b]) <= 1e-9 * h);
+        inside && !on_edge
+    });
+    let mut cuts = Vec::with_capacity(mesh.quads.len());
+    for (e, q) in mesh.quads.iter().enumerate() {
+        let cut = crack
+            .cut(&q.map(|i| nodes[i]), tips)
+            .map_err(|m| config("crack", format!("element {e}: {m}")))?;
+        if let Cut::Through { fraction, .. } = cut
+            && !(fraction > 1e-9 && fraction < 1.0 - 1e-9)
+        {
+            return Err(config(
+                "crack",
+                format!("runs along an edge of element {e}: move it into the element"),
+            ));
+        }
+        cuts.push(cut);
+    }
+    // A node is enriched when the crack crosses an element of its support and no element of
+    // its support holds a tip (so the opening closes at the tip's element).
+    let mut crossed = vec![false; nodes.len()];
+    let mut at_tip = vec![false; nodes.len()];
+    for (q, cut) in mesh.quads.iter().zip(&cuts) {
+        for &i in q {
+            match cut {
+                Cut::Through { .. } => crossed[i] = true,
+                Cut::Tip => at_tip[i] = true,
+                Cut::None => {}
+            }
+        }
+    }
+    let mut count = 0;
+    let phantom = (0..nodes.len())
+        .map(|i| {
+            (crossed[i] && !at_tip[i]).then(|| {
+                count += 1;
+                count - 1
+            })
+        })
+        .collect();
+    Ok(Enrichment {
+        crack,
+        tips,
+        phantom,
+        side,
+        cuts,
+    })
+}
+
+/// B columns: dof 2a → [∂x N_a, 0, ∂y N_a], dof 2a+1 → [0, ∂y N_a, ∂x N_a].
+fn b_matrix(dx: &[f64; 4], dy: &[f64; 4]) -> [[f64; 8]; 3] {
+    let mut b = [[0.0; 8]; 3];
+    for a in 0..4 {
+        b[0][2 * a] = dx[a];
+        b[1][2 * a + 1] = dy[a];
+        b[2][2 * a] = dy[a];
+        b[2][2 * a + 1] = dx[a];
+    }
+    b
+}
+
 /// A mesh with its material and supports: the assembled operators over all degrees of
 /// freedom and the numbering of the free ones.
 #[derive(Debug, Clone)]
@@ -369,27 +482,98 @@ pub struct Model {
     pub stiffness: Csr,
     /// Lumped mass over all dofs (kg).
     pub mass: Vec<f64>,
+    /// The crack and what it enriches, if the model has one.
+    pub crack: Option<Enrichment>,
     free: usize,
+}
+
+/// What [`Model::pieces`] gives: a whole element (`polygon` None, `side` 0) or one part of a
+/// cut element (its polygon, `side` ±1), with the all-dof numbers of its field.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Piece {
+    pub element: usize,
+    pub side: f64,
+    pub polygon: Option<Vec<[f64; 2]>>,
+    pub dofs: [usize; 8],
+}
+
+/// A crack's enrichment of a model (seed 001 eqs. 67–70, in the phantom-node basis of
+/// `crate::xfem`). Dofs 2i, 2i + 1 are node i's own displacement; a node whose support the
+/// crack splits also carries the other side's displacement continued to it (its phantom),
+/// at dofs 2N + 2k, 2N + 2k + 1 for phantom k (N nodes).
+#[derive(Debug, Clone)]
+pub struct Enrichment {
+    pub crack: Crack,
+    /// Which of the crack's two ends are tips (inside the body); the others are mouths.
+    pub tips: [bool; 2],
+    /// Phantom number of each node (None where the node is not enriched).
+    pub phantom: Vec<Option<usize>>,
+    /// The side of the crack each node lies on (+1 left of it, −1 right).
+    pub side: Vec<f64>,
+    /// How the crack meets each element.
+    pub cuts: Vec<Cut>,
+}
+
+impl Enrichment {
+    /// The dofs of element `q`'s field on `side` of the crack: a node on the other side
+    /// with a phantom gives its phantom's dofs, every other node its own.
+    pub fn dofs(&self, q: &[usize; 4], side: f64, nodes: usize) -> [usize; 8] {
+        std::array::from_fn(|i| {
+            let (a, c) = (i / 2, i % 2);
+            match self.phantom[q[a]] {
+                Some(k) if self.side[q[a]] != side => 2 * nodes + 2 * k + c,
+                _ => 2 * q[a] + c,
+            }
+        })
+    }
+
+    /// Number of enriched nodes.
+    pub fn phantoms(&self) -> usize {
+        self.phantom.iter().flatten().count()
+    }
 }
 
 impl Model {
     /// Assembles K and M over all dofs; `fixed` lists the supported dofs (2 node + component).
     pub fn new(mesh: Mesh, material: Material, fixed: &[usize]) -> Result<Self, Fem2dError> {
+        Self::cracked(mesh, material, fixed, None)
+    }
+
+    /// As [`Model::new`], with a crack: the elements it crosses split into two parts, each
+    /// integrated over its own area with its own copy of the field (see [`Enrichment`]); a
+    /// support holds a node's phantom with the node. Each part's lumped mass is its share of
+    /// the element's area times the element's lumped masses, so each side of the crack
+    /// carries exactly its own mass. Elements holding a tip stay whole and their nodes get no
+    /// phantom: the crack opens only across elements it has fully crossed, closing to zero at
+    /// the edge where it enters the tip's element.
+    pub fn cracked(
+        mesh: Mesh,
+        material: Material,
+        fixed: &[usize],
+        crack: Option<Crack>,
+    ) -> Result<Self, Fem2dError> {
         material.check()?;
-        let nd = 2 * mesh.nodes.len();
-        if let Some(q) = mesh
-            .quads
-            .iter()
-            .find(|q| q.iter().any(|&i| i >= mesh.nodes.len()))
-        {
+        let nn = mesh.nodes.len();
+        if let Some(q) = mesh.quads.iter().find(|q| q.iter().any(|&i| i >= nn)) {
             return Err(config(
                 "mesh",
                 format!("quad {q:?} names a node that does not exist"),
             ));
         }
+        let enrichment = crack.map(|c| enrich(&mesh, c)).transpose()?;
+        let phantoms = enrichment.as_ref().map_or(0, Enrichment::phantoms);
+        let nd = 2 * (nn + phantoms);
         let d = material.elasticity();
         let mut t = Vec::with_capacity(64 * mesh.quads.len());
         let mut mass = vec![0.0; nd];
+        let mut scatter = |dofs: &[usize; 8], ke: &[[f64; 8]; 8], me: &[f64; 4], share: f64| {
+            for a in 0..8 {
+                mass[dofs[a]] += share * me[a / 2];
+                for b in 0..8 {
+                    t.push((dofs[a], dofs[b], ke[a][b]));
+                }
+            }
+        };
         for (e, q) in mesh.quads.iter().enumerate() {
             let xy = q.map(|i| mesh.nodes[i]);
             let (ke, me) = element(&xy, &d, &material).ok_or_else(|| {
@@ -398,14 +582,16 @@ impl Model {
                     format!("element {e} is degenerate or clockwise (det J ≤ 0 at a Gauss point)"),
                 )
             })?;
-            for a in 0..4 {
-                mass[2 * q[a]] += me[a];
-                mass[2 * q[a] + 1] += me[a];
-                for bn in 0..4 {
-                    for (ci, cj) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
-                        t.push((2 * q[a] + ci, 2 * q[bn] + cj, ke[2 * a + ci][2 * bn + cj]));
-                    }
+            let own: [usize; 8] = std::array::from_fn(|i| 2 * q[i / 2] + i % 2);
+            match enrichment.as_ref().map(|en| (en, &en.cuts[e])) {
+                Some((en, Cut::Through { plus, fraction, .. })) => {
+                    let kp = part_stiffness(&xy, &d, &material, plus);
+                    let km: [[f64; 8]; 8] =
+                        std::array::from_fn(|i| std::array::from_fn(|j| ke[i][j] - kp[i][j]));
+                    scatter(&en.dofs(q, 1.0, nn), &kp, &me, *fraction);
+                    scatter(&en.dofs(q, -1.0, nn), &km, &me, 1.0 - fraction);
                 }
+                _ => scatter(&own, &ke, &me, 1.0),
             }
         }
         if let Some(i) = (0..nd).find(|&i| !(mass[i] > 0.0)) {
@@ -414,10 +600,19 @@ impl Model {
                 format!("node {} belongs to no element", i / 2),
             ));
         }
+        let mut held = vec![false; nd];
+        for &i in fixed {
+            if i < 2 * nn {
+                held[i] = true;
+                if let Some(k) = enrichment.as_ref().and_then(|en| en.phantom[i / 2]) {
+                    held[2 * nn + 2 * k + i % 2] = true;
+                }
+            }
+        }
         let mut dof = vec![None; nd];
         let mut free = 0;
-        for (i, d) in dof.iter_mut().enumerate() {
-            if !fixed.contains(&i) {
+        for (d, h) in dof.iter_mut().zip(&held) {
+            if !h {
                 *d = Some(free);
                 free += 1;
             }
@@ -428,8 +623,32 @@ impl Model {
             material,
             dof,
             mass,
+            crack: enrichment,
             free,
         })
+    }
+
+    /// A step at or below the central-difference limit 2/ω_max of the free system: the
+    /// larger of two Gershgorin bounds on ω²_max, that of M⁻¹K's rows
+    /// ([`LinearSystem::critical_step_bound`]) and that of the symmetric M^(−½) K M^(−½),
+    /// maxᵢ Σⱼ |Kᵢⱼ| / √(mᵢ mⱼ). The second is the tighter one across a crack, where the
+    /// light phantom dofs of a small part sit beside heavy ones.
+    pub fn critical_step_bound(&self) -> f64 {
+        let sys = self.system();
+        let k = &sys.stiffness;
+        let mut w2: f64 = 0.0;
+        for i in 0..k.n {
+            let row: f64 = (k.offsets[i]..k.offsets[i + 1])
+                .map(|p| k.vals[p].abs() / (sys.mass[i] * sys.mass[k.cols[p]]).sqrt())
+                .sum();
+            w2 = w2.max(row);
+        }
+        let symmetric = if w2 > 0.0 {
+            2.0 / w2.sqrt()
+        } else {
+            f64::INFINITY
+        };
+        sys.critical_step_bound().max(symmetric)
     }
 
     /// Number of free degrees of freedom.
@@ -464,20 +683,49 @@ impl Model {
 
     /// Consistent nodal forces of a uniform line load `q` (N per metre of edge, [qx, qy])
     /// on the boundary segments whose two nodes are in `nodes`, over all dofs: each
-    /// straight bilinear edge of length L takes q L / 2 at each end.
+    /// straight bilinear edge of length L takes q L / 2 at each end. Where a crack's mouth
+    /// crosses a loaded segment, each side's part loads that side's field.
     pub fn edge_load(&self, nodes: &[usize], q: [f64; 2]) -> Vec<f64> {
-        let mut on = vec![false; self.mesh.nodes.len()];
+        let nn = self.mesh.nodes.len();
+        let mut on = vec![false; nn];
         for &i in nodes {
             on[i] = true;
         }
-        let mut f = vec![0.0; 2 * self.mesh.nodes.len()];
+        let mut f = vec![0.0; self.dof.len()];
+        let mut add = |dof: usize, share: f64| {
+            f[dof] += share * q[dof % 2];
+        };
         for [a, b] in self.mesh.boundary_segments() {
-            if on[a] && on[b] {
-                let (pa, pb) = (self.mesh.nodes[a], self.mesh.nodes[b]);
-                let len = ((pb[0] - pa[0]).powi(2) + (pb[1] - pa[1]).powi(2)).sqrt();
-                for n in [a, b] {
-                    f[2 * n] += 0.5 * len * q[0];
-                    f[2 * n + 1] += 0.5 * len * q[1];
+            if !(on[a] && on[b]) {
+                continue;
+            }
+            let (pa, pb) = (self.mesh.nodes[a], self.mesh.nodes[b]);
+            let len = (pb[0] - pa[0]).hypot(pb[1] - pa[1]);
+            // The crack's mouth on this segment, when it splits it between two fields.
+            let split = self.crack.as_ref().and_then(|en| {
+                let t = *en.crack.crossings(pa, pb).first()?;
+                let other = |n: usize, side: f64| match en.phantom[n] {
+                    Some(k) if en.side[n] != side => 2 * nn + 2 * k,
+                    _ => 2 * n,
+                };
+                (en.phantom[a].is_some() || en.phantom[b].is_some()).then(|| {
+                    let (sa, sb) = (en.side[a], en.side[b]);
+                    (t, [2 * a, other(b, sa)], [other(a, sb), 2 * b])
+                })
+            });
+            for c in 0..2 {
+                match split {
+                    // ∫ N_a, ∫ N_b over [0, t] (a's side) and over [t, 1] (b's side).
+                    Some((t, near, far)) => {
+                        add(near[0] + c, len * (t - 0.5 * t * t));
+                        add(near[1] + c, len * 0.5 * t * t);
+                        add(far[0] + c, len * 0.5 * (1.0 - t) * (1.0 - t));
+                        add(far[1] + c, len * 0.5 * (1.0 - t * t));
+                    }
+                    None => {
+                        add(2 * a + c, 0.5 * len);
+                        add(2 * b + c, 0.5 * len);
+                    }
                 }
             }
         }
@@ -500,48 +748,100 @@ impl Model {
         }
     }
 
+    /// The dofs of element `e`'s field at the physical point `p`: across a crack, the field
+    /// of the side `p` lies on.
+    fn dofs_at(&self, e: usize, p: [f64; 2]) -> [usize; 8] {
+        let q = &self.mesh.quads[e];
+        match self.crack.as_ref() {
+            Some(en) if matches!(en.cuts[e], Cut::Through { .. }) => {
+                en.dofs(q, en.crack.side(p), self.mesh.nodes.len())
+            }
+            _ => std::array::from_fn(|i| 2 * q[i / 2] + i % 2),
+        }
+    }
+
+    /// Stress [σxx, σyy, σxy] at each of element `e`'s 2×2 Gauss points for the all-dof
+    /// displacement `u` (in a cut element, each point from its own side's field).
+    fn element_gauss_stress(&self, e: usize, d: &[[f64; 3]; 3], u: &[f64]) -> [[f64; 3]; 4] {
+        let q = &self.mesh.quads[e];
+        let xy = q.map(|i| self.mesh.nodes[i]);
+        gauss_points().map(|[xi, eta]| {
+            let (n, dx, dy, _) = shape(&xy, xi, eta);
+            let p = [0, 1].map(|c| (0..4).map(|a| n[a] * xy[a][c]).sum::<f64>());
+            let dofs = self.dofs_at(e, p);
+            let ue: [f64; 8] = std::array::from_fn(|i| u[dofs[i]]);
+            let eps = strain(&dx, &dy, &ue);
+            std::array::from_fn(|r| (0..3).map(|c| d[r][c] * eps[c]).sum::<f64>())
+        })
+    }
+
+    /// The pieces to draw: every whole element, and each part of a cut element as its own
+    /// polygon with the dofs of its side's field.
+    pub fn pieces(&self) -> Vec<Piece> {
+        let nn = self.mesh.nodes.len();
+        let mut out = Vec::with_capacity(self.mesh.quads.len());
+        for (e, q) in self.mesh.quads.iter().enumerate() {
+            let own = std::array::from_fn(|i| 2 * q[i / 2] + i % 2);
+            match self.crack.as_ref().map(|en| (en, &en.cuts[e])) {
+                Some((en, Cut::Through { plus, minus, .. })) => {
+                    for (side, poly) in [(1.0, plus), (-1.0, minus)] {
+                        out.push(Piece {
+                            element: e,
+                            side,
+                            polygon: Some(poly.clone()),
+                            dofs: en.dofs(q, side, nn),
+                        });
+                    }
+                }
+                _ => out.push(Piece {
+                    element: e,
+                    side: 0.0,
+                    polygon: None,
+                    dofs: own,
+                }),
+            }
+        }
+        out
+    }
+
+    /// Displacement [ux, uy] and stress [σxx, σyy, σxy] at the physical point `p` of element
+    /// `e`, from the field whose dofs are `dofs` in the all-dof vector `u`.
+    pub fn field_at(
+        &self,
+        e: usize,
+        dofs: &[usize; 8],
+        p: [f64; 2],
+        u: &[f64],
+    ) -> ([f64; 2], [f64; 3]) {
+        let xy = self.mesh.quads[e].map(|i| self.mesh.nodes[i]);
+        let [xi, eta] = xfem::parent_coordinates(&xy, p);
+        let (n, dx, dy, _) = shape(&xy, xi, eta);
+        let ue: [f64; 8] = std::array::from_fn(|i| u[dofs[i]]);
+        let disp = [0, 1].map(|c| (0..4).map(|a| n[a] * ue[2 * a + c]).sum::<f64>());
+        let eps = strain(&dx, &dy, &ue);
+        let d = self.material.elasticity();
+        (
+            disp,
+            std::array::from_fn(|r| (0..3).map(|c| d[r][c] * eps[c]).sum::<f64>()),
+        )
+    }
+
     /// Stress [σxx, σyy, σxy] per element, the mean over its Gauss points, for the all-dof
     /// displacement `u`.
     pub fn element_stress(&self, u: &[f64], out: &mut [[f64; 3]]) {
         let d = self.material.elasticity();
-        for (q, s) in self.mesh.quads.iter().zip(out.iter_mut()) {
-            let xy = q.map(|i| self.mesh.nodes[i]);
-            let mut ue = [0.0; 8];
-            for a in 0..4 {
-                ue[2 * a] = u[2 * q[a]];
-                ue[2 * a + 1] = u[2 * q[a] + 1];
-            }
-            *s = [0.0; 3];
-            for [xi, eta] in gauss_points() {
-                let (_, dx, dy, _) = shape(&xy, xi, eta);
-                let e = strain(&dx, &dy, &ue);
-                for r in 0..3 {
-                    s[r] += 0.25 * (0..3).map(|c| d[r][c] * e[c]).sum::<f64>();
-                }
-            }
+        for (e, s) in out.iter_mut().enumerate().take(self.mesh.quads.len()) {
+            let g = self.element_gauss_stress(e, &d, u);
+            *s = std::array::from_fn(|r| 0.25 * g.iter().map(|x| x[r]).sum::<f64>());
         }
     }
 
     /// Stress at every Gauss point of every element ([σxx, σyy, σxy], 4 per element).
     pub fn gauss_stress(&self, u: &[f64]) -> Vec<[f64; 3]> {
         let d = self.material.elasticity();
-        let mut out = Vec::with_capacity(4 * self.mesh.quads.len());
-        for q in &self.mesh.quads {
-            let xy = q.map(|i| self.mesh.nodes[i]);
-            let mut ue = [0.0; 8];
-            for a in 0..4 {
-                ue[2 * a] = u[2 * q[a]];
-                ue[2 * a + 1] = u[2 * q[a] + 1];
-            }
-            for [xi, eta] in gauss_points() {
-                let (_, dx, dy, _) = shape(&xy, xi, eta);
-                let e = strain(&dx, &dy, &ue);
-                out.push(std::array::from_fn(|r| {
-                    (0..3).map(|c| d[r][c] * e[c]).sum::<f64>()
-                }));
-            }
-        }
-        out
+        (0..self.mesh.quads.len())
+            .flat_map(|e| self.element_gauss_stress(e, &d, u))
+            .collect()
     }
 
     /// Nodal stress: the mean of the element stresses around each node, from `elem`

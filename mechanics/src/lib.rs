@@ -20,3 +20,4 @@ pub mod simd;
 pub mod stress_law;
 pub mod tensor;
 pub mod time;
+pub mod xfem;

@@ -97,6 +97,38 @@ pub fn grid(
     }
 }
 
+/// An unstructured grid of `points` with cells of several kinds and sizes: `cells` holds
+/// each cell's kind and vertices (e.g. quads beside the polygons of cut elements).
+pub fn mixed_grid(
+    points: &[[f64; 3]],
+    cells: Vec<(CellType, Vec<u64>)>,
+    point: Arrays,
+    cell: Arrays,
+) -> UnstructuredGridPiece {
+    let mut offsets = Vec::with_capacity(cells.len());
+    let mut connectivity = Vec::new();
+    let mut types = Vec::with_capacity(cells.len());
+    for (kind, verts) in cells {
+        connectivity.extend(verts);
+        offsets.push(connectivity.len() as u64);
+        types.push(kind);
+    }
+    UnstructuredGridPiece {
+        points: points.as_flattened().to_vec().into(),
+        cells: Cells {
+            cell_verts: VertexNumbers::XML {
+                connectivity,
+                offsets,
+            },
+            types,
+        },
+        data: Attributes {
+            point: attributes(point),
+            cell: attributes(cell),
+        },
+    }
+}
+
 /// Particles: one vertex cell per point, with point arrays.
 pub fn point_cloud(points: &[[f64; 3]], point: Arrays) -> UnstructuredGridPiece {
     let n = points.len() as u64;

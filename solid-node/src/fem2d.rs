@@ -16,6 +16,7 @@ use mechanics::time::{
     CouplingMethod, Gs4, Gs4Error, IntegratorSpec, InterfaceDof, LinearSystem, LoadRamp, Ramp,
     State, Stepper, Subdomain,
 };
+use mechanics::xfem::Crack;
 use protocol::scheme;
 use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
 use protocol::{Binding, Inbox, LimitApplies, Outbox, WindowLimit};
@@ -81,6 +82,13 @@ pub struct Fem2dParams {
     /// Largest time step (s). An explicit integrator refuses one beyond its critical step.
     #[serde(default)]
     pub dt: Option<f64>,
+    /// A crack: a polyline of points [x, y] (m). Elements it crosses from edge to edge split
+    /// in two (Heaviside enrichment: each side carries its own field, the crack's faces are
+    /// free); it opens only across elements it has fully crossed. An end on the boundary or
+    /// outside the mesh is a mouth, an end inside is a tip. It must not pass through a node
+    /// or run along an element edge.
+    #[serde(default)]
+    pub crack: Vec<[f64; 2]>,
 }
 
 /// A uniform line load on an edge.
@@ -255,7 +263,11 @@ impl Fem2d {
             Some(spec) => Gs4::from_spec("integrator", spec).map_err(gs4_error)?,
             None => Gs4::central_difference(),
         };
-        let model = Model::new(mesh, material, &fixed).map_err(fem_error(""))?;
+        let crack = (!p.crack.is_empty())
+            .then(|| Crack::new("crack", p.crack.clone()))
+            .transpose()
+            .map_err(fem_error(""))?;
+        let model = Model::cracked(mesh, material, &fixed, crack).map_err(fem_error(""))?;
         if model.free_dofs() == 0 {
             return Err(SolverError::config(
                 "fixed",
@@ -263,7 +275,7 @@ impl Fem2d {
             ));
         }
         let sys = model.system();
-        let critical = sys.critical_step_bound();
+        let critical = model.critical_step_bound();
         if let Some(dt) = p.dt {
             if !(dt.is_finite() && dt > 0.0) {
                 return Err(SolverError::config("dt", format!("must be > 0, got {dt}")));
@@ -521,7 +533,21 @@ impl Fem2d {
         method: CouplingMethod,
     ) -> SolverResult<Subdomain> {
         let mut iface = Vec::new();
+        let enriched = |n: usize| {
+            self.model
+                .crack
+                .as_ref()
+                .is_some_and(|en| en.phantom[n].is_some())
+        };
         for (k, n) in self.interface_nodes(name)?.into_iter().enumerate() {
+            if enriched(n) {
+                return Err(SolverError::interface(
+                    name,
+                    format!(
+                        "node {n} is split by the crack: keep the crack off a lagrange interface"
+                    ),
+                ));
+            }
             for c in 0..2 {
                 let dof = self.model.dof[2 * n + c].ok_or_else(|| {
                     SolverError::interface(name, format!("node {n} is held by a support"))
@@ -792,30 +818,69 @@ impl Solver for Fem2d {
 
     fn write_output(&self, t: f64, window: u64, dir: &std::path::Path) -> SolverResult<()> {
         // The nodes as VTK points (ParaView: `fem2d.pvd`) with displacement, velocity and the
-        // nodal mean of the element stresses [σxx, σyy, σxy].
+        // nodal mean of the element stresses [σxx, σyy, σxy]. A cracked mesh draws each part
+        // of a cut element as a polygon of its own, with its side's field at its vertices, so
+        // that the opening shows once warped by the displacement.
         let mesh = &self.model.mesh;
-        let points: Vec<[f64; 3]> = mesh.nodes.iter().map(|&[x, y]| [x, y, 0.0]).collect();
-        let vec3 = |full: Vec<f64>| {
-            full.chunks_exact(2)
+        let nn = mesh.nodes.len();
+        let mut points: Vec<[f64; 3]> = mesh.nodes.iter().map(|&[x, y]| [x, y, 0.0]).collect();
+        let u = self.full(&self.state.u);
+        let v = self.full(&self.state.v);
+        let vec3 = |full: &[f64]| {
+            full[..2 * nn]
+                .chunks_exact(2)
                 .flat_map(|c| [c[0], c[1], 0.0])
                 .collect::<Vec<f64>>()
         };
-        let u = self.full(&self.state.u);
         let mut elem = vec![[0.0; 3]; mesh.quads.len()];
         self.model.element_stress(&u, &mut elem);
-        let mut stress = vec![0.0; 3 * mesh.nodes.len()];
+        let mut stress = vec![0.0; 3 * nn];
         self.model.nodal_stress(&elem, &mut stress);
+        let (mut disp, mut vel) = (vec3(&u), vec3(&v));
+        let mut cells = Vec::with_capacity(mesh.quads.len());
+        let (mut cell_stress, mut part) = (Vec::new(), Vec::new());
+        for piece in self.model.pieces() {
+            let q = &mesh.quads[piece.element];
+            let Some(poly) = &piece.polygon else {
+                cells.push((
+                    node_kit::vtk::CellType::Quad,
+                    q.iter().map(|&n| n as u64).collect(),
+                ));
+                cell_stress.extend(elem[piece.element]);
+                part.push(0.0);
+                continue;
+            };
+            let first = points.len() as u64;
+            let mut mean = [0.0; 3];
+            for &p in poly {
+                let (du, s) = self.model.field_at(piece.element, &piece.dofs, p, &u);
+                let (dv, _) = self.model.field_at(piece.element, &piece.dofs, p, &v);
+                points.push([p[0], p[1], 0.0]);
+                disp.extend([du[0], du[1], 0.0]);
+                vel.extend([dv[0], dv[1], 0.0]);
+                stress.extend(s);
+                for r in 0..3 {
+                    mean[r] += s[r] / poly.len() as f64;
+                }
+            }
+            cells.push((
+                node_kit::vtk::CellType::Polygon,
+                (first..first + poly.len() as u64).collect(),
+            ));
+            cell_stress.extend(mean);
+            part.push(piece.side);
+        }
         let data = vec![
-            ("displacement", 3, vec3(u)),
-            ("velocity", 3, vec3(self.full(&self.state.v))),
+            ("displacement", 3, disp),
+            ("velocity", 3, vel),
             ("stress", 3, stress),
         ];
-        let cells = vec![("element_stress", 3, elem.as_flattened().to_vec())];
-        let connectivity = mesh
-            .quads
-            .iter()
-            .flat_map(|q| q.iter().map(|&n| n as u64))
-            .collect();
+        let mut cell_data = vec![("element_stress", 3, cell_stress)];
+        if self.model.crack.is_some() {
+            // Which side of the crack a cut element's part lies on (+1 left of the crack's
+            // direction, −1 right; 0 for a whole element).
+            cell_data.push(("crack_side", 1, part));
+        }
         let frame = node_kit::vtk::Frame {
             dir,
             stem: "fem2d",
@@ -824,14 +889,7 @@ impl Solver for Fem2d {
         };
         node_kit::vtk::write_vtu(
             &frame,
-            node_kit::vtk::grid(
-                &points,
-                node_kit::vtk::CellType::Quad,
-                4,
-                connectivity,
-                data,
-                cells,
-            ),
+            node_kit::vtk::mixed_grid(&points, cells, data, cell_data),
         )?;
         Ok(())
     }

@@ -59,6 +59,9 @@ fn momentum_and_energy_balance_the_load_and_support() {
     let ramp = ", history = \"ramp\", ramp_time = 1.94e-3";
     for (extra, energy_tol) in [
         ("", 1e-2),
+        // An edge crack from the top, through the upper row of elements at mid-length and
+        // ending in the lower one: the balance holds across its split elements too.
+        ("crack = [[5.25, 1.2], [5.25, 0.3]]", 1e-2),
         (
             "integrator = { scheme = \"gs4\", design = \"U0(1,1,0)\", implicit = true }\ndt = 2e-5",
             1e-9,
@@ -153,6 +156,10 @@ fn bad_parameters_name_their_key() {
         ),
         ("interfaces = { cut = \"middle\" }", "interfaces.cut"),
         ("courant = 1.5", "courant"),
+        ("crack = [[1.0, 0.5]]", "crack"),
+        ("crack = [[1.0, 0.25], [1.0, 0.25]]", "crack[1]"),
+        // Along a row of nodes.
+        ("crack = [[-1.0, 0.5], [20.0, 0.5]]", "crack"),
     ] {
         let text = format!("{base}{extra}\n");
         let table = match text.parse::<toml::Table>() {
