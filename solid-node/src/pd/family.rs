@@ -54,6 +54,33 @@ impl Bonds {
         self.nbr.len()
     }
 
+    /// The same families less the bonds `cut(i, j)` refuses (a crack there from the start:
+    /// the bonds are not broken, they never were). `cut` must be symmetric, so that the
+    /// families stay symmetric.
+    pub fn without(&self, cut: impl Fn(usize, usize) -> bool) -> Bonds {
+        let n = self.offsets.len() - 1;
+        let mut out = Bonds {
+            offsets: Vec::with_capacity(n + 1),
+            nbr: Vec::with_capacity(self.nbr.len()),
+            xi: Vec::with_capacity(self.nbr.len()),
+            inv_len: Vec::with_capacity(self.nbr.len()),
+            intact: Vec::with_capacity(self.nbr.len()),
+        };
+        out.offsets.push(0);
+        for i in 0..n {
+            for b in self.offsets[i]..self.offsets[i + 1] {
+                if !cut(i, self.nbr[b] as usize) {
+                    out.nbr.push(self.nbr[b]);
+                    out.xi.push(self.xi[b]);
+                    out.inv_len.push(self.inv_len[b]);
+                    out.intact.push(self.intact[b]);
+                }
+            }
+            out.offsets.push(out.nbr.len());
+        }
+        out
+    }
+
     /// The index of bond (j, i) for bond `b` = (i, j) of row `i`, `None` when the family of
     /// j does not hold i. Rows are sorted by neighbour (`find_neighbours` sorts them), so a
     /// binary search finds it: O(log family), not a scan of the row.

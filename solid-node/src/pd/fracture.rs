@@ -13,6 +13,8 @@
 )]
 
 use super::family::Bonds;
+use mechanics::xfem::Crack;
+use std::collections::{BinaryHeap, HashMap};
 
 /// Result of a crack-direction fit.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -494,5 +496,95 @@ mod tests {
         assert!((f[0].speed() - 5.0).abs() < 1e-12);
         let cx = 1.0 + c * 5.5 * h - s * 1.0 * h;
         assert!((f[0].centroid[0] - cx).abs() < 1e-12);
+    }
+}
+
+/// Where a crack has got to: its tip and its length along its path (m), and how many broken
+/// bonds carry it on from the tip it started with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CrackFront {
+    pub tip: [f64; 2],
+    pub length: f64,
+    pub bonds: usize,
+}
+
+/// The front of `crack` (its last point the tip it starts from) among the broken bonds of
+/// `bonds`: each broken bond stands for a piece of crack at its reference midpoint; pieces
+/// within `reach` of each other (the horizon) are joined, and so are those within `reach`
+/// of the starting tip. The front is the joined piece farthest along that graph from the
+/// starting tip (Dijkstra's shortest paths), and the length the crack's own plus that path.
+/// Broken bonds not joined to the crack (another crack, a damaged edge) are not counted.
+pub fn crack_front(x0: &[[f64; 3]], bonds: &Bonds, crack: &Crack, reach: f64) -> CrackFront {
+    let start = crack.ends()[1];
+    let mut pts: Vec<[f64; 2]> = Vec::new();
+    for i in 0..x0.len() {
+        for b in bonds.offsets[i]..bonds.offsets[i + 1] {
+            let j = bonds.nbr[b] as usize;
+            if j > i && bonds.intact[b] == 0.0 {
+                pts.push([0.5 * (x0[i][0] + x0[j][0]), 0.5 * (x0[i][1] + x0[j][1])]);
+            }
+        }
+    }
+    let cell = |p: [f64; 2]| ((p[0] / reach).floor() as i64, (p[1] / reach).floor() as i64);
+    let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
+    for (k, &p) in pts.iter().enumerate() {
+        grid.entry(cell(p)).or_default().push(k);
+    }
+    let dist = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]);
+    /// A heap entry ordered by smallest path first.
+    #[derive(PartialEq)]
+    struct Next(f64, usize);
+    impl Eq for Next {}
+    impl PartialOrd for Next {
+        fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+            Some(self.cmp(o))
+        }
+    }
+    impl Ord for Next {
+        fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+            o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
+        }
+    }
+    let mut path = vec![f64::INFINITY; pts.len()];
+    let mut heap = BinaryHeap::new();
+    for (k, &p) in pts.iter().enumerate() {
+        let d = dist(p, start);
+        if d <= reach {
+            path[k] = d;
+            heap.push(Next(d, k));
+        }
+    }
+    while let Some(Next(d, k)) = heap.pop() {
+        if d > path[k] {
+            continue;
+        }
+        let (cx, cy) = cell(pts[k]);
+        for gx in cx - 1..=cx + 1 {
+            for gy in cy - 1..=cy + 1 {
+                for &m in grid.get(&(gx, gy)).map_or(&[][..], |v| &v[..]) {
+                    let step = dist(pts[k], pts[m]);
+                    if step <= reach && d + step < path[m] {
+                        path[m] = d + step;
+                        heap.push(Next(d + step, m));
+                    }
+                }
+            }
+        }
+    }
+    let joined = path.iter().filter(|d| d.is_finite()).count();
+    let far = (0..pts.len())
+        .filter(|&k| path[k].is_finite())
+        .max_by(|&a, &b| path[a].total_cmp(&path[b]).then(b.cmp(&a)));
+    match far {
+        Some(k) => CrackFront {
+            tip: pts[k],
+            length: crack.length() + path[k],
+            bonds: joined,
+        },
+        None => CrackFront {
+            tip: start,
+            length: crack.length(),
+            bonds: 0,
+        },
     }
 }

@@ -86,6 +86,12 @@ pub struct PdParams {
     /// Shapes cut out of the bodies.
     #[serde(default)]
     pub holes: Vec<Shape>,
+    /// Cracks already there at the start: polylines of points [x, y] (m), through the whole
+    /// thickness in 3-D. No bond crosses them. The first one is followed: its last point is
+    /// its tip, and every window reports `crack_tip_x`, `crack_tip_y` and `crack_length`
+    /// (its own length plus how far broken bonds carry it on from the tip).
+    #[serde(default)]
+    pub cracks: Vec<Vec<[f64; 2]>>,
     /// Initial velocity (m/s) of the particles in a region.
     #[serde(default)]
     pub initial_velocity: Vec<RegionVelocity>,

@@ -28,6 +28,7 @@ use mechanics::damage::{
 };
 use mechanics::j2::{J2Material, von_mises};
 use mechanics::time::LoadRamp;
+use mechanics::xfem::Crack;
 use node_kit::device::Device;
 use node_kit::vtk::{self, Arrays, Frame};
 use protocol::checkpoint::{check_len, decode_state, encode_state};
@@ -102,6 +103,10 @@ pub struct PdSolver {
     /// never heal, so an unchanged damage sum means no bond broke and the components need no
     /// recount.
     fragment_cache: Option<(f64, Vec<u32>, Vec<usize>)>,
+    /// The cracks there from the start (`cracks`); the first one is followed.
+    cracks: Vec<Crack>,
+    /// (Σ damage, the followed crack's front) of the last measurement.
+    crack_cache: Option<(f64, super::fracture::CrackFront)>,
     /// The device copy of the body when `device = "gpu"`: it owns the time stepping; `body`
     /// is brought up to date at every window end.
     device: Option<DeviceBody>,
@@ -217,7 +222,25 @@ impl PdSolver {
             p.spacing * p.spacing * p.thickness
         };
         let vol = vec![v; x0.len()];
+        let cracks = p
+            .cracks
+            .iter()
+            .enumerate()
+            .map(|(k, c)| Crack::new(&format!("cracks[{k}]"), c.clone()))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|mechanics::fem2d::Fem2dError::Config { key, reason }| {
+                SolverError::config(key, reason)
+            })?;
         let bonds = Bonds::build(&x0, p.horizon);
+        // A crack there from the start: the bonds across it do not exist.
+        let bonds = if cracks.is_empty() {
+            bonds
+        } else {
+            bonds.without(|i, j| {
+                let (a, b) = ([x0[i][0], x0[i][1]], [x0[j][0], x0[j][1]]);
+                cracks.iter().any(|c| !c.crossings(a, b).is_empty())
+            })
+        };
         let model = at_rest(&x0, &vol, |k| {
             (def.build)(&ModelInput {
                 dim,
@@ -281,6 +304,8 @@ impl PdSolver {
             external_work: 0.0,
             first_damage: None,
             fragment_cache: None,
+            cracks,
+            crack_cache: None,
             device,
             loads,
             points,
@@ -425,7 +450,28 @@ impl PdSolver {
             let m = values.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
             v.push((format!("max_{name}"), m));
         }
-        if matches!(self.params.damage, None | Some(DamageParams::None {})) {
+        let no_damage = matches!(self.params.damage, None | Some(DamageParams::None {}));
+        if let Some(crack) = self.cracks.first() {
+            let dsum: f64 = damage.iter().sum();
+            if !matches!(&self.crack_cache, Some((d, _)) if *d == dsum) {
+                if !no_damage {
+                    self.body.model.sync_bonds(&mut self.body.bonds);
+                }
+                let front = super::fracture::crack_front(
+                    &self.body.x0,
+                    &self.body.bonds,
+                    crack,
+                    self.body.horizon,
+                );
+                self.crack_cache = Some((dsum, front));
+            }
+            if let Some((_, front)) = &self.crack_cache {
+                v.push(("crack_tip_x".into(), front.tip[0]));
+                v.push(("crack_tip_y".into(), front.tip[1]));
+                v.push(("crack_length".into(), front.length));
+            }
+        }
+        if no_damage {
             return v;
         }
         let damaged = damage.iter().filter(|&&d| d >= DAMAGED_INDEX).count();
