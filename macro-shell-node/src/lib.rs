@@ -11,6 +11,7 @@
 // Kernels index several small fixed-size arrays with one index; range loops read clearer.
 #![allow(clippy::needless_range_loop)]
 
+pub mod contact;
 pub mod coupling;
 pub mod element;
 pub mod lanes;

@@ -103,6 +103,8 @@ pub struct Model {
     pub loaded_nodes: Vec<u32>,
     pub constrained_nodes: Vec<u32>,
     pub coupled_nodes: Vec<u32>,
+    /// Single-surface contact between the shells, if on.
+    pub contact: Option<crate::contact::Contact>,
 }
 
 impl Model {
@@ -124,9 +126,23 @@ impl Model {
         e
     }
 
-    /// Internal energy (stress work + hourglass energy), fixed-order sum.
+    /// Internal energy (stress work + hourglass energy, and the contact's penalty energy),
+    /// fixed-order sum.
     pub fn internal_energy(&self) -> f64 {
-        self.res.iter().map(|r| r[crate::element::R_EINT]).sum()
+        let contact = self.contact.as_ref().map_or(0.0, |c| c.energy);
+        self.res
+            .iter()
+            .map(|r| r[crate::element::R_EINT])
+            .sum::<f64>()
+            + contact
+    }
+
+    /// The contact forces at the current positions (nothing without contact).
+    pub fn update_contact(&mut self) {
+        if let Some(mut c) = self.contact.take() {
+            c.update(self);
+            self.contact = Some(c);
+        }
     }
 
     /// Hourglass energy estimate ½ Q²/k is not stored separately; this is the pressure work.

@@ -54,6 +54,26 @@ pub struct ShellConfig {
     /// Extra outputs (support reactions).
     #[serde(default)]
     pub output: OutputConfig,
+    /// Contact between the shells: `{ kind = "single_surface", penalty_scale = 0.1 }`
+    /// (every node against every segment it does not belong to, with thickness offsets).
+    #[serde(default)]
+    pub contact: Option<ContactConfig>,
+}
+
+/// Contact between the shells.
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ContactConfig {
+    /// "single_surface": every node against every segment of the mesh it does not belong to.
+    pub kind: String,
+    /// Penalty stiffness as a fraction of each segment's membrane stiffness estimate (the
+    /// stable step takes the largest penalty into account).
+    #[serde(default = "default_penalty_scale")]
+    pub penalty_scale: f64,
+}
+
+fn default_penalty_scale() -> f64 {
+    0.1
 }
 
 /// `kind` = "plate" (length, width, nx, ny, origin), "plates" (a list `plates` of plates,
@@ -770,6 +790,30 @@ pub fn build(cfg: &ShellConfig) -> SolverResult<Model> {
         cfg.section.update_thickness,
     );
     let mut model = assemble(&mesh, mat, section, rho, h);
+    if let Some(c) = &cfg.contact {
+        if c.kind != "single_surface" {
+            return Err(SolverError::config(
+                "contact.kind",
+                format!("must be \"single_surface\", got \"{}\"", c.kind),
+            ));
+        }
+        let s = c.penalty_scale;
+        if !(s.is_finite() && s > 0.0 && s <= 1.0) {
+            return Err(SolverError::config(
+                "contact.penalty_scale",
+                format!("must be in (0, 1], got {s}"),
+            ));
+        }
+        let membrane: Vec<f64> = (0..model.num_elements())
+            .map(|e| {
+                let x = model.conn[e].map(|n| model.x0[n as usize]);
+                element::geometry(&x).map_or(0.0, |g| {
+                    element::stiffness_estimates(&section, &mat, model.h0[e], &g)[0]
+                })
+            })
+            .collect();
+        model.contact = Some(crate::contact::Contact::new(&model, s, &membrane));
+    }
     model.dt_scale = dts;
     model.velocity_ramp = cfg.time.velocity_ramp;
     model.mass_scaling_dt = cfg.time.mass_scaling_dt;
@@ -1043,6 +1087,7 @@ pub fn assemble(mesh: &Mesh, material: Material, section: Section, density: f64,
         loaded_nodes: Vec::new(),
         constrained_nodes: Vec::new(),
         coupled_nodes: Vec::new(),
+        contact: None,
     }
 }
 

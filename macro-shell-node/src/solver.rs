@@ -125,6 +125,10 @@ impl ShellSolver {
                 if ie > 0.0 { ke / ie } else { 0.0 },
             ),
         ];
+        if let Some(c) = &m.contact {
+            scalars.push(("contact_nodes".into(), c.active as f64));
+            scalars.push(("contact_energy".into(), c.energy));
+        }
         // Reaction force (support on the structure, last step) and mean displacement of
         // every reaction set, e.g. the pulled edge of a tension test.
         for set in &m.reaction_sets {
@@ -346,6 +350,8 @@ impl Solver for ShellSolver {
         [m.added_mass, m.added_inertia] = s.added;
         self.history.rows = s.history;
         (self.last_span, self.last_substeps) = s.last;
+        // The contact forces are those of the positions.
+        m.update_contact();
         Ok(())
     }
 }

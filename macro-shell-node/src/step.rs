@@ -86,6 +86,8 @@ struct NodePassData<'a> {
     inertia: &'a [f64],
     f_ext: &'a [[f64; 3]],
     f_c: &'a [[f64; 3]],
+    /// Contact forces (empty without contact).
+    f_k: &'a [[f64; 3]],
     m_c: &'a [[f64; 3]],
     fix: &'a [u8],
     v_pres: &'a [[f64; 3]],
@@ -113,10 +115,11 @@ fn node_chunk(
             }
         }
         let (mi, ii) = (d.mass[i], d.inertia[i]);
+        let fk = d.f_k.get(i).copied().unwrap_or([0.0; 3]);
         let mut vn = [0.0; 3];
         let mut wn = [0.0; 3];
         for c in 0..3 {
-            vn[c] = vs[j][c] + dt_avg * (d.f_ext[i][c] + d.f_c[i][c] - f[c]) / mi;
+            vn[c] = vs[j][c] + dt_avg * (d.f_ext[i][c] + d.f_c[i][c] + fk[c] - f[c]) / mi;
             wn[c] = ws[j][c] + dt_avg * (d.m_c[i][c] - f[3 + c]) / ii;
         }
         let bits = d.fix[i];
@@ -174,6 +177,7 @@ pub fn node_pass(m: &mut Model, dt: f64, dt_avg: f64, ramp: f64) {
         inertia: &m.inertia,
         f_ext: &m.f_ext,
         f_c: &m.f_c,
+        f_k: m.contact.as_ref().map_or(&[][..], |c| &c.force[..]),
         m_c: &m.m_c,
         fix: &m.fix,
         v_pres: &m.v_pres,
@@ -367,6 +371,7 @@ pub fn initialise(m: &mut Model) -> SolverResult<()> {
             reason: format!("element {e} is degenerate"),
         });
     }
+    m.update_contact();
     Ok(())
 }
 
@@ -422,6 +427,8 @@ pub fn step(m: &mut Model, dt: f64) -> SolverResult<()> {
             reason: format!("element {e} became degenerate (inverted or zero area)"),
         });
     }
+    // Contact forces at x_{n+1}, for the next node pass.
+    m.update_contact();
     m.time += dt;
     m.dt_prev = dt;
     m.steps += 1;
@@ -455,7 +462,7 @@ fn node_omega2(m: &Model, est: &[[f64; 3]], i: usize) -> f64 {
             s[c] += r[c];
         }
     }
-    let kc = m.k_c[i];
+    let kc = m.k_c[i] + m.contact.as_ref().map_or(0.0, |c| c.k_max);
     ((s[0] + kc) / m.mass[i]).max((s[1] + kc) / m.mass[i] + s[2] / m.inertia[i])
 }
 
@@ -502,7 +509,7 @@ pub fn apply_mass_scaling(m: &mut Model, target_dt: f64) -> f64 {
                 s[c] += r[c];
             }
         }
-        let kc = m.k_c[i];
+        let kc = m.k_c[i] + m.contact.as_ref().map_or(0.0, |c| c.k_max);
         let (m0, i0) = (m.mass[i], m.inertia[i]);
         let mut m1 = m0.max((s[0] + kc) / w2t);
         let mut i1 = i0;
