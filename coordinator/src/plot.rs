@@ -102,7 +102,8 @@ pub fn unit_of(key: &str) -> Option<&'static str> {
     let ends = |w: &str| base.ends_with(w);
     // a vector's component of a location; an edge line's first and last crossing (the
     // fluid's `NAME.first`, `NAME.last`)
-    let located = base != k && ["first_damage", "centre", "center", "com"].contains(&base)
+    let located = base != k
+        && ["first_damage", "centre", "center", "com", "crack_tip"].contains(&base)
         || ["first", "last"].contains(&base);
     Some(if ends("per_s") {
         "1/s"
@@ -155,6 +156,7 @@ pub fn unit_of(key: &str) -> Option<&'static str> {
         "damage",
         "count",
         "particles",
+        "nodes",
         "bonds",
         "fragments",
         "cells",
@@ -884,6 +886,10 @@ mod tests {
             ("bubble.first_speed", "m/s"),
             ("min_density", "kg/m³"),
             ("max_von_mises", "Pa"),
+            ("crack_tip_x", "m"),
+            ("crack_length", "m"),
+            ("contact_nodes", "1"),
+            ("contact_energy", "J"),
         ] {
             assert_eq!(unit_of(key), Some(unit), "{key}");
         }
