@@ -2,7 +2,7 @@
 //! shock run gives bit-identical states on 1 and 2 rayon threads; every instruction set the
 //! row kernels can be compiled for (`fluid_node::simd`) gives bit-identical states too.
 
-mod common;
+use crate::common;
 use common::solver;
 
 fn run(threads: usize) -> Vec<f64> {

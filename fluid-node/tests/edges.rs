@@ -3,7 +3,7 @@
 //! flow must be where the slab is and move at 100 m/s; along a line the other way, the
 //! first and last edges swap and the speeds change sign.
 
-mod common;
+use crate::common;
 use common::solver;
 use protocol::{Inbox, Outbox, Solver, Window};
 

@@ -5,7 +5,7 @@
 //! materials, every limiter, on 1 and 2 threads; and a step that breaks the state fails with
 //! the same error either way.
 
-mod common;
+use crate::common;
 use common::{particle_block, solver, walled_blast_case};
 use fluid_node::EulerSolver;
 use protocol::{Field, Inbox, Outbox, Solver, Window, message::is_timing_scalar};

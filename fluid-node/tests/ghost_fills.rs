@@ -4,7 +4,7 @@
 //! the domain (wall, outflow and periodic ends, 2-D and 3-D), the primitives with every ghost
 //! cell equal those of refilling every row (`boundary::fill_ghosts`) bit for bit.
 
-mod common;
+use crate::common;
 use common::{particle_block, solver, walled_blast_case};
 use fluid_node::boundary::{fill_ghosts, fill_ghosts_yz};
 use fluid_node::immersed;

@@ -4,7 +4,7 @@
 //! 5.4253, and every window the momentum the gas loses equals the impulse the particles
 //! receive (Σ force · window) plus the impulse of the domain boundaries, to round-off.
 
-mod common;
+use crate::common;
 use common::solver;
 use fluid_node::diagnostics::x_line;
 use fluid_node::immersed::{INTERFACE, SOLID};

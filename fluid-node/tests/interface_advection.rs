@@ -3,7 +3,7 @@
 //! pressure and velocity stay constant to 1e-6 relative — here air/helium and air/water
 //! (stiffened gas) in 1-D, and air/helium on a diagonal in 2-D, over a full period.
 
-mod common;
+use crate::common;
 use common::solver;
 use fluid_node::diagnostics::cell_prim;
 

@@ -6,7 +6,7 @@
 //! stage), one and two materials; and the same blast fed by an inflow, where the energy
 //! change equals the work of the boundary fluxes (`Fluid::boundary_work`).
 
-mod common;
+use crate::common;
 use common::solver;
 use fluid_node::diagnostics;
 

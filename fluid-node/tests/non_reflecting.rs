@@ -9,7 +9,7 @@
 //! * The far field's pressure: a gas left at 10 % over it relaxes to it through a
 //!   non-reflecting face, and stays where it is behind an outflow.
 
-mod common;
+use crate::common;
 use common::solver;
 use fluid_node::EulerSolver;
 use fluid_node::diagnostics::cell_prim;

@@ -11,7 +11,7 @@
 //! Noh's implosion and Sedov's blast against their exact solutions, with observed convergence,
 //! run from their case files in the end-to-end tests (`tests/tests/fluid_cases.rs`).
 
-mod common;
+use crate::common;
 use common::solver;
 use fluid_node::diagnostics::{cell_prim, totals, x_line};
 use fluid_node::exact::Sedov;

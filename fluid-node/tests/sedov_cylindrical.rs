@@ -4,7 +4,7 @@
 //! 0.851072, checked here). Checks the shock radius at t = 1 within 3 % and the symmetry
 //! between quadrants (mirror in x, y and the diagonal) to round-off.
 
-mod common;
+use crate::common;
 use common::{sedov_alpha, solver};
 use fluid_node::diagnostics::cell_prim;
 

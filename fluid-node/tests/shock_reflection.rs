@@ -3,7 +3,7 @@
 //! 15.0 (Ms 2), within 2 % on a 400-cell grid. Incident state from the Rankine–Hugoniot
 //! relations; the run ends when the exact reflected shock has travelled 0.25 from the wall.
 
-mod common;
+use crate::common;
 use common::solver;
 use fluid_node::diagnostics::x_line;
 

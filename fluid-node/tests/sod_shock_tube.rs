@@ -1,7 +1,7 @@
 //! Sod shock tube (the README's case sections "Fluid node"): density L1 error against the exact Riemann
 //! solution at t = 0.2, ≤ 1 % at 400 cells, observed order ≥ 0.9 over 200/400/800 cells.
 
-mod common;
+use crate::common;
 use common::{ExactRiemann, solver};
 use fluid_node::diagnostics::x_line;
 

@@ -21,7 +21,7 @@
 //!    run at that resolution is an example-sized job. Measured at 32³ on [0, 1.2]³:
 //!    +5.4 % on the axis, +3.9 % on the diagonal; 40³ full cube: +9.9 %, +3.9 %.)
 
-mod common;
+use crate::common;
 use common::{ExactRiemann, sedov_alpha, solver};
 use fluid_node::diagnostics::{cell_prim, totals};
 

@@ -433,7 +433,7 @@ fn no_adapter_is_a_config_error() {
     let o = std::process::Command::new(exe)
         .args([
             "--exact",
-            "no_adapter_inner",
+            "gpu_node::no_adapter_inner",
             "--ignored",
             "--nocapture",
             "--test-threads=1",
