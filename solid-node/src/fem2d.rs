@@ -99,9 +99,9 @@ pub struct LoadParams {
     pub edge: String,
     /// Force per metre of edge [qx, qy] (N/m), whatever the thickness.
     pub traction: [f64; 2],
-    /// How the load starts: "step" (at once), "sin2" or "septic" (the C³ ramp, for
-    /// second-order studies) over `ramp_time`, then held. Also read under its older name,
-    /// `history`.
+    /// How the load starts: "step" (at once), "linear" (a constant rate), "sin2" or "septic" (the
+    /// C³ ramp, for second-order studies) over `ramp_time`, then held. Also read under its older
+    /// name, `history`.
     #[serde(default, alias = "history")]
     pub ramp: Ramp,
     /// Ramp duration T (s), with every `ramp` but "step".

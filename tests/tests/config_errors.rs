@@ -426,7 +426,7 @@ fn bad_fem_2d_parameters_are_named() {
     }
     refused(
         "fem-ramp-name",
-        |_| FEM.replacen("ramp = \"step\"", "ramp = \"linear\", ramp_time = 0.5", 1),
+        |_| FEM.replacen("ramp = \"step\"", "ramp = \"cosine\", ramp_time = 0.5", 1),
         "nodes.beam.params.loads[0].ramp",
     );
 }

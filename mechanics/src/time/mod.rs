@@ -42,6 +42,8 @@ pub enum Ramp {
     /// spelling, `"ramp"`, is read as this one.
     #[serde(alias = "ramp")]
     Septic,
+    /// t/T: a constant rate of loading up to T (e.g. a stress rate), then held.
+    Linear,
 }
 
 impl Ramp {
@@ -51,6 +53,7 @@ impl Ramp {
             Ramp::Step => "step",
             Ramp::Sin2 => "sin2",
             Ramp::Septic => "septic",
+            Ramp::Linear => "linear",
         }
     }
 
@@ -63,6 +66,7 @@ impl Ramp {
                 (std::f64::consts::FRAC_PI_2 * x).sin().powi(2)
             }
             Ramp::Septic => septic_ramp(t / time),
+            Ramp::Linear => (t / time).clamp(0.0, 1.0),
         }
     }
 }
@@ -87,7 +91,7 @@ impl LoadRamp {
             (Ramp::Step, None) => Ok(LoadRamp::STEP),
             (Ramp::Step, Some(_)) => Err((
                 "ramp_time",
-                "only applies with a ramp (ramp = \"sin2\" or \"septic\")".into(),
+                "only applies with a ramp (ramp = \"sin2\", \"septic\" or \"linear\")".into(),
             )),
             (ramp, Some(time)) if time.is_finite() && time > 0.0 => Ok(LoadRamp { ramp, time }),
             (ramp, t) => Err((
@@ -118,7 +122,7 @@ mod tests {
     #[test]
     fn ramps_start_at_zero_end_at_one_and_cross_one_half_midway() {
         let t = 0.2;
-        for r in [Ramp::Sin2, Ramp::Septic] {
+        for r in [Ramp::Sin2, Ramp::Septic, Ramp::Linear] {
             assert_eq!(r.factor(0.0, t), 0.0, "{r:?}");
             assert!((r.factor(0.5 * t, t) - 0.5).abs() < 1e-15, "{r:?}");
             assert_eq!(r.factor(t, t), 1.0, "{r:?}");

@@ -425,9 +425,9 @@ pub struct PdLoad {
     pub region: Shape,
     /// Total force [Fx, Fy, Fz] (N), spread equally over them.
     pub force: [f64; 3],
-    /// How the load starts: "step" (at once), "sin2" or "septic" (the C³ ramp, for
-    /// second-order studies) over `ramp_time`, then held. Also read under its older name,
-    /// `history`.
+    /// How the load starts: "step" (at once), "linear" (a constant rate), "sin2" or "septic" (the
+    /// C³ ramp, for second-order studies) over `ramp_time`, then held. Also read under its older
+    /// name, `history`.
     #[serde(default, alias = "history")]
     pub ramp: mechanics::time::Ramp,
     /// Ramp duration T (s), with every `ramp` but "step".
