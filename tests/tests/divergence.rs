@@ -390,6 +390,7 @@ const EXAMPLES: &[(&str, &[&str])] = &[
             "small-decoupled",
         ],
     ),
+    ("glass_plate", &["small"]),
     ("noh", &["cylindrical", "small"]),
     ("sedov", &["cylindrical", "small"]),
     (

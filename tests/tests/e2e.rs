@@ -19,6 +19,7 @@ mod external;
 mod failures;
 mod fields_contract;
 mod fluid_cases;
+mod glass_plate;
 mod gpu;
 mod immersed;
 mod joints;
