@@ -125,6 +125,22 @@ pub fn run_case(case: &Path, out: &Path, run_id: &str, extra: &[&str]) -> Output
     cosim(&args)
 }
 
+/// Run `examples/<file>` with `--variant <variant>` into a scratch folder of `tag`; the run
+/// must finish (exit 0). Returns the output folder.
+pub fn run_example(file: &str, variant: &str, tag: &str) -> PathBuf {
+    let (dir, id) = scratch(tag);
+    let out = dir.join("out");
+    let case = workspace_root().join("examples").join(file);
+    let o = run_case(&case, &out, &id, &["--variant", variant]);
+    assert!(
+        o.status.success(),
+        "{file} --variant {variant}: {}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    out
+}
+
 /// Run one of the independent checks in `tools/` (Python, the official readers) with
 /// `args`; returns (passed, its stdout + stderr).
 fn python_tool(script: &str, args: &[&std::ffi::OsStr]) -> (bool, String) {

@@ -18,17 +18,7 @@ use std::path::PathBuf;
 use std::sync::OnceLock;
 
 fn run(case: &str, variant: &str, tag: &str) -> PathBuf {
-    let (dir, id) = scratch(tag);
-    let out = dir.join("out");
-    let case = workspace_root().join("examples").join(case);
-    let o = run_case(&case, &out, &id, &["--variant", variant]);
-    assert!(
-        o.status.success(),
-        "{variant}: {}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    out
+    run_example(case, variant, tag)
 }
 
 fn ring() -> &'static PathBuf {

@@ -10,16 +10,7 @@ use cosim_tests::*;
 
 #[test]
 fn the_mode_i_crack_runs_straight_across_the_plate() {
-    let (dir, id) = scratch("glass");
-    let out = dir.join("out");
-    let case = workspace_root().join("examples/glass_plate.toml");
-    let o = run_case(&case, &out, &id, &["--variant", "small"]);
-    assert!(
-        o.status.success(),
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
+    let out = run_example("glass_plate.toml", "small", "glass");
     let s = summary(&out);
     let residual = s["balance"]["max_momentum_residual_relative"]
         .as_f64()
