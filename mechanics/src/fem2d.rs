@@ -427,6 +427,12 @@ fn enrich(mesh: &Mesh, crack: Crack) -> Result<Enrichment, Fem2dError> {
         }
         cuts.push(cut);
     }
+    if cuts.iter().all(|c| *c == Cut::None) {
+        return Err(config(
+            "crack",
+            "does not meet the mesh (it crosses no element and ends in none)",
+        ));
+    }
     // A node is enriched when the crack crosses an element of its support and no element of
     // its support holds a tip (so the opening closes at the tip's element).
     let mut crossed = vec![false; nodes.len()];

@@ -165,6 +165,8 @@ fn bad_parameters_name_their_key() {
         ("crack = [[1.0, 0.25], [1.0, 0.25]]", "crack[1]"),
         // Along a row of nodes.
         ("crack = [[-1.0, 0.5], [20.0, 0.5]]", "crack"),
+        // Off the mesh.
+        ("crack = [[11.0, 0.25], [12.0, 0.25]]", "crack"),
     ] {
         let text = format!("{base}{extra}\n");
         let table = match text.parse::<toml::Table>() {

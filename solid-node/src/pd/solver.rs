@@ -233,13 +233,26 @@ impl PdSolver {
             })?;
         let bonds = Bonds::build(&x0, p.horizon);
         // A crack there from the start: the bonds across it do not exist.
+        let crosses = |c: &Crack, i: usize, j: usize| {
+            !c.crossings([x0[i][0], x0[i][1]], [x0[j][0], x0[j][1]])
+                .is_empty()
+        };
+        for (k, c) in cracks.iter().enumerate() {
+            let cut = (0..x0.len()).any(|i| {
+                (bonds.offsets[i]..bonds.offsets[i + 1])
+                    .any(|b| crosses(c, i, bonds.nbr[b] as usize))
+            });
+            if !cut {
+                return Err(SolverError::config(
+                    format!("cracks[{k}]"),
+                    "crosses no bond of the body (is it inside it?)",
+                ));
+            }
+        }
         let bonds = if cracks.is_empty() {
             bonds
         } else {
-            bonds.without(|i, j| {
-                let (a, b) = ([x0[i][0], x0[i][1]], [x0[j][0], x0[j][1]]);
-                cracks.iter().any(|c| !c.crossings(a, b).is_empty())
-            })
+            bonds.without(|i, j| cracks.iter().any(|c| crosses(c, i, j)))
         };
         let model = at_rest(&x0, &vol, |k| {
             (def.build)(&ModelInput {
