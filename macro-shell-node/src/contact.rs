@@ -8,12 +8,13 @@
 //! ½ k g² (reported with the internal energy) and gives it back; it is equal and opposite
 //! about the line of the pair, so momentum and angular momentum are untouched (to round-off).
 //!
-//! Candidates come from a bucket sort of the segments' centroids into a spatial hash of cells
-//! one reach wide, rebuilt every step into arrays sized at set-up (no allocation per step).
+//! Candidates come from the segments' centroids in a spatial hash (`mechanics::neighbour::
+//! HashGrid`) of cells one reach wide, rebuilt in place every step (no allocation per step).
 //! Each node takes its deepest penetration; segments sharing a node with the node's own
 //! elements are not its candidates (a fold one element wide is not a contact).
 
 use crate::model::Model;
+use mechanics::neighbour::HashGrid;
 use rayon::prelude::*;
 
 /// Node chunk per rayon task.
@@ -30,11 +31,9 @@ pub struct Contact {
     t_node: Vec<f64>,
     /// Cell size of the hash: the reach at which a segment's centroid can hold a contact.
     cell: f64,
-    /// Bucket sort of the segments: start of each bucket in `items`, segments by bucket, the
-    /// cell of each segment.
-    start: Vec<u32>,
-    items: Vec<u32>,
-    seg_cell: Vec<[i64; 3]>,
+    /// The segments' centroids and their spatial hash, rebuilt every step in place.
+    centroids: Vec<[f64; 3]>,
+    grid: HashGrid,
     /// Contact force on each node (N) at the current positions.
     pub force: Vec<[f64; 3]>,
     /// Each node's contact: (segment, magnitude k(−g), unit normal, weights of the segment's
@@ -66,7 +65,6 @@ impl Contact {
             }
         }
         let t_max = m.h0.iter().cloned().fold(0.0, f64::max);
-        let buckets = (2 * ne).next_power_of_two().max(2);
         Contact {
             k,
             k_max,
@@ -75,9 +73,8 @@ impl Contact {
             // of the segment's centroid; twice the reference half-diagonal leaves room for
             // elements that stretch.
             cell: t_max + 2.0 * half_diag,
-            start: vec![0; buckets + 1],
-            items: vec![0; ne],
-            seg_cell: vec![[0; 3]; ne],
+            centroids: vec![[0.0; 3]; ne],
+            grid: HashGrid::default(),
             force: vec![[0.0; 3]; nn],
             pairs: vec![(u32::MAX, 0.0, [0.0; 3], [0.0; 4]); nn],
             energy: 0.0,
@@ -85,41 +82,12 @@ impl Contact {
         }
     }
 
-    fn cell_of(&self, p: [f64; 3]) -> [i64; 3] {
-        p.map(|x| (x / self.cell).floor() as i64)
-    }
-
-    fn bucket(&self, c: [i64; 3]) -> usize {
-        let h = (c[0].wrapping_mul(73_856_093)
-            ^ c[1].wrapping_mul(19_349_663)
-            ^ c[2].wrapping_mul(83_492_791)) as u64;
-        (h as usize) & (self.start.len() - 2)
-    }
-
     /// Contact forces and energy at the positions `m.x` (into `force`, `energy`).
     pub fn update(&mut self, m: &Model) {
-        // Bucket sort of the segments by their centroid's cell.
-        let nb = self.start.len() - 1;
-        self.start.fill(0);
-        for (e, c) in m.conn.iter().enumerate() {
-            let cell = self.cell_of(centroid(&c.map(|n| m.x[n as usize])));
-            self.seg_cell[e] = cell;
-            let b = self.bucket(cell);
-            self.start[b + 1] += 1;
+        for (c, q) in self.centroids.iter_mut().zip(&m.conn) {
+            *c = centroid(&q.map(|n| m.x[n as usize]));
         }
-        for b in 0..nb {
-            self.start[b + 1] += self.start[b];
-        }
-        for e in 0..m.conn.len() {
-            let b = self.bucket(self.seg_cell[e]);
-            // `start[b]` counts up as the bucket fills; shifted back below.
-            self.items[self.start[b] as usize] = e as u32;
-            self.start[b] += 1;
-        }
-        for b in (1..=nb).rev() {
-            self.start[b] = self.start[b - 1];
-        }
-        self.start[0] = 0;
+        self.grid.rebuild(&self.centroids, self.cell);
         // Each node's deepest penetration (parallel: every node writes its own entries).
         let mut pairs = std::mem::take(&mut self.pairs);
         let this = &*self;
@@ -160,38 +128,26 @@ impl Contact {
         let mut best_gap = 0.0;
         let xi = m.x[i];
         let own = &m.adj[m.adj_offsets[i] as usize..m.adj_offsets[i + 1] as usize];
-        let home = self.cell_of(xi);
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                for dz in -1..=1 {
-                    let cell = [home[0] + dx, home[1] + dy, home[2] + dz];
-                    let b = self.bucket(cell);
-                    for &e in &self.items[self.start[b] as usize..self.start[b + 1] as usize] {
-                        let e = e as usize;
-                        if self.seg_cell[e] != cell {
-                            continue;
-                        }
-                        let seg = m.conn[e];
-                        // Not a segment of the node's own elements, nor one touching them.
-                        if own.iter().any(|&k| {
-                            let c = m.conn[(k >> 2) as usize];
-                            c.iter().any(|n| seg.contains(n))
-                        }) {
-                            continue;
-                        }
-                        let x = seg.map(|n| m.x[n as usize]);
-                        let (p, w) = closest_on_quad(xi, &x);
-                        let d = dist(xi, p);
-                        let gap = d - 0.5 * (self.t_node[i] + m.h0[e]);
-                        if gap < best_gap && d > 0.0 {
-                            best_gap = gap;
-                            let n = [0, 1, 2].map(|c| (xi[c] - p[c]) / d);
-                            best = (e as u32, -self.k[e] * gap, n, w);
-                        }
-                    }
-                }
+        self.grid.for_each_near(&xi, |e| {
+            let e = e as usize;
+            let seg = m.conn[e];
+            // Not a segment of the node's own elements, nor one touching them.
+            if own.iter().any(|&k| {
+                let c = m.conn[(k >> 2) as usize];
+                c.iter().any(|n| seg.contains(n))
+            }) {
+                return;
             }
-        }
+            let x = seg.map(|n| m.x[n as usize]);
+            let (p, w) = closest_on_quad(xi, &x);
+            let d = dist(xi, p);
+            let gap = d - 0.5 * (self.t_node[i] + m.h0[e]);
+            if gap < best_gap && d > 0.0 {
+                best_gap = gap;
+                let n = [0, 1, 2].map(|c| (xi[c] - p[c]) / d);
+                best = (e as u32, -self.k[e] * gap, n, w);
+            }
+        });
         best
     }
 }

@@ -121,6 +121,93 @@ impl CellGrid {
     }
 }
 
+/// A spatial hash of points into cubic cells: like [`CellGrid`], but its memory is set by the
+/// number of points, not by their extent, so one point thrown far away (a diverging node, a
+/// flying fragment) costs nothing. Rebuilt without allocating once it has grown;
+/// [`HashGrid::for_each_near`] visits every point in the 27 cells around a position once
+/// (cells that share a bucket are told apart by each point's own cell).
+#[derive(Debug, Clone, Default)]
+pub struct HashGrid {
+    cell: f64,
+    /// Points of bucket b: `items[start[b]..start[b + 1]]`, ascending; the bucket count is a
+    /// power of two.
+    start: Vec<u32>,
+    items: Vec<u32>,
+    /// Each point's cell.
+    cell_of_item: Vec<[i64; 3]>,
+}
+
+impl HashGrid {
+    /// Sort `x` into cells of edge `cell` (> 0).
+    pub fn rebuild(&mut self, x: &[[f64; 3]], cell: f64) {
+        self.cell = cell;
+        let buckets = (2 * x.len()).next_power_of_two().max(2);
+        self.start.clear();
+        self.start.resize(buckets + 1, 0);
+        self.cell_of_item.clear();
+        for p in x {
+            let c = self.cell_of(p);
+            self.cell_of_item.push(c);
+            let b = self.bucket(c);
+            self.start[b + 1] += 1;
+        }
+        for b in 0..buckets {
+            self.start[b + 1] += self.start[b];
+        }
+        self.items.clear();
+        self.items.resize(x.len(), 0);
+        // `start[b]` serves as bucket b's fill cursor, then is shifted back.
+        for (i, &c) in self.cell_of_item.iter().enumerate() {
+            let b = self.bucket(c);
+            self.items[self.start[b] as usize] = i as u32;
+            self.start[b] += 1;
+        }
+        for b in (1..=buckets).rev() {
+            self.start[b] = self.start[b - 1];
+        }
+        self.start[0] = 0;
+    }
+
+    fn cell_of(&self, p: &[f64; 3]) -> [i64; 3] {
+        // A non-finite coordinate saturates (NaN to 0): such a point lands in some cell,
+        // never a panic.
+        p.map(|x| (x / self.cell).floor() as i64)
+    }
+
+    fn bucket(&self, c: [i64; 3]) -> usize {
+        let h = (c[0].wrapping_mul(73_856_093)
+            ^ c[1].wrapping_mul(19_349_663)
+            ^ c[2].wrapping_mul(83_492_791)) as u64;
+        (h as usize) & (self.start.len() - 2)
+    }
+
+    /// Call `f(j)` once for every point j of the last rebuild whose cell is one of the 27
+    /// around `p`'s (all points within one cell edge of `p` among them), bucket by bucket.
+    pub fn for_each_near(&self, p: &[f64; 3], mut f: impl FnMut(u32)) {
+        if self.items.is_empty() {
+            return;
+        }
+        let home = self.cell_of(p);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let c = [
+                        home[0].saturating_add(dx),
+                        home[1].saturating_add(dy),
+                        home[2].saturating_add(dz),
+                    ];
+                    let b = self.bucket(c);
+                    for &j in &self.items[self.start[b] as usize..self.start[b + 1] as usize] {
+                        if self.cell_of_item[j as usize] == c {
+                            f(j);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// The squared search radius with the relative tolerance of [`find_neighbours`].
 pub fn radius_squared(radius: f64) -> f64 {
     radius * radius * (1.0 + 1e-12)
@@ -243,5 +330,31 @@ mod tests {
         let fam = find_neighbours(&[], 1.0);
         assert!(fam.is_empty());
         assert_eq!(fam.bonds(), 0);
+    }
+
+    #[test]
+    fn the_hash_grid_finds_what_a_scan_finds_and_ignores_a_point_far_away() {
+        let mut x = lattice(6, 0.1);
+        x.push([1e300, -1e300, f64::NAN]);
+        let mut g = HashGrid::default();
+        g.rebuild(&x, 0.15);
+        for (i, p) in x.iter().enumerate().take(x.len() - 1) {
+            let mut near = Vec::new();
+            g.for_each_near(p, |j| near.push(j));
+            let mut seen = near.clone();
+            seen.sort_unstable();
+            seen.dedup();
+            assert_eq!(
+                seen.len(),
+                near.len(),
+                "point {i}: a neighbour visited twice"
+            );
+            for (j, q) in x.iter().enumerate() {
+                let d2: f64 = (0..3).map(|d| (q[d] - p[d]).powi(2)).sum();
+                if d2 <= 0.15 * 0.15 {
+                    assert!(near.contains(&(j as u32)), "point {i} misses {j}");
+                }
+            }
+        }
     }
 }

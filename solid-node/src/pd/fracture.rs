@@ -13,8 +13,9 @@
 )]
 
 use super::family::Bonds;
+use mechanics::neighbour::HashGrid;
 use mechanics::xfem::Crack;
-use std::collections::{BinaryHeap, HashMap};
+use std::collections::BinaryHeap;
 
 /// Result of a crack-direction fit.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -512,25 +513,26 @@ pub struct CrackFront {
 /// `bonds`: each broken bond stands for a piece of crack at its reference midpoint; pieces
 /// within `reach` of each other (the horizon) are joined, and so are those within `reach`
 /// of the starting tip. The front is the joined piece farthest along that graph from the
-/// starting tip (Dijkstra's shortest paths), and the length the crack's own plus that path.
-/// Broken bonds not joined to the crack (another crack, a damaged edge) are not counted.
+/// starting tip (Dijkstra's shortest paths over `mechanics::neighbour::HashGrid`), and the
+/// length the crack's own plus that path. Broken bonds not joined to the crack (another crack, a damaged edge) are not counted.
 pub fn crack_front(x0: &[[f64; 3]], bonds: &Bonds, crack: &Crack, reach: f64) -> CrackFront {
     let start = crack.ends()[1];
-    let mut pts: Vec<[f64; 2]> = Vec::new();
+    let mut pts: Vec<[f64; 3]> = Vec::new();
     for i in 0..x0.len() {
         for b in bonds.offsets[i]..bonds.offsets[i + 1] {
             let j = bonds.nbr[b] as usize;
             if j > i && bonds.intact[b] == 0.0 {
-                pts.push([0.5 * (x0[i][0] + x0[j][0]), 0.5 * (x0[i][1] + x0[j][1])]);
+                pts.push([
+                    0.5 * (x0[i][0] + x0[j][0]),
+                    0.5 * (x0[i][1] + x0[j][1]),
+                    0.0,
+                ]);
             }
         }
     }
-    let cell = |p: [f64; 2]| ((p[0] / reach).floor() as i64, (p[1] / reach).floor() as i64);
-    let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
-    for (k, &p) in pts.iter().enumerate() {
-        grid.entry(cell(p)).or_default().push(k);
-    }
-    let dist = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]);
+    let mut grid = HashGrid::default();
+    grid.rebuild(&pts, reach);
+    let dist = |a: [f64; 3], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]);
     /// A heap entry ordered by smallest path first.
     #[derive(PartialEq)]
     struct Next(f64, usize);
@@ -558,18 +560,15 @@ pub fn crack_front(x0: &[[f64; 3]], bonds: &Bonds, crack: &Crack, reach: f64) ->
         if d > path[k] {
             continue;
         }
-        let (cx, cy) = cell(pts[k]);
-        for gx in cx - 1..=cx + 1 {
-            for gy in cy - 1..=cy + 1 {
-                for &m in grid.get(&(gx, gy)).map_or(&[][..], |v| &v[..]) {
-                    let step = dist(pts[k], pts[m]);
-                    if step <= reach && d + step < path[m] {
-                        path[m] = d + step;
-                        heap.push(Next(d + step, m));
-                    }
-                }
+        let pk = [pts[k][0], pts[k][1]];
+        grid.for_each_near(&pts[k], |m| {
+            let m = m as usize;
+            let step = dist(pts[m], pk);
+            if step <= reach && d + step < path[m] {
+                path[m] = d + step;
+                heap.push(Next(d + step, m));
             }
-        }
+        });
     }
     let joined = path.iter().filter(|d| d.is_finite()).count();
     let far = (0..pts.len())
@@ -577,7 +576,7 @@ pub fn crack_front(x0: &[[f64; 3]], bonds: &Bonds, crack: &Crack, reach: f64) ->
         .max_by(|&a, &b| path[a].total_cmp(&path[b]).then(b.cmp(&a)));
     match far {
         Some(k) => CrackFront {
-            tip: pts[k],
+            tip: [pts[k][0], pts[k][1]],
             length: crack.length() + path[k],
             bonds: joined,
         },
