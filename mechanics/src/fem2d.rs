@@ -490,6 +490,9 @@ pub struct Model {
     pub mass: Vec<f64>,
     /// The crack and what it enriches, if the model has one.
     pub crack: Option<Enrichment>,
+    /// Whether each element takes part (an overlap coupling's patch leaves its elements out:
+    /// another model carries that material). A node of inactive elements only is held.
+    pub active: Vec<bool>,
     free: usize,
 }
 
@@ -558,8 +561,32 @@ impl Model {
         fixed: &[usize],
         crack: Option<Crack>,
     ) -> Result<Self, Fem2dError> {
+        let active = vec![true; mesh.quads.len()];
+        Self::with_active(mesh, material, fixed, crack, active)
+    }
+
+    /// As [`Model::cracked`], with only the elements marked in `active` assembled: the
+    /// others carry neither stiffness nor mass, and a node that belongs to inactive elements
+    /// only is held (it has nothing to move it).
+    pub fn with_active(
+        mesh: Mesh,
+        material: Material,
+        fixed: &[usize],
+        crack: Option<Crack>,
+        active: Vec<bool>,
+    ) -> Result<Self, Fem2dError> {
         material.check()?;
         let nn = mesh.nodes.len();
+        if active.len() != mesh.quads.len() {
+            return Err(config(
+                "mesh",
+                format!(
+                    "{} activity flags for {} elements",
+                    active.len(),
+                    mesh.quads.len()
+                ),
+            ));
+        }
         if let Some(q) = mesh.quads.iter().find(|q| q.iter().any(|&i| i >= nn)) {
             return Err(config(
                 "mesh",
@@ -572,14 +599,18 @@ impl Model {
         let d = material.elasticity();
         let mut t = Vec::with_capacity(64 * mesh.quads.len());
         let mut mass = vec![0.0; nd];
+        let mut idle = vec![true; nd];
         let mut scatter = |dofs: &[usize; 8], ke: &[[f64; 8]; 8], me: &[f64; 4], share: f64| {
             for a in 0..8 {
+                idle[dofs[a]] = false;
                 mass[dofs[a]] += share * me[a / 2];
                 for b in 0..8 {
                     t.push((dofs[a], dofs[b], ke[a][b]));
                 }
             }
         };
+        // dofs of no element at all (an error), and of inactive elements only (held)
+        let mut orphan = vec![true; nd];
         for (e, q) in mesh.quads.iter().enumerate() {
             let xy = q.map(|i| mesh.nodes[i]);
             let (ke, me) = element(&xy, &d, &material).ok_or_else(|| {
@@ -589,6 +620,12 @@ impl Model {
                 )
             })?;
             let own: [usize; 8] = std::array::from_fn(|i| 2 * q[i / 2] + i % 2);
+            if !active[e] {
+                for i in own {
+                    orphan[i] = false;
+                }
+                continue;
+            }
             match enrichment.as_ref().map(|en| (en, &en.cuts[e])) {
                 Some((en, Cut::Through { plus, fraction, .. })) => {
                     let kp = part_stiffness(&xy, &d, &material, plus);
@@ -600,13 +637,23 @@ impl Model {
                 _ => scatter(&own, &ke, &me, 1.0),
             }
         }
-        if let Some(i) = (0..nd).find(|&i| !(mass[i] > 0.0)) {
-            return Err(config(
-                "mesh",
-                format!("node {} belongs to no element", i / 2),
-            ));
-        }
         let mut held = vec![false; nd];
+        for i in 0..nd {
+            if idle[i] && orphan[i] && i < 2 * nn {
+                return Err(config(
+                    "mesh",
+                    format!("node {} belongs to no element", i / 2),
+                ));
+            }
+            // A phantom of an inactive element only, or a node of inactive elements only.
+            held[i] = idle[i];
+            if !idle[i] && !(mass[i] > 0.0) {
+                return Err(config(
+                    "mesh",
+                    format!("node {} has no mass", (i / 2).min(nn - 1)),
+                ));
+            }
+        }
         for &i in fixed {
             if i < 2 * nn {
                 held[i] = true;
@@ -630,6 +677,7 @@ impl Model {
             dof,
             mass,
             crack: enrichment,
+            active,
             free,
         })
     }
@@ -701,8 +749,17 @@ impl Model {
         let mut add = |dof: usize, share: f64| {
             f[dof] += share * q[dof % 2];
         };
+        // the directed edges of inactive elements: no material there to load
+        let inactive: std::collections::HashSet<[usize; 2]> = self
+            .mesh
+            .quads
+            .iter()
+            .zip(&self.active)
+            .filter(|(_, a)| !**a)
+            .flat_map(|(q, _)| (0..4).map(|k| [q[k], q[(k + 1) % 4]]))
+            .collect();
         for [a, b] in self.mesh.boundary_segments() {
-            if !(on[a] && on[b]) {
+            if !(on[a] && on[b]) || inactive.contains(&[a, b]) {
                 continue;
             }
             let (pa, pb) = (self.mesh.nodes[a], self.mesh.nodes[b]);
@@ -781,12 +838,15 @@ impl Model {
         })
     }
 
-    /// The pieces to draw: every whole element, and each part of a cut element as its own
+    /// The pieces to draw: every whole active element, and each part of a cut one as its own
     /// polygon with the dofs of its side's field.
     pub fn pieces(&self) -> Vec<Piece> {
         let nn = self.mesh.nodes.len();
         let mut out = Vec::with_capacity(self.mesh.quads.len());
         for (e, q) in self.mesh.quads.iter().enumerate() {
+            if !self.active[e] {
+                continue;
+            }
             let own = std::array::from_fn(|i| 2 * q[i / 2] + i % 2);
             match self.crack.as_ref().map(|en| (en, &en.cuts[e])) {
                 Some((en, Cut::Through { plus, minus, .. })) => {
@@ -850,12 +910,20 @@ impl Model {
             .collect()
     }
 
-    /// Nodal stress: the mean of the element stresses around each node, from `elem`
-    /// (see [`Model::element_stress`]); `out` holds 3 values per node.
+    /// Nodal stress: the mean of the active element stresses around each node, from `elem`
+    /// (see [`Model::element_stress`]); `out` holds 3 values per node (zero at a node of
+    /// inactive elements only).
     pub fn nodal_stress(&self, elem: &[[f64; 3]], out: &mut [f64]) {
         out.fill(0.0);
         let mut count = vec![0u32; self.mesh.nodes.len()];
-        for (q, s) in self.mesh.quads.iter().zip(elem) {
+        for ((q, s), _) in self
+            .mesh
+            .quads
+            .iter()
+            .zip(elem)
+            .zip(&self.active)
+            .filter(|(_, a)| **a)
+        {
             for &i in q {
                 for r in 0..3 {
                     out[3 * i + r] += s[r];
@@ -1131,6 +1199,63 @@ mod tests {
         let exact = mat.bar_wave_speed() / 40.0;
         println!("first axial frequency {f} Hz, c/4L = {exact} Hz");
         assert!((f - exact).abs() < 2e-3 * exact, "{f} vs {exact}");
+    }
+
+    /// A block of inactive elements leaves the model: its interior nodes are held, the mass
+    /// is the active area's, and the stiffness is the whole mesh's less the block's (in a
+    /// linear field, the nodes around the block feel the block's missing traction, the others
+    /// nothing). A line load skips the block's own boundary edges.
+    #[test]
+    fn inactive_elements_leave_the_model() {
+        let mesh = Mesh::rectangle([0.0, 0.0], 4.0, 3.0, 4, 3).unwrap();
+        let mat = steel(Plane::Stress);
+        // the 2 x 1 block of elements (1, 1), (2, 1) and the top-left corner element
+        let off = [5, 6, 8];
+        let active: Vec<bool> = (0..12).map(|e| !off.contains(&e)).collect();
+        let whole = Model::new(mesh.clone(), mat, &[]).unwrap();
+        let part = Model::with_active(mesh.clone(), mat, &[], None, active).unwrap();
+        // node 15 (0, 3) belongs to element 8 only
+        assert_eq!(part.dof[30], None);
+        assert_eq!(part.dof[31], None);
+        assert_eq!(part.free_dofs(), whole.free_dofs() - 2);
+        let rho_t = mat.density * mat.thickness;
+        let m: f64 = part.mass.iter().step_by(2).sum();
+        assert!((m - 9.0 * rho_t).abs() < 1e-12 * m, "{m}");
+        // linear field u = (1e-3 x + 2e-4 y, −3e-4 x + 5e-4 y)
+        let u: Vec<f64> = mesh
+            .nodes
+            .iter()
+            .flat_map(|&[x, y]| [1e-3 * x + 2e-4 * y, -3e-4 * x + 5e-4 * y])
+            .collect();
+        let (mut fw, mut fp) = (vec![0.0; u.len()], vec![0.0; u.len()]);
+        whole.stiffness.mul(&u, &mut fw);
+        part.stiffness.mul(&u, &mut fp);
+        let scale = fw.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+        let touches = |n: usize| off.iter().any(|&e| mesh.quads[e].contains(&n));
+        let boundary = |[x, y]: [f64; 2]| x == 0.0 || y == 0.0 || x == 4.0 || y == 3.0;
+        let mut felt = 0;
+        for (n, &p) in mesh.nodes.iter().enumerate() {
+            let r = fp[2 * n].hypot(fp[2 * n + 1]);
+            if !touches(n) && !boundary(p) {
+                assert!(r < 1e-12 * scale, "node {n}: {r}");
+            }
+            // node 11 (1, 2) is the block's corner and the corner element's opposite corner:
+            // in a uniform stress their pulls on it cancel
+            if n == 11 {
+                assert!(r < 1e-12 * scale, "node {n}: {r}");
+            } else if touches(n) && part.dof[2 * n].is_some() && !boundary(p) {
+                assert!(r > 1e-3 * scale, "node {n} feels no missing traction");
+                felt += 1;
+            }
+        }
+        assert_eq!(felt, 5);
+        // a load on the top edge: element 8's top edge (nodes 15, 16) takes none
+        let top = mesh.edge(Edge::Top);
+        let f = part.edge_load(&top, [0.0, 1.0]);
+        let total: f64 = f.iter().skip(1).step_by(2).sum();
+        assert!((total - 3.0).abs() < 1e-12, "{total}");
+        assert_eq!(f[2 * 15 + 1], 0.0);
+        assert_eq!(part.pieces().len(), 9);
     }
 
     #[test]
