@@ -99,6 +99,7 @@ impl CosimCall {
                     CouplingKind::Kinematic => CosimCouplingKind::Kinematic,
                     CouplingKind::Immersed => CosimCouplingKind::Immersed,
                     CouplingKind::Lagrange => CosimCouplingKind::Lagrange,
+                    CouplingKind::Overlap => CosimCouplingKind::Overlap,
                 },
                 interface: s(&b.interface)?,
                 role: match b.role {

@@ -42,6 +42,7 @@ pub enum CosimCouplingKind {
     Kinematic = 0,
     Immersed = 1,
     Lagrange = 2,
+    Overlap = 3,
 }
 
 /// What kind of failure a callback reports with `cosim_set_error`.

@@ -40,7 +40,7 @@ impl Window {
 #[pyclass(frozen, get_all, module = "cosim")]
 pub struct Binding {
     pub coupling: String,
-    /// "kinematic", "immersed" or "lagrange".
+    /// "kinematic", "immersed", "lagrange" or "overlap".
     pub kind: String,
     /// This node's interface.
     pub interface: String,

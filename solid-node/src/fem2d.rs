@@ -65,9 +65,12 @@ pub struct Fem2dParams {
     #[serde(default)]
     pub points: BTreeMap<String, [f64; 2]>,
     /// Interface names → edge, for a `lagrange` coupling; edges joined with "+" make one
-    /// interface of several ("left+right": the middle subdomain of three in a row).
+    /// interface of several ("left+right": the middle subdomain of three in a row). Or
+    /// `{ overlap = [[x0, y0], [x1, y1]] }`, for an `overlap` coupling's driver: the
+    /// elements inside the box leave the model to a finer one, and the interface is the ring
+    /// of elements around it, whose nodes the finer model's boundary layer follows.
     #[serde(default)]
-    pub interfaces: BTreeMap<String, String>,
+    pub interfaces: BTreeMap<String, InterfaceSpec>,
     /// Steps per window in a lagrange coupling (the ratio m of the system step to this
     /// subdomain's step). Absent: as many as `dt` (or the explicit step bound) needs.
     #[serde(default)]
@@ -89,6 +92,128 @@ pub struct Fem2dParams {
     /// or run along an element edge.
     #[serde(default)]
     pub crack: Vec<[f64; 2]>,
+}
+
+/// An interface of `fem-2d`: edges, or a region handed to a finer model.
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
+#[serde(untagged)]
+pub enum InterfaceSpec {
+    /// "left", or edges joined with "+": a lagrange side.
+    Edges(String),
+    /// A box [[x0, y0], [x1, y1]] (m) whose sides lie on element edges.
+    Overlap { overlap: [[f64; 2]; 2] },
+}
+
+/// An overlap coupling's region in the mesh: which elements leave the model and the ring
+/// of elements around them.
+#[derive(Debug, Clone)]
+struct Region {
+    /// Whether each element stays in the model.
+    active: Vec<bool>,
+    /// The interface's nodes (mesh numbers) and its cells over them (local numbers,
+    /// counter-clockwise): the active elements that share a node with a left-out one.
+    nodes: Vec<usize>,
+    cells: Vec<[u32; 4]>,
+}
+
+/// The elements of `mesh` inside the box `b` (its sides on element edges, checked) and
+/// the ring around them. `key`: the box's key path.
+fn region(mesh: &Mesh, key: &str, b: [[f64; 2]; 2]) -> SolverResult<Region> {
+    let [[x0, y0], [x1, y1]] = b;
+    if !(b.iter().flatten().all(|v| v.is_finite()) && x1 > x0 && y1 > y0) {
+        return Err(SolverError::config(
+            key,
+            format!("must be [[x0, y0], [x1, y1]] with x1 > x0 and y1 > y0, got {b:?}"),
+        ));
+    }
+    let [bx0, by0, bx1, by1] = mesh.bounds();
+    let h = mesh
+        .quads
+        .iter()
+        .map(|q| (mesh.nodes[q[0]][0] - mesh.nodes[q[1]][0]).abs())
+        .fold(f64::INFINITY, f64::min);
+    // a side on a mesh line, or beyond the mesh (the region reaches its boundary)
+    let on_line = |v: f64, c: usize, lo: f64, hi: f64| {
+        v <= lo + 1e-9 * h
+            || v >= hi - 1e-9 * h
+            || mesh.nodes.iter().any(|n| (n[c] - v).abs() <= 1e-9 * h)
+    };
+    for (v, c, lo, hi) in [
+        (x0, 0, bx0, bx1),
+        (x1, 0, bx0, bx1),
+        (y0, 1, by0, by1),
+        (y1, 1, by0, by1),
+    ] {
+        if !on_line(v, c, lo, hi) {
+            return Err(SolverError::config(
+                key,
+                format!(
+                    "its side at {} = {v} m lies on no element edge: put the box's sides on the \
+                     mesh lines",
+                    ["x", "y"][c]
+                ),
+            ));
+        }
+    }
+    let centre =
+        |q: &[usize; 4]| [0, 1].map(|c| 0.25 * q.iter().map(|&n| mesh.nodes[n][c]).sum::<f64>());
+    let active: Vec<bool> = mesh
+        .quads
+        .iter()
+        .map(|q| {
+            let [x, y] = centre(q);
+            !(x > x0 && x < x1 && y > y0 && y < y1)
+        })
+        .collect();
+    if active.iter().all(|a| *a) {
+        return Err(SolverError::config(key, "holds no element"));
+    }
+    if active.iter().all(|a| !*a) {
+        return Err(SolverError::config(
+            key,
+            "holds every element: the mesh keeps nothing to couple",
+        ));
+    }
+    let mut left_out = vec![false; mesh.nodes.len()];
+    for (q, a) in mesh.quads.iter().zip(&active) {
+        if !a {
+            for &n in q {
+                left_out[n] = true;
+            }
+        }
+    }
+    let mut local = vec![u32::MAX; mesh.nodes.len()];
+    let (mut nodes, mut cells) = (Vec::new(), Vec::new());
+    for (q, a) in mesh.quads.iter().zip(&active) {
+        if !a || !q.iter().any(|&n| left_out[n]) {
+            continue;
+        }
+        cells.push(q.map(|n| {
+            if local[n] == u32::MAX {
+                local[n] = nodes.len() as u32;
+                nodes.push(n);
+            }
+            local[n]
+        }));
+    }
+    Ok(Region {
+        active,
+        nodes,
+        cells,
+    })
+}
+
+/// The overlap coupling this model drives: its interface nodes' free dofs and the force the
+/// finer model's layer exerts on them, held over the window.
+#[derive(Debug, Clone)]
+struct OverlapFem {
+    interface: String,
+    /// Free dof of each interface node's x and y (None where a support holds it).
+    dofs: Vec<[Option<usize>; 2]>,
+    /// The force on the free dofs (N), held over the window, and the one in the
+    /// acceleration the next step starts from.
+    force: Vec<f64>,
+    before: Vec<f64>,
 }
 
 /// A uniform line load on an edge.
@@ -147,6 +272,11 @@ struct Fem2dState {
     external_work: f64,
     external_impulse: [f64; 2],
     applied_impulse: f64,
+    /// Impulse and work of an overlap coupling's force since the start.
+    #[serde(default)]
+    interface_impulse: [f64; 2],
+    #[serde(default)]
+    interface_work: f64,
 }
 
 pub struct Fem2d {
@@ -175,6 +305,9 @@ pub struct Fem2d {
     /// Names of the point scalars, built once.
     scalar_names: Vec<(String, String)>,
     lagrange: Option<LagrangeFem>,
+    /// The overlap region (its interface's name), if an interface hands one to a finer model.
+    region: Option<(String, Region)>,
+    overlap: Option<OverlapFem>,
 }
 
 /// The model as one subdomain of a lagrange coupling: the runtime steps it.
@@ -267,7 +400,48 @@ impl Fem2d {
             .then(|| Crack::new("crack", p.crack.clone()))
             .transpose()
             .map_err(fem_error(""))?;
-        let model = Model::cracked(mesh, material, &fixed, crack).map_err(fem_error(""))?;
+        let mut region_of = None;
+        for (name, spec) in &p.interfaces {
+            let key = format!("interfaces.{name}");
+            match spec {
+                InterfaceSpec::Edges(edges) => {
+                    parse_edges(&key, edges)?;
+                }
+                InterfaceSpec::Overlap { overlap } => {
+                    if region_of.is_some() {
+                        return Err(SolverError::config(
+                            key,
+                            "a second overlap region: the mesh hands one region to a finer model",
+                        ));
+                    }
+                    region_of = Some((
+                        name.clone(),
+                        region(&mesh, &format!("{key}.overlap"), *overlap)?,
+                    ));
+                }
+            }
+        }
+        let active = region_of
+            .as_ref()
+            .map_or_else(|| vec![true; mesh.quads.len()], |(_, r)| r.active.clone());
+        let model =
+            Model::with_active(mesh, material, &fixed, crack, active).map_err(fem_error(""))?;
+        if let (Some((name, r)), Some(en)) = (&region_of, &model.crack) {
+            // the layer follows this mesh's plain bilinear field
+            let cut = r.cells.iter().position(|c| {
+                let q = c.map(|n| r.nodes[n as usize]);
+                q.iter().any(|&n| en.phantom[n].is_some())
+            });
+            if let Some(c) = cut {
+                return Err(SolverError::config(
+                    format!("interfaces.{name}.overlap"),
+                    format!(
+                        "the crack splits a node of the ring of elements around the region \
+                         (interface cell {c}): let the region hold the crack near its edges"
+                    ),
+                ));
+            }
+        }
         if model.free_dofs() == 0 {
             return Err(SolverError::config(
                 "fixed",
@@ -327,9 +501,6 @@ impl Fem2d {
                 }
             }
         }
-        for (name, edge) in &p.interfaces {
-            parse_edges(&format!("interfaces.{name}"), edge)?;
-        }
         if p.substeps == Some(0) {
             return Err(SolverError::config("substeps", "must be ≥ 1, got 0"));
         }
@@ -373,6 +544,8 @@ impl Fem2d {
                 external_work: 0.0,
                 external_impulse: [0.0; 2],
                 applied_impulse: 0.0,
+                interface_impulse: [0.0; 2],
+                interface_work: 0.0,
             },
             f: vec![0.0; n],
             f0: vec![0.0; n],
@@ -380,6 +553,8 @@ impl Fem2d {
             scratch: vec![0.0; n],
             scalar_names,
             lagrange: None,
+            region: region_of,
+            overlap: None,
             critical,
             coef,
             sys,
@@ -466,12 +641,29 @@ impl Fem2d {
             for ((f, a), b) in self.f.iter_mut().zip(&self.f0).zip(&self.scratch) {
                 *f = (1.0 - w1) * a + w1 * b;
             }
+            if let Some(o) = &self.overlap {
+                for (f, c) in self.f.iter_mut().zip(&o.force) {
+                    *f += c;
+                }
+            }
             self.u0.copy_from_slice(&self.state.u);
             let r0 = self.reactions(&self.state.u);
             let Some(stepper) = self.stepper.as_mut() else {
                 return Err(SolverError::Other("no stepper".into()));
             };
             stepper.step(&self.sys, &mut self.state, &self.f);
+            if let Some(o) = self.overlap.as_mut() {
+                // The finer model's force, held over the window. The integrator gives the
+                // step the mean of the force in the acceleration it starts from and the one
+                // it ends with, so the step after a new force arrives takes the mean of the
+                // old and the new.
+                for (i, (c, b)) in o.force.iter().zip(&mut o.before).enumerate() {
+                    let fm = 0.5 * (*b + c);
+                    self.s.interface_impulse[self.component[i] as usize] += fm * dt;
+                    self.s.interface_work += fm * (self.state.u[i] - self.u0[i]);
+                    *b = *c;
+                }
+            }
             let r1 = self.reactions(&self.state.u);
             // Trapezoidal work and impulse of the loads over the step; supports add their
             // reaction's impulse.
@@ -501,12 +693,22 @@ impl Fem2d {
 
     /// The nodes of an interface: its edges' nodes in order, each node once.
     fn interface_nodes(&self, name: &str) -> SolverResult<Vec<usize>> {
-        let s = self.p.interfaces.get(name).ok_or_else(|| {
+        let spec = self.p.interfaces.get(name).ok_or_else(|| {
             SolverError::interface(
                 name,
                 "no such interface on this mesh (see params.interfaces)",
             )
         })?;
+        let s = match spec {
+            InterfaceSpec::Edges(s) => s,
+            InterfaceSpec::Overlap { .. } => {
+                return Ok(self
+                    .region
+                    .as_ref()
+                    .map(|(_, r)| r.nodes.clone())
+                    .unwrap_or_default());
+            }
+        };
         let mut nodes: Vec<usize> = Vec::new();
         for e in parse_edges(&format!("interfaces.{name}"), s)? {
             for n in self.model.mesh.edge(e) {
@@ -630,6 +832,80 @@ impl Fem2d {
         Ok(())
     }
 
+    /// Drives the overlap coupling `b` (this mesh's region): its ring's nodes are the
+    /// interface; their motion goes out at set-up and after every window.
+    fn setup_overlap(&mut self, b: &Binding, out: &mut Outbox) -> SolverResult<()> {
+        if self.overlap.is_some() {
+            return Err(SolverError::interface(
+                &b.interface,
+                "a second overlap coupling on the region",
+            ));
+        }
+        let nodes = self.interface_nodes(&b.interface)?;
+        let dofs = nodes
+            .iter()
+            .map(|&n| [0, 1].map(|c| self.model.dof[2 * n + c]))
+            .collect();
+        self.overlap = Some(OverlapFem {
+            interface: b.interface.clone(),
+            dofs,
+            force: vec![0.0; self.sys.len()],
+            before: vec![0.0; self.sys.len()],
+        });
+        self.send_overlap_motion(out);
+        Ok(())
+    }
+
+    /// The overlap force of this window: the finer model's force on each interface node,
+    /// held over the window (it must have arrived).
+    fn take_overlap_force(&mut self, inbox: &Inbox) -> SolverResult<()> {
+        let Some(o) = self.overlap.as_mut() else {
+            return Ok(());
+        };
+        let f = inbox.require(&o.interface, "force", 3 * o.dofs.len())?;
+        if f.iter().any(|a| !a.is_finite()) {
+            return Err(SolverError::interface(
+                &o.interface,
+                "non-finite force received",
+            ));
+        }
+        o.force.fill(0.0);
+        for (k, d) in o.dofs.iter().enumerate() {
+            for c in 0..2 {
+                if let Some(i) = d[c] {
+                    o.force[i] += f[3 * k + c];
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The interface nodes' position and velocity now, into `out`.
+    fn send_overlap_motion(&self, out: &mut Outbox) {
+        let Some(o) = self.overlap.as_ref() else {
+            return;
+        };
+        let Some((_, r)) = self.region.as_ref() else {
+            return;
+        };
+        let n = o.dofs.len();
+        let x = out.put(&o.interface, "position", 3, n);
+        for (k, (d, &node)) in o.dofs.iter().zip(&r.nodes).enumerate() {
+            let p = self.model.mesh.nodes[node];
+            for c in 0..2 {
+                x[3 * k + c] = p[c] + d[c].map_or(0.0, |i| self.state.u[i]);
+            }
+            x[3 * k + 2] = 0.0;
+        }
+        let v = out.put(&o.interface, "velocity", 3, n);
+        for (k, d) in o.dofs.iter().enumerate() {
+            for c in 0..2 {
+                v[3 * k + c] = d[c].map_or(0.0, |i| self.state.v[i]);
+            }
+            v[3 * k + 2] = 0.0;
+        }
+    }
+
     /// Energies, momentum, the named points and the running sums of `self.s`: the window's
     /// report.
     fn report(&mut self, substeps: u64) -> StepReport {
@@ -658,6 +934,12 @@ impl Fem2d {
             momentum_gross: gross,
             external_impulse: [self.s.external_impulse[0], self.s.external_impulse[1], 0.0],
             applied_impulse: self.s.applied_impulse,
+            interface_impulse: [
+                self.s.interface_impulse[0],
+                self.s.interface_impulse[1],
+                0.0,
+            ],
+            interface_work: self.s.interface_work,
             substeps,
             scalars,
             ..Default::default()
@@ -714,12 +996,20 @@ impl Solver for Fem2d {
             interfaces: self
                 .p
                 .interfaces
-                .keys()
-                .map(|name| InterfaceInfo {
+                .iter()
+                .map(|(name, spec)| InterfaceInfo {
                     name: name.clone(),
                     points: self.interface_nodes(name).map_or(0, |n| n.len()),
-                    // a lagrange side (seed 003 §4): its condensed interface operator
-                    provides: vec!["velocity".into(), "lagrange_operator".into()],
+                    provides: match spec {
+                        // a lagrange side (seed 003 §4): its condensed interface operator
+                        InterfaceSpec::Edges(_) => {
+                            vec!["velocity".into(), "lagrange_operator".into()]
+                        }
+                        // an overlap driver: its ring's motion
+                        InterfaceSpec::Overlap { .. } => {
+                            vec!["position".into(), "velocity".into()]
+                        }
+                    },
                     accepts: vec!["force".into()],
                 })
                 .collect(),
@@ -728,6 +1018,24 @@ impl Solver for Fem2d {
     }
 
     fn interface(&self, name: &str) -> SolverResult<InterfaceMesh> {
+        if let Some((region_name, r)) = &self.region
+            && region_name == name
+        {
+            let mut m = InterfaceMesh::points(
+                r.nodes
+                    .iter()
+                    .map(|&n| {
+                        let [x, y] = self.model.mesh.nodes[n];
+                        [x, y, 0.0]
+                    })
+                    .collect(),
+            );
+            m.cells = Some(protocol::message::Cells {
+                kind: protocol::message::CellKind::Quad,
+                connectivity: r.cells.iter().flatten().copied().collect(),
+            });
+            return Ok(m);
+        }
         Ok(InterfaceMesh::points(
             self.interface_nodes(name)?
                 .into_iter()
@@ -739,19 +1047,29 @@ impl Solver for Fem2d {
         ))
     }
 
-    fn setup(
-        &mut self,
-        bindings: &[Binding],
-        inbox: &Inbox,
-        _out: &mut Outbox,
-    ) -> SolverResult<()> {
+    fn setup(&mut self, bindings: &[Binding], inbox: &Inbox, out: &mut Outbox) -> SolverResult<()> {
         self.lagrange = None;
+        self.overlap = None;
         let mut lagrange = None;
         for b in bindings {
-            if !scheme::of(b.kind).coordinator_solved() {
+            let sch = scheme::of(b.kind);
+            let region = self.region.as_ref().is_some_and(|(n, _)| *n == b.interface);
+            if sch.boundary_layer() || region {
+                if !(sch.boundary_layer() && region && !sch.follows(b.role)) {
+                    return Err(SolverError::interface(
+                        &b.interface,
+                        "an overlap coupling takes the mesh's overlap region as its driver, and \
+                         the region serves that coupling only",
+                    ));
+                }
+                self.setup_overlap(b, out)?;
+                continue;
+            }
+            if !sch.coordinator_solved() {
                 return Err(SolverError::interface(
                     &b.interface,
-                    "fem-2d takes part in lagrange couplings only (not kinematic or immersed)",
+                    "fem-2d takes part in lagrange and overlap couplings only (not kinematic or \
+                     immersed)",
                 ));
             }
             if lagrange.is_some() {
@@ -793,12 +1111,7 @@ impl Solver for Fem2d {
         }
     }
 
-    fn advance(
-        &mut self,
-        w: &Window,
-        _inbox: &Inbox,
-        _out: &mut Outbox,
-    ) -> SolverResult<StepReport> {
+    fn advance(&mut self, w: &Window, inbox: &Inbox, out: &mut Outbox) -> SolverResult<StepReport> {
         let span = w.t1 - w.t0;
         if span.is_nan() || span <= 0.0 {
             return Err(SolverError::Other(format!(
@@ -809,10 +1122,12 @@ impl Solver for Fem2d {
         if self.lagrange.is_some() {
             return self.report_lagrange(w);
         }
+        self.take_overlap_force(inbox)?;
         let nsub = (span / self.step_limit() - 1e-9).ceil().max(1.0) as u64;
         let dt = span / nsub as f64;
         self.step(w.t0, nsub, dt)?;
         self.s.time = w.t1;
+        self.send_overlap_motion(out);
         Ok(self.report(nsub))
     }
 

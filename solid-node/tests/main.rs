@@ -12,6 +12,7 @@ mod gpu_pd;
 mod lagrange_chain;
 mod lagrange_checkpoint;
 mod lagrange_split_bar;
+mod overlap;
 mod pd_blast_solid;
 mod pd_energy;
 mod pd_fracture;

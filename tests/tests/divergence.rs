@@ -390,7 +390,7 @@ const EXAMPLES: &[(&str, &[&str])] = &[
             "small-decoupled",
         ],
     ),
-    ("glass_plate", &["small"]),
+    ("glass_plate", &["small", "band", "band-small"]),
     ("noh", &["cylindrical", "small"]),
     ("sedov", &["cylindrical", "small"]),
     (

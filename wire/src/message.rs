@@ -20,6 +20,7 @@ pub enum CouplingKind {
     Kinematic,
     Immersed,
     Lagrange,
+    Overlap,
 }
 
 impl CouplingKind {
@@ -28,6 +29,7 @@ impl CouplingKind {
             CouplingKind::Kinematic => "kinematic",
             CouplingKind::Immersed => "immersed",
             CouplingKind::Lagrange => "lagrange",
+            CouplingKind::Overlap => "overlap",
         }
     }
 }

@@ -159,13 +159,14 @@ pub struct CouplingSection {
     /// "DRIVERNODE-RESPONDERNODE".
     pub name: Option<String>,
     /// "kinematic" (the driver's motion drives the responder, whose interface force acts
-    /// back), "immersed" (a solid immersed in a fluid grid) or "lagrange" (subdomains tied
-    /// by interface multipliers the coordinator solves).
+    /// back), "immersed" (a solid immersed in a fluid grid), "lagrange" (subdomains tied
+    /// by interface multipliers the coordinator solves) or "overlap" (a fine patch in place
+    /// of a region of a coarse mesh, its boundary layer following the mesh).
     #[schemars(with = "KindSchema")]
     pub kind: CouplingKind,
-    /// The driving side, "NODE.INTERFACE" (kinematic and immersed).
+    /// The driving side, "NODE.INTERFACE" (kinematic, immersed and overlap).
     pub driver: Option<String>,
-    /// The responding side, "NODE.INTERFACE" (kinematic and immersed).
+    /// The responding side, "NODE.INTERFACE" (kinematic, immersed and overlap).
     pub responder: Option<String>,
     /// Fields the driver sends each window (default: the scheme's).
     pub driver_fields: Option<Vec<String>>,
@@ -194,6 +195,7 @@ enum KindSchema {
     Kinematic,
     Immersed,
     Lagrange,
+    Overlap,
 }
 
 /// `[variants.NAME]`: what the variant changes, applied in this order: `remove`, the nodes

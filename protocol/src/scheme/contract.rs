@@ -86,6 +86,15 @@ pub trait Scheme: Sync {
         false
     }
 
+    /// Whether the responder's interface is a boundary layer of the driver's material (the
+    /// overlap scheme): its points follow the driver and carry no mass of their own (the
+    /// driver's elements carry it), and the responder sends the force its own material exerts
+    /// on them, corrected each window so that the driver receives exactly the impulse the
+    /// responder's material took.
+    fn boundary_layer(&self) -> bool {
+        false
+    }
+
     /// Fields the side with `role` sends at set-up besides its window fields.
     fn setup_sends(&self, _role: Role) -> &'static [&'static str] {
         &[]

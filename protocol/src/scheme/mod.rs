@@ -5,7 +5,9 @@
 //! * [`kinematic`]: `kind = "kinematic"`, the kinematic (sync-force) scheme (§5.1);
 //! * [`immersed`]: `kind = "immersed"`, the immersed boundary scheme (§5.2);
 //! * [`lagrange`]: `kind = "lagrange"`, Lagrange multipliers solved by the coordinator
-//!   (§5.3): its contract, its node side, its interface solver and the coordinator's hub.
+//!   (§5.3): its contract, its node side, its interface solver and the coordinator's hub;
+//! * [`overlap`]: `kind = "overlap"`, a fine patch replacing a region of a coarse mesh, its
+//!   boundary layer following the mesh (§5.4).
 //!
 //! [`of`] gives a kind's [`Scheme`]; the coordinator's validation and bindings and the
 //! participant runtime ask it instead of matching on the kind.
@@ -13,6 +15,7 @@
 pub mod immersed;
 pub mod kinematic;
 pub mod lagrange;
+pub mod overlap;
 
 mod contract;
 
@@ -28,5 +31,6 @@ pub fn of(kind: CouplingKind) -> &'static dyn Scheme {
         CouplingKind::Kinematic => &kinematic::Kinematic,
         CouplingKind::Immersed => &immersed::Immersed,
         CouplingKind::Lagrange => &lagrange::Lagrange,
+        CouplingKind::Overlap => &overlap::Overlap,
     }
 }

@@ -513,6 +513,20 @@ mechanics::simd::multiversion! {
     ) -> FamilySums = family_sums_body;
 }
 
+/// A bond's force state difference per unit ω V_j, T_i⟨ξ⟩ − T_j⟨−ξ⟩ (eq. 183 with 186), for
+/// the bond ξ = `x` with relative displacement `e`, between particles whose force-pass
+/// quantities are `pi` and `pj`.
+#[inline(always)]
+fn pair(pi: &BondSide, pj: &BondSide, x: &[f64; 3], e: &[f64; 3], inv_h: f64) -> [f64; 3] {
+    let ks = (pi.kappa + pj.kappa) * inv_h;
+    std::array::from_fn(|c| {
+        let t = (pi.ahat[c][0] + pj.ahat[c][0]) * x[0]
+            + (pi.ahat[c][1] + pj.ahat[c][1]) * x[1]
+            + (pi.ahat[c][2] + pj.ahat[c][2]) * x[2];
+        t + ks * e[c]
+    })
+}
+
 /// The force pass (eq. 183 with 186) over the block of particles `lo..lo + f.len()`, whose
 /// rows' intact fractions are `intact`.
 #[inline(always)]
@@ -577,13 +591,9 @@ fn force_block_body<D: DamageModel>(
                 continue;
             }
             let w = w * vol[j];
-            let ks = (pi.kappa + pj.kappa) * inv_h;
+            let t = pair(pi, pj, &x, &e, inv_h);
             for c in 0..3 {
-                // eq. (183) with (186): T_i⟨ξ⟩ − T_j⟨−ξ⟩
-                let t = (pi.ahat[c][0] + pj.ahat[c][0]) * x[0]
-                    + (pi.ahat[c][1] + pj.ahat[c][1]) * x[1]
-                    + (pi.ahat[c][2] + pj.ahat[c][2]) * x[2];
-                acc[c] += w * (t + ks * e[c]);
+                acc[c] += w * t[c];
             }
         }
         *fi = acc;
@@ -883,6 +893,42 @@ impl<D: DamageModel, L: StressLaw> PdModel for Correspondence<D, L> {
 
     fn set_simd(&mut self, simd: Simd) {
         self.simd = simd;
+    }
+
+    fn partial_force(
+        &self,
+        k: &Kinematics,
+        bonds: &Bonds,
+        i: usize,
+        from: &[u8],
+    ) -> Option<[f64; 3]> {
+        // force_block_body's sum over row i, on the bonds' intact fractions as the last
+        // force pass left them, restricted to the marked neighbours
+        let (pi, up, xp) = (&self.side[i], k.disp[i], k.x0[i]);
+        let inv_h = 1.0 / self.horizon;
+        let r = bonds.offsets[i]..bonds.offsets[i + 1];
+        let mut acc = [0.0; 3];
+        for (&om, &j) in bonds.intact[r.clone()].iter().zip(&bonds.nbr[r]) {
+            let j = j as usize;
+            if om == 0.0 || from[j] == 0 {
+                continue;
+            }
+            let pj = &self.side[j];
+            let xj = k.x0[j];
+            let x = [xj[0] - xp[0], xj[1] - xp[1], xj[2] - xp[2]];
+            let q = k.disp[j];
+            let e = [q[0] - up[0], q[1] - up[1], q[2] - up[2]];
+            let w = om * k.vol[j];
+            let t = pair(pi, pj, &x, &e, inv_h);
+            for c in 0..3 {
+                acc[c] += w * t[c];
+            }
+        }
+        Some(acc)
+    }
+
+    fn point_energies(&self) -> Option<&[f64]> {
+        Some(&self.energy)
     }
 
     fn stiffness_bound(&self, k: &Kinematics, bonds: &Bonds, i: usize) -> f64 {

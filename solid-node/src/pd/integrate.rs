@@ -30,7 +30,9 @@ pub struct Body {
     pub force: Vec<[f64; 3]>,
     /// External force per particle (N), e.g. coupling loads or pressure.
     pub fext: Vec<[f64; 3]>,
-    /// 1 where the velocity is prescribed (`vpres`), 0 where free.
+    /// 1 where the velocity is prescribed (`vpres`), 0 where free; 2 where it is prescribed
+    /// and the particle's mass belongs to another model (an overlap coupling's boundary
+    /// layer): left out of the momentum and kinetic energy.
     pub prescribed: Vec<u8>,
     pub vpres: Vec<[f64; 3]>,
     pub bonds: Bonds,
@@ -177,7 +179,7 @@ impl Body {
     /// Total linear momentum Σ ρ V v (fixed order).
     pub fn momentum(&self) -> [f64; 3] {
         let mut p = [0.0; 3];
-        for i in 0..self.len() {
+        for i in (0..self.len()).filter(|&i| self.prescribed[i] != 2) {
             let m = self.density * self.vol[i];
             for d in 0..3 {
                 p[d] += m * self.vel[i][d];
@@ -189,6 +191,7 @@ impl Body {
     /// Gross momentum Σ m|v|: the scale of momentum sums that cancel.
     pub fn momentum_gross(&self) -> f64 {
         (0..self.len())
+            .filter(|&i| self.prescribed[i] != 2)
             .map(|i| {
                 let v = self.vel[i];
                 self.density * self.vol[i] * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
@@ -198,6 +201,7 @@ impl Body {
 
     pub fn kinetic_energy(&self) -> f64 {
         (0..self.len())
+            .filter(|&i| self.prescribed[i] != 2)
             .map(|i| {
                 let v = self.vel[i];
                 0.5 * self.density * self.vol[i] * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2])

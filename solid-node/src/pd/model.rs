@@ -114,4 +114,26 @@ pub trait PdModel: Send + Sync {
 
     /// A bound on the stiffness (N/m) a particle of volume `v` presents to a driver.
     fn stiffness_bound(&self, k: &Kinematics, bonds: &Bonds, i: usize) -> f64;
+
+    /// The force density on particle `i` (N/m³) from its bonds to the particles `from` marks
+    /// (nonzero): the pair forces of the last [`PdModel::force_density`], which sum with the
+    /// same bonds' forces on those particles to zero. An overlap coupling's boundary layer
+    /// sends it (the pull of the patch's own material on a layer particle). None: the model
+    /// does not split its force by bond.
+    fn partial_force(
+        &self,
+        k: &Kinematics,
+        bonds: &Bonds,
+        i: usize,
+        from: &[u8],
+    ) -> Option<[f64; 3]> {
+        let _ = (k, bonds, i, from);
+        None
+    }
+
+    /// Each particle's share of the last [`PdModel::strain_energy`] (J), when the model
+    /// keeps them.
+    fn point_energies(&self) -> Option<&[f64]> {
+        None
+    }
 }

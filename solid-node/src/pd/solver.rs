@@ -116,6 +116,41 @@ pub struct PdSolver {
     points: Vec<(Vec<String>, usize)>,
     /// The body as one side of a lagrange coupling (then the side steps it).
     pub(super) lagrange: Option<(String, ExplicitSide)>,
+    /// The boundary layer of an overlap coupling this body responds to.
+    layer: Option<Layer>,
+}
+
+/// An overlap coupling's boundary layer: particles outside the patch that follow the
+/// driver's mesh and carry its mass, not ours. What they send is the patch's pull on them.
+#[derive(Debug, Clone)]
+struct Layer {
+    interface: String,
+    pts: Vec<usize>,
+    /// 1 for the patch's own particles (every particle but the layer's).
+    own: Vec<u8>,
+    /// The patch's pull on each layer particle (N): at the last force evaluation and the
+    /// one before it, at the window's start (after the particles landed on the driver's
+    /// positions), and its impulse over the window so far (N s, trapezoidal over the steps,
+    /// as velocity Verlet gives the patch its reaction).
+    last: Vec<[f64; 3]>,
+    before: Vec<[f64; 3]>,
+    start: Vec<[f64; 3]>,
+    impulse: Vec<[f64; 3]>,
+    /// The force sent at the last window's end (N).
+    sent: Vec<[f64; 3]>,
+}
+
+/// The patch's pull on each layer particle `pts` at the body's last force evaluation (N),
+/// from the particles `own` marks; false where the model cannot split its force by bond.
+fn pull(b: &Body, pts: &[usize], own: &[u8], out: &mut [[f64; 3]]) -> bool {
+    let k = b.kinematics();
+    for (o, &i) in out.iter_mut().zip(pts) {
+        match b.model.partial_force(&k, &b.bonds, i, own) {
+            Some(f) => *o = f.map(|x| x * b.vol[i]),
+            None => return false,
+        }
+    }
+    true
 }
 
 /// Most lattice points a body's bounding box may hold (the largest runs here are ~10⁷).
@@ -317,6 +352,7 @@ impl PdSolver {
             external_work: 0.0,
             first_damage: None,
             fragment_cache: None,
+            layer: None,
             cracks,
             crack_cache: None,
             device,
@@ -368,8 +404,18 @@ impl PdSolver {
                 }
                 "force" => {
                     let f = out.put(iface, "force", 3, n);
-                    for (k, &i) in pts.iter().enumerate() {
-                        f[3 * k..3 * k + 3].copy_from_slice(&self.internal_force(i));
+                    match self.layer.as_ref().filter(|l| l.interface == iface) {
+                        Some(l) => {
+                            // the impulse-conserving force (`layer_window_end`)
+                            for (k, s) in l.sent.iter().enumerate() {
+                                f[3 * k..3 * k + 3].copy_from_slice(s);
+                            }
+                        }
+                        None => {
+                            for (k, &i) in pts.iter().enumerate() {
+                                f[3 * k..3 * k + 3].copy_from_slice(&self.internal_force(i));
+                            }
+                        }
                     }
                 }
                 "mass" => {
@@ -394,6 +440,90 @@ impl PdSolver {
             }
         }
         Ok(())
+    }
+
+    /// Makes `pts` the boundary layer of an overlap coupling on `iface` (one per body; the
+    /// model must split its force by bond).
+    fn setup_layer(&mut self, iface: &str, pts: &[usize]) -> SolverResult<()> {
+        if self.layer.is_some() {
+            return Err(SolverError::interface(
+                iface,
+                "a second overlap coupling: a patch has one boundary layer",
+            ));
+        }
+        let mut own = vec![1u8; self.body.len()];
+        for &i in pts {
+            own[i] = 0;
+        }
+        if !own.contains(&1) {
+            return Err(SolverError::interface(
+                iface,
+                "the boundary layer holds every particle: the patch has none of its own",
+            ));
+        }
+        let mut l = Layer {
+            interface: iface.to_string(),
+            pts: pts.to_vec(),
+            own,
+            last: vec![[0.0; 3]; pts.len()],
+            before: vec![[0.0; 3]; pts.len()],
+            start: vec![[0.0; 3]; pts.len()],
+            impulse: vec![[0.0; 3]; pts.len()],
+            sent: vec![[0.0; 3]; pts.len()],
+        };
+        if !pull(&self.body, &l.pts, &l.own, &mut l.last) {
+            return Err(SolverError::config(
+                "model",
+                format!(
+                    "{} cannot be an overlap patch (its force does not split by bond): use \
+                     pd-correspondence",
+                    self.model_name
+                ),
+            ));
+        }
+        l.start.clone_from(&l.last);
+        l.sent.clone_from(&l.last);
+        self.layer = Some(l);
+        Ok(())
+    }
+
+    /// After a step of `dt`: the pull's trapezoidal impulse over it, booked as the patch's
+    /// interface impulse (the patch took minus it), and its work on the layer's motion.
+    fn layer_step(&mut self, dt: f64) {
+        let Some(l) = self.layer.as_mut() else {
+            return;
+        };
+        std::mem::swap(&mut l.last, &mut l.before);
+        pull(&self.body, &l.pts, &l.own, &mut l.last);
+        for (k, &i) in l.pts.iter().enumerate() {
+            let v = self.body.vel[i];
+            for d in 0..3 {
+                let j = 0.5 * dt * (l.before[k][d] + l.last[k][d]);
+                l.impulse[k][d] += j;
+                self.interface_impulse[d] -= j;
+                self.interface_work -= j * v[d];
+            }
+        }
+    }
+
+    /// At the window's end (the layer on the driver's positions, the forces evaluated
+    /// there): the force to send is the pull now plus the window's impulse over its length
+    /// `span` less the pull at the window's start, so that what the driver holds over its
+    /// windows adds up to the impulse the patch took (the pull at the end stays in flight).
+    fn layer_window_end(&mut self, span: f64) {
+        let Some(l) = self.layer.as_mut() else {
+            return;
+        };
+        pull(&self.body, &l.pts, &l.own, &mut l.last);
+        for k in 0..l.pts.len() {
+            for d in 0..3 {
+                l.sent[k][d] = l.last[k][d] + l.impulse[k][d] / span - l.start[k][d];
+            }
+        }
+        l.start.clone_from(&l.last);
+        for j in l.impulse.iter_mut() {
+            *j = [0.0; 3];
+        }
     }
 
     /// Internal force (N) on particle i: force density × volume.
@@ -570,7 +700,11 @@ impl PdSolver {
             vel: &b.vel,
             vol: &b.vol,
         };
-        let strain = b.model.strain_energy(&k, &b.bonds);
+        let mut strain = b.model.strain_energy(&k, &b.bonds);
+        if let (Some(l), Some(e)) = (&self.layer, b.model.point_energies()) {
+            // the layer's material is the driver's
+            strain -= l.pts.iter().map(|&i| e[i]).sum::<f64>();
+        }
         (
             strain,
             b.model.plastic_work(&b.vol),
@@ -1393,6 +1527,7 @@ impl Solver for PdSolver {
         self.coupled.clear();
         self.follow_pts.clear();
         self.lagrange = None;
+        self.layer = None;
         if bindings.len() > 1
             && let Some(b) = bindings
                 .iter()
@@ -1421,8 +1556,14 @@ impl Solver for PdSolver {
                         ),
                     ));
                 }
+                let flag = if sch.boundary_layer() {
+                    self.setup_layer(&b.interface, &pts)?;
+                    2
+                } else {
+                    1
+                };
                 for &i in &pts {
-                    self.body.prescribed[i] = 1;
+                    self.body.prescribed[i] = flag;
                 }
                 self.follow_pts.extend_from_slice(&pts);
             } else {
@@ -1536,8 +1677,9 @@ impl Solver for PdSolver {
                         "non-finite motion received",
                     ));
                 }
+                let flag = if sch.boundary_layer() { 2 } else { 1 };
                 for (k, &i) in pts.iter().enumerate() {
-                    self.body.prescribed[i] = 1;
+                    self.body.prescribed[i] = flag;
                     self.follow.set_start(q, &self.body.disp[i]);
                     self.follow.set_end(q, &v[3 * k..3 * k + 3]);
                     let x = self.body.pos[i];
@@ -1655,11 +1797,15 @@ impl Solver for PdSolver {
                     // seed 004 eq. (31): along the driver's motion.
                     let u = std::array::from_fn(|d| self.follow.position(q, d, step, nsub, dt));
                     self.body.set_disp(i, u);
+                    if self.body.prescribed[i] == 2 {
+                        continue;
+                    }
                     let f = self.internal_force(i);
                     for d in 0..3 {
                         self.interface_impulse[d] -= f[d] * dt;
                     }
                 }
+                self.layer_step(dt);
             }
         }
         // Land exactly on the driver's positions at t1.
@@ -1679,6 +1825,7 @@ impl Solver for PdSolver {
         if !self.follow.is_empty() {
             self.body.eval_forces(0.0);
         }
+        self.layer_window_end(span);
         // Outputs at t1.
         for c in &coupled {
             if c.ended || scheme::of(c.kind).coordinator_solved() {
@@ -1813,6 +1960,12 @@ impl Solver for PdSolver {
         self.first_damage = s.first_damage;
         if let Some(dev) = self.device.as_mut() {
             dev.rebuild(&self.body).map_err(gpu_err)?;
+        }
+        if let Some(l) = self.layer.as_mut() {
+            // the pull at the window's start, as the run before the stop had it
+            self.body.eval_forces(0.0);
+            pull(&self.body, &l.pts, &l.own, &mut l.last);
+            l.start.clone_from(&l.last);
         }
         Ok(())
     }
