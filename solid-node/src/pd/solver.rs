@@ -507,9 +507,10 @@ impl PdSolver {
     }
 
     /// At the window's end (the layer on the driver's positions, the forces evaluated
-    /// there): the force to send is the pull now plus the window's impulse over its length
-    /// `span` less the pull at the window's start, so that what the driver holds over its
-    /// windows adds up to the impulse the patch took (the pull at the end stays in flight).
+    /// there): the force to send is the window's impulse over its length `span` plus half the
+    /// pull's change over the window, so that what the driver holds over its windows adds up
+    /// to the impulse the patch took (half the pull at the end in flight), and a pull that
+    /// changes smoothly arrives as its value at the window's end.
     fn layer_window_end(&mut self, span: f64) {
         let Some(l) = self.layer.as_mut() else {
             return;
@@ -517,7 +518,7 @@ impl PdSolver {
         pull(&self.body, &l.pts, &l.own, &mut l.last);
         for k in 0..l.pts.len() {
             for d in 0..3 {
-                l.sent[k][d] = l.last[k][d] + l.impulse[k][d] / span - l.start[k][d];
+                l.sent[k][d] = l.impulse[k][d] / span + 0.5 * (l.last[k][d] - l.start[k][d]);
             }
         }
         l.start.clone_from(&l.last);

@@ -5,9 +5,9 @@
 //! shape functions (`v_r = W v_d`). Those points are the coarse model's material: they carry
 //! no mass of their own. The responder sends back, per layer point, the force its own material
 //! (the points inside the region) exerts on it, which the driver takes through `Wᵀ` at its
-//! layer nodes. The force sent for window k is the sync force at its end plus the difference
-//! between the impulse the region took over the window and the previous sync force held over
-//! it, so that the driver receives exactly the impulse the patch took, one window later.
+//! layer nodes. The force sent for window k is the impulse the region took over the window,
+//! per unit time, plus half the pull's change over it, so that the driver receives exactly
+//! the impulse the patch took, one window later.
 
 use super::contract::Scheme;
 use super::kinematic::Kinematic;
