@@ -523,3 +523,69 @@ initial_velocity = [{ region = { shape = "box", min = [0.0, 0.0, 0.0], max = [0.
     );
     assert_eq!(get("damage", 1), damage, "damage");
 }
+
+/// A support that holds one component (`components = "y"`): the plate's bottom row slides
+/// in x under a load that pulls the whole plate along x and down, and stays at y = 0; the
+/// body's momentum is the load's impulse less the support's, component by component, to
+/// round-off. A bad letter is refused by its key.
+#[test]
+fn a_support_can_hold_one_component() {
+    let table = |components: &str| -> toml::Table {
+        toml::from_str(&format!(
+            r#"
+dimension = "plane_stress"
+thickness = 1e-3
+spacing = 1e-3
+horizon = 2e-3
+density = 2480.0
+young = 74e9
+poisson = 0.22
+bodies = [{{ shape = "box", min = [0.0, 0.0, 0.0], max = [0.012, 0.006, 0.0] }}]
+prescribed_velocity = [{{ region = {{ shape = "box", min = [-1.0, -1.0, -1.0], max = [1.0, 0.001, 1.0] }}, velocity = [0.0, 0.0, 0.0], components = "{components}" }}]
+loads = [{{ region = {{ shape = "box", min = [-1.0, -1.0, -1.0], max = [1.0, 1.0, 1.0] }}, force = [50.0, -80.0, 0.0] }}]
+"#
+        ))
+        .expect("toml")
+    };
+    let mut s = PdSolver::from_table("pd-correspondence", &table("y")).expect("builds");
+    let bottom: Vec<usize> = (0..s.body.len())
+        .filter(|&i| s.body.x0[i][1] < 0.001)
+        .collect();
+    assert_eq!(bottom.len(), 12);
+    s.setup(&[], &Inbox::new(), &mut Outbox::new())
+        .expect("set-up");
+    let mut rep = None;
+    for k in 1..=5 {
+        rep = Some(
+            s.advance(&window(k), &Inbox::new(), &mut Outbox::new())
+                .expect("advance"),
+        );
+    }
+    let rep = rep.expect("a report");
+    for &i in &bottom {
+        assert_eq!(s.body.vel[i][1], 0.0);
+        assert_eq!(s.body.disp[i][1], 0.0);
+        assert!(s.body.vel[i][0] > 0.0, "the bottom row slides in x");
+    }
+    // the load's x impulse: 50 N over 10 µs, all of it momentum
+    let jx = 50.0 * 1e-5;
+    assert!(
+        (rep.momentum[0] - jx).abs() < 1e-12 * jx,
+        "{:?}",
+        rep.momentum
+    );
+    assert!((rep.external_impulse[0] - jx).abs() < 1e-12 * jx);
+    let py = rep.momentum[1] - rep.external_impulse[1];
+    assert!(py.abs() < 1e-12 * 80.0 * 1e-5, "{py:e}");
+    assert!(
+        rep.external_impulse[1] > -80.0 * 1e-5,
+        "the support took part of the y load"
+    );
+    match PdSolver::from_table("pd-correspondence", &table("yw")) {
+        Err(SolverError::Config { key, .. }) => {
+            assert_eq!(key, "prescribed_velocity[0].components")
+        }
+        Err(e) => panic!("expected a config error, got {e}"),
+        Ok(_) => panic!("\"yw\" must be refused"),
+    }
+}

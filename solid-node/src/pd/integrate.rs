@@ -32,9 +32,12 @@ pub struct Body {
     pub fext: Vec<[f64; 3]>,
     /// 1 where the velocity is prescribed (`vpres`), 0 where free; 2 where it is prescribed
     /// and the particle's mass belongs to another model (an overlap coupling's boundary
-    /// layer): left out of the momentum and kinetic energy.
+    /// layer): left out of the momentum and kinetic energy; 3 where only the components
+    /// `held` marks are prescribed.
     pub prescribed: Vec<u8>,
     pub vpres: Vec<[f64; 3]>,
+    /// Where `prescribed` is 3, the components held (bit d for component d).
+    pub held: Vec<u8>,
     pub bonds: Bonds,
     pub model: Box<dyn PdModel>,
     pub time: f64,
@@ -67,6 +70,7 @@ impl Body {
             force: vec![[0.0; 3]; n],
             fext: vec![[0.0; 3]; n],
             prescribed: vec![0; n],
+            held: vec![0; n],
             vpres: vec![[0.0; 3]; n],
             bonds,
             model,
@@ -117,21 +121,30 @@ impl Body {
     /// Half kick v += dt/2 a for free particles; prescribed particles take `vpres`.
     fn kick(&mut self, half_dt: f64) {
         let rho = self.density;
-        let (f, fe, vol, pr, vp) = (
+        let (f, fe, vol, pr, vp, held) = (
             &self.force,
             &self.fext,
             &self.vol,
             &self.prescribed,
             &self.vpres,
+            &self.held,
         );
         par_points(&mut self.vel, &|i, v: &mut [f64; 3]| {
-            if pr[i] != 0 {
-                *v = vp[i];
-                return;
-            }
+            let mask = match pr[i] {
+                0 => 0,
+                3 => held[i],
+                _ => {
+                    *v = vp[i];
+                    return;
+                }
+            };
             let inv_m = 1.0 / (rho * vol[i]);
             for d in 0..3 {
-                v[d] += half_dt * (f[i][d] / rho + fe[i][d] * inv_m);
+                if mask & (1 << d) != 0 {
+                    v[d] = vp[i][d];
+                } else {
+                    v[d] += half_dt * (f[i][d] / rho + fe[i][d] * inv_m);
+                }
             }
         });
     }
@@ -168,6 +181,15 @@ impl Body {
                 x[d] = x0[i][d] + u[i][d];
             }
         });
+    }
+
+    /// The components of particle `i`'s velocity that are prescribed (bit d for component d).
+    pub fn held_components(&self, i: usize) -> u8 {
+        match self.prescribed[i] {
+            0 => 0,
+            3 => self.held[i],
+            _ => 0b111,
+        }
     }
 
     /// Sets particle `i`'s displacement (and its position x = X + u).

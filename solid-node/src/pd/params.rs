@@ -357,6 +357,10 @@ pub struct RegionVelocity {
     pub region: Shape,
     /// Velocity (m/s).
     pub velocity: [f64; 3],
+    /// The components held, letters of "xyz" ("y": held in y, free in x and z); all when
+    /// absent. A particle in two regions is held in every component either holds.
+    #[serde(default)]
+    pub components: Option<String>,
 }
 
 /// Prescribed internal pressure pulse on the inner face of a round hole about the z axis

@@ -1141,11 +1141,46 @@ fn prescribe_velocity(body: &mut Body, p: &PdParams) -> SolverResult<Vec<usize>>
         if let Err(e) = r.region.check(three_d) {
             return cfg(&format!("prescribed_velocity[{n}].region"), e);
         }
+        let key = format!("prescribed_velocity[{n}].components");
+        let mask = match r.components.as_deref() {
+            None => 0b111,
+            Some(c) => {
+                let mut m = 0u8;
+                for ch in c.chars() {
+                    let d = match ch {
+                        'x' => 0,
+                        'y' => 1,
+                        'z' => 2,
+                        _ => {
+                            return cfg(
+                                &key,
+                                format!("must be letters of \"xyz\" (\"y\", \"xz\"), got \"{c}\""),
+                            );
+                        }
+                    };
+                    m |= 1 << d;
+                }
+                if m == 0 {
+                    return cfg(&key, "holds no component: leave the region out instead");
+                }
+                // a plane body has no z to hold
+                if three_d { m } else { m | 0b100 }
+            }
+        };
         for i in 0..body.len() {
             if r.region.contains(&body.x0[i], three_d) {
-                body.prescribed[i] = 1;
-                body.vpres[i] = r.velocity;
-                body.vel[i] = r.velocity;
+                let was = body.held_components(i);
+                let now = was | mask;
+                if now == 0b111 {
+                    body.prescribed[i] = 1;
+                } else {
+                    body.prescribed[i] = 3;
+                    body.held[i] = now;
+                }
+                for d in (0..3).filter(|d| mask & (1 << d) != 0) {
+                    body.vpres[i][d] = r.velocity[d];
+                    body.vel[i][d] = r.velocity[d];
+                }
                 bc_particles.push(i);
             }
         }
@@ -1409,6 +1444,16 @@ fn gpu_supports(def: &PdModelDef, dim: Dim, p: &PdParams) -> Result<(), String> 
     }
     if let Some(why) = (dd.refuses)(dim, p) {
         return Err(why);
+    }
+    if p.prescribed_velocity.iter().any(|r| {
+        r.components.as_ref().is_some_and(|c| {
+            !(c.contains('x') && c.contains('y') && (c.contains('z') || !dim.three_d()))
+        })
+    }) {
+        return Err(format!(
+            "\"gpu\" does not support a support that holds some components only \
+             (prescribed_velocity[].components): {cpu}"
+        ));
     }
     if p.pressure_pulse.is_some() {
         return Err(format!(
@@ -1790,7 +1835,8 @@ impl Solver for PdSolver {
                 for (k, &i) in self.bc_particles.iter().enumerate() {
                     let (f0, f) = (self.held_force[k], self.internal_force(i));
                     let fe = self.body.fext[i];
-                    for d in 0..3 {
+                    let held = self.body.held_components(i);
+                    for d in (0..3).filter(|d| held & (1 << d) != 0) {
                         self.external_impulse[d] -= 0.5 * dt * (f0[d] + f[d]) + fe[d] * dt;
                     }
                 }
