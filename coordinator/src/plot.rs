@@ -121,7 +121,7 @@ pub fn unit_of(key: &str) -> Option<&'static str> {
         "N s"
     } else if has("pressure") || has("stress") || has("modulus") || has("mises") {
         "Pa"
-    } else if has("velocity") || has("speed") {
+    } else if has("velocity") || has("speed") || ["_vx", "_vy", "_vz"].iter().any(|w| ends(w)) {
         "m/s"
     } else if has("fraction") || has("ratio") || has("_over_") {
         "1"

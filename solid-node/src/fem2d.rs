@@ -60,8 +60,9 @@ pub struct Fem2dParams {
     /// Uniform line loads on edges.
     #[serde(default)]
     pub loads: Vec<LoadParams>,
-    /// Named points whose displacement is reported every window (`<name>_ux`, `<name>_uy`):
-    /// the node nearest to [x, y], which must lie within one element of it.
+    /// Named points whose displacement and velocity are reported every window (`<name>_ux`,
+    /// `<name>_uy`, `<name>_vx`, `<name>_vy`): the node nearest to [x, y], which must lie
+    /// within one element of it.
     #[serde(default)]
     pub points: BTreeMap<String, [f64; 2]>,
     /// Interface names → edge, for a `lagrange` coupling; edges joined with "+" make one
@@ -303,7 +304,7 @@ pub struct Fem2d {
     u0: Vec<f64>,
     scratch: Vec<f64>,
     /// Names of the point scalars, built once.
-    scalar_names: Vec<(String, String)>,
+    scalar_names: Vec<[String; 4]>,
     lagrange: Option<LagrangeFem>,
     /// The overlap region (its interface's name), if an interface hands one to a finer model.
     region: Option<(String, Region)>,
@@ -525,7 +526,7 @@ impl Fem2d {
         let n = sys.len();
         let scalar_names = points
             .iter()
-            .map(|(name, _)| (format!("{name}_ux"), format!("{name}_uy")))
+            .map(|(name, _)| ["ux", "uy", "vx", "vy"].map(|q| format!("{name}_{q}")))
             .collect();
         Ok(Fem2d {
             loads,
@@ -921,10 +922,12 @@ impl Fem2d {
         }
         self.sys.stiffness.mul(u, &mut self.scratch);
         let ie: f64 = 0.5 * u.iter().zip(&self.scratch).map(|(a, b)| a * b).sum::<f64>();
-        let mut scalars = Vec::with_capacity(2 * self.points.len());
-        for ((_, node), (nx, ny)) in self.points.iter().zip(&self.scalar_names) {
-            scalars.push((nx.clone(), self.node_motion(*node, 0)[0]));
-            scalars.push((ny.clone(), self.node_motion(*node, 1)[0]));
+        let mut scalars = Vec::with_capacity(4 * self.points.len());
+        for ((_, node), names) in self.points.iter().zip(&self.scalar_names) {
+            for (k, name) in names.iter().enumerate() {
+                // displacement x, y, then velocity x, y
+                scalars.push((name.clone(), self.node_motion(*node, k % 2)[k / 2]));
+            }
         }
         StepReport {
             kinetic_energy: ke,

@@ -392,6 +392,7 @@ const EXAMPLES: &[(&str, &[&str])] = &[
     ),
     ("glass_plate", &["small", "band", "band-small"]),
     ("noh", &["cylindrical", "small"]),
+    ("overlap_wave", &["band"]),
     ("sedov", &["cylindrical", "small"]),
     (
         "seed003_cantilever",

@@ -29,6 +29,7 @@ mod lagrange_chain;
 mod node_describe;
 mod node_stderr_full;
 mod output_lock;
+mod overlap_wave;
 mod params_schema;
 mod pipelining;
 mod protocol_example;
