@@ -91,8 +91,8 @@ fn the_band_coupled_to_the_mesh_conserves_momentum_and_runs_the_crack_along_the_
         .expect("momentum residual");
     assert!(residual < 1e-10, "momentum residual {residual:e}");
     let mcap = out.join("run.mcap");
-    let x = node_series(&mcap, "band", "crack_tip_x");
-    let y = node_series(&mcap, "band", "crack_tip_y");
+    let x = node_series(&mcap, "plate", "crack_tip_x");
+    let y = node_series(&mcap, "plate", "crack_tip_y");
     assert_eq!((x.len(), y.len()), (6400, 6400));
     let delta = 3.334e-3;
     let started = x
