@@ -1087,6 +1087,15 @@ impl Solver for Fem2d {
         if let Some(b) = lagrange {
             self.setup_lagrange(b, inbox)?;
         }
+        if let (Some((name, _)), None) = (&self.region, &self.overlap) {
+            // the region's elements are out of the model: alone, the mesh has a hole there
+            return Err(SolverError::config(
+                format!("interfaces.{name}.overlap"),
+                "no overlap coupling takes the region: the mesh would run with a hole in \
+                 it (add a [[couplings]] kind = \"overlap\" with this interface as its \
+                 driver, or remove the region)",
+            ));
+        }
         Ok(())
     }
 

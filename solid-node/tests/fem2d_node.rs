@@ -167,6 +167,24 @@ fn bad_parameters_name_their_key() {
         ("crack = [[-1.0, 0.5], [20.0, 0.5]]", "crack"),
         // Off the mesh.
         ("crack = [[11.0, 0.25], [12.0, 0.25]]", "crack"),
+        // An overlap region whose side is off the mesh lines, one with nothing inside, one
+        // with everything, and two regions.
+        (
+            "interfaces = { p = { overlap = [[2.5, 0.0], [6.0, 1.0]] } }",
+            "interfaces.p.overlap",
+        ),
+        (
+            "interfaces = { p = { overlap = [[2.5, 0.0], [2.5, 1.0]] } }",
+            "interfaces.p.overlap",
+        ),
+        (
+            "interfaces = { p = { overlap = [[-1.0, -1.0], [11.0, 2.0]] } }",
+            "interfaces.p.overlap",
+        ),
+        (
+            "interfaces = { p = { overlap = [[0.0, 0.0], [2.5, 1.0]] }, q = { overlap = [[5.0, 0.0], [7.5, 1.0]] } }",
+            "interfaces.q",
+        ),
     ] {
         let text = format!("{base}{extra}\n");
         let table = match text.parse::<toml::Table>() {
@@ -179,4 +197,20 @@ fn bad_parameters_name_their_key() {
             .unwrap_or_default();
         assert!(e.starts_with(&format!("{key}:")), "{extra}: {e}");
     }
+}
+
+/// A mesh that hands a region to a finer model leaves the region's elements out, so it is
+/// refused when no overlap coupling takes the region (it would run with a hole in it).
+#[test]
+fn an_overlap_region_without_its_coupling_is_refused() {
+    let mut m = bar("interfaces = { p = { overlap = [[4.0, 0.0], [6.0, 1.0]] } }");
+    let e = m
+        .setup(&[], &Inbox::new(), &mut Outbox::new())
+        .err()
+        .map(|e| e.to_string())
+        .unwrap_or_default();
+    assert!(e.starts_with("interfaces.p.overlap:"), "{e}");
+    // the region's elements are out: the bar of 20 × 2 keeps 16 × 2 of them
+    let active = m.model().active.iter().filter(|a| **a).count();
+    assert_eq!(active, 32);
 }
