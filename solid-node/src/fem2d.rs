@@ -9,6 +9,10 @@
 //! stress. [`Fem2d::subdomain`] presents the same model as one side of a `lagrange` coupling,
 //! which `cosim run` drives through [`Solver::lagrange_side`] (the recipe of
 //! `crate::lagrange`); `advance` then only reports the window from the subdomain's state.
+//! An interface `{ overlap = [[x0, y0], [x1, y1]] }` hands the box's elements to a finer
+//! model (an `overlap` coupling's driver): they leave the model, the ring of elements around
+//! them is the interface mesh whose motion goes out, and the finer model's force on the
+//! ring's nodes comes back, held over the next window.
 
 use crate::lagrange::SubdomainSide;
 use mechanics::fem2d::{Edge, Fem2dError, Material, Mesh, Model, Plane};

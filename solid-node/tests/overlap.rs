@@ -143,6 +143,32 @@ fn the_layer_pulls_as_much_as_it_is_pulled_and_a_linear_field_leaves_no_ghost_fo
     println!("quadratic field: Σ f = {sum:?} against Σ |f| = {gross:e}");
     assert!(gross > 1e-3);
     assert!(sum[0].hypot(sum[1]) < 1e-13 * gross, "{sum:?} vs {gross:e}");
+    // The pull is the patch's own bonds only, not the layer particle's whole force: a layer
+    // particle beyond a horizon (2 mm) of every own particle is pulled by nothing, though its
+    // neighbours in the layer push on it.
+    let b = &s.body;
+    let (mut far, mut pushed) = (0, 0);
+    for &i in &pts {
+        let reach = (0..total)
+            .filter(|&j| !layer[j])
+            .map(|j| (b.x0[i][0] - b.x0[j][0]).hypot(b.x0[i][1] - b.x0[j][1]))
+            .fold(f64::INFINITY, f64::min);
+        if reach > 2e-3 * (1.0 + 1e-9) {
+            far += 1;
+            assert_eq!(f[i], [0.0; 3], "particle {i}, {reach} m from the patch");
+            let whole = b.force[i].map(|x| x * b.vol[i]);
+            if norm(&whole) > 1e-6 * gross {
+                pushed += 1;
+            }
+        }
+    }
+    // the two outer rows and columns of the 24 × 24 plate (176), and three at each inner
+    // corner of the layer, more than a horizon diagonally from the patch's corner particle
+    assert_eq!(far, 24 * 24 - 20 * 20 + 4 * 3);
+    assert!(
+        pushed > 0,
+        "no far layer particle carries a force of its own"
+    );
 }
 
 #[test]

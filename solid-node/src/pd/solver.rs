@@ -1,8 +1,10 @@
 //! The `Solver` implementation of the peridynamic node: set-up (config → validated body and
 //! model), the window loop with sub-cycling at the stable step, boundary conditions, and
 //! the coupling sides (docs/architecture.md): immersed provider (send position, velocity, volume;
-//! apply the received window-averaged force over the next window) and kinematic driver and
-//! responder (seed 004 eq. 29–33, seed 001 §5.1: boundary-layer particles moved by a driver).
+//! apply the received window-averaged force over the next window), kinematic driver and
+//! responder (seed 004 eq. 29–33, seed 001 §5.1: boundary-layer particles moved by a driver),
+//! and the overlap responder (a patch whose boundary layer follows a mesh, carries the mesh's
+//! mass and sends the patch's pull on it: `Layer`).
 //! With `device = "gpu"` the body's time stepping runs on the device
 //! ([`DeviceBody`]); what the device kernels do not implement is refused at set-up.
 // Index loops over the 3 or 6 components of small tensors read closer to the formulas;
@@ -1141,31 +1143,9 @@ fn prescribe_velocity(body: &mut Body, p: &PdParams) -> SolverResult<Vec<usize>>
         if let Err(e) = r.region.check(three_d) {
             return cfg(&format!("prescribed_velocity[{n}].region"), e);
         }
-        let key = format!("prescribed_velocity[{n}].components");
-        let mask = match r.components.as_deref() {
-            None => 0b111,
-            Some(c) => {
-                let mut m = 0u8;
-                for ch in c.chars() {
-                    let d = match ch {
-                        'x' => 0,
-                        'y' => 1,
-                        'z' => 2,
-                        _ => {
-                            return cfg(
-                                &key,
-                                format!("must be letters of \"xyz\" (\"y\", \"xz\"), got \"{c}\""),
-                            );
-                        }
-                    };
-                    m |= 1 << d;
-                }
-                if m == 0 {
-                    return cfg(&key, "holds no component: leave the region out instead");
-                }
-                // a plane body has no z to hold
-                if three_d { m } else { m | 0b100 }
-            }
+        let mask = match held_mask(r.components.as_deref(), three_d) {
+            Ok(m) => m,
+            Err(e) => return cfg(&format!("prescribed_velocity[{n}].components"), e),
         };
         for i in 0..body.len() {
             if r.region.contains(&body.x0[i], three_d) {
@@ -1188,6 +1168,32 @@ fn prescribe_velocity(body: &mut Body, p: &PdParams) -> SolverResult<Vec<usize>>
     bc_particles.sort_unstable();
     bc_particles.dedup();
     Ok(bc_particles)
+}
+
+/// The components a support's `components` holds, as bits (bit d for component d; all when
+/// absent). A plane body has no z to hold, so z counts as held there.
+fn held_mask(components: Option<&str>, three_d: bool) -> Result<u8, String> {
+    let Some(c) = components else {
+        return Ok(0b111);
+    };
+    let mut m = 0u8;
+    for ch in c.chars() {
+        let d = match ch {
+            'x' => 0,
+            'y' => 1,
+            'z' => 2,
+            _ => {
+                return Err(format!(
+                    "must be letters of \"xyz\" (\"y\", \"xz\"), got \"{c}\""
+                ));
+            }
+        };
+        m |= 1 << d;
+    }
+    if m == 0 {
+        return Err("holds no component: leave the region out instead".into());
+    }
+    Ok(if three_d { m } else { m | 0b100 })
 }
 
 /// `pressure_pulse`: the particles of the first layer outside the inner face, each with the
@@ -1445,11 +1451,10 @@ fn gpu_supports(def: &PdModelDef, dim: Dim, p: &PdParams) -> Result<(), String> 
     if let Some(why) = (dd.refuses)(dim, p) {
         return Err(why);
     }
-    if p.prescribed_velocity.iter().any(|r| {
-        r.components.as_ref().is_some_and(|c| {
-            !(c.contains('x') && c.contains('y') && (c.contains('z') || !dim.three_d()))
-        })
-    }) {
+    if p.prescribed_velocity
+        .iter()
+        .any(|r| held_mask(r.components.as_deref(), dim.three_d()).is_ok_and(|m| m != 0b111))
+    {
         return Err(format!(
             "\"gpu\" does not support a support that holds some components only \
              (prescribed_velocity[].components): {cpu}"
