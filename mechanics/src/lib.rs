@@ -10,6 +10,7 @@ pub mod blast_solid;
 pub mod damage;
 pub mod fem2d;
 pub mod gpu;
+pub mod hex8;
 pub mod j2;
 pub mod j2_plane_stress;
 pub mod johnson_cook;
