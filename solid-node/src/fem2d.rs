@@ -282,6 +282,11 @@ struct Fem2dState {
     interface_impulse: [f64; 2],
     #[serde(default)]
     interface_work: f64,
+    /// An overlap coupling's force in the acceleration the next step starts from (N per free
+    /// dof; empty without one): the first step after a restart books the mean of it and the
+    /// window's force, as the run before the stop did.
+    #[serde(default)]
+    overlap_before: Vec<f64>,
 }
 
 pub struct Fem2d {
@@ -551,6 +556,7 @@ impl Fem2d {
                 applied_impulse: 0.0,
                 interface_impulse: [0.0; 2],
                 interface_work: 0.0,
+                overlap_before: Vec::new(),
             },
             f: vec![0.0; n],
             f0: vec![0.0; n],
@@ -1232,6 +1238,11 @@ impl Solver for Fem2d {
         s.u = self.state.u.clone();
         s.v = self.state.v.clone();
         s.a = self.state.a.clone();
+        s.overlap_before = self
+            .overlap
+            .as_ref()
+            .map(|o| o.before.clone())
+            .unwrap_or_default();
         protocol::checkpoint::encode_state(&s)
     }
 
@@ -1242,6 +1253,10 @@ impl Solver for Fem2d {
         check_len("u", s.u.len(), n)?;
         check_len("v", s.v.len(), n)?;
         check_len("a", s.a.len(), n)?;
+        if let Some(o) = self.overlap.as_mut() {
+            check_len("overlap force", s.overlap_before.len(), o.before.len())?;
+            o.before.copy_from_slice(&s.overlap_before);
+        }
         self.state.u.copy_from_slice(&s.u);
         self.state.v.copy_from_slice(&s.v);
         self.state.a.copy_from_slice(&s.a);
@@ -1249,6 +1264,7 @@ impl Solver for Fem2d {
             u: Vec::new(),
             v: Vec::new(),
             a: Vec::new(),
+            overlap_before: Vec::new(),
             ..s
         };
         Ok(())

@@ -364,6 +364,20 @@ fn chamber_small_killed_and_restarted_is_bit_identical() {
     );
 }
 
+/// The overlap coupling: the mesh's force held from the last window and the particle
+/// layer's pull at the window's start and the force it sent ride in the checkpoints.
+#[test]
+fn overlap_band_killed_and_restarted_is_bit_identical() {
+    example_killed_and_restarted(
+        "restart-overlap",
+        "overlap_wave",
+        &["--variant", "band"],
+        "band.stabilization=0.4",
+        100,
+        300,
+    );
+}
+
 /// Ctrl-C with checkpoints on: the run checkpoints the next window and stops there (exit
 /// 130, status "interrupted"), and a restart continues from that window to the same end as
 /// an uninterrupted run.

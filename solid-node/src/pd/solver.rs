@@ -214,6 +214,10 @@ pub struct BodyState<'a> {
     pub external_work: f64,
     pub first_damage: Option<FirstDamage>,
     pub model: Vec<u8>,
+    /// An overlap patch's boundary layer at the window's end (empty without one): the pull
+    /// the next window's impulse starts from and the force last sent.
+    pub layer_start: Cow<'a, [[f64; 3]]>,
+    pub layer_sent: Cow<'a, [[f64; 3]]>,
 }
 
 fn cfg<T>(key: &str, reason: impl Into<String>) -> SolverResult<T> {
@@ -1969,6 +1973,8 @@ impl Solver for PdSolver {
             external_work: self.external_work,
             first_damage: self.first_damage,
             model,
+            layer_start: Cow::Borrowed(self.layer.as_ref().map_or(&[], |l| &l.start)),
+            layer_sent: Cow::Borrowed(self.layer.as_ref().map_or(&[], |l| &l.sent)),
         })
     }
 
@@ -1993,6 +1999,9 @@ impl Solver for PdSolver {
             check_len(what, got, n)?;
         }
         check_len("bond damage", s.intact.len(), nb)?;
+        let layer = self.layer.as_ref().map_or(0, |l| l.pts.len());
+        check_len("boundary layer pulls", s.layer_start.len(), layer)?;
+        check_len("boundary layer forces", s.layer_sent.len(), layer)?;
         // the model first: nothing changes unless the whole state reads
         b.model.load_state(&s.model)?;
         b.time = s.time;
@@ -2014,10 +2023,12 @@ impl Solver for PdSolver {
             dev.rebuild(&self.body).map_err(gpu_err)?;
         }
         if let Some(l) = self.layer.as_mut() {
-            // the pull at the window's start, as the run before the stop had it
-            self.body.eval_forces(0.0);
-            pull(&self.body, &l.pts, &l.own, &mut l.last);
-            l.start.clone_from(&l.last);
+            // the pull the window starts from and the force sent, as the run before the stop
+            // had them
+            l.start.copy_from_slice(&s.layer_start);
+            l.last.copy_from_slice(&s.layer_start);
+            l.sent.copy_from_slice(&s.layer_sent);
+            l.impulse.fill([0.0; 3]);
         }
         Ok(())
     }
