@@ -10,7 +10,7 @@ use clap::{Parser, Subcommand};
 #[command(
     name = "cosim-bench",
     version,
-    about = "Benchmarks: without a subcommand, every kernel of the project (transport, whole coupled windows, fluid, pd-bond, pd-correspondence, shell, joint; CPU at 1 and 2 threads, GPU where an adapter exists) at 4 sizes each, written to DIR/bench.json and DIR/bench.md",
+    about = "Benchmarks: without a subcommand, every kernel of the project (transport, whole coupled windows, fluid, pd-bond, pd-correspondence, shell, joint, joint-solid; CPU at 1 and 2 threads, GPU where an adapter exists) at 4 sizes each, written to DIR/bench.json and DIR/bench.md",
     args_conflicts_with_subcommands = true
 )]
 struct Cli {

@@ -13,6 +13,8 @@
 //!   δ = 3.015 Δx; `pd-bond` also on the GPU (`solid_node::pd::gpu::GpuBondBody`).
 //! * `shell` — one element processed in one explicit step of an n × n elastic plate.
 //! * `joint` — one MC-SPG particle advanced one step in an n³ block pulled apart.
+//! * `joint-solid` — the same block as hexahedra around a central SPG core (a 27th of the
+//!   cells): one lattice cell advanced one step, comparable row for row with `joint`.
 //!
 //! Each CPU kernel runs in a rayon pool of 1 and of 2 threads built here (not through
 //! `RAYON_NUM_THREADS`). A measurement is: one warm-up step, one step to estimate the cost,
@@ -43,7 +45,7 @@ pub struct SuiteArgs {
     /// Kernels to run, comma-separated: transport, window (whole coupled windows through
     /// `cosim run`: participant round trip in Rust, Python and C; the split bar per transport),
     /// fluid, fluid-3d, fluid-tnt, solid (= pd-bond and pd-correspondence), pd-bond, pd-correspondence, shell,
-    /// joint, gpu-profile (the GPU's copy bandwidth and each fluid kernel's device time).
+    /// joint, joint-solid, gpu-profile (the GPU's copy bandwidth and each fluid kernel's device time).
     /// Default: all.
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
@@ -64,7 +66,7 @@ pub struct SuiteArgs {
 }
 
 /// All kernels, in run order.
-pub const KERNELS: [&str; 10] = [
+pub const KERNELS: [&str; 11] = [
     "transport",
     "window",
     "fluid",
@@ -74,6 +76,7 @@ pub const KERNELS: [&str; 10] = [
     "pd-correspondence",
     "shell",
     "joint",
+    "joint-solid",
     "gpu-profile",
 ];
 
@@ -134,8 +137,8 @@ fn sizes(kernel: &str, quick: bool) -> Vec<usize> {
         ("pd-bond" | "pd-correspondence", true) => vec![6, 8],
         ("shell", false) => vec![100, 200, 400, 800],
         ("shell", true) => vec![8, 16],
-        ("joint", false) => vec![16, 24, 32, 40],
-        ("joint", true) => vec![6, 8],
+        ("joint" | "joint-solid", false) => vec![16, 24, 32, 40],
+        ("joint" | "joint-solid", true) => vec![6, 8],
         _ => vec![],
     }
 }
@@ -1008,15 +1011,66 @@ fn shell(n: usize) -> anyhow::Result<Case> {
 
 fn joint(n: usize) -> anyhow::Result<Case> {
     let t0 = Instant::now();
-    let mut m =
+    let m =
         meso_joint_node::geometry::benchmark_block(n).map_err(|e| anyhow!("joint block: {e}"))?;
+    let problem = format!("block {n}³ = {} particles", m.len());
+    let (updates, bytes) = (m.len() as u64, joint_bytes(&m));
+    joint_case(
+        m,
+        "joint",
+        problem,
+        n,
+        "particle-updates",
+        updates,
+        Some(bytes),
+        t0,
+    )
+}
+
+/// The joint block of [`joint`] as hexahedra around a central SPG core a third of its side
+/// (a 27th of its cells): one update is one lattice cell's material advanced one step, so its
+/// rows compare with the all-particle block's of the same size.
+fn joint_solid(n: usize) -> anyhow::Result<Case> {
+    let t0 = Instant::now();
+    let m = meso_joint_node::geometry::benchmark_block_solid(n)
+        .map_err(|e| anyhow!("joint block with solid elements: {e}"))?;
+    let elements = m.solid.as_ref().map_or(0, |s| s.part.elements.len());
+    let problem = format!(
+        "block {n}³ cells: {elements} hexahedra around {} particles",
+        m.len()
+    );
+    let cells = (n * n * n) as u64;
+    joint_case(
+        m,
+        "joint-solid",
+        problem,
+        n,
+        "cell-updates",
+        cells,
+        None,
+        t0,
+    )
+}
+
+/// A joint model stepped at its stable step as a benchmark case.
+#[allow(clippy::too_many_arguments)]
+fn joint_case(
+    mut m: meso_joint_node::model::Model,
+    kernel: &'static str,
+    problem: String,
+    size: usize,
+    unit: &'static str,
+    updates: u64,
+    working_set: Option<u64>,
+    t0: Instant,
+) -> anyhow::Result<Case> {
     let p = Problem {
-        kernel: "joint",
-        problem: format!("block {n}³ = {} particles", m.len()),
-        size: n,
-        unit: "particle-updates",
-        updates: m.len() as u64,
-        working_set: Some(joint_bytes(&m)),
+        kernel,
+        problem,
+        size,
+        unit,
+        updates,
+        working_set,
         neighbours: Some(m.rows.cols.len() as f64 / m.len() as f64),
         setup_s: t0.elapsed().as_secs_f64(),
     };
@@ -1025,7 +1079,7 @@ fn joint(n: usize) -> anyhow::Result<Case> {
         p,
         cpu: Some(Box::new(move |k| {
             for _ in 0..k {
-                m.step(dt).map_err(|e| anyhow!("joint step: {e}"))?;
+                m.step(dt).map_err(|e| anyhow!("{kernel} step: {e}"))?;
             }
             Ok(())
         })),
@@ -1906,6 +1960,7 @@ pub fn suite(args: &SuiteArgs) -> i32 {
                 "pd-bond" | "pd-correspondence" => pd(&mut cx, k, n, gpu_only),
                 "shell" => shell(n),
                 "joint" => joint(n),
+                "joint-solid" => joint_solid(n),
                 _ => continue,
             };
             match r {

@@ -46,88 +46,159 @@ pub const CORNERS: [[f64; 3]; 8] = [
     [-1.0, 1.0, 1.0],
 ];
 
-/// Which reference coordinates each hourglass shape varies along: ξη, ηζ, ζξ, ξηζ.
-const HG_VARS: [[bool; 3]; 4] = [
-    [true, true, false],
-    [false, true, true],
-    [true, false, true],
-    [true, true, true],
+/// The hourglass shapes at the corners: ξη, ηζ, ζξ, ξηζ (the tests check them against the
+/// products of [`CORNERS`]).
+const HG_SHAPES: [[f64; 8]; 4] = [
+    [1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0],
+    [1.0, 1.0, -1.0, -1.0, -1.0, -1.0, 1.0, 1.0],
+    [1.0, -1.0, -1.0, 1.0, -1.0, 1.0, 1.0, -1.0],
+    [-1.0, 1.0, -1.0, 1.0, 1.0, -1.0, 1.0, -1.0],
 ];
 
-/// The hourglass shapes at the corners (±1).
-fn hourglass_shapes() -> [[f64; 8]; 4] {
-    std::array::from_fn(|a| {
-        std::array::from_fn(|i| {
-            let c = CORNERS[i];
-            (0..3).filter(|&k| HG_VARS[a][k]).map(|k| c[k]).product()
-        })
-    })
+/// The volume of a trilinear hexahedron is a sum of triple products of its corners,
+/// `V = Σ_IJK D_IJK x_I y_J z_K`, with `D_IJK = ∫ det[∇_ξ N_I, ∇_ξ N_J, ∇_ξ N_K] dξ` over
+/// the reference cube (antisymmetric in I, J, K); so `B_I = ∂V/∂x_I = Σ_{J<K} D_IJK (x_J ×
+/// x_K)`: nine cross products a corner, each weighted ±1/12 (Flanagan and Belytschko's
+/// closed form). The table lists, per corner, those (J, K, 12 D_IJK); the tests check the
+/// gradients it gives against 2 × 2 × 2 Gauss points (exact for the trilinear map).
+const VOLUME_PAIRS: [[(usize, usize, f64); 9]; 8] = [
+    [
+        (1, 2, -1.0),
+        (1, 3, -1.0),
+        (1, 4, 1.0),
+        (1, 5, 1.0),
+        (2, 3, -1.0),
+        (3, 4, -1.0),
+        (3, 7, -1.0),
+        (4, 5, -1.0),
+        (4, 7, 1.0),
+    ],
+    [
+        (0, 2, 1.0),
+        (0, 3, 1.0),
+        (0, 4, -1.0),
+        (0, 5, -1.0),
+        (2, 3, -1.0),
+        (2, 5, 1.0),
+        (2, 6, 1.0),
+        (4, 5, -1.0),
+        (5, 6, -1.0),
+    ],
+    [
+        (0, 1, -1.0),
+        (0, 3, 1.0),
+        (1, 3, 1.0),
+        (1, 5, -1.0),
+        (1, 6, -1.0),
+        (3, 6, 1.0),
+        (3, 7, 1.0),
+        (5, 6, -1.0),
+        (6, 7, -1.0),
+    ],
+    [
+        (0, 1, -1.0),
+        (0, 2, -1.0),
+        (0, 4, 1.0),
+        (0, 7, 1.0),
+        (1, 2, -1.0),
+        (2, 6, -1.0),
+        (2, 7, -1.0),
+        (4, 7, 1.0),
+        (6, 7, -1.0),
+    ],
+    [
+        (0, 1, 1.0),
+        (0, 3, -1.0),
+        (0, 5, 1.0),
+        (0, 7, -1.0),
+        (1, 5, 1.0),
+        (3, 7, -1.0),
+        (5, 6, 1.0),
+        (5, 7, 1.0),
+        (6, 7, 1.0),
+    ],
+    [
+        (0, 1, 1.0),
+        (0, 4, -1.0),
+        (1, 2, 1.0),
+        (1, 4, -1.0),
+        (1, 6, 1.0),
+        (2, 6, 1.0),
+        (4, 6, -1.0),
+        (4, 7, -1.0),
+        (6, 7, 1.0),
+    ],
+    [
+        (1, 2, 1.0),
+        (1, 5, -1.0),
+        (2, 3, 1.0),
+        (2, 5, -1.0),
+        (2, 7, 1.0),
+        (3, 7, 1.0),
+        (4, 5, 1.0),
+        (4, 7, -1.0),
+        (5, 7, -1.0),
+    ],
+    [
+        (0, 3, -1.0),
+        (0, 4, 1.0),
+        (2, 3, 1.0),
+        (2, 6, -1.0),
+        (3, 4, 1.0),
+        (3, 6, -1.0),
+        (4, 5, 1.0),
+        (4, 6, 1.0),
+        (5, 6, 1.0),
+    ],
+];
+
+/// Index of the corner pair (j, k), j < k, among the 28.
+const fn pair(j: usize, k: usize) -> usize {
+    j * (15 - j) / 2 + k - j - 1
 }
 
-/// The mean gradient of an element: `B_I = ∫ ∇N_I dV` and the volume `V`, exact for the
-/// trilinear map (2 × 2 × 2 Gauss points); `None` when the map folds (a Jacobian
-/// determinant ≤ 0 at a Gauss point) or is not finite.
+/// The mean gradient of an element: `B_I = ∫ ∇N_I dV` and the volume `V` (closed form,
+/// `VOLUME_PAIRS`), exact for the trilinear map; positions are taken relative to the first
+/// corner, so an element far from the origin keeps its digits. `None` when the volume is
+/// not positive or not finite (a folded or inverted element).
 pub fn mean_gradient(x: &[[f64; 3]; 8]) -> Option<([[f64; 3]; 8], f64)> {
-    let g = 1.0 / 3f64.sqrt();
-    let mut b = [[0.0; 3]; 8];
-    let mut vol = 0.0;
-    for gp in 0..8 {
-        let p = [CORNERS[gp][0] * g, CORNERS[gp][1] * g, CORNERS[gp][2] * g];
-        // dN_I/dξ_k at p
-        let mut dn = [[0.0; 3]; 8];
-        for i in 0..8 {
-            let c = CORNERS[i];
-            let f = [1.0 + c[0] * p[0], 1.0 + c[1] * p[1], 1.0 + c[2] * p[2]];
-            dn[i] = [
-                0.125 * c[0] * f[1] * f[2],
-                0.125 * c[1] * f[0] * f[2],
-                0.125 * c[2] * f[0] * f[1],
+    let o = x[0];
+    let r: [[f64; 3]; 8] =
+        std::array::from_fn(|i| [x[i][0] - o[0], x[i][1] - o[1], x[i][2] - o[2]]);
+    // the corners' cross products, once each (those with corner 0, at the origin, vanish)
+    let mut cr = [[0.0; 3]; 28];
+    for j in 1..8 {
+        for k in j + 1..8 {
+            let (a, c) = (r[j], r[k]);
+            cr[pair(j, k)] = [
+                a[1] * c[2] - a[2] * c[1],
+                a[2] * c[0] - a[0] * c[2],
+                a[0] * c[1] - a[1] * c[0],
             ];
         }
-        // J_ik = ∂x_i/∂ξ_k
-        let mut jac = [[0.0; 3]; 3];
-        for i in 0..8 {
-            for r in 0..3 {
-                for k in 0..3 {
-                    jac[r][k] += x[i][r] * dn[i][k];
+    }
+    let mut b = [[0.0; 3]; 8];
+    let mut vol = 0.0;
+    for i in 0..8 {
+        let mut s = [0.0; 3];
+        for &(j, k, w) in &VOLUME_PAIRS[i] {
+            if j > 0 {
+                let c = &cr[pair(j, k)];
+                for d in 0..3 {
+                    s[d] += w * c[d];
                 }
             }
         }
-        let cof = cofactors(&jac);
-        let det = jac[0][0] * cof[0][0] + jac[0][1] * cof[0][1] + jac[0][2] * cof[0][2];
-        if !(det > 0.0) || !det.is_finite() {
-            return None;
-        }
-        vol += det;
-        // ∇N_I det J = cof(J) dN_I/dξ (cof(J) = det J · J⁻ᵀ), unit Gauss weights
-        for i in 0..8 {
-            for r in 0..3 {
-                b[i][r] += cof[r][0] * dn[i][0] + cof[r][1] * dn[i][1] + cof[r][2] * dn[i][2];
-            }
-        }
+        let s = s.map(|c| c / 12.0);
+        vol += s[0] * r[i][0] + s[1] * r[i][1] + s[2] * r[i][2];
+        b[i] = s;
+    }
+    // Σ_I B_I · x_I = 3 V (V is homogeneous of degree 3 in the positions)
+    vol /= 3.0;
+    if !(vol > 0.0) || !vol.is_finite() {
+        return None;
     }
     Some((b, vol))
-}
-
-/// Cofactor matrix of a 3 × 3 matrix (`cof[r][k]` = signed minor of entry (r, k)).
-fn cofactors(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    [
-        [
-            m[1][1] * m[2][2] - m[1][2] * m[2][1],
-            m[1][2] * m[2][0] - m[1][0] * m[2][2],
-            m[1][0] * m[2][1] - m[1][1] * m[2][0],
-        ],
-        [
-            m[0][2] * m[2][1] - m[0][1] * m[2][2],
-            m[0][0] * m[2][2] - m[0][2] * m[2][0],
-            m[0][1] * m[2][0] - m[0][0] * m[2][1],
-        ],
-        [
-            m[0][1] * m[1][2] - m[0][2] * m[1][1],
-            m[0][2] * m[1][0] - m[0][0] * m[1][2],
-            m[0][0] * m[1][1] - m[0][1] * m[1][0],
-        ],
-    ]
 }
 
 /// The element's own axes (orthonormal, from the centre Jacobian's columns by Gram–Schmidt)
@@ -144,8 +215,8 @@ fn axes(x: &[[f64; 3]; 8]) -> ([[f64; 3]; 3], [f64; 3]) {
     let half = col.map(|c| (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt());
     let dot = |a: &[f64; 3], b: &[f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     let unit = |a: [f64; 3]| {
-        let n = dot(&a, &a).sqrt();
-        a.map(|c| c / n)
+        let n = 1.0 / dot(&a, &a).sqrt();
+        a.map(|c| c * n)
     };
     let e0 = unit(col[0]);
     let d1 = dot(&col[1], &e0);
@@ -180,27 +251,26 @@ fn hourglass_rates(
 ) -> [[f64; 3]; 4] {
     let (e, g, nu) = (m.young, m.shear_modulus(), m.poisson);
     let c = scale * vol / 64.0;
+    // 1/a_i and 1/a_i² (the rates below take no other division)
+    let ih = half.map(|h| 1.0 / h);
+    let ih2 = ih.map(|x| x * x);
     let mut r = [[0.0; 3]; 4];
-    // shear-only entries of the two-variable shapes
-    for a in 0..3 {
-        let i = (0..3).find(|&i| !HG_VARS[a][i]).unwrap_or(0);
-        let k: f64 = (0..3)
-            .filter(|&j| HG_VARS[a][j])
-            .map(|j| g / 3.0 / (half[j] * half[j]))
-            .sum();
-        r[a][i] = c * k * ql[a][i];
-    }
+    // shear-only entries of the two-variable shapes: (z, ξη), (x, ηζ), (y, ζξ)
+    let cg = c * g / 3.0;
+    r[0][2] = cg * (ih2[0] + ih2[1]) * ql[0][2];
+    r[1][0] = cg * (ih2[1] + ih2[2]) * ql[1][0];
+    r[2][1] = cg * (ih2[2] + ih2[0]) * ql[2][1];
     // normal-strain pairs of the two-variable shapes
-    let ep = e / (3.0 * (1.0 - nu * nu));
+    let cep = c * e / (3.0 * (1.0 - nu * nu));
     for [(a1, i1), (a2, i2)] in HG_PAIRS {
-        let (h1, h2) = (half[i1], half[i2]);
-        let (s1, s2) = (ql[a1][i1] / h1, ql[a2][i2] / h2);
-        r[a1][i1] = c * ep * (s1 + nu * s2) / h1;
-        r[a2][i2] = c * ep * (s2 + nu * s1) / h2;
+        let (s1, s2) = (ql[a1][i1] * ih[i1], ql[a2][i2] * ih[i2]);
+        r[a1][i1] = cep * (s1 + nu * s2) * ih[i1];
+        r[a2][i2] = cep * (s2 + nu * s1) * ih[i2];
     }
     // the three-variable shape
+    let ce = c * e / 9.0;
     for i in 0..3 {
-        r[3][i] = c * e / 9.0 / (half[i] * half[i]) * ql[3][i];
+        r[3][i] = ce * ih2[i] * ql[3][i];
     }
     r
 }
@@ -380,7 +450,6 @@ impl HexPart {
         f: &mut [[f64; 3]],
     ) -> Result<(), String> {
         let p = &self.p;
-        let shapes = hourglass_shapes();
         let folded = self
             .elements
             .par_iter()
@@ -390,7 +459,7 @@ impl HexPart {
             .filter_map(|(e, ((el, s), out))| {
                 let xe = el.map(|i| x[i as usize]);
                 let ve = el.map(|i| v[i as usize]);
-                element(&xe, &ve, p, &shapes, s, out, dt).err().map(|_| e)
+                element(&xe, &ve, p, s, out, dt).err().map(|_| e)
             })
             .min();
         if let Some(e) = folded {
@@ -486,7 +555,6 @@ fn element(
     x: &[[f64; 3]; 8],
     v: &[[f64; 3]; 8],
     p: &HexParams,
-    shapes: &[[f64; 8]; 4],
     s: &mut HexState,
     out: &mut [[f64; 3]; 8],
     dt: f64,
@@ -499,8 +567,13 @@ fn element(
     for i in 0..8 {
         for r in 0..3 {
             for c in 0..3 {
-                l[r][c] += v[i][r] * b[i][c] * inv;
+                l[r][c] += v[i][r] * b[i][c];
             }
+        }
+    }
+    for row in &mut l {
+        for c in row.iter_mut() {
+            *c *= inv;
         }
     }
     let (spin, de) = j2::spin_and_strain_step(&l, dt);
@@ -519,41 +592,64 @@ fn element(
         }
     }
     if p.hourglass > 0.0 {
+        // With γ_αI = h_αI − (1/V) Σ_k hx_αk B_Ik (hx_α = Σ_I h_αI x_I): q̇_α = hv_α − L hx_α
+        // (hv_α = Σ_I h_αI v_I), and −Σ_α Q_α γ_αI = −Σ_α Q_α h_αI + (1/V) M B_I with
+        // M = Σ_α Q_α ⊗ hx_α — no γ is formed.
         let (e_axes, half) = axes(x);
-        let mut gamma = [[0.0; 8]; 4];
-        let mut ql = [[0.0; 3]; 4];
+        let o = x[0];
+        let mut hx = [[0.0; 3]; 4];
         let mut qdot = [[0.0; 3]; 4];
+        let mut ql = [[0.0; 3]; 4];
         for a in 0..4 {
-            let h = &shapes[a];
-            // γ = h − (1/V) Σ_k (h·x_k) B_k
-            let hx: [f64; 3] = std::array::from_fn(|c| (0..8).map(|i| h[i] * x[i][c]).sum());
-            gamma[a] = std::array::from_fn(|i| {
-                h[i] - inv * (hx[0] * b[i][0] + hx[1] * b[i][1] + hx[2] * b[i][2])
-            });
-            qdot[a] = std::array::from_fn(|r| (0..8).map(|i| gamma[a][i] * v[i][r]).sum());
-            ql[a] = std::array::from_fn(|ax| {
+            let h = &HG_SHAPES[a];
+            let mut hv = [0.0; 3];
+            for i in 0..8 {
+                for r in 0..3 {
+                    hx[a][r] += h[i] * (x[i][r] - o[r]);
+                    hv[r] += h[i] * v[i][r];
+                }
+            }
+            for r in 0..3 {
+                qdot[a][r] = hv[r] - (l[r][0] * hx[a][0] + l[r][1] * hx[a][1] + l[r][2] * hx[a][2]);
+            }
+            for ax in 0..3 {
                 let e = &e_axes[ax];
-                e[0] * qdot[a][0] + e[1] * qdot[a][1] + e[2] * qdot[a][2]
-            });
+                ql[a][ax] = e[0] * qdot[a][0] + e[1] * qdot[a][1] + e[2] * qdot[a][2];
+            }
         }
         let rate = hourglass_rates(&p.material, vol, &half, p.hourglass, &ql);
+        let mut m = [[0.0; 3]; 3];
         for a in 0..4 {
             let q = &mut s.hg[a];
             let old = *q;
             // turn with the element (dQ = W Q dt) and grow by the rate in its axes
             for r in 0..3 {
-                let wq: f64 = (0..3).map(|c| spin[r][c] * old[c]).sum();
-                let kq: f64 = (0..3).map(|ax| rate[a][ax] * e_axes[ax][r]).sum();
+                let wq = spin[r][0] * old[0] + spin[r][1] * old[1] + spin[r][2] * old[2];
+                let kq = rate[a][0] * e_axes[0][r]
+                    + rate[a][1] * e_axes[1][r]
+                    + rate[a][2] * e_axes[2][r];
                 q[r] = old[r] + dt * (wq + kq);
             }
             s.hg_energy += dt
-                * (0..3)
-                    .map(|r| 0.5 * (old[r] + q[r]) * qdot[a][r])
-                    .sum::<f64>();
+                * 0.5
+                * ((old[0] + q[0]) * qdot[a][0]
+                    + (old[1] + q[1]) * qdot[a][1]
+                    + (old[2] + q[2]) * qdot[a][2]);
+            let h = &HG_SHAPES[a];
             for i in 0..8 {
                 for r in 0..3 {
-                    out[i][r] -= q[r] * gamma[a][i];
+                    out[i][r] -= q[r] * h[i];
                 }
+            }
+            for r in 0..3 {
+                for k in 0..3 {
+                    m[r][k] += q[r] * hx[a][k];
+                }
+            }
+        }
+        for i in 0..8 {
+            for r in 0..3 {
+                out[i][r] += inv * (m[r][0] * b[i][0] + m[r][1] * b[i][1] + m[r][2] * b[i][2]);
             }
         }
     }
@@ -563,6 +659,93 @@ fn element(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Cofactor matrix of a 3 × 3 matrix (`cof[r][k]` = signed minor of entry (r, k)).
+    fn cofactors(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+        [
+            [
+                m[1][1] * m[2][2] - m[1][2] * m[2][1],
+                m[1][2] * m[2][0] - m[1][0] * m[2][2],
+                m[1][0] * m[2][1] - m[1][1] * m[2][0],
+            ],
+            [
+                m[0][2] * m[2][1] - m[0][1] * m[2][2],
+                m[0][0] * m[2][2] - m[0][2] * m[2][0],
+                m[0][1] * m[2][0] - m[0][0] * m[2][1],
+            ],
+            [
+                m[0][1] * m[1][2] - m[0][2] * m[1][1],
+                m[0][2] * m[1][0] - m[0][0] * m[1][2],
+                m[0][0] * m[1][1] - m[0][1] * m[1][0],
+            ],
+        ]
+    }
+
+    /// The mean gradient by 2 × 2 × 2 Gauss points (exact for the trilinear map): the
+    /// reference the closed form is checked against.
+    fn gauss_mean_gradient(x: &[[f64; 3]; 8]) -> Option<([[f64; 3]; 8], f64)> {
+        let g = 1.0 / 3f64.sqrt();
+        let mut b = [[0.0; 3]; 8];
+        let mut vol = 0.0;
+        for gp in 0..8 {
+            let p = [CORNERS[gp][0] * g, CORNERS[gp][1] * g, CORNERS[gp][2] * g];
+            // dN_I/dξ_k at p
+            let mut dn = [[0.0; 3]; 8];
+            for i in 0..8 {
+                let c = CORNERS[i];
+                let f = [1.0 + c[0] * p[0], 1.0 + c[1] * p[1], 1.0 + c[2] * p[2]];
+                dn[i] = [
+                    0.125 * c[0] * f[1] * f[2],
+                    0.125 * c[1] * f[0] * f[2],
+                    0.125 * c[2] * f[0] * f[1],
+                ];
+            }
+            // J_ik = ∂x_i/∂ξ_k
+            let mut jac = [[0.0; 3]; 3];
+            for i in 0..8 {
+                for r in 0..3 {
+                    for k in 0..3 {
+                        jac[r][k] += x[i][r] * dn[i][k];
+                    }
+                }
+            }
+            let cof = cofactors(&jac);
+            let det = jac[0][0] * cof[0][0] + jac[0][1] * cof[0][1] + jac[0][2] * cof[0][2];
+            if !(det > 0.0) || !det.is_finite() {
+                return None;
+            }
+            vol += det;
+            // ∇N_I det J = cof(J) dN_I/dξ (cof(J) = det J · J⁻ᵀ), unit Gauss weights
+            for i in 0..8 {
+                for r in 0..3 {
+                    b[i][r] += cof[r][0] * dn[i][0] + cof[r][1] * dn[i][1] + cof[r][2] * dn[i][2];
+                }
+            }
+        }
+        Some((b, vol))
+    }
+
+    /// Which reference coordinates each hourglass shape varies along: ξη, ηζ, ζξ, ξηζ.
+    const HG_VARS: [[bool; 3]; 4] = [
+        [true, true, false],
+        [false, true, true],
+        [true, false, true],
+        [true, true, true],
+    ];
+
+    /// The hourglass shapes are the products of the corners' reference coordinates.
+    #[test]
+    fn the_hourglass_shapes_are_the_coordinate_products() {
+        for a in 0..4 {
+            for i in 0..8 {
+                let want: f64 = (0..3)
+                    .filter(|&k| HG_VARS[a][k])
+                    .map(|k| CORNERS[i][k])
+                    .product();
+                assert_eq!(HG_SHAPES[a][i], want, "shape {a}, corner {i}");
+            }
+        }
+    }
 
     fn steel(yield_stress: f64) -> HexParams {
         HexParams {
@@ -604,6 +787,21 @@ mod tests {
         x[6] = [1.3, 1.1, 1.2];
         x[1] = [0.9, -0.1, 0.05];
         let (b, vol) = mean_gradient(&x).expect("a valid element");
+        let (bg, vg) = gauss_mean_gradient(&x).expect("a valid element");
+        assert!(
+            (vol - vg).abs() < 1e-14 * vg,
+            "volume {vol} against Gauss {vg}"
+        );
+        for i in 0..8 {
+            for r in 0..3 {
+                assert!(
+                    (b[i][r] - bg[i][r]).abs() < 1e-14,
+                    "B[{i}][{r}] {} against Gauss {}",
+                    b[i][r],
+                    bg[i][r]
+                );
+            }
+        }
         for r in 0..3 {
             let sum: f64 = (0..8).map(|i| b[i][r]).sum();
             assert!(sum.abs() < 1e-14, "Σ B_{r} = {sum}");

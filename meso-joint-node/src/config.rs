@@ -105,6 +105,21 @@ pub struct VelocityBc {
     pub ramp: f64,
 }
 
+/// Solid elements for the base material around an SPG core (seed 004 §4.2: SPG only where
+/// failure is expected). The lattice cells outside every `core` box become 8-node
+/// hexahedra on the cells' corners; the cells inside keep SPG particles, which sit on the
+/// cells' corners too, so the two share their nodes on the boundary between them.
+#[derive(Debug, Clone, Deserialize, PartialEq, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SolidParams {
+    /// Boxes whose cells keep SPG particles (a cell is in when its centre is inside one).
+    pub core: Vec<Region>,
+    /// Scale of the hexahedra's hourglass stiffness (1: the stiffness that bends a
+    /// box-shaped element exactly; 0 switches hourglass control off).
+    #[serde(default = "one")]
+    pub hourglass: f64,
+}
+
 /// A coupling region: the free particles inside `[lo, hi]`; a named region's summed
 /// constraint force is reported every window (`force_<name>_x`, ..., `force_<name>`).
 #[derive(Debug, Clone, Deserialize, PartialEq, schemars::JsonSchema)]
@@ -277,6 +292,9 @@ pub struct Params {
     /// Write the joint force history CSV every this many windows (0: every window).
     #[serde(default)]
     pub history_every: u64,
+    /// Hexahedra for the material outside an SPG core (absent: all particles).
+    #[serde(default)]
+    pub solid: Option<SolidParams>,
 }
 
 fn one() -> f64 {
@@ -508,6 +526,38 @@ impl Params {
         }
         if let Some(dt) = self.mass_scaling_dt {
             positive("mass_scaling_dt", dt)?;
+        }
+        if let Some(sp) = &self.solid {
+            if sp.core.is_empty() {
+                return Err(SolverError::config(
+                    "solid.core",
+                    "give at least one box of SPG particles (without one, use no solid)",
+                ));
+            }
+            for (k, r) in sp.core.iter().enumerate() {
+                if !(0..3).all(|d| r.lo[d].is_finite() && r.hi[d].is_finite() && r.lo[d] < r.hi[d])
+                {
+                    return Err(SolverError::config(
+                        format!("solid.core[{k}]"),
+                        format!(
+                            "must have lo < hi in every direction, got {:?} – {:?}",
+                            r.lo, r.hi
+                        ),
+                    ));
+                }
+            }
+            if !(sp.hourglass.is_finite() && sp.hourglass >= 0.0) {
+                return Err(SolverError::config(
+                    "solid.hourglass",
+                    format!("must be ≥ 0, got {}", sp.hourglass),
+                ));
+            }
+            if self.mass_scaling_dt.is_some() {
+                return Err(SolverError::config(
+                    "mass_scaling_dt",
+                    "mass scaling covers the particles only: not with solid elements",
+                ));
+            }
         }
         let mut names = std::collections::BTreeSet::new();
         for (k, pl) in self.placements.iter().enumerate() {

@@ -18,6 +18,7 @@ pub mod model;
 pub mod output;
 pub mod profile;
 pub mod shape;
+pub mod solid;
 pub mod solver;
 
 use protocol::{BuildOptions, Solver, SolverResult};

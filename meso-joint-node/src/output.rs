@@ -1,6 +1,9 @@
 //! VTK output for ParaView (docs/architecture.md): the particles as vertex cells with
 //! displacement, velocity, effective plastic strain and broken-bond fraction, written with
-//! the node kit (binary `.vtu` frames, exact f64, and the `joint.pvd` series).
+//! the node kit (binary `.vtu` frames, exact f64, and the `joint.pvd` series); solid
+//! elements, where the joint has them, as hexahedra in their own series (`solid.pvd`) with
+//! the nodes' displacement and velocity and each element's stress, von Mises stress and
+//! effective plastic strain.
 
 use crate::model::Model;
 use node_kit::vtk::{self, Frame};
@@ -28,5 +31,56 @@ pub fn write_vtu(m: &Model, dir: &Path, window: u64, t: f64) -> std::io::Result<
         time: t,
     };
     vtk::write_vtu(&frame, vtk::point_cloud(&m.x, data))?;
+    if let Some(sd) = &m.solid {
+        let disp: Vec<f64> =
+            sd.x.iter()
+                .zip(&sd.x0)
+                .flat_map(|(x, x0)| [x[0] - x0[0], x[1] - x0[1], x[2] - x0[2]])
+                .collect();
+        let vel: Vec<f64> = sd.v.iter().flat_map(|v| v.iter().copied()).collect();
+        let states = &sd.part.state;
+        // Voigt order xx, yy, zz, yz, xz, xy as ParaView's symmetric tensors take it
+        // (xx, yy, zz, xy, yz, xz)
+        let stress: Vec<f64> = states
+            .iter()
+            .flat_map(|s| {
+                let t = s.mat.stress;
+                [t[0], t[1], t[2], t[5], t[3], t[4]]
+            })
+            .collect();
+        let mises: Vec<f64> = states
+            .iter()
+            .map(|s| mechanics::j2::von_mises(&s.mat.stress))
+            .collect();
+        let eqps: Vec<f64> = states.iter().map(|s| s.mat.eq_plastic_strain).collect();
+        let connectivity: Vec<u64> = sd
+            .part
+            .elements
+            .iter()
+            .flatten()
+            .map(|&k| k as u64)
+            .collect();
+        let frame = Frame {
+            dir,
+            stem: "solid",
+            window,
+            time: t,
+        };
+        vtk::write_vtu(
+            &frame,
+            vtk::grid(
+                &sd.x,
+                vtk::CellType::Hexahedron,
+                8,
+                connectivity,
+                vec![("displacement", 3, disp), ("velocity", 3, vel)],
+                vec![
+                    ("stress", 6, stress),
+                    ("von_mises_stress", 1, mises),
+                    ("eq_plastic_strain", 1, eqps),
+                ],
+            ),
+        )?;
+    }
     Ok(())
 }

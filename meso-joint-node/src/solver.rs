@@ -20,6 +20,7 @@ use crate::config::{Geometry, Params};
 use crate::geometry;
 use crate::model::{Kind, Model, ModelParams, RigidBody};
 use crate::shape::{M3, Rows};
+use crate::solid::Solid;
 use mechanics::j2::J2State;
 use mechanics::tensor::{self, Vector3, vec3};
 use protocol::scheme::kinematic::{self, Follow};
@@ -108,6 +109,11 @@ impl SpgSolver {
         let mut set = geometry::ParticleSet::default();
         let mut local: Vec<[f64; 3]> = Vec::new();
         let mut instance: Vec<u32> = Vec::new();
+        // With solid elements: their nodes (placed, and in the placement's frame), which
+        // particle each is, the elements and their parts.
+        let mut mesh = geometry::SolidSplit::default();
+        let mut kernel_vol: Vec<f64> = Vec::new();
+        let mut node_local: Vec<[f64; 3]> = Vec::new();
         for (k, pl) in placements.iter().enumerate() {
             let one = match params.geometry_for(*pl) {
                 Geometry::Block { origin, size } => geometry::block(origin, size, h),
@@ -129,6 +135,32 @@ impl SpgSolver {
                     head_height,
                     h,
                 ),
+            };
+            let one = match &params.solid {
+                None => one,
+                Some(sp) => {
+                    let split =
+                        geometry::split_solid(&one, |x| sp.core.iter().any(|r| r.contains(x)));
+                    let (p0, n0) = (set.x.len() as u32, mesh.nodes.len() as u32);
+                    let frame = pl.and_then(|p| p.frame());
+                    for (q, x) in split.nodes.iter().enumerate() {
+                        node_local.push(*x);
+                        mesh.nodes.push(match (pl, frame) {
+                            (Some(p), Some(f)) => p.apply(&f, x),
+                            _ => *x,
+                        });
+                        mesh.node_part.push(split.node_part[q] + 3 * k as u32);
+                        let i = split.node_particle[q];
+                        mesh.node_particle
+                            .push(if i == crate::solid::NONE { i } else { i + p0 });
+                    }
+                    mesh.elements
+                        .extend(split.elements.iter().map(|e| e.map(|n| n + n0)));
+                    mesh.element_part
+                        .extend(split.element_part.iter().map(|p| p + 3 * k as u32));
+                    kernel_vol.extend(&split.kernel_vol);
+                    split.particles
+                }
             };
             // Parts of different placements never bond (3 parts per copy).
             let offset = 3 * k as u32;
@@ -165,8 +197,49 @@ impl SpgSolver {
                 ),
             },
         };
-        let mut model = Model::new(mp, set.x, set.vol, set.part, &set.rigid_parts)
-            .map_err(|e| SolverError::config("kernel_support", e))?;
+        let solid = match &params.solid {
+            None => None,
+            Some(sp) => {
+                if mesh.elements.is_empty() {
+                    return Err(SolverError::config(
+                        "solid.core",
+                        "holds every cell of the geometry: no element is left outside it",
+                    ));
+                }
+                if set.part.iter().all(|p| set.rigid_parts.contains(p)) {
+                    return Err(SolverError::config(
+                        "solid.core",
+                        "holds no cell of the geometry: no SPG particle is left",
+                    ));
+                }
+                let hp = mechanics::hex8::HexParams {
+                    material: params.material(),
+                    density: params.density,
+                    hourglass: sp.hourglass,
+                };
+                Some(
+                    Solid::new(
+                        mesh.nodes,
+                        mesh.node_particle,
+                        mesh.elements,
+                        mesh.element_part,
+                        hp,
+                    )
+                    .map_err(|e| SolverError::config("solid", e))?,
+                )
+            }
+        };
+        let kernel_vol = solid.as_ref().map(|_| kernel_vol);
+        let mut model = Model::with_solid(
+            mp,
+            set.x,
+            set.vol,
+            set.part,
+            &set.rigid_parts,
+            solid,
+            kernel_vol,
+        )
+        .map_err(|e| SolverError::config("kernel_support", e))?;
         model.separation_weight = params.separation_weight;
         for (k, bc) in params.velocity_bc.iter().enumerate() {
             let r = bc.region;
@@ -211,6 +284,19 @@ impl SpgSolver {
                     return Err(SolverError::config(
                         "coupling.regions",
                         "the coupling surface holds no particle",
+                    ));
+                }
+                if let Some(sd) = &model.solid
+                    && let Some(k) = sd
+                        .own_nodes()
+                        .find(|&k| c.regions.iter().any(|r| r.contains(&node_local[k])))
+                {
+                    return Err(SolverError::config(
+                        "coupling.regions",
+                        format!(
+                            "hold element nodes (one at {:?}): a kinematic coupling drives SPG particles only, so extend solid.core over the coupling regions",
+                            sd.x0[k]
+                        ),
                     ));
                 }
                 for &i in &particles {
@@ -291,6 +377,14 @@ impl SpgSolver {
                         s[d] += self.model.mh[i] * a[d] - self.model.f[i][d];
                     }
                 }
+                if let Some(sd) = &self.model.solid {
+                    for &k in &g.nodes {
+                        let k = k as usize;
+                        for d in 0..3 {
+                            s[d] += sd.mass[k] * a[d] - sd.f[k][d];
+                        }
+                    }
+                }
                 s
             })
             .collect()
@@ -308,7 +402,14 @@ impl SpgSolver {
                         s[d] += self.model.x[i as usize][d] - self.model.x0[i as usize][d];
                     }
                 }
-                s.map(|v| v / g.particles.len().max(1) as f64)
+                if let Some(sd) = &self.model.solid {
+                    for &k in &g.nodes {
+                        for d in 0..3 {
+                            s[d] += sd.x[k as usize][d] - sd.x0[k as usize][d];
+                        }
+                    }
+                }
+                s.map(|v| v / (g.particles.len() + g.nodes.len()).max(1) as f64)
             })
             .collect()
     }
@@ -575,7 +676,15 @@ impl Solver for SpgSolver {
                 if ie > 0.0 { ke / ie } else { 0.0 },
             ),
             ("broken_bonds".to_string(), self.model.broken_bonds as f64),
-            ("max_eq_plastic_strain".to_string(), self.model.max_eps),
+            (
+                "max_eq_plastic_strain".to_string(),
+                self.model.max_eps.max(
+                    self.model
+                        .solid
+                        .as_ref()
+                        .map_or(0.0, |sd| sd.max_plastic_strain()),
+                ),
+            ),
         ];
         for ((g, r), u) in self.model.bcs.iter().zip(&reactions).zip(&displacements) {
             scalars.push((format!("force_{}_x", g.name), r[0]));
@@ -658,6 +767,7 @@ impl Solver for SpgSolver {
             added_mass: self.added_mass,
             coupling: self.coupling.clone(),
             history: self.history.clone(),
+            solid: m.solid.as_ref().map(|sd| sd.save()),
         })
     }
 
@@ -668,6 +778,7 @@ impl Solver for SpgSolver {
             added_mass,
             coupling,
             history,
+            solid,
         } = protocol::checkpoint::decode_state(bytes)?;
         let m = &mut self.model;
         check_len("particles", s.x.len(), m.x.len())?;
@@ -682,6 +793,15 @@ impl Solver for SpgSolver {
             return Err(SolverError::Other(
                 "load_state: the checkpoint's coupling is not this node's".into(),
             ));
+        }
+        match (m.solid.as_mut(), solid) {
+            (None, None) => {}
+            (Some(sd), Some(st)) => sd.load(st).map_err(SolverError::Other)?,
+            _ => {
+                return Err(SolverError::Other(
+                    "load_state: the checkpoint's solid elements are not this node's".into(),
+                ));
+            }
         }
         m.xa = s.xa;
         m.x = s.x;
@@ -765,6 +885,7 @@ struct JointState {
     added_mass: f64,
     coupling: Option<CouplingRt>,
     history: Vec<HistoryRow>,
+    solid: Option<crate::solid::SolidState>,
 }
 
 #[derive(serde::Serialize, serde::Deserialize)]

@@ -29,7 +29,7 @@ fn base() -> toml::Table {
     .unwrap()
 }
 
-fn key_of(r: Result<Box<dyn protocol::Solver>, SolverError>) -> String {
+pub(crate) fn key_of(r: Result<Box<dyn protocol::Solver>, SolverError>) -> String {
     match r {
         Err(SolverError::Config { key, .. }) => key,
         Err(e) => panic!("wrong error kind: {e}"),
@@ -210,9 +210,10 @@ fn stand_in_driver_gets_the_support_reactions_and_the_power_balances() {
     );
 }
 
-#[test]
-fn bolted_plate_geometry_builds_and_steps() {
-    let t: toml::Table = toml::from_str(
+/// Two plates around a bonded rigid bolt, pulled apart at 0.01 m/s (shared with the solid
+/// elements' tests).
+pub(crate) fn bolted_plates() -> toml::Table {
+    toml::from_str(
         r#"
         spacing = 0.5e-3
         kernel_support = 1.0e-3
@@ -236,7 +237,12 @@ fn bolted_plate_geometry_builds_and_steps() {
         head_height = 1e-3
         "#,
     )
-    .unwrap();
+    .unwrap()
+}
+
+#[test]
+fn bolted_plate_geometry_builds_and_steps() {
+    let t = bolted_plates();
     let mut s = factory("mc-spg", &t).unwrap();
     let dt = s.stable_dt();
     let win = Window {

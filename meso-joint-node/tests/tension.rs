@@ -12,10 +12,10 @@ use meso_joint_node::config::Smoothing;
 use meso_joint_node::geometry::block;
 use meso_joint_node::model::{Model, ModelParams};
 
-const E: f64 = 210e9;
-const SY: f64 = 0.2e9;
-const ET: f64 = 20e9;
-const L: f64 = 8e-3;
+pub(crate) const E: f64 = 210e9;
+pub(crate) const SY: f64 = 0.2e9;
+pub(crate) const ET: f64 = 20e9;
+pub(crate) const L: f64 = 8e-3;
 
 fn bar(eps_crit: f64, v_end: f64) -> Model {
     bar_r(eps_crit, v_end, 2000)
@@ -69,7 +69,8 @@ fn gauge(m: &Model) -> (f64, f64, f64) {
     (e / n, s / n, ep / n)
 }
 
-fn j2_uniaxial(eps: f64) -> f64 {
+/// The J2 law in uniaxial stress: E ε, then σy + E_t (ε − σy/E).
+pub(crate) fn j2_uniaxial(eps: f64) -> f64 {
     let ey = SY / E;
     if eps <= ey {
         E * eps

@@ -38,7 +38,8 @@ fn run_suite(only: &str) -> (Value, String, String) {
 
 #[test]
 fn quick_suite_covers_every_kernel_with_consistent_numbers() {
-    let (j, md, stdout) = run_suite("transport,fluid,fluid-3d,fluid-tnt,solid,shell,joint");
+    let (j, md, stdout) =
+        run_suite("transport,fluid,fluid-3d,fluid-tnt,solid,shell,joint,joint-solid");
     let rows = j["results"].as_array().expect("results");
     let skipped = j["skipped"].as_array().expect("skipped");
     assert!(j["errors"].as_array().expect("errors").is_empty(), "{j:#}");
@@ -62,6 +63,7 @@ fn quick_suite_covers_every_kernel_with_consistent_numbers() {
         "pd-correspondence",
         "shell",
         "joint",
+        "joint-solid",
     ] {
         for th in [1, 2] {
             assert_eq!(has(k, "cpu", Some(th)), 2, "{k} at {th} thread(s)");
@@ -176,6 +178,7 @@ fn quick_suite_covers_every_kernel_with_consistent_numbers() {
     assert_eq!(unit("pd-bond").as_deref(), Some("bond-updates"));
     assert_eq!(unit("shell").as_deref(), Some("element-cycles"));
     assert_eq!(unit("joint").as_deref(), Some("particle-updates"));
+    assert_eq!(unit("joint-solid").as_deref(), Some("cell-updates"));
     assert!(j["fits"].as_array().is_some_and(|f| !f.is_empty()));
     // The pd block's bonds per step are the lattice count: Σ over offsets d ≠ 0 with
     // |d| ≤ 3.015 of Π_k (n − |d_k|) (this formula gives 3,244,494 for n = 31).
