@@ -350,6 +350,8 @@ pub struct HexPart {
     pub p: HexParams,
     pub elements: Vec<[u32; 8]>,
     pub state: Vec<HexState>,
+    /// Each element's density over the material's (1; more under mass scaling).
+    pub density_scale: Vec<f64>,
     /// Each element's nodal forces from the last evaluation (scratch, gathered into `f`).
     elem_f: Vec<[[f64; 3]; 8]>,
     /// Elements around each node: CSR offsets into `adj` of (element, corner).
@@ -391,6 +393,7 @@ impl HexPart {
         }
         Ok(HexPart {
             p,
+            density_scale: vec![1.0; elements.len()],
             elem_f: vec![[[0.0; 3]; 8]; elements.len()],
             elements,
             state,
@@ -407,12 +410,57 @@ impl HexPart {
     /// Lumped mass: an eighth of each element's mass to each of its nodes (kg, per node).
     pub fn lumped_mass(&self) -> Vec<f64> {
         let mut m = vec![0.0; self.adj_start.len() - 1];
-        for (el, s) in self.elements.iter().zip(&self.state) {
+        for ((el, s), k) in self
+            .elements
+            .iter()
+            .zip(&self.state)
+            .zip(&self.density_scale)
+        {
             for &i in el {
-                m[i as usize] += 0.125 * self.p.density * s.volume;
+                m[i as usize] += 0.125 * self.p.density * k * s.volume;
             }
         }
         m
+    }
+
+    /// The elements' physical mass (kg, without mass scaling).
+    pub fn physical_mass(&self) -> f64 {
+        self.p.density * self.state.iter().map(|s| s.volume).sum::<f64>()
+    }
+
+    /// Mass scaling: raises the density of every element whose stable step (`factor` times
+    /// [`HexPart::stable_dt`]'s bound) is below `target` until it reaches it. Returns the
+    /// mass added to each node (kg).
+    pub fn mass_scale(&mut self, x: &[[f64; 3]], target: f64, factor: f64) -> Vec<f64> {
+        let mut add = vec![0.0; self.adj_start.len() - 1];
+        for e in 0..self.elements.len() {
+            let dt = factor * self.element_dt(x, e);
+            if dt > 0.0 && dt < target {
+                let grow = (target / dt).powi(2);
+                let extra =
+                    self.p.density * self.density_scale[e] * (grow - 1.0) * self.state[e].volume;
+                self.density_scale[e] *= grow;
+                for &i in &self.elements[e] {
+                    add[i as usize] += 0.125 * extra;
+                }
+            }
+        }
+        add
+    }
+
+    /// Element `e`'s bound `2 / ω_max` (s; 0 for a folded element).
+    fn element_dt(&self, x: &[[f64; 3]], e: usize) -> f64 {
+        let m = &self.p.material;
+        let c2 = (m.bulk_modulus() + 4.0 / 3.0 * m.shear_modulus())
+            / (self.p.density * self.density_scale[e]);
+        let xe = self.elements[e].map(|i| x[i as usize]);
+        match mean_gradient(&xe) {
+            Some((b, vol)) => {
+                let bb: f64 = b.iter().flatten().map(|c| c * c).sum();
+                vol / (2.0 * c2 * bb).sqrt()
+            }
+            None => 0.0,
+        }
     }
 
     /// Largest stable step of central differences, `2 / ω_max` with Flanagan and
@@ -421,21 +469,9 @@ impl HexPart {
     /// above what a lumped corner node of a compressible-enough material takes: it let a
     /// cantilever with ν = 0.45 fold at its free corner. Folded elements give 0.
     pub fn stable_dt(&self, x: &[[f64; 3]]) -> f64 {
-        let m = &self.p.material;
-        let mu = m.shear_modulus();
-        let c2 = (m.bulk_modulus() + 4.0 / 3.0 * mu) / self.p.density;
-        self.elements
-            .par_iter()
-            .map(|el| {
-                let xe = el.map(|i| x[i as usize]);
-                match mean_gradient(&xe) {
-                    Some((b, vol)) => {
-                        let bb: f64 = b.iter().flatten().map(|c| c * c).sum();
-                        vol / (2.0 * c2 * bb).sqrt()
-                    }
-                    None => 0.0,
-                }
-            })
+        (0..self.elements.len())
+            .into_par_iter()
+            .map(|e| self.element_dt(x, e))
             .reduce(|| f64::INFINITY, f64::min)
     }
 

@@ -552,12 +552,6 @@ impl Params {
                     format!("must be ≥ 0, got {}", sp.hourglass),
                 ));
             }
-            if self.mass_scaling_dt.is_some() {
-                return Err(SolverError::config(
-                    "mass_scaling_dt",
-                    "mass scaling covers the particles only: not with solid elements",
-                ));
-            }
         }
         let mut names = std::collections::BTreeSet::new();
         for (k, pl) in self.placements.iter().enumerate() {

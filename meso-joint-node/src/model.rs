@@ -473,8 +473,7 @@ impl Model {
             dt = dt.min(self.p.cfl * h * (rho_eff / modulus).sqrt());
         }
         if let Some(sd) = &self.solid {
-            // the elements' bound is a bound (2/ω_max), not an estimate: 0.9 of it
-            dt = dt.min(0.9 * sd.part.stable_dt(&sd.x));
+            dt = dt.min(sd.stable_dt());
         }
         dt
     }
@@ -485,6 +484,17 @@ impl Model {
         let e = &self.p.material;
         let modulus = e.bulk_modulus() + 4.0 / 3.0 * e.shear_modulus();
         let mut added = 0.0;
+        if let Some(sd) = self.solid.as_mut() {
+            // the elements first: a shared node's particle moves their added mass too
+            let add = sd.mass_scale(target);
+            added += add.iter().sum::<f64>();
+            for (k, a) in add.iter().enumerate() {
+                let i = sd.node_particle[k];
+                if i != NONE {
+                    self.mh[i as usize] += a;
+                }
+            }
+        }
         for i in 0..self.len() {
             let h = self.p.spacing * (self.vol[i] / self.vol0[i]).cbrt();
             let dt_i = self.p.cfl * h * (self.mh[i] / self.vol[i] / modulus).sqrt();

@@ -326,7 +326,11 @@ impl SpgSolver {
             Some(dt) => model.mass_scale(dt),
             None => 0.0,
         };
-        let physical: f64 = model.mass.iter().sum();
+        let physical: f64 = model.mass.iter().sum::<f64>()
+            + model
+                .solid
+                .as_ref()
+                .map_or(0.0, |sd| sd.part.physical_mass());
         tracing::info!(
             particles = model.len(),
             bonds = model.rows.cols.len() - model.len(),
@@ -348,7 +352,12 @@ impl SpgSolver {
 
     /// Physical mass of the particles (without mass scaling).
     pub fn physical_mass(&self) -> f64 {
-        self.model.mass.iter().sum()
+        self.model.mass.iter().sum::<f64>()
+            + self
+                .model
+                .solid
+                .as_ref()
+                .map_or(0.0, |sd| sd.part.physical_mass())
     }
 
     /// Number of coupling particles (the interface's points).

@@ -355,12 +355,6 @@ fn a_bad_solid_table_is_refused_by_its_key() {
         }),
         "solid.core"
     );
-    assert_eq!(
-        with(&|t| {
-            t.insert("mass_scaling_dt".into(), toml::Value::Float(1e-7));
-        }),
-        "mass_scaling_dt"
-    );
     // a kinematic coupling drives particles: its regions may not hold element nodes
     assert_eq!(
         with(&|t| {
@@ -410,4 +404,38 @@ fn a_joint_with_solid_elements_restarts_bit_identically() {
         assert!(ra.kinetic_energy > 0.0 && ra.internal_energy > 0.0);
     }
     assert_eq!(a.save_state().unwrap(), b.save_state().unwrap());
+}
+
+/// Mass scaling reaches the elements too: with a target of 5e-7 s (about 25 times the
+/// steel's step at 0.5 mm) the joint's step is the target, its elements and particles took
+/// added mass, and it steps.
+#[test]
+fn mass_scaling_raises_the_elements_step_with_the_particles() {
+    use protocol::{FieldSet, Window};
+    let mut t = joint_with_solid();
+    let plain = meso_joint_node::factory("mc-spg", &t).unwrap().stable_dt();
+    let target = 5e-7;
+    assert!(plain < target / 10.0, "the unscaled step {plain} s");
+    t.insert("mass_scaling_dt".into(), toml::Value::Float(target));
+    let mut s = meso_joint_node::factory("mc-spg", &t).unwrap();
+    let dt = s.stable_dt();
+    assert!(
+        dt >= 0.999 * target,
+        "scaled step {dt} s against the target {target} s"
+    );
+    let r = s
+        .advance(
+            &Window {
+                index: 1,
+                t0: 0.0,
+                t1: 20.0 * dt,
+                write_output: false,
+            },
+            &FieldSet::new(),
+            &mut FieldSet::new(),
+        )
+        .unwrap();
+    let added = r.scalars.iter().find(|(n, _)| n == "added_mass").unwrap().1;
+    assert!(added > 0.0, "no mass added");
+    assert!(r.substeps <= 21, "{} substeps for 20 steps", r.substeps);
 }

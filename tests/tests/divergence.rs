@@ -374,7 +374,7 @@ const EXAMPLES: &[(&str, &[&str])] = &[
             "small",
         ],
     ),
-    ("coupon_single_scale", &["small"]),
+    ("coupon_single_scale", &["small", "solid", "solid-small"]),
     ("coupon_two_scale", &["small"]),
     ("crash_tube", &["case2", "small", "small2", "grouped"]),
     (
