@@ -407,7 +407,7 @@ const EXAMPLES: &[(&str, &[&str])] = &[
     ("seed003_wave", &["small", "reference", "small-reference"]),
     ("seed003_wave_split", &["small", "implicit"]),
     ("shock_bubble", &["seed", "small"]),
-    ("single_joint", &["small"]),
+    ("single_joint", &["small", "solid", "solid-small"]),
     ("split_bar", &["python", "c"]),
     ("split_bar_chain", &["small"]),
     ("split_bar_lagrange", &[]),
