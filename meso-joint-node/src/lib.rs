@@ -3,9 +3,10 @@
 //! smoothing (eq. 2–11), J2 kinematic hardening, bond failure (eq. 15–17), rigid bodies and
 //! the responder side of the shell kinematic coupling (eq. 29–33).
 //!
-//! Layout: `config` (parameters and validation), `geometry` (particle sets), `shape`
-//! (supports and shape functions), `model` (state and the time step), `profile` (time per
-//! phase of the step), `output` (VTK, CSV),
+//! Layout: `config` (parameters and validation), `geometry` (particle sets, and their split
+//! into an SPG core and hexahedra), `shape` (supports and shape functions), `model` (state
+//! and the time step), `solid` (the hexahedra around an SPG core, sharing its boundary
+//! particles), `profile` (time per phase of the step), `output` (VTK, CSV),
 //! `solver` (the `Solver` implementation; its coupling particles follow the shell through the
 //! participant runtime's mapping).
 
