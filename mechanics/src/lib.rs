@@ -15,6 +15,7 @@ pub mod j2;
 pub mod j2_plane_stress;
 pub mod johnson_cook;
 pub mod kernel;
+pub mod lanes;
 pub mod mie_gruneisen;
 pub mod neighbour;
 pub mod simd;

@@ -11,6 +11,7 @@
 //! overlap: each piece of material is either a cell of particles or an element.
 
 use mechanics::hex8::{HexParams, HexPart};
+use rayon::prelude::*;
 
 /// Marks a node that is no particle (`Solid::node_particle`).
 pub const NONE: u32 = u32::MAX;
@@ -84,24 +85,34 @@ impl Solid {
 
     /// Central-difference velocity update of the free nodes stepped here.
     pub fn velocity_update(&mut self, dt: f64) {
-        for k in 0..self.len() {
-            if self.own(k) && !self.held[k] {
-                for d in 0..3 {
-                    self.v[k][d] += dt * self.f[k][d] / self.mass[k];
+        self.v
+            .par_iter_mut()
+            .zip(&self.f)
+            .zip(&self.mass)
+            .zip(&self.node_particle)
+            .zip(&self.held)
+            .for_each(|((((v, f), m), &i), &held)| {
+                if i == NONE && !held {
+                    for d in 0..3 {
+                        v[d] += dt * f[d] / m;
+                    }
                 }
-            }
-        }
+            });
     }
 
     /// Position update of the nodes stepped here.
     pub fn position_update(&mut self, dt: f64) {
-        for k in 0..self.len() {
-            if self.own(k) {
-                for d in 0..3 {
-                    self.x[k][d] += dt * self.v[k][d];
+        self.x
+            .par_iter_mut()
+            .zip(&self.v)
+            .zip(&self.node_particle)
+            .for_each(|((x, v), &i)| {
+                if i == NONE {
+                    for d in 0..3 {
+                        x[d] += dt * v[d];
+                    }
                 }
-            }
-        }
+            });
     }
 
     /// The element forces at the current positions, the stresses advanced over `dt`: the
@@ -114,14 +125,18 @@ impl Solid {
         pv: &[[f64; 3]],
         pf: &mut [[f64; 3]],
     ) -> Result<(), String> {
-        for k in 0..self.len() {
-            let i = self.node_particle[k];
-            if i != NONE {
-                self.x[k] = px[i as usize];
-                self.v[k] = pv[i as usize];
-            }
-        }
-        self.f.fill([0.0; 3]);
+        self.x
+            .par_iter_mut()
+            .zip(self.v.par_iter_mut())
+            .zip(self.f.par_iter_mut())
+            .zip(&self.node_particle)
+            .for_each(|(((x, v), f), &i)| {
+                if i != NONE {
+                    *x = px[i as usize];
+                    *v = pv[i as usize];
+                }
+                *f = [0.0; 3];
+            });
         self.part.add_forces(&self.x, &self.v, dt, &mut self.f)?;
         for k in 0..self.len() {
             let i = self.node_particle[k];
