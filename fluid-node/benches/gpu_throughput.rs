@@ -8,7 +8,7 @@
 //! at rest (radius 0.15 about (0.7, 0.5), two particles per cell and direction; seed 002 §3):
 //! the step plus the immersed kernels (solid-cell fill, moving-wall fluxes, projection,
 //! impulses), the cost of the coupling on each path.
-//! Run: `WGPU_BACKEND=vulkan cargo bench -p fluid-node --bench gpu_throughput`
+//! Run: `WGPU_BACKEND=vulkan cargo bench -p fluid-node --features criterion-bench --bench gpu_throughput`
 //! (optional filter, e.g. `-- gpu/256`). Without an adapter only the CPU rows run.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};

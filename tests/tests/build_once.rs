@@ -73,12 +73,15 @@ fn the_build_the_tests_and_the_python_package_resolve_one_feature_set() {
         test.len(),
         python.len()
     );
-    // The selections are what they claim: zenoh and criterion are where they belong.
+    // The selections are what they claim: zenoh is in both builds, the tests' proptest in
+    // theirs; criterion (a benchmark harness behind fluid-node's `criterion-bench` feature)
+    // is in none, so `cargo test` does not compile it.
     assert!(build.len() > 300 && python.len() > 250, "{}", build.len());
     assert!(build.keys().any(|p| p.starts_with("zenoh v")));
     assert!(python.keys().any(|p| p.starts_with("zenoh v")));
+    assert!(test.keys().any(|p| p.starts_with("proptest v")));
     assert!(!build.keys().any(|p| p.starts_with("criterion v")));
-    assert!(test.keys().any(|p| p.starts_with("criterion v")));
+    assert!(!test.keys().any(|p| p.starts_with("criterion v")));
 
     let tests_differ = differences(&build, &test);
     assert!(
@@ -152,7 +155,7 @@ fn units(args: &[&str]) -> BTreeSet<String> {
 
 /// Every registry unit maturin's build of the Python package compiles is one the workspace
 /// build compiles too, and every unit `cargo test` compiles of a package the build has is one
-/// the build compiled (the test adds its dev-dependencies, which the build does not have).
+/// the build compiled (the test adds any dev-dependency the build does not have).
 #[test]
 fn the_build_compiles_every_unit_the_python_package_and_the_tests_reuse() {
     let build = units(&["build", "--workspace"]);
@@ -165,7 +168,9 @@ fn the_build_compiles_every_unit_the_python_package_and_the_tests_reuse() {
         test.len()
     );
     assert!(build.len() > 500 && python.len() > 500, "{}", build.len());
-    assert!(test.len() > build.len(), "{}", test.len());
+    // (the tests add no registry crate of their own since criterion went behind a feature,
+    // and leave out the Python package's pyo3)
+    assert!(test.len() > 500, "{}", test.len());
     let python_only: Vec<&String> = python.difference(&build).collect();
     assert!(
         python_only.is_empty(),
