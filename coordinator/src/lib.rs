@@ -18,6 +18,7 @@ pub mod guard;
 pub mod histogram;
 pub mod info;
 pub mod integrity;
+pub mod joints;
 pub mod launch;
 pub mod lock;
 pub mod nest;

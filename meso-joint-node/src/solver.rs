@@ -63,6 +63,71 @@ pub struct SpgSolver {
     coupling: Option<CouplingRt>,
     /// (time, reaction force per velocity-BC group, force per coupling region).
     pub history: Vec<HistoryRow>,
+    /// The joint report: one entry per joint (placement).
+    pub joints: Vec<JointTrack>,
+}
+
+/// A joint has failed when its force, after its peak, falls below this fraction of the peak
+/// while bonds of the joint are broken.
+pub const FAILURE_FRACTION: f64 = 0.1;
+
+/// One joint of the report (a placement, or the node's one joint without placements): its
+/// force's peak and when, and when and how it failed. The joint's force is the largest
+/// magnitude of its coupling regions' forces (each region one side of the joint), or of the
+/// velocity-BC reactions without a coupling.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct JointTrack {
+    pub name: String,
+    /// The coupling regions (indices of the region forces) of this joint.
+    pub regions: Vec<usize>,
+    /// Peak force magnitude (N) and its time (s).
+    pub peak: f64,
+    pub peak_time: f64,
+    pub failure: Option<JointFailure>,
+}
+
+/// When a joint failed and which of its bonds were broken then.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct JointFailure {
+    pub time: f64,
+    /// Broken bonds between particles of one plate (the plate tore) and between the
+    /// fastener and a plate (the fastener came loose), each bond counted from both ends.
+    pub material_bonds: u64,
+    pub interface_bonds: u64,
+}
+
+impl JointFailure {
+    /// `interfacial` when the fastener–plate bonds broke at least as often as the plates'
+    /// own (the fastener came loose at its interface), else `pull-out` (the plate material
+    /// around the fastener tore: the fastener pulls out of the sheet).
+    pub fn mode(&self) -> &'static str {
+        if self.interface_bonds > 0 && self.interface_bonds >= self.material_bonds {
+            "interfacial"
+        } else {
+            "pull-out"
+        }
+    }
+}
+
+/// Broken bonds of placement `k` (parts `3k`, `3k + 1`, `3k + 2`): (within a plate, between
+/// the fastener and a plate).
+fn broken_bonds_of(m: &Model, k: usize) -> (u64, u64) {
+    let (mut material, mut interface) = (0, 0);
+    for (p, &alive) in m.rows.alive.iter().enumerate() {
+        if alive {
+            continue;
+        }
+        let (i, j) = (m.rows.row_of[p] as usize, m.rows.cols[p] as usize);
+        if i == j || m.part[i] as usize / 3 != k {
+            continue;
+        }
+        if m.kind[i] == Kind::Rigid || m.kind[j] == Kind::Rigid {
+            interface += 1;
+        } else {
+            material += 1;
+        }
+    }
+    (material, interface)
 }
 
 fn unit(a: Vector3<f64>) -> Vector3<f64> {
@@ -251,6 +316,8 @@ impl SpgSolver {
                 ));
             }
         }
+        // The placement of each reported coupling region (for the joint report).
+        let mut region_placement: Vec<usize> = Vec::new();
         let coupling = match &params.coupling {
             None => None,
             Some(c) => {
@@ -273,6 +340,7 @@ impl SpgSolver {
                             Some(k) => k,
                             None => {
                                 region_names.push(name);
+                                region_placement.push(instance[i] as usize);
                                 region_names.len() - 1
                             }
                         };
@@ -340,6 +408,20 @@ impl SpgSolver {
             "mc-spg set up"
         );
         model.initial_forces();
+        let names = coupling.as_ref().map_or(&[][..], |c| &c.region_names[..]);
+        let joints = placements
+            .iter()
+            .enumerate()
+            .map(|(k, pl)| JointTrack {
+                name: pl.map_or_else(|| "joint".to_string(), |p| p.name.clone()),
+                regions: (0..names.len())
+                    .filter(|&r| region_placement[r] == k && !names[r].is_empty())
+                    .collect(),
+                peak: 0.0,
+                peak_time: 0.0,
+                failure: None,
+            })
+            .collect();
         Ok(SpgSolver {
             mass_scaling_dt: params.mass_scaling_dt,
             params,
@@ -347,7 +429,86 @@ impl SpgSolver {
             added_mass,
             coupling,
             history: Vec::new(),
+            joints,
         })
+    }
+
+    /// The joint report at time `t` from this window's reactions and region forces: each
+    /// joint's peak, and its failure once its force has fallen below [`FAILURE_FRACTION`] of
+    /// the peak with some of its bonds broken.
+    fn track_joints(&mut self, t: f64, reactions: &[[f64; 3]], regions: &[[f64; 3]]) {
+        let norm = |f: &[f64; 3]| (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
+        for (k, j) in self.joints.iter_mut().enumerate() {
+            let force = if self.coupling.is_some() {
+                j.regions
+                    .iter()
+                    .map(|&r| norm(&regions[r]))
+                    .fold(0.0, f64::max)
+            } else {
+                reactions.iter().map(norm).fold(0.0, f64::max)
+            };
+            if force > j.peak {
+                j.peak = force;
+                j.peak_time = t;
+            }
+            if j.failure.is_none()
+                && self.model.broken_bonds > 0
+                && force < FAILURE_FRACTION * j.peak
+            {
+                let (material_bonds, interface_bonds) = broken_bonds_of(&self.model, k);
+                if material_bonds + interface_bonds > 0 {
+                    j.failure = Some(JointFailure {
+                        time: t,
+                        material_bonds,
+                        interface_bonds,
+                    });
+                }
+            }
+        }
+    }
+
+    /// The joint report's columns.
+    pub const JOINT_REPORT: [&str; 7] = [
+        "joint",
+        "peak_force_N",
+        "peak_time_s",
+        "failure_time_s",
+        "failure_mode",
+        "broken_bonds_material",
+        "broken_bonds_interface",
+    ];
+
+    /// The joint report, one row per joint ([`Self::JOINT_REPORT`]): numbers as the shortest
+    /// decimal that reads back exactly; a joint that has not failed has no failure time, mode
+    /// `none` and its broken bonds so far.
+    pub fn joint_report(&self) -> Vec<Vec<String>> {
+        self.joints
+            .iter()
+            .enumerate()
+            .map(|(k, j)| {
+                let (time, mode, material, interface) = match &j.failure {
+                    Some(f) => (
+                        format!("{:e}", f.time),
+                        f.mode(),
+                        f.material_bonds,
+                        f.interface_bonds,
+                    ),
+                    None => {
+                        let (m, i) = broken_bonds_of(&self.model, k);
+                        (String::new(), "none", m, i)
+                    }
+                };
+                vec![
+                    j.name.clone(),
+                    format!("{:e}", j.peak),
+                    format!("{:e}", j.peak_time),
+                    time,
+                    mode.to_string(),
+                    material.to_string(),
+                    interface.to_string(),
+                ]
+            })
+            .collect()
     }
 
     /// Physical mass of the particles (without mass scaling).
@@ -667,6 +828,7 @@ impl Solver for SpgSolver {
         let reactions = self.bc_reactions();
         let displacements = self.bc_displacements();
         let regions = self.region_forces();
+        self.track_joints(w.t1, &reactions, &regions);
         let every = self.params.history_every.max(1);
         if w.index.is_multiple_of(every) {
             self.history
@@ -777,6 +939,7 @@ impl Solver for SpgSolver {
             coupling: self.coupling.clone(),
             history: self.history.clone(),
             solid: m.solid.as_ref().map(|sd| sd.save()),
+            joints: self.joints.clone(),
         })
     }
 
@@ -788,6 +951,7 @@ impl Solver for SpgSolver {
             coupling,
             history,
             solid,
+            joints,
         } = protocol::checkpoint::decode_state(bytes)?;
         let m = &mut self.model;
         check_len("particles", s.x.len(), m.x.len())?;
@@ -852,8 +1016,18 @@ impl Solver for SpgSolver {
         m.contact_pairs = s.contact_pairs;
         m.contact_energy = s.contact_energy;
         self.added_mass = added_mass;
+        if joints
+            .iter()
+            .map(|j| (&j.name, &j.regions))
+            .ne(self.joints.iter().map(|j| (&j.name, &j.regions)))
+        {
+            return Err(SolverError::Other(
+                "load_state: the checkpoint's joints are not this node's".into(),
+            ));
+        }
         self.coupling = coupling;
         self.history = history;
+        self.joints = joints;
         Ok(())
     }
 
@@ -880,6 +1054,11 @@ impl Solver for SpgSolver {
             .iter()
             .map(|(t, r, c)| std::iter::once(*t).chain(r.iter().chain(c).flatten().copied()));
         node_kit::table::write_csv(&dir.join("joint_force.csv"), &header, rows)?;
+        node_kit::table::write_text_csv(
+            &dir.join("joint_report.csv"),
+            &Self::JOINT_REPORT,
+            &self.joint_report(),
+        )?;
         Ok(())
     }
 }
@@ -895,6 +1074,7 @@ struct JointState {
     coupling: Option<CouplingRt>,
     history: Vec<HistoryRow>,
     solid: Option<crate::solid::SolidState>,
+    joints: Vec<JointTrack>,
 }
 
 #[derive(serde::Serialize, serde::Deserialize)]

@@ -31,6 +31,21 @@ where
     crate::whole::write(path, &bytes)
 }
 
+/// Writes `path` (its folder created) whole or not at all: `header`, then `rows` of text
+/// cells (for a table whose columns are not all numbers), quoted as CSV requires.
+pub fn write_text_csv(path: &Path, header: &[&str], rows: &[Vec<String>]) -> std::io::Result<()> {
+    if let Some(d) = path.parent() {
+        std::fs::create_dir_all(d)?;
+    }
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record(header)?;
+    for r in rows {
+        w.write_record(r)?;
+    }
+    let bytes = w.into_inner().map_err(|e| e.into_error())?;
+    crate::whole::write(path, &bytes)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -282,6 +282,44 @@ fn single_joint_fails(out: &Path) {
     assert!(first_break <= t_peak + 5e-3, "peak long before failure");
     assert!(f_end.abs() < 0.2 * f_peak, "{f_end} of {f_peak}");
     assert!(broken[broken.len() - 1].1 > 100.0);
+    joint_report_matches_the_force_history(out);
+}
+
+/// The joint report the run wrote (`joint_report.csv`, joined from the joint node's own)
+/// against the force history recorded window by window: the peak of the larger of the two
+/// sides' force magnitudes and its time, the first window after it below a tenth of the peak
+/// with bonds broken, and the mode the seed finds for this joint, pull-out (the plate tears
+/// around the fastener).
+fn joint_report_matches_the_force_history(out: &Path) {
+    let a = series(out, "joint", "force_a_magnitude");
+    let b = series(out, "joint", "force_b_magnitude");
+    let broken = series(out, "joint", "broken_bonds");
+    assert_eq!(a.len(), b.len());
+    assert!(a.len() > 100, "{} windows", a.len());
+    let force: Vec<(f64, f64)> = a.iter().zip(&b).map(|(a, b)| (a.0, a.1.max(b.1))).collect();
+    let (ip, f_peak) = peak(&force);
+    let failed = (ip..force.len())
+        .find(|&k| force[k].1 < 0.1 * f_peak && broken[k].1 > 0.0)
+        .map(|k| force[k].0)
+        .expect("the force falls below a tenth of its peak");
+    let text = std::fs::read_to_string(out.join("joint_report.csv")).expect("joint_report.csv");
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 2, "{text}");
+    assert!(
+        lines[0].starts_with("node,joint,peak_force_N,peak_time_s,failure_time_s,failure_mode,")
+    );
+    let f: Vec<&str> = lines[1].split(',').collect();
+    assert_eq!(&f[..2], &["joint", "joint"], "{text}");
+    let num = |k: usize| f[k].parse::<f64>().unwrap();
+    assert!(
+        (num(2) - f_peak).abs() <= 1e-12 * f_peak,
+        "{} vs {f_peak}",
+        num(2)
+    );
+    assert_eq!(num(3), force[ip].0);
+    assert_eq!(num(4), failed);
+    assert_eq!(f[5], "pull-out", "{text}");
+    assert!(num(6) > num(7), "{text}");
 }
 
 #[test]

@@ -295,6 +295,16 @@ fn print_finished(c: &case::Case, o: &crate::run::Outcome) {
         o.summary["wall_s"].as_f64().unwrap_or(0.0),
         o.output.display()
     );
+    match crate::joints::collect(&o.output) {
+        Ok(rows) if !rows.is_empty() => {
+            println!("cosim: joints (joint_report.csv):");
+            for l in crate::joints::lines(&rows) {
+                println!("  {l}");
+            }
+        }
+        Ok(_) => {}
+        Err(e) => eprintln!("cosim: warning: joint report: {e}"),
+    }
     for (node, scalar) in &c.run.print {
         // a named scalar of the node's report, or one of its energies
         let last = &o.summary["nodes"][node]["final"];
