@@ -53,6 +53,8 @@ pub trait Lane:
     fn lane(self, k: usize) -> f64;
     /// The lanes into `out[..W]`.
     fn store(self, out: &mut [f64]);
+    /// Lane `k` from `a[k]`, for `k < W`.
+    fn load(a: &[f64]) -> Self;
     fn sqrt(self) -> Self;
     /// `1 / x` lane by lane.
     fn recip(self) -> Self;
@@ -77,6 +79,10 @@ impl Lane for f64 {
     #[inline(always)]
     fn store(self, out: &mut [f64]) {
         out[0] = self;
+    }
+    #[inline(always)]
+    fn load(a: &[f64]) -> Self {
+        a[0]
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
@@ -113,6 +119,12 @@ impl<const W: usize> Lane for Lanes<W> {
     #[inline(always)]
     fn store(self, out: &mut [f64]) {
         out[..W].copy_from_slice(&self.0);
+    }
+    #[inline(always)]
+    fn load(a: &[f64]) -> Self {
+        let mut r = [0.0; W];
+        r.copy_from_slice(&a[..W]);
+        Lanes(r)
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
@@ -319,6 +331,12 @@ mod avx {
             unsafe { _mm256_storeu_pd(out.as_mut_ptr(), self.0) };
         }
         #[inline(always)]
+        fn load(a: &[f64]) -> Self {
+            let a = &a[..4];
+            // SAFETY: `a` holds four doubles (checked by the slice above).
+            Avx4(unsafe { _mm256_loadu_pd(a.as_ptr()) })
+        }
+        #[inline(always)]
         fn sqrt(self) -> Self {
             Avx4(unsafe { _mm256_sqrt_pd(self.0) })
         }
@@ -405,6 +423,12 @@ mod avx {
             unsafe { _mm512_storeu_pd(out.as_mut_ptr(), self.0) };
         }
         #[inline(always)]
+        fn load(a: &[f64]) -> Self {
+            let a = &a[..8];
+            // SAFETY: `a` holds eight doubles (checked by the slice above).
+            Avx8(unsafe { _mm512_loadu_pd(a.as_ptr()) })
+        }
+        #[inline(always)]
         fn sqrt(self) -> Self {
             Avx8(unsafe { _mm512_sqrt_pd(self.0) })
         }
@@ -448,6 +472,7 @@ mod tests {
         al.store(&mut out);
         for k in 0..n {
             assert_eq!(out[k].to_bits(), a[k].to_bits());
+            assert_eq!(L::load(&b).lane(k).to_bits(), b[k].to_bits());
         }
         for (i, (got, want)) in cases.iter().enumerate() {
             for k in 0..n {

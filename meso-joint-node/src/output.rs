@@ -38,7 +38,7 @@ pub fn write_vtu(m: &Model, dir: &Path, window: u64, t: f64) -> std::io::Result<
                 .flat_map(|(x, x0)| [x[0] - x0[0], x[1] - x0[1], x[2] - x0[2]])
                 .collect();
         let vel: Vec<f64> = sd.v.iter().flat_map(|v| v.iter().copied()).collect();
-        let states = &sd.part.state;
+        let states = sd.part.state.to_vec();
         // Voigt order xx, yy, zz, yz, xz, xy as ParaView's symmetric tensors take it
         // (xx, yy, zz, xy, yz, xz)
         let stress: Vec<f64> = states

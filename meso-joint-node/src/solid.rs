@@ -213,7 +213,7 @@ impl Solid {
             x: self.x.clone(),
             v: self.v.clone(),
             f: self.f.clone(),
-            elements: self.part.state.clone(),
+            elements: self.part.state.to_vec(),
         }
     }
 
@@ -229,7 +229,7 @@ impl Solid {
         self.x = s.x;
         self.v = s.v;
         self.f = s.f;
-        self.part.state = s.elements;
+        self.part.state = mechanics::hex8::HexStates::from_slice(&s.elements);
         Ok(())
     }
 }

@@ -144,7 +144,7 @@ fn element_gauge(m: &Model) -> (f64, f64) {
     };
     let e = ((plane(2.5e-3) - plane(1.5e-3)) / 1e-3).ln();
     let (mut s, mut n) = (0.0, 0.0);
-    for (el, st) in sd.part.elements.iter().zip(&sd.part.state) {
+    for (el, st) in sd.part.elements.iter().zip(sd.part.state.iter()) {
         let xc = el.iter().map(|&k| sd.x0[k as usize][0]).sum::<f64>() / 8.0;
         if xc > 1.5e-3 && xc < 2.5e-3 {
             let t = st.mat.stress;
@@ -170,7 +170,7 @@ fn section_forces(m: &Model) -> (f64, f64) {
     let on = |x0: f64| (0..sd.len()).filter(move |&k| (sd.x0[k][0] - x0).abs() < 1e-9);
     let plane = |x0: f64| on(x0).map(|k| sd.x[k][0]).sum::<f64>() / on(x0).count() as f64;
     let mut el = 0.0;
-    for (e, st) in sd.part.elements.iter().zip(&sd.part.state) {
+    for (e, st) in sd.part.elements.iter().zip(sd.part.state.iter()) {
         let xc = e.iter().map(|&k| sd.x0[k as usize][0]).sum::<f64>() / 8.0;
         if xc > 2.0e-3 && xc < 2.5e-3 {
             el += st.volume * st.mat.stress[0];
