@@ -587,8 +587,8 @@ pub struct HexPart {
     pub simd: Simd,
     /// Each element's nodal forces from the last evaluation (scratch, gathered into `f`).
     elem_f: Vec<f64>,
-    /// Elements around each node: CSR offsets into `adj` of where in `elem_f` the x force
-    /// of each (element, corner) is (the y and z forces follow [`BLOCK`] apart).
+    /// Elements around each node: CSR offsets into `adj` of where in `elem_f` the force of
+    /// each (element, corner) is (x, y and z side by side: the gather reads one cache line).
     adj_start: Vec<u32>,
     adj: Vec<u32>,
 }
@@ -759,8 +759,8 @@ impl HexPart {
             for &a in &adj[start[i] as usize..start[i + 1] as usize] {
                 let a = a as usize;
                 f[0] += ef[a];
-                f[1] += ef[a + BLOCK];
-                f[2] += ef[a + 2 * BLOCK];
+                f[1] += ef[a + 1];
+                f[2] += ef[a + 2];
             }
         });
         Ok(())
@@ -1110,9 +1110,17 @@ fn element_block_body<L: Lane>(b: Block) -> Option<usize> {
         let mut sl = StateLanes::load(st, o);
         let ol = element(&xl, &vl, p, &mut sl, dt);
         sl.store(st, o);
+        // each element's 24 forces side by side (where the node gather reads them)
+        let mut buf = [[0.0; 8]; 24];
         for i in 0..8 {
             for d in 0..3 {
-                ol[i][d].store(&mut out[(3 * i + d) * BLOCK + o..]);
+                ol[i][d].store(&mut buf[3 * i + d]);
+            }
+        }
+        for k in 0..els.len() {
+            let e = &mut out[24 * (o + k)..24 * (o + k + 1)];
+            for (q, e) in e.iter_mut().enumerate() {
+                *e = buf[q][k];
             }
         }
         for k in 0..els.len() {
@@ -1138,16 +1146,16 @@ struct Block<'a> {
     /// At most [`BLOCK`] elements.
     els: &'a [[u32; 8]],
     st: &'a mut StateBlock,
-    /// The block's nodal forces, value by value: `out[(3 i + d) BLOCK + k]` is component `d`
-    /// at corner `i` of the block's element `k` (what [`force_slot`] addresses).
+    /// The block's nodal forces: `out[24 k + 3 i + d]` is component `d` at corner `i` of the
+    /// block's element `k` (what [`force_slot`] addresses).
     out: &'a mut [f64],
     dt: f64,
 }
 
-/// Where in a part's nodal forces (blocks of [`BLOCK`] elements, `24 BLOCK` values each)
-/// component `d` of corner `c`'s force of element `e` is.
+/// Where in a part's nodal forces (24 values an element, in element order) component `d`
+/// of corner `c`'s force of element `e` is.
 const fn force_slot(e: usize, c: usize, d: usize) -> usize {
-    (e / BLOCK) * 24 * BLOCK + (3 * c + d) * BLOCK + e % BLOCK
+    24 * e + 3 * c + d
 }
 
 /// [`element_block_body`] eight elements side by side in one AVX-512 register each value, or
@@ -1356,7 +1364,7 @@ mod tests {
                     dt,
                 };
                 assert_eq!(f(b), None);
-                forces.extend(out.chunks(BLOCK).flat_map(|v| &v[..n_el]).copied());
+                forces.extend(out[..24 * n_el].iter().copied());
             }
             (forces, states.to_vec())
         };
