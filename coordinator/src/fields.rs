@@ -562,7 +562,12 @@ fn draw(
     }
     let length_scale = scale_bar(root, px_per_m, text)?;
     if text {
-        let names: Vec<&str> = frames.iter().map(|f| f.node.as_str()).collect();
+        let mut names: Vec<&str> = Vec::new();
+        for f in frames {
+            if !names.contains(&f.node.as_str()) {
+                names.push(&f.node);
+            }
+        }
         root.draw(&Text::new(
             format!("{title}t = {t:.4e} s   nodes: {}", names.join(", ")),
             (40, 20),
@@ -886,10 +891,28 @@ fn oblique_view(
         }
     }
     let view = View::fit(plo, phi, PLOT);
-    let mut scales: Vec<Scale> = draw_surfaces(root, frames, choice, &camera, &view)?
-        .into_iter()
-        .collect();
-    scales.extend(draw_particles(root, frames, choice, &camera, &view)?);
+    let (faces, surface) = surfaces(frames, choice, &camera);
+    let (fields, shared) = particle_fields(frames, choice);
+    let mut particle_scales = particle_scales(&shared);
+    // A node whose surfaces and particles show the same field (hexahedra around an SPG
+    // core) gets one scale over both, drawn once.
+    let mut surface = surface;
+    if let Some(sc) = &mut surface
+        && let Some(k) = particle_scales.iter().position(|p| p.label == sc.label)
+    {
+        let p = particle_scales.remove(k);
+        let span = (sc.lo.min(p.lo), sc.hi.max(p.hi));
+        *sc = Scale::new(sc.label.clone(), span, false);
+        particle_scales.insert(k, sc.clone());
+    }
+    paint_surfaces(root, faces, surface.as_ref(), &view)?;
+    paint_particles(root, &fields, &shared, &particle_scales, &camera, &view)?;
+    let mut scales: Vec<Scale> = surface.into_iter().collect();
+    for sc in particle_scales {
+        if !scales.iter().any(|s| s.label == sc.label) {
+            scales.push(sc);
+        }
+    }
     Ok((scales, view.scale))
 }
 
@@ -946,19 +969,20 @@ impl Oblique {
     }
 }
 
-/// Every polygon of every frame with its colour value, drawn far to near: coloured by the
-/// chosen field, else by plastic strain, stress or displacement, whichever varies first; the
-/// scale of the chosen node's field, else of the first frame with polygons.
-fn draw_surfaces(
-    root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+/// A polygon in the view: depth, projected corners, colour value.
+type Face = (f64, Vec<[f64; 3]>, f64);
+
+/// Every polygon of every frame with its colour value: coloured by the chosen field, else by
+/// plastic strain, stress or displacement, whichever varies first; the scale of the chosen
+/// node's field, else of the first frame with polygons (None without polygons).
+fn surfaces(
     frames: &[Frame],
     choice: Option<Choice>,
     camera: &Oblique,
-    view: &View,
-) -> anyhow::Result<Option<Scale>> {
-    let mut faces: Vec<(f64, Vec<[f64; 3]>, f64, usize)> = Vec::new();
+) -> (Vec<Face>, Option<Scale>) {
+    let mut faces: Vec<Face> = Vec::new();
     let mut bar_name = None;
-    for (fi, f) in frames.iter().enumerate() {
+    for f in frames {
         let ne = f.polygons.len();
         let cell = pick(
             &f.cell_data,
@@ -984,42 +1008,55 @@ fn draw_surfaces(
                 }
                 _ => 0.0,
             };
-            faces.push((depth, q, v, fi));
+            faces.push((depth, q, v));
         }
         let is_chosen = choice.is_some_and(|c| c.node == f.node);
         if (bar_name.is_none() || is_chosen) && ne > 0 {
             bar_name = cell.or(point).map(|a| caption(&f.node, a));
         }
     }
-    let sc = Scale::new(
-        bar_name.clone().unwrap_or_default(),
-        range(faces.iter().map(|f| f.2)),
-        false,
-    );
+    let sc = bar_name.map(|name| Scale::new(name, range(faces.iter().map(|f| f.2)), false));
+    (faces, sc)
+}
+
+/// The polygons far to near, shaded by their facing, in the colours of `sc`.
+fn paint_surfaces(
+    root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    mut faces: Vec<Face>,
+    sc: Option<&Scale>,
+    view: &View,
+) -> anyhow::Result<()> {
+    let fallback;
+    let sc = match sc {
+        Some(sc) => sc,
+        None => {
+            fallback = Scale::new(String::new(), range(faces.iter().map(|f| f.2)), false);
+            &fallback
+        }
+    };
     faces.sort_by(|a, b| b.0.total_cmp(&a.0));
-    for (_, q, v, _) in &faces {
+    for (_, q, v) in &faces {
         let n = normal(q);
         let light = 0.35 + 0.65 * n[2].abs();
         let c = shade(sc.colour(*v), light);
         let pts: Vec<(i32, i32)> = q.iter().map(|p| view.px(p[0], p[1])).collect();
         root.draw(&Polygon::new(pts, c.filled()))?;
     }
-    Ok(bar_name.map(|_| sc))
+    Ok(())
 }
 
-/// The particles of the frames without polygons, far to near: by a chosen field, else by
-/// damage (or the joint's broken-bond fraction) on 0..1 where it varies, else by the stress
-/// or the displacement. Frames drawn by the same field share one scale (ten joints, one
-/// colour bar).
-fn draw_particles(
-    root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
-    frames: &[Frame],
-    choice: Option<Choice>,
-    camera: &Oblique,
-    view: &View,
-) -> anyhow::Result<Vec<Scale>> {
-    // each frame's field and whether it is a fraction on 0..1
-    let fields: Vec<(&Frame, Option<(&Array, bool)>)> = frames
+/// A frame's particle field and whether it is a fraction on 0..1.
+type ParticleField<'a> = (&'a Frame, Option<(&'a Array, bool)>);
+
+/// The field of the particles of each frame without polygons: a chosen field, else damage
+/// (or the joint's broken-bond fraction) on 0..1 where it varies, else the stress or the
+/// displacement; and the fields shared by frames (ten joints, one colour bar), each with its
+/// span over every frame it colours.
+fn particle_fields<'a>(
+    frames: &'a [Frame],
+    choice: Option<Choice<'a>>,
+) -> (Vec<ParticleField<'a>>, Vec<Shared<'a>>) {
+    let fields: Vec<ParticleField> = frames
         .iter()
         .filter(|f| f.polygons.is_empty())
         .map(|f| {
@@ -1060,7 +1097,12 @@ fn draw_particles(
             }),
         }
     }
-    let scales: Vec<Scale> = shared
+    (fields, shared)
+}
+
+/// The colour scale of each shared particle field, named by its nodes.
+fn particle_scales(shared: &[Shared]) -> Vec<Scale> {
+    shared
         .iter()
         .map(|s| {
             let who = match s.nodes.as_slice() {
@@ -1075,13 +1117,25 @@ fn draw_particles(
             };
             Scale::new(label(&who, s.name, s.measure), s.span, false)
         })
-        .collect();
-    for (f, field) in &fields {
+        .collect()
+}
+
+/// The particles far to near as dots, each field in its shared scale (`scales[k]` is
+/// `shared[k]`'s).
+fn paint_particles(
+    root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    fields: &[ParticleField],
+    shared: &[Shared],
+    scales: &[Scale],
+    camera: &Oblique,
+    view: &View,
+) -> anyhow::Result<()> {
+    for (f, field) in fields {
         let n = f.points.len();
         let r = if n > 20_000 { 1 } else { 2 };
         let sc = field.and_then(|(a, _)| {
             let k = shared.iter().position(|s| s.name == a.name)?;
-            Some(&scales[k])
+            scales.get(k)
         });
         let mut order: Vec<(f64, usize)> = f
             .points
@@ -1099,7 +1153,7 @@ fn draw_particles(
             root.draw(&Circle::new(view.px(q[0], q[1]), r, c.filled()))?;
         }
     }
-    Ok(scales)
+    Ok(())
 }
 
 /// A field that colours the particles of several frames: its name, the nodes, the span of
@@ -1161,7 +1215,7 @@ fn colour_bar(
         ))?;
     }
     // the caption above the bar, right-aligned to the picture's edge and kept right of the
-    // plot: on two lines (`node: field` over `(measure) [unit]`) where one is too wide
+    // plot: on as many lines as it needs, broken between words (`node: field (measure) [unit]`)
     let caption = ("sans-serif", 15).into_font();
     let style = caption.clone().into_text_style(root);
     let width = |t: &str| {
@@ -1169,12 +1223,16 @@ fn colour_bar(
             .map_or(0, |(w, _)| w as i32)
     };
     let room = 1195 - (PLOT.0 + PLOT.2 + 8);
-    let lines: Vec<String> = match sc.label.find(" (").or_else(|| sc.label.find(" [")) {
-        Some(i) if width(&sc.label) > room => {
-            vec![sc.label[..i].to_string(), sc.label[i + 1..].to_string()]
+    let mut lines: Vec<String> = Vec::new();
+    for word in sc.label.split(' ') {
+        match lines.last_mut() {
+            Some(line) if width(&format!("{line} {word}")) <= room => {
+                line.push(' ');
+                line.push_str(word);
+            }
+            _ => lines.push(word.to_string()),
         }
-        _ => vec![sc.label.clone()],
-    };
+    }
     for (k, line) in lines.iter().rev().enumerate() {
         let x = (1195 - width(line)).max(PLOT.0 + PLOT.2 + 8);
         root.draw(&Text::new(

@@ -3,7 +3,8 @@
 //! one table in the run's folder (`joint_report.csv`, the node first) and printed at the end
 //! of a run, as crash analysts read joint forces. The joint's own columns are the node's:
 //! name, peak force (N) and its time (s), failure time (s, empty if none) and mode
-//! (`pull-out`, `interfacial` or `none`), then whatever the node adds.
+//! (the meso-joint node's `pull-out`, `interfacial`, `rupture`, or `none`; another node may
+//! name its own), then whatever the node adds.
 
 use std::path::Path;
 
@@ -15,7 +16,7 @@ pub struct JointRow {
     /// Peak force (N) and its time (s).
     pub peak: f64,
     pub peak_time: f64,
-    /// Failure time (s) and mode (`pull-out`, `interfacial`), if it failed.
+    /// Failure time (s) and mode (`pull-out`, `interfacial`, `rupture`, ...), if it failed.
     pub failure: Option<(f64, String)>,
 }
 
@@ -59,7 +60,9 @@ pub fn collect(dir: &Path) -> Result<Vec<JointRow>, String> {
             let num = |s: &str| s.parse::<f64>().map_err(|_| bad("not a number"));
             let failure = match (&rec[3], &rec[4]) {
                 ("", "none") => None,
-                (t, mode @ ("pull-out" | "interfacial")) => Some((num(t)?, mode.to_string())),
+                (t, mode) if !t.is_empty() && !mode.is_empty() && mode != "none" => {
+                    Some((num(t)?, mode.to_string()))
+                }
                 _ => return Err(bad("failure time and mode do not agree")),
             };
             rows.push(JointRow {
@@ -156,6 +159,23 @@ mod tests {
             l[0]
         );
         assert!(l[2].ends_with("not failed"), "{}", l[2]);
+        // a node's own mode is kept; a mode without a time, or a time without one, is refused
+        std::fs::write(
+            dir.join("j2/joint_report.csv"),
+            format!("{header}\nj2,1500,0.01,0.02,rupture,7,0\n"),
+        )
+        .unwrap();
+        let rows = collect(&dir).unwrap();
+        assert_eq!(rows[2].failure, Some((0.02, "rupture".into())));
+        for body in ["j2,1500,0.01,,rupture,0,0", "j2,1500,0.01,0.02,none,0,0"] {
+            std::fs::write(
+                dir.join("j2/joint_report.csv"),
+                format!("{header}\n{body}\n"),
+            )
+            .unwrap();
+            let e = collect(&dir).unwrap_err();
+            assert!(e.contains("failure time and mode do not agree"), "{e}");
+        }
         // a damaged table is an error naming its file and line
         std::fs::write(
             dir.join("j2/joint_report.csv"),

@@ -99,9 +99,12 @@ pub struct JointFailure {
 impl JointFailure {
     /// `interfacial` when the fastener–plate bonds broke at least as often as the plates'
     /// own (the fastener came loose at its interface), else `pull-out` (the plate material
-    /// around the fastener tore: the fastener pulls out of the sheet).
-    pub fn mode(&self) -> &'static str {
-        if self.interface_bonds > 0 && self.interface_bonds >= self.material_bonds {
+    /// around the fastener tore: the fastener pulls out of the sheet); `rupture` for a part
+    /// without a fastener (a block: the material itself parted).
+    pub fn mode(&self, fastened: bool) -> &'static str {
+        if !fastened {
+            "rupture"
+        } else if self.interface_bonds > 0 && self.interface_bonds >= self.material_bonds {
             "interfacial"
         } else {
             "pull-out"
@@ -486,10 +489,13 @@ impl SpgSolver {
             .iter()
             .enumerate()
             .map(|(k, j)| {
+                let placement = self.params.placements.get(k);
+                let fastened =
+                    !matches!(self.params.geometry_for(placement), Geometry::Block { .. });
                 let (time, mode, material, interface) = match &j.failure {
                     Some(f) => (
                         format!("{:e}", f.time),
-                        f.mode(),
+                        f.mode(fastened),
                         f.material_bonds,
                         f.interface_bonds,
                     ),

@@ -447,6 +447,9 @@ fn every_code_example_of_the_documents_runs_or_checks() {
         .expect("cp");
     assert!(copied.success());
     let _ = std::fs::remove_dir_all(dir.join("examples/out"));
+    // the C node the split bar's `c` variant names (validating the case checks every
+    // variant's executable), built into the copy: other tests build the tree's own
+    assert!(build_c_bar(&dir.join("examples/external/bar-c")).is_some());
     // the build, and the C participant's header the external example's Makefile finds
     for link in ["target", "participant-c"] {
         std::os::unix::fs::symlink(workspace_root().join(link), dir.join(link)).unwrap();
