@@ -254,7 +254,7 @@ pub struct Params {
     /// Separation after bond failure: a particle keeping less than this share of its
     /// kernel weight (eq. 16, broken bonds weigh zero) is cut loose — it carries no stress
     /// and moves on as a free lump of mass. 0 (default): only when its remaining support is
-    /// singular. Values near 1 erode particles at their first broken bonds (robust through
+    /// singular or has collapsed onto a plane or a line (whatever this value). Values near 1 erode particles at their first broken bonds (robust through
     /// tearing, as in the joint examples, but it weakens a damaged zone under compression).
     #[serde(default)]
     pub separation_weight: f64,

@@ -222,7 +222,9 @@ impl Rows {
                 }
                 // A row that has lost most of its kernel weight to broken bonds is as good
                 // as cut loose (its moment matrix is near-singular and its gradients would
-                // be wild): detach it before it is exactly singular.
+                // be wild): detach it before it is exactly singular. So is a row whose
+                // intact bonds have all but collapsed onto a plane or a line (see
+                // `support_collapsed`), whatever weight they keep.
                 let mut full = 0.0;
                 let mut kept = 0.0;
                 for k in 0..phi.len() {
@@ -230,7 +232,10 @@ impl Rows {
                     full += c;
                     kept += w[k] * vw[k];
                 }
-                let res = if detach.is_some_and(|f| kept < f * full) {
+                let collapsed = detach.is_some()
+                    && kept < full
+                    && support_collapsed(d, w, vw, &len0[base..base + phi.len()], support);
+                let res = if detach.is_some_and(|f| kept < f * full) || collapsed {
                     Err(())
                 } else {
                     rk_row(d, w, vw, support, phi, grad).map_err(|_| ())
@@ -314,7 +319,16 @@ impl Rows {
                     full += cubic_spline(len0[p] / support) * vw[k];
                     kept += w[p] * vw[k];
                 }
-                let res = if detach.is_some_and(|f| kept < f * full) {
+                let collapsed = detach.is_some()
+                    && kept < full
+                    && support_collapsed(
+                        &d[r.clone()],
+                        &w[r.clone()],
+                        vw,
+                        &len0[r.clone()],
+                        support,
+                    );
+                let res = if detach.is_some_and(|f| kept < f * full) || collapsed {
                     Err(())
                 } else {
                     rk_values(&d[r.clone()], &w[r.clone()], vw, support, psi).map_err(|_| ())
@@ -362,4 +376,101 @@ pub fn split_rows<'a, T>(mut buf: &'a mut [T], offsets: &[usize]) -> Vec<&'a mut
         buf = b;
     }
     out
+}
+
+/// Least spread of a row's intact support, as a share of its full support's, below which the
+/// row is detached: [`support_collapsed`].
+pub const SUPPORT_SPREAD_MIN: f64 = 0.1;
+
+/// Whether the intact bonds of a row (weights `w`, zero for broken ones; quadrature weights
+/// `vw`; anchor offsets `d`) have collapsed onto a plane or a line: the least eigenvalue of
+/// their weighted covariance below [`SUPPORT_SPREAD_MIN`] of the whole row's (every bond at
+/// its kernel weight, `len0`). Such a row's moment matrix is near-singular in the lost
+/// direction, and its gradients along it are wild: in a necking bar, the bonds along the bar
+/// break (stretched, plastic) while those across it, compressed by the contraction, hold, and
+/// a particle keeping only those would see any motion along the bar as an enormous strain. A
+/// one-sided support (a free surface, one face of a crack) keeps a quarter or more of the
+/// spread and is not detached.
+fn support_collapsed(d: &[[f64; 3]], w: &[f64], vw: &[f64], len0: &[f64], support: f64) -> bool {
+    let spread = |weight: &dyn Fn(usize) -> f64| {
+        let (mut s, mut m1) = (0.0, [0.0; 3]);
+        let mut m2 = [[0.0; 3]; 3];
+        for k in 0..d.len() {
+            let c = weight(k) * vw[k];
+            s += c;
+            for a in 0..3 {
+                m1[a] += c * d[k][a];
+                for b in 0..3 {
+                    m2[a][b] += c * d[k][a] * d[k][b];
+                }
+            }
+        }
+        if !(s > 0.0) {
+            return 0.0;
+        }
+        let cov =
+            mechanics::tensor::Matrix3::from_fn(|a, b| m2[a][b] / s - m1[a] * m1[b] / (s * s));
+        cov.symmetric_eigenvalues().min()
+    };
+    let full = spread(&|k| cubic_spline(len0[k] / support));
+    let kept = spread(&|k| w[k]);
+    kept < SUPPORT_SPREAD_MIN * full
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The neighbours of a lattice particle (spacing 0.5, support 1) and their kernel weights:
+    /// (offsets, weights, volumes, reference lengths).
+    fn lattice_row() -> (Vec<[f64; 3]>, Vec<f64>, Vec<f64>, Vec<f64>) {
+        let mut d = Vec::new();
+        for i in -2i32..=2 {
+            for j in -2i32..=2 {
+                for k in -2i32..=2 {
+                    let x = [0.5 * i as f64, 0.5 * j as f64, 0.5 * k as f64];
+                    let r = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+                    if r < 1.0 {
+                        d.push(x);
+                    }
+                }
+            }
+        }
+        let len0: Vec<f64> = d
+            .iter()
+            .map(|x| (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt())
+            .collect();
+        let w = len0.iter().map(|&r| cubic_spline(r)).collect();
+        (d.clone(), w, vec![1.0; d.len()], len0)
+    }
+
+    #[test]
+    fn a_row_keeping_only_bonds_across_the_bar_is_collapsed_a_one_sided_row_is_not() {
+        let (d, w, vw, len0) = lattice_row();
+        assert!(d.len() > 20, "{} neighbours", d.len());
+        // intact
+        assert!(!support_collapsed(&d, &w, &vw, &len0, 1.0));
+        // a necking bar along x: every bond with a component along x broken, the bonds in
+        // the particle's own cross-section kept (most of the weight of the nearest ones)
+        let across: Vec<f64> = d
+            .iter()
+            .zip(&w)
+            .map(|(x, &w)| if x[0] == 0.0 { w } else { 0.0 })
+            .collect();
+        let kept: f64 = across.iter().sum::<f64>() / w.iter().sum::<f64>();
+        assert!(kept > 0.3, "kept {kept} of the weight");
+        assert!(support_collapsed(&d, &across, &vw, &len0, 1.0));
+        // ... and with a trace of one diagonal bond left: still collapsed
+        let mut trace = across.clone();
+        let k = d.iter().position(|x| x == &[0.5, 0.5, 0.0]).unwrap();
+        trace[k] = w[k];
+        assert!(support_collapsed(&d, &trace, &vw, &len0, 1.0));
+        // one face of a crack: the bonds to one side broken, the rest kept
+        let one_sided: Vec<f64> = d
+            .iter()
+            .zip(&w)
+            .map(|(x, &w)| if x[0] > 0.0 { 0.0 } else { w })
+            .collect();
+        assert!(!support_collapsed(&d, &one_sided, &vw, &len0, 1.0));
+    }
 }
