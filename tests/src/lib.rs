@@ -627,11 +627,16 @@ pub fn build_c_bar(exe: &Path) -> Option<PathBuf> {
         return None;
     }
     let root = workspace_root();
+    // built beside it and renamed over it: tests build the same file side by side, and one
+    // may be running the old one (a rename keeps its inode alive; writing in place would not)
+    static BUILDS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let k = BUILDS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let tmp = exe.with_extension(format!("building-{}-{k}", std::process::id()));
     let status = Command::new("cc")
         .args(["-O2", "-Wall", "-Wextra", "-Werror", "-I"])
         .arg(root.join("participant-c/include"))
         .arg("-o")
-        .arg(exe)
+        .arg(&tmp)
         .arg(root.join("examples/external/bar.c"))
         .arg("-L")
         .arg(&lib)
@@ -643,6 +648,7 @@ pub fn build_c_bar(exe: &Path) -> Option<PathBuf> {
         return None;
     }
     assert!(status.is_ok_and(|s| s.success()), "bar.c does not compile");
+    std::fs::rename(&tmp, exe).expect("the built C node renamed into place");
     Some(exe.to_path_buf())
 }
 

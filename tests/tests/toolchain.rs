@@ -745,6 +745,8 @@ fn a_chosen_field_colours_its_node_and_every_frame_can_be_drawn() {
 
 #[test]
 fn validate_json_names_the_key_or_lists_the_case() {
+    // validating the case checks every variant's executable: the `c` variant's C node
+    assert!(build_c_bar(&workspace_root().join("examples/external/bar-c")).is_some());
     let case = workspace_root().join("examples/split_bar.toml");
     let o = cosim(&["validate", case.to_str().unwrap(), "--json"]);
     assert_eq!(
