@@ -178,6 +178,10 @@ pub struct Model {
     pub steps: u64,
     pub time: f64,
     pub broken_bonds: usize,
+    /// Broken bonds by the part of the particle whose row holds them: [within the material,
+    /// with a rigid body], each bond counted from both ends (kept as they break; recounted
+    /// from the bonds on loading a checkpoint, [`Model::count_broken_by_part`]).
+    pub broken_by_part: Vec<[u64; 2]>,
     /// Row rebuilds that found a particle cut loose by broken bonds (detached rows).
     pub detached: usize,
     /// The damage zone: particles that have lost a bond, and their support neighbours.
@@ -307,6 +311,7 @@ impl Model {
             steps: 0,
             time: 0.0,
             broken_bonds: 0,
+            broken_by_part: Vec::new(),
             detached: 0,
             damaged: vec![false; n],
             separation_weight: 0.0,
@@ -341,6 +346,7 @@ impl Model {
         }
         m.rebuild_shapes(None)?;
         m.update_rigid_mass();
+        m.broken_by_part = m.count_broken_by_part();
         Ok(m)
     }
 
@@ -857,8 +863,11 @@ impl Model {
         for (p, &b) in newly.iter().enumerate() {
             if b {
                 self.rows.alive[p] = false;
-                self.dirty[self.rows.row_of[p] as usize] = true;
+                let (i, j) = (self.rows.row_of[p] as usize, self.rows.cols[p] as usize);
+                self.dirty[i] = true;
                 self.broken_bonds += 1;
+                let with_rigid = self.kind[i] == Kind::Rigid || self.kind[j] == Kind::Rigid;
+                self.broken_by_part[self.part[i] as usize][with_rigid as usize] += 1;
                 any = true;
             }
         }
@@ -892,6 +901,22 @@ impl Model {
                 });
         }
         Ok(())
+    }
+
+    /// Broken bonds by the part of the particle whose row holds them, [within the material,
+    /// with a rigid body], counted from the bonds (what [`Model::broken_by_part`] keeps).
+    pub fn count_broken_by_part(&self) -> Vec<[u64; 2]> {
+        let parts = self.part.iter().max().map_or(0, |&p| p as usize + 1);
+        let mut n = vec![[0u64; 2]; parts];
+        for (p, &alive) in self.rows.alive.iter().enumerate() {
+            let (i, j) = (self.rows.row_of[p] as usize, self.rows.cols[p] as usize);
+            if alive || i == j {
+                continue;
+            }
+            let with_rigid = self.kind[i] == Kind::Rigid || self.kind[j] == Kind::Rigid;
+            n[self.part[i] as usize][with_rigid as usize] += 1;
+        }
+        n
     }
 
     /// Re-anchor the adaptive anisotropic Lagrangian kernel at the current configuration

@@ -113,24 +113,13 @@ impl JointFailure {
 }
 
 /// Broken bonds of placement `k` (parts `3k`, `3k + 1`, `3k + 2`): (within a plate, between
-/// the fastener and a plate).
+/// the fastener and a plate), each counted from both ends.
 fn broken_bonds_of(m: &Model, k: usize) -> (u64, u64) {
-    let (mut material, mut interface) = (0, 0);
-    for (p, &alive) in m.rows.alive.iter().enumerate() {
-        if alive {
-            continue;
-        }
-        let (i, j) = (m.rows.row_of[p] as usize, m.rows.cols[p] as usize);
-        if i == j || m.part[i] as usize / 3 != k {
-            continue;
-        }
-        if m.kind[i] == Kind::Rigid || m.kind[j] == Kind::Rigid {
-            interface += 1;
-        } else {
-            material += 1;
-        }
-    }
-    (material, interface)
+    m.broken_by_part
+        .iter()
+        .skip(3 * k)
+        .take(3)
+        .fold((0, 0), |(a, b), n| (a + n[0], b + n[1]))
 }
 
 fn unit(a: Vector3<f64>) -> Vector3<f64> {
@@ -1010,6 +999,7 @@ impl Solver for SpgSolver {
         m.steps = s.steps;
         m.time = s.time;
         m.broken_bonds = s.broken_bonds;
+        m.broken_by_part = m.count_broken_by_part();
         m.detached = s.detached;
         m.damaged = s.damaged;
         m.bc_work = s.bc_work;

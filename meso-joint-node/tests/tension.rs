@@ -169,6 +169,10 @@ fn failure_starts_at_eps_crit_in_tension_and_never_in_compression() {
         }
     }
     assert!(m.broken_bonds > 0, "no bond broke");
+    // The per-part counts kept as bonds break are the bonds' own count (the joint report's).
+    assert_eq!(m.broken_by_part, m.count_broken_by_part());
+    let kept: u64 = m.broken_by_part.iter().map(|n| n[0] + n[1]).sum();
+    assert_eq!(kept, m.broken_bonds as u64);
     eprintln!(
         "first failure: pair-averaged ε̄ᵖ of stretched bonds before the step {before:.5} (ε_crit {eps_crit}), {} bonds broke",
         m.broken_bonds
