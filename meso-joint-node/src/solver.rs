@@ -68,8 +68,13 @@ pub struct SpgSolver {
 }
 
 /// A joint has failed when its force, after its peak, falls below this fraction of the peak
-/// while bonds of the joint are broken.
+/// while bonds of the joint are broken...
 pub const FAILURE_FRACTION: f64 = 0.1;
+
+/// ... unless it carries this fraction of its peak again later: then it had only been
+/// unloaded (a crash tube's folds unload a joint and load it again), and the failure is
+/// taken back.
+pub const RECOVERY_FRACTION: f64 = 0.5;
 
 /// One joint of the report (a placement, or the node's one joint without placements): its
 /// force's peak and when, and when and how it failed. The joint's force is the largest
@@ -84,6 +89,31 @@ pub struct JointTrack {
     pub peak: f64,
     pub peak_time: f64,
     pub failure: Option<JointFailure>,
+}
+
+impl JointTrack {
+    /// One window's force `force` at time `t`: the peak, and the failure (with the broken
+    /// bonds `broken` counts then, as (within a plate, fastener–plate)) or its recovery.
+    pub fn observe(&mut self, t: f64, force: f64, broken: impl FnOnce() -> (u64, u64)) {
+        if force > self.peak {
+            self.peak = force;
+            self.peak_time = t;
+        }
+        match self.failure {
+            Some(_) if force > RECOVERY_FRACTION * self.peak => self.failure = None,
+            None if force < FAILURE_FRACTION * self.peak => {
+                let (material_bonds, interface_bonds) = broken();
+                if material_bonds + interface_bonds > 0 {
+                    self.failure = Some(JointFailure {
+                        time: t,
+                        material_bonds,
+                        interface_bonds,
+                    });
+                }
+            }
+            _ => {}
+        }
+    }
 }
 
 /// When a joint failed and which of its bonds were broken then.
@@ -427,7 +457,8 @@ impl SpgSolver {
 
     /// The joint report at time `t` from this window's reactions and region forces: each
     /// joint's peak, and its failure once its force has fallen below [`FAILURE_FRACTION`] of
-    /// the peak with some of its bonds broken.
+    /// the peak with some of its bonds broken, unless it rises past [`RECOVERY_FRACTION`] of
+    /// the peak again ([`JointTrack::observe`]).
     fn track_joints(&mut self, t: f64, reactions: &[[f64; 3]], regions: &[[f64; 3]]) {
         let norm = |f: &[f64; 3]| (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
         for (k, j) in self.joints.iter_mut().enumerate() {
@@ -439,23 +470,7 @@ impl SpgSolver {
             } else {
                 reactions.iter().map(norm).fold(0.0, f64::max)
             };
-            if force > j.peak {
-                j.peak = force;
-                j.peak_time = t;
-            }
-            if j.failure.is_none()
-                && self.model.broken_bonds > 0
-                && force < FAILURE_FRACTION * j.peak
-            {
-                let (material_bonds, interface_bonds) = broken_bonds_of(&self.model, k);
-                if material_bonds + interface_bonds > 0 {
-                    j.failure = Some(JointFailure {
-                        time: t,
-                        material_bonds,
-                        interface_bonds,
-                    });
-                }
-            }
+            j.observe(t, force, || broken_bonds_of(&self.model, k));
         }
     }
 
@@ -1114,4 +1129,47 @@ struct ModelState {
     max_eps: f64,
     contact_pairs: Vec<(u32, u32)>,
     contact_energy: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn track() -> JointTrack {
+        JointTrack {
+            name: "j".into(),
+            regions: vec![],
+            peak: 0.0,
+            peak_time: 0.0,
+            failure: None,
+        }
+    }
+
+    #[test]
+    fn a_joint_unloaded_and_loaded_again_has_not_failed_a_torn_one_has() {
+        let mut j = track();
+        let bonds = || (5, 1);
+        for (t, f) in [(1.0, 500.0), (2.0, 1000.0), (3.0, 80.0)] {
+            j.observe(t, f, bonds);
+        }
+        // below a tenth of the peak with bonds broken: failed at 3
+        assert_eq!(j.failure.as_ref().map(|f| f.time), Some(3.0));
+        // a little load again (debris, contact): still failed
+        j.observe(4.0, 300.0, bonds);
+        assert_eq!(j.failure.as_ref().map(|f| f.time), Some(3.0));
+        // half its peak again: it had only been unloaded
+        j.observe(5.0, 600.0, bonds);
+        assert!(j.failure.is_none());
+        // a higher peak, then the tear: failed at 7, after its peak
+        j.observe(6.0, 1200.0, bonds);
+        j.observe(7.0, 100.0, bonds);
+        assert_eq!((j.peak, j.peak_time), (1200.0, 6.0));
+        let f = j.failure.as_ref().expect("failed");
+        assert_eq!((f.time, f.material_bonds, f.interface_bonds), (7.0, 5, 1));
+        // no broken bond: unloaded, not failed
+        let mut k = track();
+        k.observe(1.0, 1000.0, || (0, 0));
+        k.observe(2.0, 0.0, || (0, 0));
+        assert!(k.failure.is_none());
+    }
 }
