@@ -331,7 +331,8 @@ fn coupon_pulled_to_rupture_necks_and_breaks_alike_in_both_models() {
         );
     }
     // The neck in the last frame before the earlier tear, in both models' particles.
-    let window = fs[before - 1].0 / 3.5e-5;
+    // the window of series entry `before − 1` (the series holds windows 1, 2, ...)
+    let window = before as f64;
     let necks: Vec<Neck> = [(&single, "coupon"), (&two, "centre")]
         .iter()
         .map(|(out, node)| {
@@ -374,8 +375,14 @@ fn coupon_pulled_to_rupture_necks_and_breaks_alike_in_both_models() {
     let (k, _) = last_frame_before(&single.join("coupon"), window.round() as u64);
     let choice = coordinator::fields::Choice::parse("coupon.eq_plastic_strain").expect("choice");
     let png = single.join("neck.png");
-    let p = coordinator::fields::render(&single, Some(k as f64 * 3.5e-5), &png, Some(choice), None)
-        .expect("a picture");
+    let p = coordinator::fields::render(
+        &single,
+        Some(fs[k as usize - 1].0),
+        &png,
+        Some(choice),
+        None,
+    )
+    .expect("a picture");
     let largest = series(&single, "coupon", "max_eq_plastic_strain")[k as usize - 1].1;
     println!(
         "{}: colour bars {:?}, largest plastic strain {largest}",
