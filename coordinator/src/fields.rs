@@ -416,6 +416,60 @@ impl View {
 const SIZE: (u32, u32) = (1200, 800);
 const PLOT: (i32, i32, i32, i32) = (40, 60, 1000, 700);
 
+/// How the oblique view looks at the solids: which axis points up and the view's turn and
+/// tilt. `Camera::default()` is automatic: the longest axis of the bodies across, the second
+/// up, turned 30° and tilted 20° (a flat body face on).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    /// The axis drawn upwards (0 x, 1 y, 2 z); the next axis in the cycle x → y → z → x is
+    /// drawn across and the third is the depth. None: chosen from the bodies' extents.
+    pub up: Option<usize>,
+    /// Turn about the up axis, degrees (0: looking along the depth axis, a side view).
+    pub yaw: f64,
+    /// Tilt, degrees (positive: looking down on the bodies).
+    pub pitch: f64,
+}
+
+impl Default for Camera {
+    fn default() -> Self {
+        Camera {
+            up: None,
+            yaw: 30.0,
+            pitch: 20.0,
+        }
+    }
+}
+
+impl Camera {
+    /// The camera of `cosim render --up AXIS --yaw DEG --pitch DEG` (each optional).
+    pub fn from_args(
+        up: Option<&str>,
+        yaw: Option<f64>,
+        pitch: Option<f64>,
+    ) -> anyhow::Result<Self> {
+        let d = Camera::default();
+        let up = match up {
+            None => None,
+            Some("x") => Some(0),
+            Some("y") => Some(1),
+            Some("z") => Some(2),
+            Some(o) => anyhow::bail!("--up {o}: must be x, y or z"),
+        };
+        for (name, v) in [("--yaw", yaw), ("--pitch", pitch)] {
+            if let Some(v) = v
+                && !(v.is_finite() && (-180.0..=180.0).contains(&v))
+            {
+                anyhow::bail!("{name} {v}: must be an angle in degrees, -180 to 180");
+            }
+        }
+        Ok(Camera {
+            up,
+            yaw: yaw.unwrap_or(d.yaw),
+            pitch: pitch.unwrap_or(d.pitch),
+        })
+    }
+}
+
 /// A field chosen to colour one node's frame (`cosim plot RUN --field NODE.FIELD`): a cell
 /// or point array of its VTK frames, drawn by magnitude.
 #[derive(Debug, Clone, Copy)]
@@ -547,6 +601,7 @@ fn draw(
     root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
     frames: &[Frame],
     choice: Option<Choice>,
+    camera: Camera,
     t: f64,
     title: &str,
 ) -> anyhow::Result<Picture> {
@@ -555,7 +610,7 @@ fn draw(
     let (scales, px_per_m) = if frames.iter().any(|f| f.grid.is_some()) {
         plane_view(root, frames, choice)?
     } else {
-        oblique_view(root, frames, choice)?
+        oblique_view(root, frames, choice, camera)?
     };
     for (k, sc) in scales.iter().enumerate() {
         colour_bar(root, sc, k, scales.len(), text)?;
@@ -590,6 +645,7 @@ pub fn render(
     png: &Path,
     choice: Option<Choice>,
     node: Option<&str>,
+    camera: Camera,
 ) -> anyhow::Result<Picture> {
     let (frames, t_drawn) = frames_at(run_dir, time, node)?;
     if let Some(c) = choice {
@@ -597,7 +653,7 @@ pub fn render(
     }
     crate::plot::png_whole(png, |tmp| {
         let root = BitMapBackend::new(tmp, SIZE).into_drawing_area();
-        let picture = draw(&root, &frames, choice, t_drawn, "")?;
+        let picture = draw(&root, &frames, choice, camera, t_drawn, "")?;
         root.present()?;
         Ok(picture)
     })
@@ -605,26 +661,33 @@ pub fn render(
 
 /// The chosen field's frames nearest `time` in each of `runs` (name, folder) side by side in
 /// one PNG — a row of up to three, else a near-square grid, each panel captioned with its run's name — on one colour
-/// range, the union of the values of every run, so that the panels compare by colour.
-/// Returns the time drawn in each run.
+/// range, the union of the values of every run, so that the panels compare by colour; every
+/// node of each run, or `node` alone. Returns what each panel drew.
 pub fn render_runs(
     runs: &[(String, PathBuf)],
     time: Option<f64>,
     png: &Path,
     choice: Choice,
-) -> anyhow::Result<Vec<f64>> {
+    node: Option<&str>,
+    camera: Camera,
+) -> anyhow::Result<Vec<Picture>> {
     let mut all = Vec::new();
     let mut span = (f64::INFINITY, f64::NEG_INFINITY);
     for (name, dir) in runs {
-        let (frames, t) = frames_at(dir, time, None)?;
+        let (frames, t) = frames_at(dir, time, node)?;
         check_choice(&frames, choice).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
         for f in frames.iter().filter(|f| f.node == choice.node) {
-            let arrays = if f.grid.is_some() {
-                &f.cell_data
+            // a grid's field is cell data; a solid's is point data (particles) or cell data
+            // (a shell's plastic strain)
+            let found = if f.grid.is_some() {
+                f.cell_data.iter().find(|a| a.name == choice.field)
             } else {
-                &f.point_data
+                f.point_data
+                    .iter()
+                    .chain(&f.cell_data)
+                    .find(|a| a.name == choice.field)
             };
-            if let Some(a) = arrays.iter().find(|a| a.name == choice.field) {
+            if let Some(a) = found {
                 let (lo, hi) = range((0..a.values.len() / a.comps.max(1)).map(|i| magnitude(a, i)));
                 span = (span.0.min(lo), span.1.max(hi));
             }
@@ -648,13 +711,19 @@ pub fn render_runs(
         let root = BitMapBackend::new(tmp, size).into_drawing_area();
         root.fill(&WHITE)?;
         let panels = root.split_evenly((rows, cols));
-        let mut times = Vec::new();
+        let mut drawn = Vec::new();
         for ((name, frames, t), area) in all.iter().zip(&panels) {
-            draw(area, frames, Some(shared), *t, &format!("{name}:   "))?;
-            times.push(*t);
+            drawn.push(draw(
+                area,
+                frames,
+                Some(shared),
+                camera,
+                *t,
+                &format!("{name}:   "),
+            )?);
         }
         root.present()?;
-        Ok(times)
+        Ok(drawn)
     })
 }
 
@@ -673,7 +742,7 @@ pub fn render_nodes(run_dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     let mut files = Vec::with_capacity(nodes.len());
     for n in &nodes {
         let png = run_dir.join(format!("fields_{n}.png"));
-        render(run_dir, None, &png, None, Some(n))?;
+        render(run_dir, None, &png, None, Some(n), Camera::default())?;
         files.push(png);
     }
     Ok(files)
@@ -707,6 +776,7 @@ pub fn render_all(
     run_dir: &Path,
     choice: Option<Choice>,
     node: Option<&str>,
+    camera: Camera,
 ) -> anyhow::Result<Vec<(PathBuf, f64)>> {
     let times = frame_times(run_dir, node)?;
     let dir = run_dir.join("frames");
@@ -714,7 +784,7 @@ pub fn render_all(
     let mut out = Vec::with_capacity(times.len());
     for (k, t) in times.into_iter().enumerate() {
         let png = dir.join(format!("{}_{k:04}.png", node.unwrap_or("fields")));
-        let drawn = render(run_dir, Some(t), &png, choice, node)?;
+        let drawn = render(run_dir, Some(t), &png, choice, node, camera)?;
         out.push((png, drawn.time));
     }
     Ok(out)
@@ -728,6 +798,7 @@ pub fn render_gif(
     choice: Option<Choice>,
     node: Option<&str>,
     delay_ms: u32,
+    camera: Camera,
 ) -> anyhow::Result<(usize, f64)> {
     let times = frame_times(run_dir, node)?;
     if let Some(parent) = gif.parent().filter(|p| !p.as_os_str().is_empty()) {
@@ -743,7 +814,7 @@ pub fn render_gif(
         if let Some(c) = choice {
             check_choice(&frames, c)?;
         }
-        draw(&root, &frames, choice, drawn, "")?;
+        draw(&root, &frames, choice, camera, drawn, "")?;
         root.present()
             .with_context(|| format!("cannot write {}", gif.display()))?;
         last = drawn;
@@ -879,8 +950,9 @@ fn oblique_view(
     root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
     frames: &[Frame],
     choice: Option<Choice>,
+    look: Camera,
 ) -> anyhow::Result<(Vec<Scale>, f64)> {
-    let camera = Oblique::of(frames);
+    let camera = Oblique::of(frames, look);
     let mut plo = [f64::INFINITY; 2];
     let mut phi = [f64::NEG_INFINITY; 2];
     for p in frames.iter().flat_map(|f| f.points.iter()) {
@@ -926,7 +998,7 @@ struct Oblique {
 }
 
 impl Oblique {
-    fn of(frames: &[Frame]) -> Oblique {
+    fn of(frames: &[Frame], camera: Camera) -> Oblique {
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
         for p in frames.iter().flat_map(|f| f.points.iter()) {
@@ -935,15 +1007,20 @@ impl Oblique {
                 hi[d] = hi[d].max(p[d]);
             }
         }
-        let mut axes = [0usize, 1, 2];
-        axes.sort_by(|&a, &b| (hi[b] - lo[b]).total_cmp(&(hi[a] - lo[a])));
-        // a flat body (a 2-D model's particles or mesh) is seen face on
-        let flat = hi[axes[2]] - lo[axes[2]] <= 1e-9 * (hi[axes[0]] - lo[axes[0]]);
-        let (yaw, pitch) = if flat {
-            (0.0, 0.0)
+        let (axes, yaw, pitch) = if let Some(up) = camera.up {
+            ([(up + 1) % 3, up, (up + 2) % 3], camera.yaw, camera.pitch)
         } else {
-            (30f64.to_radians(), 20f64.to_radians())
+            let mut axes = [0usize, 1, 2];
+            axes.sort_by(|&a, &b| (hi[b] - lo[b]).total_cmp(&(hi[a] - lo[a])));
+            // a flat body (a 2-D model's particles or mesh) is seen face on
+            let flat = hi[axes[2]] - lo[axes[2]] <= 1e-9 * (hi[axes[0]] - lo[axes[0]]);
+            if flat {
+                (axes, 0.0, 0.0)
+            } else {
+                (axes, camera.yaw, camera.pitch)
+            }
         };
+        let (yaw, pitch) = (yaw.to_radians(), pitch.to_radians());
         Oblique {
             axes,
             centre: std::array::from_fn(|d| 0.5 * (lo[d] + hi[d])),
@@ -1015,7 +1092,17 @@ fn surfaces(
             bar_name = cell.or(point).map(|a| caption(&f.node, a));
         }
     }
-    let sc = bar_name.map(|name| Scale::new(name, range(faces.iter().map(|f| f.2)), false));
+    // the chosen field's range where several pictures share one (if it is the surfaces'
+    // field), else the values drawn
+    let span = choice
+        .filter(|c| {
+            frames
+                .iter()
+                .any(|f| f.node == c.node && !f.polygons.is_empty())
+        })
+        .and_then(|c| c.span)
+        .unwrap_or_else(|| range(faces.iter().map(|f| f.2)));
+    let sc = bar_name.map(|name| Scale::new(name, span, false));
     (faces, sc)
 }
 
@@ -1307,4 +1394,68 @@ fn scale_bar(
 fn round_len(v: f64) -> String {
     let s = format!("{v:.3}");
     s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A tall box, 1 × 2 × 4 (x, y, z): its corners.
+    fn tall_box() -> Vec<Frame> {
+        let mut points = Vec::new();
+        for k in 0..8 {
+            points.push([
+                (k & 1) as f64,
+                2.0 * ((k >> 1) & 1) as f64,
+                4.0 * (k >> 2) as f64,
+            ]);
+        }
+        vec![Frame {
+            node: "box".into(),
+            grid: None,
+            points,
+            polygons: Vec::new(),
+            point_data: Vec::new(),
+            cell_data: Vec::new(),
+        }]
+    }
+
+    /// The automatic camera lays the longest axis (z) across and the second (y) up; with
+    /// `--up z --yaw 0 --pitch 0` z is drawn up, x across and y is the depth (a side view),
+    /// and a turn of 90° brings y across.
+    #[test]
+    fn the_camera_puts_the_chosen_axis_up() {
+        let frames = tall_box();
+        let auto = Oblique::of(&frames, Camera::default());
+        assert_eq!(auto.axes, [2, 1, 0]);
+        let side = Camera::from_args(Some("z"), Some(0.0), Some(0.0)).unwrap();
+        let cam = Oblique::of(&frames, side);
+        assert_eq!(cam.axes, [0, 2, 1]);
+        // the top corner (1, 2, 4) relative to the centre (0.5, 1, 2): across 0.5, up 2, depth 1
+        let q = cam.project(&[1.0, 2.0, 4.0]);
+        assert!(
+            (q[0] - 0.5).abs() < 1e-12 && (q[1] - 2.0).abs() < 1e-12,
+            "{q:?}"
+        );
+        assert!((q[2] - 1.0).abs() < 1e-12, "{q:?}");
+        let turned = Oblique::of(
+            &frames,
+            Camera::from_args(Some("z"), Some(90.0), Some(0.0)).unwrap(),
+        );
+        let q = turned.project(&[1.0, 2.0, 4.0]);
+        assert!(
+            (q[0] - 1.0).abs() < 1e-12 && (q[1] - 2.0).abs() < 1e-12,
+            "{q:?}"
+        );
+        for (up, yaw, pitch) in [
+            (Some("w"), None, None),
+            (None, Some(200.0), None),
+            (None, None, Some(f64::NAN)),
+        ] {
+            assert!(
+                Camera::from_args(up, yaw, pitch).is_err(),
+                "{up:?} {yaw:?} {pitch:?}"
+            );
+        }
+    }
 }

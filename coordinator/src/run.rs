@@ -186,7 +186,7 @@ fn draw(
         return;
     }
     let png = out.join("fields.png");
-    match crate::fields::render(out, None, &png, None, None) {
+    match crate::fields::render(out, None, &png, None, None, Default::default()) {
         Ok(_) => summary["fields"] = json!(png),
         Err(e) => tracing::warn!("fields picture of {}: {e:#}", out.display()),
     }
@@ -199,7 +199,7 @@ fn draw(
     if pictures == crate::case::Pictures::Frames {
         let mut files = Vec::new();
         for node in crate::fields::nodes_with_series(out) {
-            match crate::fields::render_all(out, None, Some(&node)) {
+            match crate::fields::render_all(out, None, Some(&node), Default::default()) {
                 Ok(list) => files.extend(list.into_iter().map(|(png, _)| png)),
                 Err(e) => tracing::warn!("frames of node {node}: {e:#}"),
             }

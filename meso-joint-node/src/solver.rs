@@ -65,6 +65,20 @@ pub struct SpgSolver {
     pub history: Vec<HistoryRow>,
     /// The joint report: one entry per joint (placement).
     pub joints: Vec<JointTrack>,
+    /// Each joint's two plates, where it has a fastener (`bolted-plates`): what the
+    /// fastener's force is summed over.
+    plates: Vec<Option<Plates>>,
+}
+
+/// The two plates of one bolted joint: their particles, and their element nodes that are not
+/// particles. The plates touch nothing but the fastener (parts never bond and only the
+/// fastener has a bearing contact) and their coupled rings, so the internal forces summed
+/// over a plate — its particles' and its own element nodes' — are the force the fastener
+/// exerts on it (whatever the plate's inertia, which a sum over the coupled ring carries).
+#[derive(Debug, Clone, Default)]
+struct Plates {
+    particles: [Vec<u32>; 2],
+    nodes: [Vec<u32>; 2],
 }
 
 /// A joint has failed when its force, after its peak, falls below this fraction of the peak
@@ -77,9 +91,10 @@ pub const FAILURE_FRACTION: f64 = 0.1;
 pub const RECOVERY_FRACTION: f64 = 0.5;
 
 /// One joint of the report (a placement, or the node's one joint without placements): its
-/// force's peak and when, and when and how it failed. The joint's force is the largest
-/// magnitude of its coupling regions' forces (each region one side of the joint), or of the
-/// velocity-BC reactions without a coupling.
+/// force's peak and when, and when and how it failed. The joint's force is the force its
+/// fastener carries (`SpgSolver::fastener_forces`); for a part without a fastener (a block)
+/// the largest magnitude of its coupling regions' forces (each region one side of it), or of
+/// the velocity-BC reactions without a coupling.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct JointTrack {
     pub name: String,
@@ -284,6 +299,7 @@ impl SpgSolver {
                 ),
             },
         };
+        let mut solid_node_part: Vec<u32> = Vec::new();
         let solid = match &params.solid {
             None => None,
             Some(sp) => {
@@ -299,6 +315,7 @@ impl SpgSolver {
                         "holds no cell of the geometry: no SPG particle is left",
                     ));
                 }
+                solid_node_part = std::mem::take(&mut mesh.node_part);
                 let hp = mechanics::hex8::HexParams {
                     material: params.material(),
                     density: params.density,
@@ -444,6 +461,31 @@ impl SpgSolver {
                 failure: None,
             })
             .collect();
+        // Plates A and B of placement k are parts 3k and 3k + 1 (the fastener 3k + 2).
+        let mut plates: Vec<Option<Plates>> = placements
+            .iter()
+            .map(|pl| {
+                matches!(params.geometry_for(*pl), Geometry::BoltedPlates { .. })
+                    .then(Plates::default)
+            })
+            .collect();
+        for (i, &part) in model.part.iter().enumerate() {
+            if let Some(Some(p)) = plates.get_mut((part / 3) as usize)
+                && part % 3 < 2
+            {
+                p.particles[(part % 3) as usize].push(i as u32);
+            }
+        }
+        if let Some(sd) = &model.solid {
+            for k in sd.own_nodes() {
+                let part = solid_node_part[k];
+                if let Some(Some(p)) = plates.get_mut((part / 3) as usize)
+                    && part % 3 < 2
+                {
+                    p.nodes[(part % 3) as usize].push(k as u32);
+                }
+            }
+        }
         Ok(SpgSolver {
             mass_scaling_dt: params.mass_scaling_dt,
             params,
@@ -452,17 +494,26 @@ impl SpgSolver {
             coupling,
             history: Vec::new(),
             joints,
+            plates,
         })
     }
 
-    /// The joint report at time `t` from this window's reactions and region forces: each
+    /// The joint report at time `t` from this window's fastener, reaction and region forces: each
     /// joint's peak, and its failure once its force has fallen below [`FAILURE_FRACTION`] of
     /// the peak with some of its bonds broken, unless it rises past [`RECOVERY_FRACTION`] of
     /// the peak again ([`JointTrack::observe`]).
-    fn track_joints(&mut self, t: f64, reactions: &[[f64; 3]], regions: &[[f64; 3]]) {
+    fn track_joints(
+        &mut self,
+        t: f64,
+        reactions: &[[f64; 3]],
+        regions: &[[f64; 3]],
+        fasteners: &[Option<[f64; 3]>],
+    ) {
         let norm = |f: &[f64; 3]| (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
         for (k, j) in self.joints.iter_mut().enumerate() {
-            let force = if self.coupling.is_some() {
+            let force = if let Some(Some(f)) = fasteners.get(k) {
+                norm(f)
+            } else if self.coupling.is_some() {
                 j.regions
                     .iter()
                     .map(|&r| norm(&regions[r]))
@@ -607,6 +658,37 @@ impl SpgSolver {
             }
         }
         s
+    }
+
+    /// The force each joint's fastener carries (None for a joint without one): the force
+    /// it exerts on plate B less the force it exerts on plate A, halved — the force it
+    /// passes from A to B, its own inertia split between the two — each the plate's internal
+    /// forces summed ([`Plates`]).
+    fn fastener_forces(&self) -> Vec<Option<[f64; 3]>> {
+        let f = &self.model.f;
+        let sd = self.model.solid.as_ref();
+        self.plates
+            .iter()
+            .map(|p| {
+                let p = p.as_ref()?;
+                let mut side = [[0.0f64; 3]; 2];
+                for (s, sum) in side.iter_mut().enumerate() {
+                    for &i in &p.particles[s] {
+                        for d in 0..3 {
+                            sum[d] += f[i as usize][d];
+                        }
+                    }
+                    if let Some(sd) = sd {
+                        for &k in &p.nodes[s] {
+                            for d in 0..3 {
+                                sum[d] += sd.f[k as usize][d];
+                            }
+                        }
+                    }
+                }
+                Some(std::array::from_fn(|d| 0.5 * (side[1][d] - side[0][d])))
+            })
+            .collect()
     }
 
     /// The constraint loads per coupling particle (eq. 33 before the `Wᵀ` mapping): the
@@ -838,7 +920,8 @@ impl Solver for SpgSolver {
         let reactions = self.bc_reactions();
         let displacements = self.bc_displacements();
         let regions = self.region_forces();
-        self.track_joints(w.t1, &reactions, &regions);
+        let fasteners = self.fastener_forces();
+        self.track_joints(w.t1, &reactions, &regions, &fasteners);
         let every = self.params.history_every.max(1);
         if w.index.is_multiple_of(every) {
             self.history
@@ -870,6 +953,19 @@ impl Solver for SpgSolver {
         for ((g, r), u) in self.model.bcs.iter().zip(&reactions).zip(&displacements) {
             scalars.push((format!("force_{}_x", g.name), r[0]));
             scalars.push((format!("displacement_{}_x", g.name), u[0]));
+        }
+        for (j, f) in self.joints.iter().zip(&fasteners) {
+            let Some(f) = f else { continue };
+            // `fastener_force_x` for the node's one joint, `fastener_force_<placement>_x` else
+            let name = if self.params.placements.is_empty() {
+                "fastener_force".to_string()
+            } else {
+                format!("fastener_force_{}", j.name)
+            };
+            for (d, axis) in ["x", "y", "z"].iter().enumerate() {
+                scalars.push((format!("{name}_{axis}"), f[d]));
+            }
+            scalars.push((format!("{name}_magnitude"), vec3(f).norm()));
         }
         if let Some(c) = &self.coupling {
             for (name, f) in c.region_names.iter().zip(&regions) {

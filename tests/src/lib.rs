@@ -741,7 +741,8 @@ pub fn kill_cosim(child: &mut std::process::Child, id: &str) {
 pub fn paper_picture(out: &Path, field: Option<&str>) -> coordinator::fields::Picture {
     let choice = field.map(|f| coordinator::fields::Choice::parse(f).expect("NODE.FIELD"));
     let png = out.join(format!("paper_{}.png", field.unwrap_or("default")));
-    let p = coordinator::fields::render(out, None, &png, choice, None).expect("a picture");
+    let p = coordinator::fields::render(out, None, &png, choice, None, Default::default())
+        .expect("a picture");
     println!(
         "{}: length scale {:?}, colour bars {:?}",
         png.display(),
@@ -765,4 +766,25 @@ pub fn paper_picture(out: &Path, field: Option<&str>) -> coordinator::fields::Pi
         );
     }
     p
+}
+
+/// The inline piece of an unstructured-grid VTK file (`.vtu`), as the nodes write them.
+pub fn vtu_piece(vtu: &Path) -> vtkio::model::UnstructuredGridPiece {
+    use vtkio::model::{DataSet, Piece, Vtk};
+    let vtk = Vtk::import(vtu).unwrap_or_else(|e| panic!("{}: {e}", vtu.display()));
+    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        panic!("{}: not an unstructured grid", vtu.display())
+    };
+    let Some(Piece::Inline(p)) = pieces.into_iter().next() else {
+        panic!("{}: no inline piece", vtu.display())
+    };
+    *p
+}
+
+/// The data array `name` among `attrs` (a piece's point or cell data), as f64s.
+pub fn vtu_array(attrs: Vec<vtkio::model::Attribute>, name: &str) -> Option<Vec<f64>> {
+    attrs.into_iter().find_map(|a| match a {
+        vtkio::model::Attribute::DataArray(d) if d.name == name => d.data.cast_into::<f64>(),
+        _ => None,
+    })
 }

@@ -376,7 +376,10 @@ const EXAMPLES: &[(&str, &[&str])] = &[
     ),
     ("coupon_single_scale", &["small", "solid", "solid-small"]),
     ("coupon_two_scale", &["small"]),
-    ("crash_tube", &["case2", "small", "small2", "grouped"]),
+    (
+        "crash_tube",
+        &["case2", "small", "small2", "grouped", "crush", "crush2"],
+    ),
     (
         "ductile_square",
         &[

@@ -10,6 +10,7 @@ mod build_once;
 mod chamber_shock;
 mod config_errors;
 mod conformance;
+mod crash_tube;
 mod decouple;
 mod disk_full;
 mod divergence;

@@ -381,6 +381,7 @@ fn coupon_pulled_to_rupture_necks_and_breaks_alike_in_both_models() {
         &png,
         Some(choice),
         None,
+        Default::default(),
     )
     .expect("a picture");
     let largest = series(&single, "coupon", "max_eq_plastic_strain")[k as usize - 1].1;
@@ -440,24 +441,9 @@ fn last_frame_before(dir: &Path, window: u64) -> (u64, PathBuf) {
 /// Groups the particles of `vtu` by reference x (position − displacement) and measures each
 /// column's extent in y (width) and z (thickness), now and in the reference.
 fn neck(vtu: &Path) -> Neck {
-    use vtkio::model::{Attribute, DataSet, Piece, Vtk};
-    let vtk = Vtk::import(vtu).unwrap_or_else(|e| panic!("{}: {e}", vtu.display()));
-    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
-        panic!("{}: not an unstructured grid", vtu.display())
-    };
-    let Some(Piece::Inline(p)) = pieces.into_iter().next() else {
-        panic!("{}: no inline piece", vtu.display())
-    };
+    let p = vtu_piece(vtu);
     let x: Vec<f64> = p.points.cast_into::<f64>().expect("points");
-    let u: Vec<f64> = p
-        .data
-        .point
-        .into_iter()
-        .find_map(|a| match a {
-            Attribute::DataArray(d) if d.name == "displacement" => d.data.cast_into::<f64>(),
-            _ => None,
-        })
-        .expect("displacement");
+    let u = vtu_array(p.data.point, "displacement").expect("displacement");
     assert_eq!(x.len(), u.len());
     // column key: reference x in micrometres
     let mut cols: std::collections::BTreeMap<i64, [[f64; 2]; 4]> = Default::default();
@@ -552,18 +538,37 @@ fn single_joint_fails(out: &Path) {
 }
 
 /// The joint report the run wrote (`joint_report.csv`, joined from the joint node's own)
-/// against the force history recorded window by window: the peak of the larger of the two
-/// sides' force magnitudes and its time, the first window after it below a tenth of the peak
-/// with bonds broken, and the mode the seed finds for this joint, pull-out (the plate tears
-/// around the fastener).
+/// against the force history recorded window by window: the peak of the fastener's force and
+/// its time, the first window after it below a tenth of the peak with bonds broken, and the
+/// mode the seed finds for this joint, pull-out (the plate tears around the fastener). The
+/// fastener's force (summed over the plates) is the force the shell puts through the two
+/// coupled ends (summed over the rings) while the joint holds: within 2 % of the peak at
+/// every window from a fifth to 95 % of the peak's time (measured 1.47 %; as the loading
+/// starts the plates' inertia shows, 5.9 % at 1 ms).
 fn joint_report_matches_the_force_history(out: &Path) {
+    let force = series(out, "joint", "fastener_force_magnitude");
     let a = series(out, "joint", "force_a_magnitude");
     let b = series(out, "joint", "force_b_magnitude");
     let broken = series(out, "joint", "broken_bonds");
     assert_eq!(a.len(), b.len());
+    assert_eq!(a.len(), force.len());
     assert!(a.len() > 100, "{} windows", a.len());
-    let force: Vec<(f64, f64)> = a.iter().zip(&b).map(|(a, b)| (a.0, a.1.max(b.1))).collect();
     let (ip, f_peak) = peak(&force);
+    let t_peak = force[ip].0;
+    let holding: Vec<usize> = (0..force.len())
+        .filter(|&k| (0.2 * t_peak..=0.95 * t_peak).contains(&force[k].0))
+        .collect();
+    let worst = holding
+        .iter()
+        .map(|&k| (force[k].1 - a[k].1).abs().max((force[k].1 - b[k].1).abs()))
+        .fold(0.0f64, f64::max);
+    let holding = holding.len();
+    println!(
+        "fastener force against the coupled ends' over {holding} windows: within {:.3} % of the peak",
+        100.0 * worst / f_peak
+    );
+    assert!(holding >= 50, "{holding} windows");
+    assert!(worst <= 0.02 * f_peak, "{worst} N of {f_peak} N");
     let k_failed = (ip..force.len())
         .find(|&k| force[k].1 < 0.1 * f_peak && broken[k].1 > 0.0)
         .expect("the force falls below a tenth of its peak");
@@ -601,7 +606,7 @@ fn crash_tube_runs_one_process_per_joint_and_grouped_alike() {
     let mut worst: f64 = 0.0;
     for k in 1..=5 {
         for j in [format!("j{k}"), format!("j{k}p")] {
-            let q = format!("force_{j}_a_magnitude");
+            let q = format!("fastener_force_{j}_magnitude");
             let a = series(&separate, &j, &q);
             let b = series(&out, "joints", &q);
             assert_eq!(a.len(), b.len());
@@ -621,16 +626,16 @@ fn crash_tube_runs_one_process_per_joint_and_grouped_alike() {
 }
 
 /// Seed 004 Fig. 14: with joints 3–3' as thread-bonded screws (case II) instead of bolts that
-/// bear on their holes (case I), joint 3 carries a higher peak force. The first 25 ms of
-/// crush (the force at joint 3 peaks at ~12 ms in case II and ~24 ms in case I at this size);
-/// the example runs the whole crush.
+/// bear on their holes (case I), joint 3's fastener carries a higher peak force over the first
+/// 25 ms of crush (measured 641 N against 191 N); `tests/tests/crash_tube.rs` crushes both to
+/// half the tube's length.
 #[test]
 fn crash_tube_screws_at_joint_3_peak_higher_than_bolts() {
     let end = ["--set", "run.end_time=2.5e-2"];
     let case1 = run_variant("crash_tube", "small", "crash_case1", &end);
     let case2 = run_variant("crash_tube", "small2", "crash_case2", &end);
     let peak = |out: &Path, j: &str| {
-        series(out, j, &format!("force_{j}_a_magnitude"))
+        series(out, j, &format!("fastener_force_{j}_magnitude"))
             .iter()
             .map(|p| p.1.abs())
             .fold(0.0f64, nan_max)
@@ -648,6 +653,7 @@ fn crash_tube_screws_at_joint_3_peak_higher_than_bolts() {
     assert!(j3_i > 10.0, "joint 3 carries no load in case I ({j3_i} N)");
     assert!(j3_ii > 1.5 * j3_i, "case II {j3_ii} N vs case I {j3_i} N");
     tube_picture(&case1);
+    shapes_side_by_side(&case1, &case2);
     charts_of_eleven_nodes(&case1, &case2);
     paper_picture(&case1, None);
 }
@@ -740,6 +746,54 @@ fn charts_of_eleven_nodes(case1: &Path, case2: &Path) {
     let (ok, _, e) = plot(&[case1], &["j3.force_j3_a_magnitde"]);
     assert!(!ok);
     assert!(e.contains("did you mean j3.force_j3_a_magnitude?"), "{e}");
+}
+
+/// Both cases' tubes side by side as `cosim plot --field tube.mises_top --alone --up z`
+/// draws them: the shells alone, upright, on one colour range — the union of the two runs'
+/// own ranges — so that the panels compare by colour. (The stress: at 25 ms of crush the
+/// tubes have not yielded yet.)
+fn shapes_side_by_side(case1: &Path, case2: &Path) {
+    use coordinator::fields::{Camera, Choice, render, render_runs};
+    let choice = Choice::parse("tube.mises_top").expect("choice");
+    let camera = Camera::from_args(Some("z"), Some(45.0), Some(25.0)).expect("camera");
+    let (dir, _) = scratch("shapes");
+    let own: Vec<(f64, f64)> = [case1, case2]
+        .iter()
+        .enumerate()
+        .map(|(k, run)| {
+            let p = render(
+                run,
+                None,
+                &dir.join(format!("{k}.png")),
+                Some(choice),
+                Some("tube"),
+                camera,
+            )
+            .expect("a picture");
+            assert_eq!(p.scales.len(), 1, "the shells alone: {:?}", p.scales);
+            (p.scales[0].lo, p.scales[0].hi)
+        })
+        .collect();
+    let runs = [
+        ("I".to_string(), case1.to_path_buf()),
+        ("II".to_string(), case2.to_path_buf()),
+    ];
+    let panels = render_runs(
+        &runs,
+        None,
+        &dir.join("both.png"),
+        choice,
+        Some("tube"),
+        camera,
+    )
+    .expect("the runs side by side");
+    let union = (own[0].0.min(own[1].0), own[0].1.max(own[1].1));
+    println!("von Mises stress ranges {own:?}, side by side {union:?}");
+    assert!(own[0] != own[1], "the runs differ: {own:?}");
+    for p in &panels {
+        assert_eq!(p.scales.len(), 1, "{:?}", p.scales);
+        assert_eq!((p.scales[0].lo, p.scales[0].hi), union);
+    }
 }
 
 /// `fields.png` of a crash-tube run: the tube drawn across the picture (its longest axis

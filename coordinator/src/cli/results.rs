@@ -46,6 +46,30 @@ pub struct RenderArgs {
     /// RUN/fields.gif with --gif).
     #[arg(long, short, conflicts_with_all = ["all", "per_node"])]
     pub output: Option<PathBuf>,
+    #[command(flatten)]
+    pub view: ViewArgs,
+}
+
+/// The view of a picture of solids (`cosim render`, `cosim plot --field`).
+#[derive(Debug, clap::Args)]
+pub struct ViewArgs {
+    /// The axis drawn upwards (x, y or z); the next axis in the cycle x → y → z → x is drawn
+    /// across. Default: the bodies' second longest axis up, their longest across.
+    #[arg(long, value_parser = ["x", "y", "z"])]
+    pub up: Option<String>,
+    /// Turn of the view about the up axis, degrees (0: a side view along the third axis;
+    /// default 30).
+    #[arg(long, allow_hyphen_values = true)]
+    pub yaw: Option<f64>,
+    /// Tilt of the view, degrees (positive: from above; default 20).
+    #[arg(long, allow_hyphen_values = true)]
+    pub pitch: Option<f64>,
+}
+
+impl ViewArgs {
+    fn camera(&self) -> anyhow::Result<fields::Camera> {
+        fields::Camera::from_args(self.up.as_deref(), self.yaw, self.pitch)
+    }
 }
 
 /// `cosim export`'s command line.
@@ -97,6 +121,10 @@ pub struct PlotArgs {
     /// Simulated time (s) of the field picture (the frame nearest it).
     #[arg(long, requires = "field")]
     pub at: Option<f64>,
+    /// Draw the `--field` node alone, without the run's other nodes (a crash tube's shells
+    /// without its joints' particles).
+    #[arg(long, requires = "field")]
+    pub alone: bool,
     /// Directory for the PNG files.
     #[arg(long, short, default_value = "plots")]
     pub output: PathBuf,
@@ -104,6 +132,9 @@ pub struct PlotArgs {
     /// force–displacement curve).
     #[arg(long)]
     pub x: Option<String>,
+    /// The view of `--field` pictures of solids.
+    #[command(flatten)]
+    pub view: ViewArgs,
 }
 
 /// `cosim params`'s command line.
@@ -159,7 +190,7 @@ fn render_node(
 ) -> anyhow::Result<Vec<(PathBuf, f64)>> {
     let run = &a.run;
     if a.all {
-        return fields::render_all(run, choice, node);
+        return fields::render_all(run, choice, node, a.view.camera()?);
     }
     if a.gif {
         let stem = node.unwrap_or("fields");
@@ -167,7 +198,7 @@ fn render_node(
             .output
             .clone()
             .unwrap_or_else(|| run.join(format!("{stem}.gif")));
-        let (n, t) = fields::render_gif(run, &file, choice, node, a.frame_ms)?;
+        let (n, t) = fields::render_gif(run, &file, choice, node, a.frame_ms, a.view.camera()?)?;
         eprintln!("{}: {n} frames", file.display());
         return Ok(vec![(file, t)]);
     }
@@ -177,7 +208,7 @@ fn render_node(
         (None, None) => run.join("fields.png"),
         (None, Some(n)) => run.join(format!("fields_{n}.png")),
     });
-    let t = fields::render(run, a.time, &png, choice, node)?.time;
+    let t = fields::render(run, a.time, &png, choice, node, a.view.camera()?)?.time;
     Ok(vec![(png, t)])
 }
 
@@ -258,6 +289,7 @@ pub(super) fn plot(a: &PlotArgs) -> anyhow::Result<String> {
         return Ok(s);
     };
     let choice = Choice::parse(field)?;
+    let camera = a.view.camera()?;
     std::fs::create_dir_all(&a.output)
         .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", a.output.display()))?;
     let (mut drawn, mut named) = (Vec::new(), Vec::new());
@@ -272,7 +304,8 @@ pub(super) fn plot(a: &PlotArgs) -> anyhow::Result<String> {
             "{name}_{}{at_name}.png",
             crate::plot::file_stem(field)
         ));
-        let t = fields::render(&dir, a.at, &png, Some(choice), None)?.time;
+        let only = a.alone.then_some(choice.node);
+        let t = fields::render(&dir, a.at, &png, Some(choice), only, camera)?.time;
         drawn.push((png, t));
         named.push((name, dir));
     }
@@ -283,8 +316,12 @@ pub(super) fn plot(a: &PlotArgs) -> anyhow::Result<String> {
             "runs_{}{at_name}.png",
             crate::plot::file_stem(field)
         ));
-        let times = fields::render_runs(&named, a.at, &png, choice)?;
-        let latest = times.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let only = a.alone.then_some(choice.node);
+        let drawn_runs = fields::render_runs(&named, a.at, &png, choice, only, camera)?;
+        let latest = drawn_runs
+            .iter()
+            .map(|p| p.time)
+            .fold(f64::NEG_INFINITY, f64::max);
         drawn.push((png, latest));
     }
     Ok(drawn_lines(&drawn))
