@@ -857,7 +857,7 @@ fn a_misspelt_key_node_or_variant_is_answered_with_the_nearest_name() {
     for (args, want) in [
         (
             vec!["--variant", "smal"],
-            "unknown variant 'smal' (did you mean 'small'? the case has: case2, grouped, small, small2)",
+            "unknown variant 'smal' (did you mean 'small'? the case has: case2, crush, crush2, grouped, small, small2)",
         ),
         (
             vec!["--set", "tub.params.section.thickness=2e-3"],
