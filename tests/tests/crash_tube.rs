@@ -203,7 +203,8 @@ fn frames(out: &Path, node: &str) -> Vec<PathBuf> {
 }
 
 /// The crush variants' run folders: run here into scratch folders, or — with
-/// `CRASH_TUBE_RUNS=DIR` — the runs already in DIR/crush and DIR/crush2 (from `cosim run
+/// `CRASH_TUBE_RUNS=DIR`, an absolute path (the tests run in `tests/`) — the runs already
+/// in DIR/crush and DIR/crush2 (from `cosim run
 /// examples/crash_tube.toml --variant crush --output DIR/crush` and the same for `crush2`),
 /// checked as they are.
 fn crush_runs() -> [PathBuf; 2] {
