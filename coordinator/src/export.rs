@@ -95,7 +95,9 @@ pub fn tables(recording: &Path) -> anyhow::Result<BTreeMap<String, Table>> {
 /// One name for a vector everywhere: a node's scalars `K_x`, `K_y` (and `K_z`) become the
 /// vector column `K` (2 or 3 components, as the recorded `momentum` is), so NPZ and Python
 /// hold one (windows, n) array `K` and the flat tables (CSV, Parquet, pandas) its columns
-/// `K_x`, `K_y`, `K_z` again. Left apart where the table already has a key `K`.
+/// `K_x`, `K_y`, `K_z` again. Left apart where the table already has a key `K`. The recorder
+/// itself writes a vector as one key by the same rule (`engine::report`); this folds the
+/// recordings made before it did.
 fn fold_vectors(t: &mut Table) {
     let has = |t: &Table, k: &str| t.columns.iter().any(|(c, w)| c == k && *w == 1);
     let bases: Vec<String> = t

@@ -159,8 +159,9 @@ pub fn has_series(run: &Path) -> bool {
     !all_series(run).is_empty()
 }
 
-/// The colour map of a field: viridis for a field of one sign, a diverging blue–white–red map
-/// centred on zero for a signed one, grey for the background field under another one.
+/// The colour map of a field: viridis for a field of one sign, ParaView's "Cool to Warm"
+/// (blue–grey–red) centred on zero for a signed one, grey for the background field under
+/// another one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Map {
     Viridis,
@@ -231,16 +232,7 @@ impl Scale {
                 let g = (235.0 * (1.0 - s)) as u8;
                 RGBColor(235, g, g)
             }
-            Map::Diverging => {
-                // blue (59, 76, 192) – white – red (180, 4, 38), as ParaView's "Cool to Warm"
-                let (a, b, w) = if s < 0.5 {
-                    ((59.0, 76.0, 192.0), (242.0, 242.0, 242.0), s / 0.5)
-                } else {
-                    ((242.0, 242.0, 242.0), (180.0, 4.0, 38.0), (s - 0.5) / 0.5)
-                };
-                let mix = |p: f64, q: f64| (p + w * (q - p)).round() as u8;
-                RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
-            }
+            Map::Diverging => cool_to_warm(s),
         }
     }
 }
@@ -252,6 +244,112 @@ pub struct Picture {
     pub time: f64,
     pub scales: Vec<Scale>,
     pub length_scale: Option<String>,
+}
+
+/// ParaView's default map, "Cool to Warm": Moreland's diverging map from blue (59, 76, 192)
+/// through a neutral grey to red (180, 4, 38), interpolated in his Msh space (polar CIELAB:
+/// magnitude, saturation, hue), so that lightness rises evenly to the middle and falls evenly
+/// after it (K. Moreland, "Diverging color maps for scientific visualization", ISVC 2009).
+fn cool_to_warm(s: f64) -> RGBColor {
+    const COOL: [f64; 3] = [59.0, 76.0, 192.0];
+    const WARM: [f64; 3] = [180.0, 4.0, 38.0];
+    let (mut a, mut b) = (msh(COOL), msh(WARM));
+    // Two saturated ends of distant hues pass through an unsaturated middle, at least as
+    // light as either end and as L* = 88.
+    let mid = a[0].max(b[0]).max(88.0);
+    let t = if s < 0.5 {
+        b = [mid, 0.0, 0.0];
+        2.0 * s
+    } else {
+        a = [mid, 0.0, 0.0];
+        2.0 * s - 1.0
+    };
+    // The unsaturated middle takes the hue of the saturated end, turned so that the hue
+    // does not jump where the saturation leaves zero.
+    let spin = |sat: [f64; 3], m_unsat: f64| {
+        let [m, sa, h] = sat;
+        if m >= m_unsat - 0.1 {
+            return h;
+        }
+        let turn = sa * (m_unsat * m_unsat - m * m).sqrt() / (m * sa.sin());
+        if h > -std::f64::consts::FRAC_PI_3 {
+            h + turn
+        } else {
+            h - turn
+        }
+    };
+    if a[1] < 0.05 && b[1] > 0.05 {
+        a[2] = spin(b, a[0]);
+    } else if b[1] < 0.05 && a[1] > 0.05 {
+        b[2] = spin(a, b[0]);
+    }
+    let m: [f64; 3] = std::array::from_fn(|i| a[i] + t * (b[i] - a[i]));
+    let c = rgb_of_msh(m);
+    let byte = |x: f64| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+    RGBColor(byte(c[0]), byte(c[1]), byte(c[2]))
+}
+
+/// CIELAB's reference white (D65, as Moreland's map uses it).
+const D65_WHITE: [f64; 3] = [0.9505, 1.0, 1.089];
+
+/// An sRGB colour (0–255) in Msh: magnitude, saturation (angle from the grey axis) and hue.
+fn msh(rgb: [f64; 3]) -> [f64; 3] {
+    let lin: [f64; 3] = std::array::from_fn(|i| {
+        let c = rgb[i] / 255.0;
+        if c <= 0.04045 {
+            c / 12.92
+        } else {
+            ((c + 0.055) / 1.055).powf(2.4)
+        }
+    });
+    let xyz = [
+        0.4124 * lin[0] + 0.3576 * lin[1] + 0.1805 * lin[2],
+        0.2126 * lin[0] + 0.7152 * lin[1] + 0.0722 * lin[2],
+        0.0193 * lin[0] + 0.1192 * lin[1] + 0.9505 * lin[2],
+    ];
+    let f: [f64; 3] = std::array::from_fn(|i| {
+        let t = xyz[i] / D65_WHITE[i];
+        if t > 0.008856 {
+            t.cbrt()
+        } else {
+            7.787 * t + 16.0 / 116.0
+        }
+    });
+    let (l, a, b) = (
+        116.0 * f[1] - 16.0,
+        500.0 * (f[0] - f[1]),
+        200.0 * (f[1] - f[2]),
+    );
+    let m = (l * l + a * a + b * b).sqrt();
+    [m, (l / m).acos(), b.atan2(a)]
+}
+
+/// The inverse of [`msh`], as linear-light-corrected sRGB in 0–1 (not clamped).
+fn rgb_of_msh([m, s, h]: [f64; 3]) -> [f64; 3] {
+    let (l, a, b) = (m * s.cos(), m * s.sin() * h.cos(), m * s.sin() * h.sin());
+    let fy = (l + 16.0) / 116.0;
+    let f = [fy + a / 500.0, fy, fy - b / 200.0];
+    let xyz: [f64; 3] = std::array::from_fn(|i| {
+        let t = if f[i] > 0.20689 {
+            f[i].powi(3)
+        } else {
+            (f[i] - 16.0 / 116.0) / 7.787
+        };
+        t * D65_WHITE[i]
+    });
+    let lin = [
+        3.2406 * xyz[0] - 1.5372 * xyz[1] - 0.4986 * xyz[2],
+        -0.9689 * xyz[0] + 1.8758 * xyz[1] + 0.0415 * xyz[2],
+        0.0557 * xyz[0] - 0.2040 * xyz[1] + 1.0570 * xyz[2],
+    ];
+    std::array::from_fn(|i| {
+        let c = lin[i];
+        if c <= 0.0031308 {
+            12.92 * c
+        } else {
+            1.055 * c.powf(1.0 / 2.4) - 0.055
+        }
+    })
 }
 
 /// A colour map from dark blue through green to yellow (viridis, 6 stops).
@@ -1398,6 +1496,39 @@ fn round_len(v: f64) -> String {
 
 #[cfg(test)]
 mod tests {
+    /// The diverging map is Moreland's cool-to-warm as ParaView and matplotlib (`coolwarm`)
+    /// draw it: at nine points of the scale, the colours of his published table (read here
+    /// from matplotlib's `coolwarm`, which is built from it) within 2 of 255 per channel;
+    /// the ends exact; the middle a grey.
+    #[test]
+    fn the_diverging_map_is_paraviews_cool_to_warm() {
+        let table = [
+            (0.0, [59, 76, 192]),
+            (0.125, [98, 130, 234]),
+            (0.25, [141, 176, 254]),
+            (0.375, [185, 208, 249]),
+            (0.5, [221, 220, 220]),
+            (0.625, [245, 196, 172]),
+            (0.75, [244, 152, 122]),
+            (0.875, [221, 95, 75]),
+            (1.0, [180, 4, 38]),
+        ];
+        for (s, want) in table {
+            let RGBColor(r, g, b) = super::cool_to_warm(s);
+            for (got, want) in [r, g, b].into_iter().zip(want) {
+                assert!(
+                    (got as i32 - want).abs() <= 2,
+                    "at {s}: {:?} against {want:?}",
+                    (r, g, b)
+                );
+            }
+        }
+        assert_eq!(super::cool_to_warm(0.0), RGBColor(59, 76, 192));
+        assert_eq!(super::cool_to_warm(1.0), RGBColor(180, 4, 38));
+        let RGBColor(r, g, b) = super::cool_to_warm(0.5);
+        assert!(r.abs_diff(g) <= 1 && g.abs_diff(b) <= 1, "{r} {g} {b}");
+    }
+
     use super::*;
 
     /// A tall box, 1 × 2 × 4 (x, y, z): its corners.

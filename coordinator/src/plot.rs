@@ -442,10 +442,15 @@ pub fn add_report(h: &mut Histories, node: &str, v: &serde_json::Value) {
                     q.entry(k.clone()).or_default().push((t, x));
                 }
             }
-            ("momentum", serde_json::Value::Array(a)) => {
+            // a vector (`momentum`, or a node's `K_x`, `K_y`, `K_z` recorded as one `K`) is
+            // plotted by component, `K_x`; the impulses, which a live run does not plot, stay
+            // out
+            (k, serde_json::Value::Array(a))
+                if k != "external_impulse" && k != "interface_impulse" =>
+            {
                 for (d, c) in a.iter().enumerate().take(3) {
                     if let Some(x) = c.as_f64() {
-                        q.entry(format!("momentum_{}", ["x", "y", "z"][d]))
+                        q.entry(format!("{k}_{}", ["x", "y", "z"][d]))
                             .or_default()
                             .push((t, x));
                     }

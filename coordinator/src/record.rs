@@ -295,7 +295,8 @@ fn all_known<V>(
 
 /// A JSON Schema (draft 2020-12) of an object with these keys (dotted paths of nested
 /// objects, as [`keys_of`] gives them) and types; a number may be null (a NaN or infinite
-/// value), arrays hold numbers (Foxglove plots the numbers).
+/// value), an array is a vector: its components `[x, y, z]` (`[x, y]` in 2-D) as numbers
+/// (Foxglove plots `KEY[0]`; the flat tables name them `KEY_x`, `KEY_y`, `KEY_z`).
 pub fn object_schema(title: &str, keys: &BTreeMap<String, &'static str>) -> String {
     let props = crate::nest::properties(
         keys.iter().map(|(k, ty)| {
@@ -303,7 +304,10 @@ pub fn object_schema(title: &str, keys: &BTreeMap<String, &'static str>) -> Stri
                 "number" => serde_json::json!({ "type": ["number", "null"] }),
                 "array" => serde_json::json!({
                     "type": "array",
-                    "items": { "type": ["number", "null"] }
+                    "description": "a vector: [x, y, z], or [x, y] in 2-D",
+                    "items": { "type": ["number", "null"] },
+                    "minItems": 2,
+                    "maxItems": 3,
                 }),
                 t => serde_json::json!({ "type": t }),
             };
@@ -776,9 +780,16 @@ impl RecorderThread {
     ) -> anyhow::Result<()> {
         if let serde_json::Value::Object(m) = v {
             let known = self.json_keys.entry(topic.to_string()).or_default();
-            crate::nest::for_each_leaf(m, &mut |k, _| {
+            crate::nest::for_each_leaf(m, &mut |k, v| {
                 if !known.contains(k) {
                     known.insert(k.to_string());
+                }
+                // a vector `K` is what a node reports as its scalars `K_x`, `K_y`, `K_z`
+                // (`engine::report`): those are known names too
+                if let serde_json::Value::Array(a) = v {
+                    for axis in ["x", "y", "z"].iter().take(a.len()) {
+                        known.insert(format!("{k}_{axis}"));
+                    }
                 }
             });
         }

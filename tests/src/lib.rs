@@ -196,15 +196,25 @@ pub fn node_vectors(mcap: &Path, node: &str, key: &str) -> Vec<(u64, [f64; 3])> 
 }
 
 /// Per-window values of a node's report scalar (e.g. `tip_displacement`), from the
-/// `/cosim/node/<node>` channel of a recording: (time, value).
+/// `/cosim/node/<node>` channel of a recording: (time, value). A vector's component `K_x`
+/// (`_y`, `_z`) is read from the vector `K` the recording holds.
 pub fn node_series(mcap: &Path, node: &str, key: &str) -> Vec<(f64, f64)> {
     let (msgs, _) = coordinator::record::read_json(mcap).expect("readable recording");
     let topic = format!("/cosim/node/{node}");
+    let component = ["_x", "_y", "_z"]
+        .iter()
+        .position(|a| key.ends_with(a))
+        .map(|d| (&key[..key.len() - 2], d));
     msgs.iter()
         .filter(|m| m.topic == topic)
         .filter_map(|m| {
             let v: serde_json::Value = serde_json::from_slice(&m.data).ok()?;
-            Some((v["time"].as_f64()?, v[key].as_f64()?))
+            let x = match (v.get(key), component) {
+                (Some(x), _) => x.as_f64()?,
+                (None, Some((base, d))) => v.get(base)?.get(d)?.as_f64()?,
+                (None, None) => return None,
+            };
+            Some((v["time"].as_f64()?, x))
         })
         .collect()
 }

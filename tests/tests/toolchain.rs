@@ -59,7 +59,10 @@ assert pressure.dtype == np.float64 and pressure.shape == (len(rec["gas"]),), pr
 assert d["bar/com_displacement"].shape == (len(rec["bar"]), 3), d["bar/com_displacement"].shape
 assert "bar/com_displacement_x" not in d   # one name for a vector
 assert np.array_equal(pressure, [r["point2"]["pressure"] for r in rec["gas"]])
-assert np.array_equal(com, [r["com_displacement_x"] for r in rec["bar"]])
+# a vector is one key of the recording too, [x, y, z], as momentum is
+assert all("com_displacement_x" not in r for r in rec["bar"])
+assert np.array_equal(d["bar/com_displacement"], [r["com_displacement"] for r in rec["bar"]])
+assert np.array_equal(com, [r["com_displacement"][0] for r in rec["bar"]])
 assert np.array_equal(time, [r["time"] for r in rec["gas"]])
 assert d["bar/momentum"].shape == (len(rec["bar"]), 3)
 p1 = d["gas/point1.pressure"]
@@ -103,7 +106,8 @@ fn export_gives_numpy_arrays_equal_to_the_recording() {
 /// Foxglove's message paths address every series of a node report: `/cosim/node/gas.point1.pressure`
 /// resolved as Foxglove does (the topic, then one key per dot, no quoting) against the official
 /// reader's messages gives the same values as the export's `gas/point1.pressure`; no key of any
-/// report holds a dot; the channel's schema lists the nested keys with their types.
+/// report holds a dot; the channel's schema lists the nested keys with their types; a vector
+/// (`bar.com_displacement[0]`) is one array key, whose components are the export's.
 const FOXGLOVE_CHECK: &str = r#"
 import json, sys
 import numpy as np
@@ -138,6 +142,13 @@ for series in ("point1.pressure", "point2.pressure", "point1.density"):
 props = schemas["/cosim/node/gas"]["properties"]
 assert props["point1"]["type"] == "object", props["point1"]
 assert props["point1"]["properties"]["pressure"]["type"] == ["number", "null"]
+# a vector, as Foxglove addresses it: /cosim/node/bar.com_displacement[0]
+bar = schemas["/cosim/node/bar"]["properties"]
+assert bar["com_displacement"]["type"] == "array", bar["com_displacement"]
+assert "com_displacement_x" not in bar
+got = [doc["com_displacement"][0] for doc in msgs["/cosim/node/bar"]]
+assert np.array_equal(np.array(got), d["bar/com_displacement"][:, 0])
+checked += len(got)
 print(f"{checked} values through Foxglove paths")
 "#;
 
@@ -163,7 +174,7 @@ fn foxglove_paths_address_every_named_scalar() {
     );
     println!("{text}");
     assert!(ok, "{text}");
-    assert!(text.contains("240 values through Foxglove paths"), "{text}");
+    assert!(text.contains("320 values through Foxglove paths"), "{text}");
 }
 
 /// pyarrow (the Apache Arrow project's Python reader, independent of our writer) reads each
@@ -196,7 +207,7 @@ for node, rows in sorted(rec.items()):
         keys += [k for k in r if k not in keys]
     for k in keys:
         width = max(len(r[k]) if isinstance(r.get(k), list) else 1 for r in rows)
-        names = [k] if width == 1 else [f"{k}_{a}" for a in "xyz"] if width == 3 else [f"{k}_{i}" for i in range(width)]
+        names = [k] if width == 1 else [f"{k}_{a}" for a in "xyz"[:width]] if width in (2, 3) else [f"{k}_{i}" for i in range(width)]
         for i, name in enumerate(names):
             col = t.column(name)
             assert str(col.type) == "double", (node, name, col.type)
@@ -279,7 +290,7 @@ assert np.array_equal(gas["point2.pressure"], [r["point2"]["pressure"] for r in 
 com = bar["com_displacement"]   # one (windows, 3) array, as the momentum
 assert com.shape == (len(rec["bar"]), 3), com.shape
 for i, a in enumerate("xyz"):
-    assert np.array_equal(com[:, i], [r[f"com_displacement_{a}"] for r in rec["bar"]])
+    assert np.array_equal(com[:, i], [r["com_displacement"][i] for r in rec["bar"]])
 assert "com_displacement_x" not in bar
 df = bar.to_pandas()   # flat, as CSV and Parquet: one column per component
 assert list(df["com_displacement_x"]) == list(com[:, 0])

@@ -60,8 +60,14 @@ impl serde::Serialize for NodeReportDoc<'_> {
         // Foxglove's path syntax), unless a prefix of it is a key itself.
         let is_key = |k: &str| BUILTIN_KEYS.contains(&k) || shadowed(k);
         for (name, val) in &r.scalars {
-            if !crate::nest::nests(name, is_key) {
-                m.serialize_entry(name, val)?;
+            if crate::nest::nests(name, is_key) {
+                continue;
+            }
+            // A vector is one key, `K: [x, y, z]`, as `momentum` is (see [`vector`]).
+            match vector(&r.scalars, name, is_key) {
+                Some(Part::First(base, v, n)) => m.serialize_entry(base, &v[..n])?,
+                Some(Part::Later) => {}
+                None => m.serialize_entry(name, val)?,
             }
         }
         crate::nest::Group {
@@ -71,6 +77,57 @@ impl serde::Serialize for NodeReportDoc<'_> {
         }
         .entries(&mut m)?;
         m.end()
+    }
+}
+
+/// What a scalar is to the vector it belongs to (see [`vector`]).
+enum Part<'a> {
+    /// The `_x` component: the vector's name, its components, how many (2 or 3).
+    First(&'a str, [f64; 3], usize),
+    /// The `_y` or `_z` component, written with the `_x` one.
+    Later,
+}
+
+/// One name for a vector everywhere: a node's scalars `K_x`, `K_y` (and `K_z`) are recorded
+/// as one key `K` holding `[x, y, z]` (or `[x, y]`), as a report's `momentum` is, so the
+/// recording's schema lists the vector once, Foxglove plots `/cosim/node/NODE.K[0]`, and the
+/// readers give the same (windows, n) array `K` in NPZ and Python and the columns `K_x`, `K_y`,
+/// `K_z` in the flat tables that they give for `momentum`. The rule is the readers' own for
+/// recordings made before it (`export::fold_vectors`): the components are consecutive from
+/// `_x` (at least `_x` and `_y`), and `K` has no dot and is not itself a key of the report
+/// (`is_key`) — otherwise the scalars stay as they are. `None` for a scalar that is no
+/// vector's component. Compares names in place: a report is written without allocating.
+fn vector<'a>(
+    scalars: &'a [(String, f64)],
+    name: &'a str,
+    is_key: impl Fn(&str) -> bool,
+) -> Option<Part<'a>> {
+    const AXES: [&str; 3] = ["_x", "_y", "_z"];
+    let axis = AXES.iter().position(|a| name.ends_with(a))?;
+    let base = &name[..name.len() - 2];
+    if base.is_empty() || base.contains('.') || is_key(base) {
+        return None;
+    }
+    let value = |a: &str| {
+        scalars
+            .iter()
+            .find(|(n, _)| n.len() == name.len() && n.starts_with(base) && n.ends_with(a))
+            .map(|(_, v)| *v)
+    };
+    let mut v = [0.0; 3];
+    let mut n = 0;
+    for (d, a) in AXES.iter().enumerate() {
+        match value(a) {
+            Some(x) => v[d] = x,
+            None => break,
+        }
+        n += 1;
+    }
+    match (n, axis) {
+        (0 | 1, _) => None,
+        (_, 0) => Some(Part::First(base, v, n)),
+        (_, a) if a < n => Some(Part::Later),
+        _ => None,
     }
 }
 
@@ -99,6 +156,72 @@ mod tests {
             ],
             ..Default::default()
         }
+    }
+
+    /// A node's `K_x`, `K_y` (`K_z`) are recorded as one vector `K`; scalars that are not a
+    /// whole vector's components stay as they are; the readers' tables and the plots' series
+    /// are what they were for the components.
+    #[test]
+    fn a_vector_is_recorded_as_one_key() {
+        let mut r = StepReport::default();
+        let names = [
+            ("force_x", 1.0),
+            ("force_y", -2.0),
+            ("force_z", f64::NAN),
+            ("crack_tip_x", 0.25),
+            ("crack_tip_y", 0.5),
+            ("lonely_x", 3.0),
+            ("gap_x", 4.0),
+            ("gap_z", 5.0),
+            ("momentum_x", 6.0),
+            ("point1.v_x", 7.0),
+            ("point1.v_y", 8.0),
+            ("twice", 9.0),
+            ("twice_x", 10.0),
+            ("twice_y", 11.0),
+        ];
+        r.scalars = names.iter().map(|(n, v)| (n.to_string(), *v)).collect();
+        let doc = NodeReportDoc {
+            window: 2,
+            time: 1e-3,
+            r: &r,
+        };
+        let v: serde_json::Value =
+            serde_json::from_slice(&serde_json::to_vec(&doc).expect("serialize")).expect("parse");
+        assert_eq!(v["force"], json!([1.0, -2.0, null]));
+        assert_eq!(v["crack_tip"], json!([0.25, 0.5]));
+        for gone in [
+            "force_x",
+            "force_y",
+            "force_z",
+            "crack_tip_x",
+            "crack_tip_y",
+        ] {
+            assert!(v.get(gone).is_none(), "{gone}");
+        }
+        // one component, components not from x on, a key of the report (`momentum`), a
+        // dotted name (nested instead), a name that is itself a scalar: left alone
+        for (k, x) in [
+            ("lonely_x", 3.0),
+            ("gap_x", 4.0),
+            ("gap_z", 5.0),
+            ("momentum_x", 6.0),
+            ("twice", 9.0),
+            ("twice_x", 10.0),
+            ("twice_y", 11.0),
+        ] {
+            assert_eq!(v[k], json!(x), "{k}");
+        }
+        assert_eq!(v["point1"], json!({ "v_x": 7.0, "v_y": 8.0 }));
+        assert!(v["momentum"].is_array());
+        // the plots' series from the recorded vector are the live report's components
+        let flat = serde_json::Value::Object(crate::nest::flatten(v.as_object().unwrap()));
+        let mut recorded = crate::plot::Histories::new();
+        crate::plot::add_report(&mut recorded, "n", &flat);
+        let mut live = crate::plot::Histories::new();
+        crate::plot::add_node_report(&mut live, "n", 1e-3, &r, 1);
+        assert_eq!(recorded, live);
+        assert_eq!(live["n"]["crack_tip_y"], vec![(1e-3, 0.5)]);
     }
 
     /// `BUILTIN_KEYS` (what a dotted scalar name may not nest under) lists exactly the keys
