@@ -303,71 +303,82 @@ fn physics_charts(h: &Histories) -> Vec<Chart> {
     }
     groups
         .into_iter()
-        .map(|(g, members)| {
-            let quantity = g.strip_prefix("*.").unwrap_or(&g).to_string();
-            if let [(node, lines)] = members.as_slice() {
-                let series = lines
-                    .iter()
-                    .map(|l| Series {
-                        label: l.label.clone(),
-                        points: l.points.to_vec(),
-                    })
-                    .collect();
-                let own = lines[0].group.strip_prefix("*.").unwrap_or(&lines[0].group);
-                return Chart {
-                    file: format!("{node}_{}.png", file_stem(own)),
-                    title: format!("{node}: {own}"),
-                    panels: vec![Panel {
-                        title: format!("{node}: {own}"),
-                        y_label: quantity,
-                        series,
-                    }],
-                };
-            }
-            let mut series = Vec::new();
-            for (node, lines) in &members {
-                let comps: Vec<&Line> = lines.iter().filter(|l| l.component.is_some()).collect();
-                if !comps.is_empty() {
-                    series.push(Series {
-                        label: node.to_string(),
-                        points: magnitude(&comps),
-                    });
-                }
-                for l in lines.iter().filter(|l| l.component.is_none()) {
-                    series.push(Series {
-                        label: if l.label.is_empty() {
-                            node.to_string()
-                        } else {
-                            format!("{node} {}", l.label)
-                        },
-                        points: l.points.to_vec(),
-                    });
-                }
-            }
-            let vector = members
-                .iter()
-                .any(|(_, ls)| ls.iter().any(|l| l.component.is_some()));
-            let title = if vector {
-                format!("|{quantity}|")
-            } else {
-                quantity.clone()
-            };
-            let stem = file_stem(&g.replace('*', ""))
-                .split('_')
-                .filter(|p| !p.is_empty())
-                .collect::<Vec<_>>()
-                .join("_");
-            Chart {
-                file: format!("{stem}.png"),
-                title: title.clone(),
-                panels: vec![Panel {
-                    title,
-                    y_label: quantity,
-                    series,
-                }],
-            }
+        .map(|(g, members)| match members.as_slice() {
+            [(node, lines)] => one_node_chart(&g, node, lines),
+            _ => several_nodes_chart(&g, &members),
         })
         .collect()
+}
+
+/// The chart of a quantity (generic group `g`) that one node reports: a line per probe or
+/// component.
+fn one_node_chart(g: &str, node: &str, lines: &[Line]) -> Chart {
+    let quantity = g.strip_prefix("*.").unwrap_or(g).to_string();
+    let series = lines
+        .iter()
+        .map(|l| Series {
+            label: l.label.clone(),
+            points: l.points.to_vec(),
+        })
+        .collect();
+    let own = lines[0].group.strip_prefix("*.").unwrap_or(&lines[0].group);
+    Chart {
+        file: format!("{node}_{}.png", file_stem(own)),
+        title: format!("{node}: {own}"),
+        panels: vec![Panel {
+            title: format!("{node}: {own}"),
+            y_label: quantity,
+            series,
+        }],
+    }
+}
+
+/// The chart of a quantity (generic group `g`) that several nodes report: a line per node
+/// (a vector as its magnitude) and per probe of a node.
+fn several_nodes_chart(g: &str, members: &[(&String, Vec<Line>)]) -> Chart {
+    let quantity = g.strip_prefix("*.").unwrap_or(g).to_string();
+    let mut series = Vec::new();
+    for (node, lines) in members {
+        let comps: Vec<&Line> = lines.iter().filter(|l| l.component.is_some()).collect();
+        if !comps.is_empty() {
+            series.push(Series {
+                label: node.to_string(),
+                points: magnitude(&comps),
+            });
+        }
+        for l in lines.iter().filter(|l| l.component.is_none()) {
+            series.push(Series {
+                label: if l.label.is_empty() {
+                    node.to_string()
+                } else {
+                    format!("{node} {}", l.label)
+                },
+                points: l.points.to_vec(),
+            });
+        }
+    }
+    let vector = members
+        .iter()
+        .any(|(_, ls)| ls.iter().any(|l| l.component.is_some()));
+    let title = if vector {
+        format!("|{quantity}|")
+    } else {
+        quantity.clone()
+    };
+    let stem = file_stem(&g.replace('*', ""))
+        .split('_')
+        .filter(|p| !p.is_empty())
+        .collect::<Vec<_>>()
+        .join("_");
+    Chart {
+        file: format!("{stem}.png"),
+        title: title.clone(),
+        panels: vec![Panel {
+            title,
+            y_label: quantity,
+            series,
+        }],
+    }
 }
 
 /// A panel per counter of `kind` (node names folded: every joint's `mass_scaling_dt` on

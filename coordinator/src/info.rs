@@ -174,6 +174,16 @@ pub fn info(path: &Path) -> anyhow::Result<String> {
         _ => writeln!(s, "case       not in the recording")?,
     }
     writeln!(s, "run        {}", i.run)?;
+    write_parts(&mut s, &i)?;
+    if let Some(v) = &i.balance {
+        write_balance(&mut s, &i, v)?;
+    }
+    Ok(s)
+}
+
+/// The nodes, couplings, windows and channels lines of [`info`].
+fn write_parts(s: &mut String, i: &RunInfo) -> std::fmt::Result {
+    use std::fmt::Write;
     writeln!(s, "nodes")?;
     for n in &i.nodes {
         writeln!(
@@ -202,10 +212,7 @@ pub fn info(path: &Path) -> anyhow::Result<String> {
             c.bytes as f64 / 1e3
         )?;
     }
-    if let Some(v) = &i.balance {
-        write_balance(&mut s, &i, v)?;
-    }
-    Ok(s)
+    Ok(())
 }
 
 /// The run's settings the recorded case gives (what it leaves out is the default it ran

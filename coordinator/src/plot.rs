@@ -700,35 +700,7 @@ pub fn compare(
     for s in series {
         let q = s.split_once('.').map_or(s.as_str(), |(_, q)| q);
         let unit = unit_of(q);
-        let mut lines = Vec::new();
-        for (label, h) in &data {
-            let names = expand(h, label, s).with_context(|| format!("--series {s}"))?;
-            for name in &names {
-                let ys = lookup(h, label, name).with_context(|| format!("--series {s}"))?;
-                let points = match x {
-                    None => ys.to_vec(),
-                    Some(xs) => pair(
-                        lookup(h, label, xs).with_context(|| format!("--x {xs}"))?,
-                        ys,
-                    ),
-                };
-                lines.push((label.clone(), name.clone(), points));
-            }
-        }
-        // a line names its run where there are several, and its series where the spec
-        // matched several or shares the figure with others
-        let many_names = series.len() > 1 || lines.iter().any(|l| l.1 != lines[0].1);
-        let lines: Vec<Series> = lines
-            .into_iter()
-            .map(|(run, name, points)| Series {
-                label: match (data.len() > 1, many_names) {
-                    (true, true) => format!("{run}: {name}"),
-                    (true, false) => run,
-                    (false, _) => name,
-                },
-                points,
-            })
-            .collect();
+        let lines = series_lines(&data, s, x, series.len() > 1)?;
         match figures.iter_mut().find(|f| f.0 == unit) {
             Some(f) => {
                 f.1.push(s);
@@ -761,6 +733,44 @@ pub fn compare(
         written.push(p);
     }
     Ok(written)
+}
+
+/// The lines of one `--series` spec `s` over the runs `data` (against time, or against `x`):
+/// a line names its run where there are several, and its series where the spec matched
+/// several or shares the figure with others (`shared`).
+fn series_lines(
+    data: &[(String, Histories)],
+    s: &str,
+    x: Option<&str>,
+    shared: bool,
+) -> anyhow::Result<Vec<Series>> {
+    let mut lines = Vec::new();
+    for (label, h) in data {
+        let names = expand(h, label, s).with_context(|| format!("--series {s}"))?;
+        for name in &names {
+            let ys = lookup(h, label, name).with_context(|| format!("--series {s}"))?;
+            let points = match x {
+                None => ys.to_vec(),
+                Some(xs) => pair(
+                    lookup(h, label, xs).with_context(|| format!("--x {xs}"))?,
+                    ys,
+                ),
+            };
+            lines.push((label.clone(), name.clone(), points));
+        }
+    }
+    let many_names = shared || lines.iter().any(|l| l.1 != lines[0].1);
+    Ok(lines
+        .into_iter()
+        .map(|(run, name, points)| Series {
+            label: match (data.len() > 1, many_names) {
+                (true, true) => format!("{run}: {name}"),
+                (true, false) => run,
+                (false, _) => name,
+            },
+            points,
+        })
+        .collect())
 }
 
 /// The JSON messages of a run: an output directory (its `run.mcap`) or a recording.

@@ -9,16 +9,38 @@
 //! pair's ratio is taken, so a machine whose speed drifts over seconds (a shared VM) shifts
 //! both halves of a pair alike. It prints every pair's ratio, their median, and the ratio of
 //! the fastest block of each pool.
+//!
+//! `joint_profile N solid THREADS STEPS` profiles the block of hexahedra around an SPG core
+//! (`geometry::benchmark_block_solid`; the hexahedra's forces count in "internal force", their
+//! node updates in the velocity phases and "positions").
+//!
+//! `joint_profile N versus BLOCKS [THREADS]` measures the speed-up of the same block as
+//! hexahedra around an SPG core (`geometry::benchmark_block_solid`) over the all-particle
+//! block, side by side the same way: blocks of 10 steps, each model at its own stable step,
+//! alternate between the two models in one pool, and each pair's ratio (all-particle time
+//! over hexahedra time) is taken.
 
-use meso_joint_node::geometry::benchmark_block;
+use meso_joint_node::geometry::{benchmark_block, benchmark_block_solid};
 use meso_joint_node::profile::Phase;
 
 fn main() -> anyhow::Result<()> {
-    if std::env::args().nth(2).as_deref() == Some("pairs") {
-        let arg = |i: usize, d: usize| -> anyhow::Result<usize> {
-            std::env::args().nth(i).map_or(Ok(d), |s| Ok(s.parse()?))
-        };
-        return pairs(arg(1, 40)?, arg(3, 30)?.max(1));
+    let arg = |i: usize, d: usize| -> anyhow::Result<usize> {
+        std::env::args().nth(i).map_or(Ok(d), |s| Ok(s.parse()?))
+    };
+    match std::env::args().nth(2).as_deref() {
+        Some("pairs") => return pairs(arg(1, 40)?, arg(3, 30)?.max(1)),
+        Some("versus") => return versus(arg(1, 40)?, arg(3, 30)?.max(1), arg(4, 1)?.max(1)),
+        Some("solid") => {
+            let (n, threads, steps) = (arg(1, 40)?, arg(3, 1)?.max(1), arg(4, 200)?.max(1));
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()?;
+            return pool.install(|| {
+                let m = benchmark_block_solid(n).map_err(anyhow::Error::msg)?;
+                profile(m, n, threads, steps)
+            });
+        }
+        _ => {}
     }
     let a: Vec<usize> = std::env::args()
         .skip(1)
@@ -38,6 +60,19 @@ fn main() -> anyhow::Result<()> {
         if let Some(e) = eps_crit {
             m.p.eps_crit = e;
         }
+        profile(m, n, threads, steps)
+    })
+}
+
+/// `steps` steps of `m` (the block of `n`³ cells) on `threads` threads, with each phase's
+/// time (module doc).
+fn profile(
+    mut m: meso_joint_node::model::Model,
+    n: usize,
+    threads: usize,
+    steps: usize,
+) -> anyhow::Result<()> {
+    {
         let dt = m.stable_dt();
         for _ in 0..5 {
             m.step(dt).map_err(anyhow::Error::msg)?;
@@ -75,6 +110,61 @@ fn main() -> anyhow::Result<()> {
             "state hash {:016x}, broken bonds {}",
             state_hash(&m),
             m.broken_bonds
+        );
+    }
+    Ok(())
+}
+
+/// The hexahedra-and-core block's speed-up over the all-particle block of the same size, in
+/// `blocks` pairs of 10-step blocks on `threads` threads (module doc).
+fn versus(n: usize, blocks: usize, threads: usize) -> anyhow::Result<()> {
+    const STEPS: usize = 10;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()?;
+    pool.install(|| {
+        let mut part = benchmark_block(n).map_err(anyhow::Error::msg)?;
+        let mut solid = benchmark_block_solid(n).map_err(anyhow::Error::msg)?;
+        let elements = solid.solid.as_ref().map_or(0, |s| s.part.elements.len());
+        let (dp, ds) = (part.stable_dt(), solid.stable_dt());
+        let block = |m: &mut meso_joint_node::model::Model, dt: f64| {
+            let t0 = std::time::Instant::now();
+            for _ in 0..STEPS {
+                m.step(dt).map_err(anyhow::Error::msg)?;
+            }
+            anyhow::Ok(t0.elapsed().as_secs_f64())
+        };
+        block(&mut part, dp)?;
+        block(&mut solid, ds)?;
+        let mut ratios = Vec::with_capacity(blocks);
+        for b in 0..blocks {
+            // which model goes first alternates, so a steady drift favours neither
+            let (tp, ts) = if b % 2 == 0 {
+                let tp = block(&mut part, dp)?;
+                (tp, block(&mut solid, ds)?)
+            } else {
+                let ts = block(&mut solid, ds)?;
+                (block(&mut part, dp)?, ts)
+            };
+            println!(
+                "pair {b}: all particles {:.3} ms/step, hexahedra {:.3} ms/step, speed-up {:.3}",
+                1e3 * tp / STEPS as f64,
+                1e3 * ts / STEPS as f64,
+                tp / ts
+            );
+            ratios.push(tp / ts);
+        }
+        ratios.sort_by(f64::total_cmp);
+        println!(
+            "{n}³ cells, {threads} thread(s): {} particles against {elements} hexahedra around {} \
+             particles; median speed-up {:.3} over {} pairs of {STEPS}-step blocks (10th–90th \
+             percentile {:.3}–{:.3})",
+            part.len(),
+            solid.len(),
+            ratios[ratios.len() / 2],
+            ratios.len(),
+            ratios[ratios.len() / 10],
+            ratios[ratios.len() * 9 / 10]
         );
         Ok(())
     })
