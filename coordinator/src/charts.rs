@@ -418,6 +418,41 @@ pub fn draw(charts: &[Chart], dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     Ok(written)
 }
 
+/// The default set of charts of a run (an output directory or a recording), as `cosim run`
+/// drew them when it ended.
+pub fn default_charts(run: &Path) -> anyhow::Result<Vec<Chart>> {
+    let msgs = crate::plot::run_messages(run)?;
+    let rows: Vec<serde_json::Value> = msgs
+        .iter()
+        .filter(|m| m.topic == "/cosim/balance")
+        .filter_map(|m| serde_json::from_slice(&m.data).ok())
+        .collect();
+    let b = balance_histories(&rows);
+    Ok(curated(&crate::plot::node_histories(&msgs), &b))
+}
+
+/// `cosim plot RUN...` without `--series`: each run's default set of charts (`all`: every
+/// quantity of every node on its own), into `out_dir` (`out_dir/<run>/` for several runs).
+pub fn run_sets(runs: &[PathBuf], all: bool, out_dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let mut written = Vec::new();
+    for r in runs {
+        let dir = if runs.len() > 1 {
+            out_dir.join(crate::plot::run_label(r))
+        } else {
+            out_dir.to_path_buf()
+        };
+        if all {
+            written.extend(crate::plot::every_quantity(
+                &crate::plot::node_histories(&crate::plot::run_messages(r)?),
+                &dir,
+            )?);
+        } else {
+            written.extend(draw(&default_charts(r)?, &dir)?);
+        }
+    }
+    Ok(written)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

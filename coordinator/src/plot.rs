@@ -774,7 +774,7 @@ fn series_lines(
 }
 
 /// The JSON messages of a run: an output directory (its `run.mcap`) or a recording.
-fn run_messages(r: &Path) -> anyhow::Result<Vec<Recorded>> {
+pub(crate) fn run_messages(r: &Path) -> anyhow::Result<Vec<Recorded>> {
     let mcap = if r.is_dir() {
         r.join("run.mcap")
     } else {
@@ -790,40 +790,8 @@ fn load_runs(runs: &[PathBuf]) -> anyhow::Result<Vec<(String, Histories)>> {
         .collect()
 }
 
-/// The default set of charts of a run (an output directory or a recording), as `cosim run`
-/// drew them when it ended.
-pub fn default_charts(run: &Path) -> anyhow::Result<Vec<crate::charts::Chart>> {
-    let msgs = run_messages(run)?;
-    let rows: Vec<serde_json::Value> = msgs
-        .iter()
-        .filter(|m| m.topic == "/cosim/balance")
-        .filter_map(|m| serde_json::from_slice(&m.data).ok())
-        .collect();
-    let b = crate::charts::balance_histories(&rows);
-    Ok(crate::charts::curated(&node_histories(&msgs), &b))
-}
-
-/// `cosim plot RUN...` without `--series`: each run's default set of charts (`all`: every
-/// quantity of every node on its own), into `out_dir` (`out_dir/<run>/` for several runs).
-pub fn run_sets(runs: &[PathBuf], all: bool, out_dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    let mut written = Vec::new();
-    for r in runs {
-        let dir = if runs.len() > 1 {
-            out_dir.join(run_label(r))
-        } else {
-            out_dir.to_path_buf()
-        };
-        if all {
-            written.extend(every_quantity(&node_histories(&run_messages(r)?), &dir)?);
-        } else {
-            written.extend(crate::charts::draw(&default_charts(r)?, &dir)?);
-        }
-    }
-    Ok(written)
-}
-
 /// A run's label: the name of its output directory (a recording's folder).
-fn run_label(r: &Path) -> String {
+pub(crate) fn run_label(r: &Path) -> String {
     if r.is_dir() {
         r.file_name()
     } else {

@@ -1,7 +1,7 @@
 //! Whole-field sums and single-cell states for reports, probes and tests. Sums run per row
 //! then in row order, so they are identical for any thread count.
 
-use crate::immersed::SOLID;
+use crate::immersed::body::SOLID;
 use crate::mixture::{self, Phase};
 use crate::model::Fluid;
 use protocol::SolverResult;

@@ -8,18 +8,7 @@
 use crate::diagnostics::cell_prim;
 use crate::model::Fluid;
 
-/// A line across the grid and the material whose edges it tracks.
-#[derive(Debug, Clone)]
-pub struct EdgeLine {
-    pub name: String,
-    /// Index of the material.
-    pub material: usize,
-    /// The cells the line crosses, in order from its start: (row, x index, distance of the
-    /// cell centre's projection on the line from its start).
-    pub cells: Vec<(usize, usize, f64)>,
-    /// How far an edge must move from where it started before its speed is fitted: one cell.
-    pub moved: f64,
-}
+pub use crate::model::EdgeLine;
 
 /// Reported for an edge the line does not cross.
 pub const ABSENT: f64 = -1.0;

@@ -22,6 +22,20 @@ pub struct Probe {
     pub i: usize,
 }
 
+/// A line across the grid and the material whose edges it tracks (the data; `edges.rs`
+/// builds it and measures along it).
+#[derive(Debug, Clone)]
+pub struct EdgeLine {
+    pub name: String,
+    /// Index of the material.
+    pub material: usize,
+    /// The cells the line crosses, in order from its start: (row, x index, distance of the
+    /// cell centre's projection on the line from its start).
+    pub cells: Vec<(usize, usize, f64)>,
+    /// How far an edge must move from where it started before its speed is fitted: one cell.
+    pub moved: f64,
+}
+
 #[derive(Debug, Clone)]
 pub struct Fluid {
     pub grid: Grid,
@@ -58,7 +72,7 @@ pub struct Fluid {
     pub boundary_work: f64,
     pub probes: Vec<Probe>,
     /// Lines along which a material's edges are tracked.
-    pub edges: Vec<crate::edges::EdgeLine>,
+    pub edges: Vec<EdgeLine>,
     pub immersed: Option<Immersed>,
     pub max_steps_per_window: u64,
     /// True once `prim` holds the primitives of `cons` (interior cells).

@@ -459,7 +459,7 @@ const GPU_VARIANTS: &[&str] = &["underwater_plate/seed"];
 /// quantity has no unit.
 fn units_missing(out: &Path, tag: &str) -> Vec<String> {
     let mut missing = Vec::new();
-    for c in coordinator::plot::default_charts(out).expect("recording") {
+    for c in coordinator::charts::default_charts(out).expect("recording") {
         for p in &c.panels {
             if coordinator::plot::unit_of(&p.y_label).is_none() {
                 missing.push(format!("{tag}: {} draws {}", c.file, p.y_label));

@@ -674,7 +674,7 @@ fn charts_of_eleven_nodes(case1: &Path, case2: &Path) {
     let listed = summary(case1)["plots"].as_array().unwrap().len();
     assert_eq!(listed + 1, pngs.len(), "the plots and fields.png");
     // The same charts from the recording: every axis carries a unit.
-    let charts = coordinator::plot::default_charts(case1).unwrap();
+    let charts = coordinator::charts::default_charts(case1).unwrap();
     assert_eq!(charts.len(), listed);
     let mut panels = 0;
     for c in &charts {

@@ -278,7 +278,7 @@ pub(super) fn plot(a: &PlotArgs) -> anyhow::Result<String> {
             if a.x.is_some() {
                 anyhow::bail!("--x needs the --series to draw against it");
             }
-            crate::plot::run_sets(&a.runs, a.all, &a.output)?
+            crate::charts::run_sets(&a.runs, a.all, &a.output)?
         } else {
             crate::plot::compare(&a.runs, &a.series, a.x.as_deref(), &a.output)?
         };
