@@ -94,8 +94,9 @@ enum Part<'a> {
 /// readers give the same (windows, n) array `K` in NPZ and Python and the columns `K_x`, `K_y`,
 /// `K_z` in the flat tables that they give for `momentum`. The rule is the readers' own for
 /// recordings made before it (`export::fold_vectors`): the components are consecutive from
-/// `_x` (at least `_x` and `_y`), and `K` has no dot and is not itself a key of the report
-/// (`is_key`) — otherwise the scalars stay as they are. `None` for a scalar that is no
+/// `_x` (at least `_x` and `_y`), and `K` has no dot, is not itself a key of the report
+/// (`is_key`) and names no nested object (`K.p` among the scalars) — otherwise the scalars
+/// stay as they are. `None` for a scalar that is no
 /// vector's component. Compares names in place: a report is written without allocating.
 fn vector<'a>(
     scalars: &'a [(String, f64)],
@@ -105,7 +106,14 @@ fn vector<'a>(
     const AXES: [&str; 3] = ["_x", "_y", "_z"];
     let axis = AXES.iter().position(|a| name.ends_with(a))?;
     let base = &name[..name.len() - 2];
-    if base.is_empty() || base.contains('.') || is_key(base) {
+    // `K` must be free: not a key of the report, and not the object of dotted names `K.…`
+    let nested =
+        |n: &str| n.len() > base.len() && n.starts_with(base) && n[base.len()..].starts_with('.');
+    if base.is_empty()
+        || base.contains('.')
+        || is_key(base)
+        || scalars.iter().any(|(n, _)| nested(n))
+    {
         return None;
     }
     let value = |a: &str| {
@@ -179,6 +187,9 @@ mod tests {
             ("twice", 9.0),
             ("twice_x", 10.0),
             ("twice_y", 11.0),
+            ("probe.pressure", 12.0),
+            ("probe_x", 13.0),
+            ("probe_y", 14.0),
         ];
         r.scalars = names.iter().map(|(n, v)| (n.to_string(), *v)).collect();
         let doc = NodeReportDoc {
@@ -200,7 +211,8 @@ mod tests {
             assert!(v.get(gone).is_none(), "{gone}");
         }
         // one component, components not from x on, a key of the report (`momentum`), a
-        // dotted name (nested instead), a name that is itself a scalar: left alone
+        // dotted name (nested instead), a name that is itself a scalar, a name of nested
+        // scalars: left alone
         for (k, x) in [
             ("lonely_x", 3.0),
             ("gap_x", 4.0),
@@ -209,9 +221,13 @@ mod tests {
             ("twice", 9.0),
             ("twice_x", 10.0),
             ("twice_y", 11.0),
+            ("probe_x", 13.0),
+            ("probe_y", 14.0),
         ] {
             assert_eq!(v[k], json!(x), "{k}");
         }
+        // `probe` is the object of `probe.pressure`, so `probe_x`, `probe_y` stay apart
+        assert_eq!(v["probe"], json!({ "pressure": 12.0 }));
         assert_eq!(v["point1"], json!({ "v_x": 7.0, "v_y": 8.0 }));
         assert!(v["momentum"].is_array());
         // the plots' series from the recorded vector are the live report's components
