@@ -96,8 +96,8 @@ enum Part<'a> {
 /// recordings made before it (`export::fold_vectors`): the components are consecutive from
 /// `_x` (at least `_x` and `_y`), and `K` has no dot, is not itself a key of the report
 /// (`is_key`) and names no nested object (`K.p` among the scalars) — otherwise the scalars
-/// stay as they are. `None` for a scalar that is no
-/// vector's component. Compares names in place: a report is written without allocating.
+/// stay as they are. `None` for a scalar that is no vector's component. Compares names in
+/// place (a report is written without allocating), a pass over the scalars per component.
 fn vector<'a>(
     scalars: &'a [(String, f64)],
     name: &'a str,
