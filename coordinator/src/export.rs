@@ -95,7 +95,8 @@ pub fn tables(recording: &Path) -> anyhow::Result<BTreeMap<String, Table>> {
 /// One name for a vector everywhere: a node's scalars `K_x`, `K_y` (and `K_z`) become the
 /// vector column `K` (2 or 3 components, as the recorded `momentum` is), so NPZ and Python
 /// hold one (windows, n) array `K` and the flat tables (CSV, Parquet, pandas) its columns
-/// `K_x`, `K_y`, `K_z` again. Left apart where the table already has a key `K`. The recorder
+/// `K_x`, `K_y`, `K_z` again. Left apart where the table already has a key `K` or keys
+/// `K.…` (a nested probe's). The recorder
 /// itself writes a vector as one key by the same rule (`engine::report`); this folds the
 /// recordings made before it did.
 fn fold_vectors(t: &mut Table) {
@@ -112,7 +113,14 @@ fn fold_vectors(t: &mut Table) {
             .map(|a| format!("{base}_{a}"))
             .take_while(|k| has(t, k))
             .collect();
-        if comps.len() < 2 || t.columns.iter().any(|(c, _)| *c == base) {
+        // the recorder's rule (`engine::report::vector`): `K` must not be a key already, nor
+        // the object of nested names `K.…`
+        let dotted = format!("{base}.");
+        if comps.len() < 2
+            || t.columns
+                .iter()
+                .any(|(c, _)| *c == base || c.starts_with(&dotted))
+        {
             continue;
         }
         for row in &mut t.rows {
@@ -493,4 +501,43 @@ pub fn write_parquet(tables: &BTreeMap<String, Table>, dir: &Path) -> anyhow::Re
         files.push(path);
     }
     Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The readers fold a vector by the recorder's rule: `K_x`, `K_y` (`K_z`) become `K`,
+    /// except where `K` or a nested `K.…` is a column already.
+    #[test]
+    fn components_fold_into_a_vector_by_the_recorders_rule() {
+        let row = serde_json::json!({
+            "f_x": 1.0, "f_y": 2.0, "f_z": 3.0,
+            "probe.pressure": 4.0, "probe_x": 5.0, "probe_y": 6.0,
+            "lone_x": 7.0, "twice": 8.0, "twice_x": 9.0, "twice_y": 10.0,
+        });
+        let serde_json::Value::Object(row) = row else {
+            unreachable!()
+        };
+        let mut t = Table {
+            columns: row.keys().map(|k| (k.clone(), 1)).collect(),
+            rows: vec![row],
+        };
+        fold_vectors(&mut t);
+        let has = |k: &str, w: usize| t.columns.iter().any(|(c, n)| c == k && *n == w);
+        assert!(has("f", 3) && !has("f_x", 1), "{:?}", t.columns);
+        assert_eq!(t.column("f", 3), vec![1.0, 2.0, 3.0]);
+        for k in [
+            "probe.pressure",
+            "probe_x",
+            "probe_y",
+            "lone_x",
+            "twice",
+            "twice_x",
+            "twice_y",
+        ] {
+            assert!(has(k, 1), "{k}: {:?}", t.columns);
+        }
+        assert!(!has("probe", 2));
+    }
 }

@@ -250,7 +250,26 @@ pub struct Picture {
 /// through a neutral grey to red (180, 4, 38), interpolated in his Msh space (polar CIELAB:
 /// magnitude, saturation, hue), so that lightness rises evenly to the middle and falls evenly
 /// after it (K. Moreland, "Diverging color maps for scientific visualization", ISVC 2009).
+/// Read from a table of 1,025 colours made once (the Msh interpolation costs about half a
+/// microsecond a colour, measured: 0.09 s for a 400² grid, seconds for a GPU-sized one).
 fn cool_to_warm(s: f64) -> RGBColor {
+    const N: usize = 1024;
+    static TABLE: std::sync::OnceLock<Vec<RGBColor>> = std::sync::OnceLock::new();
+    let t = TABLE.get_or_init(|| {
+        (0..=N)
+            .map(|k| cool_to_warm_msh(k as f64 / N as f64))
+            .collect()
+    });
+    let s = if s.is_finite() {
+        s.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    t[(s * N as f64).round() as usize]
+}
+
+/// [`cool_to_warm`] computed: Moreland's interpolation in Msh.
+fn cool_to_warm_msh(s: f64) -> RGBColor {
     const COOL: [f64; 3] = [59.0, 76.0, 192.0];
     const WARM: [f64; 3] = [180.0, 4.0, 38.0];
     let (mut a, mut b) = (msh(COOL), msh(WARM));
@@ -1527,6 +1546,16 @@ mod tests {
         assert_eq!(super::cool_to_warm(1.0), RGBColor(180, 4, 38));
         let RGBColor(r, g, b) = super::cool_to_warm(0.5);
         assert!(r.abs_diff(g) <= 1 && g.abs_diff(b) <= 1, "{r} {g} {b}");
+        // the table read is the computed map within one level, between its entries too
+        for k in 0..=4000 {
+            let s = k as f64 / 4000.0;
+            let (RGBColor(a, b, c), RGBColor(x, y, z)) =
+                (super::cool_to_warm(s), super::cool_to_warm_msh(s));
+            assert!(
+                a.abs_diff(x) <= 1 && b.abs_diff(y) <= 1 && c.abs_diff(z) <= 1,
+                "at {s}"
+            );
+        }
     }
 
     use super::*;

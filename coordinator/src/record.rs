@@ -780,16 +780,9 @@ impl RecorderThread {
     ) -> anyhow::Result<()> {
         if let serde_json::Value::Object(m) = v {
             let known = self.json_keys.entry(topic.to_string()).or_default();
-            crate::nest::for_each_leaf(m, &mut |k, v| {
+            crate::nest::for_each_leaf(m, &mut |k, _| {
                 if !known.contains(k) {
                     known.insert(k.to_string());
-                }
-                // a vector `K` is what a node reports as its scalars `K_x`, `K_y`, `K_z`
-                // (`engine::report`): those are known names too
-                if let serde_json::Value::Array(a) = v {
-                    for axis in ["x", "y", "z"].iter().take(a.len()) {
-                        known.insert(format!("{k}_{axis}"));
-                    }
                 }
             });
         }

@@ -73,6 +73,8 @@ pub(super) struct NodeRt {
     pub(super) ahead: VecDeque<(u64, StepReport)>,
     /// The recording's channel of its per-window reports: `/cosim/node/<name>`.
     pub(super) report_topic: String,
+    /// How its report's scalars are recorded there (kept while their names stay).
+    pub(super) record_plan: super::report::RecordPlan,
     /// The topic of what the coordinator sends it (its recording channel).
     pub(super) down_topic: String,
 }
@@ -265,6 +267,7 @@ impl NodeRt {
             finished: None,
             ahead: VecDeque::with_capacity(4),
             report_topic: format!("/cosim/node/{name}"),
+            record_plan: Default::default(),
             down_topic: topic::down(run_id, name),
         }
     }

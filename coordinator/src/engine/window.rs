@@ -619,19 +619,21 @@ pub(super) fn record_window(c: &mut Coord, k: u64, t1: f64, windows: u64, row: &
         row,
         &mut std::iter::empty(),
     );
-    for n in c.nodes.iter().filter(|n| n.finished.is_none()) {
+    for n in c.nodes.iter_mut().filter(|n| n.finished.is_none()) {
+        n.record_plan.update(&n.report);
         let r = &n.report;
         let doc = super::report::NodeReportDoc {
             window: k,
             time: t1,
             r,
+            plan: &n.record_plan,
         };
         let _ = c.rec.json_doc(
             &n.report_topic,
             "cosim.NodeReport",
             t1,
             &doc,
-            &mut r.scalars.iter().map(|(k, _)| k.as_str()),
+            &mut doc.scalar_keys(),
         );
         crate::plot::add_node_report(&mut c.history, &n.name, t1, r, windows as usize);
     }
