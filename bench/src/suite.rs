@@ -907,7 +907,7 @@ fn pd(cx: &mut Ctx, kernel: &'static str, n: usize, gpu_only: bool) -> anyhow::R
         // with the reason; the CPU rows are still measured.
         match solid_node::pd::gpu::GpuBondBody::new(ctx.clone(), &b, &model, Some(0.01)) {
             Ok(g) => {
-                let mut g = BrokenShare::Gpu(g, format!("{kernel} {n}³ gpu"));
+                let mut g = BrokenShare::Gpu(Box::new(g), format!("{kernel} {n}³ gpu"));
                 gpu.push((
                     "gpu",
                     Box::new(move |k| {
@@ -929,7 +929,7 @@ fn pd(cx: &mut Ctx, kernel: &'static str, n: usize, gpu_only: bool) -> anyhow::R
     if gpu_only {
         return Ok(Case { p, cpu: None, gpu });
     }
-    let mut b = BrokenShare::Cpu(b, format!("{kernel} {n}³ cpu"));
+    let mut b = BrokenShare::Cpu(Box::new(b), format!("{kernel} {n}³ cpu"));
     Ok(Case {
         p,
         cpu: Some(Box::new(move |k| {
@@ -948,8 +948,8 @@ fn pd(cx: &mut Ctx, kernel: &'static str, n: usize, gpu_only: bool) -> anyhow::R
 /// A PD benchmark body that prints, when the measurement is over and it is dropped, the
 /// share of its bonds broken by then (the damage the timed steps included).
 enum BrokenShare {
-    Cpu(solid_node::pd::integrate::Body, String),
-    Gpu(solid_node::pd::gpu::GpuBondBody, String),
+    Cpu(Box<solid_node::pd::integrate::Body>, String),
+    Gpu(Box<solid_node::pd::gpu::GpuBondBody>, String),
 }
 
 impl Drop for BrokenShare {

@@ -142,6 +142,7 @@ pub fn unit_of(key: &str) -> Option<&'static str> {
             "width",
             "thickness",
             "radius",
+            "extent",
         ]
         .iter()
         .any(|w| has(w))
@@ -873,6 +874,9 @@ mod tests {
             ("crack_length", "m"),
             ("contact_nodes", "1"),
             ("contact_energy", "J"),
+            ("extent_radial", "m"),
+            ("extent_z", "m"),
+            ("wall_force_z", "N"),
         ] {
             assert_eq!(unit_of(key), Some(unit), "{key}");
         }

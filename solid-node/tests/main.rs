@@ -20,3 +20,4 @@ mod pd_offset;
 mod pd_rk_ba;
 mod pd_solver;
 mod pd_verification;
+mod pd_walls;

@@ -30,7 +30,8 @@ interfaces = [{ name = "surface", select = "surface" }, { name = "left", select 
     .unwrap_or_default()
 }
 
-fn key_of(model: &str, t: &toml::Table) -> String {
+/// The key a config error names, or "accepted" (shared with the other files' refusal tests).
+pub fn key_of(model: &str, t: &toml::Table) -> String {
     match solid_node::pd::factory(model, t) {
         Some(Err(SolverError::Config { key, .. })) => key,
         Some(Err(e)) => format!("other error: {e}"),

@@ -415,6 +415,7 @@ const EXAMPLES: &[(&str, &[&str])] = &[
     ("split_bar_chain", &["small"]),
     ("split_bar_lagrange", &[]),
     ("steel_tube", &["fine", "small"]),
+    ("taylor_bar", &["fine", "small", "weak-stabilization"]),
     (
         "underwater_explosion",
         &["fine", "small", "radial", "radial-coarse"],
@@ -443,6 +444,9 @@ const FINEST: &[&str] = &[
     "shock_bubble/seed",
     "steel_tube/-",
     "steel_tube/fine",
+    "taylor_bar/-",
+    "taylor_bar/fine",
+    "taylor_bar/weak-stabilization",
     "underwater_explosion/-",
     "underwater_explosion/fine",
     "underwater_plate/-",

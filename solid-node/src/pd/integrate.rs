@@ -42,6 +42,32 @@ pub struct Body {
     pub model: Box<dyn PdModel>,
     pub time: f64,
     pub steps: u64,
+    /// Rigid frictionless walls the free particles cannot cross (see [`Wall`]).
+    pub walls: Vec<Wall>,
+    /// What the walls did in the last step (zero without walls).
+    pub wall_step: WallStep,
+    /// Per particle, the velocity the walls gave it in the last step (scratch: empty
+    /// without walls, so the sums run in particle order whatever the threads).
+    wall_dv: Vec<[f64; 3]>,
+}
+
+/// A rigid, frictionless, fixed wall: the plane through `point` with unit normal `normal`,
+/// which points to the side the body is on. A particle is a cube of side Δx about its
+/// centre, so it touches the wall when its centre comes within Δx/2 of the plane.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Wall {
+    pub point: [f64; 3],
+    pub normal: [f64; 3],
+}
+
+/// The walls' action over one step: the impulse they gave the body (N s), its magnitude
+/// summed over the particles, and the work they did on it (J; the kinetic energy of the
+/// normal motion they stop, negative).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct WallStep {
+    pub impulse: [f64; 3],
+    pub impulse_magnitude: f64,
+    pub work: f64,
 }
 
 impl Body {
@@ -76,6 +102,9 @@ impl Body {
             model,
             time: 0.0,
             steps: 0,
+            walls: Vec::new(),
+            wall_step: WallStep::default(),
+            wall_dv: Vec::new(),
         };
         b.eval_forces(0.0);
         b
@@ -149,9 +178,72 @@ impl Body {
         });
     }
 
+    /// The walls between the half kick and the drift: a free particle whose drift would take
+    /// it closer than Δx/2 to a wall gets the normal velocity that lands it there, −g/dt for
+    /// a gap g, and keeps its tangential velocity (no friction). The walls act only through
+    /// that change of velocity, so the body's momentum changes by exactly their impulse; a
+    /// particle moving away is left alone, so the body leaves a wall freely.
+    fn hold_off_walls(&mut self, dt: f64) {
+        use rayon::prelude::*;
+        let n = self.len();
+        if self.wall_dv.len() != n {
+            self.wall_dv = vec![[0.0; 3]; n];
+        }
+        let (pos, pr, walls, half) = (&self.pos, &self.prescribed, &self.walls, 0.5 * self.spacing);
+        self.vel
+            .par_iter_mut()
+            .zip(self.wall_dv.par_iter_mut())
+            .with_min_len(super::family::GRAIN)
+            .enumerate()
+            .for_each(|(i, (v, dv))| {
+                *dv = [0.0; 3];
+                if pr[i] != 0 {
+                    return;
+                }
+                for w in walls {
+                    let nrm = w.normal;
+                    let gap = (0..3)
+                        .map(|d| (pos[i][d] - w.point[d]) * nrm[d])
+                        .sum::<f64>()
+                        - half;
+                    let vn = (0..3).map(|d| v[d] * nrm[d]).sum::<f64>();
+                    if gap + dt * vn < 0.0 {
+                        let dvn = -gap / dt - vn;
+                        for d in 0..3 {
+                            v[d] += dvn * nrm[d];
+                            dv[d] += dvn * nrm[d];
+                        }
+                    }
+                }
+            });
+        // The work that keeps the step's energy books: velocity Verlet's kinetic energy at the
+        // step ends and the internal forces' trapezoidal work along dt·v' leave
+        // ½m(|v'|² − |v|²) − m (dt/2) Δv·a for the wall, a the acceleration of the half kick
+        // before it: m Δv·(v' + v − dt a)/2. A particle arriving at speed v loses ½m v_n²; one
+        // resting on the wall, pushed into it by its neighbours, takes no work.
+        let mut step = WallStep::default();
+        for (i, dv) in self.wall_dv.iter().enumerate() {
+            if *dv == [0.0; 3] {
+                continue;
+            }
+            let m = self.density * self.vol[i];
+            let (v, f, fe) = (self.vel[i], self.force[i], self.fext[i]);
+            for d in 0..3 {
+                let a = f[d] / self.density + fe[d] / m;
+                step.impulse[d] += m * dv[d];
+                step.work += 0.5 * m * dv[d] * (2.0 * v[d] - dv[d] - dt * a);
+            }
+            step.impulse_magnitude += m * (dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]).sqrt();
+        }
+        self.wall_step = step;
+    }
+
     /// One velocity-Verlet step of size dt.
     pub fn step(&mut self, dt: f64) {
         self.kick(0.5 * dt);
+        if !self.walls.is_empty() {
+            self.hold_off_walls(dt);
+        }
         {
             use rayon::prelude::*;
             let (vel, x0) = (&self.vel, &self.x0);

@@ -109,6 +109,21 @@ pub struct PdParams {
     /// equally over the region's particles).
     #[serde(default)]
     pub loads: Vec<PdLoad>,
+    /// Rigid, frictionless, fixed walls: planes the particles cannot cross, each
+    /// `{ point = [x, y, z], normal = [nx, ny, nz] }` with the normal pointing to the side
+    /// the body is on (a Taylor bar's anvil). A particle touches a wall when its centre comes
+    /// within half a spacing of the plane; the wall then stops its motion toward the plane
+    /// and leaves the rest (no friction, no rebound of its own). Their impulse and work are
+    /// the node's external ones, and every window reports their mean force `wall_force`.
+    #[serde(default)]
+    pub walls: Vec<WallParams>,
+    /// Report the body's extent every window: `extent_x`, `extent_y` (and `extent_z` in 3-D),
+    /// the span of the particles' current positions along each axis plus one spacing (k
+    /// particles in a row measure kΔx); in 3-D also `extent_radial`, twice the largest
+    /// distance of a particle from the z axis through the particles' mean x–y position plus
+    /// one spacing — a Taylor bar's length (`extent_z`) and mushroom diameter.
+    #[serde(default)]
+    pub report_extent: bool,
     /// Named points whose displacement is reported every window (`<name>_ux`, `<name>_uy`,
     /// and `<name>_uz` in 3-D): the particle at the point, within half a spacing.
     #[serde(default)]
@@ -419,6 +434,16 @@ pub struct InterfaceParams {
     /// these), e.g. both cut edges of the middle subdomain of three in a row.
     #[serde(default)]
     pub regions: Vec<Shape>,
+}
+
+/// A rigid wall (`walls`).
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct WallParams {
+    /// A point of the wall's plane (m).
+    pub point: [f64; 3],
+    /// The plane's normal, toward the body (need not be unit length; z = 0 in 2-D).
+    pub normal: [f64; 3],
 }
 
 /// A force on the particles of a region.

@@ -100,6 +100,8 @@ pub struct PdSolver {
     interface_impulse: [f64; 3],
     interface_work: f64,
     external_work: f64,
+    /// The walls' impulse over the window so far (N s).
+    wall_impulse: [f64; 3],
     first_damage: Option<FirstDamage>,
     /// (Σ damage, component of every particle, component sizes) of the last count: bonds
     /// never heal, so an unchanged damage sum means no bond broke and the components need no
@@ -306,6 +308,7 @@ impl PdSolver {
         })?;
         let mut body = Body::new(dim, p.spacing, p.horizon, p.density, x0, vol, bonds, model);
         set_initial_velocity(&mut body, &p)?;
+        set_walls(&mut body, &p)?;
         let bc_particles = prescribe_velocity(&mut body, &p)?;
         let pressure_area = pressure_faces(&body, &p)?;
         let interfaces = interfaces_of(&body, &p)?;
@@ -356,6 +359,7 @@ impl PdSolver {
             interface_impulse: [0.0; 3],
             interface_work: 0.0,
             external_work: 0.0,
+            wall_impulse: [0.0; 3],
             first_damage: None,
             fragment_cache: None,
             layer: None,
@@ -808,6 +812,28 @@ impl PdSolver {
                         v.push((name.clone(), b.disp[*i][d]));
                     }
                 }
+                let dims = if b.dim.three_d() { 3 } else { 2 };
+                let axes = ["x", "y", "z"];
+                if !b.walls.is_empty() {
+                    let span = w.t1 - w.t0;
+                    for d in 0..dims {
+                        v.push((
+                            format!("wall_force_{}", axes[d]),
+                            self.wall_impulse[d] / span,
+                        ));
+                    }
+                }
+                if self.params.report_extent {
+                    for d in 0..dims {
+                        let (lo, hi) = b.pos.iter().fold((f64::MAX, f64::MIN), |(lo, hi), x| {
+                            (lo.min(x[d]), hi.max(x[d]))
+                        });
+                        v.push((format!("extent_{}", axes[d]), hi - lo + b.spacing));
+                    }
+                    if dims == 3 {
+                        v.push(("extent_radial".into(), radial_extent(&b.pos, b.spacing)));
+                    }
+                }
                 if let Some(dev) = &self.device {
                     // precision of the device arithmetic (64, or 32 with a warning in the log)
                     let bits = if dev.warning().is_some() { 32.0 } else { 64.0 };
@@ -874,6 +900,9 @@ impl PdSolver {
         }
         if self.params.pressure_pulse.is_some() {
             return cfg("pressure_pulse", "a lagrange side takes loads only");
+        }
+        if !self.params.walls.is_empty() {
+            return cfg("walls", "a lagrange side takes loads only");
         }
         let pts = self.points_of(interface)?.to_vec();
         let substeps = match self.params.substeps {
@@ -1135,6 +1164,65 @@ fn set_initial_velocity(body: &mut Body, p: &PdParams) -> SolverResult<()> {
                 body.vel[i] = r.velocity;
             }
         }
+    }
+    Ok(())
+}
+
+/// Twice the largest distance of a particle from the vertical (z) axis through the particles'
+/// mean x–y position, plus one spacing: a bar's largest diameter about its axis, whichever
+/// way the lattice's diagonals spread it (the extents along x and y see only the lattice's
+/// axes).
+fn radial_extent(pos: &[[f64; 3]], spacing: f64) -> f64 {
+    let n = pos.len().max(1) as f64;
+    let (cx, cy) = pos
+        .iter()
+        .fold((0.0, 0.0), |(a, b), x| (a + x[0] / n, b + x[1] / n));
+    let r2 = pos
+        .iter()
+        .map(|x| (x[0] - cx).powi(2) + (x[1] - cy).powi(2))
+        .fold(0.0, f64::max);
+    2.0 * r2.sqrt() + spacing
+}
+
+/// `walls`: each plane with its normal made unit; every particle must start on the body's
+/// side, touching at most (its centre half a spacing or more from the plane).
+fn set_walls(body: &mut Body, p: &PdParams) -> SolverResult<()> {
+    let three_d = body.dim.three_d();
+    for (k, w) in p.walls.iter().enumerate() {
+        let key = |f: &str| format!("walls[{k}].{f}");
+        if w.point.iter().chain(&w.normal).any(|a| !a.is_finite()) {
+            return cfg(&key("point"), "the point and the normal must be finite");
+        }
+        if !three_d && w.normal[2] != 0.0 {
+            return cfg(&key("normal"), "must lie in the plane (z = 0) in 2-D");
+        }
+        let len = w.normal.iter().map(|a| a * a).sum::<f64>().sqrt();
+        if !(len > 0.0) {
+            return cfg(&key("normal"), "must not be zero");
+        }
+        let normal = w.normal.map(|a| a / len);
+        let half = 0.5 * body.spacing;
+        let behind = (0..body.len()).find(|&i| {
+            let gap: f64 = (0..3)
+                .map(|d| (body.x0[i][d] - w.point[d]) * normal[d])
+                .sum();
+            gap < half * (1.0 - 1e-9)
+        });
+        if let Some(i) = behind {
+            let x = body.x0[i];
+            return cfg(
+                &key("point"),
+                format!(
+                    "the particle at ({:e}, {:e}, {:e}) starts closer than half a spacing to the \
+                     wall or behind it (the normal points toward the body)",
+                    x[0], x[1], x[2]
+                ),
+            );
+        }
+        body.walls.push(super::integrate::Wall {
+            point: w.point,
+            normal,
+        });
     }
     Ok(())
 }
@@ -1464,6 +1552,9 @@ fn gpu_supports(def: &PdModelDef, dim: Dim, p: &PdParams) -> Result<(), String> 
              (prescribed_velocity[].components): {cpu}"
         ));
     }
+    if !p.walls.is_empty() {
+        return Err(format!("\"gpu\" does not support walls: {cpu}"));
+    }
     if p.pressure_pulse.is_some() {
         return Err(format!(
             "\"gpu\" does not support pressure_pulse (it changes the external force every substep; the device path holds the external force over a window): {cpu}"
@@ -1707,6 +1798,7 @@ impl Solver for PdSolver {
         }
         let nsub = (span / self.dt() - 1e-9).ceil().max(1.0) as u64;
         let dt = span / nsub as f64;
+        self.wall_impulse = [0.0; 3];
         // Inputs of this window.
         for f in self.fcouple.iter_mut() {
             *f = [0.0; 3];
@@ -1784,6 +1876,7 @@ impl Solver for PdSolver {
                 let imp = dev.impulse(i);
                 for d in 0..3 {
                     self.external_impulse[d] -= imp[d];
+                    self.external_work -= imp[d] * self.body.vpres[i][d];
                 }
             }
             // and against the held coupling force on them, step by step as on the CPU path
@@ -1791,6 +1884,7 @@ impl Solver for PdSolver {
                 for &i in &self.bc_particles {
                     for d in 0..3 {
                         self.external_impulse[d] -= self.fcouple[i][d] * dt;
+                        self.external_work -= self.fcouple[i][d] * dt * self.body.vpres[i][d];
                     }
                 }
             }
@@ -1824,6 +1918,15 @@ impl Solver for PdSolver {
                     self.held_force[k] = self.internal_force(i);
                 }
                 self.body.step(dt);
+                if !self.body.walls.is_empty() {
+                    let ws = self.body.wall_step;
+                    for d in 0..3 {
+                        self.external_impulse[d] += ws.impulse[d];
+                        self.wall_impulse[d] += ws.impulse[d];
+                    }
+                    self.applied_impulse += ws.impulse_magnitude;
+                    self.external_work += ws.work;
+                }
                 for &i in &coupled_pts {
                     for d in 0..3 {
                         self.interface_impulse[d] += self.fcouple[i][d] * dt;
@@ -1846,7 +1949,10 @@ impl Solver for PdSolver {
                     let fe = self.body.fext[i];
                     let held = self.body.held_components(i);
                     for d in (0..3).filter(|d| held & (1 << d) != 0) {
-                        self.external_impulse[d] -= 0.5 * dt * (f0[d] + f[d]) + fe[d] * dt;
+                        let j = -(0.5 * dt * (f0[d] + f[d]) + fe[d] * dt);
+                        self.external_impulse[d] += j;
+                        // a driven grip works on the body (a fixed support does not)
+                        self.external_work += j * self.body.vpres[i][d];
                     }
                 }
                 for (q, &i) in self.follow_pts.iter().enumerate() {
