@@ -54,6 +54,9 @@ pub struct BlastPoint {
     pub plastic_work: f64,
     /// Johnson–Cook failure indicator D = Σ Δε̄ᵖ/ε_f (0 without a failure law).
     pub damage: f64,
+    /// The point fails at (1 + `failure_shift`) times the law's failure strain (a scatter
+    /// such as [`crate::johnson_cook::MottScatter`]'s f − 1; 0: the law's own).
+    pub failure_shift: f64,
 }
 
 impl BlastSolid {
@@ -163,7 +166,7 @@ impl StressLaw for BlastSolid {
         if let Some(fail) = &self.failure {
             st.damage = fail.accumulate(
                 st.damage,
-                dp,
+                dp / (1.0 + st.failure_shift),
                 triaxiality(&st.jc.stress),
                 st.jc.plastic_strain_rate,
                 st.jc.temperature,
@@ -185,6 +188,10 @@ impl StressLaw for BlastSolid {
     #[inline]
     fn failure(st: &BlastPoint) -> f64 {
         st.damage
+    }
+
+    fn set_failure_factor(st: &mut BlastPoint, factor: f64) {
+        st.failure_shift = factor - 1.0;
     }
 
     fn stored_energy(&self, st: &BlastPoint) -> f64 {
@@ -351,6 +358,9 @@ mod tests {
         };
         let f = m.failure.unwrap();
         let mut st = m.initial_state();
+        // a twin whose failure strain is scattered to 1.3 times the law's
+        let mut twin = m.initial_state();
+        BlastSolid::set_failure_factor(&mut twin, 1.3);
         let mut d = 0.0;
         let mut steps = 0;
         while st.damage < 1.0 {
@@ -358,6 +368,7 @@ mod tests {
             // isochoric stretch and shear (J = 1): σ* = 0
             let de = [1e-4, -5e-5, -5e-5, 0.0, 0.0, 2e-4];
             m.step(&mut st, &de, &NO_SPIN, 1e-7, 1.0, false);
+            m.step(&mut twin, &de, &NO_SPIN, 1e-7, 1.0, false);
             let dp = st.jc.eq_plastic_strain - p0;
             if dp > 0.0 {
                 let ef = f.failure_strain(
@@ -372,6 +383,9 @@ mod tests {
                 "{} vs {d}",
                 st.damage
             );
+            // the twin flows alike and fails at 1.3 times the strain
+            assert_eq!(twin.jc, st.jc);
+            assert!((twin.damage * 1.3 - st.damage).abs() <= 1e-12 * st.damage.max(1e-3));
             steps += 1;
             assert!(steps < 100_000, "no failure: {st:?}");
         }

@@ -609,6 +609,65 @@ impl JohnsonCookFailure {
     }
 }
 
+/// Mott's statistical scatter of a failure strain (Mott, Proc. R. Soc. A 189 (1947) 300–308):
+/// a point fails at f times the law's failure strain, with f distributed as
+/// P(f) = 1 − exp(−(C/γ) e^{γf}), C fixed so that half the points fail below f = 1 (the form
+/// AUTODYN's stochastic failure takes), i.e. P(f) = 1 − exp(−ln 2 · e^{γ(f − 1)}): a Gumbel
+/// law of median 1 and scale 1/γ (standard deviation π/(γ√6)). Each point's factor comes from
+/// its index and `seed` alone, so a run, its restart and every thread count draw the same.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MottScatter {
+    /// γ > 0: the larger, the narrower the scatter.
+    pub gamma: f64,
+    /// Seed of the draw.
+    pub seed: u64,
+    /// Floor on f (> 0), as a fraction of the law's failure strain.
+    pub min_fraction: f64,
+}
+
+impl MottScatter {
+    /// f for point `index`: the inverse of P at a uniform deviate from (seed, index).
+    pub fn factor(&self, index: u64) -> f64 {
+        let u = uniform(self.seed, index);
+        // P(f) = u  ⇔  f = 1 + ln(−ln(1 − u)/ln 2)/γ
+        let f = 1.0 + ((-(-u).ln_1p()) / std::f64::consts::LN_2).ln() / self.gamma;
+        f.max(self.min_fraction)
+    }
+
+    /// P(f): the probability that a point's factor is below `f` (before the floor).
+    pub fn cdf(&self, f: f64) -> f64 {
+        1.0 - (-std::f64::consts::LN_2 * (self.gamma * (f - 1.0)).exp()).exp()
+    }
+
+    /// Checks the parameters; on error (key, reason), the keys as the case's `mott` table
+    /// names them.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        if !(self.gamma > 0.0 && self.gamma.is_finite()) {
+            return Err(("gamma".into(), format!("must be > 0, got {}", self.gamma)));
+        }
+        if !(self.min_fraction > 0.0 && self.min_fraction < 1.0) {
+            return Err((
+                "min_fraction".into(),
+                format!("must be in (0, 1), got {}", self.min_fraction),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A uniform deviate in (0, 1) from (seed, index): SplitMix64 of the pair, its top 53 bits,
+/// offset by half a unit so that neither end is drawn.
+fn uniform(seed: u64, index: u64) -> f64 {
+    let mut z = seed
+        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        .wrapping_add(index.wrapping_mul(0xD1B5_4A32_D192_ED03))
+        .wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^= z >> 31;
+    ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -992,5 +1051,49 @@ mod tests {
         let mut g = f;
         g.melt_temperature = 273.0;
         assert_eq!(g.validate().unwrap_err().0, "melt_temperature");
+    }
+
+    #[test]
+    fn mott_factors_follow_their_distribution_and_repeat() {
+        let m = MottScatter {
+            gamma: 20.0,
+            seed: 7,
+            min_fraction: 0.1,
+        };
+        let n = 200_000u64;
+        let mut f: Vec<f64> = (0..n).map(|i| m.factor(i)).collect();
+        // the same index draws the same factor; another seed others
+        assert_eq!(m.factor(12_345), f[12_345]);
+        let other = MottScatter { seed: 8, ..m };
+        assert!(
+            (0..100)
+                .filter(|&i| other.factor(i) == f[i as usize])
+                .count()
+                == 0
+        );
+        f.sort_by(f64::total_cmp);
+        // the empirical distribution against P at nine quantiles: within 4 standard errors
+        // of a binomial proportion (sqrt(p(1-p)/n) ≤ 1.2e-3)
+        let mut checked = 0;
+        for q in [0.01, 0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95, 0.99] {
+            let x = f[(q * n as f64) as usize];
+            let p = m.cdf(x);
+            assert!(
+                (p - q).abs() < 4.0 * (q * (1.0 - q) / n as f64).sqrt(),
+                "{q}: P({x}) = {p}"
+            );
+            checked += 1;
+        }
+        assert_eq!(checked, 9);
+        // median 1, standard deviation π/(γ√6)
+        assert!((f[(n / 2) as usize] - 1.0).abs() < 2e-3);
+        let mean = f.iter().sum::<f64>() / n as f64;
+        let sd = (f.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n as f64).sqrt();
+        let want = std::f64::consts::PI / (20.0 * 6f64.sqrt());
+        assert!((sd / want - 1.0).abs() < 0.02, "sd {sd} against {want}");
+        // the floor
+        let wide = MottScatter { gamma: 0.5, ..m };
+        assert!((0..10_000).all(|i| wide.factor(i) >= 0.1));
+        assert!((0..10_000).any(|i| wide.factor(i) == 0.1));
     }
 }

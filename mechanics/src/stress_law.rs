@@ -67,6 +67,12 @@ pub trait StressLaw: Copy + Send + Sync + std::fmt::Debug + 'static {
     /// Whether the law integrates plane stress (`step` with `plane_stress`).
     fn plane_stress(&self) -> bool;
 
+    /// Scales the point's failure strain by `factor` (a statistical scatter); a law without
+    /// failure ignores it.
+    fn set_failure_factor(st: &mut Self::State, factor: f64) {
+        let _ = (st, factor);
+    }
+
     /// Names of the point scalars the law reports beyond stress and plastic strain (e.g.
     /// temperature), and their values at a point, in that order.
     fn scalar_names(&self) -> &'static [&'static str] {

@@ -414,8 +414,17 @@ const EXAMPLES: &[(&str, &[&str])] = &[
     ("split_bar", &["python", "c"]),
     ("split_bar_chain", &["small"]),
     ("split_bar_lagrange", &[]),
-    ("steel_tube", &["fine", "small"]),
-    ("taylor_bar", &["fine", "small", "weak-stabilization"]),
+    ("steel_tube", &["fine", "mott", "small"]),
+    (
+        "taylor_bar",
+        &[
+            "fine",
+            "rk-ba",
+            "rk-ba-small",
+            "small",
+            "weak-stabilization",
+        ],
+    ),
     (
         "underwater_explosion",
         &["fine", "small", "radial", "radial-coarse"],
@@ -446,6 +455,8 @@ const FINEST: &[&str] = &[
     "steel_tube/fine",
     "taylor_bar/-",
     "taylor_bar/fine",
+    "taylor_bar/rk-ba",
+    "taylor_bar/rk-ba-small",
     "taylor_bar/weak-stabilization",
     "underwater_explosion/-",
     "underwater_explosion/fine",

@@ -855,6 +855,12 @@ impl<D: DamageModel, L: StressLaw> PdModel for Correspondence<D, L> {
         Some(self.state.iter().map(L::eq_plastic_strain).collect())
     }
 
+    fn set_failure_factors(&mut self, factor: &[f64]) {
+        for (st, &f) in self.state.iter_mut().zip(factor) {
+            L::set_failure_factor(st, f);
+        }
+    }
+
     fn point_scalars(&self) -> Vec<(&'static str, Vec<f64>)> {
         let names = self.material.scalar_names();
         names

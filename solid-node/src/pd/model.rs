@@ -91,6 +91,13 @@ pub trait PdModel: Send + Sync {
         None
     }
 
+    /// Scales each particle's failure strain by `factor[i]` (Mott's scatter): a model whose
+    /// stress law has a failure strain takes it, at its particles or (the mean of the two
+    /// ends) at its bonds; others ignore it. Called once, at set-up.
+    fn set_failure_factors(&mut self, factor: &[f64]) {
+        let _ = factor;
+    }
+
     /// Further per-particle scalars of the model's stress law (name, one value per
     /// particle), e.g. the temperature of a Johnson–Cook solid; none by default.
     fn point_scalars(&self) -> Vec<(&'static str, Vec<f64>)> {

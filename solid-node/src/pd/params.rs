@@ -53,8 +53,8 @@ pub struct PdParams {
     /// Linear kinematic hardening modulus H_kin (Pa) of the J2 plasticity.
     #[serde(default)]
     pub kin_hardening: f64,
-    /// Johnson–Cook strength with adiabatic heating (pd-correspondence): the flow stress
-    /// [A + B (ε̄ᵖ)ⁿ][1 + C ln ε̇*][1 − (T*)ᵐ] with A = `yield_stress`, and `young`,
+    /// Johnson–Cook strength with adiabatic heating (pd-correspondence, pd-rk-ba): the flow
+    /// stress [A + B (ε̄ᵖ)ⁿ][1 + C ln ε̇*][1 − (T*)ᵐ] with A = `yield_stress`, and `young`,
     /// `poisson`, `density` the solid's; absent: J2 with the linear hardening above.
     #[serde(default)]
     pub johnson_cook: Option<JohnsonCookParams>,
@@ -218,6 +218,7 @@ impl PdParams {
                 d4,
                 d5,
                 min_failure_strain,
+                ..
             }) => Some(JohnsonCookFailure {
                 d1,
                 d2,
@@ -321,6 +322,43 @@ fn default_min_failure_strain() -> f64 {
     1e-6
 }
 
+fn default_min_fraction() -> f64 {
+    0.1
+}
+
+/// Mott's scatter of the Johnson–Cook failure strain (`damage.mott`).
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MottParams {
+    /// γ (> 0): the spread of f is π/(γ√6) (standard deviation); larger is narrower.
+    pub gamma: f64,
+    /// Seed of the draw (each particle's f follows from the seed and its index alone, so a
+    /// restart and every thread count draw the same).
+    #[serde(default)]
+    pub seed: u64,
+    /// Floor on f, in (0, 1).
+    #[serde(default = "default_min_fraction")]
+    pub min_fraction: f64,
+}
+
+impl PdParams {
+    /// Mott's scatter of the failure strain, when `damage` has one. Errors name the key.
+    pub fn mott(&self) -> Result<Option<mechanics::johnson_cook::MottScatter>, (String, String)> {
+        let Some(DamageParams::JohnsonCook { mott: Some(m), .. }) = &self.damage else {
+            return Ok(None);
+        };
+        let scatter = mechanics::johnson_cook::MottScatter {
+            gamma: m.gamma,
+            seed: m.seed,
+            min_fraction: m.min_fraction,
+        };
+        scatter
+            .validate()
+            .map_err(|(k, r)| (format!("damage.mott.{k}"), r))?;
+        Ok(Some(scatter))
+    }
+}
+
 #[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum DamageParams {
@@ -362,6 +400,11 @@ pub enum DamageParams {
         /// Floor on ε_f (a numerical guard).
         #[serde(default = "default_min_failure_strain")]
         min_failure_strain: f64,
+        /// Mott's statistical scatter of the failure strain: each particle fails at f times
+        /// ε_f, f drawn from P(f) = 1 − exp(−ln 2 · e^{γ(f − 1)}) (median 1); absent: every
+        /// particle at ε_f.
+        #[serde(default)]
+        mott: Option<MottParams>,
     },
 }
 

@@ -38,14 +38,52 @@
 use super::correspondence::M3;
 use super::family::{Bonds, par_rows};
 use super::model::{Dim, Kinematics, PdModel};
+use mechanics::blast_solid::BlastSolid;
 use mechanics::damage::{BondInput, DamageModel};
 use mechanics::j2::{
     J2Material, J2State, Sym, jaumann_rotate_skew, spin_and_strain_step, von_mises,
 };
+use mechanics::stress_law::StressLaw;
 use mechanics::tensor::vec3;
 use protocol::checkpoint::{check_len, decode_state, encode_state};
 use protocol::solver::SolverResult;
 use std::sync::atomic::{AtomicU64, Ordering};
+
+/// The stress law at a bond of pd-rk-ba (at a particle without BA): J2 plasticity, the
+/// seed's, or the blast solid (Johnson–Cook strength, Mie–Grüneisen pressure, Johnson–Cook
+/// failure).
+pub trait BondLaw: StressLaw {
+    /// One step of the rate form: the Jaumann rotation with the spin, then the law over the
+    /// strain increment `de`; returns the plastic work density of the step (J/m³; 0 where
+    /// the point stayed elastic).
+    fn bond_step(&self, st: &mut Self::State, de: &Sym, spin: &M3, dt: f64) -> f64;
+}
+
+impl BondLaw for J2Material {
+    #[inline]
+    fn bond_step(&self, st: &mut J2State, de: &Sym, spin: &M3, dt: f64) -> f64 {
+        jaumann_rotate_skew(&mut st.stress, spin, dt);
+        if self.kin_hardening != 0.0 {
+            jaumann_rotate_skew(&mut st.back_stress, spin, dt);
+        }
+        let deqp = self.update(st, de);
+        if deqp > 0.0 {
+            mechanics::j2::plastic_work(st, deqp)
+        } else {
+            0.0
+        }
+    }
+}
+
+impl BondLaw for BlastSolid {
+    /// The rate form has no deformation gradient: J follows d ln J = tr D dt from the
+    /// point's last J, which the pressure takes (1 at rest).
+    #[inline]
+    fn bond_step(&self, st: &mut Self::State, de: &Sym, spin: &M3, dt: f64) -> f64 {
+        let jac = st.jac * (de[0] + de[1] + de[2]).exp();
+        self.step(st, de, spin, dt, jac, false)
+    }
+}
 
 /// Largest monomial basis: 3-D, order 2 (x, y, z, x², xy, xz, y², yz, z²).
 pub const MAX_BASIS: usize = 9;
@@ -369,8 +407,8 @@ pub fn rk_gradient(
 /// Per-bond history: the bond-level J2 state, the damage part ω_D of the influence, and ω
 /// after this step's damage update (used by z and the force).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct BondHistory {
-    pub state: J2State,
+pub struct BondHistory<S = J2State> {
+    pub state: S,
     pub wd: f64,
     pub om: f64,
     /// Plastic work done through this row's copy of the bond since the start (J):
@@ -378,12 +416,15 @@ pub struct BondHistory {
     pub plastic_work: f64,
 }
 
-/// The pd-rk-ba model, generic over its damage law.
-pub struct RkBa<D: DamageModel> {
+/// A bond's history as a checkpoint holds it: the law's state, ω_D and the plastic work.
+type SavedBond<S> = (S, f64, f64);
+
+/// The pd-rk-ba model, generic over its damage law and its stress law.
+pub struct RkBa<D: DamageModel, L: BondLaw = J2Material> {
     pub dim: Dim,
     pub order: usize,
     pub horizon: f64,
-    pub material: J2Material,
+    pub material: L,
     pub damage: D,
     pub point: Vec<RkPoint>,
     /// z_i of (A.14).
@@ -391,7 +432,7 @@ pub struct RkBa<D: DamageModel> {
     /// ω and Φ per bond, from the gradient pass.
     pub omega: Vec<f64>,
     pub phi: Vec<[f64; 3]>,
-    pub hist: Vec<BondHistory>,
+    pub hist: Vec<BondHistory<L::State>>,
     /// Index of bond (j, i) for bond (i, j).
     pub rev: Vec<u32>,
     /// Row starts (a copy of the family offsets).
@@ -401,20 +442,20 @@ pub struct RkBa<D: DamageModel> {
     released: Vec<f64>,
     /// Whether the stress lives at the bonds (the BA model, the default) or at the particles.
     bond_associative: bool,
-    /// Without BA: each particle's J2 state and the plastic work done at it (J); empty
-    /// with BA.
-    point_state: Vec<(J2State, f64)>,
+    /// Without BA: each particle's state and the plastic work done at it (J); empty with
+    /// BA.
+    point_state: Vec<(L::State, f64)>,
 }
 
 /// Particle i's strain energy V_i S/W (J) with S = Σ_j ω_b V_j w_e(σ_b), W = Σ_j ω_b V_j over
 /// its row (`hrow`, neighbours `nbr`) with the influences `om(b)` (b the index in the row):
 /// the α-weighted bond energy of seed 000 eq. (15)–(18), α = ω/W. Zero when W = 0.
-fn row_energy(
-    mat: &J2Material,
+fn row_energy<L: BondLaw>(
+    mat: &L,
     vol: &[f64],
     i: usize,
     nbr: &[u32],
-    hrow: &[BondHistory],
+    hrow: &[BondHistory<L::State>],
     om: impl Fn(usize) -> f64,
 ) -> f64 {
     let (mut s, mut w) = (0.0, 0.0);
@@ -422,19 +463,19 @@ fn row_energy(
         let o = om(b);
         if o != 0.0 {
             let wv = o * vol[j as usize];
-            s += wv * mat.elastic_energy(&h.state.stress);
+            s += wv * mat.stored_energy(&h.state);
             w += wv;
         }
     }
     if w > 0.0 { vol[i] * s / w } else { 0.0 }
 }
 
-impl<D: DamageModel> RkBa<D> {
+impl<D: DamageModel, L: BondLaw> RkBa<D, L> {
     pub fn new(
         dim: Dim,
         order: usize,
         horizon: f64,
-        material: J2Material,
+        material: L,
         damage: D,
         bonds: &Bonds,
     ) -> Self {
@@ -455,7 +496,7 @@ impl<D: DamageModel> RkBa<D> {
                 .intact
                 .iter()
                 .map(|&w| BondHistory {
-                    state: J2State::default(),
+                    state: material.initial_state(),
                     wd: w,
                     om: 0.0,
                     plastic_work: 0.0,
@@ -477,7 +518,7 @@ impl<D: DamageModel> RkBa<D> {
         self.point_state = if on {
             Vec::new()
         } else {
-            vec![(J2State::default(), 0.0); self.point.len()]
+            vec![(self.material.initial_state(), 0.0); self.point.len()]
         };
     }
 
@@ -487,37 +528,34 @@ impl<D: DamageModel> RkBa<D> {
     fn point_forces(&mut self, k: &Kinematics, bonds: &Bonds, dt: f64, f: &mut [[f64; 3]]) {
         let (point, mat) = (&self.point, self.material);
         if dt > 0.0 {
-            super::family::par_points(
-                &mut self.point_state,
-                &|i, (st, work): &mut (J2State, f64)| {
-                    let pi = &point[i];
-                    if !pi.active {
-                        return;
-                    }
-                    let l = pi.l;
-                    let (spin, de) = spin_and_strain_step(&l, dt);
-                    jaumann_rotate_skew(&mut st.stress, &spin, dt);
-                    if mat.kin_hardening != 0.0 {
-                        jaumann_rotate_skew(&mut st.back_stress, &spin, dt);
-                    }
-                    let deqp = mat.update(st, &de);
-                    if deqp > 0.0 {
-                        *work += k.vol[i] * mechanics::j2::plastic_work(st, deqp);
-                    }
-                },
-            );
+            super::family::par_points(&mut self.point_state, &|i,
+                                                               (st, work): &mut (
+                L::State,
+                f64,
+            )| {
+                let pi = &point[i];
+                if !pi.active {
+                    return;
+                }
+                let l = pi.l;
+                let (spin, de) = spin_and_strain_step(&l, dt);
+                let wp = mat.bond_step(st, &de, &spin, dt);
+                if wp != 0.0 {
+                    *work += k.vol[i] * wp;
+                }
+            });
         }
         let (offsets, nbr) = (&bonds.offsets, &bonds.nbr);
         let (state, phi, rev, omega) = (&self.point_state, &self.phi, &self.rev, &self.omega);
         super::family::par_points(f, &|i, fi: &mut [f64; 3]| {
-            let si = mechanics::j2::to_matrix(&state[i].0.stress);
+            let si = mechanics::j2::to_matrix(L::stress(&state[i].0));
             let mut acc = [0.0; 3];
             for b in offsets[i]..offsets[i + 1] {
                 if omega[b] == 0.0 {
                     continue;
                 }
                 let j = nbr[b] as usize;
-                let sj = mechanics::j2::to_matrix(&state[j].0.stress);
+                let sj = mechanics::j2::to_matrix(L::stress(&state[j].0));
                 let (pij, pji) = (phi[b], phi[rev[b] as usize]);
                 let vj = k.vol[j];
                 for a in 0..3 {
@@ -583,12 +621,12 @@ impl<D: DamageModel> RkBa<D> {
     }
 
     /// The bond histories (for checkpoints and tests).
-    pub fn bond_state(&self, b: usize) -> &J2State {
+    pub fn bond_state(&self, b: usize) -> &L::State {
         &self.hist[b].state
     }
 }
 
-impl<D: DamageModel> PdModel for RkBa<D> {
+impl<D: DamageModel, L: BondLaw> PdModel for RkBa<D, L> {
     fn name(&self) -> &'static str {
         "pd-rk-ba"
     }
@@ -670,23 +708,17 @@ impl<D: DamageModel> PdModel for RkBa<D> {
                     });
                     let (spin, de) = spin_and_strain_step(&l, dt);
                     // seed 000 eq. (B.2)–(B.4) at the bond level.
-                    jaumann_rotate_skew(&mut h.state.stress, &spin, dt);
-                    if mat.kin_hardening != 0.0 {
-                        jaumann_rotate_skew(&mut h.state.back_stress, &spin, dt);
-                    }
-                    let deqp = mat.update(&mut h.state, &de);
-                    if deqp > 0.0 {
+                    let wp = mat.bond_step(&mut h.state, &de, &spin, dt);
+                    if wp != 0.0 {
                         // weighted with this step's α = ω/ω̄_i (ω before this step's damage)
-                        h.plastic_work += k.vol[i] * om0 / pi.wbar
-                            * k.vol[j]
-                            * mechanics::j2::plastic_work(&h.state, deqp);
+                        h.plastic_work += k.vol[i] * om0 / pi.wbar * k.vol[j] * wp;
                     }
                 }
                 let input = BondInput {
                     stretch: x2.sqrt() * il - 1.0,
-                    von_mises: von_mises(&h.state.stress),
-                    eq_plastic_strain: h.state.eq_plastic_strain,
-                    failure: 0.0,
+                    von_mises: von_mises(L::stress(&h.state)),
+                    eq_plastic_strain: L::eq_plastic_strain(&h.state),
+                    failure: L::failure(&h.state),
                 };
                 let wd = damage.update(h.wd, &input);
                 let om = if wd < h.wd { om0 * (wd / h.wd) } else { om0 };
@@ -698,7 +730,7 @@ impl<D: DamageModel> PdModel for RkBa<D> {
                 }
                 // (A.14): (½/ω̄_i + ½/ω̄_j) ω σ (I − x xᵀ/|x|²) V_j
                 let c = (0.5 / pi.wbar + 0.5 / pj.wbar) * om * k.vol[j];
-                let s = mechanics::j2::to_matrix(&h.state.stress);
+                let s = mechanics::j2::to_matrix(L::stress(&h.state));
                 let sx: [f64; 3] =
                     std::array::from_fn(|a| s[a][0] * x[0] + s[a][1] * x[1] + s[a][2] * x[2]);
                 for a in 0..3 {
@@ -729,7 +761,7 @@ impl<D: DamageModel> PdModel for RkBa<D> {
                 let j = nbr[b] as usize;
                 let x: [f64; 3] = (vec3(&k.pos[j]) - vec3(&p)).into();
                 let x2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
-                let s = mechanics::j2::to_matrix(&h.state.stress);
+                let s = mechanics::j2::to_matrix(L::stress(&h.state));
                 let c = h.om * (1.0 / wi + 1.0 / point[j].wbar) / x2;
                 let (pij, pji) = (phi[b], phi[rev[b] as usize]);
                 let zj = &z[j];
@@ -749,8 +781,7 @@ impl<D: DamageModel> PdModel for RkBa<D> {
     fn stable_dt(&self, k: &Kinematics, bonds: &Bonds, density: f64) -> f64 {
         // seed 001 §4.2: Δt ≤ l/c, l the smallest bond, c the dilatational wave speed.
         let _ = k;
-        let m = &self.material;
-        let c = ((m.bulk_modulus() + 4.0 / 3.0 * m.shear_modulus()) / density).sqrt();
+        let c = (self.material.wave_modulus() / density).sqrt();
         let lmin = bonds
             .inv_len
             .iter()
@@ -777,7 +808,7 @@ impl<D: DamageModel> PdModel for RkBa<D> {
         if !self.bond_associative {
             // Σ_i V_i w_e(σ_i) without BA
             return (self.point_state.iter().zip(k.vol))
-                .map(|((st, _), v)| v * mat.elastic_energy(&st.stress))
+                .map(|((st, _), v)| v * mat.stored_energy(st))
                 .sum();
         }
         let mut e = 0.0;
@@ -803,22 +834,62 @@ impl<D: DamageModel> PdModel for RkBa<D> {
 
     fn stress(&self) -> Option<Vec<Sym>> {
         if !self.bond_associative {
-            return Some(self.point_state.iter().map(|(st, _)| st.stress).collect());
+            return Some(
+                self.point_state
+                    .iter()
+                    .map(|(st, _)| *L::stress(st))
+                    .collect(),
+            );
         }
-        Some(self.point_average(|h| h.state.stress))
+        Some(self.point_average(|h| *L::stress(&h.state)))
     }
 
     fn plastic_strain(&self) -> Option<Vec<f64>> {
         if !self.bond_associative {
-            let eqp = self.point_state.iter().map(|(st, _)| st.eq_plastic_strain);
+            let eqp = self
+                .point_state
+                .iter()
+                .map(|(st, _)| L::eq_plastic_strain(st));
             return Some(eqp.collect());
         }
-        Some(
-            self.point_average(|h| [h.state.eq_plastic_strain, 0.0, 0.0, 0.0, 0.0, 0.0])
-                .iter()
-                .map(|s| s[0])
-                .collect(),
-        )
+        Some(self.point_scalar(L::eq_plastic_strain))
+    }
+
+    /// Per bond the mean of its two particles' factors (both copies alike), or per particle
+    /// without BA.
+    fn set_failure_factors(&mut self, factor: &[f64]) {
+        for (st, &f) in self.point_state.iter_mut().zip(factor) {
+            L::set_failure_factor(&mut st.0, f);
+        }
+        for i in 0..self.point.len() {
+            for b in self.offsets[i]..self.offsets[i + 1] {
+                // the neighbour: the row that holds the bond's twin
+                let twin = self.rev[b] as usize;
+                let j = self.offsets.partition_point(|&o| o <= twin) - 1;
+                L::set_failure_factor(&mut self.hist[b].state, 0.5 * (factor[i] + factor[j]));
+            }
+        }
+    }
+
+    /// The law's own scalars (temperature, failure indicator): at the particles without BA,
+    /// the ω-weighted means of their bonds' with it.
+    fn point_scalars(&self) -> Vec<(&'static str, Vec<f64>)> {
+        let names = self.material.scalar_names();
+        let value = |k: usize| -> Vec<f64> {
+            if self.bond_associative {
+                self.point_scalar(|st| L::scalar(st, k))
+            } else {
+                self.point_state
+                    .iter()
+                    .map(|(st, _)| L::scalar(st, k))
+                    .collect()
+            }
+        };
+        names
+            .iter()
+            .enumerate()
+            .map(|(k, &n)| (n, value(k)))
+            .collect()
     }
 
     /// Per bond its J2 state, damage and plastic work (ω is recomputed at each evaluation),
@@ -828,7 +899,7 @@ impl<D: DamageModel> PdModel for RkBa<D> {
         if !self.bond_associative {
             return encode_state(&self.point_state);
         }
-        let hist: Vec<(J2State, f64, f64)> = self
+        let hist: Vec<SavedBond<L::State>> = self
             .hist
             .iter()
             .map(|h| (h.state, h.wd, h.plastic_work))
@@ -838,12 +909,12 @@ impl<D: DamageModel> PdModel for RkBa<D> {
 
     fn load_state(&mut self, bytes: &[u8]) -> SolverResult<()> {
         if !self.bond_associative {
-            let state: Vec<(J2State, f64)> = decode_state(bytes)?;
+            let state: Vec<(L::State, f64)> = decode_state(bytes)?;
             check_len("particle states", state.len(), self.point_state.len())?;
             self.point_state = state;
             return Ok(());
         }
-        let (hist, released): (Vec<(J2State, f64, f64)>, Vec<f64>) = decode_state(bytes)?;
+        let (hist, released): (Vec<SavedBond<L::State>>, Vec<f64>) = decode_state(bytes)?;
         check_len("bond histories", hist.len(), self.hist.len())?;
         check_len("released bond energy", released.len(), self.released.len())?;
         for (h, (state, wd, plastic_work)) in self.hist.iter_mut().zip(hist) {
@@ -856,8 +927,7 @@ impl<D: DamageModel> PdModel for RkBa<D> {
     }
 
     fn stiffness_bound(&self, k: &Kinematics, bonds: &Bonds, i: usize) -> f64 {
-        let m = &self.material;
-        let modulus = m.bulk_modulus() + 4.0 / 3.0 * m.shear_modulus();
+        let modulus = self.material.wave_modulus();
         let l = (bonds.offsets[i]..bonds.offsets[i + 1])
             .map(|b| 1.0 / bonds.inv_len[b])
             .fold(f64::INFINITY, f64::min);
@@ -869,9 +939,18 @@ impl<D: DamageModel> PdModel for RkBa<D> {
     }
 }
 
-impl<D: DamageModel> RkBa<D> {
+impl<D: DamageModel, L: BondLaw> RkBa<D, L> {
+    /// A scalar of the bonds' states per particle, the ω-weighted mean over its bonds (output
+    /// only).
+    fn point_scalar(&self, f: impl Fn(&L::State) -> f64) -> Vec<f64> {
+        self.point_average(|h| [f(&h.state), 0.0, 0.0, 0.0, 0.0, 0.0])
+            .iter()
+            .map(|s| s[0])
+            .collect()
+    }
+
     /// Point value as the ω-weighted mean of its bonds' values (output only).
-    fn point_average(&self, f: impl Fn(&BondHistory) -> Sym) -> Vec<Sym> {
+    fn point_average(&self, f: impl Fn(&BondHistory<L::State>) -> Sym) -> Vec<Sym> {
         let n = self.point.len();
         let mut out = vec![[0.0; 6]; n];
         for i in 0..n {

@@ -307,6 +307,10 @@ impl PdSolver {
             })
         })?;
         let mut body = Body::new(dim, p.spacing, p.horizon, p.density, x0, vol, bonds, model);
+        if let Some(m) = p.mott().or_else(|(k, r)| cfg(&k, r))? {
+            let f: Vec<f64> = (0..body.len()).map(|i| m.factor(i as u64)).collect();
+            body.model.set_failure_factors(&f);
+        }
         set_initial_velocity(&mut body, &p)?;
         set_walls(&mut body, &p)?;
         let bc_particles = prescribe_velocity(&mut body, &p)?;

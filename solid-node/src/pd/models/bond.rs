@@ -35,11 +35,11 @@ pub const DEF: PdModelDef = PdModelDef {
         ),
         (
             "johnson_cook",
-            "does not apply to pd-bond (elastic-brittle; only pd-correspondence runs the Johnson–Cook solid)",
+            "does not apply to pd-bond (elastic-brittle; pd-correspondence and pd-rk-ba run the Johnson–Cook solid)",
         ),
         (
             "eos",
-            "does not apply to pd-bond (only pd-correspondence's Johnson–Cook solid takes an equation of state)",
+            "does not apply to pd-bond (only the Johnson–Cook solid of pd-correspondence and pd-rk-ba takes an equation of state)",
         ),
     ],
     plastic: false,

@@ -1,29 +1,21 @@
 //! `pd-rk-ba`: the bond-associative model with reproducing-kernel gradients (its force law:
 //! `pd/rk_ba.rs`), or with `bond_associative = false` the same gradients without the
-//! stabilization. It has no device kernels.
+//! stabilization; J2 plasticity at the bonds or, given `johnson_cook`, the blast solid
+//! (Johnson–Cook strength, an equation of state, Johnson–Cook failure). It has no device
+//! kernels.
 
 use super::{DamageVisitor, ModelInput, PdModelDef, cfg, with_damage};
 use crate::pd::model::{Dim, PdModel};
-use crate::pd::rk_ba::RkBa;
+use crate::pd::rk_ba::{BondLaw, RkBa};
 use mechanics::damage::DamageModel;
 use protocol::SolverResult;
 
 pub const DEF: PdModelDef = PdModelDef {
     name: "pd-rk-ba",
-    refuses: &[
-        (
-            "stabilization",
-            "does not apply to pd-rk-ba (its bond-associative stabilization takes no constant; G is pd-correspondence's)",
-        ),
-        (
-            "johnson_cook",
-            "does not apply to pd-rk-ba (it integrates J2 plasticity; only pd-correspondence runs the Johnson–Cook solid)",
-        ),
-        (
-            "eos",
-            "does not apply to pd-rk-ba (only pd-correspondence's Johnson–Cook solid takes an equation of state)",
-        ),
-    ],
+    refuses: &[(
+        "stabilization",
+        "does not apply to pd-rk-ba (its bond-associative stabilization takes no constant; G is pd-correspondence's)",
+    )],
     plastic: true,
     build,
     device: None,
@@ -46,12 +38,13 @@ fn build(m: &ModelInput) -> SolverResult<Box<dyn PdModel>> {
             "false takes no `damage`: pd-rk-ba's damage acts on the bond-level stress, which the unstabilized model does not have",
         );
     }
-    struct Make<'a, 'b>(&'a ModelInput<'b>);
-    impl DamageVisitor<SolverResult<Box<dyn PdModel>>> for Make<'_, '_> {
+    let solid = m.p.blast_solid().or_else(|(k, r)| cfg(&k, r))?;
+    struct Make<'a, 'b, L>(&'a ModelInput<'b>, L);
+    impl<L: BondLaw> DamageVisitor<SolverResult<Box<dyn PdModel>>> for Make<'_, '_, L> {
         fn visit<D: DamageModel + 'static>(self, damage: D) -> SolverResult<Box<dyn PdModel>> {
             let m = self.0;
             let order = m.p.rk_order;
-            let mut model = RkBa::new(m.dim, order, m.p.horizon, m.material, damage, m.bonds);
+            let mut model = RkBa::new(m.dim, order, m.p.horizon, self.1, damage, m.bonds);
             model.set_bond_associative(m.p.bond_associative);
             if let Some(i) = model.singular_particle(m.k, m.bonds) {
                 return cfg(
@@ -65,5 +58,8 @@ fn build(m: &ModelInput) -> SolverResult<Box<dyn PdModel>> {
             Ok(Box::new(model))
         }
     }
-    with_damage(&m.p.damage, Make(m))
+    match solid {
+        Some(s) => with_damage(&m.p.damage, Make(m, s)),
+        None => with_damage(&m.p.damage, Make(m, m.material)),
+    }
 }
