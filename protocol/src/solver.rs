@@ -19,9 +19,10 @@ pub struct Window {
     pub write_output: bool,
 }
 
-/// Where a node's explicit integrator cannot choose its own step, the largest window it is
-/// stable at (`NODE --describe` states it, so that `cosim validate` refuses an unstable
-/// set-up before anything runs). A node that sub-cycles at its own stable step has none.
+/// Where a node's integrator cannot choose its own step, the largest window it is stable at
+/// (`NODE --describe` states it, so that `cosim validate` refuses an unstable set-up before
+/// anything runs), or clear of the sub-cycling resonance (warned of). A node that sub-cycles
+/// at its own stable step has no stability limit.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct WindowLimit {
     /// When the limit holds.
@@ -36,6 +37,23 @@ pub struct WindowLimit {
     /// The node parameter that sets `substeps`, relative to the node (`params.substeps`);
     /// None when only the window can change.
     pub key: Option<String>,
+    /// What a longer step does: blow up (refused) or resonate (warned of). Absent:
+    /// stability.
+    #[serde(default)]
+    pub kind: LimitKind,
+}
+
+/// What stepping beyond a [`WindowLimit`] does.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LimitKind {
+    /// The integrator is unstable: `cosim` refuses the window.
+    #[default]
+    Stability,
+    /// A mode of the side turns whole periods in one window, where the window-end constraint
+    /// of `gs4` and `ph` cannot hold it (docs/architecture.md, "Sub-cycling resonance"):
+    /// `cosim` warns.
+    Resonance,
 }
 
 impl WindowLimit {

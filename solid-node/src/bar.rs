@@ -8,13 +8,15 @@
 //! `a_n = M⁻¹ (f_int(u_n) + f_ext + f_coupling)`, `v_{n+1/2} = v_{n-1/2} + Δt a_n`,
 //! `u_{n+1} = u_n + Δt v_{n+1/2}`.
 
-use crate::lagrange::SubdomainSide;
+use crate::lagrange::{SubdomainSide, resonance_limit, resonance_warning};
 use mechanics::time::{CouplingMethod, InterfaceDof, Subdomain};
 use mechanics::time::{Gs4, Gs4Error, IntegratorSpec, LinearSystem, State, Stepper};
 use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
 use protocol::scheme::{self, kinematic};
 use protocol::{Binding, InterfaceMesh, Solver, SolverError, SolverResult, StepReport, Window};
-use protocol::{Inbox, InterfaceInfo, LimitApplies, NodeDescription, Outbox, WindowLimit};
+use protocol::{
+    Inbox, InterfaceInfo, LimitApplies, LimitKind, NodeDescription, Outbox, WindowLimit,
+};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -194,6 +196,8 @@ pub struct Bar {
     follow: kinematic::Follow,
     gs4: Option<Gs4Path>,
     lagrange: Option<LagrangeBar>,
+    /// What the user should know that does not stop the run (given at set-up).
+    warnings: Vec<String>,
 }
 
 /// The bar as one subdomain of a lagrange coupling: the runtime steps it.
@@ -283,6 +287,7 @@ impl Bar {
             coupled: Vec::new(),
             follow: kinematic::Follow::default(),
             gs4: None,
+            warnings: Vec::new(),
             lagrange: None,
             p,
         };
@@ -355,6 +360,17 @@ impl Bar {
                 .coupled
                 .iter()
                 .any(|c| c.follows && self.node(c.end) == i)
+    }
+
+    /// The integrator a lagrange subdomain of this bar takes, and its name.
+    fn lagrange_integrator(&self) -> (Gs4, String) {
+        match (&self.gs4, &self.p.integrator) {
+            (Some(g), Some(spec)) if !g.coef.explicit => {
+                (g.coef, format!("implicit {}", spec.design))
+            }
+            (Some(g), _) => (g.coef, "central differences".into()),
+            (None, _) => (Gs4::central_difference(), "central differences".into()),
+        }
     }
 
     /// Critical step of the chain: Gershgorin bound on the highest frequency,
@@ -531,18 +547,28 @@ impl Solver for Bar {
 
     fn window_limits(&self) -> Vec<WindowLimit> {
         // A lagrange side with its substeps given steps window / substeps, whatever its
-        // stable step; an implicit integrator has no limit.
-        let explicit = self.gs4.as_ref().is_none_or(|g| g.coef.explicit);
-        match self.p.substeps {
-            Some(n) if explicit => vec![WindowLimit {
+        // stable step; an implicit integrator has no stability limit. Either may resonate.
+        let Some(n) = self.p.substeps else {
+            return Vec::new();
+        };
+        let (coef, name) = self.lagrange_integrator();
+        let mut limits = Vec::new();
+        if coef.explicit {
+            limits.push(WindowLimit {
                 applies: LimitApplies::LagrangeSide,
-                integrator: "central differences".into(),
+                integrator: name.clone(),
                 substeps: n as u64,
                 max_step: self.critical_dt(),
                 key: Some("params.substeps".into()),
-            }],
-            _ => Vec::new(),
+                kind: LimitKind::Stability,
+            });
         }
+        limits.extend(resonance_limit(&coef, &name, n, self.critical_dt()));
+        limits
+    }
+
+    fn warnings(&self) -> Vec<String> {
+        self.warnings.clone()
     }
 
     fn lagrange_side(&mut self, interface: &str) -> Option<&mut dyn LagrangeSide> {
@@ -945,6 +971,16 @@ impl Bar {
             Some(m) => m,
             None => (window / self.stable_dt() - 1e-9).ceil().max(1.0) as usize,
         };
+        if self.p.substeps.is_none() && method != Method::Gc {
+            let (coef, name) = self.lagrange_integrator();
+            self.warnings.extend(resonance_warning(
+                &coef,
+                &name,
+                substeps,
+                window,
+                self.critical_dt(),
+            ));
+        }
         let method = match method {
             Method::Gs4 => CouplingMethod::Gs4,
             Method::Gc => CouplingMethod::Gc,

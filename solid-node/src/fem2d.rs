@@ -14,7 +14,7 @@
 //! them is the interface mesh whose motion goes out, and the finer model's force on the
 //! ring's nodes comes back, held over the next window.
 
-use crate::lagrange::SubdomainSide;
+use crate::lagrange::{SubdomainSide, resonance_limit, resonance_warning};
 use mechanics::fem2d::{Edge, Fem2dError, Material, Mesh, Model, Plane};
 use mechanics::time::{
     CouplingMethod, Gs4, Gs4Error, IntegratorSpec, InterfaceDof, LinearSystem, LoadRamp, Ramp,
@@ -23,7 +23,7 @@ use mechanics::time::{
 use mechanics::xfem::Crack;
 use protocol::scheme;
 use protocol::scheme::lagrange::{LagrangeSide, Method, wire as lwire};
-use protocol::{Binding, Inbox, LimitApplies, Outbox, WindowLimit};
+use protocol::{Binding, Inbox, LimitApplies, LimitKind, Outbox, WindowLimit};
 use protocol::{
     InterfaceInfo, InterfaceMesh, NodeDescription, Solver, SolverError, SolverResult, StepReport,
     Window,
@@ -296,6 +296,8 @@ pub struct Fem2d {
     coef: Gs4,
     /// Explicit critical step bound (s).
     critical: f64,
+    /// What the user should know that does not stop the run (given at set-up).
+    warnings: Vec<String>,
     /// Each load's free-dof shape (N) and history.
     loads: Vec<(Vec<f64>, LoadRamp)>,
     /// Reported points: name and node.
@@ -567,6 +569,7 @@ impl Fem2d {
             region: region_of,
             overlap: None,
             critical,
+            warnings: Vec::new(),
             coef,
             sys,
             model,
@@ -583,6 +586,14 @@ impl Fem2d {
     /// The explicit critical step bound of the mesh (s).
     pub fn critical_step(&self) -> f64 {
         self.critical
+    }
+
+    /// The integrator in words: "central differences", or the implicit design's name.
+    fn integrator_name(&self) -> String {
+        match &self.p.integrator {
+            Some(spec) if !self.coef.explicit => format!("implicit {}", spec.design),
+            _ => "central differences".into(),
+        }
     }
 
     /// The mesh, material, supports and assembled operators.
@@ -818,6 +829,15 @@ impl Fem2d {
                      explicit critical step bound {:e} s",
                     self.critical
                 ),
+            ));
+        }
+        if self.p.substeps.is_none() && method != Method::Gc {
+            self.warnings.extend(resonance_warning(
+                &self.coef,
+                &self.integrator_name(),
+                substeps,
+                window,
+                self.critical,
             ));
         }
         let method = match method {
@@ -1121,16 +1141,31 @@ impl Solver for Fem2d {
     }
 
     fn window_limits(&self) -> Vec<WindowLimit> {
-        match self.p.substeps {
-            Some(n) if self.coef.explicit => vec![WindowLimit {
+        let Some(n) = self.p.substeps else {
+            return Vec::new();
+        };
+        let mut limits = Vec::new();
+        if self.coef.explicit {
+            limits.push(WindowLimit {
                 applies: LimitApplies::LagrangeSide,
                 integrator: "central differences".into(),
                 substeps: n as u64,
                 max_step: self.critical,
                 key: Some("params.substeps".into()),
-            }],
-            _ => Vec::new(),
+                kind: LimitKind::Stability,
+            });
         }
+        limits.extend(resonance_limit(
+            &self.coef,
+            &self.integrator_name(),
+            n,
+            self.critical,
+        ));
+        limits
+    }
+
+    fn warnings(&self) -> Vec<String> {
+        self.warnings.clone()
     }
 
     fn advance(&mut self, w: &Window, inbox: &Inbox, out: &mut Outbox) -> SolverResult<StepReport> {

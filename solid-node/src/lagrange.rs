@@ -12,8 +12,54 @@
 //! interface provides (`velocity` too, and `force` among those it accepts). The runtime does
 //! the rest; `advance` only reports the window from the subdomain's state.
 
-use mechanics::time::Subdomain;
+use mechanics::time::{Gs4, Subdomain};
 use protocol::scheme::lagrange::LagrangeSide;
+use protocol::{LimitApplies, LimitKind, WindowLimit};
+
+/// The resonance limit of a side that takes `substeps` steps of `coef` (named `integrator`)
+/// per window on a mesh whose explicit critical step is `critical` (docs/architecture.md,
+/// "Sub-cycling resonance"): under `gs4` and `ph`, a window whose steps pass it puts a mode
+/// of the mesh at a whole number of periods per window. None when the integrator has no
+/// resonance at that count or damps it.
+pub fn resonance_limit(
+    coef: &Gs4,
+    integrator: &str,
+    substeps: usize,
+    critical: f64,
+) -> Option<WindowLimit> {
+    let max_step = coef.resonance_free_step(substeps, critical)?;
+    Some(WindowLimit {
+        applies: LimitApplies::LagrangeSideGs4OrPh,
+        integrator: integrator.to_string(),
+        substeps: substeps as u64,
+        max_step,
+        key: Some("params.substeps".into()),
+        kind: LimitKind::Resonance,
+    })
+}
+
+/// The same check where the node chose its own `substeps` for the `window` (no limit
+/// could be stated before the run): the warning the node gives at set-up, or None.
+pub fn resonance_warning(
+    coef: &Gs4,
+    integrator: &str,
+    substeps: usize,
+    window: f64,
+    critical: f64,
+) -> Option<String> {
+    let l = resonance_limit(coef, integrator, substeps, critical)?;
+    let step = window / substeps as f64;
+    (step > l.max_step).then(|| {
+        format!(
+            "as a lagrange side it steps {integrator} {substeps} times per window of {window:e} s \
+             ({step:.4e} s), past {:.4e} s, where a mode of its mesh turns whole periods in one \
+             window and the window-end constraint cannot hold it: the multipliers may lose \
+             accuracy. Clear of it: a smaller run.window or step, or a dissipative design \
+             (\"Sub-cycling resonance\" in docs/architecture.md)",
+            l.max_step
+        )
+    })
+}
 
 /// A subdomain as one side of a `lagrange` coupling.
 #[derive(Debug)]

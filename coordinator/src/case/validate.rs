@@ -544,6 +544,12 @@ fn check_stability(case: &Case) -> Result<Vec<String>, ConfigError> {
                 }
                 let step = window / l.substeps.max(1) as f64;
                 let ratio = step / l.max_step;
+                if l.kind == protocol::LimitKind::Resonance {
+                    if ratio > 1.0 + 1e-12 {
+                        warnings.push(resonance_warning(node, i, &c.name, l, window, step));
+                    }
+                    continue;
+                }
                 let what = format!(
                     "node '{node}' (a side of the lagrange coupling couplings[{i}] '{}') steps {} {} time{} per window: at run.window = {window:e} s a step is {step:.4e} s, {ratio:.3} × its largest stable step {:.4e} s",
                     c.name,
@@ -578,6 +584,31 @@ fn check_stability(case: &Case) -> Result<Vec<String>, ConfigError> {
         }
     }
     Ok(warnings)
+}
+
+/// The warning for a lagrange side whose steps pass its resonance limit: where it stands,
+/// what it costs, and the ways out (a window that clears it, a dissipative design).
+fn resonance_warning(
+    node: &str,
+    i: usize,
+    coupling: &str,
+    l: &protocol::WindowLimit,
+    window: f64,
+    step: f64,
+) -> String {
+    format!(
+        "node '{node}' (a side of the lagrange coupling couplings[{i}] '{coupling}') steps {} {} \
+         times per window: at run.window = {window:e} s a step is {step:.4e} s, past {:.4e} s, \
+         where a mode of its mesh turns whole periods in one window and the window-end \
+         constraint of gs4 and ph cannot hold it: the multipliers may lose accuracy. Clear of \
+         it: run.window ≤ {:.6e} s at these substeps, or a dissipative design on this side \
+         (\"Sub-cycling resonance\" in docs/architecture.md gives the limit at other \
+         substeps)",
+        l.integrator,
+        l.substeps,
+        l.max_step,
+        l.max_window(),
+    )
 }
 
 /// The length the distance between matched points is judged against: the interface's mean

@@ -208,6 +208,99 @@ impl Gs4 {
         }
     }
 
+    /// The one-step map of an undamped mode of frequency ω at Ω = ωΔt on the scaled state
+    /// (u, Δt v, Δt² a): column j is the step from the j-th unit state (the module doc's
+    /// update with M = 1, C = 0, K = ω², no load).
+    pub fn amplification(&self, omega_dt: f64) -> nalgebra::Matrix3<f64> {
+        let o2 = omega_dt * omega_dt;
+        let mut m = nalgebra::Matrix3::zeros();
+        for j in 0..3 {
+            let mut x = [0.0; 3];
+            x[j] = 1.0;
+            let [u, v, a] = x;
+            let da = -(a + o2 * (u + self.l1w1 * v + self.l2w2 * a)) / (self.l6w1 + o2 * self.l3w3);
+            m[(0, j)] = u + self.lam1 * v + self.lam2 * a + self.lam3 * da;
+            m[(1, j)] = v + self.lam4 * a + self.lam5 * da;
+            m[(2, j)] = a + da;
+        }
+        m
+    }
+
+    /// Modulus and phase per step of the principal root at Ω = ωΔt: the complex root of
+    /// [`Self::amplification`] in the upper half plane, phase in (0, π); once the principal
+    /// pair has met on the negative real axis, the larger negative root with phase π; None
+    /// when no root has either (the mode no longer oscillates).
+    pub fn principal_root(&self, omega_dt: f64) -> Option<(f64, f64)> {
+        let ev = self.amplification(omega_dt).complex_eigenvalues();
+        let scale = ev.iter().fold(0.0f64, |m, z| m.max(z.norm()));
+        if let Some(z) = ev.iter().find(|z| z.im > 1e-12 * scale) {
+            return Some((z.norm(), z.arg()));
+        }
+        ev.iter()
+            .filter(|z| z.re < -1e-12 * scale)
+            .map(|z| z.norm())
+            .max_by(f64::total_cmp)
+            .map(|r| (r, std::f64::consts::PI))
+    }
+
+    /// The sub-cycling resonance of `substeps` steps (docs/architecture.md, "Sub-cycling
+    /// resonance"): the smallest Ω = ωΔt at which an undamped mode's principal root turns a
+    /// whole period in `substeps` steps (substeps · phase = 2π), so that the mode returns to
+    /// the same state at every end of a window of `substeps` steps, and the share of its
+    /// amplitude that survives those steps (rᵐ, 1 for a non-dissipative design). None for fewer
+    /// than three steps when no stable Ω gets there (one step never; two steps would need a
+    /// phase of π per step).
+    pub fn resonance(&self, substeps: usize) -> Option<Resonance> {
+        if substeps < 2 {
+            return None;
+        }
+        let m = substeps as f64;
+        let target = 2.0 * std::f64::consts::PI / m;
+        // The explicit member is stable below Ω = 2; an implicit one at every Ω.
+        let top = if self.explicit {
+            2.0 * (1.0 - 1e-12)
+        } else {
+            1e4
+        };
+        let past = |o: f64| self.principal_root(o).is_some_and(|(_, p)| p >= target);
+        let mut lo: f64 = 1e-3;
+        let mut hi = loop {
+            let next = (lo * 1.01).min(top);
+            if past(next) {
+                break next;
+            }
+            if next >= top {
+                return None;
+            }
+            lo = next;
+        };
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if mid <= lo || mid >= hi {
+                break;
+            }
+            if past(mid) {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        let (r, _) = self.principal_root(hi)?;
+        Some(Resonance {
+            omega_dt: hi,
+            surviving: r.powf(m),
+        })
+    }
+
+    /// The largest step of `substeps` steps per window that keeps every mode of a mesh
+    /// whose explicit critical step (2/ω_max) is at least `critical` below the resonance:
+    /// Ω_res · critical / 2. None when the member has no resonance at that count or damps
+    /// it (less than [`RESONANCE_SURVIVAL`] of the mode survives the window).
+    pub fn resonance_free_step(&self, substeps: usize, critical: f64) -> Option<f64> {
+        let r = self.resonance(substeps)?;
+        (r.surviving >= RESONANCE_SURVIVAL).then_some(0.5 * r.omega_dt * critical)
+    }
+
     /// The member a parsed spec asks for; `key` is the spec's key path.
     pub fn from_spec(key: &str, spec: &IntegratorSpec) -> Result<Self, Gs4Error> {
         if spec.scheme != "gs4" {
@@ -239,6 +332,20 @@ impl Gs4 {
         }
     }
 }
+
+/// Where a sub-cycled member meets its resonance ([`Gs4::resonance`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Resonance {
+    /// Ω = ωΔt of the first resonant mode.
+    pub omega_dt: f64,
+    /// Share of that mode's amplitude left after the window's steps (rᵐ).
+    pub surviving: f64,
+}
+
+/// Below this share of its amplitude surviving a window the resonant mode is damped out
+/// before the window-end constraint's blindness to it matters (an amplification of at most
+/// 1/(1 − ½) = 2 of what the coupling lets through).
+pub const RESONANCE_SURVIVAL: f64 = 0.5;
 
 /// The `integrator` table of a structural model:
 /// `{ scheme = "gs4", design = "U0(1,1,0)", rho_inf = 1.0, implicit = false }`.
@@ -290,6 +397,49 @@ mod tests {
         let ga = Gs4::u0(Design::parse("d", "generalized-alpha", Some(r)).unwrap());
         assert!((1.0 - ga.l6w1 - (2.0 * r - 1.0) / (r + 1.0)).abs() < 1e-15);
         assert!((1.0 - ga.w1 - r / (r + 1.0)).abs() < 1e-15);
+    }
+
+    /// The principal root's phase against the closed forms of the two members that have one
+    /// (trapezoidal rule 2 atan(Ω/2), central differences 2 asin(Ω/2), both of modulus 1),
+    /// and the resonance of m steps where m times that phase is 2π: Ω = 2 tan(π/m) and
+    /// 2 sin(π/m); two steps have none.
+    #[test]
+    fn the_resonance_of_sub_cycled_steps_is_where_m_steps_turn_a_whole_period() {
+        let nm = Gs4::u0(Design::parse("d", "newmark", None).unwrap());
+        let cd = Gs4::central_difference();
+        let pi = std::f64::consts::PI;
+        for o in [0.1, 0.5, 1.0, 1.9] {
+            let (r, p) = nm.principal_root(o).unwrap();
+            assert!((r - 1.0).abs() < 1e-12 && (p - 2.0 * (o / 2.0).atan()).abs() < 1e-12);
+            let (r, p) = cd.principal_root(o).unwrap();
+            assert!((r - 1.0).abs() < 1e-12 && (p - 2.0 * (o / 2.0).asin()).abs() < 1e-12);
+        }
+        for m in [3usize, 4, 5, 8, 16] {
+            let a = nm.resonance(m).unwrap();
+            let want = 2.0 * (pi / m as f64).tan();
+            assert!((a.omega_dt - want).abs() < 1e-9 * want, "{m}: {a:?} {want}");
+            assert!((a.surviving - 1.0).abs() < 1e-9, "{m}: {a:?}");
+            let b = cd.resonance(m).unwrap();
+            let want = 2.0 * (pi / m as f64).sin();
+            assert!((b.omega_dt - want).abs() < 1e-9 * want, "{m}: {b:?} {want}");
+        }
+        assert_eq!(nm.resonance(2), None);
+        assert_eq!(cd.resonance(2), None);
+        assert_eq!(nm.resonance(1), None);
+        // Dissipative designs: the mode is damped by rᵐ < 1 there, and more so the lower ρ∞.
+        let damped = |d: &str| {
+            Gs4::u0(Design::parse("d", d, None).unwrap())
+                .resonance(4)
+                .unwrap()
+                .surviving
+        };
+        let (a, b, c) = (
+            damped("U0(0.8,0.8,0.8)"),
+            damped("U0(0.5,0.5,0.5)"),
+            damped("U0(0,0,0)"),
+        );
+        assert!(1.0 > a && a > b && b > c && c > 0.0, "{a} {b} {c}");
+        assert!(a > RESONANCE_SURVIVAL && c < RESONANCE_SURVIVAL, "{a} {c}");
     }
 
     #[test]

@@ -40,7 +40,7 @@ use protocol::{
     Binding, CouplingKind, InterfaceInfo, InterfaceMesh, NodeDescription, Role, Solver,
     SolverError, SolverResult, StepReport, Window,
 };
-use protocol::{BuildOptions, Inbox, LimitApplies, Outbox, WindowLimit};
+use protocol::{BuildOptions, Inbox, LimitApplies, LimitKind, Outbox, WindowLimit};
 use std::borrow::Cow;
 use std::path::Path;
 
@@ -1749,23 +1749,37 @@ impl Solver for PdSolver {
         // As a lagrange side (`lagrange_side_for`): `substeps` steps of at most the stable
         // step, or, without them, one step per window of at most `cfl` of it under gs4 and
         // ph (gc then takes as many as it needs).
+        // With `substeps`, the sub-cycling resonance of central differences too.
         let integrator = "central differences (velocity Verlet)".to_string();
-        vec![match self.params.substeps {
-            Some(n) => WindowLimit {
-                applies: LimitApplies::LagrangeSide,
-                integrator,
-                substeps: n as u64,
-                max_step: self.body.stable_dt(),
-                key: Some("params.substeps".into()),
-            },
-            None => WindowLimit {
+        match self.params.substeps {
+            Some(n) => {
+                let critical = self.body.stable_dt();
+                let resonance = crate::lagrange::resonance_limit(
+                    &mechanics::time::Gs4::central_difference(),
+                    &integrator,
+                    n,
+                    critical,
+                );
+                std::iter::once(WindowLimit {
+                    applies: LimitApplies::LagrangeSide,
+                    integrator,
+                    substeps: n as u64,
+                    max_step: critical,
+                    key: Some("params.substeps".into()),
+                    kind: LimitKind::Stability,
+                })
+                .chain(resonance)
+                .collect()
+            }
+            None => vec![WindowLimit {
                 applies: LimitApplies::LagrangeSideGs4OrPh,
                 integrator,
                 substeps: 1,
                 max_step: self.dt(),
                 key: None,
-            },
-        }]
+                kind: LimitKind::Stability,
+            }],
+        }
     }
 
     fn lagrange_side(&mut self, interface: &str) -> Option<&mut dyn LagrangeSide> {

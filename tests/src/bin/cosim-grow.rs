@@ -66,6 +66,7 @@ impl Solver for Grow {
                 substeps: n,
                 max_step: self.p.stable_dt,
                 key: Some("params.substeps".into()),
+                kind: protocol::LimitKind::Stability,
             })
             .into_iter()
             .collect()
