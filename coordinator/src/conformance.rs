@@ -15,6 +15,8 @@ use protocol::*;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+mod lagrange;
+
 /// What `cosim conformance` is asked to check.
 #[derive(Debug, Clone)]
 pub struct Options {
@@ -101,9 +103,9 @@ const PEER_VELOCITY: [f64; 3] = [1e-3, 0.0, 0.0];
 struct Sheet(Vec<Verdict>);
 
 impl Sheet {
-    fn new() -> Sheet {
+    fn new(rules: &[(&'static str, &'static str)]) -> Sheet {
         Sheet(
-            RULES
+            rules
                 .iter()
                 .map(|&(rule, section)| Verdict {
                     section,
@@ -147,9 +149,62 @@ pub fn all_pass(verdicts: &[Verdict]) -> bool {
 }
 
 /// Drive the node of `o` through a short run and check it; one verdict per rule of
-/// [`RULES`]. An error is `cosim`'s own trouble (no transport), not the node's.
+/// [`RULES`] (of `lagrange::RULES` for a lagrange side). An error is `cosim`'s own trouble
+/// (no transport), not the node's.
 pub fn check(o: &Options) -> anyhow::Result<Vec<Verdict>> {
-    let mut sheet = Sheet::new();
+    if scheme::of(o.kind).coordinator_solved() {
+        return lagrange::check(o);
+    }
+    check_with(o, &RULES, |coupling, iface, window| {
+        // The booking rule over the node's own force (a responder's): node 0, the peer 1.
+        let responder = match o.role {
+            Role::Responder => "node",
+            Role::Driver => "peer",
+        };
+        let books = crate::books::Books::new(
+            &["node", "peer"],
+            std::slice::from_ref(&coupling),
+            window,
+            &[Some((0, responder.to_string()))],
+        );
+        Drive {
+            books: std::cell::RefCell::new(books),
+            o,
+            binding: binding_of(o, &coupling),
+            contract: Contract::of(&coupling, o.role, true, Some(iface.points), &iface.provides),
+            described: iface,
+            window,
+            checkpoint_at: o.windows.saturating_sub(1).max(1),
+        }
+    })
+}
+
+/// A drive of the node through one coupling kind's short run.
+trait Driven {
+    /// The node's one binding.
+    fn binding(&self) -> &Binding;
+    /// Handshake, set-up and windows, the rules judged on the way.
+    fn run(&self, s: &mut Session, sheet: &mut Sheet) -> anyhow::Result<()>;
+}
+
+impl Driven for Drive<'_> {
+    fn binding(&self) -> &Binding {
+        &self.binding
+    }
+    fn run(&self, s: &mut Session, sheet: &mut Sheet) -> anyhow::Result<()> {
+        Drive::run(self, s, sheet)
+    }
+}
+
+/// Check the node of `o` against `rules`: its description ("describe"), then the drive that
+/// `make` builds from the coupling it is checked in, its interface and the window, launched
+/// on a fresh run, run, and ended ("finish", "cleanup").
+fn check_with<D: Driven>(
+    o: &Options,
+    rules: &[(&'static str, &'static str)],
+    make: impl FnOnce(CouplingConfig, InterfaceDescription, f64) -> D,
+) -> anyhow::Result<Vec<Verdict>> {
+    let mut sheet = Sheet::new(rules);
     let Some((program, args)) = o.command.split_first() else {
         anyhow::bail!("no node command given");
     };
@@ -160,33 +215,14 @@ pub fn check(o: &Options) -> anyhow::Result<Vec<Verdict>> {
     };
     let coupling = coupling_of(o, &iface.name);
     let window = o.window.or(d.stable_dt).unwrap_or(1e-6);
-    // The booking rule over the node's own force (a responder's): node 0, the peer 1.
-    let responder = match o.role {
-        Role::Responder => "node",
-        Role::Driver => "peer",
-    };
-    let books = crate::books::Books::new(
-        &["node", "peer"],
-        std::slice::from_ref(&coupling),
-        window,
-        &[Some((0, responder.to_string()))],
-    );
-    let drive = Drive {
-        books: std::cell::RefCell::new(books),
-        o,
-        binding: binding_of(o, &coupling),
-        contract: Contract::of(&coupling, o.role, true, Some(iface.points), &iface.provides),
-        described: iface,
-        window,
-        checkpoint_at: o.windows.saturating_sub(1).max(1),
-    };
+    let drive = make(coupling, iface, window);
     let run = pick_run_id("conformance");
     let mut s = Session::launch(
         &exe,
         args,
         &run,
         "node",
-        std::slice::from_ref(&drive.binding),
+        std::slice::from_ref(drive.binding()),
         o.output.join("node.log"),
         (Duration::from_secs(3), Duration::from_secs(30)),
     )?;
@@ -309,9 +345,10 @@ fn judge_ending(
                 Some(Gone::Silent) => sheet.fail("heartbeat", e),
                 Some(Gone::Exited) => sheet.fail("finish", format!("ended before Finish: {e}")),
                 None => {
-                    let at = RULES
+                    let at = sheet
+                        .0
                         .iter()
-                        .map(|r| r.0)
+                        .map(|v| v.rule)
                         .find(|r| sheet.outcome(r) == Outcome::NotReached)
                         .unwrap_or("finish");
                     sheet.fail(at, e);
@@ -355,6 +392,16 @@ fn coupling_of(o: &Options, iface: &str) -> CouplingConfig {
         Role::Responder => (peer, me),
     };
     let (driver_fields, responder_fields) = case::default_fields(o.kind);
+    // A coupling the coordinator solves has sides: the node and cosim's rigid side.
+    let (sides, method) = if scheme::of(o.kind).coordinator_solved() {
+        let rigid = (lagrange::SIDE.to_string(), iface.to_string());
+        (
+            vec![driver.clone(), rigid],
+            Some(scheme::lagrange::Method::Gs4),
+        )
+    } else {
+        (Vec::new(), None)
+    };
     CouplingConfig {
         name: "conformance".into(),
         kind: o.kind,
@@ -363,8 +410,8 @@ fn coupling_of(o: &Options, iface: &str) -> CouplingConfig {
         driver_fields,
         responder_fields,
         decouple: Default::default(),
-        sides: Vec::new(),
-        method: None,
+        sides,
+        method,
         point_tolerance: case::DEFAULT_POINT_TOLERANCE,
     }
 }
@@ -385,13 +432,19 @@ fn binding_of(o: &Options, c: &CouplingConfig) -> Binding {
             &c.driver_fields,
         ),
     };
+    // A side of a coupling the coordinator solves exchanges with the coordinator.
+    let (peer, peer_interface) = if scheme::of(c.kind).coordinator_solved() {
+        (scheme::lagrange::wire::PEER.to_string(), String::new())
+    } else {
+        (peer.0.clone(), peer.1.clone())
+    };
     Binding {
         coupling: c.name.clone(),
         kind: c.kind,
         interface: me.1.clone(),
         role: o.role,
-        peer: peer.0.clone(),
-        peer_interface: peer.1.clone(),
+        peer,
+        peer_interface,
         sends: sends.clone(),
         receives: receives.clone(),
         input_lag: scheme::of(c.kind).input_lag(o.role, true),
@@ -438,32 +491,9 @@ impl Drive<'_> {
         sheet: &mut Sheet,
         sent: &mut [bool],
     ) -> anyhow::Result<InterfaceMesh> {
-        let o = self.o;
-        let started = Instant::now();
-        s.wait("Hello", Some(Duration::from_secs(60)), |s| s.hello)?;
-        sheet.pass(
-            "hello",
-            format!(
-                "Hello after {:.2} s, protocol {}",
-                started.elapsed().as_secs_f64(),
-                codec::PROTOCOL_VERSION
-            ),
-        );
-        let run_dir = &o.output;
-        s.welcome_and_set_up(&Welcome {
-            run: s.run.clone(),
-            model: o.model.clone(),
-            params_toml: toml::to_string(&o.params)?,
-            bindings: vec![self.binding.clone()],
-            output_dir: run_dir.join("node").display().to_string(),
-            heartbeat_ms: HEARTBEAT_MS,
-        })?;
-        self.check_describe(&s.describes[0], sheet);
-        s.wait("Mesh", Some(Duration::from_secs(60)), |s| {
-            !s.meshes.is_empty()
-        })?;
-        let mesh = s.meshes[0].mesh.clone();
-        self.check_mesh(&s.meshes[0], sheet);
+        greet(s, sheet, self.o, &self.binding, &self.described)?;
+        s.set_up()?;
+        let mesh = take_mesh(s, sheet, &self.binding, self.described.points)?;
         let b = &self.binding;
         s.send_peer(
             0,
@@ -508,25 +538,10 @@ impl Drive<'_> {
         let mut scale = 0.0f64;
         let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         for k in 1..=o.windows {
-            let (t0, t1) = ((k - 1) as f64 * self.window, k as f64 * self.window);
-            s.window = k;
-            s.send_down(&Message::Advance(Advance {
-                window: k,
-                t0,
-                t1,
-                write_output: false,
-                checkpoint: k == self.checkpoint_at,
-            }))?;
+            let t1 = advance(s, k, self.window, k == self.checkpoint_at)?;
             let f = self.peer_fields(mesh, k, t1);
             s.send_peer(0, &b.peer, &Message::Fields(f))?;
-            s.wait(
-                &format!("Done of window {k}"),
-                Some(Duration::from_secs(60)),
-                |s| s.done.as_ref().is_some_and(|d| d.0 == k),
-            )?;
-            if k == self.checkpoint_at {
-                self.check_checkpoint(k, t1, sheet);
-            }
+            await_done(s, sheet, &self.o.output, k, t1, k == self.checkpoint_at)?;
             self.idle(s, sheet, sent)?;
             if let Some((_, r)) = &s.done {
                 scale = scale.max(norm(r.interface_impulse));
@@ -592,40 +607,6 @@ impl Drive<'_> {
         Ok(())
     }
 
-    fn check_describe(&self, d: &Describe, sheet: &mut Sheet) {
-        let want = &self.described;
-        match d.interfaces.iter().find(|i| i.name == want.name) {
-            Some(i) if i == want => sheet.pass(
-                "welcome-describe",
-                format!("interface '{}' as --describe gave it", i.name),
-            ),
-            Some(i) => sheet.fail(
-                "welcome-describe",
-                format!("interface differs from --describe's: {i:?} against {want:?}"),
-            ),
-            None => sheet.fail(
-                "welcome-describe",
-                format!("no interface '{}' in its Describe", want.name),
-            ),
-        }
-    }
-
-    fn check_mesh(&self, m: &Mesh, sheet: &mut Sheet) {
-        let b = &self.binding;
-        let n = m.mesh.len() as u64;
-        if m.coupling == b.coupling && m.interface == b.interface && n == self.described.points {
-            sheet.pass("mesh", format!("interface '{}', {n} points", m.interface));
-        } else {
-            sheet.fail(
-                "mesh",
-                format!(
-                    "Mesh of coupling '{}', interface '{}', {n} points; expected '{}', '{}', {} points",
-                    m.coupling, m.interface, b.coupling, b.interface, self.described.points
-                ),
-            );
-        }
-    }
-
     fn check_fields(&self, f: &Fields, sheet: &mut Sheet) {
         let mut check = self.contract.check();
         for x in &f.fields {
@@ -636,33 +617,6 @@ impl Drive<'_> {
         }
         if let Err(e) = protocol::diverged::check_fields(f) {
             sheet.fail("finite-values", e.to_string());
-        }
-    }
-
-    fn check_checkpoint(&self, k: u64, t1: f64, sheet: &mut Sheet) {
-        let file = protocol::checkpoint::file(&self.o.output, k, "node");
-        match protocol::checkpoint::Checkpoint::read(&file) {
-            Ok(c) if c.node == "node" && c.window == k && c.time == t1 => sheet.pass(
-                "checkpoint",
-                format!(
-                    "window {k} saved before its Done ({} bytes of state)",
-                    c.payload.len()
-                ),
-            ),
-            Ok(c) => sheet.fail(
-                "checkpoint",
-                format!(
-                    "{} is of node '{}', window {} at t = {:e} s; expected 'node', {k}, {t1:e} s",
-                    file.display(),
-                    c.node,
-                    c.window,
-                    c.time
-                ),
-            ),
-            Err(e) => sheet.fail(
-                "checkpoint",
-                format!("Done of window {k} came, but {}: {e}", file.display()),
-            ),
         }
     }
 
@@ -707,6 +661,148 @@ impl Drive<'_> {
             time: t,
             fields,
         }
+    }
+}
+
+/// The handshake: the node's `Hello` ("hello"), `Welcome` with `binding`, its `Describe`
+/// ("welcome-describe", against `described`).
+fn greet(
+    s: &mut Session,
+    sheet: &mut Sheet,
+    o: &Options,
+    binding: &Binding,
+    described: &InterfaceDescription,
+) -> anyhow::Result<()> {
+    let started = Instant::now();
+    s.wait("Hello", Some(Duration::from_secs(60)), |s| s.hello)?;
+    sheet.pass(
+        "hello",
+        format!(
+            "Hello after {:.2} s, protocol {}",
+            started.elapsed().as_secs_f64(),
+            codec::PROTOCOL_VERSION
+        ),
+    );
+    s.welcome(&Welcome {
+        run: s.run.clone(),
+        model: o.model.clone(),
+        params_toml: toml::to_string(&o.params)?,
+        bindings: vec![binding.clone()],
+        output_dir: o.output.join("node").display().to_string(),
+        heartbeat_ms: HEARTBEAT_MS,
+    })?;
+    check_describe(described, &s.describes[0], sheet);
+    Ok(())
+}
+
+/// The node's `Mesh` after `Advance{0}` (waiting for it), judged by the "mesh" rule: of
+/// `binding`'s coupling and interface, with the `points` described.
+fn take_mesh(
+    s: &mut Session,
+    sheet: &mut Sheet,
+    b: &Binding,
+    points: u64,
+) -> anyhow::Result<InterfaceMesh> {
+    s.wait("Mesh", Some(Duration::from_secs(60)), |s| {
+        !s.meshes.is_empty()
+    })?;
+    let m = &s.meshes[0];
+    let n = m.mesh.len() as u64;
+    if m.coupling == b.coupling && m.interface == b.interface && n == points {
+        sheet.pass("mesh", format!("interface '{}', {n} points", m.interface));
+    } else {
+        sheet.fail(
+            "mesh",
+            format!(
+                "Mesh of coupling '{}', interface '{}', {n} points; expected '{}', '{}', {points} points",
+                m.coupling, m.interface, b.coupling, b.interface
+            ),
+        );
+    }
+    Ok(m.mesh.clone())
+}
+
+/// Wait for the node's `Done` of window `k` (ending at `t1`), then judge the "checkpoint"
+/// rule on the window that asked for one.
+fn await_done(
+    s: &mut Session,
+    sheet: &mut Sheet,
+    output: &Path,
+    k: u64,
+    t1: f64,
+    checkpoint: bool,
+) -> anyhow::Result<()> {
+    s.wait(
+        &format!("Done of window {k}"),
+        Some(Duration::from_secs(60)),
+        |s| s.done.as_ref().is_some_and(|d| d.0 == k),
+    )?;
+    if checkpoint {
+        check_checkpoint(output, k, t1, sheet);
+    }
+    Ok(())
+}
+
+/// Send `Advance` of window `k` (windows of `window` s from t = 0), a checkpoint asked or
+/// not; returns the window's end time.
+fn advance(s: &mut Session, k: u64, window: f64, checkpoint: bool) -> anyhow::Result<f64> {
+    let (t0, t1) = ((k - 1) as f64 * window, k as f64 * window);
+    s.window = k;
+    s.send_down(&Message::Advance(Advance {
+        window: k,
+        t0,
+        t1,
+        write_output: false,
+        checkpoint,
+    }))?;
+    Ok(t1)
+}
+
+/// The "welcome-describe" rule: the interface of the node's `Describe` is `want`, as
+/// `--describe` gave it.
+fn check_describe(want: &InterfaceDescription, d: &Describe, sheet: &mut Sheet) {
+    match d.interfaces.iter().find(|i| i.name == want.name) {
+        Some(i) if i == want => sheet.pass(
+            "welcome-describe",
+            format!("interface '{}' as --describe gave it", i.name),
+        ),
+        Some(i) => sheet.fail(
+            "welcome-describe",
+            format!("interface differs from --describe's: {i:?} against {want:?}"),
+        ),
+        None => sheet.fail(
+            "welcome-describe",
+            format!("no interface '{}' in its Describe", want.name),
+        ),
+    }
+}
+
+/// The "checkpoint" rule: the node's checkpoint of window `k` (ending at `t1`) in `output`
+/// reads back as its own.
+fn check_checkpoint(output: &Path, k: u64, t1: f64, sheet: &mut Sheet) {
+    let file = protocol::checkpoint::file(output, k, "node");
+    match protocol::checkpoint::Checkpoint::read(&file) {
+        Ok(c) if c.node == "node" && c.window == k && c.time == t1 => sheet.pass(
+            "checkpoint",
+            format!(
+                "window {k} saved before its Done ({} bytes of state)",
+                c.payload.len()
+            ),
+        ),
+        Ok(c) => sheet.fail(
+            "checkpoint",
+            format!(
+                "{} is of node '{}', window {} at t = {:e} s; expected 'node', {k}, {t1:e} s",
+                file.display(),
+                c.node,
+                c.window,
+                c.time
+            ),
+        ),
+        Err(e) => sheet.fail(
+            "checkpoint",
+            format!("Done of window {k} came, but {}: {e}", file.display()),
+        ),
     }
 }
 

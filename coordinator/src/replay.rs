@@ -412,6 +412,13 @@ impl Session {
     /// Send `welcome` (the heartbeat clock starts), wait up to 60 s for the node's
     /// `Describe`, and send the set-up command (`Advance{0}`).
     pub(crate) fn welcome_and_set_up(&mut self, welcome: &Welcome) -> anyhow::Result<()> {
+        self.welcome(welcome)?;
+        self.set_up()
+    }
+
+    /// Send `welcome` (the heartbeat clock starts) and wait up to 60 s for the node's
+    /// `Describe`.
+    pub(crate) fn welcome(&mut self, welcome: &Welcome) -> anyhow::Result<()> {
         self.send_down(&Message::Welcome(welcome.clone()))?;
         self.beating = true;
         self.own.restart();
@@ -419,7 +426,11 @@ impl Session {
         self.last_beat = Some(self.last_seen);
         self.wait("Describe", Some(Duration::from_secs(60)), |s| {
             !s.describes.is_empty()
-        })?;
+        })
+    }
+
+    /// Send the set-up command (`Advance{0}`).
+    pub(crate) fn set_up(&mut self) -> anyhow::Result<()> {
         self.send_down(&Message::Advance(Advance {
             window: 0,
             t0: 0.0,
@@ -427,6 +438,30 @@ impl Session {
             write_output: false,
             checkpoint: false,
         }))
+    }
+
+    /// Wait up to `limit` until `want` readers listen on binding `i`'s peer topic (`peer`'s
+    /// data of that coupling), so that a first message there is not sent into the void.
+    pub(crate) fn wait_readers(
+        &mut self,
+        i: usize,
+        peer: &str,
+        want: usize,
+        limit: Duration,
+    ) -> anyhow::Result<()> {
+        let tp = topic::data(&self.run, &self.peers[i].0, peer);
+        let start = Instant::now();
+        while self.t.readers(&tp).is_some_and(|r| r < want) {
+            self.check_health()?;
+            if start.elapsed() > limit {
+                return Err(self.fault(format!(
+                    "never subscribed to {tp} within {} s",
+                    limit.as_secs()
+                )));
+            }
+            self.pump(Duration::from_millis(5))?;
+        }
+        Ok(())
     }
 
     fn fault(&self, reason: impl std::fmt::Display) -> anyhow::Error {

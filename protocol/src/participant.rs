@@ -486,7 +486,12 @@ struct Wire {
     buf: Vec<u8>,
     seq: Arc<AtomicU64>,
     cmd_topic: usize,
+    /// See [`node_main_withholding`]; None for every real node.
+    withhold: Option<WithholdFields>,
 }
+
+/// Whether a node withholds a `Fields` it is about to send (true: it never goes out).
+pub type WithholdFields = Box<dyn FnMut(&Fields) -> bool + Send>;
 
 impl Wire {
     fn send_up(&mut self, m: &Message) -> anyhow::Result<()> {
@@ -508,6 +513,15 @@ impl Wire {
     /// Coupling data: encoded straight into the transport's buffer where it has one (a
     /// shared-memory sample), so a large field is copied once on this side.
     fn send_data(&mut self, coupling: &str, m: &Message) -> anyhow::Result<()> {
+        if let (Some(withhold), Message::Fields(f)) = (self.withhold.as_mut(), m)
+            && withhold(f)
+        {
+            tracing::warn!(
+                "withholding the Fields of window {} on coupling '{coupling}'",
+                f.window
+            );
+            return Ok(());
+        }
         let seq = self.seq.fetch_add(1, Ordering::Relaxed);
         let p = self
             .data
@@ -584,12 +598,37 @@ pub fn node_main(binary: &str, factory: SolverFactory) -> i32 {
     node_main_with(binary, std::env::args_os(), Box::new(factory))
 }
 
+/// [`node_main`] for a node that breaks the protocol on purpose, to test what the coordinator
+/// makes of it: every `Fields` for which `withhold` says true is dropped instead of sent, as
+/// if it were lost (the node goes on as if it had sent it). Only test nodes use this.
+pub fn node_main_withholding(
+    binary: &str,
+    factory: SolverFactory,
+    withhold: WithholdFields,
+) -> i32 {
+    node_main_inner(
+        binary,
+        std::env::args_os(),
+        Box::new(factory),
+        Some(withhold),
+    )
+}
+
 /// [`node_main`] for a node that is not a Rust binary of its own: the command line comes as
 /// `args` (program name first, like `argv`), the solver from a boxed factory.
 pub fn node_main_with(
     binary: &str,
     args: impl IntoIterator<Item = impl Into<OsString> + Clone>,
     factory: BoxedFactory,
+) -> i32 {
+    node_main_inner(binary, args, factory, None)
+}
+
+fn node_main_inner(
+    binary: &str,
+    args: impl IntoIterator<Item = impl Into<OsString> + Clone>,
+    factory: BoxedFactory,
+    withhold: Option<WithholdFields>,
 ) -> i32 {
     use clap::Parser;
     let args = match NodeArgs::try_parse_from(args) {
@@ -637,7 +676,7 @@ pub fn node_main_with(
     if let Err(e) = stop::install(signals) {
         tracing::warn!("cannot handle stop signals: {e}");
     }
-    let code = match run_node(binary, factory, &args, parent) {
+    let code = match run_node(binary, factory, &args, parent, withhold) {
         Ok(code) => code,
         Err(e) => {
             crate::log_line!("{binary} {}: {e:#}", args.node);
@@ -688,6 +727,7 @@ fn run_node(
     factory: BoxedFactory,
     args: &NodeArgs,
     parent: Option<u32>,
+    withhold: Option<WithholdFields>,
 ) -> anyhow::Result<i32> {
     let kind: TransportKind = args
         .transport
@@ -730,6 +770,7 @@ fn run_node(
         buf: Vec::new(),
         seq: Arc::new(AtomicU64::new(0)),
         cmd_topic,
+        withhold,
     };
     w.send_up(&Message::Hello(Hello {
         protocol_version: codec::PROTOCOL_VERSION,

@@ -26,6 +26,22 @@ const RULES: [&str; 13] = [
     "cleanup",
 ];
 
+/// The rules PROTOCOL.md section 9 lists for a lagrange side, by name.
+const LAGRANGE_RULES: [&str; 12] = [
+    "describe",
+    "hello",
+    "welcome-describe",
+    "mesh",
+    "lagrange-set-up",
+    "lagrange-steps",
+    "lagrange-correction",
+    "windows-in-order",
+    "heartbeat",
+    "checkpoint",
+    "finish",
+    "cleanup",
+];
+
 /// The parameters of the right half of examples/split_bar.toml, coupled at its `root`.
 const RIGHT_HALF: &str = "length = 0.5\nx0 = 0.5\nelements = 300\nyoung = 200e9\n\
     density = 7860.0\narea = 1e-4\nfixed = \"none\"\ntip_force = 1000.0\n\
@@ -99,7 +115,11 @@ fn conformance_as(
         rules.insert(rule.to_string(), (tag.to_string(), reason.to_string()));
     }
     let names: Vec<&str> = rules.keys().map(String::as_str).collect();
-    let mut want = RULES.to_vec();
+    let mut want = if options.contains(&"lagrange") {
+        LAGRANGE_RULES.to_vec()
+    } else {
+        RULES.to_vec()
+    };
     want.sort();
     assert_eq!(names, want, "{text}");
     (o.status.code(), rules, text)
@@ -311,4 +331,92 @@ fn a_reversed_force_fails_the_booking_rule() {
     );
     // Its shape is right: only the booking rule sees the fault.
     assert_eq!(rules["fields-match-binding"].0, "PASS", "{rules:?}");
+}
+
+/// The sides of `examples/split_bar_lagrange.toml` and `examples/seed003_notch.toml` as
+/// lagrange sides, each alone against cosim's rigid side: the bar's left half (average
+/// acceleration), its right half (central differences, 8 steps per window), a `fem-2d`
+/// cantilever part and a `pd-correspondence` body; every rule passes, the correction judged
+/// in the 3 windows after the first.
+#[test]
+fn every_built_in_lagrange_side_passes_every_rule() {
+    let left = format!(
+        "{LEFT_HALF}substeps = 1\nintegrator = {{ scheme = \"gs4\", design = \"U0(1,1,0)\", \
+         implicit = true }}\n"
+    );
+    let right = format!(
+        "{}substeps = 8\nintegrator = {{ scheme = \"gs4\", design = \"U0(1,1,0)\", \
+         implicit = false }}\n",
+        RIGHT_HALF.replace("courant = 0.5\n", "")
+    );
+    let fem = "origin = [0.0, 0.0]\nlength = 4.0\nheight = 1.0\nnx = 8\nny = 2\n\
+        young = 72e9\npoisson = 0.3\ndensity = 2700.0\nplane = \"stress\"\n\
+        fixed = [\"left\"]\nsubsteps = 1\ninterfaces = { cut = \"right\" }\n\
+        integrator = { scheme = \"gs4\", design = \"U0(1,1,0)\", implicit = true }\n";
+    let pd = "dimension = \"plane_stress\"\nthickness = 1.0\nspacing = 0.2\nhorizon = 0.603\n\
+        density = 2700.0\nyoung = 70e9\npoisson = 0.3\n\
+        bodies = [{ shape = \"box\", min = [3.9, -0.1, 0.0], max = [7.1, 2.1, 0.0] }]\n\
+        interfaces = [{ name = \"cut\", select = \"all\", region = { shape = \"box\", \
+        min = [3.95, -0.5, 0.0], max = [4.05, 2.5, 0.0] } }]\n";
+    // (tag, model, parameters, the window (s): the system step of its case, unknowns).
+    let window = "9.912113800799505e-7";
+    let sides = [
+        ("conf-lag-left", "bar-1d", left.as_str(), window, 1),
+        ("conf-lag-right", "bar-1d", right.as_str(), window, 1),
+        ("conf-lag-fem", "fem-2d", fem, "1e-4", 6),
+        ("conf-lag-pd", "pd-correspondence", pd, "1.6e-5", 22),
+    ];
+    for (tag, model, params, window, unknowns) in sides {
+        let (code, rules, text) = conformance_as(
+            tag,
+            model,
+            params,
+            &["--kind", "lagrange", "--window", window],
+            &["solid-node"],
+        );
+        for (rule, (tag, reason)) in &rules {
+            assert_eq!(tag, "PASS", "{model} {rule}: {reason}");
+        }
+        assert!(text.contains("12 of 12 rules pass"), "{text}");
+        assert_eq!(code, Some(0), "{text}");
+        assert!(text.contains("as a lagrange side"), "{text}");
+        assert!(
+            rules["lagrange-set-up"]
+                .1
+                .starts_with(&format!("{unknowns} unknowns")),
+            "{text}"
+        );
+        assert!(
+            rules["lagrange-correction"].1.contains("in 3 window(s)"),
+            "{text}"
+        );
+    }
+}
+
+/// A side that states twice its true operator is solved for half the multipliers it needs:
+/// pulled toward the rigid side's 1 mm/s, its interface gets half way, and the rule that
+/// compares its corrected velocity with what its stated operator predicts fails, alone.
+#[test]
+fn a_lagrange_side_that_misstates_its_operator_fails_the_correction_rule() {
+    let params = format!(
+        "{LEFT_HALF}substeps = 1\nintegrator = {{ scheme = \"gs4\", design = \"U0(1,1,0)\", \
+         implicit = true }}\nfault = \"operator\"\n"
+    );
+    let (code, rules, text) = conformance_as(
+        "conf-lag-lie",
+        "bar-1d",
+        &params,
+        &["--kind", "lagrange", "--window", "9.912113800799505e-7"],
+        &["cosim-faulty"],
+    );
+    assert_eq!(code, Some(1), "{text}");
+    let (tag, reason) = &rules["lagrange-correction"];
+    assert_eq!(tag, "FAIL", "{reason}");
+    assert!(
+        reason.starts_with("window 2 starts from interface velocities farther by 5.000e-4 m/s"),
+        "{reason}"
+    );
+    for (rule, (tag, reason)) in rules.iter().filter(|r| r.0 != "lagrange-correction") {
+        assert_eq!(tag, "PASS", "{rule}: {reason}");
+    }
 }

@@ -158,3 +158,42 @@ fn the_bar_keeps_the_booking_rule_over_half_a_period() {
     }
     nothing_left(&id);
 }
+
+/// A `Fields` that never arrives: the right half goes on as if it had sent its force of
+/// window 5, so both halves end up waiting on each other. The deadlock is stopped after the
+/// stall timeout, laid on the right half (which owes the message), and the message says which
+/// `Fields` the left half waits for and how far the right half got on that coupling.
+#[test]
+fn a_withheld_fields_is_a_deadlock_naming_what_is_missing_from_whom() {
+    let (dir, id) = scratch("contract-withhold");
+    let case = faulty_split_bar(&dir, "withhold");
+    let text = std::fs::read_to_string(&case).expect("read case").replacen(
+        "fault = \"withhold\"",
+        "fault = \"withhold\"\nat = 5",
+        1,
+    );
+    std::fs::write(&case, text).expect("write case");
+    let out = dir.join("out");
+    let started = std::time::Instant::now();
+    let o = run_case(&case, &out, &id, &["--set", "run.stall_timeout=4"]);
+    let took = started.elapsed().as_secs_f64();
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    println!("{err}\n(took {took:.1} s)");
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(summary(&out)["status"], "failed");
+    assert!(
+        err.contains("node 'right': deadlock: 4 s during window "),
+        "{err}"
+    );
+    assert!(
+        err.contains(
+            "'left' waits for the Fields of window 5 on coupling 'mid' from 'right', which sent up to window 4"
+        ),
+        "{err}"
+    );
+    assert!(!err.contains("node 'left':"), "the peer is blamed: {err}");
+    // Stopped by the stall timeout, not by a hang or the run's end (16 windows take well
+    // under a second).
+    assert!(took < 30.0, "took {took:.1} s");
+    nothing_left(&id);
+}

@@ -148,7 +148,8 @@ pub struct ConformanceArgs {
     /// The interface to couple (default: the first the node describes).
     #[arg(long)]
     interface: Option<String>,
-    /// The coupling kind: kinematic or immersed.
+    /// The coupling kind: kinematic, immersed or lagrange (cosim then solves the interface
+    /// problem against a rigid side of its own; --role does not apply).
     #[arg(long, default_value = "kinematic")]
     kind: String,
     /// The node's role, driver or responder; cosim plays the other.
@@ -181,8 +182,13 @@ pub(super) fn conformance(a: ConformanceArgs) -> i32 {
             return 2;
         }
     };
+    let what = if kind == "lagrange" {
+        "a lagrange side".to_string()
+    } else {
+        format!("the {kind} {role} node")
+    };
     println!(
-        "cosim conformance: `{}` (model {}) as the {kind} {role} node, {} windows; its log: {}",
+        "cosim conformance: `{}` (model {}) as {what}, {} windows; its log: {}",
         o.command.join(" "),
         o.model,
         o.windows,
@@ -217,7 +223,8 @@ fn conformance_options(a: ConformanceArgs) -> Result<crate::conformance::Options
     let kind = match a.kind.as_str() {
         "kinematic" => CouplingKind::Kinematic,
         "immersed" => CouplingKind::Immersed,
-        k => return Err(format!("--kind {k}: kinematic or immersed")),
+        "lagrange" => CouplingKind::Lagrange,
+        k => return Err(format!("--kind {k}: kinematic, immersed or lagrange")),
     };
     let role = match a.role.as_str() {
         "driver" => Role::Driver,
