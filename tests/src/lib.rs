@@ -131,14 +131,20 @@ pub fn run_example(file: &str, variant: &str, tag: &str) -> PathBuf {
     let (dir, id) = scratch(tag);
     let out = dir.join("out");
     let case = workspace_root().join("examples").join(file);
-    let o = run_case(&case, &out, &id, &["--variant", variant]);
+    run_case_ok(&case, &out, &id, &["--variant", variant]);
+    out
+}
+
+/// [`run_case`], which must finish (exit 0); its stdout and stderr are the message if not.
+pub fn run_case_ok(case: &Path, out: &Path, run_id: &str, extra: &[&str]) {
+    let o = run_case(case, out, run_id, extra);
     assert!(
         o.status.success(),
-        "{file} --variant {variant}: {}{}",
+        "{} {extra:?}: {}{}",
+        case.display(),
         String::from_utf8_lossy(&o.stdout),
         String::from_utf8_lossy(&o.stderr)
     );
-    out
 }
 
 /// Run one of the independent checks in `tools/` (Python, the official readers) with

@@ -240,3 +240,165 @@ fn both_nodes_of_the_chamber_replay_bit_identically() {
     assert!(fields >= 80, "{out}");
     nothing_left(&id);
 }
+
+/// A physical reference for the force the gas puts on a solid: a planar shock of Mach 2 in
+/// air runs down a channel 5 cm high and reflects from a steel block 4 cm thick that closes
+/// the channel from wall to wall. Gas dynamics gives the incident shock's state
+/// (Rankine–Hugoniot) and the pressure behind its normal reflection from a wall at rest,
+///
+///   p2/p1 = 1 + 2γ/(γ+1) (M² − 1),
+///   p5/p2 = ((3γ−1) p2/p1 − (γ−1)) / ((γ−1) p2/p1 + γ+1),
+///
+/// so once the shock has reflected, the block takes the force (p5 − p1) H t_z (the gas behind
+/// it stays at p1): its momentum must grow at that rate. The block is heavy enough that its
+/// speed, a few m/s against the gas's 427 m/s, lowers p5 by under 0.5 % (acoustically,
+/// ρ5 a5 v). The inflow face feeds the post-shock state, so nothing but the reflection
+/// reaches the block before the end (the reflected shock is still 0.1 m from it).
+#[test]
+fn a_shock_reflecting_from_a_block_across_a_channel_pushes_it_with_the_reflected_pressure() {
+    let (gamma, r_gas, t1, p1) = (1.4f64, 287.0, 290.0, 1.0e5);
+    let rho1 = p1 / (r_gas * t1);
+    let a1 = (gamma * p1 / rho1).sqrt();
+    let mach = 2.0f64;
+    let m2 = mach * mach;
+    let p2 = p1 * (1.0 + 2.0 * gamma / (gamma + 1.0) * (m2 - 1.0));
+    let rho2 = rho1 * (gamma + 1.0) * m2 / ((gamma - 1.0) * m2 + 2.0);
+    let speed = mach * a1;
+    let u2 = speed * (1.0 - rho1 / rho2);
+    let ratio = p2 / p1;
+    let p5 =
+        p2 * ((3.0 * gamma - 1.0) * ratio - (gamma - 1.0)) / ((gamma - 1.0) * ratio + gamma + 1.0);
+    let (height, tz, x_shock, x_face) = (0.05f64, 0.0035, 0.1, 0.25);
+    let force = (p5 - p1) * height * tz;
+    let arrival = (x_face - x_shock) / speed;
+    println!(
+        "p2 {p2:.0} Pa, ρ2 {rho2:.4} kg/m³, u2 {u2:.1} m/s, shock {speed:.1} m/s; p5 {p5:.0} Pa: \
+         force {force:.2} N from {:.1} µs",
+        arrival * 1e6
+    );
+    let case = format!(
+        r#"[run]
+name = "shock-on-block"
+end_time = 5.5e-4
+window = 2.5e-6
+schedule = "parallel"
+transport = "shm"
+
+[nodes.gas]
+solver = "fluid-node"
+model = "euler"
+[nodes.gas.params]
+cfl = 0.5
+limiter = "van_leer"
+immersed = {{ interface = "particles" }}
+[nodes.gas.params.grid]
+cells = [160, 20, 1]
+lower = [0.0, 0.0, 0.0]
+upper = [0.4, {height}, {tz}]
+[nodes.gas.params.materials.air]
+eos = "ideal"
+gamma = {gamma}
+gas_constant = {r_gas}
+[[nodes.gas.params.regions]]
+shape = "all"
+material = "air"
+temperature = {t1}
+pressure = {p1}
+[[nodes.gas.params.regions]]
+shape = "box"
+lower = [0.0, 0.0, 0.0]
+upper = [{x_shock}, {height}, {tz}]
+material = "air"
+density = {rho2}
+pressure = {p2}
+velocity = [{u2}, 0.0, 0.0]
+[nodes.gas.params.boundaries]
+x_lower = {{ kind = "inflow", material = "air", density = {rho2}, pressure = {p2}, velocity = [{u2}, 0.0, 0.0] }}
+x_upper = "wall"
+y_lower = "wall"
+y_upper = "wall"
+[[nodes.gas.params.probes]]
+name = "back"
+position = [0.35, 0.025, 0.00175]
+
+[nodes.block]
+solver = "solid-node"
+model = "pd-correspondence"
+[nodes.block.params]
+dimension = "plane_strain"
+thickness = {tz}
+spacing = 2.5e-3
+horizon = 7.5375e-3
+density = 7870.0
+young = 200e9
+poisson = 0.29
+bodies = [{{ shape = "box", min = [{x_face}, 0.0, 0.0], max = [0.29, {height}, {tz}] }}]
+interfaces = [{{ name = "particles", select = "all" }}]
+
+[[couplings]]
+name = "blast"
+kind = "immersed"
+driver = "block.particles"
+responder = "gas.particles"
+"#
+    );
+    let (dir, id) = scratch("immersed-shock");
+    let path = dir.join("shock.toml");
+    std::fs::write(&path, case).expect("write case");
+    let out = dir.join("out");
+    run_case_ok(&path, &out, &id, &[]);
+    let mcap = out.join("run.mcap");
+    // 220 windows: every series holds them all.
+    let windows = |what: &str, s: &[(f64, f64)]| assert_eq!(s.len(), 220, "windows of {what}");
+    let momentum = node_series(&mcap, "block", "momentum_x");
+    windows("the block", &momentum);
+    // Before the shock arrives (less 10 µs for its smeared front) the block is at rest.
+    let early = momentum
+        .iter()
+        .filter(|(t, _)| *t < arrival - 1e-5)
+        .map(|(_, p)| p.abs())
+        .fold(0.0f64, nan_max);
+    let last = momentum.last().expect("windows").1;
+    println!("before arrival |p| ≤ {early:.3e} N s; at the end {last:.4e} N s");
+    assert!(
+        early <= 1e-3 * last,
+        "{early:e} before arrival, {last:e} at the end"
+    );
+    // The rate from 50 µs after arrival (the reflection has formed) to the end, by least
+    // squares over the windows between.
+    let fit: Vec<(f64, f64)> = momentum
+        .iter()
+        .copied()
+        .filter(|(t, _)| *t >= arrival + 5e-5)
+        .collect();
+    assert!(fit.len() >= 100, "{} windows in the fit", fit.len());
+    let n = fit.len() as f64;
+    let (mt, mp) = (
+        fit.iter().map(|s| s.0).sum::<f64>() / n,
+        fit.iter().map(|s| s.1).sum::<f64>() / n,
+    );
+    let slope = fit.iter().map(|(t, p)| (t - mt) * (p - mp)).sum::<f64>()
+        / fit.iter().map(|(t, _)| (t - mt).powi(2)).sum::<f64>();
+    let err = slope / force - 1.0;
+    println!(
+        "block: {slope:.2} N over {} windows against (p5 − p1) H t_z = {force:.2} N: {:+.2} %",
+        fit.len(),
+        100.0 * err
+    );
+    assert!(
+        err.abs() <= 0.01,
+        "force {slope} N, reflection predicts {force} N"
+    );
+    // Behind the block the gas stays at rest: no leak past it.
+    let back = node_series(&mcap, "gas", "back.pressure");
+    windows("the back probe", &back);
+    let worst = back
+        .iter()
+        .map(|(_, p)| (p / p1 - 1.0).abs())
+        .fold(0.0f64, nan_max);
+    println!(
+        "behind the block the pressure strays {:.3} % from p1",
+        100.0 * worst
+    );
+    assert!(worst <= 0.01, "behind the block: {worst:e}");
+}
