@@ -239,6 +239,137 @@ impl StressLaw for BlastSolid {
     }
 }
 
+// The case-file forms of the blast solid's laws, shared by every solver that takes them.
+
+fn default_ref_strain_rate() -> f64 {
+    1.0
+}
+fn default_taylor_quinney() -> f64 {
+    0.9
+}
+
+/// The Johnson–Cook constants beyond A (`yield_stress`) and the elastic constants.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct JohnsonCookParams {
+    /// B: strain-hardening coefficient (Pa).
+    pub hardening_modulus: f64,
+    /// n: strain-hardening exponent, in (0, 1].
+    pub hardening_exponent: f64,
+    /// C: strain-rate coefficient.
+    pub rate_coefficient: f64,
+    /// m: thermal-softening exponent.
+    pub thermal_exponent: f64,
+    /// ε̇₀: reference plastic strain rate (1/s); the rate factor is 1 at or below it.
+    #[serde(default = "default_ref_strain_rate")]
+    pub ref_strain_rate: f64,
+    /// T_room: temperature of the fit (K); no thermal softening at or below it.
+    pub room_temperature: f64,
+    /// T_melt: melting temperature (K); no strength at or above it.
+    pub melt_temperature: f64,
+    /// c_p: specific heat (J/(kg K)), for the adiabatic heating.
+    pub specific_heat: f64,
+    /// β: fraction of the plastic work turned into heat, in [0, 1].
+    #[serde(default = "default_taylor_quinney")]
+    pub taylor_quinney: f64,
+    /// Temperature of the solid at the start (K); absent: `room_temperature`.
+    #[serde(default)]
+    pub initial_temperature: Option<f64>,
+}
+
+/// An equation of state for the pressure of a solid.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize, schemars::JsonSchema)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum EosParams {
+    /// Mie–Grüneisen about the shock Hugoniot of the fit Us = C₀ + S₁up + S₂up²/Us +
+    /// S₃up³/Us², at the solid's `density`.
+    MieGruneisen {
+        /// C₀: bulk sound speed (m/s).
+        sound_speed: f64,
+        /// S₁.
+        s1: f64,
+        /// S₂.
+        #[serde(default)]
+        s2: f64,
+        /// S₃.
+        #[serde(default)]
+        s3: f64,
+        /// γ₀: Grüneisen coefficient.
+        gamma0: f64,
+        /// a: volume correction, Γ = γ₀ + aμ.
+        #[serde(default)]
+        volume_correction: f64,
+        /// E₀: internal energy per unit reference volume at the start (J/m³).
+        #[serde(default)]
+        initial_energy: f64,
+    },
+}
+
+impl BlastSolid {
+    /// The blast solid of a case's parameters: `elastic` = (E, ν, A = the yield stress,
+    /// ρ) from the solid's top-level keys, the Johnson–Cook constants `jc`, the pressure's
+    /// equation of state `eos` (None: the bulk modulus) and a failure law. Errors name the
+    /// key as the case writes it (`young`, `johnson_cook.melt_temperature`, `eos.s1`, …).
+    pub fn from_params(
+        elastic: (f64, f64, f64, f64),
+        jc: &JohnsonCookParams,
+        eos: Option<&EosParams>,
+        failure: Option<JohnsonCookFailure>,
+    ) -> Result<BlastSolid, (String, String)> {
+        let (young, poisson, yield_stress, density) = elastic;
+        let strength = JohnsonCook {
+            young,
+            poisson,
+            yield_stress,
+            hardening_modulus: jc.hardening_modulus,
+            hardening_exponent: jc.hardening_exponent,
+            rate_coefficient: jc.rate_coefficient,
+            thermal_exponent: jc.thermal_exponent,
+            ref_strain_rate: jc.ref_strain_rate,
+            room_temperature: jc.room_temperature,
+            melt_temperature: jc.melt_temperature,
+            density,
+            specific_heat: jc.specific_heat,
+            taylor_quinney: jc.taylor_quinney,
+        };
+        let eos = eos.map(|e| match *e {
+            EosParams::MieGruneisen {
+                sound_speed,
+                s1,
+                s2,
+                s3,
+                gamma0,
+                volume_correction,
+                initial_energy,
+            } => MieGruneisen {
+                density,
+                sound_speed,
+                s1,
+                s2,
+                s3,
+                gamma0,
+                volume_correction,
+                initial_energy,
+            },
+        });
+        let solid = BlastSolid {
+            strength,
+            eos,
+            failure,
+            initial_temperature: jc.initial_temperature.unwrap_or(jc.room_temperature),
+        };
+        // the strength's own keys are the case's top-level ones
+        solid.validate().map_err(|(k, r)| {
+            let top = ["young", "poisson", "yield_stress", "density"];
+            match k.strip_prefix("johnson_cook.") {
+                Some(t) if top.contains(&t) => (t.to_string(), r),
+                _ => (k, r),
+            }
+        })?;
+        Ok(solid)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -253,8 +253,11 @@ fn state_hash(m: &meso_joint_node::model::Model) -> u64 {
         .flatten()
         .for_each(|&v| eat(v));
     for s in &m.mat {
-        s.stress.iter().chain(&s.back_stress).for_each(|&v| eat(v));
-        eat(s.eq_plastic_strain);
+        s.stress().iter().for_each(|&v| eat(v));
+        if let meso_joint_node::model::Point::J2(j) = s {
+            j.back_stress.iter().for_each(|&v| eat(v));
+        }
+        eat(s.eq_plastic_strain());
     }
     h
 }

@@ -246,6 +246,16 @@ pub struct Params {
     /// Tangent modulus E_t (Pa), instead of `kin_hardening`.
     #[serde(default)]
     pub tangent_modulus: Option<f64>,
+    /// Johnson–Cook strength with adiabatic heating in place of the linear hardening above:
+    /// the flow stress [A + B (ε̄ᵖ)ⁿ][1 + C ln ε̇*][1 − (T*)ᵐ] with A = `yield_stress`, and
+    /// `young`, `poisson`, `density` the joint's (the same table as a peridynamic node's
+    /// `johnson_cook`). Bonds still fail by `eps_crit` and `e_crit`.
+    #[serde(default)]
+    pub johnson_cook: Option<mechanics::blast_solid::JohnsonCookParams>,
+    /// The pressure's equation of state, with `johnson_cook`: `{ kind = "mie_gruneisen", … }`;
+    /// absent: the pressure follows the bulk modulus.
+    #[serde(default)]
+    pub eos: Option<mechanics::blast_solid::EosParams>,
     /// Critical pair-averaged effective plastic strain for bond failure (eq. 17).
     pub eps_crit: f64,
     /// Critical stretch ratio (eq. 15, 17): bonds fail only when stretched beyond it.
@@ -343,6 +353,39 @@ impl Params {
             iso_hardening: self.iso_hardening,
             kin_hardening: kin,
         }
+    }
+
+    /// The Johnson–Cook blast solid of `johnson_cook` and `eos`, None without them. Errors
+    /// name the key.
+    pub fn blast_solid(&self) -> SolverResult<Option<mechanics::blast_solid::BlastSolid>> {
+        let Some(jc) = &self.johnson_cook else {
+            if self.eos.is_some() {
+                return Err(SolverError::config("eos", "applies with johnson_cook only"));
+            }
+            return Ok(None);
+        };
+        for (key, given) in [
+            ("iso_hardening", self.iso_hardening != 0.0),
+            ("kin_hardening", self.kin_hardening.is_some()),
+            ("tangent_modulus", self.tangent_modulus.is_some()),
+        ] {
+            if given {
+                return Err(SolverError::config(
+                    key,
+                    "is J2's linear hardening: with johnson_cook the flow stress is Johnson–Cook's",
+                ));
+            }
+        }
+        if self.solid.is_some() {
+            return Err(SolverError::config(
+                "solid",
+                "the hexahedra take J2 plasticity only, not johnson_cook",
+            ));
+        }
+        let elastic = (self.young, self.poisson, self.yield_stress, self.density);
+        mechanics::blast_solid::BlastSolid::from_params(elastic, jc, self.eos.as_ref(), None)
+            .map(Some)
+            .map_err(|(k, r)| SolverError::config(k, r))
     }
 
     /// The geometry of one placement (its fastener overrides applied).
@@ -495,6 +538,7 @@ impl Params {
         self.material()
             .validate()
             .map_err(|(k, r)| SolverError::config(k, r))?;
+        self.blast_solid()?;
         if let Some(k) = self.contact_stiffness
             && !(k.is_finite() && k > 0.0)
         {

@@ -206,6 +206,7 @@ fn benchmark_params(h: f64) -> crate::model::ModelParams {
     use crate::config::Smoothing;
     use crate::model::ModelParams;
     ModelParams {
+        blast: None,
         material: mechanics::j2::J2Material {
             young: 210e9,
             poisson: 0.3,

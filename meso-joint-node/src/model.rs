@@ -39,7 +39,9 @@ use crate::config::Smoothing;
 use crate::profile::{Phase, PhaseClock};
 use crate::shape::{M3, Rows};
 use crate::solid::{NONE, Solid};
-use mechanics::j2::{J2Material, J2State, jaumann_rotate};
+use mechanics::blast_solid::{BlastPoint, BlastSolid};
+use mechanics::j2::{J2Material, J2State, Sym, jaumann_rotate};
+use mechanics::stress_law::StressLaw;
 use mechanics::tensor::{self, IDENTITY, Matrix3, Vector3, vec3};
 use rayon::prelude::*;
 
@@ -96,7 +98,11 @@ pub struct BcGroup {
 /// Static model parameters.
 #[derive(Debug, Clone)]
 pub struct ModelParams {
+    /// The elastic constants (the stable step) and, without `blast`, J2 plasticity.
     pub material: J2Material,
+    /// Johnson–Cook strength (with an optional Mie–Grüneisen pressure) in place of the J2
+    /// hardening of `material`, whose elastic constants it shares.
+    pub blast: Option<BlastSolid>,
     pub density: f64,
     pub spacing: f64,
     pub support: f64,
@@ -162,7 +168,7 @@ pub struct Model {
     pub fhat: Vec<M3>,
     pub ftot_a: Vec<M3>,
     pub finv_a: Vec<M3>,
-    pub mat: Vec<J2State>,
+    pub mat: Vec<Point>,
     /// `V σ F̂⁻ᵀ` per particle (the DNI stress factor).
     pub bmat: Vec<M3>,
     /// Internal (stress) work per particle.
@@ -298,7 +304,7 @@ impl Model {
             fhat: vec![IDENTITY; n],
             ftot_a: vec![IDENTITY; n],
             finv_a: vec![IDENTITY; n],
-            mat: vec![J2State::default(); n],
+            mat: vec![Point::initial(p.blast.as_ref()); n],
             bmat: vec![[[0.0; 3]; 3]; n],
             eint: vec![0.0; n],
             kind: vec![Kind::Free; n],
@@ -822,7 +828,7 @@ impl Model {
         let n = self.len();
         for i in 0..n {
             let fi = inverse(&self.fhat[i]).unwrap_or_else(Matrix3::identity);
-            self.bmat[i] = stress_factor(&self.mat[i].stress, self.vol[i], &fi);
+            self.bmat[i] = stress_factor(self.mat[i].stress(), self.vol[i], &fi);
         }
         internal_force(&self.rows, &self.bmat, &mut self.f);
         if let Some(sd) = self.solid.as_mut()
@@ -853,7 +859,7 @@ impl Model {
                 if i == j || !rows.alive[p] {
                     return false;
                 }
-                let eps = 0.5 * (mat[i].eq_plastic_strain + mat[j].eq_plastic_strain);
+                let eps = 0.5 * (mat[i].eq_plastic_strain() + mat[j].eq_plastic_strain());
                 let stretch = (vec3(&x[i]) - vec3(&x[j])).norm() / rows.len0[p];
                 eps >= ec && stretch > sc
             })
@@ -895,7 +901,7 @@ impl Model {
                     if dirty[i] {
                         *fh = incremental_f(rows, x, xa, i);
                         if let Some(fi) = inverse(fh) {
-                            *bm = stress_factor(&mat[i].stress, vol[i], &fi);
+                            *bm = stress_factor(mat[i].stress(), vol[i], &fi);
                         }
                     }
                 });
@@ -955,7 +961,7 @@ impl Model {
         }
         let (mat, vol) = (&self.mat, &self.vol);
         self.bmat.par_iter_mut().enumerate().for_each(|(i, b)| {
-            *b = stress_factor(&mat[i].stress, vol[i], &Matrix3::identity());
+            *b = stress_factor(mat[i].stress(), vol[i], &Matrix3::identity());
         });
         self.rebuild_shapes(None)
     }
@@ -1289,11 +1295,83 @@ fn stress_factor(s: &[f64; 6], vol: f64, finv: &Matrix3<f64>) -> M3 {
     tensor::rows(&(sm * finv.transpose() * vol))
 }
 
+/// What a particle's material carries from step to step: J2 plasticity's state, or the blast
+/// solid's (Johnson–Cook: stress, ε̄ᵖ, temperature; with an equation of state, J and the
+/// work of the pressure).
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
+pub enum Point {
+    J2(J2State),
+    Blast(BlastPoint),
+}
+
+impl Point {
+    /// A virgin point of the law (`blast`: Johnson–Cook, None: J2).
+    pub fn initial(blast: Option<&BlastSolid>) -> Point {
+        match blast {
+            Some(b) => Point::Blast(b.initial_state()),
+            None => Point::J2(J2State::default()),
+        }
+    }
+
+    /// Cauchy stress (Pa), Voigt order, tensor shear.
+    pub fn stress(&self) -> &Sym {
+        match self {
+            Point::J2(s) => &s.stress,
+            Point::Blast(b) => BlastSolid::stress(b),
+        }
+    }
+
+    /// Accumulated equivalent plastic strain.
+    pub fn eq_plastic_strain(&self) -> f64 {
+        match self {
+            Point::J2(s) => s.eq_plastic_strain,
+            Point::Blast(b) => BlastSolid::eq_plastic_strain(b),
+        }
+    }
+
+    /// A separated particle carries no stress (its plastic strain and heat are kept).
+    fn unload(&mut self) {
+        match self {
+            Point::J2(s) => {
+                s.stress = [0.0; 6];
+                s.back_stress = [0.0; 6];
+            }
+            Point::Blast(b) => b.jc.stress = [0.0; 6],
+        }
+    }
+
+    /// One step: the stress rotated with `spin` (Jaumann) and the strain increment `de`
+    /// integrated by J2's radial return or the blast solid's (J = det F from continuity:
+    /// the volume's trace `tr` of the step).
+    fn update(
+        &mut self,
+        material: &J2Material,
+        blast: Option<&BlastSolid>,
+        de: &Sym,
+        spin: &[[f64; 3]; 3],
+        dt: f64,
+        tr: f64,
+    ) {
+        match (self, blast) {
+            (Point::J2(st), _) => {
+                jaumann_rotate(&mut st.stress, spin, dt);
+                jaumann_rotate(&mut st.back_stress, spin, dt);
+                material.update(st, de);
+            }
+            (Point::Blast(b), Some(law)) => {
+                let jac = b.jac / (1.0 - tr);
+                law.step(b, de, spin, dt, jac, false);
+            }
+            (Point::Blast(_), None) => unreachable!("a blast-solid point without its law"),
+        }
+    }
+}
+
 /// Kinematics (eq. 12–14), continuity density (eq. 8–9) and the J2 update.
 fn kinematics_and_stress(m: &mut Model, dt: f64) -> StepResult {
     let rows = &m.rows;
     let u = &m.u;
-    let material = &m.p.material;
+    let (material, blast) = (&m.p.material, m.p.blast.as_ref());
     let mass = &m.mass;
     let damaged = &m.damaged;
     let failed = std::sync::atomic::AtomicUsize::new(usize::MAX);
@@ -1315,10 +1393,9 @@ fn kinematics_and_stress(m: &mut Model, dt: f64) -> StepResult {
                 // an invertible deformation (or a positive density) has separated: it carries no
                 // stress from now on (its state is kept, its force contribution is zero). An
                 // intact particle in that state is a divergence.
-                let separate = |st: &mut J2State, bm: &mut M3| {
+                let separate = |st: &mut Point, bm: &mut M3| {
                     if damaged[i] {
-                        st.stress = [0.0; 6];
-                        st.back_stress = [0.0; 6];
+                        st.unload();
                         *bm = [[0.0; 3]; 3];
                     } else {
                         failed.fetch_min(i, std::sync::atomic::Ordering::Relaxed);
@@ -1341,20 +1418,18 @@ fn kinematics_and_stress(m: &mut Model, dt: f64) -> StepResult {
                     0.5 * (ldt[(0, 1)] + ldt[(1, 0)]),
                 ];
                 let spin = tensor::rows(&((ldt - ldt.transpose()) * 0.5 / dt));
-                let s_old = st.stress;
+                let s_old = *st.stress();
                 let v_old = *vol;
-                jaumann_rotate(&mut st.stress, &spin, dt);
-                jaumann_rotate(&mut st.back_stress, &spin, dt);
-                material.update(st, &de);
-                // Continuity (eq. 8) and volume (eq. 9).
+                // Continuity (eq. 8) and volume (eq. 9) below.
                 let tr = de[0] + de[1] + de[2];
+                st.update(material, blast, &de, &spin, dt, tr);
                 if damaged[i] && !(1.0 - tr > 0.0 && f_new.determinant() > 0.0) {
                     separate(st, bm);
                     break 'update;
                 }
                 *rho *= 1.0 - tr;
                 *vol = mass[i] / *rho;
-                let s = &st.stress;
+                let s = st.stress();
                 let work = 0.5
                     * ((s[0] + s_old[0]) * de[0]
                         + (s[1] + s_old[1]) * de[1]
@@ -1369,9 +1444,9 @@ fn kinematics_and_stress(m: &mut Model, dt: f64) -> StepResult {
                     separate(st, bm);
                     break 'update;
                 };
-                *bm = stress_factor(&st.stress, *vol, &fi);
+                *bm = stress_factor(st.stress(), *vol, &fi);
             }
-            (st.eq_plastic_strain, !(*rho > 0.0))
+            (st.eq_plastic_strain(), !(*rho > 0.0))
         })
         .reduce(|| (0.0, false), |a, b| (a.0.max(b.0), a.1 || b.1));
     m.max_eps = max_eps;
@@ -1417,6 +1492,7 @@ mod tests {
         let h = 1e-3;
         let s = bolted_plates(2e-3, 8e-3, 12e-3, 8e-3, 2e-3, 3e-3, 1e-3, h);
         let p = ModelParams {
+            blast: None,
             material: J2Material {
                 young: 70e9,
                 poisson: 0.3,

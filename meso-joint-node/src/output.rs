@@ -1,5 +1,6 @@
 //! VTK output for ParaView (docs/architecture.md): the particles as vertex cells with
-//! displacement, velocity, effective plastic strain and broken-bond fraction, written with
+//! displacement, velocity, effective plastic strain, broken-bond fraction (and, with
+//! Johnson–Cook, temperature), written with
 //! the node kit (binary `.vtu` frames, exact f64, and the `joint.pvd` series); solid
 //! elements, where the joint has them, as hexahedra in their own series (`solid.pvd`) with
 //! the nodes' displacement and velocity and each element's stress, von Mises stress and
@@ -17,13 +18,25 @@ pub fn write_vtu(m: &Model, dir: &Path, window: u64, t: f64) -> std::io::Result<
             .flat_map(|(x, x0)| [x[0] - x0[0], x[1] - x0[1], x[2] - x0[2]])
             .collect();
     let vel: Vec<f64> = m.v.iter().flat_map(|v| v.iter().copied()).collect();
-    let eqps: Vec<f64> = m.mat.iter().map(|s| s.eq_plastic_strain).collect();
-    let data = vec![
+    let eqps: Vec<f64> = m.mat.iter().map(|s| s.eq_plastic_strain()).collect();
+    let mut data = vec![
         ("displacement", 3, disp),
         ("velocity", 3, vel),
         ("eq_plastic_strain", 1, eqps),
         ("broken_bond_fraction", 1, m.broken_fraction()),
     ];
+    // Johnson–Cook heats the particles by their plastic work.
+    if m.p.blast.is_some() {
+        let temperature = m
+            .mat
+            .iter()
+            .map(|s| match s {
+                crate::model::Point::Blast(b) => b.jc.temperature,
+                crate::model::Point::J2(_) => f64::NAN,
+            })
+            .collect();
+        data.push(("temperature", 1, temperature));
+    }
     let frame = Frame {
         dir,
         stem: "joint",

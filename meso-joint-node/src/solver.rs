@@ -21,7 +21,6 @@ use crate::geometry;
 use crate::model::{Kind, Model, ModelParams, RigidBody};
 use crate::shape::{M3, Rows};
 use crate::solid::Solid;
-use mechanics::j2::J2State;
 use mechanics::tensor::{self, Vector3, vec3};
 use protocol::scheme::kinematic::{self, Follow};
 use protocol::{
@@ -282,6 +281,7 @@ impl SpgSolver {
         }
         let mp = ModelParams {
             material: params.material(),
+            blast: params.blast_solid()?,
             density: params.density,
             spacing: h,
             support: params.kernel_support,
@@ -1203,7 +1203,7 @@ struct ModelState {
     fhat: Vec<M3>,
     ftot_a: Vec<M3>,
     finv_a: Vec<M3>,
-    mat: Vec<J2State>,
+    mat: Vec<crate::model::Point>,
     bmat: Vec<M3>,
     eint: Vec<f64>,
     kind: Vec<Kind>,

@@ -16,6 +16,7 @@ use meso_joint_node::model::{Model, ModelParams};
 
 fn params(smoothing: Smoothing) -> ModelParams {
     ModelParams {
+        blast: None,
         material: J2Material {
             young: 210e9,
             poisson: 0.3,

@@ -22,6 +22,7 @@ fn jittered_model() -> Model {
         }
     }
     let p = ModelParams {
+        blast: None,
         material: J2Material {
             young: 210e9,
             poisson: 0.3,

@@ -33,6 +33,7 @@ fn material() -> J2Material {
 fn bar(core: Option<[f64; 2]>) -> Model {
     let s = block([0.0; 3], [L, 3e-3, 3e-3], H);
     let p = ModelParams {
+        blast: None,
         material: material(),
         density: 7850.0,
         spacing: H,
@@ -124,7 +125,7 @@ fn core_gauge(m: &Model) -> (f64, f64) {
     for i in 0..m.len() {
         let f = mechanics::tensor::mat(&m.fhat[i]) * mechanics::tensor::mat(&m.ftot_a[i]);
         e += m.vol0[i] * f[(0, 0)].ln();
-        let st = &m.mat[i].stress;
+        let st = m.mat[i].stress();
         s += m.vol0[i] * (st[0] - 0.5 * (st[1] + st[2]));
         v += m.vol0[i];
     }
@@ -164,7 +165,7 @@ fn section_forces(m: &Model) -> (f64, f64) {
         });
         hi - lo
     };
-    let core: f64 = (0..m.len()).map(|i| m.vol[i] * m.mat[i].stress[0]).sum();
+    let core: f64 = (0..m.len()).map(|i| m.vol[i] * m.mat[i].stress()[0]).sum();
     let core_len = span(&mut m.x.iter().map(|x| x[0]));
     let sd = m.solid.as_ref().unwrap();
     let on = |x0: f64| (0..sd.len()).filter(move |&k| (sd.x0[k][0] - x0).abs() < 1e-9);
@@ -266,7 +267,7 @@ fn a_uniform_stretch_crosses_the_shared_boundary_without_ghost_forces() {
         sd.v[k] = [rate * sd.x[k][0], 0.0, 0.0];
     }
     m.position_phase(1.0).unwrap();
-    let sigma = m.mat[0].stress[0];
+    let sigma = m.mat[0].stress()[0];
     assert!(sigma > 0.0);
     let unit = sigma * H * H;
     // more than a kernel support from the outer surfaces, the grips' planes included

@@ -9,7 +9,7 @@ use meso_joint_node::factory;
 use protocol::mapping::Mapping;
 use protocol::{CellKind, Cells, Field, FieldSet, InterfaceMesh, SolverError, Window};
 
-fn base() -> toml::Table {
+pub(crate) fn base() -> toml::Table {
     toml::from_str(
         r#"
         spacing = 0.5e-3

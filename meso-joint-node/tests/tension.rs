@@ -25,6 +25,7 @@ fn bar_r(eps_crit: f64, v_end: f64, reanchor_every: u64) -> Model {
     let h = 0.5e-3;
     let s = block([0.0; 3], [L, 3e-3, 3e-3], h);
     let p = ModelParams {
+        blast: None,
         material: J2Material {
             young: E,
             poisson: 0.3,
@@ -60,9 +61,9 @@ fn gauge(m: &Model) -> (f64, f64, f64) {
         if (m.x0[i][0] - 0.5 * L).abs() < 0.25 * L {
             let f = tensor::rows(&(tensor::mat(&m.fhat[i]) * tensor::mat(&m.ftot_a[i])));
             e += f[0][0].ln();
-            let st = &m.mat[i].stress;
+            let st = m.mat[i].stress();
             s += st[0] - 0.5 * (st[1] + st[2]);
-            ep += m.mat[i].eq_plastic_strain;
+            ep += m.mat[i].eq_plastic_strain();
             n += 1.0;
         }
     }
@@ -155,7 +156,7 @@ fn failure_starts_at_eps_crit_in_tension_and_never_in_compression() {
             let (i, j) = (m.rows.row_of[p] as usize, m.rows.cols[p] as usize);
             let x = (vec3(&m.x[i]) - vec3(&m.x[j])).norm();
             if i != j && m.rows.alive[p] && x > m.rows.len0[p] {
-                e = e.max(0.5 * (m.mat[i].eq_plastic_strain + m.mat[j].eq_plastic_strain));
+                e = e.max(0.5 * (m.mat[i].eq_plastic_strain() + m.mat[j].eq_plastic_strain()));
             }
         }
         e
@@ -209,7 +210,7 @@ fn failure_starts_at_eps_crit_in_tension_and_never_in_compression() {
         peak = c
             .mat
             .iter()
-            .map(|s| s.eq_plastic_strain)
+            .map(|s| s.eq_plastic_strain())
             .fold(peak, f64::max);
         if peak > 3.0 * eps_crit {
             break;

@@ -5,7 +5,7 @@
 
 use meso_joint_node::config::Smoothing;
 use meso_joint_node::geometry::benchmark_block;
-use meso_joint_node::model::Model;
+use meso_joint_node::model::{Model, Point};
 
 const STEPS: u64 = 40;
 const REANCHOR_EVERY: u64 = 7;
@@ -44,6 +44,9 @@ fn bits(m: &Model) -> Vec<u64> {
         b.extend(a.iter().flatten().flatten().map(|v| v.to_bits()));
     }
     for s in &m.mat {
+        let Point::J2(s) = s else {
+            panic!("the thread test's material is J2")
+        };
         b.extend(s.stress.iter().chain(&s.back_stress).map(|v| v.to_bits()));
         b.push(s.eq_plastic_strain.to_bits());
     }
