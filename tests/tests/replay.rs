@@ -190,10 +190,14 @@ fn long_recording() -> &'static PathBuf {
 }
 
 /// Start replaying `right` of the long recording into a folder of its own (replays run side
-/// by side); returns the `cosim replay` process and its run id.
-fn replay_long(tag: &str) -> (std::process::Child, String) {
+/// by side); returns the `cosim replay` process, its run id and the pid of its node once the
+/// node is under way: it has written its first frame, which it does as it starts window 1
+/// (an event on the node's progress, not a sleep: a loaded machine once let a fixed 150 ms
+/// pass after the node was found while it ran all 6,400 windows).
+fn replay_long(tag: &str) -> (std::process::Child, String, i32) {
     let (dir, id) = scratch(tag);
     let out = dir.join("replay");
+    let first_frame = out.join("right").join("bar_000000.vtu");
     let child = Command::new(bin("cosim"))
         .args([
             "replay",
@@ -210,28 +214,28 @@ fn replay_long(tag: &str) -> (std::process::Child, String) {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    (child, id)
+    let start = Instant::now();
+    let pid = loop {
+        if let Some(&p) = processes_with(&format!("--run {id} --node right")).first()
+            && first_frame.exists()
+        {
+            break p as i32;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "the node never started its first window"
+        );
+        std::thread::sleep(Duration::from_millis(1));
+    };
+    (child, id, pid)
 }
 
 /// Replay `right` of the long recording, stop its node (SIGSTOP) once it is under way, do
 /// `act` to it, and return the replay's exit status, stdout and stderr, and the seconds from
 /// the stop to its exit; checks that nothing of the replay is left.
 fn interrupted(tag: &str, act: impl FnOnce(i32)) -> (bool, String, String, f64) {
-    let (mut child, id) = replay_long(tag);
-    let start = Instant::now();
-    let pid = loop {
-        if let Some(&p) = processes_with(&format!("--run {id} --node right")).first() {
-            break p as i32;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(20),
-            "node never started"
-        );
-        std::thread::sleep(Duration::from_millis(5));
-    };
-    // Some windows in (a full replay takes about half a second unloaded), then freeze it so
-    // the replay cannot finish first.
-    std::thread::sleep(Duration::from_millis(150));
+    let (mut child, id, pid) = replay_long(tag);
+    // Freeze it at once, so the replay cannot finish first.
     // SAFETY: kill(2) on the pid of the replay's own node process, found above.
     unsafe { libc::kill(pid, libc::SIGSTOP) };
     let stopped = Instant::now();
@@ -305,17 +309,8 @@ fn a_run_folder_stands_for_its_recording() {
 /// finishes bit-identical.
 #[test]
 fn a_replay_stopped_longer_than_the_heartbeat_timeout_blames_no_node() {
-    let (mut child, id) = replay_long("rp-own-stall");
-    let start = Instant::now();
-    while processes_with(&format!("--run {id} --node right")).is_empty() {
-        assert!(
-            start.elapsed() < Duration::from_secs(20),
-            "node never started"
-        );
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    // Some windows in, then the replay itself stops while its node goes on beating.
-    std::thread::sleep(Duration::from_millis(100));
+    let (mut child, id, _) = replay_long("rp-own-stall");
+    // The node under way, the replay itself stops while its node goes on beating.
     signal_child(&child, libc::SIGSTOP);
     std::thread::sleep(Duration::from_millis(4000));
     signal_child(&child, libc::SIGCONT);
