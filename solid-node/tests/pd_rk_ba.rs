@@ -462,3 +462,146 @@ bodies = [{{ shape = "box", min = [0.0, 0.0, 0.0], max = [0.006, 0.005, 0.005] }
     assert_eq!(other("pd-correspondence"), "bond_associative");
     assert_eq!(other("pd-bond"), "bond_associative");
 }
+
+/// A damaged family keeps the gradient it can support: along a straight crack every
+/// particle keeps the quadratic gradient (a half family is as well conditioned as the
+/// body's own edge); a particle left with bonds along one line and one off it falls back to
+/// the linear gradient (no quadratic field is determined by two directions); one left with
+/// bonds along a single line carries none. The counts reach the report.
+#[test]
+fn a_damaged_family_falls_back_to_the_gradient_it_supports() {
+    let dx = 1e-3;
+    let n = [14, 12, 1];
+    let x0 = block(n, dx, false);
+    let vol = vec![dx * dx * dx; x0.len()];
+    let delta = 3.015 * dx;
+    let mut bonds = Bonds::build(&x0, delta);
+    let mut m = RkBa::new(Dim::PlaneStrain, 2, delta, steel(), NoDamage, &bonds);
+    let zero = vec![[0.0; 3]; x0.len()];
+    let k = solid_node::pd::model::Kinematics {
+        x0: &x0,
+        pos: &x0,
+        disp: &zero,
+        vel: &zero,
+        vol: &vol,
+    };
+    assert_eq!(m.singular_particle(&k, &bonds), None);
+    let mut f = vec![[0.0; 3]; x0.len()];
+    let break_bond = |m: &mut RkBa<NoDamage>, b: usize| {
+        m.hist[b].wd = 0.0;
+        let t = m.rev[b] as usize;
+        m.hist[t].wd = 0.0;
+    };
+    // A crack along y = 5.5 dx through the whole block (every bond across it broken).
+    let yc = 5.5 * dx;
+    for i in 0..x0.len() {
+        for b in bonds.offsets[i]..bonds.offsets[i + 1] {
+            let j = bonds.nbr[b] as usize;
+            if (x0[i][1] - yc) * (x0[j][1] - yc) < 0.0 {
+                break_bond(&mut m, b);
+            }
+        }
+    }
+    m.force_density(&k, &mut bonds, 0.0, &mut f);
+    let degree: Vec<u8> = m.point.iter().map(|p| p.degree).collect();
+    assert!(
+        degree.iter().all(|&d| d == 2),
+        "a straight crack reduced {} of {} gradients",
+        degree.iter().filter(|&&d| d != 2).count(),
+        degree.len()
+    );
+    assert_eq!(m.reduced_gradients(), (0, 0));
+    // Two interior particles away from the crack (row 9, columns 4 and 10): the first keeps
+    // its bonds along x and one to the particle above it; the second only those along x.
+    let at = |c: usize, r: usize| {
+        x0.iter()
+            .position(|p| {
+                (p[0] - (c as f64 + 0.5) * dx).abs() < 1e-9
+                    && (p[1] - (r as f64 + 0.5) * dx).abs() < 1e-9
+            })
+            .expect("a lattice particle")
+    };
+    let (a, c) = (at(4, 9), at(10, 9));
+    for (i, keep_above) in [(a, true), (c, false)] {
+        for b in bonds.offsets[i]..bonds.offsets[i + 1] {
+            let j = bonds.nbr[b] as usize;
+            let d = [x0[j][0] - x0[i][0], x0[j][1] - x0[i][1]];
+            let on_line = d[1].abs() < 1e-9;
+            let above = keep_above && d[0].abs() < 1e-9 && (d[1] - dx).abs() < 1e-9;
+            if !(on_line || above) {
+                break_bond(&mut m, b);
+            }
+        }
+    }
+    m.force_density(&k, &mut bonds, 0.0, &mut f);
+    assert_eq!(m.point[a].degree, 1, "bonds along x and one above");
+    assert_eq!(m.point[c].degree, 0, "bonds along x only");
+    assert_eq!(m.reduced_gradients(), (1, 1));
+    let scalars = m.damage_scalars();
+    assert_eq!(
+        scalars,
+        vec![
+            ("reduced_gradient_particles", 1.0),
+            ("gradient_free_particles", 1.0)
+        ]
+    );
+    // The linear fall-back is the linear RK gradient: exact for a linear field.
+    let h = [[0.3, -0.2], [0.1, 0.25]];
+    let v: Vec<[f64; 3]> = x0
+        .iter()
+        .map(|p| {
+            [
+                h[0][0] * p[0] + h[0][1] * p[1],
+                h[1][0] * p[0] + h[1][1] * p[1],
+                0.0,
+            ]
+        })
+        .collect();
+    let kv = solid_node::pd::model::Kinematics { vel: &v, ..k };
+    m.force_density(&kv, &mut bonds, 0.0, &mut f);
+    let l = m.point[a].l;
+    for r in 0..2 {
+        for s in 0..2 {
+            assert!(
+                (l[r][s] - h[r][s]).abs() < 1e-12,
+                "linear gradient at the reduced particle: L[{r}][{s}] = {} against {}",
+                l[r][s],
+                h[r][s]
+            );
+        }
+    }
+}
+
+/// The kernel is evaluated on the current bond, so a bond stretched to the horizon carries no
+/// force: two halves of a block pulled apart by more than the horizon are two fragments
+/// although no bond between them is damaged; pulled apart by less, they are one.
+#[test]
+fn halves_pulled_apart_past_the_horizon_are_two_fragments() {
+    let dx = 1e-3;
+    let x0 = block([12, 6, 1], dx, false);
+    let delta = 3.015 * dx;
+    let mut bonds = Bonds::build(&x0, delta);
+    let m = RkBa::new(Dim::PlaneStrain, 2, delta, steel(), NoDamage, &bonds);
+    let split = |gap: f64| -> Vec<[f64; 3]> {
+        x0.iter()
+            .map(|p| {
+                let shift = if p[0] > 6.0 * dx { gap } else { 0.0 };
+                [p[0] + shift, p[1], p[2]]
+            })
+            .collect()
+    };
+    let count = |bonds: &Bonds| {
+        solid_node::pd::fracture::components(bonds, &bonds.intact)
+            .1
+            .iter()
+            .filter(|&&s| s >= 10)
+            .count()
+    };
+    m.fragment_links(&split(0.5 * delta), &mut bonds);
+    assert_eq!(count(&bonds), 1, "a gap of half a horizon");
+    m.fragment_links(&split(delta), &mut bonds);
+    assert_eq!(count(&bonds), 2, "a gap of a horizon");
+    // damage is read from the bonds' own state: none broke
+    m.sync_bonds(&mut bonds);
+    assert!(bonds.intact.iter().all(|&w| w == 1.0));
+}

@@ -81,6 +81,15 @@ pub trait PdModel: Send + Sync {
         let _ = bonds;
     }
 
+    /// Writes into `bonds.intact` which bonds still tie their two particles together at
+    /// positions `pos` (> 0: tied), for the fragments: by default every bond not broken
+    /// ([`PdModel::sync_bonds`]). A model whose bonds stop carrying force past a distance
+    /// says so here.
+    fn fragment_links(&self, pos: &[[f64; 3]], bonds: &mut Bonds) {
+        let _ = pos;
+        self.sync_bonds(bonds);
+    }
+
     /// Cauchy stress per particle, when the model has one.
     fn stress(&self) -> Option<Vec<Sym>> {
         None
@@ -136,6 +145,12 @@ pub trait PdModel: Send + Sync {
     ) -> Option<[f64; 3]> {
         let _ = (k, bonds, i, from);
         None
+    }
+
+    /// Counts of the model's own that a run with damage reports each window (name, value),
+    /// e.g. how many particles' gradients damage has reduced; none by default.
+    fn damage_scalars(&self) -> Vec<(&'static str, f64)> {
+        Vec::new()
     }
 
     /// Each particle's share of the last [`PdModel::strain_energy`] (J), when the model

@@ -130,20 +130,53 @@ pub fn basis_len(dims: usize, order: usize) -> usize {
     }
 }
 
-/// In-place Cholesky factorisation of the leading m×m block (row-major, stride MAX_BASIS);
-/// false when not positive definite (relative pivot below 1e-12 of the largest diagonal).
-fn cholesky(a: &mut [[f64; MAX_BASIS]; MAX_BASIS], m: usize) -> bool {
-    let dmax = (0..m).map(|i| a[i][i]).fold(0.0, f64::max);
-    if !(dmax > 0.0) {
-        return false;
+/// A particle keeps a gradient of a given order while the determinant of its equilibrated
+/// moment matrix (M scaled to a unit diagonal, so that neither the family's size nor the
+/// horizon enters) stays above this share of the same determinant in the reference
+/// configuration, undamaged. Below it (a family reduced by damage to a few members or to
+/// nearly one line) the inverse grows without bound and so would the gradient: the
+/// particle falls back to the linear basis, and below the share there too it carries no
+/// gradient. The same rule as pd-correspondence's shape tensor (1e-3 of its reference
+/// determinant).
+pub const CONDITION_FLOOR: f64 = 1e-3;
+
+/// The equilibrated Cholesky factor of the leading m×m block of a symmetric matrix (full
+/// in `a`, row-major, stride MAX_BASIS): the factor of S A S with S = diag(A_aa^-1/2),
+/// `scale` = S. Returns how many leading pivots were positive (m when the whole block is
+/// positive definite) and the determinants of S A S's leading `dims` block and of the whole
+/// block (0 where the factorisation broke down before their end). The factor of a leading
+/// block of A is the leading block of A's factor, so one factorisation serves both orders.
+fn factor_equilibrated(
+    a: &mut [[f64; MAX_BASIS]; MAX_BASIS],
+    m: usize,
+    dims: usize,
+    scale: &mut [f64; MAX_BASIS],
+) -> (usize, [f64; 2]) {
+    // a zero diagonal (a monomial no family member sees) ends the factor before its row
+    let full = m;
+    let m = (0..m).position(|i| !(a[i][i] > 0.0)).unwrap_or(m);
+    for i in 0..m {
+        scale[i] = 1.0 / a[i][i].sqrt();
     }
+    for i in 0..m {
+        for j in 0..m {
+            a[i][j] *= scale[i] * scale[j];
+        }
+    }
+    let (mut det, mut det_lin) = (1.0, 0.0);
     for j in 0..m {
         let mut s = a[j][j];
         for k in 0..j {
             s -= a[j][k] * a[j][k];
         }
-        if !(s > 1e-12 * dmax) {
-            return false;
+        // a unit diagonal: the pivot is the share of the direction that the earlier ones
+        // leave; round-off is about 1e-16
+        if !(s > 1e-14) {
+            return (j, [det_lin, 0.0]);
+        }
+        det *= s;
+        if j + 1 == dims {
+            det_lin = det;
         }
         let d = s.sqrt();
         a[j][j] = d;
@@ -155,10 +188,10 @@ fn cholesky(a: &mut [[f64; MAX_BASIS]; MAX_BASIS], m: usize) -> bool {
             a[i][j] = s / d;
         }
     }
-    true
+    (m, [det_lin, if m == full { det } else { 0.0 }])
 }
 
-/// Solves L Lᵀ y = b with the factor of [`cholesky`].
+/// Solves L Lᵀ y = b with the leading m×m block of the factor of [`factor_equilibrated`].
 fn cholesky_solve(l: &[[f64; MAX_BASIS]; MAX_BASIS], m: usize, b: &mut [f64; MAX_BASIS]) {
     for i in 0..m {
         let mut s = b[i];
@@ -195,7 +228,10 @@ fn omega_row(i: usize, horizon: f64, pos: &[[f64; 3]], nbr: &[u32], w: &mut [f64
 }
 
 /// G = the first `dims` rows of M⁻¹ (A.7, A.8; monomials of x/δ) for bond weights ω of
-/// row i; returns (ω̄ of A.6, whether M is invertible).
+/// row i, at the model's order where M is well conditioned, else of the linear block (see
+/// [`CONDITION_FLOOR`]; `reference` holds the reference configuration's equilibrated
+/// determinants, linear and full; None: any positive definite M is taken). Returns ω̄
+/// (A.6), the degree of the gradient formed (0: none) and the equilibrated determinants.
 fn moment_rows(
     i: usize,
     dims: usize,
@@ -205,8 +241,9 @@ fn moment_rows(
     vol: &[f64],
     nbr: &[u32],
     w: &[f64],
+    reference: Option<[f64; 2]>,
     g: &mut [[f64; MAX_BASIS]; 3],
-) -> (f64, bool) {
+) -> (f64, u8, [f64; 2]) {
     let m = basis_len(dims, order);
     let inv_h = 1.0 / horizon;
     let mut mm = [[0.0; MAX_BASIS]; MAX_BASIS];
@@ -225,16 +262,27 @@ fn moment_rows(
             mm[a][b] = mm[b][a];
         }
     }
-    if !cholesky(&mut mm, m) {
-        return (wbar, false);
-    }
+    let mut scale = [0.0; MAX_BASIS];
+    let (pivots, det) = factor_equilibrated(&mut mm, m, dims, &mut scale);
+    let floor = reference.map_or([0.0; 2], |r| r.map(|d| CONDITION_FLOOR * d));
+    let (size, degree) = if pivots == m && det[1] > floor[1] {
+        (m, order as u8)
+    } else if pivots >= dims && det[0] > floor[0] {
+        (dims, 1)
+    } else {
+        return (wbar, 0, det);
+    };
+    // M⁻¹ = S (S M S)⁻¹ S
     for d in 0..dims {
         let mut e = [0.0; MAX_BASIS];
-        e[d] = 1.0;
-        cholesky_solve(&mm, m, &mut e);
+        e[d] = scale[d];
+        cholesky_solve(&mm, size, &mut e);
+        for a in 0..size {
+            e[a] *= scale[a];
+        }
         g[d] = e;
     }
-    (wbar, true)
+    (wbar, degree, det)
 }
 
 /// M += ω V_j Ξ Ξᵀ (lower triangle) and ω̄ += ω V_j over a row, basis size `M`.
@@ -312,8 +360,14 @@ pub struct RkPoint {
     pub l: M3,
     /// ω̄ (A.6).
     pub wbar: f64,
-    /// Whether the moment matrix was invertible (false: the particle carries no gradient).
+    /// Whether the particle has a gradient (false: its moment matrix is singular or too
+    /// badly conditioned at any order, see [`CONDITION_FLOOR`]).
     pub active: bool,
+    /// The degree of its gradient: the model's order, 1 where its family no longer
+    /// supports that, 0 where it supports none.
+    pub degree: u8,
+    /// Its equilibrated moment matrix's determinants, linear block and whole.
+    pub det: [f64; 2],
 }
 
 impl Default for RkPoint {
@@ -323,12 +377,16 @@ impl Default for RkPoint {
             l: [[0.0; 3]; 3],
             wbar: 0.0,
             active: false,
+            degree: 0,
+            det: [0.0; 2],
         }
     }
 }
 
 /// Shared gradient pass: ω per bond (from ω_D in `omega` on entry), G and ω̄ per particle,
-/// then Φ per bond and the gradient of `field` per particle.
+/// then Φ per bond and the gradient of `field` per particle. `reference`: each particle's
+/// equilibrated determinants in the reference configuration, against which its moment
+/// matrix's conditioning is judged (None: any invertible one is taken).
 fn gradient_pass(
     dims: usize,
     order: usize,
@@ -337,6 +395,7 @@ fn gradient_pass(
     vol: &[f64],
     field: &[[f64; 3]],
     bonds: &Bonds,
+    reference: Option<&[[f64; 2]]>,
     point: &mut [RkPoint],
     omega: &mut [f64],
     phi: &mut [[f64; 3]],
@@ -345,9 +404,14 @@ fn gradient_pass(
     par_rows(offsets, point, omega, &|i, pt, wrow| {
         let r = offsets[i]..offsets[i + 1];
         omega_row(i, horizon, pos, &nbr[r.clone()], wrow);
-        let (wbar, ok) = moment_rows(i, dims, order, horizon, pos, vol, &nbr[r], wrow, &mut pt.g);
+        let reference = reference.map(|d| d[i]);
+        let (wbar, degree, det) = moment_rows(
+            i, dims, order, horizon, pos, vol, &nbr[r], wrow, reference, &mut pt.g,
+        );
         pt.wbar = wbar;
-        pt.active = ok;
+        pt.degree = degree;
+        pt.active = degree > 0;
+        pt.det = det;
     });
     let omega = &*omega;
     par_rows(offsets, point, phi, &|i, pt, prow| {
@@ -399,7 +463,7 @@ pub fn rk_gradient(
     let mut omega = vec![1.0; bonds.len()];
     let mut phi = vec![[0.0; 3]; bonds.len()];
     gradient_pass(
-        dims, order, horizon, pos, vol, field, bonds, &mut point, &mut omega, &mut phi,
+        dims, order, horizon, pos, vol, field, bonds, None, &mut point, &mut omega, &mut phi,
     );
     point.iter().map(|p| p.l).collect()
 }
@@ -445,6 +509,10 @@ pub struct RkBa<D: DamageModel, L: BondLaw = J2Material> {
     /// Without BA: each particle's state and the plastic work done at it (J); empty with
     /// BA.
     point_state: Vec<(L::State, f64)>,
+    /// Each particle's equilibrated moment-matrix determinants (linear block, whole) in the
+    /// reference configuration with its whole family: the yardstick of
+    /// [`CONDITION_FLOOR`]. Formed at the first step ([`RkBa::set_reference`]).
+    reference_det: Vec<[f64; 2]>,
 }
 
 /// Particle i's strain energy V_i S/W (J) with S = Σ_j ω_b V_j w_e(σ_b), W = Σ_j ω_b V_j over
@@ -507,6 +575,7 @@ impl<D: DamageModel, L: BondLaw> RkBa<D, L> {
             released: vec![0.0; n],
             bond_associative: true,
             point_state: Vec::new(),
+            reference_det: Vec::new(),
         }
     }
 
@@ -598,13 +667,31 @@ impl<D: DamageModel, L: BondLaw> RkBa<D, L> {
 
     /// The first particle whose moment matrix M (A.7) is singular in the reference
     /// configuration with the current bond damage (too few family members for the order),
-    /// if any. Runs the gradient pass in the model's own buffers (no allocation; every step
-    /// forms them afresh).
+    /// if any. Runs the gradient pass in the model's own buffers (every step forms them
+    /// afresh).
     pub fn singular_particle(&mut self, k: &Kinematics, bonds: &Bonds) -> Option<usize> {
-        let dims = if self.dim.three_d() { 3 } else { 2 };
         for (w, h) in self.omega.iter_mut().zip(&self.hist) {
             *w = h.wd;
         }
+        self.reference_pass(k, bonds);
+        let order = self.order as u8;
+        self.point.iter().position(|p| p.degree != order)
+    }
+
+    /// Each particle's equilibrated determinants in the reference configuration with every
+    /// bond of its family intact (pre-cracks and damage aside, so that a restarted run
+    /// judges against the same yardstick as the run it continues): the yardstick of
+    /// [`CONDITION_FLOOR`], formed once, before the first step.
+    fn set_reference(&mut self, k: &Kinematics, bonds: &Bonds) {
+        self.omega.fill(1.0);
+        self.reference_pass(k, bonds);
+        self.reference_det = self.point.iter().map(|p| p.det).collect();
+    }
+
+    /// The gradient pass on the reference configuration with the influences ω_D in
+    /// `self.omega`, judged by no yardstick.
+    fn reference_pass(&mut self, k: &Kinematics, bonds: &Bonds) {
+        let dims = if self.dim.three_d() { 3 } else { 2 };
         gradient_pass(
             dims,
             self.order,
@@ -613,11 +700,20 @@ impl<D: DamageModel, L: BondLaw> RkBa<D, L> {
             k.vol,
             k.x0,
             bonds,
+            None,
             &mut self.point,
             &mut self.omega,
             &mut self.phi,
         );
-        self.point.iter().position(|p| !p.active)
+    }
+
+    /// How many particles' gradients are of a lower degree than the model's order (their
+    /// families damaged too far for it), and how many have none.
+    pub fn reduced_gradients(&self) -> (usize, usize) {
+        let order = self.order as u8;
+        let lower = self.point.iter().filter(|p| p.degree != order).count();
+        let none = self.point.iter().filter(|p| p.degree == 0).count();
+        (lower - none, none)
     }
 
     /// The bond histories (for checkpoints and tests).
@@ -634,6 +730,9 @@ impl<D: DamageModel, L: BondLaw> PdModel for RkBa<D, L> {
     fn force_density(&mut self, k: &Kinematics, bonds: &mut Bonds, dt: f64, f: &mut [[f64; 3]]) {
         let dims = if self.dim.three_d() { 3 } else { 2 };
         let (order, horizon) = (self.order, self.horizon);
+        if self.reference_det.is_empty() {
+            self.set_reference(k, bonds);
+        }
         // 1. ω, Φ, ω̄ and the point velocity gradient L (A.1–A.8).
         for (w, h) in self.omega.iter_mut().zip(&self.hist) {
             *w = h.wd;
@@ -646,6 +745,7 @@ impl<D: DamageModel, L: BondLaw> PdModel for RkBa<D, L> {
             k.vol,
             k.vel,
             bonds,
+            Some(&self.reference_det),
             &mut self.point,
             &mut self.omega,
             &mut self.phi,
@@ -796,6 +896,22 @@ impl<D: DamageModel, L: BondLaw> PdModel for RkBa<D, L> {
         }
     }
 
+    /// The kernel is evaluated on the current positions (A.3): a bond stretched to the
+    /// horizon carries no force however little it is damaged, and ties nothing together
+    /// (two pieces flying apart are two fragments).
+    fn fragment_links(&self, pos: &[[f64; 3]], bonds: &mut Bonds) {
+        let h2 = self.horizon * self.horizon;
+        let (offsets, nbr) = (&bonds.offsets, &bonds.nbr);
+        for (i, p) in pos.iter().enumerate() {
+            for b in offsets[i]..offsets[i + 1] {
+                let q = pos[nbr[b] as usize];
+                let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+                let far = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] >= h2;
+                bonds.intact[b] = if far { 0.0 } else { self.hist[b].wd };
+            }
+        }
+    }
+
     /// Σ_i V_i Σ_j α_ij V_j w_e(σ_b): the bond-level elastic strain energy density
     /// ½ σ_b : C⁻¹ : σ_b averaged over each family with the normalised weight α = ω/ω̄_i
     /// of seed 000 eq. (15)–(18) (Σ_j α V_j = 1), the internal energy whose rate is the
@@ -822,6 +938,17 @@ impl<D: DamageModel, L: BondLaw> PdModel for RkBa<D, L> {
 
     fn fracture_energy(&self) -> f64 {
         self.released.iter().sum()
+    }
+
+    /// `reduced_gradient_particles`: particles whose damaged families carry only a linear
+    /// gradient (order 2 models); `gradient_free_particles`: those that carry none (their
+    /// bonds broken for good).
+    fn damage_scalars(&self) -> Vec<(&'static str, f64)> {
+        let (reduced, none) = self.reduced_gradients();
+        vec![
+            ("reduced_gradient_particles", reduced as f64),
+            ("gradient_free_particles", none as f64),
+        ]
     }
 
     fn plastic_work(&self, vol: &[f64]) -> f64 {

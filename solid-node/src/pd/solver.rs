@@ -551,8 +551,9 @@ impl PdSolver {
     /// Fragments: sizes of the connected components (over unbroken bonds) with at least
     /// `min_size` particles, largest first, and the number of particles in smaller ones.
     pub fn fragments(&mut self, min_size: usize) -> (Vec<usize>, usize) {
-        self.body.model.sync_bonds(&mut self.body.bonds);
-        let (_, sizes) = super::fracture::components(&self.body.bonds, &self.body.bonds.intact);
+        let b = &mut self.body;
+        b.model.fragment_links(&b.pos, &mut b.bonds);
+        let (_, sizes) = super::fracture::components(&b.bonds, &b.bonds.intact);
         let mut big: Vec<usize> = sizes.iter().copied().filter(|&s| s >= min_size).collect();
         big.sort_unstable_by(|a, b| b.cmp(a));
         let debris = sizes.iter().filter(|&&s| s < min_size).sum();
@@ -636,12 +637,16 @@ impl PdSolver {
         let cracked = damage.iter().filter(|&&d| d > 0.0).count();
         v.push(("damaged_particles".into(), damaged as f64));
         v.push(("cracked_particles".into(), cracked as f64));
-        let dsum: f64 = damage.iter().sum();
-        if !matches!(&self.fragment_cache, Some((d, ..)) if *d == dsum) {
-            self.body.model.sync_bonds(&mut self.body.bonds);
-            let (label, sizes) =
-                super::fracture::components(&self.body.bonds, &self.body.bonds.intact);
-            self.fragment_cache = Some((dsum, label, sizes));
+        for (name, x) in self.body.model.damage_scalars() {
+            v.push((name.into(), x));
+        }
+        // keyed by the damage and the links (a model's links can also part with distance)
+        let b = &mut self.body;
+        b.model.fragment_links(&b.pos, &mut b.bonds);
+        let key = damage.iter().sum::<f64>() + b.bonds.intact.iter().sum::<f64>();
+        if !matches!(&self.fragment_cache, Some((d, ..)) if *d == key) {
+            let (label, sizes) = super::fracture::components(&b.bonds, &b.bonds.intact);
+            self.fragment_cache = Some((key, label, sizes));
         }
         let Some((_, label, sizes)) = &self.fragment_cache else {
             unreachable!("the fragment cache was filled above")
@@ -2208,6 +2213,7 @@ impl Solver for PdSolver {
         data.push(("damage", 1, d));
         if !matches!(self.params.damage, None | Some(DamageParams::None {})) {
             // the fragment table of this frame and each particle's fragment (−1: debris)
+            b.model.fragment_links(&pos, &mut bonds);
             let (label, sizes) = super::fracture::components(&bonds, &bonds.intact);
             let (frags, of) = self.measured_fragments(&label, &sizes, vel_s);
             write_fragments(&dir.join("fragments.csv"), t, &frags)?;
