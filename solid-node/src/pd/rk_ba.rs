@@ -478,6 +478,9 @@ pub struct BondHistory<S = J2State> {
     /// Plastic work done through this row's copy of the bond since the start (J):
     /// Σ V_i α V_j σ_b : Δεᵖ_b with α = ω/ω̄_i (seed 000 eq. 15–19).
     pub plastic_work: f64,
+    /// The stored energy density w_e of the bond's stress at the start of this step, before
+    /// its update (scratch of the force pass, for [`RkBa::release`]; not saved).
+    pub e_prev: f64,
 }
 
 /// A bond's history as a checkpoint holds it: the law's state, ω_D and the plastic work.
@@ -526,12 +529,18 @@ fn row_energy<L: BondLaw>(
     hrow: &[BondHistory<L::State>],
     om: impl Fn(usize) -> f64,
 ) -> f64 {
+    family_average(vol, i, nbr, |b| (om(b), mat.stored_energy(&hrow[b].state)))
+}
+
+/// V_i Σ_j ω V_j w / Σ_j ω V_j over row i for (ω, w) = `bond(b)` (b the index in the row);
+/// zero when the weights sum to zero.
+fn family_average(vol: &[f64], i: usize, nbr: &[u32], bond: impl Fn(usize) -> (f64, f64)) -> f64 {
     let (mut s, mut w) = (0.0, 0.0);
-    for (b, (h, &j)) in hrow.iter().zip(nbr).enumerate() {
-        let o = om(b);
+    for (b, &j) in nbr.iter().enumerate() {
+        let (o, e) = bond(b);
         if o != 0.0 {
             let wv = o * vol[j as usize];
-            s += wv * mat.stored_energy(&h.state);
+            s += wv * e;
             w += wv;
         }
     }
@@ -568,6 +577,7 @@ impl<D: DamageModel, L: BondLaw> RkBa<D, L> {
                     wd: w,
                     om: 0.0,
                     plastic_work: 0.0,
+                    e_prev: 0.0,
                 })
                 .collect(),
             rev,
@@ -638,16 +648,20 @@ impl<D: DamageModel, L: BondLaw> RkBa<D, L> {
         });
     }
 
-    /// Books the strain energy that this step's bond damage took from the rows it touched
-    /// at the stresses and positions of the step, the row's energy
-    /// ([`row_energy`]) with the influences before the damage (this step's ω) less that with
-    /// the influences after it (W renormalised, as the next gradient pass forms it) is
-    /// released, so strain energy + released energy is unchanged by damage. The energy is
-    /// a family average: a bond less loaded than its family's average takes less than its
-    /// share with it, and such an event releases a negative amount (the remaining bonds'
-    /// weight grows). Runs only on a step whose damage changed an influence.
+    /// Books the strain energy that this step's bond damage took from the rows it touched,
+    /// at the bond stresses the step started from: the row's energy ([`row_energy`]) with the
+    /// influences before the damage (this step's ω) less that with the influences after it
+    /// (W renormalised, as the next gradient pass forms it) is released, so strain energy +
+    /// released energy is unchanged by damage. The stresses are those before the step's
+    /// update because a bond that breaks in a step never exerts the stress that step gave
+    /// it: its increment was never paid for by the motion (a bond crushed within a step can
+    /// take an absurd one — two particles nearly meeting — and booking it would create
+    /// energy). The energy is a family average: a bond less loaded than its family's
+    /// average takes less than its share with it, and such an event releases a negative
+    /// amount (the remaining bonds' weight grows). Runs only on a step whose damage changed
+    /// an influence.
     fn release(&mut self, vol: &[f64], nbr: &[u32]) {
-        let (mat, omega, offsets) = (self.material, &self.omega, &self.offsets);
+        let (omega, offsets) = (&self.omega, &self.offsets);
         par_rows(
             offsets,
             &mut self.released,
@@ -658,8 +672,8 @@ impl<D: DamageModel, L: BondLaw> RkBa<D, L> {
                 if hrow.iter().zip(om0).all(|(h, &w)| h.om == w) {
                     return;
                 }
-                let before = row_energy(&mat, vol, i, nb, hrow, |b| om0[b]);
-                let after = row_energy(&mat, vol, i, nb, hrow, |b| hrow[b].om);
+                let before = family_average(vol, i, nb, |b| (om0[b], hrow[b].e_prev));
+                let after = family_average(vol, i, nb, |b| (hrow[b].om, hrow[b].e_prev));
                 *rel += before - after;
             },
         );
@@ -776,6 +790,9 @@ impl<D: DamageModel, L: BondLaw> PdModel for RkBa<D, L> {
                 // set-up checks that) carries no force; its remaining bonds break for good,
                 // both ways, so it is reported fully damaged, counts as detached, and cannot
                 // pick up force again if its neighbours' geometry later allows a gradient.
+                if om0 != 0.0 {
+                    h.e_prev = mat.stored_energy(&h.state);
+                }
                 if om0 == 0.0 || !pi.active {
                     if !pi.active {
                         h.wd = 0.0;
