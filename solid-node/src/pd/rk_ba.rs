@@ -654,9 +654,8 @@ impl<D: DamageModel, L: BondLaw> RkBa<D, L> {
     /// (W renormalised, as the next gradient pass forms it) is released, so strain energy +
     /// released energy is unchanged by damage. The stresses are those before the step's
     /// update because a bond that breaks in a step never exerts the stress that step gave
-    /// it: its increment was never paid for by the motion (a bond crushed within a step can
-    /// take an absurd one — two particles nearly meeting — and booking it would create
-    /// energy). The energy is a family average: a bond less loaded than its family's
+    /// it: its increment was never paid for by the motion (in a breaking solid a bond can
+    /// take an absurd one in a single step, and booking it would create energy). The energy is a family average: a bond less loaded than its family's
     /// average takes less than its share with it, and such an event releases a negative
     /// amount (the remaining bonds' weight grows). Runs only on a step whose damage changed
     /// an influence.
