@@ -443,6 +443,14 @@ bodies = [{{ shape = "box", min = [0.0, 0.0, 0.0], max = [0.006, 0.005, 0.005] }
     };
     assert_eq!(key(&t("")), "accepted pd-rk-ba");
     assert_eq!(key(&t("rk_order = 3")), "rk_order");
+    assert_eq!(key(&t("rk_condition_floor = 0.01")), "accepted pd-rk-ba");
+    for bad in ["0.0", "1.0", "-1e-3", "nan"] {
+        assert_eq!(
+            key(&t(&format!("rk_condition_floor = {bad}"))),
+            "rk_condition_floor",
+            "{bad}"
+        );
+    }
     let mut small = t("rk_order = 2");
     small.insert("horizon".into(), toml::Value::Float(1.2e-3));
     assert_eq!(key(&small), "horizon");
@@ -461,6 +469,13 @@ bodies = [{{ shape = "box", min = [0.0, 0.0, 0.0], max = [0.006, 0.005, 0.005] }
     };
     assert_eq!(other("pd-correspondence"), "bond_associative");
     assert_eq!(other("pd-bond"), "bond_associative");
+    for model in ["pd-correspondence", "pd-bond"] {
+        let floor = solid_node::pd::factory(model, &t("rk_condition_floor = 0.01"));
+        assert!(
+            matches!(floor, Some(Err(protocol::SolverError::Config { ref key, .. })) if key == "rk_condition_floor"),
+            "{model}"
+        );
+    }
 }
 
 /// A damaged family keeps the gradient it can support: along a straight crack every
@@ -511,6 +526,31 @@ fn a_damaged_family_falls_back_to_the_gradient_it_supports() {
         degree.len()
     );
     assert_eq!(m.reduced_gradients(), (0, 0));
+    // The floor is the case's (`rk_condition_floor`): above the share a half family keeps
+    // (about 0.87 of its reference determinant), the particles beside the crack drop to the
+    // linear gradient, and only they.
+    let mut strict = RkBa::new(Dim::PlaneStrain, 2, delta, steel(), NoDamage, &bonds);
+    strict.set_condition_floor(0.95);
+    for b in 0..m.hist.len() {
+        strict.hist[b].wd = m.hist[b].wd;
+    }
+    strict.force_density(&k, &mut bonds, 0.0, &mut f);
+    let reduced: Vec<usize> = (0..x0.len())
+        .filter(|&i| strict.point[i].degree != 2)
+        .collect();
+    assert!(
+        reduced.len() >= 10,
+        "a floor of 0.95 reduced only {} gradients",
+        reduced.len()
+    );
+    for &i in &reduced {
+        assert_eq!(strict.point[i].degree, 1, "particle {i}");
+        assert!(
+            (x0[i][1] - yc).abs() < delta,
+            "particle {i} at y {} reduced, a horizon or more from the crack",
+            x0[i][1]
+        );
+    }
     // Two interior particles away from the crack (row 9, columns 4 and 10): the first keeps
     // its bonds along x and one to the particle above it; the second only those along x.
     let at = |c: usize, r: usize| {

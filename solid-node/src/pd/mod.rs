@@ -52,7 +52,7 @@ pub fn build(
 /// Keys of the parameter table that the chosen model or dimension ignores are refused by
 /// name, so a key meant for another model is not silently dropped: each model's own list
 /// (`PdModelDef::refuses`: the J2 keys and `stabilization` on the elastic bond model,
-/// `rk_order` and `bond_associative` outside pd-rk-ba, `stabilization` on pd-rk-ba, `johnson_cook` and `eos`
+/// `rk_order`, `rk_condition_floor` and `bond_associative` outside pd-rk-ba, `stabilization` on pd-rk-ba, `johnson_cook` and `eos`
 /// outside pd-correspondence), hardening without `yield_stress`, J2 hardening with
 /// `johnson_cook`, `eos` without it, `thickness` in 3-D.
 fn refuse_inapplicable(def: &models::PdModelDef, params: &toml::Table) -> SolverResult<()> {

@@ -21,6 +21,9 @@ fn default_cfl() -> f64 {
 fn default_rk_order() -> usize {
     2
 }
+fn default_rk_condition_floor() -> f64 {
+    crate::pd::rk_ba::CONDITION_FLOOR
+}
 fn default_true() -> bool {
     true
 }
@@ -68,6 +71,12 @@ pub struct PdParams {
     /// Order n of the RK gradient of pd-rk-ba (1 or 2; seed 000 App. A).
     #[serde(default = "default_rk_order")]
     pub rk_order: usize,
+    /// pd-rk-ba: the share of a particle's undamaged reference moment-matrix determinant
+    /// (equilibrated) below which its gradient falls back from order n to linear, and from
+    /// linear to none (default 1e-3). Larger values drop the order sooner in heavily damaged
+    /// families.
+    #[serde(default = "default_rk_condition_floor")]
+    pub rk_condition_floor: f64,
     /// Bond-associative stabilization of pd-rk-ba (default true): stress, plasticity and
     /// damage at the bond, from the bond velocity gradient. `false` evaluates the stress at
     /// the particles from their point gradient, the force state σ_i Φ_ij — the unstabilized

@@ -137,7 +137,7 @@ pub fn basis_len(dims: usize, order: usize) -> usize {
 /// nearly one line) the inverse grows without bound and so would the gradient: the
 /// particle falls back to the linear basis, and below the share there too it carries no
 /// gradient. The same rule as pd-correspondence's shape tensor (1e-3 of its reference
-/// determinant).
+/// determinant). The default of the case key `rk_condition_floor`.
 pub const CONDITION_FLOOR: f64 = 1e-3;
 
 /// The equilibrated Cholesky factor of the leading m×m block of a symmetric matrix (full
@@ -229,8 +229,9 @@ fn omega_row(i: usize, horizon: f64, pos: &[[f64; 3]], nbr: &[u32], w: &mut [f64
 
 /// G = the first `dims` rows of M⁻¹ (A.7, A.8; monomials of x/δ) for bond weights ω of
 /// row i, at the model's order where M is well conditioned, else of the linear block (see
-/// [`CONDITION_FLOOR`]; `reference` holds the reference configuration's equilibrated
-/// determinants, linear and full; None: any positive definite M is taken). Returns ω̄
+/// [`CONDITION_FLOOR`]; `floor` holds the least equilibrated determinants, linear and full,
+/// that keep each order: the floor's share of the reference configuration's; None: any
+/// positive definite M is taken). Returns ω̄
 /// (A.6), the degree of the gradient formed (0: none) and the equilibrated determinants.
 fn moment_rows(
     i: usize,
@@ -241,7 +242,7 @@ fn moment_rows(
     vol: &[f64],
     nbr: &[u32],
     w: &[f64],
-    reference: Option<[f64; 2]>,
+    floor: Option<[f64; 2]>,
     g: &mut [[f64; MAX_BASIS]; 3],
 ) -> (f64, u8, [f64; 2]) {
     let m = basis_len(dims, order);
@@ -264,7 +265,7 @@ fn moment_rows(
     }
     let mut scale = [0.0; MAX_BASIS];
     let (pivots, det) = factor_equilibrated(&mut mm, m, dims, &mut scale);
-    let floor = reference.map_or([0.0; 2], |r| r.map(|d| CONDITION_FLOOR * d));
+    let floor = floor.unwrap_or([0.0; 2]);
     let (size, degree) = if pivots == m && det[1] > floor[1] {
         (m, order as u8)
     } else if pivots >= dims && det[0] > floor[0] {
@@ -512,10 +513,13 @@ pub struct RkBa<D: DamageModel, L: BondLaw = J2Material> {
     /// Without BA: each particle's state and the plastic work done at it (J); empty with
     /// BA.
     point_state: Vec<(L::State, f64)>,
-    /// Each particle's equilibrated moment-matrix determinants (linear block, whole) in the
-    /// reference configuration with its whole family: the yardstick of
-    /// [`CONDITION_FLOOR`]. Formed at the first step ([`RkBa::set_reference`]).
+    /// Each particle's least equilibrated moment-matrix determinants (linear block, whole)
+    /// that keep each order: `condition_floor` times those of the reference configuration
+    /// with its whole family. Formed at the first step ([`RkBa::set_reference`]).
     reference_det: Vec<[f64; 2]>,
+    /// The share of the reference determinants below which a particle's gradient falls
+    /// back an order ([`CONDITION_FLOOR`] unless the case sets `rk_condition_floor`).
+    condition_floor: f64,
 }
 
 /// Particle i's strain energy V_i S/W (J) with S = Σ_j ω_b V_j w_e(σ_b), W = Σ_j ω_b V_j over
@@ -586,12 +590,19 @@ impl<D: DamageModel, L: BondLaw> RkBa<D, L> {
             bond_associative: true,
             point_state: Vec::new(),
             reference_det: Vec::new(),
+            condition_floor: CONDITION_FLOOR,
         }
     }
 
     /// Switches the bond-associative stabilization (on by default; see the module notes).
     /// Set before the first step: the stress history lives at the bonds with it and at the
     /// particles without it.
+    /// The share of the reference determinants below which a gradient falls back an order
+    /// (see [`CONDITION_FLOOR`]).
+    pub fn set_condition_floor(&mut self, floor: f64) {
+        self.condition_floor = floor;
+    }
+
     pub fn set_bond_associative(&mut self, on: bool) {
         self.bond_associative = on;
         self.point_state = if on {
@@ -698,7 +709,12 @@ impl<D: DamageModel, L: BondLaw> RkBa<D, L> {
     fn set_reference(&mut self, k: &Kinematics, bonds: &Bonds) {
         self.omega.fill(1.0);
         self.reference_pass(k, bonds);
-        self.reference_det = self.point.iter().map(|p| p.det).collect();
+        let share = self.condition_floor;
+        self.reference_det = self
+            .point
+            .iter()
+            .map(|p| p.det.map(|d| share * d))
+            .collect();
     }
 
     /// The gradient pass on the reference configuration with the influences ω_D in

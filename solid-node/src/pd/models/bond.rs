@@ -22,6 +22,10 @@ pub const DEF: PdModelDef = PdModelDef {
             "does not apply to pd-bond (only pd-rk-ba has an RK gradient order)",
         ),
         (
+            "rk_condition_floor",
+            "does not apply to pd-bond (only pd-rk-ba has an RK gradient whose order falls back)",
+        ),
+        (
             "bond_associative",
             "does not apply to pd-bond (only pd-rk-ba has a bond-associative switch)",
         ),

@@ -22,6 +22,10 @@ pub const DEF: PdModelDef = PdModelDef {
             "does not apply to pd-correspondence (only pd-rk-ba has an RK gradient order)",
         ),
         (
+            "rk_condition_floor",
+            "does not apply to pd-correspondence (only pd-rk-ba has an RK gradient whose order falls back)",
+        ),
+        (
             "bond_associative",
             "does not apply to pd-correspondence (only pd-rk-ba has a bond-associative switch; this model is stabilized by `stabilization`)",
         ),

@@ -32,6 +32,15 @@ fn build(m: &ModelInput) -> SolverResult<Box<dyn PdModel>> {
     if !(order == 1 || order == 2) {
         return cfg("rk_order", format!("must be 1 or 2, got {order}"));
     }
+    let floor = m.p.rk_condition_floor;
+    if !(floor > 0.0 && floor < 1.0) {
+        return cfg(
+            "rk_condition_floor",
+            format!(
+                "must lie strictly between 0 and 1 (a share of the reference determinant), got {floor}"
+            ),
+        );
+    }
     if !m.p.bond_associative && m.p.damage.is_some() {
         return cfg(
             "bond_associative",
@@ -46,6 +55,7 @@ fn build(m: &ModelInput) -> SolverResult<Box<dyn PdModel>> {
             let order = m.p.rk_order;
             let mut model = RkBa::new(m.dim, order, m.p.horizon, self.1, damage, m.bonds);
             model.set_bond_associative(m.p.bond_associative);
+            model.set_condition_floor(m.p.rk_condition_floor);
             if let Some(i) = model.singular_particle(m.k, m.bonds) {
                 return cfg(
                     "horizon",
