@@ -485,7 +485,7 @@ const EXAMPLES: &[(&str, &[&str])] = &[
     ),
     (
         "underwater_explosion",
-        &["fine", "small", "radial", "radial-coarse"],
+        &["fine", "seed", "small", "radial", "radial-coarse"],
     ),
     ("underwater_plate", &["seed", "small"]),
 ];
@@ -526,7 +526,7 @@ const FINEST: &[&str] = &[
 /// cells and 815k particles), on lavapipe hours, and their physics is their base case's at a
 /// finer resolution, which does run here. `cosim validate` still checks every key of the
 /// variant and that its state fits in memory.
-const GPU_VARIANTS: &[&str] = &["underwater_plate/seed"];
+const GPU_VARIANTS: &[&str] = &["underwater_explosion/seed", "underwater_plate/seed"];
 
 /// The default charts of the run in `out`, drawn again from its recording: the panels whose
 /// quantity has no unit.

@@ -44,7 +44,8 @@ fn fsize() -> u32 { return pu.w[2][3]; }
 fn nparts() -> u32 { return pu.w[3][0]; }
 // workgroups per component of the boundary impulse sum (partials after the wave-rate ones)
 fn iparts() -> u32 { return pu.w[3][1]; }
-// boundary code of direction d, side s: 0 wall/symmetry, 1 outflow, 2 periodic, 3 inflow
+// boundary code of direction d, side s: 0 wall/symmetry, 1 outflow, 2 periodic, 3 inflow,
+// 4 non-reflecting
 fn bc(d: u32, s: u32) -> u32 { return pu.w[4 + d][s]; }
 
 // real parameter slots
@@ -56,6 +57,9 @@ fn minpos() -> real { return pr[7]; }
 fn idx(d: u32) -> real { return pr[8u + d]; }
 fn area(d: u32) -> real { return pr[11u + d]; }
 fn cell_volume() -> real { return pr[44]; }
+// a non-reflecting face's far field (FarField in boundary.rs): impedance, relaxation per fill,
+// pressure and velocity along the face's axis, four reals per face from slot 14
+fn far(d: u32, s: u32, k: u32) -> real { return pr[14u + (d * 2u + s) * 4u + k]; }
 // material k's constants (MAT reals each): 1/Γ, the offset -p_ref/Γ of a constant-reference
 // phase, Γ, γ and p∞ (ρc² = γ (p + p∞) of an ideal or stiffened gas, eos/), and JWL's ρ0,
 // A, B, R1, R2, ω
@@ -367,9 +371,25 @@ fn ghost_src(side: u32, l: u32, gd: u32, nn: u32, code: u32) -> vec2<u32> {
         gi = gd + nn + l; mirror = gd + nn - 1u - l; inner = gd + nn - 1u; wrap = gd + l;
     }
     var src = mirror;
-    if code == 1u { src = inner; }
+    if code == 1u || code == 4u { src = inner; }
     if code == 2u { src = wrap; }
     return vec2<u32>(gi, src);
+}
+
+// A non-reflecting face's ghost pressure (or, `want_u`, its velocity along the face's axis)
+// from the interior cell's pressure `p` and velocity `u` along it: FarField::ghost, operation
+// by operation.
+fn far_ghost(d: u32, side: u32, want_u: bool, p: real, u: real) -> real {
+    let z = far(d, side, 0u);
+    var sign = real(1.0);
+    if side == 0u { sign = real(-1.0); }
+    let out = p + z * sign * u;
+    var inc = p - z * sign * u;
+    inc = inc + far(d, side, 1u) * ((far(d, side, 2u) - z * sign * far(d, side, 3u)) - inc);
+    if want_u {
+        return sign * (out - inc) / (real(2.0) * z);
+    }
+    return real(0.5) * (out + inc);
 }
 
 @compute @workgroup_size(WG)
@@ -395,6 +415,9 @@ fn ghost_x(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroup
         val = prim[at(r, v, gs.y)];
         if code == 0u && v == NM {
             val = -val;
+        }
+        if code == 4u && (v == NM || v == NM + 3u) {
+            val = far_ghost(0u, side, v == NM, prim[at(r, NM + 3u, gs.y)], prim[at(r, NM, gs.y)]);
         }
     }
     prim[at(r, v, gs.x)] = val;
@@ -436,6 +459,9 @@ fn ghost_rows(id: u32, d: u32) {
         val = prim[at(src, v, i)];
         if code == 0u && v == NM + d {
             val = -val;
+        }
+        if code == 4u && (v == NM + d || v == NM + 3u) {
+            val = far_ghost(d, side, v == NM + d, prim[at(src, NM + 3u, i)], prim[at(src, NM + d, i)]);
         }
     }
     prim[at(dst, v, i)] = val;

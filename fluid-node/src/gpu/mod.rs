@@ -120,13 +120,6 @@ pub fn supports(f: &Fluid) -> Result<(), String> {
                 .into(),
         );
     }
-    if f.bc
-        .iter()
-        .flatten()
-        .any(|b| matches!(b, Boundary::NonReflecting(_)))
-    {
-        return Err("a non_reflecting boundary (the device kernels fill wall, symmetry, outflow, periodic and inflow ghosts)".into());
-    }
     if f.immersed.as_ref().is_some_and(|im| im.conservative) {
         return Err("immersed.refill = \"conservative\" (the device's wall fluxes do not keep what they carry into the solid's cells)".into());
     }
@@ -251,10 +244,10 @@ fn whole(b: &wgpu::Buffer, binding: u32) -> wgpu::BindGroupEntry<'_> {
 fn bc_code(b: &Boundary) -> u32 {
     match b {
         Boundary::Wall | Boundary::Symmetry => 0,
-        // `supports` refuses a non-reflecting face before any kernel is built
-        Boundary::Outflow | Boundary::NonReflecting(_) => 1,
+        Boundary::Outflow => 1,
         Boundary::Periodic => 2,
         Boundary::Inflow(_) => 3,
+        Boundary::NonReflecting(_) => 4,
     }
 }
 
@@ -473,7 +466,21 @@ impl GpuEuler {
             grid.face_area(1),
             grid.face_area(2),
         ];
-        // 14..44 are free
+        // 14..38: each face's far field where it is non-reflecting (`far` in euler.wgsl)
+        for d in 0..3 {
+            for s in 0..2 {
+                match &f.bc[d][s] {
+                    Boundary::NonReflecting(far) => prs.extend_from_slice(&[
+                        far.impedance,
+                        far.relax,
+                        far.pressure,
+                        far.velocity[d],
+                    ]),
+                    _ => prs.extend_from_slice(&[0.0; 4]),
+                }
+            }
+        }
+        // 38..44 are free
         prs.resize(44, 0.0);
         prs.push(grid.cell_volume());
         // 45..48: projection weights of the RK stages (seed 002 eq. 35)
