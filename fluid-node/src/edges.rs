@@ -60,6 +60,12 @@ impl EdgeLine {
             .iter()
             .map(|&(r, i, _)| cell_prim(f, r, i).3[self.material])
             .collect();
+        self.positions_of(&alpha)
+    }
+
+    /// [`EdgeLine::positions`] from the material's volume fraction in each of the line's
+    /// cells (`alpha`, in the order of `cells`): the device path reads them back per window.
+    pub fn positions_of(&self, alpha: &[f64]) -> [f64; 2] {
         let s = |k: usize| self.cells[k].2;
         let cross = |k: usize| {
             let (a0, a1) = (alpha[k - 1], alpha[k]);

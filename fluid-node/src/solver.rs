@@ -224,8 +224,14 @@ impl Solver for EulerSolver {
             self.fluid.timing.immersed_window_s += t.elapsed().as_secs_f64();
         }
         if let Some(g) = self.gpu.as_mut() {
-            let mut report =
-                Self::advance_gpu(g, &mut self.fluid, &mut self.probe_history, w, start)?;
+            let mut report = Self::advance_gpu(
+                g,
+                &mut self.fluid,
+                &mut self.probe_history,
+                &mut self.edge_history,
+                w,
+                start,
+            )?;
             if let Some(im) = self.fluid.immersed.as_mut() {
                 g.read_impulses(im)?;
                 let nd = self.fluid.grid.nd;
@@ -292,7 +298,7 @@ impl Solver for EulerSolver {
         report.scalars.push(("max_pressure".into(), d.max_pressure));
         report.scalars.push(("min_pressure".into(), d.min_pressure));
         report.scalars.push(("min_density".into(), d.min_density));
-        self.edge_scalars(&mut report.scalars);
+        edge_scalars(&self.fluid.edges, &self.edge_history, &mut report.scalars);
         timing_scalars(&self.fluid, &mut report.scalars);
         if let Some((_, last)) = self.probe_history.last() {
             for (p, s) in self.fluid.probes.iter().zip(last) {
@@ -365,6 +371,24 @@ impl Solver for EulerSolver {
             g.upload(&self.fluid)?;
         }
         Ok(())
+    }
+}
+
+/// `NAME.first`, `NAME.last` and their speeds of every edge line, from the history.
+fn edge_scalars(
+    edges: &[crate::edges::EdgeLine],
+    history: &[(f64, Vec<[f64; 2]>)],
+    out: &mut Vec<(String, f64)>,
+) {
+    let Some((_, now)) = history.last() else {
+        return;
+    };
+    for (e, (line, pos)) in edges.iter().zip(now).enumerate() {
+        for (side, which) in ["first", "last"].iter().enumerate() {
+            out.push((format!("{}.{which}", line.name), pos[side]));
+            let v = crate::edges::speed(history, e, side, line.moved);
+            out.push((format!("{}.{which}_speed", line.name), v));
+        }
     }
 }
 
@@ -441,6 +465,7 @@ impl EulerSolver {
         g: &mut GpuEuler,
         fluid: &mut Fluid,
         probe_history: &mut Vec<(f64, Vec<[f64; 5]>)>,
+        edge_history: &mut Vec<(f64, Vec<[f64; 2]>)>,
         w: &Window,
         start: Instant,
     ) -> SolverResult<StepReport> {
@@ -474,6 +499,15 @@ impl EulerSolver {
             }
             probe_history.push((fluid.time, vals));
         }
+        if !fluid.edges.is_empty() {
+            let mut now = Vec::with_capacity(fluid.edges.len());
+            for e in &fluid.edges {
+                let cells: Vec<(usize, usize)> = e.cells.iter().map(|c| (c.0, c.1)).collect();
+                now.push(e.positions_of(&g.volume_fractions(&cells, e.material)?));
+            }
+            edge_history.push((fluid.time, now));
+            edge_scalars(&fluid.edges, edge_history, &mut report.scalars);
+        }
         report.wall_s = start.elapsed().as_secs_f64();
         Ok(report)
     }
@@ -483,20 +517,6 @@ impl EulerSolver {
         if !self.fluid.edges.is_empty() {
             let now = edges_now(&self.fluid);
             self.edge_history.push((self.fluid.time, now));
-        }
-    }
-
-    /// `NAME.first`, `NAME.last` and their speeds of every edge line, from the history.
-    fn edge_scalars(&self, out: &mut Vec<(String, f64)>) {
-        let Some((_, now)) = self.edge_history.last() else {
-            return;
-        };
-        for (e, (line, pos)) in self.fluid.edges.iter().zip(now).enumerate() {
-            for (side, which) in ["first", "last"].iter().enumerate() {
-                out.push((format!("{}.{which}", line.name), pos[side]));
-                let v = crate::edges::speed(&self.edge_history, e, side, line.moved);
-                out.push((format!("{}.{which}_speed", line.name), v));
-            }
         }
     }
 

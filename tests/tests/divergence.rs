@@ -467,7 +467,7 @@ const EXAMPLES: &[(&str, &[&str])] = &[
     ("seed003_three", &["small"]),
     ("seed003_wave", &["small", "reference", "small-reference"]),
     ("seed003_wave_split", &["small", "implicit"]),
-    ("shock_bubble", &["seed", "small"]),
+    ("shock_bubble", &["seed", "seed-gpu", "small"]),
     ("single_joint", &["small", "solid", "solid-small"]),
     ("split_bar", &["python", "c"]),
     ("split_bar_chain", &["small"]),
@@ -526,7 +526,11 @@ const FINEST: &[&str] = &[
 /// cells and 815k particles), on lavapipe hours, and their physics is their base case's at a
 /// finer resolution, which does run here. `cosim validate` still checks every key of the
 /// variant and that its state fits in memory.
-const GPU_VARIANTS: &[&str] = &["underwater_explosion/seed", "underwater_plate/seed"];
+const GPU_VARIANTS: &[&str] = &[
+    "shock_bubble/seed-gpu",
+    "underwater_explosion/seed",
+    "underwater_plate/seed",
+];
 
 /// The default charts of the run in `out`, drawn again from its recording: the panels whose
 /// quantity has no unit.

@@ -459,3 +459,82 @@ fn chamber_with_the_bar_on_the_gpu_closes_the_energy_balance_like_the_cpu() {
         assert!(r < 0.0 && r > -1e-3, "energy residual {r:e}");
     }
 }
+
+/// The shock–bubble case's edge line through `cosim run` with the gas on the device: the
+/// node reads the line's cells back every window, records the edges and their speeds, and
+/// the run prints the speeds, as on the CPU. At 2 mm cells to 0.2 ms (both edges move 8 to
+/// 20 mm); the GPU and CPU edges differ by the flow's own round-off amplification
+/// (fluid-node/tests/gpu.rs: about 1e-5 m, as much as the CPU from a state changed by
+/// 2e-16), so the speeds are held within 1 % here, and the positions within 0.1 mm.
+#[test]
+fn shock_bubble_edges_on_the_gpu_track_the_cpu_run() {
+    let test = "shock_bubble_edges_on_the_gpu_track_the_cpu_run";
+    let case = workspace_root().join("examples/shock_bubble.toml");
+    let mut runs = Vec::new();
+    for device in ["cpu", "gpu"] {
+        let (dir, id) = scratch(&format!("bubble-edges-{device}"));
+        let out = dir.join("out");
+        let set = format!("gas.device=\"{device}\"");
+        let o = run_case(
+            &case,
+            &out,
+            &id,
+            &[
+                "--variant",
+                "small",
+                "--set",
+                "gas.grid.cells=[163, 23, 1]",
+                "--set",
+                "run.end_time=2.0e-4",
+                "--set",
+                "run.pictures=none",
+                "--set",
+                &set,
+            ],
+        );
+        let Some(text) = output_unless_no_adapter(test, &o) else {
+            return;
+        };
+        assert!(o.status.success(), "{device}: {text}");
+        let printed = |name: &str| -> f64 {
+            let line = text
+                .lines()
+                .find(|l| l.starts_with(&format!("cosim: gas.bubble.{name} = ")))
+                .unwrap_or_else(|| panic!("{device}: no {name} line in:\n{text}"));
+            line.rsplit(' ').next().unwrap().parse().expect("a number")
+        };
+        let speeds = [printed("first_speed"), printed("last_speed")];
+        let mcap = out.join("run.mcap");
+        let series = [
+            node_series(&mcap, "gas", "bubble.first"),
+            node_series(&mcap, "gas", "bubble.last"),
+        ];
+        runs.push((speeds, series));
+    }
+    let ((cpu_v, cpu_x), (gpu_v, gpu_x)) = (&runs[0], &runs[1]);
+    println!("edge speeds (m/s): CPU {cpu_v:?}, GPU {gpu_v:?}");
+    for side in 0..2 {
+        assert!(
+            cpu_v[side] > 50.0,
+            "the CPU edge {side} hardly moved: {cpu_v:?}"
+        );
+        assert!(
+            (gpu_v[side] - cpu_v[side]).abs() <= 0.01 * cpu_v[side],
+            "edge {side}: GPU {} m/s, CPU {} m/s",
+            gpu_v[side],
+            cpu_v[side]
+        );
+        assert_eq!(cpu_x[side].len(), 40, "CPU windows of edge {side}");
+        assert_eq!(gpu_x[side].len(), 40, "GPU windows of edge {side}");
+        let worst = cpu_x[side]
+            .iter()
+            .zip(&gpu_x[side])
+            .map(|(a, b)| {
+                assert_eq!(a.0, b.0, "window times");
+                (a.1 - b.1).abs()
+            })
+            .fold(0.0, f64::max);
+        println!("edge {side}: GPU against CPU at most {worst:.2e} m over 40 windows");
+        assert!(worst < 1e-4, "edge {side}: {worst:e} m");
+    }
+}

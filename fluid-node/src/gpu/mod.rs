@@ -114,12 +114,6 @@ pub fn supports(f: &Fluid) -> Result<(), String> {
             2 * f.nmat() + 3
         ));
     }
-    if !f.edges.is_empty() {
-        return Err(
-            "edge lines (`edges`: the device path does not read their cells back each window)"
-                .into(),
-        );
-    }
     if f.immersed.as_ref().is_some_and(|im| im.conservative) {
         return Err("immersed.refill = \"conservative\" (the device's wall fluxes do not keep what they carry into the solid's cells)".into());
     }
@@ -947,6 +941,50 @@ impl GpuEuler {
             let c: Vec<f64> = (0..nv).map(|v| vals[v * mx]).collect();
             let (rho, vel, pr, _) = crate::diagnostics::cell_prim_of(&self.phases, &c);
             out.push([rho, pr, vel[0], vel[1], vel[2]]);
+        }
+        Ok(out)
+    }
+
+    /// The volume fraction of `material` in each of `cells` ((row, x index), ghost-inclusive),
+    /// from the device's conserved state: each row the cells lie in is read once, whole.
+    pub fn volume_fractions(
+        &self,
+        cells: &[(usize, usize)],
+        material: usize,
+    ) -> Result<Vec<f64>, SolverError> {
+        let p = self.ctx.precision;
+        let (mx, nv) = (self.mx, self.nv);
+        let block = nv * mx;
+        let mut rows: Vec<(usize, Vec<f64>)> = Vec::new();
+        let mut out = Vec::with_capacity(cells.len());
+        let mut c = vec![0.0; nv];
+        for &(r, i) in cells {
+            if r >= self.grid.rows() || i >= mx {
+                return Err(SolverError::Other(format!(
+                    "cell (row {r}, x index {i}) is outside the device grid"
+                )));
+            }
+            let k = match rows.iter().position(|(q, _)| *q == r) {
+                Some(k) => k,
+                None => {
+                    let b = self
+                        .ctx
+                        .read(
+                            &self.cons,
+                            (r * block * p.bytes()) as u64,
+                            (block * p.bytes()) as u64,
+                        )
+                        .map_err(gpu_err)?;
+                    let mut vals = vec![0.0; block];
+                    bytes_to_reals(p, &b, &mut vals).map_err(gpu_err)?;
+                    rows.push((r, vals));
+                    rows.len() - 1
+                }
+            };
+            for (v, x) in c.iter_mut().enumerate() {
+                *x = rows[k].1[v * mx + i];
+            }
+            out.push(crate::diagnostics::cell_prim_of(&self.phases, &c).3[material]);
         }
         Ok(out)
     }
