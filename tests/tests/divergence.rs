@@ -501,10 +501,18 @@ const FIRST_WINDOWS: f64 = 12.0;
 /// window of them costing as much as the whole of most other cases' twelve (twelve windows of
 /// the chamber's fine level took 14.5 s here, of its medium level 4.9 s, of the full-PD glass
 /// plate 4.6 s; one window of the shock–bubble at the seed's cells about 6 s, twelve of
-/// Sedov's blast, the steel tube and the underwater explosion 2.1–2.4 s).
+/// Sedov's blast, the steel tube and the underwater explosion 2.1–2.4 s; twelve of the ring's
+/// and the square's D4 level 7.9 s and 7.3 s, of their strong D4 variants 4.2–4.8 s, where
+/// their D1 variants run twelve in 1–2 s).
 const FINEST: &[&str] = &[
+    "brittle_cylinder/fine",
+    "brittle_cylinder/strong-fine",
+    "brittle_cylinder/strong-jwl-fine",
     "chamber_detonation/fine",
     "chamber_detonation/medium",
+    "ductile_square/fine",
+    "ductile_square/strong-fine",
+    "ductile_square/strong-fine-decoupled",
     "glass_plate/-",
     "sedov/-",
     "shock_bubble/-",
