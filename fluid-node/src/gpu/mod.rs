@@ -8,10 +8,12 @@
 //!
 //! Scope: the five-equation model with one to four materials, each an ideal gas, a
 //! stiffened gas or JWL detonation products (air, water, explosive products), 1-D, 2-D or
-//! 3-D, every boundary kind (wall, symmetry, outflow, periodic, inflow), with or without an
-//! immersed particle interface (its kernels in `immersed.wgsl`, its per-window host work in
-//! [`interface`]). What the kernels do not implement (radial grids, non-reflecting sides, a
-//! conservative refill, edge lines) is refused with an error that names the reason.
+//! 3-D, every boundary kind (wall, symmetry, outflow, periodic, inflow, non-reflecting), with
+//! or without an immersed particle interface (its kernels in `immersed.wgsl`, its per-window
+//! host work in [`interface`]); probes and edge lines read their cells back per window
+//! ([`GpuEuler::cell_states`], [`GpuEuler::volume_fractions`]). What the kernels do not
+//! implement (radial grids, a conservative refill) is refused with an error that names the
+//! reason.
 
 use crate::boundary::Boundary;
 use crate::diagnostics::Totals;
