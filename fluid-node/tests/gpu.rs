@@ -502,9 +502,8 @@ fn air_helium_and_water_tube_matches_cpu() {
     check_f64("air | helium | water 300", text, 6e-4);
 }
 
-/// An underwater explosion as examples/underwater_explosion.toml sets it up (a gas bubble at
-/// 7.8 GPa in water, an ideal gas and a stiffened gas), on a small 2-D grid.
-/// A 0.1 m gas bubble at 7.81 GPa in water (the underwater explosion's quarter at 40 × 40),
+/// An underwater explosion as examples/underwater_explosion.toml sets it up (a 0.1 m gas
+/// bubble at 7.81 GPa in water: an ideal gas and a stiffened gas), its quarter at 40 × 40,
 /// its outer faces `open`.
 fn bubble_in_water(open: &str) -> String {
     format!(
@@ -601,8 +600,21 @@ fn non_reflecting_faces_match_cpu() {
     }
 }
 
+/// The gas node's parameters of examples/shock_bubble.toml (its edge line on the axis
+/// included), on a grid of `cells`.
+fn shock_bubble_params(cells: [i64; 3]) -> String {
+    let case: toml::Table = toml::from_str(include_str!("../../examples/shock_bubble.toml"))
+        .expect("examples/shock_bubble.toml");
+    let mut p = case["nodes"]["gas"]["params"]
+        .as_table()
+        .expect("[nodes.gas.params]")
+        .clone();
+    p["grid"]["cells"] = toml::Value::Array(cells.map(toml::Value::Integer).to_vec());
+    toml::to_string(&p).expect("the parameters as TOML")
+}
+
 /// An edge line on the device: the helium bubble's edges along the axis of the shock–bubble
-/// case (2 mm cells), read back from the device's state (`GpuEuler::volume_fractions`, the
+/// case (about 2 mm cells), read back from the device's state (`GpuEuler::volume_fractions`, the
 /// same values as the downloaded state's), against the CPU run's and against the CPU's own
 /// spread (the same run from a state changed by 2e-16), every 50 µs as the shock crosses the
 /// bubble.
@@ -616,53 +628,9 @@ fn edge_lines_on_the_device_match_cpu() {
         mechanics::gpu::skip_or_fail(name, "the comparison needs f64 kernels");
         return;
     }
-    let text = r#"
-        cfl = 0.5
-        limiter = "van_leer"
-        [grid]
-        cells = [163, 23, 1]
-        lower = [0.0, 0.0, 0.0]
-        upper = [0.326, 0.046, 0.001]
-        [materials.air]
-        eos = "ideal"
-        gamma = 1.4
-        gas_constant = 287.0
-        [materials.helium]
-        eos = "ideal"
-        gamma = 1.67
-        gas_constant = 2077.0
-        [[regions]]
-        shape = "all"
-        material = "air"
-        density = 1.225
-        pressure = 101325.0
-        [[regions]]
-        shape = "sphere"
-        center = [0.2, 0.0, 0.0]
-        radius = 0.025
-        material = "helium"
-        density = 0.16905
-        pressure = 101325.0
-        [[regions]]
-        shape = "half_space"
-        point = [0.23, 0.0, 0.0]
-        normal = [1.0, 0.0, 0.0]
-        material = "air"
-        density = 1.68604
-        pressure = 159060.0
-        velocity = [-113.53, 0.0, 0.0]
-        [boundaries]
-        x_lower = "outflow"
-        x_upper = { kind = "inflow", material = "air", density = 1.68604, pressure = 159060.0, velocity = [-113.53, 0.0, 0.0] }
-        y_lower = "symmetry"
-        y_upper = "wall"
-        [[edges]]
-        name = "bubble"
-        material = "helium"
-        from = [0.325, 0.00001, 0.0005]
-        to = [0.0, 0.00001, 0.0005]
-    "#;
-    let f0 = setup::from_toml_str(text).expect("case");
+    let text = shock_bubble_params([163, 23, 1]);
+    let f0 = setup::from_toml_str(&text).expect("case");
+    assert_eq!(f0.edges.len(), 1, "the case's edge line");
     let line = f0.edges[0].clone();
     let cells: Vec<(usize, usize)> = line.cells.iter().map(|c| (c.0, c.1)).collect();
     let mut cpu = EulerSolver::from_fluid(f0.clone());

@@ -538,6 +538,11 @@ fn a_damaged_family_falls_back_to_the_gradient_it_supports() {
     let reduced: Vec<usize> = (0..x0.len())
         .filter(|&i| strict.point[i].degree != 2)
         .collect();
+    println!(
+        "floor 0.95: {} of {} gradients reduced to linear",
+        reduced.len(),
+        x0.len()
+    );
     assert!(
         reduced.len() >= 10,
         "a floor of 0.95 reduced only {} gradients",

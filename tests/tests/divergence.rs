@@ -503,7 +503,7 @@ const FIRST_WINDOWS: f64 = 12.0;
 /// plate 4.6 s; one window of the shock–bubble at the seed's cells about 6 s, twelve of
 /// Sedov's blast, the steel tube and the underwater explosion 2.1–2.4 s; twelve of the ring's
 /// and the square's D4 level 7.9 s and 7.3 s, of their strong D4 variants 4.2–4.8 s, where
-/// their D1 variants run twelve in 1–2 s).
+/// their D1 variants run twelve in 0.3–1.8 s).
 const FINEST: &[&str] = &[
     "brittle_cylinder/fine",
     "brittle_cylinder/strong-fine",

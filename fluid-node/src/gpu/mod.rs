@@ -948,7 +948,8 @@ impl GpuEuler {
     }
 
     /// The volume fraction of `material` in each of `cells` ((row, x index), ghost-inclusive),
-    /// from the device's conserved state: each row the cells lie in is read once, whole.
+    /// from the device's conserved state: each row the cells lie in is read once, whole (one
+    /// read back per row: a line along x costs one, a line across the rows one per row).
     pub fn volume_fractions(
         &self,
         cells: &[(usize, usize)],
@@ -966,7 +967,14 @@ impl GpuEuler {
                     "cell (row {r}, x index {i}) is outside the device grid"
                 )));
             }
-            let k = match rows.iter().position(|(q, _)| *q == r) {
+            // a line's cells come in order along it: mostly the row of the cell before
+            let last = rows.len().wrapping_sub(1);
+            let known = if rows.last().is_some_and(|(q, _)| *q == r) {
+                Some(last)
+            } else {
+                rows.iter().position(|(q, _)| *q == r)
+            };
+            let k = match known {
                 Some(k) => k,
                 None => {
                     let b = self
