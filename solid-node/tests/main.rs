@@ -16,6 +16,7 @@ mod overlap;
 mod pd_blast_solid;
 mod pd_energy;
 mod pd_fracture;
+mod pd_no_fail;
 mod pd_offset;
 mod pd_rk_ba;
 mod pd_solver;

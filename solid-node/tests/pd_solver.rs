@@ -30,6 +30,22 @@ interfaces = [{ name = "surface", select = "surface" }, { name = "left", select 
     .unwrap_or_default()
 }
 
+/// The parameter lines of a 12 × 6 mm glass plate, 1 mm thick (E 74 GPa, ρ 2480 kg/m³),
+/// with the lattice `spacing`, `horizon` and `poisson` (pd-bond's own in its `dimension`).
+pub fn glass_strip(dimension: &str, spacing: f64, horizon: f64, poisson: f64) -> String {
+    format!(
+        r#"
+dimension = "{dimension}"
+thickness = 1e-3
+spacing = {spacing:e}
+horizon = {horizon:e}
+density = 2480.0
+young = 74e9
+poisson = {poisson:?}
+bodies = [{{ shape = "box", min = [0.0, 0.0, 0.0], max = [0.012, 0.006, 0.0] }}]"#
+    )
+}
+
 /// The key a config error names, or "accepted" (shared with the other files' refusal tests).
 pub fn key_of(model: &str, t: &toml::Table) -> String {
     match solid_node::pd::factory(model, t) {
@@ -129,10 +145,15 @@ fn binding(kind: CouplingKind, role: Role, iface: &str) -> Binding {
 
 /// Window `index` of 2 µs.
 fn window(index: u64) -> Window {
+    window_of(index, 2e-6)
+}
+
+/// Window `index` (from 1) of windows `len` seconds long, without output.
+pub fn window_of(index: u64, len: f64) -> Window {
     Window {
         index,
-        t0: (index - 1) as f64 * 2e-6,
-        t1: index as f64 * 2e-6,
+        t0: (index - 1) as f64 * len,
+        t1: index as f64 * len,
         write_output: false,
     }
 }
@@ -533,18 +554,11 @@ initial_velocity = [{ region = { shape = "box", min = [0.0, 0.0, 0.0], max = [0.
 fn a_support_can_hold_one_component() {
     let table = |components: &str| -> toml::Table {
         toml::from_str(&format!(
-            r#"
-dimension = "plane_stress"
-thickness = 1e-3
-spacing = 1e-3
-horizon = 2e-3
-density = 2480.0
-young = 74e9
-poisson = 0.22
-bodies = [{{ shape = "box", min = [0.0, 0.0, 0.0], max = [0.012, 0.006, 0.0] }}]
+            r#"{}
 prescribed_velocity = [{{ region = {{ shape = "box", min = [-1.0, -1.0, -1.0], max = [1.0, 0.001, 1.0] }}, velocity = [0.0, 0.0, 0.0], components = "{components}" }}]
 loads = [{{ region = {{ shape = "box", min = [-1.0, -1.0, -1.0], max = [1.0, 1.0, 1.0] }}, force = [50.0, -80.0, 0.0] }}]
-"#
+"#,
+            glass_strip("plane_stress", 1e-3, 2e-3, 0.22)
         ))
         .expect("toml")
     };

@@ -15,7 +15,7 @@
     clippy::too_many_arguments
 )]
 
-use super::family::{Bonds, par_points, par_row_blocks, par_rows};
+use super::family::{Bonds, par_points, par_row_blocks, par_rows, spared};
 use super::model::{Dim, Kinematics, PdModel};
 use mechanics::simd::Simd;
 use mechanics::tensor::vec3;
@@ -302,6 +302,7 @@ fn row_force_body<const C: usize>(
     inv_len: &[f64],
     coef: &mut [f64],
     critical: f64,
+    no_fail: &[bool],
 ) -> ([f64; 3], u32) {
     // `critical` = (1 + s0)²
     let (ui, xi) = (disp[i], x0[i]);
@@ -358,12 +359,23 @@ fn row_force_body<const C: usize>(
             }
         }
         if breaks > 0 {
-            row_breaks += breaks;
             for k in 0..n {
-                if sc.q[k] * il[k] * il[k] > critical {
-                    cf[k] = 0.0;
+                if sc.q[k] * il[k] * il[k] > critical && cf[k] != 0.0 {
+                    if spared(no_fail, i, nb[k] as usize) {
+                        // a no-fail zone keeps it: its term as a live bond's
+                        let x: [f64; 3] = std::array::from_fn(|d| sc.gx[d][k] - xi[d]);
+                        let e: [f64; 3] = std::array::from_fn(|d| sc.gu[d][k] - ui[d]);
+                        let t = live_term(&x, &e, cf[k], il[k]);
+                        for d in 0..3 {
+                            sc.term[d][k] = t[d];
+                        }
+                        breaks -= 1;
+                    } else {
+                        cf[k] = 0.0;
+                    }
                 }
             }
+            row_breaks += breaks;
         }
         // 3. the lane sums (C is a multiple of LANES, so bond k of the chunk is lane k % 8)
         let full = n / LANES * LANES;
@@ -390,6 +402,21 @@ fn row_force_body<const C: usize>(
     )
 }
 
+/// The force term c_b (s/|y|) y of a live bond with reference vector `x` and relative
+/// displacement `e`, by the chunked loop's operations in its order (so bit for bit what
+/// that loop sums for the bond).
+#[inline]
+fn live_term(x: &[f64; 3], e: &[f64; 3], cb: f64, il: f64) -> [f64; 3] {
+    let (ex, ey, ez) = (e[0], e[1], e[2]);
+    let num = ex * (2.0 * x[0] + ex) + ey * (2.0 * x[1] + ey) + ez * (2.0 * x[2] + ez);
+    let (yx, yy, yz) = (x[0] + ex, x[1] + ey, x[2] + ez);
+    let q = yx * yx + yy * yy + yz * yz;
+    let ly = q.sqrt();
+    let t = num * il * il;
+    let m = cb * t / (q * il + ly);
+    [m * yx, m * yy, m * yz]
+}
+
 /// Structure-of-arrays scratch of one chunk: gathered X_j and u_j, the bond terms, |y|².
 struct Scratch<const C: usize> {
     gx: [[f64; C]; 3],
@@ -411,6 +438,7 @@ fn block_force_body<const C: usize>(
     nbr: &[u32],
     inv_len: &[f64],
     critical: f64,
+    no_fail: &[bool],
 ) -> u32 {
     let mut sc = Scratch::<C> {
         gx: [[0.0; C]; 3],
@@ -433,6 +461,7 @@ fn block_force_body<const C: usize>(
             &inv_len[r],
             row,
             critical,
+            no_fail,
         );
         *fi = fr;
         breaks += nb;
@@ -451,6 +480,7 @@ mechanics::simd::multiversion! {
         nbr: &[u32],
         inv_len: &[f64],
         critical: f64,
+        no_fail: &[bool],
     ) -> u32 = block_force_body;
 }
 
@@ -545,6 +575,7 @@ impl PdModel for BondModel {
         let offsets = &bonds.offsets;
         let nbr = &bonds.nbr;
         let inv_len = &bonds.inv_len;
+        let no_fail = &bonds.no_fail;
         let (s0, simd) = (self.critical, self.simd);
         // bonds broken in this evaluation (counted per block, so no contention)
         let breaks = AtomicU64::new(0);
@@ -560,7 +591,9 @@ impl PdModel for BondModel {
             par_row_blocks(offsets, f, &mut self.coef, &|lo, fb, cb| {
                 // SAFETY: the CPU has AVX-512 F/DQ/VL and AVX2 (checked above), all that
                 // calling the target-feature kernel requires.
-                count(unsafe { avx512::block_force(lo, fb, cb, offsets, rec, nbr, inv_len, s0) });
+                count(unsafe {
+                    avx512::block_force(lo, fb, cb, offsets, rec, nbr, inv_len, s0, no_fail)
+                });
             });
             true
         } else {
@@ -571,7 +604,7 @@ impl PdModel for BondModel {
         if !done {
             par_row_blocks(offsets, f, &mut self.coef, &|lo, fb, cb| {
                 count(block_force::<CHUNK>(
-                    simd, lo, fb, cb, offsets, x0, disp, nbr, inv_len, s0,
+                    simd, lo, fb, cb, offsets, x0, disp, nbr, inv_len, s0, no_fail,
                 ));
             });
         }
@@ -761,6 +794,7 @@ mod tests {
                 &bonds.nbr,
                 &bonds.inv_len,
                 critical,
+                &bonds.no_fail,
             );
             same(&format!("{simd:?}"), &fs, &coef);
         }
@@ -786,6 +820,7 @@ mod tests {
                         &bonds.nbr,
                         &bonds.inv_len,
                         critical,
+                        &bonds.no_fail,
                     )
                 };
             }

@@ -24,7 +24,7 @@
     clippy::too_many_arguments
 )]
 
-use super::family::{Bonds, par_row_blocks, par_rows};
+use super::family::{Bonds, par_row_blocks, par_rows, spared};
 use super::model::{Dim, Kinematics, PdModel};
 use mechanics::damage::{BondInput, DamageModel};
 use mechanics::j2::{J2Material, J2State, Sym, von_mises};
@@ -542,6 +542,7 @@ fn force_block_body<D: DamageModel>(
     vol: &[f64],
     point: &[BondSide],
     damage: &D,
+    no_fail: &[bool],
     inv_h: f64,
 ) -> u32 {
     let base = offsets[lo];
@@ -585,6 +586,12 @@ fn force_block_body<D: DamageModel>(
                     damage.update(*om, &input)
                 }
             };
+            // a no-fail zone keeps the bond (tested only when it is about to weaken)
+            let w = if w != *om && spared(no_fail, i, j) {
+                *om
+            } else {
+                w
+            };
             changed += u32::from(w != *om);
             *om = w;
             if w == 0.0 {
@@ -614,6 +621,7 @@ mechanics::simd::multiversion! {
         vol: &[f64],
         point: &[BondSide],
         damage: &D,
+        no_fail: &[bool],
         inv_h: f64,
     ) -> u32 = force_block_body;
 }
@@ -624,8 +632,8 @@ mechanics::simd::multiversion! {
 /// feels no force from its former neighbours, and cannot carry stress again. A particle
 /// whose family is degenerate already in the reference state (det K₀ = 0: no neighbours, or
 /// all of them on a line or a plane in 3-D) never had a gradient to lose and keeps its bonds,
-/// as before. Serial and cheap: one flag per particle, and the rows of inactive particles.
-/// Returns how many bond copies it broke.
+/// as before. Bonds a no-fail zone keeps stay. Serial and cheap: one flag per particle, and
+/// the rows of inactive particles. Returns how many bond copies it broke.
 fn detach_inactive(kin: &[PointKin], k0det: &[f64], bonds: &mut Bonds) -> u32 {
     let mut broke = 0;
     for (i, pk) in kin.iter().enumerate() {
@@ -633,7 +641,8 @@ fn detach_inactive(kin: &[PointKin], k0det: &[f64], bonds: &mut Bonds) -> u32 {
             continue;
         }
         for b in bonds.offsets[i]..bonds.offsets[i + 1] {
-            if bonds.intact[b] == 0.0 {
+            // a no-fail zone keeps its bonds even to a particle that lost its gradient
+            if bonds.intact[b] == 0.0 || spared(&bonds.no_fail, i, bonds.nbr[b] as usize) {
                 continue;
             }
             bonds.intact[b] = 0.0;
@@ -768,6 +777,7 @@ impl<D: DamageModel, L: StressLaw> PdModel for Correspondence<D, L> {
         let damage = &self.damage;
         let inv_h = 1.0 / self.horizon;
         let (offsets, nbr, inv_len) = (&bonds.offsets, &bonds.nbr, &bonds.inv_len);
+        let no_fail = &bonds.no_fail;
         let simd = self.simd;
         // bonds whose intact fraction this evaluation changed (counted per block)
         let changed = AtomicU64::new(u64::from(detached));
@@ -784,7 +794,9 @@ impl<D: DamageModel, L: StressLaw> PdModel for Correspondence<D, L> {
             par_row_blocks(offsets, f, &mut bonds.intact, &|lo, fb, ib| {
                 // SAFETY: `explicit_avx512` holds only on a CPU with AVX-512 F/DQ/VL.
                 count(unsafe {
-                    avx512::force_block(lo, fb, ib, offsets, nbr, inv_len, packed, lim, inv_h)
+                    avx512::force_block(
+                        lo, fb, ib, offsets, nbr, inv_len, packed, lim, no_fail, inv_h,
+                    )
                 });
             });
             true
@@ -797,7 +809,7 @@ impl<D: DamageModel, L: StressLaw> PdModel for Correspondence<D, L> {
             par_row_blocks(offsets, f, &mut bonds.intact, &|lo, fb, ib| {
                 count(force_block::<D>(
                     simd, lo, fb, ib, offsets, nbr, inv_len, k.x0, k.disp, k.vol, point, damage,
-                    inv_h,
+                    no_fail, inv_h,
                 ));
             });
         }
@@ -1179,6 +1191,7 @@ mod tests {
                 &vol,
                 &m.side,
                 &m.damage,
+                &bonds.no_fail,
                 1.0 / m.horizon,
             );
             assert_same_bits(&format!("{simd:?}"), &fs, &intact, &fref, &reference);
@@ -1216,6 +1229,7 @@ mod tests {
                         &bonds.inv_len,
                         p,
                         (1.0 + s0) * (1.0 + s0),
+                        &bonds.no_fail,
                         1.0 / m.horizon,
                     )
                 };

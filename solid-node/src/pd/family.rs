@@ -25,6 +25,33 @@ pub struct Bonds {
     pub inv_len: Vec<f64>,
     /// Intact fraction ω_D ∈ [0, 1] (1 intact, 0 broken), never increasing.
     pub intact: Vec<f64>,
+    /// Per particle: in a no-fail zone (a bond with either end there never breaks). Empty
+    /// when the body has none, so kernels test it only on the rare path of a bond about to
+    /// break ([`spared`]).
+    pub no_fail: Vec<bool>,
+}
+
+/// Whether bond (i, j) is kept whatever its damage law says: either end in a no-fail zone
+/// (`no_fail` as [`Bonds::no_fail`]; empty: none).
+#[inline]
+pub fn spared(no_fail: &[bool], i: usize, j: usize) -> bool {
+    !no_fail.is_empty() && (no_fail[i] || no_fail[j])
+}
+
+/// `mask` (bit l: bond `nb[l]` of particle `i`'s row breaks) less the bonds a no-fail zone
+/// keeps: the vector kernels' rare path, taken only when some bond of the chunk breaks.
+#[inline]
+pub fn spare_mask(no_fail: &[bool], i: usize, nb: &[u32], mask: u8) -> u8 {
+    if no_fail.is_empty() || mask == 0 {
+        return mask;
+    }
+    let mut m = mask;
+    for (l, &j) in nb.iter().enumerate().take(8) {
+        if m & (1 << l) != 0 && spared(no_fail, i, j as usize) {
+            m &= !(1 << l);
+        }
+    }
+    m
 }
 
 impl Bonds {
@@ -47,6 +74,7 @@ impl Bonds {
             xi,
             inv_len,
             intact: vec![1.0; n],
+            no_fail: Vec::new(),
         }
     }
 
@@ -66,6 +94,7 @@ impl Bonds {
             xi: Vec::with_capacity(self.nbr.len()),
             inv_len: Vec::with_capacity(self.nbr.len()),
             intact: Vec::with_capacity(self.nbr.len()),
+            no_fail: self.no_fail.clone(),
         };
         out.offsets.push(0);
         for i in 0..n {

@@ -101,6 +101,13 @@ pub struct PdParams {
     /// (its own length plus how far broken bonds carry it on from the tip).
     #[serde(default)]
     pub cracks: Vec<Vec<[f64; 2]>>,
+    /// No-fail zones: shapes whose particles' bonds never break. A bond with either end in
+    /// one keeps its intact fraction whatever the damage law says (the usual peridynamic
+    /// treatment of grips, supports and loads, where a load spread over one row of particles
+    /// concentrates stretch that the real grip does not). Cracks given in `cracks` still cut
+    /// through them, and a particle whose family degenerates elsewhere still lets go of them.
+    #[serde(default)]
+    pub no_fail: Vec<Shape>,
     /// Initial velocity (m/s) of the particles in a region.
     #[serde(default)]
     pub initial_velocity: Vec<RegionVelocity>,

@@ -36,7 +36,7 @@
 )]
 
 use super::correspondence::M3;
-use super::family::{Bonds, par_rows};
+use super::family::{Bonds, par_rows, spared};
 use super::model::{Dim, Kinematics, PdModel};
 use mechanics::blast_solid::BlastSolid;
 use mechanics::damage::{BondInput, DamageModel};
@@ -786,6 +786,7 @@ impl<D: DamageModel, L: BondLaw> PdModel for RkBa<D, L> {
         // 2. Bond level: BA velocity gradient (A.11), Jaumann + J2 (App. B), damage (App. C),
         //    and z_i (A.14).
         let (offsets, nbr, inv_len) = (&bonds.offsets, &bonds.nbr, &bonds.inv_len);
+        let no_fail = &bonds.no_fail;
         let (point, omega, mat, damage) = (&self.point, &self.omega, self.material, &self.damage);
         // rows whose damage changed an influence this step (see `release`)
         let damaged = AtomicU64::new(0);
@@ -808,18 +809,23 @@ impl<D: DamageModel, L: BondLaw> PdModel for RkBa<D, L> {
                 if om0 != 0.0 {
                     h.e_prev = mat.stored_energy(&h.state);
                 }
+                // (A no-fail zone keeps its bonds: they carry no force while either end has
+                // no gradient, and count again once it has one.)
+                let j = j as usize;
+                let kept = spared(no_fail, i, j);
                 if om0 == 0.0 || !pi.active {
-                    if !pi.active {
+                    if !pi.active && !kept {
                         h.wd = 0.0;
                     }
                     h.om = 0.0;
                     changed |= om0 != 0.0;
                     continue;
                 }
-                let j = j as usize;
                 let pj = &point[j];
                 if !pj.active {
-                    h.wd = 0.0;
+                    if !kept {
+                        h.wd = 0.0;
+                    }
                     h.om = 0.0;
                     changed = true;
                     continue;
@@ -853,6 +859,8 @@ impl<D: DamageModel, L: BondLaw> PdModel for RkBa<D, L> {
                     failure: L::failure(&h.state),
                 };
                 let wd = damage.update(h.wd, &input);
+                // a no-fail zone keeps the bond (tested only when it is about to weaken)
+                let wd = if wd < h.wd && kept { h.wd } else { wd };
                 let om = if wd < h.wd { om0 * (wd / h.wd) } else { om0 };
                 h.wd = wd;
                 h.om = om;

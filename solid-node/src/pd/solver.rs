@@ -292,11 +292,12 @@ impl PdSolver {
                 ));
             }
         }
-        let bonds = if cracks.is_empty() {
+        let mut bonds = if cracks.is_empty() {
             bonds
         } else {
             bonds.without(|i, j| cracks.iter().any(|c| crosses(c, i, j)))
         };
+        bonds.no_fail = no_fail_of(&x0, &p, three_d)?;
         let model = at_rest(&x0, &vol, |k| {
             (def.build)(&ModelInput {
                 dim,
@@ -1236,6 +1237,32 @@ fn set_walls(body: &mut Body, p: &PdParams) -> SolverResult<()> {
     Ok(())
 }
 
+/// `no_fail`: per particle, whether it lies in one of the zones (empty when there are none).
+/// A zone that holds no particle is refused: it would protect nothing, and is most likely
+/// misplaced.
+fn no_fail_of(x0: &[[f64; 3]], p: &PdParams, three_d: bool) -> SolverResult<Vec<bool>> {
+    if p.no_fail.is_empty() {
+        return Ok(Vec::new());
+    }
+    let mut flag = vec![false; x0.len()];
+    for (n, z) in p.no_fail.iter().enumerate() {
+        if let Err(e) = z.check(three_d) {
+            return cfg(&format!("no_fail[{n}]"), e);
+        }
+        let mut any = false;
+        for (f, x) in flag.iter_mut().zip(x0) {
+            if z.contains(x, three_d) {
+                *f = true;
+                any = true;
+            }
+        }
+        if !any {
+            return cfg(&format!("no_fail[{n}]"), "holds no particle of the body");
+        }
+    }
+    Ok(flag)
+}
+
 /// `prescribed_velocity`: each region's particles held at its velocity; returns them, sorted.
 fn prescribe_velocity(body: &mut Body, p: &PdParams) -> SolverResult<Vec<usize>> {
     let three_d = body.dim.three_d();
@@ -1563,6 +1590,12 @@ fn gpu_supports(def: &PdModelDef, dim: Dim, p: &PdParams) -> Result<(), String> 
     }
     if !p.walls.is_empty() {
         return Err(format!("\"gpu\" does not support walls: {cpu}"));
+    }
+    if !p.no_fail.is_empty() {
+        return Err(format!(
+            "\"gpu\" does not support no-fail zones (no_fail): the device kernels break \
+             every bond past the critical stretch; {cpu}"
+        ));
     }
     if p.pressure_pulse.is_some() {
         return Err(format!(

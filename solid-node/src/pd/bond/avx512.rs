@@ -13,6 +13,7 @@
 #![allow(clippy::too_many_arguments, clippy::many_single_char_names)]
 
 use crate::pd::avx512::{Record, gather8, lane_mask, load_lanes, reduce, splat3};
+use crate::pd::family::spare_mask;
 use std::arch::x86_64::*;
 
 /// Packs X and u into `out` (resized to the particle count): `[X₀, X₁, X₂, u₀, u₁, u₂, 0, 0]`.
@@ -34,6 +35,7 @@ fn row_force(
     inv_len: &[f64],
     coef: &mut [f64],
     critical: f64,
+    no_fail: &[bool],
 ) -> ([f64; 3], u32) {
     let ri = rec[i].0;
     let [bx0, bx1, bx2] = splat3(ri[0], ri[1], ri[2]);
@@ -86,6 +88,8 @@ fn row_force(
         let lanes = lane_mask(n);
         let qil = _mm512_mul_pd(q, il);
         let broken = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(_mm512_mul_pd(qil, il), crit) & lanes;
+        // less what a no-fail zone keeps (looked at only when some bond breaks)
+        let broken = spare_mask(no_fail, i, nb, broken);
         let ly = _mm512_sqrt_pd(q);
         let t = _mm512_mul_pd(_mm512_mul_pd(num, il), il);
         let m = _mm512_div_pd(_mm512_mul_pd(cb, t), _mm512_add_pd(qil, ly));
@@ -118,6 +122,7 @@ pub fn block_force(
     nbr: &[u32],
     inv_len: &[f64],
     critical: f64,
+    no_fail: &[bool],
 ) -> u32 {
     let base = offsets[lo];
     let mut breaks = 0;
@@ -131,6 +136,7 @@ pub fn block_force(
             &inv_len[r.clone()],
             &mut coef[r.start - base..r.end - base],
             critical,
+            no_fail,
         );
         *fi = fr;
         breaks += nb;

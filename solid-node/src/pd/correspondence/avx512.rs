@@ -16,6 +16,7 @@ use super::{BondSide, FamilySums};
 use crate::pd::avx512::{
     Pair, Record, gather_pairs, gather8, lane_mask, load_lanes, pack, reduce, splat3,
 };
+use crate::pd::family::spare_mask;
 use crate::pd::model::Kinematics;
 use std::arch::x86_64::*;
 
@@ -137,6 +138,7 @@ pub fn force_block(
     inv_len: &[f64],
     p: &Packed,
     lim: f64,
+    no_fail: &[bool],
     inv_h: f64,
 ) -> u32 {
     let base = offsets[lo];
@@ -195,7 +197,10 @@ pub fn force_block(
             );
             let lanes = lane_mask(n);
             let broken =
-                _mm512_cmp_pd_mask::<_CMP_GT_OQ>(_mm512_mul_pd(_mm512_mul_pd(q, il), il), lim);
+                _mm512_cmp_pd_mask::<_CMP_GT_OQ>(_mm512_mul_pd(_mm512_mul_pd(q, il), il), lim)
+                    & lanes;
+            // less what a no-fail zone keeps (looked at only when some bond breaks)
+            let broken = spare_mask(no_fail, i, &nb[start..start + n], broken);
             // the scalar loop skips ω = 0, and breaks (ω = 0) or keeps ω otherwise
             let nonzero = _mm512_cmp_pd_mask::<_CMP_NEQ_UQ>(om, zero) & lanes;
             let breaks = nonzero & broken;
