@@ -219,6 +219,12 @@ struct OverlapFem {
     /// acceleration the next step starts from.
     force: Vec<f64>,
     before: Vec<f64>,
+    /// The force [x, y] on the interface's held dofs (N), held over the window, and the one
+    /// the step before took: a support holds those nodes, so it takes that force, and the
+    /// reaction's impulse is the support's like any other (the force is received all the
+    /// same, so the momentum handed across the interface is all accounted for).
+    held: [f64; 2],
+    held_before: [f64; 2],
 }
 
 /// A uniform line load on an edge.
@@ -685,6 +691,13 @@ impl Fem2d {
                     self.s.interface_work += fm * (self.state.u[i] - self.u0[i]);
                     *b = *c;
                 }
+                // what the supports take of it (at rest: no work)
+                for c in 0..2 {
+                    let hm = 0.5 * (o.held_before[c] + o.held[c]);
+                    self.s.interface_impulse[c] += hm * dt;
+                    self.s.external_impulse[c] -= hm * dt;
+                }
+                o.held_before = o.held;
             }
             let r1 = self.reactions(&self.state.u);
             // Trapezoidal work and impulse of the loads over the step; supports add their
@@ -882,6 +895,8 @@ impl Fem2d {
             dofs,
             force: vec![0.0; self.sys.len()],
             before: vec![0.0; self.sys.len()],
+            held: [0.0; 2],
+            held_before: [0.0; 2],
         });
         self.send_overlap_motion(out);
         Ok(())
@@ -901,10 +916,12 @@ impl Fem2d {
             ));
         }
         o.force.fill(0.0);
+        o.held = [0.0; 2];
         for (k, d) in o.dofs.iter().enumerate() {
             for c in 0..2 {
-                if let Some(i) = d[c] {
-                    o.force[i] += f[3 * k + c];
+                match d[c] {
+                    Some(i) => o.force[i] += f[3 * k + c],
+                    None => o.held[c] += f[3 * k + c],
                 }
             }
         }
@@ -1273,10 +1290,11 @@ impl Solver for Fem2d {
         s.u = self.state.u.clone();
         s.v = self.state.v.clone();
         s.a = self.state.a.clone();
+        // the free dofs' forces, then the held dofs' [x, y]
         s.overlap_before = self
             .overlap
             .as_ref()
-            .map(|o| o.before.clone())
+            .map(|o| o.before.iter().chain(&o.held_before).copied().collect())
             .unwrap_or_default();
         protocol::checkpoint::encode_state(&s)
     }
@@ -1289,8 +1307,10 @@ impl Solver for Fem2d {
         check_len("v", s.v.len(), n)?;
         check_len("a", s.a.len(), n)?;
         if let Some(o) = self.overlap.as_mut() {
-            check_len("overlap force", s.overlap_before.len(), o.before.len())?;
-            o.before.copy_from_slice(&s.overlap_before);
+            let n = o.before.len();
+            check_len("overlap force", s.overlap_before.len(), n + 2)?;
+            o.before.copy_from_slice(&s.overlap_before[..n]);
+            o.held_before = [s.overlap_before[n], s.overlap_before[n + 1]];
         }
         self.state.u.copy_from_slice(&s.u);
         self.state.v.copy_from_slice(&s.v);

@@ -2,7 +2,7 @@
 //! impulse of its load and support; kinetic plus strain energy equals the work of the load),
 //! a checkpoint restarts bit-identically, and its parameters are refused with their keys.
 
-use protocol::{Inbox, Outbox, Solver, StepReport, Window};
+use protocol::{Binding, CouplingKind, Inbox, Outbox, Role, Solver, StepReport, Window};
 use solid_node::fem2d::Fem2d;
 
 /// The seed 003 §5.1 bar, 20 × 2, with a step load and `extra` keys.
@@ -213,4 +213,84 @@ fn an_overlap_region_without_its_coupling_is_refused() {
     // the region's elements are out: the bar of 20 × 2 keeps 16 × 2 of them
     let active = m.model().active.iter().filter(|a| **a).count();
     assert_eq!(active, 32);
+}
+
+/// The finer model's force on an overlap interface node that a support holds goes to the
+/// support: the mesh reports as interface impulse all the force it received, the held nodes'
+/// included (so the impulse handed across matches what the finer model sent), the support's
+/// reaction takes that share, and the mesh's momentum still balances. Here the top edge is
+/// held in y, and the ring of a region spanning the bar's height has nodes on it.
+#[test]
+fn an_overlap_force_on_a_held_node_goes_to_its_support() {
+    let text = "length = 10.0\nheight = 1.0\nnx = 20\nny = 2\nyoung = 72e9\npoisson = 0.3\n\
+                density = 2700.0\nfixed = [\"left\", \"top.y\"]\n\
+                interfaces = { p = { overlap = [[4.0, 0.0], [6.0, 1.0]] } }\n";
+    let binding = [Binding {
+        coupling: "c".into(),
+        kind: CouplingKind::Overlap,
+        interface: "p".into(),
+        role: Role::Driver,
+        peer: "patch".into(),
+        peer_interface: "layer".into(),
+        sends: vec![],
+        receives: vec![],
+        input_lag: 1,
+    }];
+    // The same forces on every node, with (`all`) and without the y force on the held ones:
+    // the x impulse fixes the time the force acted for, the y impulse must be the force
+    // received times it.
+    let run_with = |all: bool| -> (StepReport, [f64; 2]) {
+        let table = match text.parse::<toml::Table>() {
+            Ok(t) => t,
+            Err(e) => panic!("{e}"),
+        };
+        let mut m = match Fem2d::from_params(&table) {
+            Ok(m) => m,
+            Err(e) => panic!("{e}"),
+        };
+        let mut out = Outbox::new();
+        m.setup(&binding, &Inbox::new(), &mut out).expect("set-up");
+        let nodes = m.interface("p").expect("interface").positions;
+        let held = nodes.iter().filter(|p| p[1] == 1.0).count();
+        assert_eq!(held, 4, "ring nodes on the held top edge");
+        let mut inbox = Inbox::new();
+        let f = inbox.put("p", "force", 3, nodes.len());
+        let mut sum = [0.0; 2];
+        for (k, p) in nodes.iter().enumerate() {
+            f[3 * k] = 0.5 + 0.1 * k as f64;
+            f[3 * k + 1] = if all || p[1] != 1.0 {
+                -1.0 - 0.2 * k as f64
+            } else {
+                0.0
+            };
+            sum[0] += f[3 * k];
+            sum[1] += f[3 * k + 1];
+        }
+        let mut rep = None;
+        for k in 0..3 {
+            rep = Some(
+                m.advance(&window(k, 1e-5), &inbox, &mut out)
+                    .expect("advance"),
+            );
+        }
+        (rep.expect("a report"), sum)
+    };
+    for all in [false, true] {
+        let (rep, sum) = run_with(all);
+        let tau = rep.interface_impulse[0] / sum[0];
+        assert!(tau > 2e-5 && tau <= 3e-5, "{tau}");
+        let iy = rep.interface_impulse[1];
+        assert!(
+            (iy - sum[1] * tau).abs() <= 1e-12 * iy.abs(),
+            "held forces {all}: y impulse {iy:e} against {:e} received",
+            sum[1] * tau
+        );
+        for c in 0..2 {
+            let r = rep.momentum[c] - rep.external_impulse[c] - rep.interface_impulse[c];
+            assert!(
+                r.abs() <= 1e-12 * rep.momentum_gross.max(iy.abs()),
+                "momentum {c}: {r:e}"
+            );
+        }
+    }
 }
