@@ -20,11 +20,15 @@ const MODELS: [&str; 3] = ["pd-bond", "pd-correspondence", "pd-rk-ba"];
 const RIGHT: &str = r#"{ shape = "box", min = [0.0075, -1.0, -1.0], max = [1.0, 1.0, 1.0] }"#;
 const ALL: &str = r#"{ shape = "box", min = [-1.0, -1.0, -1.0], max = [1.0, 1.0, 1.0] }"#;
 
-/// A 12 × 6 mm plate (24 × 12 particles, δ = 3.03 Δx: pd-bond's bonds of length exactly δ
-/// would carry no weight, and its damage index counts those as broken) whose left third (x < 4 mm) moves left and right
+/// A 12 × 6 mm plate (24 × 12 particles, δ = 3.03 Δx) whose left third (x < 4 mm) moves left and right
 /// third (x > 8 mm) right at 20 m/s; `damage` a critical stretch of 1e-3 or none; `zones` the
 /// `no_fail` list; `extra` more keys.
 fn table(damage: bool, zones: &[&str], extra: &str) -> toml::Table {
+    table_at(1.515e-3, damage, zones, extra)
+}
+
+/// [`table`] with horizon `delta`.
+fn table_at(delta: f64, damage: bool, zones: &[&str], extra: &str) -> toml::Table {
     let damage = if damage {
         r#"damage = { kind = "critical_stretch", critical_stretch = 1e-3 }"#
     } else {
@@ -37,7 +41,7 @@ no_fail = [{}]
 {damage}
 {extra}
 "#,
-        glass_strip("plane_strain", 5e-4, 1.515e-3, 0.25),
+        glass_strip("plane_strain", 5e-4, delta, 0.25),
         zones.join(", ")
     ))
     .expect("toml")
@@ -134,4 +138,28 @@ fn bad_no_fail_zones_are_refused_with_the_key() {
     // refused on the device before any adapter is looked for
     let k = key("pd-bond", &table(true, &[RIGHT], r#"device = "gpu""#));
     assert!(k.starts_with("device:") && k.contains("no_fail"), "{k}");
+}
+
+/// pd-bond's bonds exactly a horizon long (δ = 3 Δx) have influence 1 − |ξ|/δ = 0: they carry
+/// no force from the start, and are not damage. The torn plate without a damage law reads
+/// damage 0 everywhere, and with one the same as at δ = 3.03 Δx in kind: both tears break.
+#[test]
+fn a_bond_a_horizon_long_is_not_damage() {
+    let mut s = run("pd-bond", &table_at(1.5e-3, false, &[], ""), Simd::detect());
+    let d = s.body.damage();
+    let n = d.iter().filter(|&&x| x > 0.0).count();
+    assert_eq!(n, 0, "{n} particles read damaged without a damage law");
+    let mut s = run("pd-bond", &table_at(1.5e-3, true, &[], ""), Simd::detect());
+    let d = s.body.damage();
+    let right = (0..d.len())
+        .filter(|&i| s.body.x0[i][0] >= 0.0075 && d[i] > 0.0)
+        .count();
+    let left = (0..d.len())
+        .filter(|&i| s.body.x0[i][0] < 0.0075 && d[i] > 0.0)
+        .count();
+    assert!(right >= 12 && left >= 12, "{right} and {left} damaged");
+    assert!(
+        left + right < d.len(),
+        "every particle damaged: {left} + {right}"
+    );
 }

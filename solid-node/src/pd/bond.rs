@@ -652,7 +652,25 @@ impl PdModel for BondModel {
         dt
     }
 
+    /// A bond whose coefficient is 0 is broken, unless it never had weight: a bond exactly a
+    /// horizon long has influence ω = 1 − |ξ|/δ = 0, carries no force from the start, and is
+    /// not damage (it stays intact, so an undamaged body reads damage 0 whatever δ/Δx).
     fn sync_bonds(&self, bonds: &mut Bonds) {
+        let h = self.horizon;
+        for ((w, &c), &il) in bonds.intact.iter_mut().zip(&self.coef).zip(&bonds.inv_len) {
+            if c == 0.0 {
+                *w = if influence(1.0 / il, h) > 0.0 {
+                    0.0
+                } else {
+                    1.0
+                };
+            }
+        }
+    }
+
+    /// The bonds that carry force tie their particles: a weightless one (see `sync_bonds`)
+    /// ties nothing.
+    fn fragment_links(&self, _pos: &[[f64; 3]], bonds: &mut Bonds) {
         for (w, &c) in bonds.intact.iter_mut().zip(&self.coef) {
             if c == 0.0 {
                 *w = 0.0;
