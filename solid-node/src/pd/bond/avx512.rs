@@ -44,6 +44,7 @@ fn row_force(
     let zero = _mm512_setzero_pd();
     let neg_zero = _mm512_set1_pd(-0.0);
     let crit = _mm512_set1_pd(critical);
+    let zones = !no_fail.is_empty();
     let len = nbr.len().min(inv_len.len()).min(coef.len());
     // lane l sums bonds l, l + 8, l + 16, … of the row ([`super::lane_tree`])
     let (mut ax, mut ay, mut az) = (zero, zero, zero);
@@ -89,7 +90,11 @@ fn row_force(
         let qil = _mm512_mul_pd(q, il);
         let broken = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(_mm512_mul_pd(qil, il), crit) & lanes;
         // less what a no-fail zone keeps (looked at only when some bond breaks)
-        let broken = spare_mask(no_fail, i, nb, broken);
+        let broken = if zones && broken != 0 {
+            spare_mask(no_fail, i, nb, broken)
+        } else {
+            broken
+        };
         let ly = _mm512_sqrt_pd(q);
         let t = _mm512_mul_pd(_mm512_mul_pd(num, il), il);
         let m = _mm512_div_pd(_mm512_mul_pd(cb, t), _mm512_add_pd(qil, ly));

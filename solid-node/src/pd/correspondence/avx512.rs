@@ -146,6 +146,7 @@ pub fn force_block(
     let zero = _mm512_setzero_pd();
     let neg_zero = _mm512_set1_pd(-0.0);
     let (lim, inv_h) = (_mm512_set1_pd(lim), _mm512_set1_pd(inv_h));
+    let zones = !no_fail.is_empty();
     for (pi, fi) in f.iter_mut().enumerate() {
         let i = lo + pi;
         let me = p.kin[i].0;
@@ -199,10 +200,14 @@ pub fn force_block(
             let broken =
                 _mm512_cmp_pd_mask::<_CMP_GT_OQ>(_mm512_mul_pd(_mm512_mul_pd(q, il), il), lim)
                     & lanes;
-            // less what a no-fail zone keeps (looked at only when some bond breaks)
-            let broken = spare_mask(no_fail, i, &nb[start..start + n], broken);
             // the scalar loop skips ω = 0, and breaks (ω = 0) or keeps ω otherwise
             let nonzero = _mm512_cmp_pd_mask::<_CMP_NEQ_UQ>(om, zero) & lanes;
+            // less what a no-fail zone keeps (looked at only when an intact bond breaks)
+            let broken = if zones && nonzero & broken != 0 {
+                spare_mask(no_fail, i, &nb[start..start + n], broken)
+            } else {
+                broken
+            };
             let breaks = nonzero & broken;
             broke += breaks.count_ones();
             if breaks != 0 {
