@@ -550,7 +550,9 @@ impl BondModel {
                 let r0 = offsets[i];
                 for (m, w) in intact.iter_mut().enumerate() {
                     let b = r0 + m;
-                    if !(coef[b] == 0.0 && *w != 0.0) {
+                    // (a weightless bond, a horizon long, never had force to lose: see
+                    // `sync_bonds`)
+                    if !(coef[b] == 0.0 && *w != 0.0) || influence(1.0 / inv_len[b], h) == 0.0 {
                         continue;
                     }
                     let j = nbr[b] as usize;

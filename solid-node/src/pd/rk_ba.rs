@@ -809,23 +809,27 @@ impl<D: DamageModel, L: BondLaw> PdModel for RkBa<D, L> {
                 if om0 != 0.0 {
                     h.e_prev = mat.stored_energy(&h.state);
                 }
-                // (A no-fail zone keeps its bonds: they carry no force while either end has
-                // no gradient, and count again once it has one.)
                 let j = j as usize;
+                let pj = &point[j];
                 let kept = spared(no_fail, i, j);
+                if kept && om0 != 0.0 && !(pi.active && pj.active) {
+                    // A bond a no-fail zone keeps, with an end that has no gradient: frozen
+                    // (no force, state and influence unchanged, so no energy is booked as
+                    // released) until both ends have one again. Both rows holding it see
+                    // the same, so momentum stays exact.
+                    h.om = om0;
+                    continue;
+                }
                 if om0 == 0.0 || !pi.active {
-                    if !pi.active && !kept {
+                    if !pi.active {
                         h.wd = 0.0;
                     }
                     h.om = 0.0;
                     changed |= om0 != 0.0;
                     continue;
                 }
-                let pj = &point[j];
                 if !pj.active {
-                    if !kept {
-                        h.wd = 0.0;
-                    }
+                    h.wd = 0.0;
                     h.om = 0.0;
                     changed = true;
                     continue;
